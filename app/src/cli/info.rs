@@ -1,0 +1,61 @@
+//! `palpa info FILE`: what a meta-model file holds, without loading its payload.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+use palpa_core::file;
+use serde_json::json;
+
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The meta-model file.
+    file: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
+    let h = file::read_header(&args.file)
+        .with_context(|| format!("reading the header of {}", args.file.display()))?;
+    let m = &h.meta;
+    let axes: Vec<_> = m
+        .axes
+        .iter()
+        .map(|a| {
+            json!({
+                "name": a.name,
+                "unit": a.unit,
+                "discretization": a.discretization.kind_name(),
+                "nodes": a.discretization.node_count(),
+            })
+        })
+        .collect();
+    let summary = json!({
+        "file": args.file,
+        "kind": m.kind,
+        "precision": h.precision.name(),
+        "rows": h.rows,
+        "modes": h.modes,
+        "field": { "name": m.field.name, "unit": m.field.unit, "components": m.field.components },
+        "axes": axes,
+        "payload_bytes": h.payload_len,
+        "provenance": {
+            "solver": m.provenance.solver,
+            "mesh": m.provenance.mesh,
+            "tolerance": m.provenance.tolerance,
+            "residual_per_mode": m.provenance.residual_per_mode,
+            "created_unix_s": m.provenance.created_unix_s,
+            "palpa_version": m.provenance.palpa_version,
+            "input_hash": m.provenance.input_hash,
+        },
+        "tradeoff_rows": m.tradeoff.len(),
+    });
+    if args.json {
+        println!("{summary}");
+    } else {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    }
+    Ok(())
+}

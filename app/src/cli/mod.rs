@@ -1,0 +1,68 @@
+//! The `palpa` command line.
+
+mod bench;
+mod info;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Debug, Parser)]
+#[command(name = "palpa", version, about = "Real-time PGD meta-models: liver palpation and gene networks")]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Describe a meta-model file: axes, rows, modes, provenance, tradeoff table.
+    Info(info::InfoArgs),
+    /// Benchmarks that print ratios measured in one run.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
+}
+
+/// Parses `std::env::args` and runs the command; errors are printed with their causes.
+pub fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Some(Command::Info(args)) => info::run(&args),
+        Some(Command::Bench(cmd)) => bench::run(&cmd),
+        None => default_job(),
+    }
+}
+
+/// With no subcommand: the interactive app once it lands; until then, a summary of
+/// what the shipped assets hold and what to run.
+fn default_job() -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "palpa {} — real-time PGD meta-models", env!("CARGO_PKG_VERSION"))?;
+    writeln!(
+        out,
+        "The interactive palpation app is not built yet; these commands are:\n\
+         \n  palpa info FILE            describe a meta-model file\
+         \n  palpa bench eval [--json]  on-line evaluation speed against memory bandwidth\
+         \n\nRunning the evaluator benchmark on a small sweep:\n"
+    )?;
+    drop(out);
+    bench::run(&bench::BenchCommand::quick())
+}

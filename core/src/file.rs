@@ -1,0 +1,450 @@
+//! The meta-model file (`.palpa`).
+//!
+//! Layout (all integers little-endian):
+//!
+//! ```text
+//! offset  size  field
+//!      0     8  magic  b"PALPAMM\x1a"   (\x1a catches text-mode mangling, as in PNG)
+//!      8     4  format version (u32)    — this build reads versions ≤ FORMAT_VERSION
+//!     12     4  reserved, 0
+//!     16     8  header length H (u64)
+//!     24     8  xxh3-64 of the header bytes
+//!     32     H  header: bincode 2 (standard config) of [`Header`]
+//!      …        zero padding to a multiple of 64
+//!      P        payload: X (rows × modes), then each axis's values (nodes × modes),
+//!               each block row-major, little-endian f32 or f64, padded to 64 bytes
+//! P + len       end of file (trailing bytes are an error)
+//! ```
+//!
+//! The header says what the file is (field rows and their meaning, axes with names,
+//! units and discretizations, provenance, the tradeoff table), the payload length and
+//! its xxh3-64 checksum. Loading is a bounded header decode followed by one copy per
+//! block straight into aligned vectors; no parse of the bulk data.
+//!
+//! The loader never trusts a length before checking it against the file size, decodes
+//! the header with a byte limit, and returns a [`FileError`] naming the file and the
+//! problem for each kind of bad input: not a palpa file, a newer version, truncated,
+//! corrupted header, corrupted payload, inconsistent header, trailing bytes, a
+//! precision other than the one asked for.
+
+use std::fs::File;
+use std::io::{self, Read, Write};
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+use xxhash_rust::xxh3::{Xxh3, xxh3_64};
+
+use crate::fsutil::atomic_write;
+use crate::scalar::{Precision, Scalar};
+use crate::separated::{ModelError, ModelMeta, SeparatedModel};
+
+pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
+pub const FORMAT_VERSION: u32 = 1;
+const PREAMBLE: usize = 32;
+const ALIGN: u64 = 64;
+/// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
+/// anything larger is corrupt, and the cap bounds what a crafted header can allocate.
+pub const MAX_HEADER_BYTES: u64 = 64 << 20;
+
+/// The file header (bincode-encoded after the preamble).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    pub meta: ModelMeta,
+    pub precision: Precision,
+    pub rows: u64,
+    pub modes: u64,
+    pub payload_len: u64,
+    pub payload_xxh3: u64,
+}
+
+/// Why a meta-model file could not be read or written.
+#[derive(Debug, Error)]
+pub enum FileError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: io::Error },
+    #[error("{path}: not a palpa meta-model file (expected magic bytes {expected:?}, found {found:?})")]
+    Foreign {
+        path: PathBuf,
+        expected: [u8; 8],
+        found: Vec<u8>,
+    },
+    #[error("{path}: format version {found} is newer than this palpa reads (≤ {supported}); update palpa")]
+    NewerVersion {
+        path: PathBuf,
+        found: u32,
+        supported: u32,
+    },
+    #[error("{path}: truncated: {what} needs {needed} bytes, the file has {actual}")]
+    Truncated {
+        path: PathBuf,
+        what: &'static str,
+        needed: u64,
+        actual: u64,
+    },
+    #[error("{path}: header corrupted: {reason}")]
+    HeaderCorrupt { path: PathBuf, reason: String },
+    #[error("{path}: payload corrupted: checksum {found:#018x}, the header expects {expected:#018x}")]
+    PayloadCorrupt {
+        path: PathBuf,
+        expected: u64,
+        found: u64,
+    },
+    #[error("{path}: inconsistent header: {reason}")]
+    Inconsistent { path: PathBuf, reason: String },
+    #[error("{path}: {extra} unexpected bytes after the payload")]
+    TrailingBytes { path: PathBuf, extra: u64 },
+    #[error("{path}: stored as {found}, but {expected} was asked for (use load_any)")]
+    WrongPrecision {
+        path: PathBuf,
+        expected: Precision,
+        found: Precision,
+    },
+    #[error("{path}: invalid model: {source}")]
+    Model { path: PathBuf, source: ModelError },
+}
+
+/// A model of either precision, as found in a file.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AnyModel {
+    F32(SeparatedModel<f32>),
+    F64(SeparatedModel<f64>),
+}
+
+impl AnyModel {
+    pub fn precision(&self) -> Precision {
+        match self {
+            AnyModel::F32(_) => Precision::F32,
+            AnyModel::F64(_) => Precision::F64,
+        }
+    }
+    pub fn meta(&self) -> ModelMeta {
+        match self {
+            AnyModel::F32(m) => m.meta(),
+            AnyModel::F64(m) => m.meta(),
+        }
+    }
+    /// As f64, converting if stored as f32.
+    pub fn into_f64(self) -> SeparatedModel<f64> {
+        match self {
+            AnyModel::F32(m) => m.convert(),
+            AnyModel::F64(m) => m,
+        }
+    }
+}
+
+fn padded(len: u64) -> u64 {
+    len.div_ceil(ALIGN) * ALIGN
+}
+
+fn bincode_config() -> impl bincode::config::Config {
+    bincode::config::standard()
+}
+
+/// Byte lengths of the payload blocks (X first, then the axes), unpadded.
+/// `None` if a product overflows (only possible for a crafted header).
+fn block_lens(h: &Header) -> Option<Vec<u64>> {
+    let bytes = h.precision.bytes() as u64;
+    let mut out = vec![h.rows.checked_mul(h.modes)?.checked_mul(bytes)?];
+    for a in &h.meta.axes {
+        let nodes = a.discretization.node_count() as u64;
+        out.push(nodes.checked_mul(h.modes)?.checked_mul(bytes)?);
+    }
+    Some(out)
+}
+
+fn payload_len(blocks: &[u64]) -> Option<u64> {
+    blocks
+        .iter()
+        .try_fold(0u64, |acc, &b| acc.checked_add(b.checked_add(ALIGN - 1)? / ALIGN * ALIGN))
+}
+
+const ZEROS: [u8; ALIGN as usize] = [0; ALIGN as usize];
+
+/// Writes `model` to `path` atomically (temp file, fsync, rename).
+pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
+    let io_err = |source| FileError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let (x, axes) = model.arrays();
+    let blocks: Vec<&[u8]> = std::iter::once(x)
+        .chain(axes)
+        .map(bytemuck::cast_slice::<T, u8>)
+        .collect();
+    // Little-endian on disk; every supported target is little-endian, and a big-endian
+    // host would need a byte swap here (see Scalar::from_le for the read side).
+    const _: () = assert!(cfg!(target_endian = "little"), "writer assumes little-endian");
+    let mut hasher = Xxh3::new();
+    let mut payload_len = 0u64;
+    for b in &blocks {
+        let pad = (padded(b.len() as u64) - b.len() as u64) as usize;
+        hasher.update(b);
+        hasher.update(&ZEROS[..pad]);
+        payload_len += padded(b.len() as u64);
+    }
+    let header = Header {
+        meta: model.meta(),
+        precision: T::PRECISION,
+        rows: model.rows() as u64,
+        modes: model.modes() as u64,
+        payload_len,
+        payload_xxh3: hasher.digest(),
+    };
+    let header_bytes = bincode::serde::encode_to_vec(&header, bincode_config()).map_err(|e| {
+        FileError::HeaderCorrupt {
+            path: path.to_path_buf(),
+            reason: format!("cannot encode: {e}"),
+        }
+    })?;
+    let header_end = PREAMBLE as u64 + header_bytes.len() as u64;
+    atomic_write(path, |w| {
+        w.write_all(&MAGIC)?;
+        w.write_all(&FORMAT_VERSION.to_le_bytes())?;
+        w.write_all(&0u32.to_le_bytes())?;
+        w.write_all(&(header_bytes.len() as u64).to_le_bytes())?;
+        w.write_all(&xxh3_64(&header_bytes).to_le_bytes())?;
+        w.write_all(&header_bytes)?;
+        w.write_all(&ZEROS[..(padded(header_end) - header_end) as usize])?;
+        for b in &blocks {
+            w.write_all(b)?;
+            w.write_all(&ZEROS[..(padded(b.len() as u64) - b.len() as u64) as usize])?;
+        }
+        Ok(())
+    })
+    .map_err(io_err)
+}
+
+/// Reads and checks the preamble and header of `path` (not the payload).
+pub fn read_header(path: &Path) -> Result<Header, FileError> {
+    let mut f = open(path)?;
+    Ok(read_header_from(path, &mut f)?.header)
+}
+
+struct Opened {
+    file: File,
+    len: u64,
+}
+
+fn open(path: &Path) -> Result<Opened, FileError> {
+    let io_err = |source| FileError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = File::open(path).map_err(io_err)?;
+    let len = file.metadata().map_err(io_err)?.len();
+    Ok(Opened { file, len })
+}
+
+/// A decoded header and where the header bytes end and the payload starts.
+struct Located {
+    header: Header,
+    header_end: u64,
+    payload_at: u64,
+}
+
+fn read_header_from(path: &Path, f: &mut Opened) -> Result<Located, FileError> {
+    let p = || path.to_path_buf();
+    let io_err = |source| FileError::Io { path: p(), source };
+    let mut pre = [0u8; PREAMBLE];
+    let got = read_up_to(&mut f.file, &mut pre).map_err(io_err)?;
+    if got < MAGIC.len() || pre[..8] != MAGIC {
+        return Err(FileError::Foreign {
+            path: p(),
+            expected: MAGIC,
+            found: pre[..got.min(8)].to_vec(),
+        });
+    }
+    if got < PREAMBLE {
+        return Err(FileError::Truncated {
+            path: p(),
+            what: "the preamble",
+            needed: PREAMBLE as u64,
+            actual: f.len,
+        });
+    }
+    let le_u32 = |b: &[u8]| u32::from_le_bytes(b.try_into().expect("4 bytes"));
+    let le_u64 = |b: &[u8]| u64::from_le_bytes(b.try_into().expect("8 bytes"));
+    let version = le_u32(&pre[8..12]);
+    if version > FORMAT_VERSION {
+        return Err(FileError::NewerVersion {
+            path: p(),
+            found: version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    if version == 0 {
+        return Err(FileError::HeaderCorrupt {
+            path: p(),
+            reason: "format version 0 does not exist".into(),
+        });
+    }
+    let header_len = le_u64(&pre[16..24]);
+    let header_sum = le_u64(&pre[24..32]);
+    if header_len > MAX_HEADER_BYTES {
+        return Err(FileError::HeaderCorrupt {
+            path: p(),
+            reason: format!("header length {header_len} exceeds the {MAX_HEADER_BYTES}-byte maximum"),
+        });
+    }
+    let header_end = (PREAMBLE as u64).checked_add(header_len);
+    match header_end {
+        Some(end) if end <= f.len => {}
+        _ => {
+            return Err(FileError::Truncated {
+                path: p(),
+                what: "the header",
+                needed: header_end.unwrap_or(u64::MAX),
+                actual: f.len,
+            });
+        }
+    }
+    // header_len ≤ file length, so this allocation is bounded by the file's size.
+    let mut hbytes = vec![0u8; header_len as usize];
+    f.file.read_exact(&mut hbytes).map_err(io_err)?;
+    let found = xxh3_64(&hbytes);
+    if found != header_sum {
+        return Err(FileError::HeaderCorrupt {
+            path: p(),
+            reason: format!("checksum {found:#018x}, the preamble says {header_sum:#018x}"),
+        });
+    }
+    // The byte limit bounds every length-prefixed allocation inside the decoder.
+    let cfg = bincode::config::standard().with_limit::<{ MAX_HEADER_BYTES as usize }>();
+    let (header, used): (Header, usize) = bincode::serde::decode_from_slice(&hbytes, cfg)
+        .map_err(|e| FileError::HeaderCorrupt {
+            path: p(),
+            reason: format!("cannot decode: {e}"),
+        })?;
+    if used != hbytes.len() {
+        return Err(FileError::HeaderCorrupt {
+            path: p(),
+            reason: format!("{} bytes decoded of {}", used, hbytes.len()),
+        });
+    }
+    let header_end = PREAMBLE as u64 + header_len;
+    Ok(Located {
+        header,
+        header_end,
+        payload_at: padded(header_end),
+    })
+}
+
+/// Reads as many bytes as available up to `buf.len()`.
+fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+/// Loads a model stored with precision `T`.
+pub fn load<T: Scalar>(path: &Path) -> Result<SeparatedModel<T>, FileError> {
+    let mut f = open(path)?;
+    let located = read_header_from(path, &mut f)?;
+    if located.header.precision != T::PRECISION {
+        return Err(FileError::WrongPrecision {
+            path: path.to_path_buf(),
+            expected: T::PRECISION,
+            found: located.header.precision,
+        });
+    }
+    load_payload(path, &mut f, located)
+}
+
+/// Loads a model of whichever precision the file holds.
+pub fn load_any(path: &Path) -> Result<AnyModel, FileError> {
+    let mut f = open(path)?;
+    let located = read_header_from(path, &mut f)?;
+    Ok(match located.header.precision {
+        Precision::F32 => AnyModel::F32(load_payload(path, &mut f, located)?),
+        Precision::F64 => AnyModel::F64(load_payload(path, &mut f, located)?),
+    })
+}
+
+fn load_payload<T: Scalar>(
+    path: &Path,
+    f: &mut Opened,
+    located: Located,
+) -> Result<SeparatedModel<T>, FileError> {
+    let Located {
+        header,
+        header_end,
+        payload_at,
+    } = located;
+    let p = || path.to_path_buf();
+    let inconsistent = |reason: String| FileError::Inconsistent { path: p(), reason };
+    let blocks = block_lens(&header)
+        .ok_or_else(|| inconsistent("array sizes overflow 64 bits".into()))?;
+    let expected_len =
+        payload_len(&blocks).ok_or_else(|| inconsistent("payload size overflows".into()))?;
+    if expected_len != header.payload_len {
+        return Err(inconsistent(format!(
+            "the arrays need {expected_len} payload bytes, the header records {}",
+            header.payload_len
+        )));
+    }
+    let end = payload_at
+        .checked_add(expected_len)
+        .ok_or_else(|| inconsistent("payload end overflows".into()))?;
+    if end > f.len {
+        return Err(FileError::Truncated {
+            path: p(),
+            what: "the payload",
+            needed: end,
+            actual: f.len,
+        });
+    }
+    if end < f.len {
+        return Err(FileError::TrailingBytes {
+            path: p(),
+            extra: f.len - end,
+        });
+    }
+    // Skip the header padding (checked above: payload_at ≤ end ≤ file length).
+    let io_err = |source| FileError::Io { path: p(), source };
+    let pad_len = payload_at - header_end;
+    let mut pad = [0u8; ALIGN as usize];
+    f.file
+        .read_exact(&mut pad[..pad_len as usize])
+        .map_err(io_err)?;
+
+    // Every block length was checked against the file size above, so these
+    // allocations are bounded by the file's size.
+    let mut hasher = Xxh3::new();
+    let mut arrays: Vec<Vec<T>> = Vec::with_capacity(blocks.len());
+    let elem = size_of::<T>() as u64;
+    for &b in &blocks {
+        let mut v = vec![T::from_f64(0.0); (b / elem) as usize];
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut v);
+        f.file.read_exact(bytes).map_err(io_err)?;
+        hasher.update(bytes);
+        let padn = (padded(b) - b) as usize;
+        f.file.read_exact(&mut pad[..padn]).map_err(io_err)?;
+        hasher.update(&pad[..padn]);
+        for x in &mut v {
+            *x = x.from_le();
+        }
+        arrays.push(v);
+    }
+    let found = hasher.digest();
+    if found != header.payload_xxh3 {
+        return Err(FileError::PayloadCorrupt {
+            path: p(),
+            expected: header.payload_xxh3,
+            found,
+        });
+    }
+    let rows = usize::try_from(header.rows).map_err(|_| inconsistent("rows overflow".into()))?;
+    let modes = usize::try_from(header.modes).map_err(|_| inconsistent("modes overflow".into()))?;
+    let mut arrays = arrays.into_iter();
+    let x = arrays.next().expect("block_lens always yields X first");
+    SeparatedModel::new(header.meta, rows, modes, x, arrays.collect())
+        .map_err(|source| FileError::Model { path: p(), source })
+}

@@ -1,0 +1,34 @@
+//! palpa-core: the numerical heart of palpa, with no graphics and no windowing.
+//!
+//! A PGD meta-model is a separated representation
+//!
+//! ```text
+//! u(x, p_1..p_m) ≈ Σ_{k=1..N} X_k(x) · Π_j P_{j,k}(p_j)
+//! ```
+//!
+//! computed once off-line and *evaluated* (never solved) on-line. This crate holds
+//! - [`separated`]: the representation, particularization (parameters → coefficients)
+//!   and reconstruction (coefficients → field rows), allocation-free on the hot path;
+//! - [`axis`]: the discretization of one parameter axis (1-D grid, triangulated
+//!   surface, discrete index) and its interpolation stencils;
+//! - [`file`]: the meta-model file (magic, version, checksummed header and payload,
+//!   atomic writes, a loader that never trusts a length it has not checked);
+//! - [`kernels`]: the streaming dot products that bound on-line cost by memory bandwidth;
+//! - [`synthetic`]: reproducible random models for benchmarks and tests.
+
+pub mod axis;
+pub mod file;
+pub mod fsutil;
+pub mod kernels;
+pub mod rng;
+pub mod scalar;
+pub mod separated;
+pub mod synthetic;
+
+pub use axis::{AxisError, Discretization, ParamValue, Stencil};
+pub use file::{AnyModel, FileError};
+pub use scalar::{Precision, Scalar};
+pub use separated::{
+    Axis, AxisInfo, ClampReport, EvalError, FieldInfo, ModelError, ModelMeta, Provenance,
+    SeparatedModel, TradeoffRow,
+};

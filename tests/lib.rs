@@ -1,0 +1,1 @@
+//! Shared helpers of palpa's workspace-level integration tests.
