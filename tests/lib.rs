@@ -1,1 +1,59 @@
 //! Shared helpers of palpa's workspace-level integration tests.
+
+use palpa_core::axis::Discretization;
+use palpa_core::rng::Rng;
+use palpa_core::synthetic::square_surface;
+use palpa_core::{AxisInfo, FieldInfo, ModelMeta, Provenance, Scalar, SeparatedModel};
+
+/// A small model with one axis of each kind: a probe surface (3×3 vertices), a force
+/// grid (non-uniform, 4 nodes) and a direction axis (x, y, z). Entries are seeded
+/// random numbers.
+pub fn small_model<T: Scalar>(nodes: usize, modes: usize, seed: u64) -> SeparatedModel<T> {
+    let mut rng = Rng::seed(seed);
+    let axes = vec![
+        AxisInfo {
+            name: "probe position".into(),
+            unit: "mm".into(),
+            discretization: square_surface(3, 10.0),
+        },
+        AxisInfo {
+            name: "force".into(),
+            unit: "N".into(),
+            discretization: Discretization::Grid {
+                nodes: vec![0.0, 1.0, 2.5, 6.0],
+            },
+        },
+        AxisInfo {
+            name: "direction".into(),
+            unit: "1".into(),
+            discretization: Discretization::Discrete {
+                labels: vec!["x".into(), "y".into(), "z".into()],
+            },
+        },
+    ];
+    let rows = 3 * nodes;
+    let x = (0..rows * modes)
+        .map(|_| T::from_f64(rng.range(-1.0, 1.0)))
+        .collect();
+    let values = axes
+        .iter()
+        .map(|a| {
+            (0..a.discretization.node_count() * modes)
+                .map(|_| T::from_f64(rng.range(-1.0, 1.0)))
+                .collect()
+        })
+        .collect();
+    let meta = ModelMeta {
+        kind: "test".into(),
+        field: FieldInfo {
+            name: "displacement".into(),
+            unit: "mm".into(),
+            components: 3,
+            node_ids: Vec::new(),
+        },
+        axes,
+        provenance: Provenance::now("test", "none", 1e-6, (0..modes).map(|k| 0.5f64.powi(k as i32)).collect()),
+        tradeoff: Vec::new(),
+    };
+    SeparatedModel::new(meta, rows, modes, x, values).expect("consistent shapes")
+}

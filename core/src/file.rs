@@ -279,6 +279,12 @@ fn read_header_from(path: &Path, f: &mut Opened) -> Result<Located, FileError> {
             reason: "format version 0 does not exist".into(),
         });
     }
+    if pre[12..16] != [0; 4] {
+        return Err(FileError::HeaderCorrupt {
+            path: p(),
+            reason: format!("reserved bytes 12..16 are {:?}, expected zeros", &pre[12..16]),
+        });
+    }
     let header_len = le_u64(&pre[16..24]);
     let header_sum = le_u64(&pre[24..32]);
     if header_len > MAX_HEADER_BYTES {
@@ -414,6 +420,12 @@ fn load_payload<T: Scalar>(
     f.file
         .read_exact(&mut pad[..pad_len as usize])
         .map_err(io_err)?;
+    if pad[..pad_len as usize].iter().any(|&b| b != 0) {
+        return Err(FileError::HeaderCorrupt {
+            path: p(),
+            reason: "non-zero bytes in the padding after the header".into(),
+        });
+    }
 
     // Every block length was checked against the file size above, so these
     // allocations are bounded by the file's size.
@@ -445,6 +457,10 @@ fn load_payload<T: Scalar>(
     let modes = usize::try_from(header.modes).map_err(|_| inconsistent("modes overflow".into()))?;
     let mut arrays = arrays.into_iter();
     let x = arrays.next().expect("block_lens always yields X first");
-    SeparatedModel::new(header.meta, rows, modes, x, arrays.collect())
-        .map_err(|source| FileError::Model { path: p(), source })
+    let model = SeparatedModel::new(header.meta, rows, modes, x, arrays.collect())
+        .map_err(|source| FileError::Model { path: p(), source })?;
+    model
+        .check_finite()
+        .map_err(|source| FileError::Model { path: p(), source })?;
+    Ok(model)
 }

@@ -56,6 +56,8 @@ pub trait Scalar:
     fn from_f64(v: f64) -> Self;
     /// Converts a little-endian stored value to native order (no-op on little-endian hosts).
     fn from_le(self) -> Self;
+    /// `self + other` in the storage type (for reference kernels only).
+    fn add(self, other: Self) -> Self;
 }
 
 impl Scalar for f32 {
@@ -72,6 +74,10 @@ impl Scalar for f32 {
     fn from_le(self) -> Self {
         f32::from_bits(u32::from_le(self.to_bits()))
     }
+    #[inline(always)]
+    fn add(self, other: Self) -> Self {
+        self + other
+    }
 }
 
 impl Scalar for f64 {
@@ -87,5 +93,9 @@ impl Scalar for f64 {
     #[inline(always)]
     fn from_le(self) -> Self {
         f64::from_bits(u64::from_le(self.to_bits()))
+    }
+    #[inline(always)]
+    fn add(self, other: Self) -> Self {
+        self + other
     }
 }
