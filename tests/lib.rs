@@ -52,7 +52,12 @@ pub fn small_model<T: Scalar>(nodes: usize, modes: usize, seed: u64) -> Separate
             node_ids: Vec::new(),
         },
         axes,
-        provenance: Provenance::now("test", "none", 1e-6, (0..modes).map(|k| 0.5f64.powi(k as i32)).collect()),
+        provenance: Provenance::now(
+            "test",
+            "none",
+            1e-6,
+            (0..modes).map(|k| 0.5f64.powi(k as i32)).collect(),
+        ),
         tradeoff: Vec::new(),
     };
     SeparatedModel::new(meta, rows, modes, x, values).expect("consistent shapes")

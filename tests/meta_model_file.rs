@@ -107,7 +107,9 @@ fn a_newer_version_is_refused_with_the_versions() {
     let p = write(dir.path(), "newer", &b);
     let e = file::load::<f64>(&p).expect_err("newer");
     match e {
-        FileError::NewerVersion { found, supported, .. } => {
+        FileError::NewerVersion {
+            found, supported, ..
+        } => {
             assert_eq!((found, supported), (FORMAT_VERSION + 1, FORMAT_VERSION));
         }
         other => panic!("expected NewerVersion, got {other}"),
@@ -218,7 +220,10 @@ fn a_consistent_looking_but_impossible_header_is_inconsistent() {
     let p = write(dir.path(), "big", &craft(&h, &payload));
     let e = file::load::<f64>(&p).expect_err("big");
     assert!(
-        matches!(e, FileError::Inconsistent { .. } | FileError::Truncated { .. }),
+        matches!(
+            e,
+            FileError::Inconsistent { .. } | FileError::Truncated { .. }
+        ),
         "{e}"
     );
 }

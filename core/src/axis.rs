@@ -402,7 +402,9 @@ mod tests {
             let p = 3.0 * f64::from(i) / 300.0;
             let s = g.stencil(ParamValue::Scalar(p)).expect("in range");
             assert!(!s.clamped);
-            let v: f64 = (0..3).map(|k| s.weights[k] * f(nodes[s.nodes[k] as usize])).sum();
+            let v: f64 = (0..3)
+                .map(|k| s.weights[k] * f(nodes[s.nodes[k] as usize]))
+                .sum();
             // Two products and a sum of O(10) values: a few ulps of 10.
             assert!((v - f(p)).abs() < 1e-13, "p={p} v={v}");
         }

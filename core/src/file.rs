@@ -63,13 +63,19 @@ pub struct Header {
 pub enum FileError {
     #[error("{path}: {source}")]
     Io { path: PathBuf, source: io::Error },
-    #[error("{path}: not a palpa meta-model file (expected magic bytes {expected:?}, found {found:?})")]
+    #[error(
+        "{path}: not a palpa meta-model file (expected magic bytes \"{}\", found \"{}\")",
+        .expected.escape_ascii(),
+        .found.escape_ascii()
+    )]
     Foreign {
         path: PathBuf,
         expected: [u8; 8],
         found: Vec<u8>,
     },
-    #[error("{path}: format version {found} is newer than this palpa reads (≤ {supported}); update palpa")]
+    #[error(
+        "{path}: format version {found} is newer than this palpa reads (≤ {supported}); update palpa"
+    )]
     NewerVersion {
         path: PathBuf,
         found: u32,
@@ -84,7 +90,9 @@ pub enum FileError {
     },
     #[error("{path}: header corrupted: {reason}")]
     HeaderCorrupt { path: PathBuf, reason: String },
-    #[error("{path}: payload corrupted: checksum {found:#018x}, the header expects {expected:#018x}")]
+    #[error(
+        "{path}: payload corrupted: checksum {found:#018x}, the header expects {expected:#018x}"
+    )]
     PayloadCorrupt {
         path: PathBuf,
         expected: u64,
@@ -154,9 +162,9 @@ fn block_lens(h: &Header) -> Option<Vec<u64>> {
 }
 
 fn payload_len(blocks: &[u64]) -> Option<u64> {
-    blocks
-        .iter()
-        .try_fold(0u64, |acc, &b| acc.checked_add(b.checked_add(ALIGN - 1)? / ALIGN * ALIGN))
+    blocks.iter().try_fold(0u64, |acc, &b| {
+        acc.checked_add(b.checked_add(ALIGN - 1)? / ALIGN * ALIGN)
+    })
 }
 
 const ZEROS: [u8; ALIGN as usize] = [0; ALIGN as usize];
@@ -173,8 +181,11 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
         .map(bytemuck::cast_slice::<T, u8>)
         .collect();
     // Little-endian on disk; every supported target is little-endian, and a big-endian
-    // host would need a byte swap here (see Scalar::from_le for the read side).
-    const _: () = assert!(cfg!(target_endian = "little"), "writer assumes little-endian");
+    // host would need a byte swap here (see Scalar::le_to_native for the read side).
+    const _: () = assert!(
+        cfg!(target_endian = "little"),
+        "writer assumes little-endian"
+    );
     let mut hasher = Xxh3::new();
     let mut payload_len = 0u64;
     for b in &blocks {
@@ -221,12 +232,13 @@ pub fn read_header(path: &Path) -> Result<Header, FileError> {
     Ok(read_header_from(path, &mut f)?.header)
 }
 
-struct Opened {
-    file: File,
+/// A byte source of known total length (a file, or bytes in memory).
+struct Opened<R> {
+    file: R,
     len: u64,
 }
 
-fn open(path: &Path) -> Result<Opened, FileError> {
+fn open(path: &Path) -> Result<Opened<File>, FileError> {
     let io_err = |source| FileError::Io {
         path: path.to_path_buf(),
         source,
@@ -236,6 +248,21 @@ fn open(path: &Path) -> Result<Opened, FileError> {
     Ok(Opened { file, len })
 }
 
+/// Loads a model of either precision from bytes in memory (e.g. an asset bundled into
+/// a mobile app, or a fuzzer's input). Errors name the file as `<memory>`.
+pub fn load_any_from_bytes(bytes: &[u8]) -> Result<AnyModel, FileError> {
+    let path = Path::new("<memory>");
+    let mut f = Opened {
+        file: bytes,
+        len: bytes.len() as u64,
+    };
+    let located = read_header_from(path, &mut f)?;
+    Ok(match located.header.precision {
+        Precision::F32 => AnyModel::F32(load_payload(path, &mut f, located)?),
+        Precision::F64 => AnyModel::F64(load_payload(path, &mut f, located)?),
+    })
+}
+
 /// A decoded header and where the header bytes end and the payload starts.
 struct Located {
     header: Header,
@@ -243,7 +270,7 @@ struct Located {
     payload_at: u64,
 }
 
-fn read_header_from(path: &Path, f: &mut Opened) -> Result<Located, FileError> {
+fn read_header_from<R: Read>(path: &Path, f: &mut Opened<R>) -> Result<Located, FileError> {
     let p = || path.to_path_buf();
     let io_err = |source| FileError::Io { path: p(), source };
     let mut pre = [0u8; PREAMBLE];
@@ -282,7 +309,10 @@ fn read_header_from(path: &Path, f: &mut Opened) -> Result<Located, FileError> {
     if pre[12..16] != [0; 4] {
         return Err(FileError::HeaderCorrupt {
             path: p(),
-            reason: format!("reserved bytes 12..16 are {:?}, expected zeros", &pre[12..16]),
+            reason: format!(
+                "reserved bytes 12..16 are {:?}, expected zeros",
+                &pre[12..16]
+            ),
         });
     }
     let header_len = le_u64(&pre[16..24]);
@@ -290,7 +320,9 @@ fn read_header_from(path: &Path, f: &mut Opened) -> Result<Located, FileError> {
     if header_len > MAX_HEADER_BYTES {
         return Err(FileError::HeaderCorrupt {
             path: p(),
-            reason: format!("header length {header_len} exceeds the {MAX_HEADER_BYTES}-byte maximum"),
+            reason: format!(
+                "header length {header_len} exceeds the {MAX_HEADER_BYTES}-byte maximum"
+            ),
         });
     }
     let header_end = (PREAMBLE as u64).checked_add(header_len);
@@ -317,8 +349,8 @@ fn read_header_from(path: &Path, f: &mut Opened) -> Result<Located, FileError> {
     }
     // The byte limit bounds every length-prefixed allocation inside the decoder.
     let cfg = bincode::config::standard().with_limit::<{ MAX_HEADER_BYTES as usize }>();
-    let (header, used): (Header, usize) = bincode::serde::decode_from_slice(&hbytes, cfg)
-        .map_err(|e| FileError::HeaderCorrupt {
+    let (header, used): (Header, usize) =
+        bincode::serde::decode_from_slice(&hbytes, cfg).map_err(|e| FileError::HeaderCorrupt {
             path: p(),
             reason: format!("cannot decode: {e}"),
         })?;
@@ -374,9 +406,9 @@ pub fn load_any(path: &Path) -> Result<AnyModel, FileError> {
     })
 }
 
-fn load_payload<T: Scalar>(
+fn load_payload<T: Scalar, R: Read>(
     path: &Path,
-    f: &mut Opened,
+    f: &mut Opened<R>,
     located: Located,
 ) -> Result<SeparatedModel<T>, FileError> {
     let Located {
@@ -386,8 +418,8 @@ fn load_payload<T: Scalar>(
     } = located;
     let p = || path.to_path_buf();
     let inconsistent = |reason: String| FileError::Inconsistent { path: p(), reason };
-    let blocks = block_lens(&header)
-        .ok_or_else(|| inconsistent("array sizes overflow 64 bits".into()))?;
+    let blocks =
+        block_lens(&header).ok_or_else(|| inconsistent("array sizes overflow 64 bits".into()))?;
     let expected_len =
         payload_len(&blocks).ok_or_else(|| inconsistent("payload size overflows".into()))?;
     if expected_len != header.payload_len {
@@ -441,7 +473,7 @@ fn load_payload<T: Scalar>(
         f.file.read_exact(&mut pad[..padn]).map_err(io_err)?;
         hasher.update(&pad[..padn]);
         for x in &mut v {
-            *x = x.from_le();
+            *x = x.le_to_native();
         }
         arrays.push(v);
     }

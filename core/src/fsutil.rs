@@ -14,10 +14,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 static COUNTER: AtomicU64 = AtomicU64::new(0);
 
 fn temp_path(dest: &Path) -> PathBuf {
-    let name = dest.file_name().map_or_else(
-        || "palpa".into(),
-        |n| n.to_string_lossy().into_owned(),
-    );
+    let name = dest
+        .file_name()
+        .map_or_else(|| "palpa".into(), |n| n.to_string_lossy().into_owned());
     let unique = format!(
         ".{name}.tmp-{}-{}",
         std::process::id(),

@@ -71,19 +71,13 @@ pub fn scale_by_stencil<T: Scalar>(out: &mut [f64], rows: [&[T]; 3], w: [f64; 3]
         "stencil rows must match the number of modes"
     );
     for k in 0..n {
-        out[k] *= w[0] * rows[0][k].to_f64()
-            + w[1] * rows[1][k].to_f64()
-            + w[2] * rows[2][k].to_f64();
+        out[k] *=
+            w[0] * rows[0][k].to_f64() + w[1] * rows[1][k].to_f64() + w[2] * rows[2][k].to_f64();
     }
 }
 
 #[inline(always)]
-fn strided_dots_generic<T: Scalar>(
-    x: &[T],
-    stride: usize,
-    c: &[f64],
-    out: &mut [f64],
-) {
+fn strided_dots_generic<T: Scalar>(x: &[T], stride: usize, c: &[f64], out: &mut [f64]) {
     let n = c.len();
     for (i, o) in out.iter_mut().enumerate() {
         let row = &x[i * stride..i * stride + n];
@@ -175,7 +169,7 @@ mod x86 {
             match T::PRECISION {
                 Precision::F64 => dots_f64(bytemuck::cast_slice(x), stride, c, out),
                 Precision::F32 if has_avx512() => {
-                    dots_f32_avx512(bytemuck::cast_slice(x), stride, c, out)
+                    dots_f32_avx512(bytemuck::cast_slice(x), stride, c, out);
                 }
                 Precision::F32 => dots_f32(bytemuck::cast_slice(x), stride, c, out),
             }

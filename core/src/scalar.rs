@@ -55,7 +55,7 @@ pub trait Scalar:
     fn to_f64(self) -> f64;
     fn from_f64(v: f64) -> Self;
     /// Converts a little-endian stored value to native order (no-op on little-endian hosts).
-    fn from_le(self) -> Self;
+    fn le_to_native(self) -> Self;
     /// `self + other` in the storage type (for reference kernels only).
     fn add(self, other: Self) -> Self;
 }
@@ -71,7 +71,7 @@ impl Scalar for f32 {
         v as f32
     }
     #[inline(always)]
-    fn from_le(self) -> Self {
+    fn le_to_native(self) -> Self {
         f32::from_bits(u32::from_le(self.to_bits()))
     }
     #[inline(always)]
@@ -91,7 +91,7 @@ impl Scalar for f64 {
         v
     }
     #[inline(always)]
-    fn from_le(self) -> Self {
+    fn le_to_native(self) -> Self {
         f64::from_bits(u64::from_le(self.to_bits()))
     }
     #[inline(always)]

@@ -116,7 +116,11 @@ impl<T: Scalar> Axis<T> {
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ModelError {
     #[error("X has {len} entries, expected rows × modes = {rows} × {modes}")]
-    SpatialShape { len: usize, rows: usize, modes: usize },
+    SpatialShape {
+        len: usize,
+        rows: usize,
+        modes: usize,
+    },
     #[error("axis '{axis}' has {len} values, expected nodes × modes = {nodes} × {modes}")]
     AxisShape {
         axis: String,
@@ -201,7 +205,7 @@ impl<T: Scalar> SeparatedModel<T> {
             });
         }
         let comps = meta.field.components;
-        if comps == 0 || rows % comps as usize != 0 {
+        if comps == 0 || !rows.is_multiple_of(comps as usize) {
             return Err(ModelError::FieldLayout {
                 rows,
                 components: comps,
@@ -285,8 +289,7 @@ impl<T: Scalar> SeparatedModel<T> {
     }
     /// Bytes of the arrays (X and all axis values).
     pub fn array_bytes(&self) -> usize {
-        (self.x.len() + self.axes.iter().map(|a| a.values.len()).sum::<usize>())
-            * size_of::<T>()
+        (self.x.len() + self.axes.iter().map(|a| a.values.len()).sum::<usize>()) * size_of::<T>()
     }
 
     /// The metadata, as written to a file header.
@@ -363,7 +366,11 @@ impl<T: Scalar> SeparatedModel<T> {
     /// The full field: `out.len()` must equal [`Self::rows`].
     #[track_caller]
     pub fn reconstruct(&self, coeffs: &[f64], out: &mut [f64]) {
-        assert_eq!(out.len(), self.rows, "output length must equal the row count");
+        assert_eq!(
+            out.len(),
+            self.rows,
+            "output length must equal the row count"
+        );
         self.reconstruct_range(0, coeffs, out);
     }
 
@@ -396,7 +403,11 @@ impl<T: Scalar> SeparatedModel<T> {
         };
         let mut out = self.clone();
         out.modes = n;
-        out.x = if self.modes == 0 { Vec::new() } else { keep(&self.x) };
+        out.x = if self.modes == 0 {
+            Vec::new()
+        } else {
+            keep(&self.x)
+        };
         for a in &mut out.axes {
             a.values = if self.modes == 0 {
                 Vec::new()
@@ -463,7 +474,12 @@ impl<T: Scalar> SeparatedModel<T> {
 
     /// Checks that every stored value is finite (done after solving and after loading).
     pub fn check_finite(&self) -> Result<(), ModelError> {
-        if let Some((i, v)) = self.x.iter().enumerate().find(|(_, v)| !v.to_f64().is_finite()) {
+        if let Some((i, v)) = self
+            .x
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !v.to_f64().is_finite())
+        {
             return Err(ModelError::NotFinite {
                 what: format!("X row {} mode {}", i / self.modes, i % self.modes),
                 value: v.to_f64(),

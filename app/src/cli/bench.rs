@@ -87,8 +87,17 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     if !args.json {
         println!(
             "{:>7} {:>5} {:>4} {:>10} {:>12} {:>12} {:>6} {:>8} {:>8} {:>10} {:>10}",
-            "rows", "modes", "prec", "MB", "eval_ns", "bandwidth_ns", "ratio", "GB/s", "bw GB/s",
-            "partic_ns", "contact_ns"
+            "rows",
+            "modes",
+            "prec",
+            "MB",
+            "eval_ns",
+            "bandwidth_ns",
+            "ratio",
+            "GB/s",
+            "bw GB/s",
+            "partic_ns",
+            "contact_ns"
         );
     }
     let min_time = Duration::from_millis(args.min_time_ms);

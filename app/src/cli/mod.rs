@@ -2,13 +2,18 @@
 
 mod bench;
 mod info;
+mod synth;
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
 #[derive(Debug, Parser)]
-#[command(name = "palpa", version, about = "Real-time PGD meta-models: liver palpation and gene networks")]
+#[command(
+    name = "palpa",
+    version,
+    about = "Real-time PGD meta-models: liver palpation and gene networks"
+)]
 pub struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -21,6 +26,8 @@ enum Command {
     /// Benchmarks that print ratios measured in one run.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
+    /// Write a seeded synthetic model file (benchmarks, fuzz seeds, trying the tools).
+    Synth(synth::SynthArgs),
 }
 
 /// Parses `std::env::args` and runs the command; errors are printed with their causes.
@@ -46,6 +53,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Some(Command::Info(args)) => info::run(&args),
         Some(Command::Bench(cmd)) => bench::run(&cmd),
+        Some(Command::Synth(args)) => synth::run(&args),
         None => default_job(),
     }
 }
@@ -55,7 +63,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 fn default_job() -> anyhow::Result<()> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
-    writeln!(out, "palpa {} — real-time PGD meta-models", env!("CARGO_PKG_VERSION"))?;
+    writeln!(
+        out,
+        "palpa {} — real-time PGD meta-models",
+        env!("CARGO_PKG_VERSION")
+    )?;
     writeln!(
         out,
         "The interactive palpation app is not built yet; these commands are:\n\
