@@ -17,6 +17,7 @@
 //! - [`synthetic`]: reproducible random models for benchmarks and tests.
 
 pub mod axis;
+pub mod mesh;
 pub mod file;
 pub mod fsutil;
 pub mod kernels;
