@@ -17,7 +17,9 @@
 //! - [`synthetic`]: reproducible random models for benchmarks and tests.
 
 pub mod axis;
+pub mod fe;
 pub mod mesh;
+pub mod organ;
 pub mod file;
 pub mod fsutil;
 pub mod kernels;

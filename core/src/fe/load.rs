@@ -1,0 +1,168 @@
+//! The probe load: a total force `F` (N) along a unit direction `t`, spread uniformly
+//! over the part of the surface within `r_tool` of the probe point `s`.
+//!
+//! Consistent nodal load: with the surface shape functions `N_i`,
+//! `f_i = F t · w_i / Σ_j w_j`, `w_i = ∫_{Γ ∩ B(s, r)} N_i dA`. The integral is taken
+//! with a one-point rule on sub-triangles (each boundary face near s is split 4^L
+//! times, L chosen so sub-triangles are ≤ r/6 across), so the load patch moves
+//! smoothly with s, and the normalization makes `Σ_i f_i = F t` exactly. A point load
+//! would not do: its displacement grows without bound as the mesh is refined (the
+//! Boussinesq solution is singular), so force feedback would depend on the mesh.
+
+use super::FeError;
+use super::shape::tri_values;
+use super::space::Space;
+use crate::axis::closest_point;
+use crate::mesh::{cross, norm, sub};
+
+/// A point on the boundary: face index, barycentric coordinates on its corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePoint {
+    pub face: usize,
+    pub bary: [f64; 3],
+    pub point: [f64; 3],
+    /// Unit outward normal of the face.
+    pub normal: [f64; 3],
+    /// Distance from the requested point (0 if it was on the surface).
+    pub distance_mm: f64,
+}
+
+fn face_corners(space: &Space, f: usize) -> [[f64; 3]; 3] {
+    let face = space.face(f);
+    [0, 1, 2].map(|i| space.nodes[face[i] as usize])
+}
+
+fn unit_normal(c: [[f64; 3]; 3]) -> [f64; 3] {
+    let n = cross(sub(c[1], c[0]), sub(c[2], c[0]));
+    let l = norm(n);
+    n.map(|v| v / l)
+}
+
+/// Projects `p` onto the closest point of the allowed boundary faces.
+pub fn project(space: &Space, allowed: &[bool], p: [f64; 3]) -> Option<SurfacePoint> {
+    let idx: Vec<usize> = (0..space.face_count()).filter(|&f| allowed[f]).collect();
+    let tris: Vec<[u32; 3]> = idx
+        .iter()
+        .map(|&f| {
+            let face = space.face(f);
+            [face[0], face[1], face[2]]
+        })
+        .collect();
+    let hit = closest_point(&space.nodes, &tris, p)?;
+    let face = idx[hit.triangle as usize];
+    Some(SurfacePoint {
+        face,
+        bary: hit.bary,
+        point: hit.point,
+        normal: unit_normal(face_corners(space, face)),
+        distance_mm: hit.distance,
+    })
+}
+
+/// The all-node load vector (`3 × nodes`) of the probe.
+pub fn probe_load(
+    space: &Space,
+    s: &SurfacePoint,
+    dir: [f64; 3],
+    force_n: f64,
+    radius_mm: f64,
+) -> Result<Vec<f64>, FeError> {
+    if !force_n.is_finite() {
+        return Err(FeError::Load(format!("force {force_n} N is not finite")));
+    }
+    if !(radius_mm.is_finite() && radius_mm > 0.0) {
+        return Err(FeError::Load(format!("tool radius {radius_mm} mm must be positive")));
+    }
+    let dl = norm(dir);
+    if !(dl.is_finite() && dl > 0.0) {
+        return Err(FeError::Load(format!("direction {dir:?} has no length")));
+    }
+    let t = dir.map(|v| v / dl);
+    let p2 = space.element == super::Element::P2;
+    let npf = space.element.nodes_per_face();
+    let mut weights: Vec<(u32, f64)> = Vec::new();
+    let mut nvals = [0.0; 6];
+    for f in 0..space.face_count() {
+        let c = face_corners(space, f);
+        // Skip faces entirely outside the ball (by their circumscribing distance).
+        let cen = [0, 1, 2].map(|d| (c[0][d] + c[1][d] + c[2][d]) / 3.0);
+        let rad = c.iter().map(|v| norm(sub(*v, cen))).fold(0.0, f64::max);
+        if norm(sub(cen, s.point)) > radius_mm + rad {
+            continue;
+        }
+        let area = 0.5 * norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
+        let level = ((2.0 * rad * 6.0 / radius_mm).log2().ceil().max(0.0) as u32).min(7);
+        let k = 1usize << level; // sub-triangles per edge; k² of them
+        let sub_area = area / (k * k) as f64;
+        let face = space.face(f);
+        let mut acc = [0.0; 6];
+        for i in 0..k {
+            for j in 0..k - i {
+                // Upward sub-triangle centroid, then the downward one (if any).
+                for (di, dj, up) in [(1.0 / 3.0, 1.0 / 3.0, true), (2.0 / 3.0, 2.0 / 3.0, false)] {
+                    if !up && i + j + 1 >= k {
+                        continue;
+                    }
+                    let b1 = (i as f64 + di) / k as f64;
+                    let b2 = (j as f64 + dj) / k as f64;
+                    let l = [1.0 - b1 - b2, b1, b2];
+                    let x = [0, 1, 2].map(|d| l[0] * c[0][d] + l[1] * c[1][d] + l[2] * c[2][d]);
+                    if norm(sub(x, s.point)) <= radius_mm {
+                        tri_values(p2, l, &mut nvals);
+                        for a in 0..npf {
+                            acc[a] += nvals[a] * sub_area;
+                        }
+                    }
+                }
+            }
+        }
+        for a in 0..npf {
+            if acc[a] != 0.0 {
+                weights.push((face[a], acc[a]));
+            }
+        }
+    }
+    let total: f64 = weights.iter().map(|w| w.1).sum();
+    let mut f = vec![0.0; 3 * space.nodes.len()];
+    if total > 0.0 {
+        for (n, w) in weights {
+            for d in 0..3 {
+                f[3 * n as usize + d] += force_n * t[d] * w / total;
+            }
+        }
+    } else {
+        // Tool smaller than the quadrature resolution: a consistent point load at s.
+        tri_values(p2, s.bary, &mut nvals);
+        let face = space.face(s.face);
+        for a in 0..npf {
+            for d in 0..3 {
+                f[3 * face[a] as usize + d] += force_n * t[d] * nvals[a];
+            }
+        }
+    }
+    Ok(f)
+}
+
+/// Interpolates a nodal field (`3 × nodes`) at a surface point.
+pub fn value_at(space: &Space, u: &[f64], s: &SurfacePoint) -> [f64; 3] {
+    let mut nvals = [0.0; 6];
+    tri_values(space.element == super::Element::P2, s.bary, &mut nvals);
+    let face = space.face(s.face);
+    let mut out = [0.0; 3];
+    for a in 0..space.element.nodes_per_face() {
+        for d in 0..3 {
+            out[d] += nvals[a] * u[3 * face[a] as usize + d];
+        }
+    }
+    out
+}
+
+/// Sum of a nodal vector's x, y, z parts.
+pub fn resultant(f: &[f64]) -> [f64; 3] {
+    let mut r = [0.0; 3];
+    for (i, v) in f.iter().enumerate() {
+        r[i % 3] += v;
+    }
+    r
+}
+

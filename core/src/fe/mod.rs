@@ -1,0 +1,127 @@
+//! Finite elements for 3-D elasticity: the reference every PGD accuracy claim is
+//! measured against.
+//!
+//! **Problem.** Find the displacement `u` (mm) of a body Ω with `u = 0` on the fixed
+//! region Γ_D and a surface traction `q` (N/mm²) on Γ_N:
+//!
+//! ```text
+//! linear:  ∫_Ω σ(u) : ε(v) dV = ∫_Γ q·v dA,   σ = λ tr(ε) I + 2μ ε,  ε = ½(∇u + ∇uᵀ)
+//! SVK:     ∫_Ω S(u) : δE(u; v) dV = ∫_Γ q·v dA,  S = λ tr(E) I + 2μ E,  E = ½(FᵀF − I)
+//! ```
+//!
+//! with `λ = Eν/((1+ν)(1−2ν))`, `μ = E/(2(1+ν))`; E in kPa is converted to N/mm²
+//! (1 kPa = 10⁻³ N/mm²) so that lengths are mm and forces N throughout.
+//!
+//! **Discretization.** Lagrange tetrahedra: P1 (4 nodes, linear) or P2 (10 nodes,
+//! quadratic; straight-sided, mid-edge nodes at edge midpoints). Near incompressibility
+//! (ν → 0.5) P1 *locks*: λ/μ = 2ν/(1−2ν) → ∞ (24 at ν = 0.48) and piecewise-linear
+//! fields cannot be nearly divergence-free, so P1 is much too stiff; P2 locks far less,
+//! and is the default. Neither is a mixed (u, p) formulation: at ν = 0.499 and beyond,
+//! even P2 degrades (measured in the issue notes).
+//!
+//! **Solve.** Sparse symmetric positive-definite stiffness on the free degrees of
+//! freedom (fixed nodes removed), factored once by faer's sparse Cholesky (LLᵀ with
+//! AMD ordering).
+
+pub mod elasticity;
+pub mod load;
+pub mod shape;
+pub mod space;
+pub mod sparse;
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Element family.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Element {
+    P1,
+    P2,
+}
+
+impl Element {
+    pub fn name(self) -> &'static str {
+        match self {
+            Element::P1 => "p1",
+            Element::P2 => "p2",
+        }
+    }
+    pub fn nodes_per_cell(self) -> usize {
+        match self {
+            Element::P1 => 4,
+            Element::P2 => 10,
+        }
+    }
+    pub fn nodes_per_face(self) -> usize {
+        match self {
+            Element::P1 => 3,
+            Element::P2 => 6,
+        }
+    }
+}
+
+impl std::str::FromStr for Element {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "p1" | "P1" => Ok(Element::P1),
+            "p2" | "P2" => Ok(Element::P2),
+            o => Err(format!("unknown element '{o}', expected p1 or p2")),
+        }
+    }
+}
+
+/// Isotropic material.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    pub young_kpa: f64,
+    pub poisson: f64,
+}
+
+impl Default for Material {
+    /// Liver tissue: E = 160 kPa, ν = 0.48.
+    fn default() -> Self {
+        Material {
+            young_kpa: 160.0,
+            poisson: 0.48,
+        }
+    }
+}
+
+impl Material {
+    /// Checks 0 < E and −1 < ν < 0.5.
+    pub fn validate(&self) -> Result<(), FeError> {
+        if !(self.young_kpa.is_finite() && self.young_kpa > 0.0) {
+            return Err(FeError::Material(format!(
+                "Young's modulus {} kPa must be positive and finite",
+                self.young_kpa
+            )));
+        }
+        if !(self.poisson > -1.0 && self.poisson < 0.5) {
+            return Err(FeError::Material(format!(
+                "Poisson's ratio {} must lie in (−1, 0.5)",
+                self.poisson
+            )));
+        }
+        Ok(())
+    }
+    /// Lamé parameters (λ, μ) in N/mm².
+    pub fn lame_n_per_mm2(&self) -> (f64, f64) {
+        let e = self.young_kpa * 1e-3;
+        let nu = self.poisson;
+        (e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), e / (2.0 * (1.0 + nu)))
+    }
+}
+
+/// Why a finite-element computation failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FeError {
+    #[error("invalid material: {0}")]
+    Material(String),
+    #[error("the stiffness is not positive definite (is the body fixed anywhere? {fixed_nodes} fixed nodes): {detail}")]
+    NotPositiveDefinite { fixed_nodes: usize, detail: String },
+    #[error("invalid load: {0}")]
+    Load(String),
+    #[error("Newton did not converge: {0}")]
+    NoConvergence(String),
+}

@@ -1,0 +1,163 @@
+//! A symmetric sparse matrix stored as its lower triangle in compressed columns, with a
+//! pattern built once from the cells, element scatter-add, and faer's sparse Cholesky.
+
+use faer::Side;
+use faer::prelude::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+
+use super::FeError;
+use super::space::Space;
+
+/// Lower triangle (row ≥ col) of a symmetric matrix on the free dofs, CSC.
+#[derive(Debug, Clone)]
+pub struct SymCsc {
+    pub n: usize,
+    pub col_ptr: Vec<usize>,
+    pub row_idx: Vec<usize>,
+    pub val: Vec<f64>,
+}
+
+impl SymCsc {
+    /// The pattern coupling every pair of free dofs that share a cell.
+    pub fn pattern(space: &Space) -> SymCsc {
+        let n = space.free_dofs;
+        let nn = space.nodes.len();
+        // Node adjacency (free nodes only), then expanded to 3×3 dof blocks.
+        let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nn];
+        for c in 0..space.cell_count() {
+            let cell = space.cell(c);
+            for &a in cell {
+                if space.dof[a as usize] == u32::MAX {
+                    continue;
+                }
+                for &b in cell {
+                    if space.dof[b as usize] != u32::MAX {
+                        adj[a as usize].push(b);
+                    }
+                }
+            }
+        }
+        for a in &mut adj {
+            a.sort_unstable();
+            a.dedup();
+        }
+        let mut col_ptr = vec![0usize; n + 1];
+        let mut row_idx = Vec::new();
+        // Columns in dof order: node-major, so iterate nodes by their dof index.
+        let mut by_dof: Vec<(u32, usize)> = space
+            .dof
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| **d != u32::MAX)
+            .map(|(nd, &d)| (d, nd))
+            .collect();
+        by_dof.sort_unstable();
+        for &(d, nd) in &by_dof {
+            let mut rows: Vec<usize> = adj[nd]
+                .iter()
+                .flat_map(|&m| {
+                    let base = space.dof[m as usize] as usize;
+                    [base, base + 1, base + 2]
+                })
+                .collect();
+            rows.sort_unstable();
+            for c in 0..3 {
+                let col = d as usize + c;
+                row_idx.extend(rows.iter().copied().filter(|&r| r >= col));
+                col_ptr[col + 1] = row_idx.len();
+            }
+        }
+        let nnz = row_idx.len();
+        SymCsc {
+            n,
+            col_ptr,
+            row_idx,
+            val: vec![0.0; nnz],
+        }
+    }
+
+    /// Adds `v` at (row, col), row ≥ col, which must be in the pattern.
+    #[inline]
+    pub fn add(&mut self, row: usize, col: usize, v: f64) {
+        let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        let k = lo + self.row_idx[lo..hi].partition_point(|&r| r < row);
+        debug_assert!(k < hi && self.row_idx[k] == row, "({row}, {col}) not in the pattern");
+        self.val[k] += v;
+    }
+
+    /// Scatter-adds an element matrix (`dofs.len()` square, row-major); entries whose
+    /// dof is `usize::MAX` (fixed) are skipped, as is the upper triangle.
+    pub fn scatter(&mut self, dofs: &[usize], ke: &[f64]) {
+        let m = dofs.len();
+        for (i, &ri) in dofs.iter().enumerate() {
+            if ri == usize::MAX {
+                continue;
+            }
+            for (j, &cj) in dofs.iter().enumerate() {
+                if cj == usize::MAX || ri < cj {
+                    continue;
+                }
+                self.add(ri, cj, ke[i * m + j]);
+            }
+        }
+    }
+
+    /// `y = A x` using the symmetric lower storage.
+    pub fn mul(&self, x: &[f64], y: &mut [f64]) {
+        y.fill(0.0);
+        for c in 0..self.n {
+            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let r = self.row_idx[k];
+                let v = self.val[k];
+                y[r] += v * x[c];
+                if r != c {
+                    y[c] += v * x[r];
+                }
+            }
+        }
+    }
+
+    pub fn to_faer(&self) -> SparseColMat<usize, f64> {
+        let sym = SymbolicSparseColMat::new_checked(
+            self.n,
+            self.n,
+            self.col_ptr.clone(),
+            None,
+            self.row_idx.clone(),
+        );
+        SparseColMat::new(sym, self.val.clone())
+    }
+}
+
+/// A factored symmetric positive-definite matrix.
+#[derive(Debug)]
+pub struct Cholesky {
+    llt: Llt<usize, f64>,
+    n: usize,
+}
+
+impl Cholesky {
+    pub fn factor(a: &SymCsc, fixed_nodes: usize) -> Result<Cholesky, FeError> {
+        let m = a.to_faer();
+        let err = |e: String| FeError::NotPositiveDefinite {
+            fixed_nodes,
+            detail: e,
+        };
+        let sym = SymbolicLlt::try_new(m.symbolic(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
+        let llt = Llt::try_new_with_symbolic(sym, m.as_ref(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
+        Ok(Cholesky { llt, n: a.n })
+    }
+
+    /// Solves A x = b for one right-hand side.
+    pub fn solve(&self, b: &[f64]) -> Vec<f64> {
+        let mut rhs = faer::Mat::<f64>::from_fn(self.n, 1, |i, _| b[i]);
+        self.llt.solve_in_place(rhs.as_mut());
+        (0..self.n).map(|i| rhs[(i, 0)]).collect()
+    }
+
+    /// Solves for several right-hand sides at once (columns of `b`, n × k, column-major).
+    pub fn solve_many(&self, b: &mut faer::Mat<f64>) {
+        self.llt.solve_in_place(b.as_mut());
+    }
+}

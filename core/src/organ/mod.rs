@@ -1,0 +1,104 @@
+//! Organs: a solid (an implicit function), its regions as data, and its meshes.
+//!
+//! Units: millimetres. Axes follow the patient: +x towards the patient's left, +y
+//! anterior, +z superior (cranial). The default organ is a procedural liver
+//! ([`liver::Liver`]); a user's closed surface can stand in for it ([`crate::surface`]).
+
+pub mod liver;
+pub mod region;
+
+use serde::{Deserialize, Serialize};
+
+use crate::mesh::stuffing::{Implicit, StuffingReport, stuff};
+use crate::mesh::{TetMesh, cross, norm, sub};
+pub use region::Selector;
+
+/// Mesh resolution levels (lattice spacing of isosurface stuffing).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Level {
+    Coarse,
+    Medium,
+    Fine,
+}
+
+impl Level {
+    pub fn name(self) -> &'static str {
+        match self {
+            Level::Coarse => "coarse",
+            Level::Medium => "medium",
+            Level::Fine => "fine",
+        }
+    }
+}
+
+impl std::str::FromStr for Level {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "coarse" => Ok(Level::Coarse),
+            "medium" => Ok(Level::Medium),
+            "fine" => Ok(Level::Fine),
+            o => Err(format!("unknown level '{o}', expected coarse, medium or fine")),
+        }
+    }
+}
+
+/// A meshed organ: the tetrahedra, the boundary triangles (outward), and which
+/// boundary vertices are fixed and which triangles are palpable.
+#[derive(Debug, Clone)]
+pub struct OrganMesh {
+    pub mesh: TetMesh,
+    pub boundary: Vec<[u32; 3]>,
+    /// Per vertex: on the fixed region (all its degrees of freedom are clamped).
+    pub fixed: Vec<bool>,
+    /// Per boundary triangle: in the palpable region.
+    pub palpable: Vec<bool>,
+    pub report: StuffingReport,
+    pub h_mm: f64,
+}
+
+/// Meshes an implicit solid and classifies its boundary with the two selectors.
+/// A boundary triangle is fixed (all three vertices clamped) when `fixed` contains its
+/// centroid and normal; it is palpable when `palpable` does and it is not fixed.
+pub fn mesh_organ(
+    shape: &impl Implicit,
+    h_mm: f64,
+    fixed: &Selector,
+    palpable: &Selector,
+) -> OrganMesh {
+    let (mesh, report) = stuff(shape, h_mm);
+    let boundary: Vec<[u32; 3]> = mesh.boundary_faces().into_iter().map(|f| f.0).collect();
+    let mut fixed_v = vec![false; mesh.vertices.len()];
+    let mut fixed_f = vec![false; boundary.len()];
+    let mut palp = vec![false; boundary.len()];
+    for (i, f) in boundary.iter().enumerate() {
+        let (c, n) = centroid_normal(&mesh.vertices, *f);
+        if fixed.contains(c, n) {
+            fixed_f[i] = true;
+            for &v in f {
+                fixed_v[v as usize] = true;
+            }
+        }
+    }
+    for (i, f) in boundary.iter().enumerate() {
+        let (c, n) = centroid_normal(&mesh.vertices, *f);
+        palp[i] = !fixed_f[i] && palpable.contains(c, n);
+    }
+    OrganMesh {
+        mesh,
+        boundary,
+        fixed: fixed_v,
+        palpable: palp,
+        report,
+        h_mm,
+    }
+}
+
+/// Centroid and unit outward normal of a triangle.
+pub fn centroid_normal(v: &[[f64; 3]], f: [u32; 3]) -> ([f64; 3], [f64; 3]) {
+    let [a, b, c] = f.map(|i| v[i as usize]);
+    let cen = [0, 1, 2].map(|d| (a[d] + b[d] + c[d]) / 3.0);
+    let n = cross(sub(b, a), sub(c, a));
+    let l = norm(n);
+    (cen, n.map(|x| x / l))
+}

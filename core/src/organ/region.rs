@@ -1,0 +1,84 @@
+//! Surface regions as data: a small language of selectors on (point, outward normal),
+//! serializable so an organ description or a scene can carry them.
+
+use serde::{Deserialize, Serialize};
+
+use crate::mesh::{dot, norm, sub};
+
+/// Selects boundary points by position and outward normal.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Selector {
+    Everything,
+    Nothing,
+    All(Vec<Selector>),
+    Any(Vec<Selector>),
+    Not(Box<Selector>),
+    /// The outward normal is within `max_angle_deg` of `dir`.
+    NormalWithin { dir: [f64; 3], max_angle_deg: f64 },
+    /// Points with `(p − point)·normal ≥ 0`.
+    HalfSpace { point: [f64; 3], normal: [f64; 3] },
+    /// Points within `radius_mm` of the line through `point` along `dir`.
+    NearLine {
+        point: [f64; 3],
+        dir: [f64; 3],
+        radius_mm: f64,
+    },
+    /// Points within `radius_mm` of `center`.
+    Ball { center: [f64; 3], radius_mm: f64 },
+}
+
+impl Selector {
+    pub fn contains(&self, p: [f64; 3], n: [f64; 3]) -> bool {
+        match self {
+            Selector::Everything => true,
+            Selector::Nothing => false,
+            Selector::All(v) => v.iter().all(|s| s.contains(p, n)),
+            Selector::Any(v) => v.iter().any(|s| s.contains(p, n)),
+            Selector::Not(s) => !s.contains(p, n),
+            Selector::NormalWithin { dir, max_angle_deg } => {
+                dot(n, *dir) / (norm(n) * norm(*dir)) >= max_angle_deg.to_radians().cos()
+            }
+            Selector::HalfSpace { point, normal } => dot(sub(p, *point), *normal) >= 0.0,
+            Selector::NearLine {
+                point,
+                dir,
+                radius_mm,
+            } => {
+                let d = sub(p, *point);
+                let u = dir.map(|c| c / norm(*dir));
+                let t = dot(d, u);
+                let perp = [d[0] - t * u[0], d[1] - t * u[1], d[2] - t * u[2]];
+                norm(perp) <= *radius_mm
+            }
+            Selector::Ball { center, radius_mm } => norm(sub(p, *center)) <= *radius_mm,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn selectors_compose() {
+        let anterior = Selector::NormalWithin {
+            dir: [0.0, 1.0, 0.0],
+            max_angle_deg: 45.0,
+        };
+        let upper = Selector::HalfSpace {
+            point: [0.0; 3],
+            normal: [0.0, 0.0, 1.0],
+        };
+        let s = Selector::All(vec![anterior.clone(), Selector::Not(Box::new(upper))]);
+        assert!(s.contains([0.0, 0.0, -1.0], [0.0, 1.0, 0.1]));
+        assert!(!s.contains([0.0, 0.0, 1.0], [0.0, 1.0, 0.1]));
+        assert!(!s.contains([0.0, 0.0, -1.0], [1.0, 0.2, 0.0]));
+        let line = Selector::NearLine {
+            point: [0.0; 3],
+            dir: [0.0, 0.0, 2.0],
+            radius_mm: 1.0,
+        };
+        assert!(line.contains([0.5, 0.5, 100.0], [1.0, 0.0, 0.0]));
+        assert!(!line.contains([1.5, 0.0, 0.0], [1.0, 0.0, 0.0]));
+    }
+}
