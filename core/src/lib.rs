@@ -17,12 +17,13 @@
 //! - [`synthetic`]: reproducible random models for benchmarks and tests.
 
 pub mod axis;
+pub mod export;
 pub mod fe;
-pub mod mesh;
-pub mod organ;
 pub mod file;
 pub mod fsutil;
 pub mod kernels;
+pub mod mesh;
+pub mod organ;
 pub mod rng;
 pub mod scalar;
 pub mod separated;

@@ -1,7 +1,10 @@
 //! The `palpa` command line.
 
 mod bench;
+mod fe;
 mod info;
+mod mesh;
+mod organ;
 mod synth;
 
 use std::process::ExitCode;
@@ -28,6 +31,11 @@ enum Command {
     Bench(bench::BenchCommand),
     /// Write a seeded synthetic model file (benchmarks, fuzz seeds, trying the tools).
     Synth(synth::SynthArgs),
+    /// Mesh an organ and report counts, regions and element quality.
+    Mesh(mesh::MeshArgs),
+    /// Full finite-element solves (the reference for every accuracy claim).
+    #[command(subcommand)]
+    Fe(fe::FeCommand),
 }
 
 /// Parses `std::env::args` and runs the command; errors are printed with their causes.
@@ -54,6 +62,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Info(args)) => info::run(&args),
         Some(Command::Bench(cmd)) => bench::run(&cmd),
         Some(Command::Synth(args)) => synth::run(&args),
+        Some(Command::Mesh(args)) => mesh::run(&args),
+        Some(Command::Fe(cmd)) => fe::run(&cmd),
         None => default_job(),
     }
 }

@@ -71,7 +71,9 @@ pub fn probe_load(
         return Err(FeError::Load(format!("force {force_n} N is not finite")));
     }
     if !(radius_mm.is_finite() && radius_mm > 0.0) {
-        return Err(FeError::Load(format!("tool radius {radius_mm} mm must be positive")));
+        return Err(FeError::Load(format!(
+            "tool radius {radius_mm} mm must be positive"
+        )));
     }
     let dl = norm(dir);
     if !(dl.is_finite() && dl > 0.0) {
@@ -165,4 +167,3 @@ pub fn resultant(f: &[f64]) -> [f64; 3] {
     }
     r
 }
-

@@ -25,6 +25,7 @@
 
 pub mod elasticity;
 pub mod load;
+pub mod probe;
 pub mod shape;
 pub mod space;
 pub mod sparse;
@@ -109,7 +110,10 @@ impl Material {
     pub fn lame_n_per_mm2(&self) -> (f64, f64) {
         let e = self.young_kpa * 1e-3;
         let nu = self.poisson;
-        (e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), e / (2.0 * (1.0 + nu)))
+        (
+            e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+            e / (2.0 * (1.0 + nu)),
+        )
     }
 }
 
@@ -118,7 +122,9 @@ impl Material {
 pub enum FeError {
     #[error("invalid material: {0}")]
     Material(String),
-    #[error("the stiffness is not positive definite (is the body fixed anywhere? {fixed_nodes} fixed nodes): {detail}")]
+    #[error(
+        "the stiffness is not positive definite (is the body fixed anywhere? {fixed_nodes} fixed nodes): {detail}"
+    )]
     NotPositiveDefinite { fixed_nodes: usize, detail: String },
     #[error("invalid load: {0}")]
     Load(String),

@@ -84,7 +84,12 @@ const A4: f64 = 0.585_410_196_624_968_5;
 const B4: f64 = 0.138_196_601_125_010_5;
 /// Degree 2, 4 points: exact for the P2 stiffness on straight tetrahedra.
 pub const TET_DEGREE2: TetRule = TetRule {
-    points: &[[A4, B4, B4, B4], [B4, A4, B4, B4], [B4, B4, A4, B4], [B4, B4, B4, A4]],
+    points: &[
+        [A4, B4, B4, B4],
+        [B4, A4, B4, B4],
+        [B4, B4, A4, B4],
+        [B4, B4, B4, A4],
+    ],
     weights: &[0.25, 0.25, 0.25, 0.25],
 };
 /// Degree 1, 1 point (P1 stiffness).
@@ -140,10 +145,15 @@ mod tests {
                             .points
                             .iter()
                             .zip(rule.weights)
-                            .map(|(p, w)| w * (0..4).map(|i| p[i].powi(e[i] as i32)).product::<f64>())
+                            .map(|(p, w)| {
+                                w * (0..4).map(|i| p[i].powi(e[i] as i32)).product::<f64>()
+                            })
                             .sum();
                         let ex = exact_monomial(e);
-                        assert!((q - ex).abs() < 1e-12, "degree {deg}, exponents {e:?}: {q} vs {ex}");
+                        assert!(
+                            (q - ex).abs() < 1e-12,
+                            "degree {deg}, exponents {e:?}: {q} vs {ex}"
+                        );
                     }
                 }
             }
@@ -152,7 +162,12 @@ mod tests {
 
     #[test]
     fn p2_values_partition_unity_and_gradients_sum_to_zero() {
-        let x = [[0.0, 0.0, 0.0], [2.0, 0.1, 0.0], [0.3, 1.5, 0.2], [0.1, 0.2, 1.7]];
+        let x = [
+            [0.0, 0.0, 0.0],
+            [2.0, 0.1, 0.0],
+            [0.3, 1.5, 0.2],
+            [0.1, 0.2, 1.7],
+        ];
         let (gl, vol) = barycentric_gradients(x).expect("non-degenerate");
         assert!(vol > 0.0);
         let l = [0.1, 0.2, 0.3, 0.4];

@@ -30,7 +30,12 @@ pub struct Space {
 impl Space {
     /// Builds the space. `boundary` are the mesh's boundary triangles, `fixed_vertex`
     /// flags mesh vertices; a P2 midpoint is fixed when both its end vertices are.
-    pub fn new(mesh: &TetMesh, boundary: &[[u32; 3]], fixed_vertex: &[bool], element: Element) -> Space {
+    pub fn new(
+        mesh: &TetMesh,
+        boundary: &[[u32; 3]],
+        fixed_vertex: &[bool],
+        element: Element,
+    ) -> Space {
         let nv = mesh.vertices.len();
         let mut nodes = mesh.vertices.clone();
         let mut fixed = fixed_vertex.to_vec();
@@ -38,15 +43,16 @@ impl Space {
         let mut cells = Vec::with_capacity(mesh.tets.len() * npc);
         let mut faces = Vec::with_capacity(boundary.len() * element.nodes_per_face());
         let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut midpoint = |a: u32, b: u32, nodes: &mut Vec<[f64; 3]>, fixed: &mut Vec<bool>| -> u32 {
-            let key = if a < b { (a, b) } else { (b, a) };
-            *mid.entry(key).or_insert_with(|| {
-                let (pa, pb) = (nodes[a as usize], nodes[b as usize]);
-                nodes.push([0, 1, 2].map(|d| 0.5 * (pa[d] + pb[d])));
-                fixed.push(fixed[a as usize] && fixed[b as usize]);
-                (nodes.len() - 1) as u32
-            })
-        };
+        let mut midpoint =
+            |a: u32, b: u32, nodes: &mut Vec<[f64; 3]>, fixed: &mut Vec<bool>| -> u32 {
+                let key = if a < b { (a, b) } else { (b, a) };
+                *mid.entry(key).or_insert_with(|| {
+                    let (pa, pb) = (nodes[a as usize], nodes[b as usize]);
+                    nodes.push([0, 1, 2].map(|d| 0.5 * (pa[d] + pb[d])));
+                    fixed.push(fixed[a as usize] && fixed[b as usize]);
+                    (nodes.len() - 1) as u32
+                })
+            };
         for t in &mesh.tets {
             cells.extend_from_slice(t);
             if element == Element::P2 {

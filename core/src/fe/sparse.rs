@@ -82,7 +82,10 @@ impl SymCsc {
     pub fn add(&mut self, row: usize, col: usize, v: f64) {
         let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
         let k = lo + self.row_idx[lo..hi].partition_point(|&r| r < row);
-        debug_assert!(k < hi && self.row_idx[k] == row, "({row}, {col}) not in the pattern");
+        debug_assert!(
+            k < hi && self.row_idx[k] == row,
+            "({row}, {col}) not in the pattern"
+        );
         self.val[k] += v;
     }
 
@@ -144,8 +147,10 @@ impl Cholesky {
             fixed_nodes,
             detail: e,
         };
-        let sym = SymbolicLlt::try_new(m.symbolic(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
-        let llt = Llt::try_new_with_symbolic(sym, m.as_ref(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
+        let sym =
+            SymbolicLlt::try_new(m.symbolic(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
+        let llt = Llt::try_new_with_symbolic(sym, m.as_ref(), Side::Lower)
+            .map_err(|e| err(format!("{e:?}")))?;
         Ok(Cholesky { llt, n: a.n })
     }
 

@@ -42,7 +42,10 @@ pub fn dihedral_angles_deg(p: [[f64; 3]; 4]) -> [f64; 6] {
 pub fn radius_ratio(p: [[f64; 3]; 4]) -> f64 {
     let vol = super::signed_volume(p[0], p[1], p[2], p[3]).abs();
     let area = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| 0.5 * norm(cross(sub(b, a), sub(c, a)));
-    let s = area(p[1], p[2], p[3]) + area(p[0], p[2], p[3]) + area(p[0], p[1], p[3]) + area(p[0], p[1], p[2]);
+    let s = area(p[1], p[2], p[3])
+        + area(p[0], p[2], p[3])
+        + area(p[0], p[1], p[3])
+        + area(p[0], p[1], p[2]);
     let r_in = 3.0 * vol / s;
     // Circumradius: |a|²(b×c) + |b|²(c×a) + |c|²(a×b) over 12·V, edges from p0.
     let a = sub(p[1], p[0]);
@@ -88,9 +91,17 @@ mod tests {
     #[test]
     fn regular_tetrahedron_has_70_53_degrees_and_ratio_one() {
         let s = 1.0 / 2f64.sqrt();
-        let p = [[1.0, 0.0, -s], [-1.0, 0.0, -s], [0.0, 1.0, s], [0.0, -1.0, s]];
+        let p = [
+            [1.0, 0.0, -s],
+            [-1.0, 0.0, -s],
+            [0.0, 1.0, s],
+            [0.0, -1.0, s],
+        ];
         for a in dihedral_angles_deg(p) {
-            assert!((a - (1.0f64 / 3.0).acos().to_degrees()).abs() < 1e-10, "{a}");
+            assert!(
+                (a - (1.0f64 / 3.0).acos().to_degrees()).abs() < 1e-10,
+                "{a}"
+            );
         }
         assert!((radius_ratio(p) - 1.0).abs() < 1e-12);
     }

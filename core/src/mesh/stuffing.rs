@@ -63,11 +63,19 @@ impl Lattice {
         let v = v as usize;
         if v < self.corners() {
             let (a, b) = (self.n[0] + 1, self.n[1] + 1);
-            [(v % a) as i64 * 2, ((v / a) % b) as i64 * 2, (v / (a * b)) as i64 * 2]
+            [
+                (v % a) as i64 * 2,
+                ((v / a) % b) as i64 * 2,
+                (v / (a * b)) as i64 * 2,
+            ]
         } else {
             let c = v - self.corners();
             let (a, b) = (self.n[0], self.n[1]);
-            [(c % a) as i64 * 2 + 1, ((c / a) % b) as i64 * 2 + 1, (c / (a * b)) as i64 * 2 + 1]
+            [
+                (c % a) as i64 * 2 + 1,
+                ((c / a) % b) as i64 * 2 + 1,
+                (c / (a * b)) as i64 * 2 + 1,
+            ]
         }
     }
     fn vertex_at_half(&self, h: [i64; 3]) -> Option<u32> {
@@ -90,14 +98,28 @@ impl Lattice {
     /// The 14 lattice neighbours of v: 6 black (±2 half-cells on an axis), 8 red.
     fn neighbours(&self, v: u32) -> impl Iterator<Item = (u32, bool)> + '_ {
         let c = self.half_coords(v);
-        const BLACK: [[i64; 3]; 6] = [[2, 0, 0], [-2, 0, 0], [0, 2, 0], [0, -2, 0], [0, 0, 2], [0, 0, -2]];
-        let red = (0..8).map(|m| [if m & 1 == 0 { 1 } else { -1 }, if m & 2 == 0 { 1 } else { -1 }, if m & 4 == 0 { 1 } else { -1 }]);
+        const BLACK: [[i64; 3]; 6] = [
+            [2, 0, 0],
+            [-2, 0, 0],
+            [0, 2, 0],
+            [0, -2, 0],
+            [0, 0, 2],
+            [0, 0, -2],
+        ];
+        let red = (0..8).map(|m| {
+            [
+                if m & 1 == 0 { 1 } else { -1 },
+                if m & 2 == 0 { 1 } else { -1 },
+                if m & 4 == 0 { 1 } else { -1 },
+            ]
+        });
         BLACK
             .into_iter()
             .map(|d| (d, true))
             .chain(red.map(|d| (d, false)))
             .filter_map(move |(d, black)| {
-                self.vertex_at_half([c[0] + d[0], c[1] + d[1], c[2] + d[2]]).map(|w| (w, black))
+                self.vertex_at_half([c[0] + d[0], c[1] + d[1], c[2] + d[2]])
+                    .map(|w| (w, black))
             })
     }
 }
@@ -164,7 +186,12 @@ pub fn stuff(shape: &impl Implicit, h_mm: f64) -> (TetMesh, StuffingReport) {
         .collect();
     let cuts: HashMap<(u32, u32), [f64; 3]> = cut_edges
         .par_iter()
-        .map(|&(v, w)| ((v, w), root(shape, pos0[v as usize], val0[v as usize], pos0[w as usize])))
+        .map(|&(v, w)| {
+            (
+                (v, w),
+                root(shape, pos0[v as usize], val0[v as usize], pos0[w as usize]),
+            )
+        })
         .collect();
 
     // Warping: each vertex moves to its nearest violating cut point, if any.
@@ -293,11 +320,21 @@ fn clip(t: [u32; 4], val: &[f64], shape: &impl Implicit, pos: &[[f64; 3]]) -> Op
         (_, _, 0) => Some(Poly::Tet(t.map(l))),
         (1, 0, 3) => {
             let m = minus[0];
-            Some(Poly::Tet([l(m), cut(m, plus[0]), cut(m, plus[1]), cut(m, plus[2])]))
+            Some(Poly::Tet([
+                l(m),
+                cut(m, plus[0]),
+                cut(m, plus[1]),
+                cut(m, plus[2]),
+            ]))
         }
         (1, 1, 2) => {
             let m = minus[0];
-            Some(Poly::Tet([l(m), l(zero[0]), cut(m, plus[0]), cut(m, plus[1])]))
+            Some(Poly::Tet([
+                l(m),
+                l(zero[0]),
+                cut(m, plus[0]),
+                cut(m, plus[1]),
+            ]))
         }
         (1, 2, 1) => {
             let m = minus[0];
@@ -306,16 +343,33 @@ fn clip(t: [u32; 4], val: &[f64], shape: &impl Implicit, pos: &[[f64; 3]]) -> Op
         (2, 0, 2) => {
             let (a, b) = (minus[0], minus[1]);
             let (p, q) = (plus[0], plus[1]);
-            Some(Poly::Prism([l(a), cut(a, p), cut(a, q), l(b), cut(b, p), cut(b, q)]))
+            Some(Poly::Prism([
+                l(a),
+                cut(a, p),
+                cut(a, q),
+                l(b),
+                cut(b, p),
+                cut(b, q),
+            ]))
         }
         (2, 1, 1) => {
             let (a, b, p) = (minus[0], minus[1], plus[0]);
-            Some(Poly::Pyramid(l(zero[0]), [l(a), l(b), cut(b, p), cut(a, p)]))
+            Some(Poly::Pyramid(
+                l(zero[0]),
+                [l(a), l(b), cut(b, p), cut(a, p)],
+            ))
         }
         (3, 0, 1) => {
             let p = plus[0];
             let [a, b, c] = [minus[0], minus[1], minus[2]];
-            Some(Poly::Prism([l(a), l(b), l(c), cut(a, p), cut(b, p), cut(c, p)]))
+            Some(Poly::Prism([
+                l(a),
+                l(b),
+                l(c),
+                cut(a, p),
+                cut(b, p),
+                cut(c, p),
+            ]))
         }
         _ => None,
     }
@@ -410,9 +464,17 @@ fn split_prism(p: [u32; 6]) -> [[u32; 4]; 3] {
         p[(r + 2) % 3 + 3],
     ];
     if v[1].min(v[5]) < v[2].min(v[4]) {
-        [[v[0], v[1], v[2], v[5]], [v[0], v[1], v[5], v[4]], [v[0], v[4], v[5], v[3]]]
+        [
+            [v[0], v[1], v[2], v[5]],
+            [v[0], v[1], v[5], v[4]],
+            [v[0], v[4], v[5], v[3]],
+        ]
     } else {
-        [[v[0], v[1], v[2], v[4]], [v[0], v[4], v[2], v[5]], [v[0], v[4], v[5], v[3]]]
+        [
+            [v[0], v[1], v[2], v[4]],
+            [v[0], v[4], v[2], v[5]],
+            [v[0], v[4], v[5], v[3]],
+        ]
     }
 }
 
@@ -439,7 +501,11 @@ mod tests {
         assert!(q.min_dihedral_deg > 0.0);
         // Volume within O(h²) of 4/3 π r³ (surface approximated to O(h²) by chords).
         let exact = 4.0 / 3.0 * std::f64::consts::PI * 1000.0;
-        assert!((m.volume() - exact).abs() / exact < 0.02, "{} vs {exact}", m.volume());
+        assert!(
+            (m.volume() - exact).abs() / exact < 0.02,
+            "{} vs {exact}",
+            m.volume()
+        );
         // Closed: every boundary edge is shared by exactly two boundary faces.
         let faces = m.boundary_faces();
         let mut edges: HashMap<(u32, u32), usize> = HashMap::new();
@@ -456,6 +522,10 @@ mod tests {
             }
         }
         assert!(rep.warped > 0);
-        eprintln!("sphere: {} vertices, {} tets, {q:?}, {rep:?}", m.vertices.len(), m.tets.len());
+        eprintln!(
+            "sphere: {} vertices, {} tets, {q:?}, {rep:?}",
+            m.vertices.len(),
+            m.tets.len()
+        );
     }
 }

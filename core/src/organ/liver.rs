@@ -76,7 +76,10 @@ fn smax(a: f64, b: f64, k: f64) -> f64 {
 fn ellipsoid(p: [f64; 3], c: [f64; 3], r: [f64; 3]) -> f64 {
     let q = [0, 1, 2].map(|d| p[d] - c[d]);
     let k0 = (0..3).map(|d| (q[d] / r[d]).powi(2)).sum::<f64>().sqrt();
-    let k1 = (0..3).map(|d| (q[d] / (r[d] * r[d])).powi(2)).sum::<f64>().sqrt();
+    let k1 = (0..3)
+        .map(|d| (q[d] / (r[d] * r[d])).powi(2))
+        .sum::<f64>()
+        .sqrt();
     if k1 == 0.0 {
         -r.iter().copied().fold(f64::INFINITY, f64::min)
     } else {
@@ -130,7 +133,11 @@ impl Implicit for Liver {
         // Left lobe: thickness shrinks linearly towards its tip (+x).
         let lr = self.left_radii;
         let s = ((p[0] - self.left_center[0]) / lr[0]).clamp(-1.0, 1.0);
-        let thick = if s > 0.0 { 1.0 - (1.0 - self.left_taper) * s } else { 1.0 };
+        let thick = if s > 0.0 {
+            1.0 - (1.0 - self.left_taper) * s
+        } else {
+            1.0
+        };
         let left = ellipsoid(p, self.left_center, [lr[0], lr[1], lr[2] * thick]);
         let mut f = smin(right, left, self.blend_mm);
         // Antero-inferior border: a plane cut with a small blend → a sharp edge.
@@ -183,7 +190,12 @@ mod tests {
     fn liver_levels_have_the_intended_sizes_and_quality() {
         let liver = Liver::default();
         for level in [Level::Coarse, Level::Medium] {
-            let m = mesh_organ(&liver, spacing_mm(level), &liver.fixed_region(), &liver.palpable_region());
+            let m = mesh_organ(
+                &liver,
+                spacing_mm(level),
+                &liver.fixed_region(),
+                &liver.palpable_region(),
+            );
             let q = quality(&m.mesh);
             let (lo, hi) = m.mesh.bounding_box();
             eprintln!(
@@ -198,7 +210,11 @@ mod tests {
                 m.boundary.len()
             );
             assert_eq!(q.inverted, 0);
-            assert!(q.min_dihedral_deg >= 10.0, "{level:?}: {}", q.min_dihedral_deg);
+            assert!(
+                q.min_dihedral_deg >= 10.0,
+                "{level:?}: {}",
+                q.min_dihedral_deg
+            );
         }
     }
 }

@@ -38,7 +38,9 @@ impl std::str::FromStr for Level {
             "coarse" => Ok(Level::Coarse),
             "medium" => Ok(Level::Medium),
             "fine" => Ok(Level::Fine),
-            o => Err(format!("unknown level '{o}', expected coarse, medium or fine")),
+            o => Err(format!(
+                "unknown level '{o}', expected coarse, medium or fine"
+            )),
         }
     }
 }

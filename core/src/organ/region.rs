@@ -14,9 +14,15 @@ pub enum Selector {
     Any(Vec<Selector>),
     Not(Box<Selector>),
     /// The outward normal is within `max_angle_deg` of `dir`.
-    NormalWithin { dir: [f64; 3], max_angle_deg: f64 },
+    NormalWithin {
+        dir: [f64; 3],
+        max_angle_deg: f64,
+    },
     /// Points with `(p − point)·normal ≥ 0`.
-    HalfSpace { point: [f64; 3], normal: [f64; 3] },
+    HalfSpace {
+        point: [f64; 3],
+        normal: [f64; 3],
+    },
     /// Points within `radius_mm` of the line through `point` along `dir`.
     NearLine {
         point: [f64; 3],
@@ -24,7 +30,10 @@ pub enum Selector {
         radius_mm: f64,
     },
     /// Points within `radius_mm` of `center`.
-    Ball { center: [f64; 3], radius_mm: f64 },
+    Ball {
+        center: [f64; 3],
+        radius_mm: f64,
+    },
 }
 
 impl Selector {

@@ -1,0 +1,169 @@
+//! `palpa fe solve`: one full finite-element solve of a probe load.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::{Args, Subcommand, ValueEnum};
+use palpa_core::export::{FieldValue, PointField, write_by_extension};
+use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_linear};
+use palpa_core::fe::{Element, Material};
+use serde_json::json;
+
+use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+
+#[derive(Debug, Subcommand)]
+pub enum FeCommand {
+    /// Solve the probe problem on the full FE model.
+    Solve(SolveArgs),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Model {
+    Linear,
+}
+
+#[derive(Debug, Args)]
+pub struct SolveArgs {
+    #[arg(long, value_enum, default_value = "liver")]
+    organ: OrganName,
+    #[arg(long, value_enum, default_value = "coarse")]
+    level: LevelArg,
+    /// Probe point X,Y,Z (mm); projected to the closest palpable surface point.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    at: Vec<f64>,
+    /// Total probe force (N).
+    #[arg(long)]
+    force_n: f64,
+    /// Load direction NX,NY,NZ (default: the inward surface normal at the probe).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    dir: Option<Vec<f64>>,
+    /// Tool radius (mm): the force is spread over the surface within it.
+    #[arg(long, default_value_t = 5.0)]
+    radius_mm: f64,
+    #[arg(long, value_enum, default_value = "linear")]
+    model: Model,
+    #[arg(long, default_value = "p2")]
+    element: Element,
+    #[arg(long, default_value_t = 160.0)]
+    young_kpa: f64,
+    #[arg(long, default_value_t = 0.48)]
+    poisson: f64,
+    /// Write the solution (.vtu or .msh).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(cmd: &FeCommand) -> anyhow::Result<()> {
+    match cmd {
+        FeCommand::Solve(args) => solve(args),
+    }
+}
+
+fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
+    match v {
+        [x, y, z] => Ok([*x, *y, *z]),
+        _ => bail!(
+            "{what} needs three comma-separated numbers, got {}",
+            v.len()
+        ),
+    }
+}
+
+fn solve(args: &SolveArgs) -> anyhow::Result<()> {
+    let t = Instant::now();
+    let at = to3(&args.at, "--at")?;
+    let dir = args.dir.as_deref().map(|d| to3(d, "--dir")).transpose()?;
+    let material = Material {
+        young_kpa: args.young_kpa,
+        poisson: args.poisson,
+    };
+    let organ = mesh_organ(args.organ, args.level);
+    let req = ProbeRequest {
+        at,
+        force_n: args.force_n,
+        dir,
+        radius_mm: args.radius_mm,
+    };
+    let sol = match args.model {
+        Model::Linear => solve_linear(&organ, args.element, material, &req).context("solving")?,
+    };
+    let seconds = t.elapsed().as_secs_f64();
+    let report = json!({
+        "young_kpa": material.young_kpa,
+        "poisson": material.poisson,
+        "element": args.element.name(),
+        "model": "linear",
+        "level": format!("{:?}", args.level).to_lowercase(),
+        "probe_point": sol.probe.point,
+        "probe_projection_distance_mm": sol.probe.distance_mm,
+        "direction": sol.dir,
+        "force_n": args.force_n,
+        "radius_mm": args.radius_mm,
+        "probe_displacement_mm": sol.probe_displacement_mm,
+        "max_displacement_mm": sol.max_displacement_mm,
+        "newton_iterations": 0,
+        "dofs": organ_space(&organ, args.element).free_dofs,
+        "assembly_s": sol.assembly_s,
+        "factor_s": sol.factor_s,
+        "solve_s": sol.solve_s,
+        "seconds": seconds,
+    });
+    if let Some(out) = &args.out {
+        let space = organ_space(&organ, args.element);
+        let fields = [
+            PointField {
+                name: "displacement".into(),
+                components: 3,
+                values: sol.u.clone(),
+            },
+            PointField {
+                name: "nodal_force".into(),
+                components: 3,
+                values: sol.load.clone(),
+            },
+            PointField {
+                name: "fixed".into(),
+                components: 1,
+                values: space
+                    .fixed
+                    .iter()
+                    .map(|&f| if f { 1.0 } else { 0.0 })
+                    .collect(),
+            },
+        ];
+        let meta = [
+            FieldValue {
+                name: "young_kpa".into(),
+                value: material.young_kpa,
+            },
+            FieldValue {
+                name: "poisson".into(),
+                value: material.poisson,
+            },
+            FieldValue {
+                name: "element_order".into(),
+                value: if args.element == Element::P2 {
+                    2.0
+                } else {
+                    1.0
+                },
+            },
+        ];
+        write_by_extension(out, &space, &fields, &meta)
+            .with_context(|| format!("writing {}", out.display()))?;
+    }
+    if args.json {
+        println!("{report}");
+    } else {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    }
+    Ok(())
+}

@@ -1,0 +1,128 @@
+//! One full FE solve of the palpation problem: project the probe point onto the
+//! palpable region, build the probe load, solve, and report what the CLI and the PGD
+//! validation need.
+
+use std::time::Instant;
+
+use super::elasticity::LinearProblem;
+use super::load::{SurfacePoint, probe_load, project, value_at};
+use super::space::Space;
+use super::{Element, FeError, Material};
+use crate::mesh::dot;
+use crate::organ::OrganMesh;
+
+/// What to press, where and how hard.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeRequest {
+    /// Any point; it is projected to the closest point of the palpable region.
+    pub at: [f64; 3],
+    pub force_n: f64,
+    /// Load direction; `None` = the inward normal at the probe point.
+    pub dir: Option<[f64; 3]>,
+    pub radius_mm: f64,
+}
+
+/// A solved probe problem.
+#[derive(Debug, Clone)]
+pub struct ProbeSolution {
+    pub probe: SurfacePoint,
+    /// Unit load direction.
+    pub dir: [f64; 3],
+    /// All-node load vector (N).
+    pub load: Vec<f64>,
+    /// All-node displacement (mm).
+    pub u: Vec<f64>,
+    /// Displacement at the probe point along the load direction (mm).
+    pub probe_displacement_mm: f64,
+    pub max_displacement_mm: f64,
+    pub assembly_s: f64,
+    pub factor_s: f64,
+    pub solve_s: f64,
+}
+
+/// The space of an organ mesh; its faces are the organ's boundary triangles, in order.
+pub fn organ_space(organ: &OrganMesh, element: Element) -> Space {
+    Space::new(&organ.mesh, &organ.boundary, &organ.fixed, element)
+}
+
+/// Projects the request onto the palpable region and builds its unit direction.
+pub fn locate(
+    space: &Space,
+    organ: &OrganMesh,
+    req: &ProbeRequest,
+) -> Result<(SurfacePoint, [f64; 3]), FeError> {
+    if req.at.iter().any(|c| !c.is_finite()) {
+        return Err(FeError::Load(format!(
+            "probe point {:?} is not finite",
+            req.at
+        )));
+    }
+    let probe = project(space, &organ.palpable, req.at)
+        .ok_or_else(|| FeError::Load("the organ has no palpable surface".into()))?;
+    let dir = match req.dir {
+        Some(d) => {
+            let l = dot(d, d).sqrt();
+            if !(l.is_finite() && l > 0.0) {
+                return Err(FeError::Load(format!("direction {d:?} has no length")));
+            }
+            d.map(|v| v / l)
+        }
+        None => probe.normal.map(|v| -v),
+    };
+    Ok((probe, dir))
+}
+
+/// Linear-elastic solve of one probe request.
+pub fn solve_linear(
+    organ: &OrganMesh,
+    element: Element,
+    material: Material,
+    req: &ProbeRequest,
+) -> Result<ProbeSolution, FeError> {
+    let space = organ_space(organ, element);
+    let (probe, dir) = locate(&space, organ, req)?;
+    let load = probe_load(&space, &probe, dir, req.force_n, req.radius_mm)?;
+    let problem = LinearProblem::new(&space, material)?;
+    let t = Instant::now();
+    let u = problem.solve(&space, &load);
+    let solve_s = t.elapsed().as_secs_f64();
+    Ok(summarize(
+        &space,
+        probe,
+        dir,
+        load,
+        u,
+        problem.assembly_s,
+        problem.factor_s,
+        solve_s,
+    ))
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn summarize(
+    space: &Space,
+    probe: SurfacePoint,
+    dir: [f64; 3],
+    load: Vec<f64>,
+    u: Vec<f64>,
+    assembly_s: f64,
+    factor_s: f64,
+    solve_s: f64,
+) -> ProbeSolution {
+    let us = value_at(space, &u, &probe);
+    let max = u
+        .chunks_exact(3)
+        .map(|v| dot([v[0], v[1], v[2]], [v[0], v[1], v[2]]).sqrt())
+        .fold(0.0, f64::max);
+    ProbeSolution {
+        probe,
+        dir,
+        load,
+        probe_displacement_mm: dot(us, dir),
+        max_displacement_mm: max,
+        u,
+        assembly_s,
+        factor_s,
+        solve_s,
+    }
+}
