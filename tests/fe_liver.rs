@@ -1,0 +1,95 @@
+//! The full FE model of the liver: loads, supports and response on the coarse mesh.
+
+use palpa_core::fe::load::{probe_load, resultant};
+use palpa_core::fe::probe::{ProbeRequest, locate, organ_space, solve_linear};
+use palpa_core::fe::{Element, Material};
+use palpa_core::organ::liver::{Liver, spacing_mm};
+use palpa_core::organ::{Level, OrganMesh, mesh_organ};
+
+fn coarse_liver() -> OrganMesh {
+    let liver = Liver::default();
+    mesh_organ(&liver, spacing_mm(Level::Coarse), &liver.fixed_region(), &liver.palpable_region())
+}
+
+/// Probe points around the organ: anterior right lobe, left lobe, the inferior border,
+/// next to the fixed region, and one far away (projected).
+const POINTS: [[f64; 3]; 5] = [
+    [-30.0, 80.0, 0.0],
+    [60.0, 40.0, 20.0],
+    [-20.0, 40.0, -60.0],
+    [-60.0, -40.0, -20.0],
+    [500.0, 500.0, 500.0],
+];
+
+#[test]
+fn the_consistent_load_sums_to_the_applied_force() {
+    let organ = coarse_liver();
+    for element in [Element::P1, Element::P2] {
+        let space = organ_space(&organ, element);
+        for at in POINTS {
+            for radius_mm in [0.5, 5.0, 20.0] {
+                let req = ProbeRequest { at, force_n: 3.0, dir: Some([0.2, -1.0, 0.3]), radius_mm };
+                let (probe, dir) = locate(&space, &organ, &req).expect("palpable surface exists");
+                let f = probe_load(&space, &probe, dir, 3.0, radius_mm).expect("valid load");
+                let r = resultant(&f);
+                for d in 0..3 {
+                    // A sum of O(100) terms of O(1) N: a few ulps.
+                    assert!((r[d] - 3.0 * dir[d]).abs() < 1e-12, "{element:?} {at:?} r={radius_mm}: {r:?}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn fixed_nodes_do_not_move_and_pressing_moves_the_surface_inward() {
+    let organ = coarse_liver();
+    let fixed = organ.fixed.iter().filter(|&&f| f).count();
+    assert!(fixed > 20, "the posterior attachment must hold the organ ({fixed} nodes)");
+    for element in [Element::P1, Element::P2] {
+        let space = organ_space(&organ, element);
+        let req = ProbeRequest { at: POINTS[0], force_n: 1.0, dir: None, radius_mm: 5.0 };
+        let sol = solve_linear(&organ, element, Material::default(), &req).expect("solve");
+        for (n, &f) in space.fixed.iter().enumerate() {
+            if f {
+                assert_eq!(&sol.u[3 * n..3 * n + 3], &[0.0; 3], "fixed node {n} moved");
+            }
+        }
+        // Pressing along the inward normal moves the probe point along it.
+        assert!(sol.probe_displacement_mm > 0.0, "{element:?}: {}", sol.probe_displacement_mm);
+        // Linearity: twice the force, twice the displacement.
+        let twice = solve_linear(&organ, element, Material::default(), &ProbeRequest { force_n: 2.0, ..req })
+            .expect("solve");
+        let ratio = twice.probe_displacement_mm / sol.probe_displacement_mm;
+        assert!((ratio - 2.0).abs() < 1e-9, "{ratio}");
+    }
+}
+
+#[test]
+fn a_far_away_probe_is_projected_onto_the_palpable_region() {
+    let organ = coarse_liver();
+    let space = organ_space(&organ, Element::P1);
+    let req = ProbeRequest { at: POINTS[4], force_n: 1.0, dir: None, radius_mm: 5.0 };
+    let (probe, _) = locate(&space, &organ, &req).expect("projected");
+    assert!(organ.palpable[probe.face], "the projection lands on a palpable face");
+    assert!(probe.distance_mm > 400.0, "the distance is reported: {}", probe.distance_mm);
+}
+
+#[test]
+fn bad_requests_get_clear_errors() {
+    let organ = coarse_liver();
+    let bad = [
+        ProbeRequest { at: [f64::NAN, 0.0, 0.0], force_n: 1.0, dir: None, radius_mm: 5.0 },
+        ProbeRequest { at: POINTS[0], force_n: f64::INFINITY, dir: None, radius_mm: 5.0 },
+        ProbeRequest { at: POINTS[0], force_n: 1.0, dir: Some([0.0; 3]), radius_mm: 5.0 },
+        ProbeRequest { at: POINTS[0], force_n: 1.0, dir: None, radius_mm: -1.0 },
+    ];
+    for req in bad {
+        let e = solve_linear(&organ, Element::P1, Material::default(), &req).expect_err("refused");
+        assert!(!e.to_string().is_empty());
+    }
+    let soft = Material { young_kpa: 160.0, poisson: 0.5 };
+    let e = solve_linear(&organ, Element::P1, soft, &ProbeRequest { at: POINTS[0], force_n: 1.0, dir: None, radius_mm: 5.0 })
+        .expect_err("ν = 0.5 is refused");
+    assert!(e.to_string().contains("Poisson"), "{e}");
+}
