@@ -8,7 +8,12 @@ use palpa_core::organ::{Level, OrganMesh, mesh_organ};
 
 fn coarse_liver() -> OrganMesh {
     let liver = Liver::default();
-    mesh_organ(&liver, spacing_mm(Level::Coarse), &liver.fixed_region(), &liver.palpable_region())
+    mesh_organ(
+        &liver,
+        spacing_mm(Level::Coarse),
+        &liver.fixed_region(),
+        &liver.palpable_region(),
+    )
 }
 
 /// Probe points around the organ: anterior right lobe, left lobe, the inferior border,
@@ -28,13 +33,21 @@ fn the_consistent_load_sums_to_the_applied_force() {
         let space = organ_space(&organ, element);
         for at in POINTS {
             for radius_mm in [0.5, 5.0, 20.0] {
-                let req = ProbeRequest { at, force_n: 3.0, dir: Some([0.2, -1.0, 0.3]), radius_mm };
+                let req = ProbeRequest {
+                    at,
+                    force_n: 3.0,
+                    dir: Some([0.2, -1.0, 0.3]),
+                    radius_mm,
+                };
                 let (probe, dir) = locate(&space, &organ, &req).expect("palpable surface exists");
                 let f = probe_load(&space, &probe, dir, 3.0, radius_mm).expect("valid load");
                 let r = resultant(&f);
                 for d in 0..3 {
                     // A sum of O(100) terms of O(1) N: a few ulps.
-                    assert!((r[d] - 3.0 * dir[d]).abs() < 1e-12, "{element:?} {at:?} r={radius_mm}: {r:?}");
+                    assert!(
+                        (r[d] - 3.0 * dir[d]).abs() < 1e-12,
+                        "{element:?} {at:?} r={radius_mm}: {r:?}"
+                    );
                 }
             }
         }
@@ -45,10 +58,18 @@ fn the_consistent_load_sums_to_the_applied_force() {
 fn fixed_nodes_do_not_move_and_pressing_moves_the_surface_inward() {
     let organ = coarse_liver();
     let fixed = organ.fixed.iter().filter(|&&f| f).count();
-    assert!(fixed > 20, "the posterior attachment must hold the organ ({fixed} nodes)");
+    assert!(
+        fixed > 20,
+        "the posterior attachment must hold the organ ({fixed} nodes)"
+    );
     for element in [Element::P1, Element::P2] {
         let space = organ_space(&organ, element);
-        let req = ProbeRequest { at: POINTS[0], force_n: 1.0, dir: None, radius_mm: 5.0 };
+        let req = ProbeRequest {
+            at: POINTS[0],
+            force_n: 1.0,
+            dir: None,
+            radius_mm: 5.0,
+        };
         let sol = solve_linear(&organ, element, Material::default(), &req).expect("solve");
         for (n, &f) in space.fixed.iter().enumerate() {
             if f {
@@ -56,10 +77,22 @@ fn fixed_nodes_do_not_move_and_pressing_moves_the_surface_inward() {
             }
         }
         // Pressing along the inward normal moves the probe point along it.
-        assert!(sol.probe_displacement_mm > 0.0, "{element:?}: {}", sol.probe_displacement_mm);
+        assert!(
+            sol.probe_displacement_mm > 0.0,
+            "{element:?}: {}",
+            sol.probe_displacement_mm
+        );
         // Linearity: twice the force, twice the displacement.
-        let twice = solve_linear(&organ, element, Material::default(), &ProbeRequest { force_n: 2.0, ..req })
-            .expect("solve");
+        let twice = solve_linear(
+            &organ,
+            element,
+            Material::default(),
+            &ProbeRequest {
+                force_n: 2.0,
+                ..req
+            },
+        )
+        .expect("solve");
         let ratio = twice.probe_displacement_mm / sol.probe_displacement_mm;
         assert!((ratio - 2.0).abs() < 1e-9, "{ratio}");
     }
@@ -69,27 +102,167 @@ fn fixed_nodes_do_not_move_and_pressing_moves_the_surface_inward() {
 fn a_far_away_probe_is_projected_onto_the_palpable_region() {
     let organ = coarse_liver();
     let space = organ_space(&organ, Element::P1);
-    let req = ProbeRequest { at: POINTS[4], force_n: 1.0, dir: None, radius_mm: 5.0 };
+    let req = ProbeRequest {
+        at: POINTS[4],
+        force_n: 1.0,
+        dir: None,
+        radius_mm: 5.0,
+    };
     let (probe, _) = locate(&space, &organ, &req).expect("projected");
-    assert!(organ.palpable[probe.face], "the projection lands on a palpable face");
-    assert!(probe.distance_mm > 400.0, "the distance is reported: {}", probe.distance_mm);
+    assert!(
+        organ.palpable[probe.face],
+        "the projection lands on a palpable face"
+    );
+    assert!(
+        probe.distance_mm > 400.0,
+        "the distance is reported: {}",
+        probe.distance_mm
+    );
 }
 
 #[test]
 fn bad_requests_get_clear_errors() {
     let organ = coarse_liver();
     let bad = [
-        ProbeRequest { at: [f64::NAN, 0.0, 0.0], force_n: 1.0, dir: None, radius_mm: 5.0 },
-        ProbeRequest { at: POINTS[0], force_n: f64::INFINITY, dir: None, radius_mm: 5.0 },
-        ProbeRequest { at: POINTS[0], force_n: 1.0, dir: Some([0.0; 3]), radius_mm: 5.0 },
-        ProbeRequest { at: POINTS[0], force_n: 1.0, dir: None, radius_mm: -1.0 },
+        ProbeRequest {
+            at: [f64::NAN, 0.0, 0.0],
+            force_n: 1.0,
+            dir: None,
+            radius_mm: 5.0,
+        },
+        ProbeRequest {
+            at: POINTS[0],
+            force_n: f64::INFINITY,
+            dir: None,
+            radius_mm: 5.0,
+        },
+        ProbeRequest {
+            at: POINTS[0],
+            force_n: 1.0,
+            dir: Some([0.0; 3]),
+            radius_mm: 5.0,
+        },
+        ProbeRequest {
+            at: POINTS[0],
+            force_n: 1.0,
+            dir: None,
+            radius_mm: -1.0,
+        },
     ];
     for req in bad {
         let e = solve_linear(&organ, Element::P1, Material::default(), &req).expect_err("refused");
         assert!(!e.to_string().is_empty());
     }
-    let soft = Material { young_kpa: 160.0, poisson: 0.5 };
-    let e = solve_linear(&organ, Element::P1, soft, &ProbeRequest { at: POINTS[0], force_n: 1.0, dir: None, radius_mm: 5.0 })
-        .expect_err("ν = 0.5 is refused");
+    let soft = Material {
+        young_kpa: 160.0,
+        poisson: 0.5,
+    };
+    let e = solve_linear(
+        &organ,
+        Element::P1,
+        soft,
+        &ProbeRequest {
+            at: POINTS[0],
+            force_n: 1.0,
+            dir: None,
+            radius_mm: 5.0,
+        },
+    )
+    .expect_err("ν = 0.5 is refused");
     assert!(e.to_string().contains("Poisson"), "{e}");
+}
+
+mod svk {
+    use super::*;
+    use palpa_core::fe::probe::solve_svk;
+    use palpa_core::fe::svk::NewtonSettings;
+
+    /// At small loads the nonlinear model reduces to the linear one: the difference is
+    /// second order in the load (relative difference ∝ F).
+    #[test]
+    fn svk_agrees_with_linear_at_small_loads() {
+        let organ = coarse_liver();
+        let mut rel = Vec::new();
+        for force_n in [0.01, 0.02] {
+            let req = ProbeRequest {
+                at: POINTS[0],
+                force_n,
+                dir: None,
+                radius_mm: 5.0,
+            };
+            let lin = solve_linear(&organ, Element::P1, Material::default(), &req).expect("linear");
+            let (nl, _) = solve_svk(
+                &organ,
+                Element::P1,
+                Material::default(),
+                &req,
+                NewtonSettings::default(),
+            )
+            .expect("svk");
+            rel.push(
+                (nl.probe_displacement_mm - lin.probe_displacement_mm).abs()
+                    / lin.probe_displacement_mm,
+            );
+        }
+        eprintln!("relative SVK − linear differences at 0.01 and 0.02 N: {rel:?}");
+        assert!(rel[0] < 1e-2, "{rel:?}");
+        // Doubling the load doubles the relative difference (first-order term of the
+        // nonlinearity), to within 20%.
+        assert!((rel[1] / rel[0] - 2.0).abs() < 0.4, "{rel:?}");
+    }
+
+    /// Newton converges quadratically near the solution: each residual is bounded by
+    /// C·(previous)² in the last iterations.
+    #[test]
+    fn newton_converges_quadratically() {
+        let organ = coarse_liver();
+        let req = ProbeRequest {
+            at: POINTS[0],
+            force_n: 0.5,
+            dir: None,
+            radius_mm: 5.0,
+        };
+        let (_, rep) = solve_svk(
+            &organ,
+            Element::P1,
+            Material::default(),
+            &req,
+            NewtonSettings::default(),
+        )
+        .expect("svk");
+        let r = &rep.last_step_residuals;
+        eprintln!("residuals of the last load step: {r:?}");
+        assert!(r.len() >= 3, "{r:?}");
+        // Order estimates q_k = ln(r_{k+1}/r_0) / ln(r_k/r_0) once r_k ≪ r_0: q → 2 for
+        // quadratic, → 1 for linear convergence.
+        let orders: Vec<f64> = r
+            .windows(2)
+            .filter(|w| w[0] < 1e-2 * r[0])
+            .map(|w| (w[1] / r[0]).ln() / (w[0] / r[0]).ln())
+            .collect();
+        eprintln!("observed orders: {orders:?}");
+        let best = orders.iter().copied().fold(0.0, f64::max);
+        assert!(
+            best > 1.8,
+            "quadratic convergence expected, orders {orders:?}"
+        );
+    }
+
+    #[test]
+    fn an_excessive_force_is_reported_not_answered() {
+        let organ = coarse_liver();
+        let req = ProbeRequest {
+            at: POINTS[0],
+            force_n: 200.0,
+            dir: None,
+            radius_mm: 5.0,
+        };
+        let settings = NewtonSettings {
+            min_step: 1.0 / 64.0,
+            ..NewtonSettings::default()
+        };
+        let e = solve_svk(&organ, Element::P1, Material::default(), &req, settings)
+            .expect_err("must not converge");
+        assert!(e.to_string().contains("% of the load"), "{e}");
+    }
 }

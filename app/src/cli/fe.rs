@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::export::{FieldValue, PointField, write_by_extension};
-use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_linear};
+use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_linear, solve_svk};
+use palpa_core::fe::svk::NewtonSettings;
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
@@ -21,6 +22,8 @@ pub enum FeCommand {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Model {
     Linear,
+    /// Saint Venant–Kirchhoff (geometrically and materially nonlinear), Newton.
+    Svk,
 }
 
 #[derive(Debug, Args)]
@@ -92,15 +95,30 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         dir,
         radius_mm: args.radius_mm,
     };
-    let sol = match args.model {
-        Model::Linear => solve_linear(&organ, args.element, material, &req).context("solving")?,
+    let (sol, newton_iterations, load_steps) = match args.model {
+        Model::Linear => (
+            solve_linear(&organ, args.element, material, &req).context("solving")?,
+            0,
+            1,
+        ),
+        Model::Svk => {
+            let (sol, rep) = solve_svk(
+                &organ,
+                args.element,
+                material,
+                &req,
+                NewtonSettings::default(),
+            )
+            .context("solving (Saint Venant–Kirchhoff)")?;
+            (sol, rep.iterations, rep.load_steps)
+        }
     };
     let seconds = t.elapsed().as_secs_f64();
     let report = json!({
         "young_kpa": material.young_kpa,
         "poisson": material.poisson,
         "element": args.element.name(),
-        "model": "linear",
+        "model": format!("{:?}", args.model).to_lowercase(),
         "level": format!("{:?}", args.level).to_lowercase(),
         "probe_point": sol.probe.point,
         "probe_projection_distance_mm": sol.probe.distance_mm,
@@ -109,7 +127,8 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         "radius_mm": args.radius_mm,
         "probe_displacement_mm": sol.probe_displacement_mm,
         "max_displacement_mm": sol.max_displacement_mm,
-        "newton_iterations": 0,
+        "newton_iterations": newton_iterations,
+        "load_steps": load_steps,
         "dofs": organ_space(&organ, args.element).free_dofs,
         "assembly_s": sol.assembly_s,
         "factor_s": sol.factor_s,

@@ -29,6 +29,7 @@ pub mod probe;
 pub mod shape;
 pub mod space;
 pub mod sparse;
+pub mod svk;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;

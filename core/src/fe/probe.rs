@@ -7,6 +7,7 @@ use std::time::Instant;
 use super::elasticity::LinearProblem;
 use super::load::{SurfacePoint, probe_load, project, value_at};
 use super::space::Space;
+use super::svk::{self, NewtonReport, NewtonSettings};
 use super::{Element, FeError, Material};
 use crate::mesh::dot;
 use crate::organ::OrganMesh;
@@ -96,6 +97,22 @@ pub fn solve_linear(
         problem.factor_s,
         solve_s,
     ))
+}
+
+/// Saint Venant–Kirchhoff solve of one probe request (dead load).
+pub fn solve_svk(
+    organ: &OrganMesh,
+    element: Element,
+    material: Material,
+    req: &ProbeRequest,
+    settings: NewtonSettings,
+) -> Result<(ProbeSolution, NewtonReport), FeError> {
+    let space = organ_space(organ, element);
+    let (probe, dir) = locate(&space, organ, req)?;
+    let load = probe_load(&space, &probe, dir, req.force_n, req.radius_mm)?;
+    let (u, report) = svk::solve(&space, material, &load, settings)?;
+    let s = report.seconds;
+    Ok((summarize(&space, probe, dir, load, u, 0.0, 0.0, s), report))
 }
 
 #[allow(clippy::too_many_arguments)]
