@@ -10,7 +10,9 @@ use palpa_core::mesh::stuffing::{Implicit, stuff};
 struct Cube;
 impl Implicit for Cube {
     fn value(&self, p: [f64; 3]) -> f64 {
-        p.iter().map(|c| c.abs() - 1.0).fold(f64::NEG_INFINITY, f64::max)
+        p.iter()
+            .map(|c| c.abs() - 1.0)
+            .fold(f64::NEG_INFINITY, f64::max)
     }
     fn bounds(&self) -> ([f64; 3], [f64; 3]) {
         ([-1.0; 3], [1.0; 3])
@@ -107,13 +109,22 @@ fn relative_l2_error(h: f64, element: Element, material: Material) -> f64 {
 #[test]
 fn l2_error_rates_are_two_for_p1_and_three_for_p2() {
     // ν = 0.3: the asymptotic rates without locking (locking is measured separately).
-    let material = Material { young_kpa: 160.0, poisson: 0.3 };
+    let material = Material {
+        young_kpa: 160.0,
+        poisson: 0.3,
+    };
     let hs = [0.5, 0.25];
     for (element, expected) in [(Element::P1, 2.0), (Element::P2, 3.0)] {
-        let e: Vec<f64> = hs.iter().map(|&h| relative_l2_error(h, element, material)).collect();
+        let e: Vec<f64> = hs
+            .iter()
+            .map(|&h| relative_l2_error(h, element, material))
+            .collect();
         let rate = (e[0] / e[1]).ln() / (hs[0] / hs[1]).ln();
         eprintln!("{element:?}: errors {e:?}, observed rate {rate:.2}");
         // Stuffed meshes are not uniform refinements: allow ±0.35 around the rate.
-        assert!((rate - expected).abs() < 0.35, "{element:?}: rate {rate}, errors {e:?}");
+        assert!(
+            (rate - expected).abs() < 0.35,
+            "{element:?}: rate {rate}, errors {e:?}"
+        );
     }
 }

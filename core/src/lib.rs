@@ -27,6 +27,7 @@ pub mod organ;
 pub mod rng;
 pub mod scalar;
 pub mod separated;
+pub mod surface;
 pub mod synthetic;
 
 pub use axis::{AxisError, Discretization, ParamValue, Stencil};

@@ -32,6 +32,10 @@ pub struct SolveArgs {
     organ: OrganName,
     #[arg(long, value_enum, default_value = "coarse")]
     level: LevelArg,
+    /// A closed surface (OBJ, or ASCII/binary STL, in mm) to mesh instead of the organ;
+    /// fixed = posterior-facing (−y) surface, palpable = anterior/inferior.
+    #[arg(long)]
+    surface: Option<PathBuf>,
     /// Probe point X,Y,Z (mm); projected to the closest palpable surface point.
     #[arg(
         long,
@@ -88,7 +92,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         young_kpa: args.young_kpa,
         poisson: args.poisson,
     };
-    let organ = mesh_organ(args.organ, args.level);
+    let organ = mesh_organ(args.organ, args.level, args.surface.as_deref())?;
     let req = ProbeRequest {
         at,
         force_n: args.force_n,

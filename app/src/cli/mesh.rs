@@ -19,6 +19,10 @@ pub struct MeshArgs {
     organ: OrganName,
     #[arg(long, value_enum, default_value = "coarse")]
     level: LevelArg,
+    /// A closed surface (OBJ, or ASCII/binary STL, in mm) to mesh instead of the organ;
+    /// fixed = posterior-facing (−y) surface, palpable = anterior/inferior.
+    #[arg(long)]
+    surface: Option<PathBuf>,
     /// Write the mesh (.vtu or .msh) with point data `fixed`.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -29,7 +33,7 @@ pub struct MeshArgs {
 
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let t = Instant::now();
-    let organ = mesh_organ(args.organ, args.level);
+    let organ = mesh_organ(args.organ, args.level, args.surface.as_deref())?;
     let seconds = t.elapsed().as_secs_f64();
     let q = quality(&organ.mesh);
     let (lo, hi) = organ.mesh.bounding_box();
@@ -41,7 +45,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         .map(|(f, _)| triangle_area(&organ.mesh.vertices, *f))
         .sum();
     let report = json!({
-        "organ": format!("{:?}", args.organ).to_lowercase(),
+        "organ": match &args.surface {
+            Some(p) => p.display().to_string(),
+            None => format!("{:?}", args.organ).to_lowercase(),
+        },
         "level": format!("{:?}", args.level).to_lowercase(),
         "lattice_spacing_mm": organ.h_mm,
         "vertices": organ.mesh.vertices.len(),

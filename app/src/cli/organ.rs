@@ -1,8 +1,13 @@
 //! Organ selection shared by the mesh and FE commands.
 
+use std::path::Path;
+
+use anyhow::Context;
 use clap::ValueEnum;
+use palpa_core::mesh::stuffing::Implicit;
 use palpa_core::organ::liver::{Liver, spacing_mm};
-use palpa_core::organ::{Level, OrganMesh, mesh_organ};
+use palpa_core::organ::{Level, OrganMesh, default_user_regions, mesh_organ, spacing_for_diagonal};
+use palpa_core::surface::{SurfaceSolid, TriSurface};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum OrganName {
@@ -27,9 +32,28 @@ impl From<LevelArg> for Level {
     }
 }
 
-/// Meshes the named organ at a level.
-pub fn mesh(organ: OrganName, level: LevelArg) -> OrganMesh {
-    match organ {
+/// Meshes the named organ, or the closed surface in `surface` (OBJ/STL), at a level.
+pub fn mesh(
+    organ: OrganName,
+    level: LevelArg,
+    surface: Option<&Path>,
+) -> anyhow::Result<OrganMesh> {
+    if let Some(path) = surface {
+        let mut s = TriSurface::read(path)?;
+        s.validate()
+            .with_context(|| format!("{} cannot be meshed", path.display()))?;
+        let solid = SurfaceSolid::new(s);
+        let (lo, hi) = solid.bounds();
+        let diag = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
+        let (fixed, palpable) = default_user_regions();
+        return Ok(mesh_organ(
+            &solid,
+            spacing_for_diagonal(level.into(), diag),
+            &fixed,
+            &palpable,
+        ));
+    }
+    Ok(match organ {
         OrganName::Liver => {
             let liver = Liver::default();
             mesh_organ(
@@ -39,5 +63,5 @@ pub fn mesh(organ: OrganName, level: LevelArg) -> OrganMesh {
                 &liver.palpable_region(),
             )
         }
-    }
+    })
 }

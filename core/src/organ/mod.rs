@@ -96,6 +96,38 @@ pub fn mesh_organ(
     }
 }
 
+/// Default regions for a user surface, which carries no region data: fixed where the
+/// outward normal points posterior (−y) within 45°, palpable where it points anterior
+/// (+y) within 80° or inferior (−z) within 70°.
+pub fn default_user_regions() -> (Selector, Selector) {
+    let fixed = Selector::NormalWithin {
+        dir: [0.0, -1.0, 0.0],
+        max_angle_deg: 45.0,
+    };
+    let palpable = Selector::Any(vec![
+        Selector::NormalWithin {
+            dir: [0.0, 1.0, 0.0],
+            max_angle_deg: 80.0,
+        },
+        Selector::NormalWithin {
+            dir: [0.0, 0.0, -1.0],
+            max_angle_deg: 70.0,
+        },
+    ]);
+    (fixed, palpable)
+}
+
+/// Lattice spacing of a level for a solid of bounding-box diagonal `diag_mm`, scaled
+/// like the liver's levels (diag/22, /38, /66).
+pub fn spacing_for_diagonal(level: Level, diag_mm: f64) -> f64 {
+    diag_mm
+        / match level {
+            Level::Coarse => 22.0,
+            Level::Medium => 38.0,
+            Level::Fine => 66.0,
+        }
+}
+
 /// Centroid and unit outward normal of a triangle.
 pub fn centroid_normal(v: &[[f64; 3]], f: [u32; 3]) -> ([f64; 3], [f64; 3]) {
     let [a, b, c] = f.map(|i| v[i as usize]);

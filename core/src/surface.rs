@@ -1,0 +1,670 @@
+//! User organ surfaces: OBJ and STL (ASCII and binary) triangle surfaces, checked to be
+//! closed 2-manifolds, and turned into an implicit solid the mesher can fill.
+//!
+//! Checks, each reported with where it fails: every edge is shared by exactly two
+//! triangles (an edge used once is a hole, more than twice is non-manifold), the two
+//! triangles traverse it in opposite directions (consistent orientation), every
+//! vertex's triangles form a single fan (no "bow-tie" vertices), and no triangle is
+//! degenerate. The orientation is made outward (positive enclosed volume).
+//!
+//! The implicit function is the signed distance: the distance to the closest triangle
+//! (found through a uniform grid of triangle buckets), negative inside, with the sign
+//! taken from the angle-weighted pseudo-normal of the closest feature (face, edge or
+//! vertex), which is exact for closed manifolds (Bærentzen & Aanæs 2005).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use thiserror::Error;
+
+use crate::mesh::stuffing::Implicit;
+use crate::mesh::{cross, dot, norm, sub};
+
+/// A triangle surface (mm).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriSurface {
+    pub vertices: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Why a surface cannot be used.
+#[derive(Debug, Error)]
+pub enum SurfaceError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}:{line}: {reason}")]
+    Parse {
+        path: PathBuf,
+        line: usize,
+        reason: String,
+    },
+    #[error("{path}: unknown surface format (expected .obj or .stl)")]
+    Format { path: PathBuf },
+    #[error("the surface has no triangles")]
+    Empty,
+    #[error("triangle {triangle} is degenerate (zero area or a repeated vertex) at {at:?}")]
+    Degenerate { triangle: usize, at: [f64; 3] },
+    #[error(
+        "not closed: edge {a}–{b} (from {pa:?} to {pb:?}) belongs to only one triangle (a hole)"
+    )]
+    Open {
+        a: u32,
+        b: u32,
+        pa: [f64; 3],
+        pb: [f64; 3],
+    },
+    #[error("not manifold: edge {a}–{b} (from {pa:?} to {pb:?}) is shared by {count} triangles")]
+    NonManifoldEdge {
+        a: u32,
+        b: u32,
+        pa: [f64; 3],
+        pb: [f64; 3],
+        count: usize,
+    },
+    #[error("not manifold: vertex {v} at {at:?} joins {fans} separate fans of triangles")]
+    NonManifoldVertex { v: u32, at: [f64; 3], fans: usize },
+    #[error(
+        "inconsistent orientation: the two triangles at edge {a}–{b} (at {pa:?}) traverse it the same way"
+    )]
+    Orientation { a: u32, b: u32, pa: [f64; 3] },
+}
+
+impl TriSurface {
+    /// Reads `.obj` or `.stl` (ASCII or binary) by extension.
+    pub fn read(path: &Path) -> Result<TriSurface, SurfaceError> {
+        let bytes = std::fs::read(path).map_err(|source| SurfaceError::Io {
+            path: path.into(),
+            source,
+        })?;
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("obj") => parse_obj(path, &bytes),
+            Some("stl") => parse_stl(path, &bytes),
+            _ => Err(SurfaceError::Format { path: path.into() }),
+        }
+    }
+
+    /// Signed volume (positive when oriented outward).
+    pub fn volume(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize]);
+                dot(a, cross(b, c)) / 6.0
+            })
+            .sum()
+    }
+
+    /// Checks closedness, manifoldness and orientation; flips to outward orientation.
+    pub fn validate(&mut self) -> Result<(), SurfaceError> {
+        if self.triangles.is_empty() {
+            return Err(SurfaceError::Empty);
+        }
+        let p = |i: u32| self.vertices[i as usize];
+        for (t, tri) in self.triangles.iter().enumerate() {
+            let [a, b, c] = tri.map(p);
+            if tri[0] == tri[1]
+                || tri[1] == tri[2]
+                || tri[0] == tri[2]
+                || norm(cross(sub(b, a), sub(c, a))) == 0.0
+            {
+                return Err(SurfaceError::Degenerate { triangle: t, at: a });
+            }
+        }
+        // Directed edge counts.
+        let mut edges: HashMap<(u32, u32), (usize, usize)> = HashMap::new();
+        for tri in &self.triangles {
+            for e in 0..3 {
+                let (a, b) = (tri[e], tri[(e + 1) % 3]);
+                let key = (a.min(b), a.max(b));
+                let entry = edges.entry(key).or_default();
+                if a < b { entry.0 += 1 } else { entry.1 += 1 }
+            }
+        }
+        let mut sorted: Vec<_> = edges.into_iter().collect();
+        sorted.sort_unstable_by_key(|e| e.0);
+        for ((a, b), (fwd, back)) in sorted {
+            let count = fwd + back;
+            if count == 1 {
+                return Err(SurfaceError::Open {
+                    a,
+                    b,
+                    pa: p(a),
+                    pb: p(b),
+                });
+            }
+            if count > 2 {
+                return Err(SurfaceError::NonManifoldEdge {
+                    a,
+                    b,
+                    pa: p(a),
+                    pb: p(b),
+                    count,
+                });
+            }
+            if fwd != 1 {
+                return Err(SurfaceError::Orientation { a, b, pa: p(a) });
+            }
+        }
+        // Vertex fans: the triangles around each vertex must be edge-connected.
+        let mut around: Vec<Vec<usize>> = vec![Vec::new(); self.vertices.len()];
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for &v in tri {
+                around[v as usize].push(t);
+            }
+        }
+        for (v, tris) in around.iter().enumerate() {
+            if tris.len() < 2 {
+                continue;
+            }
+            let fans = count_fans(v as u32, tris, &self.triangles);
+            if fans > 1 {
+                return Err(SurfaceError::NonManifoldVertex {
+                    v: v as u32,
+                    at: p(v as u32),
+                    fans,
+                });
+            }
+        }
+        if self.volume() < 0.0 {
+            for t in &mut self.triangles {
+                t.swap(1, 2);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Number of edge-connected groups among the triangles around vertex v.
+fn count_fans(v: u32, tris: &[usize], all: &[[u32; 3]]) -> usize {
+    let mut group: Vec<usize> = (0..tris.len()).collect();
+    fn find(g: &mut Vec<usize>, i: usize) -> usize {
+        let mut r = i;
+        while g[r] != r {
+            r = g[r];
+        }
+        g[i] = r;
+        r
+    }
+    let mut by_other: HashMap<u32, usize> = HashMap::new();
+    for (k, &t) in tris.iter().enumerate() {
+        for &w in &all[t] {
+            if w == v {
+                continue;
+            }
+            if let Some(&j) = by_other.get(&w) {
+                let (a, b) = (find(&mut group, k), find(&mut group, j));
+                group[a] = b;
+            } else {
+                by_other.insert(w, k);
+            }
+        }
+    }
+    (0..tris.len())
+        .filter(|&k| find(&mut group, k) == k)
+        .count()
+}
+
+fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriSurface, SurfaceError> {
+    let text = String::from_utf8_lossy(bytes);
+    let err = |line: usize, reason: String| SurfaceError::Parse {
+        path: path.into(),
+        line,
+        reason,
+    };
+    let mut vertices = Vec::new();
+    let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let ln = i + 1;
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let c: Vec<f64> = it
+                    .take(3)
+                    .map(|s| s.parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|e| err(ln, format!("bad vertex coordinate: {e}")))?;
+                if c.len() != 3 || c.iter().any(|x| !x.is_finite()) {
+                    return Err(err(
+                        ln,
+                        format!("a vertex needs three finite coordinates, got {line:?}"),
+                    ));
+                }
+                vertices.push([c[0], c[1], c[2]]);
+            }
+            Some("f") => {
+                let idx: Vec<i64> = it
+                    .map(|tok| tok.split('/').next().unwrap_or("").parse::<i64>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|e| err(ln, format!("bad face index: {e}")))?;
+                if idx.len() < 3 {
+                    return Err(err(
+                        ln,
+                        format!("a face needs at least 3 vertices, got {}", idx.len()),
+                    ));
+                }
+                faces.push((ln, idx));
+            }
+            _ => {}
+        }
+    }
+    let n = vertices.len() as i64;
+    let mut triangles = Vec::new();
+    for (ln, idx) in faces {
+        let resolved: Vec<u32> = idx
+            .iter()
+            .map(|&k| {
+                let r = if k > 0 { k - 1 } else { n + k };
+                if (0..n).contains(&r) {
+                    Ok(r as u32)
+                } else {
+                    Err(err(ln, format!("vertex index {k} out of range (1..={n})")))
+                }
+            })
+            .collect::<Result<_, _>>()?;
+        for k in 1..resolved.len() - 1 {
+            triangles.push([resolved[0], resolved[k], resolved[k + 1]]);
+        }
+    }
+    Ok(TriSurface {
+        vertices,
+        triangles,
+    })
+}
+
+fn parse_stl(path: &Path, bytes: &[u8]) -> Result<TriSurface, SurfaceError> {
+    let err = |line: usize, reason: String| SurfaceError::Parse {
+        path: path.into(),
+        line,
+        reason,
+    };
+    let mut corners: Vec<[f64; 3]> = Vec::new();
+    if bytes.len() >= 84 {
+        let n = u32::from_le_bytes(bytes[80..84].try_into().expect("4 bytes")) as usize;
+        if n.checked_mul(50).and_then(|x| x.checked_add(84)) == Some(bytes.len()) {
+            for t in 0..n {
+                let rec = &bytes[84 + 50 * t..84 + 50 * t + 50];
+                for v in 0..3 {
+                    let off = 12 + 12 * v;
+                    let c = [0, 1, 2].map(|d| {
+                        f64::from(f32::from_le_bytes(
+                            rec[off + 4 * d..off + 4 * d + 4]
+                                .try_into()
+                                .expect("4 bytes"),
+                        ))
+                    });
+                    if c.iter().any(|x| !x.is_finite()) {
+                        return Err(err(0, format!("binary facet {t} has a non-finite vertex")));
+                    }
+                    corners.push(c);
+                }
+            }
+            return Ok(merge(corners));
+        }
+    }
+    let text = String::from_utf8_lossy(bytes);
+    if !text.trim_start().starts_with("solid") {
+        return Err(err(
+            1,
+            format!(
+                "neither binary STL ({} bytes does not match its facet count) nor ASCII STL (no 'solid')",
+                bytes.len()
+            ),
+        ));
+    }
+    for (i, line) in text.lines().enumerate() {
+        let mut it = line.split_whitespace();
+        if it.next() == Some("vertex") {
+            let c: Vec<f64> = it
+                .map(|s| s.parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|e| err(i + 1, format!("bad vertex: {e}")))?;
+            if c.len() != 3 || c.iter().any(|x| !x.is_finite()) {
+                return Err(err(
+                    i + 1,
+                    format!("a vertex needs three finite coordinates, got {line:?}"),
+                ));
+            }
+            corners.push([c[0], c[1], c[2]]);
+        }
+    }
+    if corners.len() % 3 != 0 {
+        return Err(err(
+            0,
+            format!("{} vertices do not make whole triangles", corners.len()),
+        ));
+    }
+    Ok(merge(corners))
+}
+
+/// STL stores each facet's corners separately: merge identical positions.
+fn merge(corners: Vec<[f64; 3]>) -> TriSurface {
+    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
+    let mut vertices = Vec::new();
+    let idx: Vec<u32> = corners
+        .iter()
+        .map(|c| {
+            *ids.entry(c.map(f64::to_bits)).or_insert_with(|| {
+                vertices.push(*c);
+                (vertices.len() - 1) as u32
+            })
+        })
+        .collect();
+    TriSurface {
+        vertices,
+        triangles: idx.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+    }
+}
+
+/// A validated closed surface as an implicit solid (signed distance).
+#[derive(Debug)]
+pub struct SurfaceSolid {
+    s: TriSurface,
+    lo: [f64; 3],
+    hi: [f64; 3],
+    cell: f64,
+    dims: [usize; 3],
+    buckets: Vec<Vec<u32>>,
+    face_n: Vec<[f64; 3]>,
+    edge_n: HashMap<(u32, u32), [f64; 3]>,
+    vert_n: Vec<[f64; 3]>,
+}
+
+impl SurfaceSolid {
+    /// Builds the distance acceleration and pseudo-normals. The surface must have
+    /// passed [`TriSurface::validate`].
+    pub fn new(s: TriSurface) -> SurfaceSolid {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for v in &s.vertices {
+            for d in 0..3 {
+                lo[d] = lo[d].min(v[d]);
+                hi[d] = hi[d].max(v[d]);
+            }
+        }
+        let diag = norm(sub(hi, lo));
+        let cell = (diag / 48.0).max(1e-9);
+        let dims = [0, 1, 2].map(|d| (((hi[d] - lo[d]) / cell).floor() as usize + 1).max(1));
+        let mut buckets = vec![Vec::new(); dims[0] * dims[1] * dims[2]];
+        let face_n: Vec<[f64; 3]> = s
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| s.vertices[i as usize]);
+                let n = cross(sub(b, a), sub(c, a));
+                let l = norm(n);
+                n.map(|x| x / l)
+            })
+            .collect();
+        let mut edge_n: HashMap<(u32, u32), [f64; 3]> = HashMap::new();
+        let mut vert_n = vec![[0.0; 3]; s.vertices.len()];
+        for (t, tri) in s.triangles.iter().enumerate() {
+            let pts = tri.map(|i| s.vertices[i as usize]);
+            let (mut tlo, mut thi) = (pts[0], pts[0]);
+            for p in &pts {
+                for d in 0..3 {
+                    tlo[d] = tlo[d].min(p[d]);
+                    thi[d] = thi[d].max(p[d]);
+                }
+            }
+            let c0 = [0, 1, 2].map(|d| (((tlo[d] - lo[d]) / cell) as usize).min(dims[d] - 1));
+            let c1 = [0, 1, 2].map(|d| (((thi[d] - lo[d]) / cell) as usize).min(dims[d] - 1));
+            for k in c0[2]..=c1[2] {
+                for j in c0[1]..=c1[1] {
+                    for i in c0[0]..=c1[0] {
+                        buckets[i + dims[0] * (j + dims[1] * k)].push(t as u32);
+                    }
+                }
+            }
+            for e in 0..3 {
+                let (a, b) = (tri[e], tri[(e + 1) % 3]);
+                let n = edge_n.entry((a.min(b), a.max(b))).or_insert([0.0; 3]);
+                for d in 0..3 {
+                    n[d] += face_n[t][d];
+                }
+                // Angle at vertex e.
+                let u = sub(pts[(e + 1) % 3], pts[e]);
+                let w = sub(pts[(e + 2) % 3], pts[e]);
+                let ang = (dot(u, w) / (norm(u) * norm(w))).clamp(-1.0, 1.0).acos();
+                for d in 0..3 {
+                    vert_n[tri[e] as usize][d] += ang * face_n[t][d];
+                }
+            }
+        }
+        SurfaceSolid {
+            s,
+            lo,
+            hi,
+            cell,
+            dims,
+            buckets,
+            face_n,
+            edge_n,
+            vert_n,
+        }
+    }
+
+    pub fn surface(&self) -> &TriSurface {
+        &self.s
+    }
+
+    /// Closest triangle, barycentric coordinates and distance.
+    fn closest(&self, p: [f64; 3]) -> (usize, [f64; 3], f64) {
+        let c = [0, 1, 2].map(|d| {
+            (((p[d] - self.lo[d]) / self.cell).floor() as i64).clamp(0, self.dims[d] as i64 - 1)
+        });
+        // Distance from p to the grid box (rings start counting from there).
+        let outside: f64 = (0..3)
+            .map(|d| (self.lo[d] - p[d]).max(p[d] - self.hi[d]).max(0.0).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let mut best = (0usize, [1.0, 0.0, 0.0], f64::INFINITY);
+        let max_ring = *self.dims.iter().max().expect("3 dims") as i64;
+        for ring in 0..=max_ring {
+            if best.2 < outside + (ring as f64 - 1.0) * self.cell {
+                break;
+            }
+            for k in c[2] - ring..=c[2] + ring {
+                for j in c[1] - ring..=c[1] + ring {
+                    for i in c[0] - ring..=c[0] + ring {
+                        let on_shell = (i - c[0]).abs() == ring
+                            || (j - c[1]).abs() == ring
+                            || (k - c[2]).abs() == ring;
+                        if !on_shell || i < 0 || j < 0 || k < 0 {
+                            continue;
+                        }
+                        let (i, j, k) = (i as usize, j as usize, k as usize);
+                        if i >= self.dims[0] || j >= self.dims[1] || k >= self.dims[2] {
+                            continue;
+                        }
+                        for &t in &self.buckets[i + self.dims[0] * (j + self.dims[1] * k)] {
+                            let tri =
+                                self.s.triangles[t as usize].map(|v| self.s.vertices[v as usize]);
+                            let bary = crate::axis::closest_point(&tri, &[[0, 1, 2]], p)
+                                .expect("finite")
+                                .bary;
+                            let q = [0, 1, 2].map(|d| {
+                                bary[0] * tri[0][d] + bary[1] * tri[1][d] + bary[2] * tri[2][d]
+                            });
+                            let dist = norm(sub(p, q));
+                            if dist < best.2 {
+                                best = (t as usize, bary, dist);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+impl Implicit for SurfaceSolid {
+    fn value(&self, p: [f64; 3]) -> f64 {
+        let (t, bary, dist) = self.closest(p);
+        let tri = self.s.triangles[t];
+        let zeros = bary.iter().filter(|&&b| b <= 1e-12).count();
+        let n = match zeros {
+            2 => {
+                let k = (0..3).find(|&k| bary[k] > 1e-12).expect("one vertex");
+                self.vert_n[tri[k] as usize]
+            }
+            1 => {
+                let k = (0..3).find(|&k| bary[k] <= 1e-12).expect("one zero");
+                let (a, b) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                self.edge_n[&(a.min(b), a.max(b))]
+            }
+            _ => self.face_n[t],
+        };
+        let q = [0, 1, 2].map(|d| {
+            (0..3)
+                .map(|k| bary[k] * self.s.vertices[tri[k] as usize][d])
+                .sum::<f64>()
+        });
+        if dot(sub(p, q), n) < 0.0 { -dist } else { dist }
+    }
+
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        (self.lo, self.hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube_obj() -> String {
+        let mut s = String::new();
+        for z in [0.0, 1.0] {
+            for y in [0.0, 1.0] {
+                for x in [0.0, 1.0] {
+                    s += &format!("v {} {} {}\n", 10.0 * x, 10.0 * y, 10.0 * z);
+                }
+            }
+        }
+        // Quads, outward (vertex i = x + 2y + 4z, 1-based).
+        for f in [
+            "1 3 4 2", "5 6 8 7", "1 2 6 5", "3 7 8 4", "1 5 7 3", "2 4 8 6",
+        ] {
+            s += &format!("f {f}\n");
+        }
+        s
+    }
+
+    fn read_str(name: &str, text: &str) -> Result<TriSurface, SurfaceError> {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).expect("write");
+        TriSurface::read(&p)
+    }
+
+    #[test]
+    fn a_closed_cube_validates_and_its_distance_is_signed() {
+        let mut s = read_str("cube.obj", &cube_obj()).expect("parse");
+        s.validate().expect("closed");
+        assert!((s.volume() - 1000.0).abs() < 1e-9);
+        let solid = SurfaceSolid::new(s);
+        assert!((solid.value([5.0, 5.0, 5.0]) + 5.0).abs() < 1e-12);
+        assert!((solid.value([5.0, 5.0, 13.0]) - 3.0).abs() < 1e-12);
+        assert!(
+            (solid.value([13.0, 14.0, 10.0]) - 5.0).abs() < 1e-12,
+            "edge region"
+        );
+        assert!(solid.value([0.5, 0.5, 0.5]) < 0.0);
+    }
+
+    #[test]
+    fn an_open_surface_is_rejected_naming_the_edge() {
+        let text: String = cube_obj()
+            .lines()
+            .filter(|l| *l != "f 2 4 8 6")
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let mut s = read_str("open.obj", &text).expect("parse");
+        let e = s.validate().expect_err("open");
+        assert!(matches!(e, SurfaceError::Open { .. }), "{e}");
+        assert!(e.to_string().contains("hole"), "{e}");
+    }
+
+    #[test]
+    fn a_non_manifold_surface_is_rejected() {
+        // Two cubes sharing one edge: the edge has 4 triangles.
+        let mut text = cube_obj();
+        for z in [0.0, 1.0] {
+            for y in [1.0, 2.0] {
+                for x in [1.0, 2.0] {
+                    text += &format!("v {} {} {}\n", 10.0 * x, 10.0 * y, 10.0 * z);
+                }
+            }
+        }
+        for f in [
+            "1 3 4 2", "5 6 8 7", "1 2 6 5", "3 7 8 4", "1 5 7 3", "2 4 8 6",
+        ] {
+            let shifted: Vec<String> = f
+                .split(' ')
+                .map(|i| (i.parse::<u32>().expect("int") + 8).to_string())
+                .collect();
+            text += &format!("f {}\n", shifted.join(" "));
+        }
+        // The cubes' coincident vertices are separate OBJ vertices: merge them by
+        // position, as STL reading does, so the shared edge is one edge.
+        let s = read_str("two.obj", &text).expect("parse");
+        let mut merged = merge(
+            s.triangles
+                .iter()
+                .flat_map(|t| t.map(|i| s.vertices[i as usize]))
+                .collect(),
+        );
+        let e = merged.validate().expect_err("non-manifold");
+        assert!(
+            matches!(e, SurfaceError::NonManifoldEdge { count: 4, .. }),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn bad_files_name_the_line() {
+        let e = read_str("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 zero\n").expect_err("parse");
+        assert!(e.to_string().contains(":3:"), "{e}");
+        let e = read_str("bad2.obj", "v 0 0 0\nf 1 2 3\n").expect_err("range");
+        assert!(e.to_string().contains("out of range"), "{e}");
+        let e = read_str("bad.stl", "hello").expect_err("stl");
+        assert!(e.to_string().contains("STL"), "{e}");
+    }
+
+    #[test]
+    fn binary_and_ascii_stl_read_the_same_surface() {
+        let obj = read_str("cube.obj", &cube_obj()).expect("parse");
+        let mut ascii = String::from("solid cube\n");
+        let mut bin = vec![0u8; 80];
+        bin.extend_from_slice(&(obj.triangles.len() as u32).to_le_bytes());
+        for t in &obj.triangles {
+            ascii += "facet normal 0 0 0\nouter loop\n";
+            bin.extend_from_slice(&[0u8; 12]);
+            for &v in t {
+                let p = obj.vertices[v as usize];
+                ascii += &format!("vertex {} {} {}\n", p[0], p[1], p[2]);
+                for c in p {
+                    bin.extend_from_slice(&(c as f32).to_le_bytes());
+                }
+            }
+            ascii += "endloop\nendfacet\n";
+            bin.extend_from_slice(&[0u8; 2]);
+        }
+        let a = read_str("a.stl", &ascii).expect("ascii");
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("b.stl");
+        std::fs::write(&p, &bin).expect("write");
+        let b = TriSurface::read(&p).expect("binary");
+        assert_eq!(a.triangles.len(), 12);
+        assert_eq!(a.vertices.len(), 8);
+        assert_eq!(a, b);
+    }
+}
