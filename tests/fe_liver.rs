@@ -266,3 +266,37 @@ mod svk {
         assert!(e.to_string().contains("% of the load"), "{e}");
     }
 }
+
+/// The probe displacement converges as the mesh is refined: successive differences
+/// shrink (P1, coarse → medium → fine, at a point of the smooth anterior surface).
+#[test]
+fn probe_displacement_converges_under_refinement() {
+    let liver = Liver::default();
+    let req = ProbeRequest {
+        at: [-30.0, 90.0, 25.0],
+        force_n: 1.0,
+        dir: None,
+        radius_mm: 5.0,
+    };
+    let d: Vec<f64> = [Level::Coarse, Level::Medium, Level::Fine]
+        .iter()
+        .map(|&level| {
+            let organ = mesh_organ(
+                &liver,
+                spacing_mm(level),
+                &liver.fixed_region(),
+                &liver.palpable_region(),
+            );
+            solve_linear(&organ, Element::P1, Material::default(), &req)
+                .expect("solve")
+                .probe_displacement_mm
+        })
+        .collect();
+    let (d1, d2) = ((d[1] - d[0]).abs(), (d[2] - d[1]).abs());
+    // Observed rate with h = 12, 7, 4 mm (non-nested meshes: a rough estimate).
+    let rate = (d1 / d2).ln() / (7.0f64 / 4.0).ln();
+    eprintln!(
+        "P1 probe displacement coarse/medium/fine: {d:?} mm, successive differences {d1:.4} → {d2:.4}, rate ≈ {rate:.2}"
+    );
+    assert!(d2 < d1, "differences must shrink: {d:?}");
+}

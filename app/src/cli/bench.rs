@@ -25,6 +25,8 @@ use serde::Serialize;
 pub enum BenchCommand {
     /// Reconstruction, particularization and contact-node evaluation timings.
     Eval(EvalArgs),
+    /// Full FE cost per level and element, locking, SVK Newton (JSON lines).
+    Fe(super::bench_fe::FeBenchArgs),
 }
 
 impl BenchCommand {
@@ -77,6 +79,7 @@ struct EvalRow {
 pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Eval(args) => eval(args),
+        BenchCommand::Fe(args) => super::bench_fe::run(args),
     }
 }
 

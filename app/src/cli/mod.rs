@@ -1,8 +1,10 @@
 //! The `palpa` command line.
 
 mod bench;
+mod bench_fe;
 mod fe;
 mod info;
+mod memory;
 mod mesh;
 mod organ;
 mod synth;
@@ -48,6 +50,10 @@ pub fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    if let Some(bytes) = memory::available_bytes() {
+        // Leave a quarter for everything else the process holds.
+        palpa_core::fe::sparse::set_factor_budget_bytes(bytes / 4 * 3);
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -131,4 +131,12 @@ pub enum FeError {
     Load(String),
     #[error("Newton did not converge: {0}")]
     NoConvergence(String),
+    #[error(
+        "the factorization of {dofs} unknowns needs about {need_gb:.1} GB, {budget_gb:.1} GB are available: use a coarser level or P1 elements"
+    )]
+    TooLarge {
+        dofs: usize,
+        need_gb: f64,
+        budget_gb: f64,
+    },
 }

@@ -1,6 +1,8 @@
 //! A symmetric sparse matrix stored as its lower triangle in compressed columns, with a
 //! pattern built once from the cells, element scatter-add, and faer's sparse Cholesky.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use faer::Side;
 use faer::prelude::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
@@ -133,6 +135,34 @@ impl SymCsc {
     }
 }
 
+/// Memory the numeric factorization may use, in bytes (default: unlimited). The app
+/// sets it from the memory available, so an impossible factorization is refused with a
+/// message instead of the process being killed.
+static FACTOR_BUDGET_BYTES: AtomicU64 = AtomicU64::new(u64::MAX);
+
+/// Sets the factorization memory budget (bytes).
+pub fn set_factor_budget_bytes(bytes: u64) {
+    FACTOR_BUDGET_BYTES.store(bytes, Ordering::Relaxed);
+}
+
+/// Bytes the Cholesky factor of `a` needs (from its symbolic analysis: fill-in under
+/// the same ordering the numeric factorization uses), plus the factorization's
+/// workspace, estimated as the factor again.
+pub fn factor_bytes_estimate(a: &SymCsc) -> Result<u64, FeError> {
+    let m = a.to_faer();
+    let sym = faer::sparse::linalg::cholesky::factorize_symbolic_cholesky(
+        m.symbolic(),
+        Side::Lower,
+        Default::default(),
+        Default::default(),
+    )
+    .map_err(|e| FeError::NotPositiveDefinite {
+        fixed_nodes: 0,
+        detail: format!("symbolic analysis failed: {e:?}"),
+    })?;
+    Ok(2 * 8 * sym.len_val() as u64)
+}
+
 /// A factored symmetric positive-definite matrix.
 #[derive(Debug)]
 pub struct Cholesky {
@@ -142,6 +172,17 @@ pub struct Cholesky {
 
 impl Cholesky {
     pub fn factor(a: &SymCsc, fixed_nodes: usize) -> Result<Cholesky, FeError> {
+        let budget = FACTOR_BUDGET_BYTES.load(Ordering::Relaxed);
+        if budget != u64::MAX {
+            let need = factor_bytes_estimate(a)?;
+            if need > budget {
+                return Err(FeError::TooLarge {
+                    dofs: a.n,
+                    need_gb: need as f64 / 1e9,
+                    budget_gb: budget as f64 / 1e9,
+                });
+            }
+        }
         let m = a.to_faer();
         let err = |e: String| FeError::NotPositiveDefinite {
             fixed_nodes,

@@ -187,9 +187,11 @@ impl Default for NewtonSettings {
     fn default() -> Self {
         NewtonSettings {
             rel_tol: 1e-10,
-            max_iterations_per_step: 25,
+            // Quadratic convergence needs 4–6 iterations from a good start; more means
+            // the step is too large, and cutting it is cheaper than persisting.
+            max_iterations_per_step: 12,
             initial_step: 1.0,
-            min_step: 1.0 / 4096.0,
+            min_step: 1.0 / 1024.0,
         }
     }
 }

@@ -1,0 +1,138 @@
+//! `palpa bench fe`: the cost of the full FE reference, and its behaviour at the
+//! extremes. One JSON object per line, each with a `table` field:
+//! - `cost`: per level and element, assembly / factorization / solve seconds, dofs and
+//!   peak memory (Linux VmHWM, reset before each run);
+//! - `poisson`: probe displacement for ν = 0.45 … 0.499, P1 and P2 (locking);
+//! - `svk`: Newton iterations, load steps and seconds for F = 1, 5, 10 N, or the load
+//!   fraction reached when it does not converge;
+//! - `positions`: linear P2 probe displacement at named positions (anterior, left
+//!   lobe, the sharp inferior border, next to the fixed region).
+
+use std::time::Instant;
+
+use clap::Args;
+use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_linear, solve_svk};
+use palpa_core::fe::svk::NewtonSettings;
+use palpa_core::fe::{Element, Material};
+use serde_json::json;
+
+use super::memory::{peak_bytes, reset_peak};
+use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+
+#[derive(Debug, Args)]
+pub struct FeBenchArgs {
+    /// Also run P2 on the fine level (≈ 0.9 M dofs: many minutes and several GB).
+    #[arg(long)]
+    fine_p2: bool,
+    /// Skip the (slow) SVK force sweep.
+    #[arg(long)]
+    no_svk: bool,
+}
+
+const ANTERIOR: [f64; 3] = [-30.0, 90.0, 25.0];
+pub const POSITIONS: [(&str, [f64; 3]); 5] = [
+    ("anterior right lobe", ANTERIOR),
+    ("left lobe", [60.0, 40.0, 20.0]),
+    ("sharp inferior border", [-30.0, 80.0, 0.0]),
+    ("inferior surface", [-20.0, 45.0, -45.0]),
+    ("next to the fixed region", [-60.0, -40.0, -20.0]),
+];
+
+pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
+    let req = |at, force_n| ProbeRequest {
+        at,
+        force_n,
+        dir: None,
+        radius_mm: 5.0,
+    };
+    let levels = [LevelArg::Coarse, LevelArg::Medium, LevelArg::Fine];
+    for level in levels {
+        let organ = mesh_organ(OrganName::Liver, level, None)?;
+        for element in [Element::P1, Element::P2] {
+            if element == Element::P2 && level == LevelArg::Fine && !args.fine_p2 {
+                println!(
+                    "{}",
+                    json!({"table": "cost", "level": "fine", "element": "p2", "skipped": "≈0.9 M dofs; run with --fine-p2"})
+                );
+                continue;
+            }
+            reset_peak();
+            let t = Instant::now();
+            let sol = solve_linear(&organ, element, Material::default(), &req(ANTERIOR, 1.0))?;
+            println!(
+                "{}",
+                json!({
+                    "table": "cost",
+                    "level": format!("{level:?}").to_lowercase(),
+                    "element": element.name(),
+                    "dofs": organ_space(&organ, element).free_dofs,
+                    "assembly_s": sol.assembly_s,
+                    "factor_s": sol.factor_s,
+                    "solve_s": sol.solve_s,
+                    "total_s": t.elapsed().as_secs_f64(),
+                    "peak_rss_mb": peak_bytes().map(|b| b as f64 / 1e6),
+                    "probe_displacement_mm": sol.probe_displacement_mm,
+                })
+            );
+        }
+    }
+    for level in [LevelArg::Coarse, LevelArg::Medium] {
+        let organ = mesh_organ(OrganName::Liver, level, None)?;
+        for poisson in [0.45, 0.48, 0.49, 0.499] {
+            let mut row = json!({"table": "poisson", "level": format!("{level:?}").to_lowercase(), "poisson": poisson});
+            for element in [Element::P1, Element::P2] {
+                let m = Material {
+                    poisson,
+                    ..Material::default()
+                };
+                let sol = solve_linear(&organ, element, m, &req(ANTERIOR, 1.0))?;
+                row[format!("{}_probe_mm", element.name())] = json!(sol.probe_displacement_mm);
+            }
+            println!("{row}");
+        }
+    }
+    let coarse = mesh_organ(OrganName::Liver, LevelArg::Coarse, None)?;
+    for level in [LevelArg::Coarse, LevelArg::Medium, LevelArg::Fine] {
+        let organ = mesh_organ(OrganName::Liver, level, None)?;
+        for (name, at) in POSITIONS {
+            let mut row = json!({"table": "positions", "level": format!("{level:?}").to_lowercase(), "position": name});
+            for element in [Element::P1, Element::P2] {
+                if element == Element::P2 && level == LevelArg::Fine && !args.fine_p2 {
+                    continue;
+                }
+                let sol = solve_linear(&organ, element, Material::default(), &req(at, 1.0))?;
+                row["probe_point"] = json!(sol.probe.point);
+                row[format!("{}_probe_mm", element.name())] = json!(sol.probe_displacement_mm);
+            }
+            println!("{row}");
+        }
+    }
+    if !args.no_svk {
+        for element in [Element::P1, Element::P2] {
+            for force_n in [1.0, 5.0, 10.0] {
+                let t = Instant::now();
+                let out = solve_svk(
+                    &coarse,
+                    element,
+                    Material::default(),
+                    &req(ANTERIOR, force_n),
+                    NewtonSettings::default(),
+                );
+                let row = match out {
+                    Ok((sol, rep)) => {
+                        json!({"table": "svk", "level": "coarse", "element": element.name(), "force_n": force_n,
+                        "converged": true, "newton_iterations": rep.iterations, "load_steps": rep.load_steps,
+                        "step_cuts": rep.step_cuts, "seconds": t.elapsed().as_secs_f64(),
+                        "probe_displacement_mm": sol.probe_displacement_mm})
+                    }
+                    Err(e) => {
+                        json!({"table": "svk", "level": "coarse", "element": element.name(), "force_n": force_n,
+                        "converged": false, "error": e.to_string(), "seconds": t.elapsed().as_secs_f64()})
+                    }
+                };
+                println!("{row}");
+            }
+        }
+    }
+    Ok(())
+}
