@@ -185,7 +185,7 @@ impl TriSurface {
 /// Number of edge-connected groups among the triangles around vertex v.
 fn count_fans(v: u32, tris: &[usize], all: &[[u32; 3]]) -> usize {
     let mut group: Vec<usize> = (0..tris.len()).collect();
-    fn find(g: &mut Vec<usize>, i: usize) -> usize {
+    fn find(g: &mut [usize], i: usize) -> usize {
         let mut r = i;
         while g[r] != r {
             r = g[r];
@@ -306,7 +306,7 @@ fn parse_stl(path: &Path, bytes: &[u8]) -> Result<TriSurface, SurfaceError> {
                     corners.push(c);
                 }
             }
-            return Ok(merge(corners));
+            return Ok(merge(&corners));
         }
     }
     let text = String::from_utf8_lossy(bytes);
@@ -335,17 +335,17 @@ fn parse_stl(path: &Path, bytes: &[u8]) -> Result<TriSurface, SurfaceError> {
             corners.push([c[0], c[1], c[2]]);
         }
     }
-    if corners.len() % 3 != 0 {
+    if !corners.len().is_multiple_of(3) {
         return Err(err(
             0,
             format!("{} vertices do not make whole triangles", corners.len()),
         ));
     }
-    Ok(merge(corners))
+    Ok(merge(&corners))
 }
 
 /// STL stores each facet's corners separately: merge identical positions.
-fn merge(corners: Vec<[f64; 3]>) -> TriSurface {
+fn merge(corners: &[[f64; 3]]) -> TriSurface {
     let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
     let mut vertices = Vec::new();
     let idx: Vec<u32> = corners
@@ -616,12 +616,12 @@ mod tests {
         // The cubes' coincident vertices are separate OBJ vertices: merge them by
         // position, as STL reading does, so the shared edge is one edge.
         let s = read_str("two.obj", &text).expect("parse");
-        let mut merged = merge(
-            s.triangles
-                .iter()
-                .flat_map(|t| t.map(|i| s.vertices[i as usize]))
-                .collect(),
-        );
+        let corners: Vec<[f64; 3]> = s
+            .triangles
+            .iter()
+            .flat_map(|t| t.map(|i| s.vertices[i as usize]))
+            .collect();
+        let mut merged = merge(&corners);
         let e = merged.validate().expect_err("non-manifold");
         assert!(
             matches!(e, SurfaceError::NonManifoldEdge { count: 4, .. }),

@@ -24,9 +24,19 @@ pub struct FeBenchArgs {
     /// Also run P2 on the fine level (≈ 0.9 M dofs: many minutes and several GB).
     #[arg(long)]
     fine_p2: bool,
-    /// Skip the (slow) SVK force sweep.
+    /// Skip the (slow) SVK tables.
     #[arg(long)]
     no_svk: bool,
+    /// Run only these tables (cost, poisson, positions, svk, svk_limit).
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<String>,
+}
+
+impl FeBenchArgs {
+    fn wants(&self, table: &str) -> bool {
+        let svk = table.starts_with("svk");
+        (self.only.is_empty() || self.only.iter().any(|t| t == table)) && !(svk && self.no_svk)
+    }
 }
 
 const ANTERIOR: [f64; 3] = [-30.0, 90.0, 25.0];
@@ -46,7 +56,7 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
         radius_mm: 5.0,
     };
     let levels = [LevelArg::Coarse, LevelArg::Medium, LevelArg::Fine];
-    for level in levels {
+    for level in levels.into_iter().filter(|_| args.wants("cost")) {
         let organ = mesh_organ(OrganName::Liver, level, None)?;
         for element in [Element::P1, Element::P2] {
             if element == Element::P2 && level == LevelArg::Fine && !args.fine_p2 {
@@ -76,7 +86,10 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
             );
         }
     }
-    for level in [LevelArg::Coarse, LevelArg::Medium] {
+    for level in [LevelArg::Coarse, LevelArg::Medium]
+        .into_iter()
+        .filter(|_| args.wants("poisson"))
+    {
         let organ = mesh_organ(OrganName::Liver, level, None)?;
         for poisson in [0.45, 0.48, 0.49, 0.499] {
             let mut row = json!({"table": "poisson", "level": format!("{level:?}").to_lowercase(), "poisson": poisson});
@@ -92,7 +105,7 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
         }
     }
     let coarse = mesh_organ(OrganName::Liver, LevelArg::Coarse, None)?;
-    for level in [LevelArg::Coarse, LevelArg::Medium, LevelArg::Fine] {
+    for level in levels.into_iter().filter(|_| args.wants("positions")) {
         let organ = mesh_organ(OrganName::Liver, level, None)?;
         for (name, at) in POSITIONS {
             let mut row = json!({"table": "positions", "level": format!("{level:?}").to_lowercase(), "position": name});
@@ -107,7 +120,60 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
             println!("{row}");
         }
     }
-    if !args.no_svk {
+    if args.wants("svk_limit") {
+        // Largest force SVK Newton still reaches, by bisection on F ∈ [1, 256] N
+        // (P1 everywhere; P2 at the anterior point, where it is slower).
+        for (name, at) in POSITIONS {
+            for element in [Element::P1, Element::P2] {
+                if element == Element::P2 && at != ANTERIOR {
+                    continue;
+                }
+                let converges = |f: f64| {
+                    solve_svk(
+                        &coarse,
+                        element,
+                        Material::default(),
+                        &req(at, f),
+                        NewtonSettings::default(),
+                    )
+                    .is_ok()
+                };
+                let (mut ok, mut bad) = (0.0, 256.0);
+                if converges(bad) {
+                    ok = bad;
+                } else {
+                    let mut lo = 1.0;
+                    if converges(lo) {
+                        ok = lo;
+                        for _ in 0..6 {
+                            let mid = (lo * bad).sqrt();
+                            if converges(mid) {
+                                ok = mid;
+                                lo = mid;
+                            } else {
+                                bad = mid;
+                            }
+                        }
+                    }
+                }
+                let beyond = solve_svk(
+                    &coarse,
+                    element,
+                    Material::default(),
+                    &req(at, bad),
+                    NewtonSettings::default(),
+                )
+                .err()
+                .map(|e| e.to_string());
+                println!(
+                    "{}",
+                    json!({"table": "svk_limit", "level": "coarse", "element": element.name(), "position": name,
+                           "max_converged_force_n": ok, "first_failing_force_n": bad, "beyond": beyond})
+                );
+            }
+        }
+    }
+    if args.wants("svk") {
         for element in [Element::P1, Element::P2] {
             for force_n in [1.0, 5.0, 10.0] {
                 let t = Instant::now();

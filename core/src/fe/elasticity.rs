@@ -108,7 +108,7 @@ impl LinearProblem {
         let (lambda, mu) = material.lame_n_per_mm2();
         let mut k = SymCsc::pattern(space);
         assemble(space, &mut k, |c, ke| {
-            element_stiffness(space, c, lambda, mu, ke)
+            element_stiffness(space, c, lambda, mu, ke);
         });
         let assembly_s = t.elapsed().as_secs_f64();
         let t = Instant::now();

@@ -335,7 +335,12 @@ fn newton_step(
                 return Err(format!("line search failed at residual {rn:.3e} N"));
             }
         }
+        let previous = history[history.len() - 1];
         history.push(rn);
+        // Stagnation at the round-off floor: converged as far as arithmetic allows.
+        if rn > 0.5 * previous && rn <= ROUNDOFF_REL * load_norm.max(f64::MIN_POSITIVE) {
+            return Ok((u, history));
+        }
     }
     if rn <= tol {
         Ok((u, history))
