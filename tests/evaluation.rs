@@ -21,7 +21,7 @@ fn naive_coeff<T: Scalar>(m: &SeparatedModel<T>, values: &[ParamValue], k: usize
         .zip(values)
         .map(|(a, &v)| {
             let s = a.info.discretization.stencil(v).expect("valid");
-            (0..3)
+            (0..s.len)
                 .map(|i| s.weights[i] * a.values()[s.nodes[i] as usize * m.modes() + k].to_f64())
                 .sum::<f64>()
         })

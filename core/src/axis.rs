@@ -33,6 +33,14 @@ pub enum Discretization {
     },
     /// A finite set of labelled entries.
     Discrete { labels: Vec<String> },
+    /// A triangulated surface carrying three values per vertex (node `3·v + c`): the
+    /// probe position and the load direction folded into one parametric index, so a
+    /// force along any direction `t` is one particularization with weights
+    /// `λ_i t_c` (barycentric × direction).
+    SurfaceVector {
+        vertices: Vec<[f64; 3]>,
+        triangles: Vec<[u32; 3]>,
+    },
 }
 
 /// A parameter value to particularize at.
@@ -47,6 +55,12 @@ pub enum ParamValue {
     Mix([f64; 3]),
     /// A point on a [`Discretization::Surface`] axis.
     Surface { triangle: u32, bary: [f64; 3] },
+    /// A point and a direction mix on a [`Discretization::SurfaceVector`] axis.
+    SurfaceMix {
+        triangle: u32,
+        bary: [f64; 3],
+        mix: [f64; 3],
+    },
 }
 
 /// Why a parameter value could not be turned into a stencil.
@@ -71,23 +85,36 @@ pub enum AxisError {
     Invalid(String),
 }
 
-/// Interpolation weights for one parameter value: `Σ_s weight[s] · P(node[s])`.
-/// Unused entries have weight 0 (and a valid node index, so kernels need no branch).
+/// Most entries a stencil has: a surface point mixing three load directions
+/// (3 corners × 3 components).
+pub const MAX_STENCIL: usize = 9;
+
+/// Interpolation weights for one parameter value: `Σ_{s<len} weight[s] · P(node[s])`.
+/// Entries past `len` have weight 0 and a valid node index.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Stencil {
-    pub nodes: [u32; 3],
-    pub weights: [f64; 3],
+    pub nodes: [u32; MAX_STENCIL],
+    pub weights: [f64; MAX_STENCIL],
+    pub len: usize,
     /// The value lay outside the trained range and was clamped to it.
     pub clamped: bool,
 }
 
 impl Stencil {
     fn single(node: u32, clamped: bool) -> Self {
-        Stencil {
-            nodes: [node; 3],
-            weights: [1.0, 0.0, 0.0],
+        Stencil::from3([node; 3], [1.0, 0.0, 0.0], 1, clamped)
+    }
+
+    fn from3(nodes: [u32; 3], weights: [f64; 3], len: usize, clamped: bool) -> Self {
+        let mut s = Stencil {
+            nodes: [nodes[0]; MAX_STENCIL],
+            weights: [0.0; MAX_STENCIL],
+            len,
             clamped,
-        }
+        };
+        s.nodes[..3].copy_from_slice(&nodes);
+        s.weights[..3].copy_from_slice(&weights);
+        s
     }
 }
 
@@ -98,6 +125,7 @@ impl Discretization {
             Discretization::Grid { nodes } => nodes.len(),
             Discretization::Surface { vertices, .. } => vertices.len(),
             Discretization::Discrete { labels } => labels.len(),
+            Discretization::SurfaceVector { vertices, .. } => 3 * vertices.len(),
         }
     }
 
@@ -106,6 +134,7 @@ impl Discretization {
             Discretization::Grid { .. } => "grid",
             Discretization::Surface { .. } => "surface",
             Discretization::Discrete { .. } => "discrete",
+            Discretization::SurfaceVector { .. } => "surface-vector",
         }
     }
 
@@ -131,6 +160,10 @@ impl Discretization {
                 }
             }
             Discretization::Surface {
+                vertices,
+                triangles,
+            }
+            | Discretization::SurfaceVector {
                 vertices,
                 triangles,
             } => {
@@ -184,11 +217,7 @@ impl Discretization {
                 if let Some(&v) = w.iter().find(|v| !v.is_finite()) {
                     return Err(AxisError::NotFinite { value: v });
                 }
-                let mut s = Stencil {
-                    nodes: [0, 1, 2],
-                    weights: w,
-                    clamped: false,
-                };
+                let mut s = Stencil::from3([0, 1, 2], w, 3, false);
                 // Entries beyond the axis get weight 0 and a valid node.
                 for k in labels.len()..3 {
                     s.clamped |= s.weights[k] != 0.0;
@@ -204,12 +233,38 @@ impl Discretization {
                 },
                 ParamValue::Surface { triangle, bary },
             ) => surface_stencil(triangles, triangle, bary),
+            (
+                Discretization::SurfaceVector {
+                    vertices: _,
+                    triangles,
+                },
+                ParamValue::SurfaceMix {
+                    triangle,
+                    bary,
+                    mix,
+                },
+            ) => {
+                if let Some(&v) = mix.iter().find(|v| !v.is_finite()) {
+                    return Err(AxisError::NotFinite { value: v });
+                }
+                let corner = surface_stencil(triangles, triangle, bary)?;
+                let mut s = corner;
+                s.len = 9;
+                for i in 0..3 {
+                    for c in 0..3 {
+                        s.nodes[3 * i + c] = 3 * corner.nodes[i] + c as u32;
+                        s.weights[3 * i + c] = corner.weights[i] * mix[c];
+                    }
+                }
+                Ok(s)
+            }
             (axis, given) => Err(AxisError::WrongKind {
                 given: match given {
                     ParamValue::Scalar(_) => "scalar",
                     ParamValue::Index(_) => "index",
                     ParamValue::Mix(_) => "mix",
                     ParamValue::Surface { .. } => "surface-point",
+                    ParamValue::SurfaceMix { .. } => "surface-mix",
                 },
                 axis: axis.kind_name(),
             }),
@@ -241,11 +296,12 @@ fn grid_stencil(nodes: &[f64], p: f64) -> Result<Stencil, AxisError> {
     let lo = hi - 1;
     let h = nodes[hi] - nodes[lo];
     let t = (p - nodes[lo]) / h;
-    Ok(Stencil {
-        nodes: [lo as u32, hi as u32, lo as u32],
-        weights: [1.0 - t, t, 0.0],
-        clamped: false,
-    })
+    Ok(Stencil::from3(
+        [lo as u32, hi as u32, lo as u32],
+        [1.0 - t, t, 0.0],
+        2,
+        false,
+    ))
 }
 
 fn surface_stencil(
@@ -272,11 +328,7 @@ fn surface_stencil(
         return Err(AxisError::DegenerateBary { bary });
     }
     w = w.map(|b| b / s);
-    Ok(Stencil {
-        nodes: *tri,
-        weights: w,
-        clamped: !inside,
-    })
+    Ok(Stencil::from3(*tri, w, 3, !inside))
 }
 
 /// The closest point of a triangulated surface to `p`.
@@ -443,7 +495,7 @@ mod tests {
             Err(AxisError::NotAnIndex { .. })
         ));
         let m = d.stencil(ParamValue::Mix([0.6, 0.0, -0.8])).expect("mix");
-        assert_eq!(m.weights, [0.6, 0.0, -0.8]);
+        assert_eq!(m.weights[..3], [0.6, 0.0, -0.8]);
         let two = Discretization::Discrete {
             labels: vec!["a".into(), "b".into()],
         };
@@ -516,5 +568,38 @@ mod tests {
             .validate()
             .is_err()
         );
+    }
+}
+
+#[cfg(test)]
+mod surface_vector_tests {
+    use super::*;
+
+    #[test]
+    fn surface_mix_weights_are_bary_times_direction() {
+        let d = Discretization::SurfaceVector {
+            vertices: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            triangles: vec![[0, 1, 2]],
+        };
+        assert_eq!(d.node_count(), 9);
+        let s = d
+            .stencil(ParamValue::SurfaceMix {
+                triangle: 0,
+                bary: [0.2, 0.3, 0.5],
+                mix: [0.0, 0.6, 0.8],
+            })
+            .expect("valid");
+        assert_eq!(s.len, 9);
+        // Vertex 2, component z: node 3·2 + 2 = 8, weight 0.5 · 0.8.
+        let k = (0..9).find(|&k| s.nodes[k] == 8).expect("node 8");
+        assert!((s.weights[k] - 0.4).abs() < 1e-15);
+        assert!((s.weights.iter().sum::<f64>() - 1.4).abs() < 1e-14);
+        assert!(matches!(
+            d.stencil(ParamValue::Surface {
+                triangle: 0,
+                bary: [1.0, 0.0, 0.0]
+            }),
+            Err(AxisError::WrongKind { .. })
+        ));
     }
 }

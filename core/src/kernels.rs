@@ -61,18 +61,28 @@ pub fn stream_sum<T: Scalar>(data: &[T]) -> f64 {
     stream_sum_generic(data)
 }
 
-/// `out[k] *= Σ_s w_s · rows_s[k]`: the particularization step of one axis.
+/// `out[k] *= Σ_{s<len} w_s · values[node_s · modes + k]`: the particularization step
+/// of one axis (`values` is nodes × modes, row-major; `out.len() ≤ modes`).
 #[inline]
 #[track_caller]
-pub fn scale_by_stencil<T: Scalar>(out: &mut [f64], rows: [&[T]; 3], w: [f64; 3]) {
+pub fn scale_by_stencil<T: Scalar>(
+    out: &mut [f64],
+    values: &[T],
+    modes: usize,
+    st: &crate::axis::Stencil,
+) {
     let n = out.len();
-    assert!(
-        rows.iter().all(|r| r.len() == n),
-        "stencil rows must match the number of modes"
-    );
+    assert!(n <= modes, "{n} coefficients for {modes} modes");
+    let rows: [&[T]; crate::axis::MAX_STENCIL] = std::array::from_fn(|s| {
+        let start = st.nodes[s] as usize * modes;
+        &values[start..start + n]
+    });
     for k in 0..n {
-        out[k] *=
-            w[0] * rows[0][k].to_f64() + w[1] * rows[1][k].to_f64() + w[2] * rows[2][k].to_f64();
+        let mut acc = 0.0;
+        for s in 0..st.len {
+            acc += st.weights[s] * rows[s][k].to_f64();
+        }
+        out[k] *= acc;
     }
 }
 

@@ -9,7 +9,7 @@
 //!   and a subset of rows (the surface, the three rows of a contact node) reads only
 //!   those rows.
 //! - each axis `j` stores `P_j` (nodes_j × N), also row-major, and turns a parameter
-//!   value into a stencil of at most three nodes ([`crate::axis`]).
+//!   value into a stencil of at most nine nodes ([`crate::axis`]).
 //! - **particularize** computes `c ∈ R^n` from parameter values; **reconstruct**
 //!   computes `X[rows, :n] · c`. Passing `n < N` coefficients truncates to the first n
 //!   modes: the speed/accuracy knob.
@@ -338,11 +338,7 @@ impl<T: Scalar> SeparatedModel<T> {
             if st.clamped {
                 report.mask |= 1 << j;
             }
-            let row = |s: usize| {
-                let start = st.nodes[s] as usize * self.modes;
-                &axis.values[start..start + n]
-            };
-            kernels::scale_by_stencil(coeffs, [row(0), row(1), row(2)], st.weights);
+            kernels::scale_by_stencil(coeffs, &axis.values, self.modes, &st);
         }
         Ok(report)
     }
