@@ -24,6 +24,7 @@ pub mod fsutil;
 pub mod kernels;
 pub mod mesh;
 pub mod organ;
+pub mod pgd;
 pub mod rng;
 pub mod scalar;
 pub mod separated;

@@ -70,16 +70,32 @@ pub fn probe_load(
     if !force_n.is_finite() {
         return Err(FeError::Load(format!("force {force_n} N is not finite")));
     }
-    if !(radius_mm.is_finite() && radius_mm > 0.0) {
-        return Err(FeError::Load(format!(
-            "tool radius {radius_mm} mm must be positive"
-        )));
-    }
     let dl = norm(dir);
     if !(dl.is_finite() && dl > 0.0) {
         return Err(FeError::Load(format!("direction {dir:?} has no length")));
     }
     let t = dir.map(|v| v / dl);
+    let mut f = vec![0.0; 3 * space.nodes.len()];
+    for (n, w) in probe_weights(space, s, radius_mm)? {
+        for d in 0..3 {
+            f[3 * n as usize + d] += force_n * t[d] * w;
+        }
+    }
+    Ok(f)
+}
+
+/// Per-node shares (summing to 1) of a unit probe force at `s`: the consistent load of
+/// direction `t` and force `F` is `F t w_n` at node n.
+pub fn probe_weights(
+    space: &Space,
+    s: &SurfacePoint,
+    radius_mm: f64,
+) -> Result<Vec<(u32, f64)>, FeError> {
+    if !(radius_mm.is_finite() && radius_mm > 0.0) {
+        return Err(FeError::Load(format!(
+            "tool radius {radius_mm} mm must be positive"
+        )));
+    }
     let p2 = space.element == super::Element::P2;
     let npf = space.element.nodes_per_face();
     let mut weights: Vec<(u32, f64)> = Vec::new();
@@ -124,25 +140,24 @@ pub fn probe_load(
             }
         }
     }
-    let total: f64 = weights.iter().map(|w| w.1).sum();
-    let mut f = vec![0.0; 3 * space.nodes.len()];
-    if total > 0.0 {
-        for (n, w) in weights {
-            for d in 0..3 {
-                f[3 * n as usize + d] += force_n * t[d] * w / total;
-            }
+    // A node shared by several faces appears once per face: merge.
+    weights.sort_unstable_by_key(|w| w.0);
+    let mut merged: Vec<(u32, f64)> = Vec::with_capacity(weights.len());
+    for (n, w) in weights {
+        match merged.last_mut() {
+            Some(last) if last.0 == n => last.1 += w,
+            _ => merged.push((n, w)),
         }
+    }
+    let total: f64 = merged.iter().map(|w| w.1).sum();
+    if total > 0.0 {
+        Ok(merged.into_iter().map(|(n, w)| (n, w / total)).collect())
     } else {
         // Tool smaller than the quadrature resolution: a consistent point load at s.
         tri_values(p2, s.bary, &mut nvals);
         let face = space.face(s.face);
-        for a in 0..npf {
-            for d in 0..3 {
-                f[3 * face[a] as usize + d] += force_n * t[d] * nvals[a];
-            }
-        }
+        Ok((0..npf).map(|a| (face[a], nvals[a])).collect())
     }
-    Ok(f)
 }
 
 /// Interpolates a nodal field (`3 × nodes`) at a surface point.

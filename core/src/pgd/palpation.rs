@@ -1,0 +1,298 @@
+//! The liver palpation vademecum: `u(x; s, t) ≈ Σ_k X_k(x) Y_k(s, t)` for a unit probe
+//! force along direction `t` at any point `s` of the palpable surface.
+//!
+//! Discretization (METHOD-NOTES §1): space is the FE space (P1/P2) on the free dofs;
+//! the parametric index is (palpable surface vertex j, direction c ∈ {x, y, z}),
+//! `p = 3j + c`, with P1 hat functions in s (barycentric between vertices) and the
+//! surface mass matrix `Ms ⊗ I₃`. Column p of F is the consistent load of a unit force
+//! along `e_c` spread over the tool disk centred at vertex j (see `fe::load`); F is
+//! sparse (a patch per column) and never stored dense. By linearity a force `F t` at
+//! `s` is `F Σ_c t_c u(x; s, e_c)`: one particularization with the weights
+//! `λ_i(s) t_c` of the [`SurfaceVector`](crate::axis::Discretization::SurfaceVector)
+//! axis.
+
+use std::collections::{BTreeMap, HashMap};
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::linear::{ColSparse, Operators, Settings, Terms, solve};
+use crate::axis::Discretization;
+use crate::fe::elasticity::LinearProblem;
+use crate::fe::load::{SurfacePoint, probe_weights};
+use crate::fe::probe::organ_space;
+use crate::fe::space::Space;
+use crate::fe::sparse::SymCsc;
+use crate::fe::{Element, FeError, Material};
+use crate::organ::OrganMesh;
+use crate::separated::{AxisInfo, FieldInfo, ModelMeta, Provenance, SeparatedModel};
+
+/// Everything the off-line solve needs, built once.
+#[derive(Debug)]
+pub struct Setup {
+    pub space: Space,
+    pub problem: LinearProblem,
+    pub f: ColSparse,
+    pub ms: SymCsc,
+    /// Space node of each axis vertex.
+    pub axis_nodes: Vec<u32>,
+    pub axis_vertices: Vec<[f64; 3]>,
+    pub axis_triangles: Vec<[u32; 3]>,
+    pub radius_mm: f64,
+    pub setup_s: f64,
+}
+
+impl Setup {
+    pub fn ops(&self) -> Operators<'_> {
+        Operators {
+            k: &self.problem.stiffness,
+            k_factor: &self.problem.factor,
+            f: &self.f,
+            ms: &self.ms,
+        }
+    }
+}
+
+/// Builds the operators of the vademecum for an organ mesh.
+pub fn setup(
+    organ: &OrganMesh,
+    element: Element,
+    material: Material,
+    radius_mm: f64,
+) -> Result<Setup, FeError> {
+    let t0 = Instant::now();
+    let space = organ_space(organ, element);
+    let problem = LinearProblem::new(&space, material)?;
+    // Palpable surface: its vertices, renumbered, and triangles.
+    let mut index: HashMap<u32, u32> = HashMap::new();
+    let mut axis_nodes = Vec::new();
+    let mut axis_triangles = Vec::new();
+    let mut face_of: Vec<(usize, usize)> = Vec::new(); // (face, corner) per axis vertex
+    for (f, tri) in organ.boundary.iter().enumerate() {
+        if !organ.palpable[f] {
+            continue;
+        }
+        let t = tri.map(|v| {
+            *index.entry(v).or_insert_with(|| {
+                axis_nodes.push(v);
+                face_of.push((f, tri.iter().position(|&x| x == v).expect("corner")));
+                (axis_nodes.len() - 1) as u32
+            })
+        });
+        axis_triangles.push(t);
+    }
+    if axis_nodes.is_empty() {
+        return Err(FeError::Load("the organ has no palpable surface".into()));
+    }
+    let axis_vertices: Vec<[f64; 3]> = axis_nodes
+        .iter()
+        .map(|&v| space.nodes[v as usize])
+        .collect();
+    // Columns of F: unit loads at each vertex, for each direction.
+    let per_vertex: Vec<Vec<(u32, f64)>> = face_of
+        .par_iter()
+        .enumerate()
+        .map(|(j, &(face, corner))| {
+            let mut bary = [0.0; 3];
+            bary[corner] = 1.0;
+            let sp = SurfacePoint {
+                face,
+                bary,
+                point: axis_vertices[j],
+                normal: [0.0; 3],
+                distance_mm: 0.0,
+            };
+            probe_weights(&space, &sp, radius_mm)
+        })
+        .collect::<Result<_, _>>()?;
+    let mut cols = Vec::with_capacity(3 * per_vertex.len());
+    for w in &per_vertex {
+        for c in 0..3 {
+            let col: Vec<(u32, f64)> = w
+                .iter()
+                .filter(|(n, _)| space.dof[*n as usize] != u32::MAX)
+                .map(|&(n, x)| (space.dof[n as usize] + c, x))
+                .collect();
+            cols.push(col);
+        }
+    }
+    let f = ColSparse {
+        rows: space.free_dofs,
+        cols,
+    };
+    let ms = surface_mass(&axis_vertices, &axis_triangles);
+    Ok(Setup {
+        space,
+        problem,
+        f,
+        ms,
+        axis_nodes,
+        axis_vertices,
+        axis_triangles,
+        radius_mm,
+        setup_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// `Ms ⊗ I₃`: the P1 surface mass matrix (`area/12 · [2 1 1; 1 2 1; 1 1 2]` per
+/// triangle) on the combined index `3j + c`, lower triangle.
+pub fn surface_mass(vertices: &[[f64; 3]], triangles: &[[u32; 3]]) -> SymCsc {
+    use crate::mesh::{cross, norm, sub};
+    let mut entries: BTreeMap<(usize, usize), f64> = BTreeMap::new();
+    for t in triangles {
+        let [a, b, c] = t.map(|i| vertices[i as usize]);
+        let area = 0.5 * norm(cross(sub(b, a), sub(c, a)));
+        for i in 0..3 {
+            for j in 0..3 {
+                let v = area / 12.0 * if i == j { 2.0 } else { 1.0 };
+                let (r, cidx) = (t[i] as usize, t[j] as usize);
+                if r >= cidx {
+                    *entries.entry((cidx, r)).or_default() += v;
+                }
+            }
+        }
+    }
+    let m = 3 * vertices.len();
+    let mut col_ptr = vec![0usize; m + 1];
+    let mut row_idx = Vec::new();
+    let mut val = Vec::new();
+    // entries keyed (col, row) in vertex indices; expand by component.
+    let mut by_col: Vec<Vec<(usize, f64)>> = vec![Vec::new(); vertices.len()];
+    for ((c, r), v) in entries {
+        by_col[c].push((r, v));
+    }
+    for (cv, rows) in by_col.iter().enumerate() {
+        for comp in 0..3 {
+            for &(rv, v) in rows {
+                row_idx.push(3 * rv + comp);
+                val.push(v);
+            }
+            col_ptr[3 * cv + comp + 1] = row_idx.len();
+        }
+    }
+    SymCsc {
+        n: m,
+        col_ptr,
+        row_idx,
+        val,
+    }
+}
+
+/// Runs the PGD and returns the terms.
+pub fn compute(
+    setup: &Setup,
+    settings: &Settings,
+    start: Terms,
+    progress: impl FnMut(&Terms),
+) -> Terms {
+    solve(&setup.ops(), settings, start, progress)
+}
+
+/// Packs terms into a meta-model: rows are all nodes × 3 (fixed nodes zero), one
+/// SurfaceVector axis.
+pub fn to_model(
+    setup: &Setup,
+    terms: &Terms,
+    mesh_desc: &str,
+    tolerance: f64,
+) -> SeparatedModel<f64> {
+    let n = terms.x.len();
+    let nodes = setup.space.nodes.len();
+    let full: Vec<Vec<f64>> = terms.x.iter().map(|x| setup.space.expand(x)).collect();
+    let mut x = vec![0.0; 3 * nodes * n];
+    for r in 0..3 * nodes {
+        for k in 0..n {
+            x[r * n + k] = full[k][r];
+        }
+    }
+    let m = 3 * setup.axis_vertices.len();
+    let mut y = vec![0.0; m * n];
+    for p in 0..m {
+        for k in 0..n {
+            y[p * n + k] = terms.y[k][p];
+        }
+    }
+    let meta = ModelMeta {
+        kind: "liver-palpation-linear".into(),
+        field: FieldInfo {
+            name: "displacement per newton".into(),
+            unit: "mm/N".into(),
+            components: 3,
+            node_ids: Vec::new(),
+        },
+        axes: vec![AxisInfo {
+            name: "probe position × load direction".into(),
+            unit: "mm".into(),
+            discretization: Discretization::SurfaceVector {
+                vertices: setup.axis_vertices.clone(),
+                triangles: setup.axis_triangles.clone(),
+            },
+        }],
+        provenance: Provenance::now(
+            "pgd-linear (greedy + Galerkin update)",
+            mesh_desc,
+            tolerance,
+            terms.residual_per_mode.clone(),
+        ),
+        tradeoff: Vec::new(),
+    };
+    SeparatedModel::new(meta, 3 * nodes, n, x, vec![y]).expect("shapes match by construction")
+}
+
+/// Brute-force reference over the nodal map: `C = Fᵀ K⁻¹ F` (one solve per column) and
+/// the eigenvalues of `Lᵀ C L` (Ms = L Lᵀ), whose tail sums give the optimal rank-n
+/// error in the natural norm (Eckart–Young). Returns (‖G‖², eigenvalues descending,
+/// seconds spent in the solves).
+pub fn optimal_errors(setup: &Setup) -> (f64, Vec<f64>, f64) {
+    let t0 = Instant::now();
+    let n = setup.f.rows;
+    let m = setup.f.cols.len();
+    let mut c = faer::Mat::<f64>::zeros(m, m);
+    const BATCH: usize = 64;
+    for start in (0..m).step_by(BATCH) {
+        let end = (start + BATCH).min(m);
+        let mut rhs = faer::Mat::<f64>::zeros(n, end - start);
+        for j in start..end {
+            for &(r, v) in &setup.f.cols[j] {
+                rhs[(r as usize, j - start)] += v;
+            }
+        }
+        setup.problem.factor.solve_many(&mut rhs);
+        for j in start..end {
+            for i in 0..m {
+                c[(i, j)] = setup.f.cols[i]
+                    .iter()
+                    .map(|&(r, v)| v * rhs[(r as usize, j - start)])
+                    .sum();
+            }
+        }
+    }
+    let solve_s = t0.elapsed().as_secs_f64();
+    let mut ms = faer::Mat::<f64>::zeros(m, m);
+    for col in 0..m {
+        for k in setup.ms.col_ptr[col]..setup.ms.col_ptr[col + 1] {
+            let r = setup.ms.row_idx[k];
+            ms[(r, col)] = setup.ms.val[k];
+            ms[(col, r)] = setup.ms.val[k];
+        }
+    }
+    let l = ms
+        .llt(faer::Side::Lower)
+        .expect("surface mass is SPD")
+        .L()
+        .to_owned();
+    let b = l.transpose() * &c * &l;
+    let mut ev = b
+        .self_adjoint_eigenvalues(faer::Side::Lower)
+        .expect("symmetric eigenvalues");
+    ev.reverse();
+    let g2: f64 = ev.iter().sum();
+    (g2, ev, solve_s)
+}
+
+/// Optimal relative error with n terms from the eigenvalues.
+pub fn svd_error(ev: &[f64], n: usize) -> f64 {
+    let total: f64 = ev.iter().sum();
+    let tail: f64 = ev.iter().skip(n).map(|v| v.max(0.0)).sum();
+    (tail / total).sqrt()
+}
