@@ -59,6 +59,7 @@ pub fn small_model<T: Scalar>(nodes: usize, modes: usize, seed: u64) -> Separate
             (0..modes).map(|k| 0.5f64.powi(k as i32)).collect(),
         ),
         tradeoff: Vec::new(),
+        geometry: Default::default(),
     };
     SeparatedModel::new(meta, rows, modes, x, values).expect("consistent shapes")
 }

@@ -40,6 +40,9 @@ pub enum Discretization {
     SurfaceVector {
         vertices: Vec<[f64; 3]>,
         triangles: Vec<[u32; 3]>,
+        /// The model's field node at each vertex (empty if none), so the contact
+        /// rows of a probe point are known.
+        field_nodes: Vec<u32>,
     },
 }
 
@@ -166,6 +169,7 @@ impl Discretization {
             | Discretization::SurfaceVector {
                 vertices,
                 triangles,
+                ..
             } => {
                 if triangles.is_empty() {
                     return bad("a surface axis needs at least one triangle".into());
@@ -234,10 +238,7 @@ impl Discretization {
                 ParamValue::Surface { triangle, bary },
             ) => surface_stencil(triangles, triangle, bary),
             (
-                Discretization::SurfaceVector {
-                    vertices: _,
-                    triangles,
-                },
+                Discretization::SurfaceVector { triangles, .. },
                 ParamValue::SurfaceMix {
                     triangle,
                     bary,
@@ -580,6 +581,7 @@ mod surface_vector_tests {
         let d = Discretization::SurfaceVector {
             vertices: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
             triangles: vec![[0, 1, 2]],
+            field_nodes: vec![],
         };
         assert_eq!(d.node_count(), 9);
         let s = d

@@ -35,6 +35,6 @@ pub use axis::{AxisError, Discretization, ParamValue, Stencil};
 pub use file::{AnyModel, FileError};
 pub use scalar::{Precision, Scalar};
 pub use separated::{
-    Axis, AxisInfo, ClampReport, EvalError, FieldInfo, ModelError, ModelMeta, Provenance,
+    Axis, AxisInfo, ClampReport, EvalError, FieldInfo, Geometry, ModelError, ModelMeta, Provenance,
     SeparatedModel, TradeoffRow,
 };

@@ -97,6 +97,17 @@ pub struct ModelMeta {
     pub axes: Vec<AxisInfo>,
     pub provenance: Provenance,
     pub tradeoff: Vec<TradeoffRow>,
+    /// Geometry of the rows the model holds (may be empty): position of each field node
+    /// (node i ↔ rows `components·i ..`) and boundary triangles over those nodes,
+    /// outward, for rendering and export.
+    pub geometry: Geometry,
+}
+
+/// Positions of a model's field nodes and its boundary triangles (mm).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Geometry {
+    pub nodes: Vec<[f64; 3]>,
+    pub surface: Vec<[u32; 3]>,
 }
 
 /// One parameter axis with its nodal values `P` (nodes × modes, row-major).
@@ -181,6 +192,7 @@ pub struct SeparatedModel<T> {
     field: FieldInfo,
     provenance: Provenance,
     tradeoff: Vec<TradeoffRow>,
+    geometry: Geometry,
     rows: usize,
     modes: usize,
     x: Vec<T>,
@@ -217,6 +229,24 @@ impl<T: Scalar> SeparatedModel<T> {
                 components: comps,
             });
         }
+        let g = &meta.geometry;
+        if !g.nodes.is_empty() && g.nodes.len() * comps as usize != rows {
+            return Err(ModelError::FieldLayout {
+                rows,
+                components: comps,
+            });
+        }
+        if let Some(bad) = g
+            .surface
+            .iter()
+            .flatten()
+            .find(|&&v| v as usize >= g.nodes.len())
+        {
+            return Err(ModelError::NoSuchRow {
+                row: *bad as usize * comps as usize,
+                rows,
+            });
+        }
         if meta.axes.len() != axis_values.len() || meta.axes.len() > 64 {
             return Err(ModelError::AxisShape {
                 axis: format!("{} axes", meta.axes.len()),
@@ -249,6 +279,7 @@ impl<T: Scalar> SeparatedModel<T> {
             field: meta.field,
             provenance: meta.provenance,
             tradeoff: meta.tradeoff,
+            geometry: meta.geometry,
             rows,
             modes,
             x,
@@ -300,7 +331,12 @@ impl<T: Scalar> SeparatedModel<T> {
             axes: self.axes.iter().map(|a| a.info.clone()).collect(),
             provenance: self.provenance.clone(),
             tradeoff: self.tradeoff.clone(),
+            geometry: self.geometry.clone(),
         }
+    }
+
+    pub fn geometry(&self) -> &Geometry {
+        &self.geometry
     }
 
     /// Coefficients `c ∈ R^n` for the given parameter values, `n = coeffs.len() ≤ N`.
@@ -443,6 +479,35 @@ impl<T: Scalar> SeparatedModel<T> {
         out.rows = nodes.len() * c;
         out.x = x;
         out.field.node_ids = ids;
+        if !self.geometry.nodes.is_empty() {
+            let mut new_index = vec![u32::MAX; node_count];
+            for (i, &nd) in nodes.iter().enumerate() {
+                new_index[nd as usize] = i as u32;
+            }
+            out.geometry.nodes = nodes
+                .iter()
+                .map(|&nd| self.geometry.nodes[nd as usize])
+                .collect();
+            out.geometry.surface = self
+                .geometry
+                .surface
+                .iter()
+                .filter_map(|t| {
+                    let m = t.map(|v| new_index[v as usize]);
+                    m.iter().all(|&v| v != u32::MAX).then_some(m)
+                })
+                .collect();
+            // Axes that refer to field nodes follow the renumbering.
+            for a in &mut out.axes {
+                if let Discretization::SurfaceVector { field_nodes, .. } =
+                    &mut a.info.discretization
+                {
+                    for f in field_nodes.iter_mut() {
+                        *f = new_index.get(*f as usize).copied().unwrap_or(u32::MAX);
+                    }
+                }
+            }
+        }
         Ok(out)
     }
 
@@ -454,6 +519,7 @@ impl<T: Scalar> SeparatedModel<T> {
             field: self.field.clone(),
             provenance: self.provenance.clone(),
             tradeoff: self.tradeoff.clone(),
+            geometry: self.geometry.clone(),
             rows: self.rows,
             modes: self.modes,
             x: cv(&self.x),

@@ -78,6 +78,7 @@ pub fn palpation_like<T: Scalar>(
         ],
         provenance: Provenance::now("synthetic", "none", 0.0, vec![0.0; modes]),
         tradeoff: Vec::new(),
+        geometry: Default::default(),
     };
     SeparatedModel::new(meta, rows, modes, x, values).expect("synthetic shapes are consistent")
 }

@@ -25,7 +25,7 @@ use crate::fe::space::Space;
 use crate::fe::sparse::SymCsc;
 use crate::fe::{Element, FeError, Material};
 use crate::organ::OrganMesh;
-use crate::separated::{AxisInfo, FieldInfo, ModelMeta, Provenance, SeparatedModel};
+use crate::separated::{AxisInfo, FieldInfo, Geometry, ModelMeta, Provenance, SeparatedModel};
 
 /// Everything the off-line solve needs, built once.
 #[derive(Debug)]
@@ -39,6 +39,8 @@ pub struct Setup {
     pub axis_vertices: Vec<[f64; 3]>,
     pub axis_triangles: Vec<[u32; 3]>,
     pub radius_mm: f64,
+    /// Boundary triangles (corner nodes), outward.
+    pub boundary: Vec<[u32; 3]>,
     pub setup_s: f64,
 }
 
@@ -130,6 +132,7 @@ pub fn setup(
         axis_vertices,
         axis_triangles,
         radius_mm,
+        boundary: organ.boundary.clone(),
         setup_s: t0.elapsed().as_secs_f64(),
     })
 }
@@ -226,6 +229,7 @@ pub fn to_model(
             discretization: Discretization::SurfaceVector {
                 vertices: setup.axis_vertices.clone(),
                 triangles: setup.axis_triangles.clone(),
+                field_nodes: setup.axis_nodes.clone(),
             },
         }],
         provenance: Provenance::now(
@@ -235,6 +239,10 @@ pub fn to_model(
             terms.residual_per_mode.clone(),
         ),
         tradeoff: Vec::new(),
+        geometry: Geometry {
+            nodes: setup.space.nodes.clone(),
+            surface: setup.boundary.clone(),
+        },
     };
     SeparatedModel::new(meta, 3 * nodes, n, x, vec![y]).expect("shapes match by construction")
 }
