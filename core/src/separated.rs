@@ -311,6 +311,9 @@ impl<T: Scalar> SeparatedModel<T> {
     pub fn set_tradeoff(&mut self, rows: Vec<TradeoffRow>) {
         self.tradeoff = rows;
     }
+    pub fn set_provenance(&mut self, p: Provenance) {
+        self.provenance = p;
+    }
     pub fn precision(&self) -> Precision {
         T::PRECISION
     }

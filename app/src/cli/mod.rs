@@ -7,7 +7,9 @@ mod info;
 mod memory;
 mod mesh;
 mod organ;
+mod pgd;
 mod synth;
+mod tradeoff;
 
 use std::process::ExitCode;
 
@@ -38,6 +40,14 @@ enum Command {
     /// Full finite-element solves (the reference for every accuracy claim).
     #[command(subcommand)]
     Fe(fe::FeCommand),
+    /// Compute a PGD vademecum off-line (resumable).
+    Offline(pgd::OfflineArgs),
+    /// Evaluate a palpation meta-model at a probe point (no solving).
+    Eval(pgd::EvalArgs),
+    /// Keep only what a scene needs (surface rows, n modes, f32) for shipping.
+    ExportScene(pgd::ExportSceneArgs),
+    /// Measure the speed/accuracy table of a vademecum and store it in its header.
+    Tradeoff(tradeoff::TradeoffArgs),
 }
 
 /// Parses `std::env::args` and runs the command; errors are printed with their causes.
@@ -70,6 +80,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Synth(args)) => synth::run(&args),
         Some(Command::Mesh(args)) => mesh::run(&args),
         Some(Command::Fe(cmd)) => fe::run(&cmd),
+        Some(Command::Offline(args)) => pgd::offline(&args),
+        Some(Command::Eval(args)) => pgd::eval(&args),
+        Some(Command::ExportScene(args)) => pgd::export_scene(&args),
+        Some(Command::Tradeoff(args)) => tradeoff::run(&args),
         None => default_job(),
     }
 }

@@ -142,9 +142,11 @@ pub fn solve(
     let n = ops.f.rows;
     let m = ops.f.cols.len();
     let mut t = start;
-    let mut rng = Rng::seed(settings.seed.wrapping_add(t.x.len() as u64));
     while t.x.len() < settings.max_modes {
         let t0 = Instant::now();
+        // Seeded per term, so a resumed run computes the same terms as an
+        // uninterrupted one.
+        let mut rng = Rng::seed(settings.seed.wrapping_add(t.x.len() as u64));
         let mut s: Vec<f64> = (0..m).map(|_| rng.range(0.5, 1.5)).collect();
         let mut r = vec![0.0; n];
         let mut kr = vec![0.0; n];

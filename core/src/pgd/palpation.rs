@@ -304,3 +304,62 @@ pub fn svd_error(ev: &[f64], n: usize) -> f64 {
     let tail: f64 = ev.iter().skip(n).map(|v| v.max(0.0)).sum();
     (tail / total).sqrt()
 }
+
+/// What a vademecum was computed from, as one line (journal key, provenance, and the
+/// input hash an asset test recomputes): organ mesh hash, element, material, tool.
+pub fn describe(
+    organ: &OrganMesh,
+    level: &str,
+    element: Element,
+    material: Material,
+    radius_mm: f64,
+    update: bool,
+) -> String {
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    h.update(bytemuck::cast_slice(&organ.mesh.vertices));
+    h.update(bytemuck::cast_slice(&organ.mesh.tets));
+    h.update(bytemuck::cast_slice(&organ.boundary));
+    let flags: Vec<u8> = organ
+        .fixed
+        .iter()
+        .chain(&organ.palpable)
+        .map(|&b| u8::from(b))
+        .collect();
+    h.update(&flags);
+    format!(
+        "organ=liver level={level} mesh_xxh3={:016x} element={} young_kpa={} poisson={} radius_mm={} update={}",
+        h.digest(),
+        element.name(),
+        material.young_kpa,
+        material.poisson,
+        radius_mm,
+        update
+    )
+}
+
+/// Reads `key=value` from a description made by [`describe`].
+pub fn describe_get<'a>(desc: &'a str, key: &str) -> Option<&'a str> {
+    desc.split_whitespace()
+        .find_map(|kv| kv.strip_prefix(key)?.strip_prefix('='))
+}
+
+/// Rebuilds PGD terms (space vectors on the free dofs) from a vademecum model, for
+/// error measures that need `K X_k` and `Fᵀ X_k`.
+pub fn terms_from_model(setup: &Setup, model: &SeparatedModel<f64>) -> Terms {
+    let n = model.modes();
+    let x_all = model.spatial();
+    let y_all = model.axes()[0].values();
+    let m = setup.f.cols.len();
+    let mut t = Terms::default();
+    for k in 0..n {
+        let full: Vec<f64> = (0..model.rows()).map(|r| x_all[r * n + k]).collect();
+        let x = setup.space.restrict(&full);
+        let mut kx = vec![0.0; x.len()];
+        setup.problem.stiffness.mul(&x, &mut kx);
+        t.ftx.push(setup.f.mul_t(&x));
+        t.x.push(x);
+        t.kx.push(kx);
+        t.y.push((0..m).map(|p| y_all[p * n + k]).collect());
+    }
+    t
+}

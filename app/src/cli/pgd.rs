@@ -1,0 +1,368 @@
+//! Off-line vademecum computation and on-line evaluation of a palpation meta-model:
+//! `palpa offline liver`, `palpa eval`, `palpa export-scene`.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::{Args, ValueEnum};
+use palpa_core::axis::{Discretization, closest_point};
+use palpa_core::fe::{Element, Material};
+use palpa_core::file;
+use palpa_core::pgd::journal::Journal;
+use palpa_core::pgd::linear::{Settings, update};
+use palpa_core::pgd::palpation::{compute, describe, setup, to_model};
+use palpa_core::{ParamValue, Precision, Scalar, SeparatedModel};
+use serde_json::json;
+
+use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+
+#[derive(Debug, Args)]
+pub struct OfflineArgs {
+    #[arg(value_enum, default_value = "liver")]
+    organ: OrganName,
+    #[arg(long, value_enum, default_value = "coarse")]
+    level: LevelArg,
+    #[arg(long, default_value = "p2")]
+    element: Element,
+    /// Maximum number of terms.
+    #[arg(long, default_value_t = 100)]
+    modes: usize,
+    /// Stop when a new term's relative norm falls below this.
+    #[arg(long, default_value_t = 1e-4)]
+    tol: f64,
+    #[arg(long, default_value_t = 5.0)]
+    radius_mm: f64,
+    /// Skip the Galerkin update of the parametric functions after each term.
+    #[arg(long)]
+    no_update: bool,
+    #[arg(long)]
+    out: PathBuf,
+    /// Continue from the journal of an interrupted run (`OUT.journal`).
+    #[arg(long)]
+    resume: bool,
+}
+
+fn journal_path(out: &Path) -> PathBuf {
+    let mut p = out.as_os_str().to_owned();
+    p.push(".journal");
+    PathBuf::from(p)
+}
+
+pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let material = Material::default();
+    let organ = mesh_organ(args.organ, args.level, None)?;
+    let s = setup(&organ, args.element, material, args.radius_mm)
+        .context("building the FE operators")?;
+    let desc = describe(
+        &organ,
+        &format!("{:?}", args.level).to_lowercase(),
+        args.element,
+        material,
+        args.radius_mm,
+        !args.no_update,
+    );
+    let settings = Settings {
+        max_modes: args.modes,
+        tol: args.tol,
+        update: !args.no_update,
+        ..Settings::default()
+    };
+    let jpath = journal_path(&args.out);
+    let (mut journal, mut start) = if args.resume {
+        Journal::resume(&jpath, &desc)
+            .with_context(|| format!("resuming from {}", jpath.display()))?
+    } else {
+        (
+            Journal::create(&jpath, &desc)
+                .with_context(|| format!("creating {}", jpath.display()))?,
+            Default::default(),
+        )
+    };
+    if !start.x.is_empty() {
+        // Rebuild what the journal does not store; the update recomputes every y.
+        let ops = s.ops();
+        start.kx = start
+            .x
+            .iter()
+            .map(|x| {
+                let mut y = vec![0.0; x.len()];
+                ops.k.mul(x, &mut y);
+                y
+            })
+            .collect();
+        start.ftx = start.x.iter().map(|x| ops.f.mul_t(x)).collect();
+        if settings.update {
+            update(&ops, &mut start);
+        }
+        eprintln!(
+            "palpa: resumed {} terms from {}",
+            start.x.len(),
+            jpath.display()
+        );
+    }
+    let resumed = start.x.len();
+    let mut journal_err: Option<std::io::Error> = None;
+    let t_solve = Instant::now();
+    let terms = compute(&s, &settings, start, |t| {
+        let k = t.x.len() - 1;
+        if journal_err.is_none() {
+            if let Err(e) = journal.append(t, k) {
+                journal_err = Some(e);
+            }
+        }
+        let done = t.x.len() - resumed;
+        let per = t_solve.elapsed().as_secs_f64() / done as f64;
+        let eta = per * (settings.max_modes - t.x.len()) as f64;
+        eprint!(
+            "\rmodes {:>4}/{}  residual {:.3e}  {:.2} s/mode  ETA ≤ {:.0} s   ",
+            t.x.len(),
+            settings.max_modes,
+            t.residual_per_mode[k],
+            per,
+            eta
+        );
+        let _ = std::io::stderr().flush();
+    });
+    eprintln!();
+    if let Some(e) = journal_err {
+        return Err(e).with_context(|| format!("writing the journal {}", jpath.display()));
+    }
+    let mut model = to_model(&s, &terms, &desc, args.tol);
+    let mut prov = model.provenance().clone();
+    prov.input_hash = format!("{:016x}", xxhash_rust::xxh3::xxh3_64(desc.as_bytes()));
+    model.set_provenance(prov);
+    file::save(&model, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    let _ = std::fs::remove_file(&jpath);
+    println!(
+        "{}",
+        json!({
+            "out": args.out,
+            "modes": terms.x.len(),
+            "resumed_modes": resumed,
+            "final_residual": terms.residual_per_mode.last(),
+            "free_dofs": s.f.rows,
+            "parameters": s.f.cols.len(),
+            "setup_s": s.setup_s,
+            "pgd_s": t_solve.elapsed().as_secs_f64(),
+            "total_s": t0.elapsed().as_secs_f64(),
+            "bytes": std::fs::metadata(&args.out).map(|m| m.len()).ok(),
+        })
+    );
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    file: PathBuf,
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    at: Vec<f64>,
+    #[arg(long)]
+    force_n: f64,
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    dir: Option<Vec<f64>>,
+    /// Modes to use (default: all the file holds).
+    #[arg(long)]
+    modes: Option<usize>,
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
+    match file::load_any(&args.file).with_context(|| format!("loading {}", args.file.display()))? {
+        palpa_core::AnyModel::F32(m) => eval_model(&m, args),
+        palpa_core::AnyModel::F64(m) => eval_model(&m, args),
+    }
+}
+
+fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
+    match v {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([*x, *y, *z]),
+        _ => bail!("{what} needs three finite comma-separated numbers, got {v:?}"),
+    }
+}
+
+fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Result<()> {
+    let at = to3(&args.at, "--at")?;
+    let Some(Discretization::SurfaceVector {
+        vertices,
+        triangles,
+        field_nodes,
+    }) = m.axes().first().map(|a| &a.info.discretization)
+    else {
+        bail!(
+            "{} is not a palpation meta-model (its first axis is not a probe surface)",
+            args.file.display()
+        );
+    };
+    if m.axes().len() != 1 {
+        bail!(
+            "{} has {} axes; palpa eval expects the linear vademecum's one",
+            args.file.display(),
+            m.axes().len()
+        );
+    }
+    let hit = closest_point(vertices, triangles, at).context("the probe surface is empty")?;
+    let tri = triangles[hit.triangle as usize];
+    let [a, b, c] = tri.map(|i| vertices[i as usize]);
+    let n = {
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let x = [
+            u[1] * w[2] - u[2] * w[1],
+            u[2] * w[0] - u[0] * w[2],
+            u[0] * w[1] - u[1] * w[0],
+        ];
+        let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+        x.map(|v| v / l)
+    };
+    let dir = match &args.dir {
+        Some(d) => {
+            let d = to3(d, "--dir")?;
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if l == 0.0 {
+                bail!("--dir has no length");
+            }
+            d.map(|v| v / l)
+        }
+        None => n.map(|v| -v),
+    };
+    let available = m.modes();
+    let (modes, clamped_modes) = match args.modes {
+        Some(k) if k > available => {
+            eprintln!("palpa: {k} modes asked, the file holds {available}; using {available}");
+            (available, true)
+        }
+        Some(0) => bail!("--modes must be at least 1"),
+        Some(k) => (k, false),
+        None => (available, false),
+    };
+    let mut coeffs = vec![0.0; modes];
+    let value = [ParamValue::SurfaceMix {
+        triangle: hit.triangle,
+        bary: hit.bary,
+        mix: dir,
+    }];
+    let contact_rows: Vec<u32> = if field_nodes.is_empty() {
+        Vec::new()
+    } else {
+        tri.iter()
+            .flat_map(|&v| (0..3).map(move |c| 3 * field_nodes[v as usize] + c))
+            .collect()
+    };
+    let mut contact = vec![0.0; contact_rows.len()];
+    // Time the on-line path (particularize + contact rows) over repetitions.
+    let reps = 2000;
+    let t = Instant::now();
+    for _ in 0..reps {
+        m.particularize(std::hint::black_box(&value), &mut coeffs)?;
+        m.reconstruct_rows(&contact_rows, &coeffs, &mut contact);
+    }
+    let contact_eval_ns = t.elapsed().as_nanos() as f64 / f64::from(reps);
+    let mut full = vec![0.0; m.rows()];
+    let t = Instant::now();
+    m.reconstruct(&coeffs, &mut full);
+    let full_us = t.elapsed().as_secs_f64() * 1e6;
+    let f = args.force_n;
+    let probe_displacement_mm = if contact.is_empty() {
+        None
+    } else {
+        let u: [f64; 3] = [0, 1, 2].map(|d| {
+            (0..3)
+                .map(|i| hit.bary[i] * contact[3 * i + d])
+                .sum::<f64>()
+                * f
+        });
+        Some(u[0] * dir[0] + u[1] * dir[1] + u[2] * dir[2])
+    };
+    let max = full
+        .chunks_exact(3)
+        .map(|v| f.abs() * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+        .fold(0.0, f64::max);
+    let report = json!({
+        "probe_point": hit.point,
+        "probe_projection_distance_mm": hit.distance,
+        "direction": dir,
+        "force_n": f,
+        "probe_displacement_mm": probe_displacement_mm,
+        "max_displacement_mm": max,
+        "modes_used": modes,
+        "modes_available": available,
+        "modes_clamped": clamped_modes,
+        "eval_us": contact_eval_ns / 1e3,
+        "full_reconstruction_us": full_us,
+        "precision": T::PRECISION.name(),
+    });
+    if args.json {
+        println!("{report}");
+    } else {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    }
+    Ok(())
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PrecisionArg {
+    F32,
+    F64,
+}
+
+#[derive(Debug, Args)]
+pub struct ExportSceneArgs {
+    file: PathBuf,
+    /// Keep only the boundary nodes' rows (what a palpation scene renders).
+    #[arg(long)]
+    surface_only: bool,
+    #[arg(long, value_enum, default_value = "f32")]
+    precision: PrecisionArg,
+    /// Keep the first n modes.
+    #[arg(long)]
+    modes: Option<usize>,
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
+    let m = file::load_any(&args.file)
+        .with_context(|| format!("loading {}", args.file.display()))?
+        .into_f64();
+    let mut m = match args.modes {
+        Some(n) => m.truncated(n.min(m.modes())).context("truncating")?,
+        None => m,
+    };
+    if args.surface_only {
+        let g = m.geometry();
+        if g.surface.is_empty() {
+            bail!(
+                "{} carries no surface geometry to select",
+                args.file.display()
+            );
+        }
+        let mut nodes: Vec<u32> = g.surface.iter().flatten().copied().collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        m = m
+            .select_nodes(&nodes)
+            .context("selecting the surface rows")?;
+    }
+    match args.precision {
+        PrecisionArg::F32 => file::save(&m.convert::<f32>(), &args.out),
+        PrecisionArg::F64 => file::save(&m, &args.out),
+    }
+    .with_context(|| format!("writing {}", args.out.display()))?;
+    let bytes = std::fs::metadata(&args.out).map(|x| x.len()).unwrap_or(0);
+    println!(
+        "{}",
+        json!({"out": args.out, "rows": m.rows(), "modes": m.modes(),
+               "precision": match args.precision { PrecisionArg::F32 => Precision::F32, PrecisionArg::F64 => Precision::F64 }.name(),
+               "bytes": bytes})
+    );
+    Ok(())
+}

@@ -1,0 +1,257 @@
+//! `palpa tradeoff FILE`: the measured speed/accuracy table of a palpation vademecum,
+//! for n = 1 … N modes in log steps, written into the file's header (what the app's
+//! accuracy knob reads) and printed.
+//!
+//! Accuracy is measured two ways: at held-out probe positions (seeded random interior
+//! points of random palpable triangles, never nodes) against full FE solves with the
+//! same factored stiffness (relative L2 error over the surface nodes, and relative
+//! error of the probe displacement along the load), and over the whole nodal solution
+//! map in the natural norm against the optimal rank-n approximation (Eckart–Young;
+//! computed by default on coarse, `--svd` elsewhere: one FE solve per palpable node
+//! and direction).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::Args;
+use palpa_core::axis::Discretization;
+use palpa_core::fe::load::{SurfacePoint, probe_load};
+use palpa_core::fe::{Element, Material};
+use palpa_core::file;
+use palpa_core::pgd::linear::map_error;
+use palpa_core::pgd::palpation::{
+    describe, describe_get, optimal_errors, setup, svd_error, terms_from_model,
+};
+use palpa_core::rng::Rng;
+use palpa_core::{ParamValue, TradeoffRow};
+use serde_json::json;
+
+use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+
+#[derive(Debug, Args)]
+pub struct TradeoffArgs {
+    file: PathBuf,
+    /// Held-out probe positions.
+    #[arg(long, default_value_t = 8)]
+    held_out: usize,
+    /// Compute the optimal (SVD) errors even above the coarse level.
+    #[arg(long)]
+    svd: bool,
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
+    let model = file::load::<f64>(&args.file)
+        .with_context(|| format!("loading {}", args.file.display()))?;
+    let desc = model.provenance().mesh.clone();
+    let level: LevelArg = match describe_get(&desc, "level") {
+        Some("coarse") => LevelArg::Coarse,
+        Some("medium") => LevelArg::Medium,
+        Some("fine") => LevelArg::Fine,
+        other => bail!(
+            "{}: provenance names no known level ({other:?}); was it made by palpa offline?",
+            args.file.display()
+        ),
+    };
+    let element: Element = describe_get(&desc, "element")
+        .unwrap_or("p2")
+        .parse()
+        .map_err(anyhow::Error::msg)?;
+    let radius_mm: f64 = describe_get(&desc, "radius_mm").unwrap_or("5").parse()?;
+    let update = describe_get(&desc, "update") == Some("true");
+    let organ = mesh_organ(OrganName::Liver, level, None)?;
+    let material = Material::default();
+    if describe(
+        &organ,
+        &format!("{level:?}").to_lowercase(),
+        element,
+        material,
+        radius_mm,
+        update,
+    ) != desc
+    {
+        bail!(
+            "{}: the organ mesh or settings changed since this vademecum was computed; recompute it",
+            args.file.display()
+        );
+    }
+    let s = setup(&organ, element, material, radius_mm)?;
+    let terms = terms_from_model(&s, &model);
+    let n_max = model.modes();
+    let Discretization::SurfaceVector { triangles, .. } = &model.axes()[0].info.discretization
+    else {
+        bail!("not a palpation vademecum");
+    };
+
+    // Held-out references.
+    let mut rng = Rng::seed(0x7e57);
+    let mut cases = Vec::new();
+    for _ in 0..args.held_out {
+        let t = rng.below(triangles.len());
+        let (a, b) = (rng.range(0.1, 0.8), rng.uniform());
+        let bary = [a, (1.0 - a) * b, (1.0 - a) * (1.0 - b)];
+        let tri = s.axis_triangles[t];
+        // The axis triangle is a boundary face; find it among the space's faces.
+        let face = organ
+            .boundary
+            .iter()
+            .position(|f| {
+                f.iter()
+                    .zip(&tri)
+                    .all(|(&fv, &av)| fv == s.axis_nodes[av as usize])
+            })
+            .context("axis triangle is a boundary face")?;
+        let point = [0, 1, 2].map(|d| {
+            (0..3)
+                .map(|i| bary[i] * s.axis_vertices[tri[i] as usize][d])
+                .sum::<f64>()
+        });
+        let normal = {
+            let [p, q, r] = tri.map(|i| s.axis_vertices[i as usize]);
+            let u = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+            let w = [r[0] - p[0], r[1] - p[1], r[2] - p[2]];
+            let x = [
+                u[1] * w[2] - u[2] * w[1],
+                u[2] * w[0] - u[0] * w[2],
+                u[0] * w[1] - u[1] * w[0],
+            ];
+            let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+            x.map(|v| v / l)
+        };
+        let dir = normal.map(|v| -v);
+        let sp = SurfacePoint {
+            face,
+            bary,
+            point,
+            normal,
+            distance_mm: 0.0,
+        };
+        let load = probe_load(&s.space, &sp, dir, 1.0, radius_mm)?;
+        let u = s.problem.solve(&s.space, &load);
+        cases.push((t as u32, bary, dir, u));
+    }
+    let surface_nodes: Vec<u32> = {
+        let mut v: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    let surface_rows: Vec<u32> = surface_nodes
+        .iter()
+        .flat_map(|&n| (0..3).map(move |c| 3 * n + c))
+        .collect();
+
+    let svd = if level == LevelArg::Coarse || args.svd {
+        Some(optimal_errors(&s))
+    } else {
+        None
+    };
+    let mut ns: Vec<usize> = [1, 2, 5, 10, 20, 50, 100, 167, 200, 300, 400]
+        .into_iter()
+        .filter(|&n| n < n_max)
+        .collect();
+    ns.push(n_max);
+    let mut rows = Vec::new();
+    for &n in &ns {
+        let mut coeffs = vec![0.0; n];
+        let mut out = vec![0.0; surface_rows.len()];
+        let (mut surf_err, mut probe_err) = (0.0f64, 0.0f64);
+        for (t, bary, dir, u_fe) in &cases {
+            let v = [ParamValue::SurfaceMix {
+                triangle: *t,
+                bary: *bary,
+                mix: *dir,
+            }];
+            model.particularize(&v, &mut coeffs)?;
+            model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
+            let (mut e2, mut n2) = (0.0, 0.0);
+            for (i, &r) in surface_rows.iter().enumerate() {
+                e2 += (out[i] - u_fe[r as usize]).powi(2);
+                n2 += u_fe[r as usize].powi(2);
+            }
+            surf_err = surf_err.max((e2 / n2).sqrt());
+            // Probe displacement along the load at the point.
+            let tri = triangles[*t as usize];
+            let along = |u: &dyn Fn(usize) -> f64| -> f64 {
+                (0..3)
+                    .map(|i| {
+                        bary[i]
+                            * (0..3)
+                                .map(|d| u(3 * s.axis_nodes[tri[i] as usize] as usize + d) * dir[d])
+                                .sum::<f64>()
+                    })
+                    .sum()
+            };
+            let full_pgd = {
+                let mut all = vec![0.0; model.rows()];
+                model.reconstruct(&coeffs, &mut all);
+                all
+            };
+            let d_fe = along(&|i| u_fe[i]);
+            let d_pgd = along(&|i| full_pgd[i]);
+            probe_err = probe_err.max((d_pgd - d_fe).abs() / d_fe.abs());
+        }
+        // Timings at n modes.
+        let v = [ParamValue::SurfaceMix {
+            triangle: cases[0].0,
+            bary: cases[0].1,
+            mix: cases[0].2,
+        }];
+        let reps = 50;
+        let t0 = Instant::now();
+        for _ in 0..reps {
+            model.particularize(&v, &mut coeffs)?;
+            model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
+        }
+        let surface_eval_us = t0.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
+        let contact_rows: Vec<u32> = surface_rows[..9].to_vec();
+        let mut c9 = [0.0; 9];
+        let reps = 5000;
+        let t0 = Instant::now();
+        for _ in 0..reps {
+            model.particularize(std::hint::black_box(&v), &mut coeffs)?;
+            model.reconstruct_rows(&contact_rows, &coeffs, &mut c9);
+        }
+        let contact_eval_ns = t0.elapsed().as_nanos() as f64 / f64::from(reps);
+        let (map, opt) = match &svd {
+            Some((g2, ev, _)) => (
+                Some(map_error(&s.ops(), &terms, n, *g2)),
+                Some(svd_error(ev, n)),
+            ),
+            None => (None, None),
+        };
+        let bytes = ((surface_rows.len() + model.axes()[0].values().len() / n_max) * n * 4) as u64;
+        rows.push(TradeoffRow {
+            modes: n as u32,
+            surface_rel_error: surf_err,
+            probe_rel_error: probe_err,
+            map_rel_error: map,
+            svd_rel_error: opt,
+            surface_eval_us,
+            contact_eval_ns,
+            bytes,
+        });
+    }
+    let mut model = model;
+    model.set_tradeoff(rows.clone());
+    file::save(&model, &args.file).with_context(|| format!("writing {}", args.file.display()))?;
+    let json_rows: Vec<_> = rows
+        .iter()
+        .map(|r| {
+            json!({"modes": r.modes, "surface_rel_error": r.surface_rel_error, "probe_rel_error": r.probe_rel_error,
+                   "map_rel_error": r.map_rel_error, "svd_rel_error": r.svd_rel_error,
+                   "pgd_over_svd": r.map_rel_error.zip(r.svd_rel_error).map(|(a, b)| a / b),
+                   "surface_eval_us": r.surface_eval_us, "contact_eval_ns": r.contact_eval_ns, "bytes": r.bytes})
+        })
+        .collect();
+    let out = json!({"rows": json_rows, "held_out": args.held_out,
+                     "brute_force_solve_s": svd.as_ref().map(|s| s.2)});
+    if args.json {
+        println!("{out}");
+    } else {
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    }
+    Ok(())
+}
