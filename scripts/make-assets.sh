@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Regenerates the default palpation scene shipped in assets/ (what `palpa` opens):
+# the coarse-level P2 liver vademecum, its measured tradeoff table, then only what a
+# phone needs: the surface rows, f32. The asset test checks that the result's recorded
+# inputs (mesh hash, element, material, tool) match the current code.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MODES="${MODES:-100}"
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+cargo build --release --locked -q -p palpa-app --bin palpa
+palpa=target/release/palpa
+$palpa offline liver --level coarse --element p2 --modes "$MODES" --tol 1e-9 --out "$tmp/full.palpa"
+$palpa tradeoff "$tmp/full.palpa" --json > "$tmp/tradeoff.json"
+$palpa export-scene "$tmp/full.palpa" --surface-only --precision f32 --out assets/liver-coarse.palpa
+echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"
+cat "$tmp/tradeoff.json"
