@@ -11,20 +11,40 @@ use palpa_core::pgd::palpation::{describe, describe_get};
 
 #[test]
 fn the_default_scene_matches_the_current_mesh_and_settings() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.palpa");
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.palpa");
     let model = file::load::<f32>(&path).expect("assets/liver-coarse.palpa loads as an f32 scene");
     let desc = &model.provenance().mesh;
     let liver = Liver::default();
-    let organ = mesh_organ(&liver, spacing_mm(Level::Coarse), &liver.fixed_region(), &liver.palpable_region());
-    let radius: f64 = describe_get(desc, "radius_mm").expect("radius recorded").parse().expect("number");
-    let now = describe(&organ, "coarse", Element::P2, Material::default(), radius, true);
-    assert_eq!(desc, &now, "the asset was computed from another mesh or settings: run scripts/make-assets.sh");
+    let organ = mesh_organ(
+        &liver,
+        spacing_mm(Level::Coarse),
+        &liver.fixed_region(),
+        &liver.palpable_region(),
+    );
+    let radius: f64 = describe_get(desc, "radius_mm")
+        .expect("radius recorded")
+        .parse()
+        .expect("number");
+    let now = describe(
+        &organ,
+        "coarse",
+        Element::P2,
+        Material::default(),
+        radius,
+        true,
+    );
+    assert_eq!(
+        desc, &now,
+        "the asset was computed from another mesh or settings: run scripts/make-assets.sh"
+    );
     assert_eq!(
         model.provenance().input_hash,
         format!("{:016x}", xxhash_rust::xxh3::xxh3_64(now.as_bytes()))
     );
     // The probe surface is the current palpable surface, vertex for vertex.
-    let Discretization::SurfaceVector { vertices, .. } = &model.axes()[0].info.discretization else {
+    let Discretization::SurfaceVector { vertices, .. } = &model.axes()[0].info.discretization
+    else {
         panic!("a palpation scene has a surface-vector axis");
     };
     let palpable: usize = organ.palpable.iter().filter(|&&p| p).count();
@@ -32,7 +52,10 @@ fn the_default_scene_matches_the_current_mesh_and_settings() {
     // Surface-only: every row belongs to a boundary node, and the geometry is there.
     assert_eq!(model.geometry().nodes.len() * 3, model.rows());
     assert!(!model.geometry().surface.is_empty());
-    assert!(!model.tradeoff().is_empty(), "the tradeoff table the accuracy knob reads");
+    assert!(
+        !model.tradeoff().is_empty(),
+        "the tradeoff table the accuracy knob reads"
+    );
     // A phone budget of 20 MB.
     assert!(std::fs::metadata(&path).expect("size").len() < 20_000_000);
 }

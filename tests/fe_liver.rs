@@ -4,17 +4,9 @@ use palpa_core::fe::load::{probe_load, resultant};
 use palpa_core::fe::probe::{ProbeRequest, locate, organ_space, solve_linear};
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::liver::{Liver, spacing_mm};
-use palpa_core::organ::{Level, OrganMesh, mesh_organ};
+use palpa_core::organ::{Level, mesh_organ};
 
-fn coarse_liver() -> OrganMesh {
-    let liver = Liver::default();
-    mesh_organ(
-        &liver,
-        spacing_mm(Level::Coarse),
-        &liver.fixed_region(),
-        &liver.palpable_region(),
-    )
-}
+use palpa_tests::coarse_liver;
 
 /// Probe points around the organ: anterior right lobe, left lobe, the inferior border,
 /// next to the fixed region, and one far away (projected).

@@ -63,3 +63,16 @@ pub fn small_model<T: Scalar>(nodes: usize, modes: usize, seed: u64) -> Separate
     };
     SeparatedModel::new(meta, rows, modes, x, values).expect("consistent shapes")
 }
+
+/// The procedural liver meshed at the coarse level with its own regions.
+pub fn coarse_liver() -> palpa_core::organ::OrganMesh {
+    use palpa_core::organ::liver::{Liver, spacing_mm};
+    use palpa_core::organ::{Level, mesh_organ};
+    let liver = Liver::default();
+    mesh_organ(
+        &liver,
+        spacing_mm(Level::Coarse),
+        &liver.fixed_region(),
+        &liver.palpable_region(),
+    )
+}

@@ -4,22 +4,12 @@
 
 use palpa_core::fe::probe::{ProbeRequest, locate, solve_linear};
 use palpa_core::fe::{Element, Material};
-use palpa_core::organ::liver::{Liver, spacing_mm};
-use palpa_core::organ::{Level, OrganMesh, mesh_organ};
 use palpa_core::pgd::linear::{Settings, Terms, map_error};
 use palpa_core::pgd::palpation::{compute, optimal_errors, setup, svd_error, to_model};
 use palpa_core::rng::Rng;
 use palpa_core::{ParamValue, axis};
 
-fn coarse_liver() -> OrganMesh {
-    let liver = Liver::default();
-    mesh_organ(
-        &liver,
-        spacing_mm(Level::Coarse),
-        &liver.fixed_region(),
-        &liver.palpable_region(),
-    )
-}
+use palpa_tests::coarse_liver;
 
 #[test]
 fn pgd_converges_and_stays_near_the_optimal_separated_approximation() {

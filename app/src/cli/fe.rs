@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::export::{FieldValue, PointField, write_by_extension};
 use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_linear, solve_svk};
@@ -11,6 +11,7 @@ use palpa_core::fe::svk::NewtonSettings;
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
+use super::args::to3;
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
 
 #[derive(Debug, Subcommand)]
@@ -71,16 +72,6 @@ pub struct SolveArgs {
 pub fn run(cmd: &FeCommand) -> anyhow::Result<()> {
     match cmd {
         FeCommand::Solve(args) => solve(args),
-    }
-}
-
-fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
-    match v {
-        [x, y, z] => Ok([*x, *y, *z]),
-        _ => bail!(
-            "{what} needs three comma-separated numbers, got {}",
-            v.len()
-        ),
     }
 }
 

@@ -8,7 +8,7 @@ use clap::Args;
 use palpa_core::export::{FieldValue, PointField, write_by_extension};
 use palpa_core::fe::Element;
 use palpa_core::fe::probe::organ_space;
-use palpa_core::mesh::quality;
+use palpa_core::mesh::{quality, triangle_area};
 use serde_json::json;
 
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
@@ -42,7 +42,10 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         .iter()
         .zip(&organ.palpable)
         .filter(|(_, p)| **p)
-        .map(|(f, _)| triangle_area(&organ.mesh.vertices, *f))
+        .map(|(f, _)| {
+            let [a, b, c] = f.map(|i| organ.mesh.vertices[i as usize]);
+            triangle_area(a, b, c)
+        })
         .sum();
     let report = json!({
         "organ": match &args.surface {
@@ -93,16 +96,4 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
     }
     Ok(())
-}
-
-fn triangle_area(v: &[[f64; 3]], f: [u32; 3]) -> f64 {
-    let [a, b, c] = f.map(|i| v[i as usize]);
-    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    let x = [
-        u[1] * w[2] - u[2] * w[1],
-        u[2] * w[0] - u[0] * w[2],
-        u[0] * w[1] - u[1] * w[0],
-    ];
-    0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
 }

@@ -1,5 +1,6 @@
 //! The `palpa` command line.
 
+mod args;
 mod bench;
 mod bench_fe;
 mod fe;

@@ -10,12 +10,14 @@ use clap::{Args, ValueEnum};
 use palpa_core::axis::{Discretization, closest_point};
 use palpa_core::fe::{Element, Material};
 use palpa_core::file;
+use palpa_core::mesh::triangle_normal;
 use palpa_core::pgd::journal::Journal;
 use palpa_core::pgd::linear::{Settings, update};
 use palpa_core::pgd::palpation::{compute, describe, setup, to_model};
 use palpa_core::{ParamValue, Precision, Scalar, SeparatedModel};
 use serde_json::json;
 
+use super::args::to3;
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
 
 #[derive(Debug, Args)]
@@ -94,6 +96,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
             })
             .collect();
         start.ftx = start.x.iter().map(|x| ops.f.mul_t(x)).collect();
+        start.extend_gram();
         if settings.update {
             update(&ops, &mut start);
         }
@@ -108,10 +111,10 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     let t_solve = Instant::now();
     let terms = compute(&s, &settings, start, |t| {
         let k = t.x.len() - 1;
-        if journal_err.is_none() {
-            if let Err(e) = journal.append(t, k) {
-                journal_err = Some(e);
-            }
+        if journal_err.is_none()
+            && let Err(e) = journal.append(t, k)
+        {
+            journal_err = Some(e);
         }
         let done = t.x.len() - resumed;
         let per = t_solve.elapsed().as_secs_f64() / done as f64;
@@ -182,13 +185,6 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     }
 }
 
-fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
-    match v {
-        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([*x, *y, *z]),
-        _ => bail!("{what} needs three finite comma-separated numbers, got {v:?}"),
-    }
-}
-
 fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Result<()> {
     let at = to3(&args.at, "--at")?;
     let Some(Discretization::SurfaceVector {
@@ -212,17 +208,7 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
     let hit = closest_point(vertices, triangles, at).context("the probe surface is empty")?;
     let tri = triangles[hit.triangle as usize];
     let [a, b, c] = tri.map(|i| vertices[i as usize]);
-    let n = {
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let x = [
-            u[1] * w[2] - u[2] * w[1],
-            u[2] * w[0] - u[0] * w[2],
-            u[0] * w[1] - u[1] * w[0],
-        ];
-        let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
-        x.map(|v| v / l)
-    };
+    let n = triangle_normal(a, b, c);
     let dir = match &args.dir {
         Some(d) => {
             let d = to3(d, "--dir")?;

@@ -19,6 +19,7 @@ use palpa_core::axis::Discretization;
 use palpa_core::fe::load::{SurfacePoint, probe_load};
 use palpa_core::fe::{Element, Material};
 use palpa_core::file;
+use palpa_core::mesh::triangle_normal;
 use palpa_core::pgd::linear::map_error;
 use palpa_core::pgd::palpation::{
     describe, describe_get, optimal_errors, setup, svd_error, terms_from_model,
@@ -80,14 +81,15 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     let s = setup(&organ, element, material, radius_mm)?;
     let terms = terms_from_model(&s, &model);
     let n_max = model.modes();
-    let Discretization::SurfaceVector { triangles, .. } = &model.axes()[0].info.discretization
-    else {
-        bail!("not a palpation vademecum");
+    let triangles: Vec<[u32; 3]> = match &model.axes()[0].info.discretization {
+        Discretization::SurfaceVector { triangles, .. } => triangles.clone(),
+        _ => bail!("not a palpation vademecum"),
     };
 
     // Held-out references.
     let mut rng = Rng::seed(0x7e57);
     let mut cases = Vec::new();
+    let mut floors: Vec<Vec<f64>> = Vec::new();
     for _ in 0..args.held_out {
         let t = rng.below(triangles.len());
         let (a, b) = (rng.range(0.1, 0.8), rng.uniform());
@@ -108,18 +110,8 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
                 .map(|i| bary[i] * s.axis_vertices[tri[i] as usize][d])
                 .sum::<f64>()
         });
-        let normal = {
-            let [p, q, r] = tri.map(|i| s.axis_vertices[i as usize]);
-            let u = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-            let w = [r[0] - p[0], r[1] - p[1], r[2] - p[2]];
-            let x = [
-                u[1] * w[2] - u[2] * w[1],
-                u[2] * w[0] - u[0] * w[2],
-                u[0] * w[1] - u[1] * w[0],
-            ];
-            let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
-            x.map(|v| v / l)
-        };
+        let [p, q, r] = tri.map(|i| s.axis_vertices[i as usize]);
+        let normal = triangle_normal(p, q, r);
         let dir = normal.map(|v| -v);
         let sp = SurfacePoint {
             face,
@@ -130,6 +122,24 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         };
         let load = probe_load(&s.space, &sp, dir, 1.0, radius_mm)?;
         let u = s.problem.solve(&s.space, &load);
+        // The s-axis floor: FE responses to the tool centred at the triangle's
+        // vertices, interpolated barycentrically (what the PGD converges to as N grows).
+        let mut interp = vec![0.0; u.len()];
+        for (i, &av) in tri.iter().enumerate() {
+            let mut b = [0.0; 3];
+            b[i] = 1.0;
+            let at_vertex = SurfacePoint {
+                bary: b,
+                point: s.axis_vertices[av as usize],
+                ..sp
+            };
+            let lv = probe_load(&s.space, &at_vertex, dir, 1.0, radius_mm)?;
+            let uv = s.problem.solve(&s.space, &lv);
+            for (a, v) in interp.iter_mut().zip(uv) {
+                *a += bary[i] * v;
+            }
+        }
+        floors.push(interp);
         cases.push((t as u32, bary, dir, u));
     }
     let surface_nodes: Vec<u32> = {
@@ -246,7 +256,30 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
                    "surface_eval_us": r.surface_eval_us, "contact_eval_ns": r.contact_eval_ns, "bytes": r.bytes})
         })
         .collect();
+    // Floor errors of the vertex-interpolated FE responses, same measures.
+    let (mut floor_surf, mut floor_probe) = (0.0f64, 0.0f64);
+    for ((t, bary, dir, u_fe), interp) in cases.iter().zip(&floors) {
+        let (mut e2, mut n2) = (0.0, 0.0);
+        for &r in &surface_rows {
+            e2 += (interp[r as usize] - u_fe[r as usize]).powi(2);
+            n2 += u_fe[r as usize].powi(2);
+        }
+        floor_surf = floor_surf.max((e2 / n2).sqrt());
+        let tri = triangles[*t as usize];
+        let along = |u: &[f64]| -> f64 {
+            (0..3)
+                .map(|i| {
+                    bary[i]
+                        * (0..3)
+                            .map(|d| u[3 * s.axis_nodes[tri[i] as usize] as usize + d] * dir[d])
+                            .sum::<f64>()
+                })
+                .sum()
+        };
+        floor_probe = floor_probe.max((along(interp) - along(u_fe)).abs() / along(u_fe).abs());
+    }
     let out = json!({"rows": json_rows, "held_out": args.held_out,
+                     "s_interpolation_floor": {"surface_rel_error": floor_surf, "probe_rel_error": floor_probe},
                      "brute_force_solve_s": svd.as_ref().map(|s| s.2)});
     if args.json {
         println!("{out}");

@@ -79,6 +79,18 @@ impl TetMesh {
     }
 }
 
+/// Unit normal of triangle abc (right-hand rule), or zeros if degenerate.
+pub fn triangle_normal(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+    let n = cross(sub(b, a), sub(c, a));
+    let l = norm(n);
+    if l > 0.0 { n.map(|v| v / l) } else { [0.0; 3] }
+}
+
+/// Area of triangle abc.
+pub fn triangle_area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    0.5 * norm(cross(sub(b, a), sub(c, a)))
+}
+
 pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }

@@ -90,6 +90,23 @@ pub struct Terms {
     pub residual_per_mode: Vec<f64>,
     pub fixed_point_iterations: Vec<usize>,
     pub seconds_per_mode: Vec<f64>,
+    /// `X_kᵀ K X_l`, grown one row per term (O(N·n) per term instead of O(N²·n)).
+    pub gram: Vec<Vec<f64>>,
+}
+
+impl Terms {
+    /// Appends the Gram row of the newest term (call after pushing x and kx).
+    pub fn extend_gram(&mut self) {
+        let n = self.x.len();
+        while self.gram.len() < n {
+            let k = self.gram.len();
+            let row: Vec<f64> = (0..=k).map(|l| dot(&self.x[l], &self.kx[k])).collect();
+            for (l, v) in row.iter().enumerate().take(k) {
+                self.gram[l].push(*v);
+            }
+            self.gram.push(row);
+        }
+    }
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -118,14 +135,13 @@ impl Operators<'_> {
     }
 }
 
-/// `‖U‖²` in the natural norm, from the stored terms.
-pub fn norm2(ops: &Operators, t: &Terms) -> f64 {
-    let n = t.x.len();
-    let msy: Vec<Vec<f64>> = t.y.iter().map(|y| ops.msmul(y)).collect();
+/// `‖U‖²` in the natural norm for the first `n` stored terms (Gram matrix required).
+pub fn norm2(ops: &Operators, t: &Terms, n: usize) -> f64 {
+    let msy: Vec<Vec<f64>> = t.y[..n].iter().map(|y| ops.msmul(y)).collect();
     let mut s = 0.0;
     for k in 0..n {
         for l in 0..n {
-            s += dot(&t.x[k], &t.kx[l]) * dot(&t.y[k], &msy[l]);
+            s += t.gram[k][l] * dot(&t.y[k], &msy[l]);
         }
     }
     s
@@ -167,7 +183,7 @@ pub fn solve(
             r_new.iter_mut().for_each(|v| *v /= beta);
             let mut kr_new = ops.kmul(&r_new);
             let alpha = dot(&r_new, &kr_new);
-            if !(alpha > 0.0) {
+            if alpha.is_nan() || alpha <= 0.0 {
                 break; // The load is fully represented: nothing left to add.
             }
             // R fixed → S.
@@ -202,11 +218,12 @@ pub fn solve(
         t.kx.push(kr);
         t.ftx.push(ftx);
         t.y.push(s.clone());
+        t.extend_gram();
         if settings.update {
             update(ops, &mut t);
         }
         let term2 = dot(&t.y[t.y.len() - 1], &ops.msmul(&t.y[t.y.len() - 1]));
-        let total2 = norm2(ops, &t).max(f64::MIN_POSITIVE);
+        let total2 = norm2(ops, &t, t.x.len()).max(f64::MIN_POSITIVE);
         let rel = (term2 / total2).sqrt();
         t.residual_per_mode.push(rel);
         t.fixed_point_iterations.push(iters);
@@ -223,7 +240,8 @@ pub fn solve(
 pub fn update(ops: &Operators, t: &mut Terms) {
     let n = t.x.len();
     let m = ops.f.cols.len();
-    let a = faer::Mat::<f64>::from_fn(n, n, |i, j| dot(&t.x[i], &t.kx[j]));
+    t.extend_gram();
+    let a = faer::Mat::<f64>::from_fn(n, n, |i, j| t.gram[i][j]);
     let mut b = faer::Mat::<f64>::from_fn(n, m, |i, j| t.ftx[i][j]);
     // X is K-orthogonal up to round-off only when updated; use a symmetric solve.
     let llt = match a.llt(faer::Side::Lower) {
@@ -241,17 +259,10 @@ pub fn update(ops: &Operators, t: &mut Terms) {
 
 /// Relative error of `U` over the whole map in the natural norm, given ‖G‖².
 pub fn map_error(ops: &Operators, t: &Terms, n_modes: usize, g_norm2: f64) -> f64 {
-    let sub = Terms {
-        x: t.x[..n_modes].to_vec(),
-        kx: t.kx[..n_modes].to_vec(),
-        ftx: t.ftx[..n_modes].to_vec(),
-        y: t.y[..n_modes].to_vec(),
-        ..Terms::default()
-    };
     let mut cross = 0.0;
     for k in 0..n_modes {
-        cross += dot(&sub.y[k], &ops.msmul(&sub.ftx[k]));
+        cross += dot(&t.y[k], &ops.msmul(&t.ftx[k]));
     }
-    let e2 = g_norm2 - 2.0 * cross + norm2(ops, &sub);
+    let e2 = g_norm2 - 2.0 * cross + norm2(ops, t, n_modes);
     (e2.max(0.0) / g_norm2).sqrt()
 }

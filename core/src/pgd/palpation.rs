@@ -361,5 +361,6 @@ pub fn terms_from_model(setup: &Setup, model: &SeparatedModel<f64>) -> Terms {
         t.kx.push(kx);
         t.y.push((0..m).map(|p| y_all[p * n + k]).collect());
     }
+    t.extend_gram();
     t
 }
