@@ -16,6 +16,12 @@ pub struct InfoArgs {
     json: bool,
 }
 
+impl InfoArgs {
+    pub fn new(file: PathBuf, json: bool) -> Self {
+        InfoArgs { file, json }
+    }
+}
+
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let h = file::read_header(&args.file)
         .with_context(|| format!("reading the header of {}", args.file.display()))?;
@@ -51,6 +57,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             "input_hash": m.provenance.input_hash,
         },
         "tradeoff_rows": m.tradeoff.len(),
+        "geometry": { "nodes": m.geometry.nodes.len(), "surface_triangles": m.geometry.surface.len() },
     });
     if args.json {
         println!("{summary}");

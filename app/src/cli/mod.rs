@@ -89,23 +89,30 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// With no subcommand: the interactive app once it lands; until then, a summary of
-/// what the shipped assets hold and what to run.
+/// The default scene shipped in `assets/`.
+const DEFAULT_SCENE: &str = "assets/liver-coarse.palpa";
+
+/// With no subcommand: the interactive app once it lands; until then, what the shipped
+/// scene holds, one evaluation of it, and a short evaluator benchmark.
 fn default_job() -> anyhow::Result<()> {
-    use std::io::Write;
-    let mut out = std::io::stdout().lock();
-    writeln!(
-        out,
+    println!(
         "palpa {} — real-time PGD meta-models",
         env!("CARGO_PKG_VERSION")
-    )?;
-    writeln!(
-        out,
-        "The interactive palpation app is not built yet; these commands are:\n\
-         \n  palpa info FILE            describe a meta-model file\
-         \n  palpa bench eval [--json]  on-line evaluation speed against memory bandwidth\
-         \n\nRunning the evaluator benchmark on a small sweep:\n"
-    )?;
-    drop(out);
+    );
+    println!(
+        "The interactive palpation app is not built yet (see README for the commands).\n\n\
+         Default scene: {DEFAULT_SCENE}"
+    );
+    let scene = std::path::Path::new(DEFAULT_SCENE);
+    if scene.exists() {
+        info::run(&info::InfoArgs::new(scene.into(), true))?;
+        println!(
+            "\nPressing it with 1 N at the anterior right lobe (no solving, just evaluation):"
+        );
+        pgd::eval(&pgd::EvalArgs::new(scene.into(), [-30.0, 90.0, 25.0], 1.0))?;
+    } else {
+        println!("(not found: run from the repository root, or scripts/make-assets.sh)");
+    }
+    println!("\nEvaluator speed against memory bandwidth, short sweep:\n");
     bench::run(&bench::BenchCommand::quick())
 }
