@@ -11,8 +11,7 @@ use palpa_core::fe::svk::NewtonSettings;
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
-use super::args::to3;
-use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+use super::args::{OrganArgs, ProbeArgs};
 
 #[derive(Debug, Subcommand)]
 pub enum FeCommand {
@@ -29,28 +28,10 @@ pub enum Model {
 
 #[derive(Debug, Args)]
 pub struct SolveArgs {
-    #[arg(long, value_enum, default_value = "liver")]
-    organ: OrganName,
-    #[arg(long, value_enum, default_value = "coarse")]
-    level: LevelArg,
-    /// A closed surface (OBJ, or ASCII/binary STL, in mm) to mesh instead of the organ;
-    /// fixed = posterior-facing (−y) surface, palpable = anterior/inferior.
-    #[arg(long)]
-    surface: Option<PathBuf>,
-    /// Probe point X,Y,Z (mm); projected to the closest palpable surface point.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        allow_hyphen_values = true,
-        required = true
-    )]
-    at: Vec<f64>,
-    /// Total probe force (N).
-    #[arg(long)]
-    force_n: f64,
-    /// Load direction NX,NY,NZ (default: the inward surface normal at the probe).
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    dir: Option<Vec<f64>>,
+    #[command(flatten)]
+    organ: OrganArgs,
+    #[command(flatten)]
+    probe: ProbeArgs,
     /// Tool radius (mm): the force is spread over the surface within it.
     #[arg(long, default_value_t = 5.0)]
     radius_mm: f64,
@@ -77,16 +58,16 @@ pub fn run(cmd: &FeCommand) -> anyhow::Result<()> {
 
 fn solve(args: &SolveArgs) -> anyhow::Result<()> {
     let t = Instant::now();
-    let at = to3(&args.at, "--at")?;
-    let dir = args.dir.as_deref().map(|d| to3(d, "--dir")).transpose()?;
+    let at = args.probe.at()?;
+    let dir = args.probe.dir()?;
     let material = Material {
         young_kpa: args.young_kpa,
         poisson: args.poisson,
     };
-    let organ = mesh_organ(args.organ, args.level, args.surface.as_deref())?;
+    let organ = args.organ.mesh()?;
     let req = ProbeRequest {
         at,
-        force_n: args.force_n,
+        force_n: args.probe.force_n,
         dir,
         radius_mm: args.radius_mm,
     };
@@ -114,11 +95,11 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         "poisson": material.poisson,
         "element": args.element.name(),
         "model": format!("{:?}", args.model).to_lowercase(),
-        "level": format!("{:?}", args.level).to_lowercase(),
+        "level": format!("{:?}", args.organ.level).to_lowercase(),
         "probe_point": sol.probe.point,
         "probe_projection_distance_mm": sol.probe.distance_mm,
         "direction": sol.dir,
-        "force_n": args.force_n,
+        "force_n": args.probe.force_n,
         "radius_mm": args.radius_mm,
         "probe_displacement_mm": sol.probe_displacement_mm,
         "max_displacement_mm": sol.max_displacement_mm,

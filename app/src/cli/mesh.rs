@@ -11,18 +11,12 @@ use palpa_core::fe::probe::organ_space;
 use palpa_core::mesh::{quality, triangle_area};
 use serde_json::json;
 
-use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+use super::args::OrganArgs;
 
 #[derive(Debug, Args)]
 pub struct MeshArgs {
-    #[arg(long, value_enum, default_value = "liver")]
-    organ: OrganName,
-    #[arg(long, value_enum, default_value = "coarse")]
-    level: LevelArg,
-    /// A closed surface (OBJ, or ASCII/binary STL, in mm) to mesh instead of the organ;
-    /// fixed = posterior-facing (−y) surface, palpable = anterior/inferior.
-    #[arg(long)]
-    surface: Option<PathBuf>,
+    #[command(flatten)]
+    organ: OrganArgs,
     /// Write the mesh (.vtu or .msh) with point data `fixed`.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -33,7 +27,7 @@ pub struct MeshArgs {
 
 pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     let t = Instant::now();
-    let organ = mesh_organ(args.organ, args.level, args.surface.as_deref())?;
+    let organ = args.organ.mesh()?;
     let seconds = t.elapsed().as_secs_f64();
     let q = quality(&organ.mesh);
     let (lo, hi) = organ.mesh.bounding_box();
@@ -48,11 +42,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         })
         .sum();
     let report = json!({
-        "organ": match &args.surface {
+        "organ": match &args.organ.surface {
             Some(p) => p.display().to_string(),
-            None => format!("{:?}", args.organ).to_lowercase(),
+            None => format!("{:?}", args.organ.organ).to_lowercase(),
         },
-        "level": format!("{:?}", args.level).to_lowercase(),
+        "level": format!("{:?}", args.organ.level).to_lowercase(),
         "lattice_spacing_mm": organ.h_mm,
         "vertices": organ.mesh.vertices.len(),
         "tetrahedra": organ.mesh.tets.len(),

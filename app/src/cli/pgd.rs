@@ -17,7 +17,7 @@ use palpa_core::pgd::palpation::{compute, describe, setup, to_model};
 use palpa_core::{ParamValue, Precision, Scalar, SeparatedModel};
 use serde_json::json;
 
-use super::args::to3;
+use super::args::ProbeArgs;
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
 
 #[derive(Debug, Args)]
@@ -160,17 +160,8 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
 #[derive(Debug, Args)]
 pub struct EvalArgs {
     file: PathBuf,
-    #[arg(
-        long,
-        value_delimiter = ',',
-        allow_hyphen_values = true,
-        required = true
-    )]
-    at: Vec<f64>,
-    #[arg(long)]
-    force_n: f64,
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    dir: Option<Vec<f64>>,
+    #[command(flatten)]
+    probe: ProbeArgs,
     /// Modes to use (default: all the file holds).
     #[arg(long)]
     modes: Option<usize>,
@@ -182,9 +173,11 @@ impl EvalArgs {
     pub fn new(file: PathBuf, at: [f64; 3], force_n: f64) -> Self {
         EvalArgs {
             file,
-            at: at.to_vec(),
-            force_n,
-            dir: None,
+            probe: ProbeArgs {
+                at: at.to_vec(),
+                force_n,
+                dir: None,
+            },
             modes: None,
             json: true,
         }
@@ -199,7 +192,7 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
 }
 
 fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Result<()> {
-    let at = to3(&args.at, "--at")?;
+    let at = args.probe.at()?;
     let Some(Discretization::SurfaceVector {
         vertices,
         triangles,
@@ -222,9 +215,8 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
     let tri = triangles[hit.triangle as usize];
     let [a, b, c] = tri.map(|i| vertices[i as usize]);
     let n = triangle_normal(a, b, c);
-    let dir = match &args.dir {
+    let dir = match args.probe.dir()? {
         Some(d) => {
-            let d = to3(d, "--dir")?;
             let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             if l == 0.0 {
                 bail!("--dir has no length");
@@ -269,7 +261,7 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
     let t = Instant::now();
     m.reconstruct(&coeffs, &mut full);
     let full_us = t.elapsed().as_secs_f64() * 1e6;
-    let f = args.force_n;
+    let f = args.probe.force_n;
     let probe_displacement_mm = if contact.is_empty() {
         None
     } else {
