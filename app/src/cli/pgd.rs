@@ -39,6 +39,9 @@ pub struct OfflineArgs {
     /// Skip the Galerkin update of the parametric functions after each term.
     #[arg(long)]
     no_update: bool,
+    /// Fixed-point tolerance of each enrichment (relative change of the new term).
+    #[arg(long, default_value_t = Settings::default().fixed_point_tol)]
+    fp_tol: f64,
     #[arg(long)]
     out: PathBuf,
     /// Continue from the journal of an interrupted run (`OUT.journal`).
@@ -70,6 +73,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
         max_modes: args.modes,
         tol: args.tol,
         update: !args.no_update,
+        fixed_point_tol: args.fp_tol,
         ..Settings::default()
     };
     let jpath = journal_path(&args.out);
