@@ -10,11 +10,16 @@
 //! - [`separated`]: the representation, particularization (parameters → coefficients)
 //!   and reconstruction (coefficients → field rows), allocation-free on the hot path;
 //! - [`axis`]: the discretization of one parameter axis (1-D grid, triangulated
-//!   surface, discrete index) and its interpolation stencils;
+//!   surface, discrete index, surface × direction) and its interpolation stencils;
 //! - [`file`]: the meta-model file (magic, version, checksummed header and payload,
 //!   atomic writes, a loader that never trusts a length it has not checked);
 //! - [`kernels`]: the streaming dot products that bound on-line cost by memory bandwidth;
-//! - [`synthetic`]: reproducible random models for benchmarks and tests.
+//! - [`synthetic`]: reproducible random models for benchmarks and tests;
+//! - [`mesh`], [`organ`], [`surface`]: tetrahedral meshing (isosurface stuffing), the
+//!   procedural liver with its regions, user OBJ/STL organs;
+//! - [`fe`], [`export`]: the finite-element reference (P1/P2, linear and Saint
+//!   Venant–Kirchhoff) and VTU / gmsh export;
+//! - [`pgd`]: the off-line PGD solvers (the liver palpation vademecum).
 
 pub mod axis;
 pub mod export;
