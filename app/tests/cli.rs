@@ -192,3 +192,46 @@ fn offline_resumes_after_kill_9() {
         "resumed vademecum differs: {diff:e} (scale {scale:e})"
     );
 }
+
+/// `palpa eval` on the shipped scene: JSON keys, a clamped mode request with notice,
+/// and a VTU of the scene's surface.
+#[test]
+fn eval_on_the_default_scene() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let vtu = dir.path().join("u.vtu");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
+    let out = palpa(&[
+        "eval",
+        scene,
+        "--at=-30,90,25",
+        "--force-n",
+        "2",
+        "--modes",
+        "100000",
+        "--out",
+        vtu.to_str().expect("utf-8"),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    for key in [
+        "probe_point",
+        "probe_displacement_mm",
+        "max_displacement_mm",
+        "modes_used",
+        "eval_us",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(v["modes_clamped"], true);
+    assert_eq!(v["modes_used"], v["modes_available"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the file holds"));
+    // Pressing inward moves the tissue inward.
+    assert!(v["probe_displacement_mm"].as_f64().expect("number") > 0.0);
+    let text = std::fs::read_to_string(&vtu).expect("vtu written");
+    assert!(text.starts_with("<?xml") && text.contains("Name=\"displacement\""));
+}

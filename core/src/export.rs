@@ -57,7 +57,7 @@ fn join(values: impl Iterator<Item = String>) -> String {
     s
 }
 
-/// Writes a `.vtu` (VTK XML, ASCII).
+/// Writes a `.vtu` (VTK XML, ASCII) of a finite-element space.
 pub fn write_vtu(
     path: &Path,
     space: &Space,
@@ -65,11 +65,51 @@ pub fn write_vtu(
     meta: &[FieldValue],
 ) -> io::Result<()> {
     check(space, fields)?;
-    let npc = space.element.nodes_per_cell();
     let vtk_type = match space.element {
         Element::P1 => 10,
         Element::P2 => 24,
     };
+    write_cells_vtu(
+        path,
+        &space.nodes,
+        &space.cells,
+        space.element.nodes_per_cell(),
+        vtk_type,
+        fields,
+        meta,
+    )
+}
+
+/// Writes a `.vtu` of triangles (VTK type 5) over `nodes`, e.g. a scene's surface.
+pub fn write_surface_vtu(
+    path: &Path,
+    nodes: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    fields: &[PointField],
+    meta: &[FieldValue],
+) -> io::Result<()> {
+    for f in fields {
+        if f.values.len() != f.components * nodes.len() {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("field '{}' does not match {} nodes", f.name, nodes.len()),
+            ));
+        }
+    }
+    let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
+    write_cells_vtu(path, nodes, &flat, 3, 5, fields, meta)
+}
+
+fn write_cells_vtu(
+    path: &Path,
+    nodes: &[[f64; 3]],
+    cells: &[u32],
+    npc: usize,
+    vtk_type: u8,
+    fields: &[PointField],
+    meta: &[FieldValue],
+) -> io::Result<()> {
+    let ncells = cells.len() / npc;
     let mut s = String::new();
     let _ = writeln!(s, r#"<?xml version="1.0"?>"#);
     let _ = writeln!(
@@ -88,33 +128,31 @@ pub fn write_vtu(
     let _ = writeln!(
         s,
         r#"<Piece NumberOfPoints="{}" NumberOfCells="{}">"#,
-        space.nodes.len(),
-        space.cell_count()
+        nodes.len(),
+        ncells
     );
     let _ = writeln!(
         s,
         r#"<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">"#
     );
     s.push_str(&join(
-        space.nodes.iter().flat_map(|p| p.map(|c| format!("{c:e}"))),
+        nodes.iter().flat_map(|p| p.map(|c| format!("{c:e}"))),
     ));
     let _ = writeln!(s, "\n</DataArray></Points>\n<Cells>");
     let _ = writeln!(
         s,
         r#"<DataArray type="Int64" Name="connectivity" format="ascii">"#
     );
-    s.push_str(&join(space.cells.iter().map(|c| c.to_string())));
+    s.push_str(&join(cells.iter().map(|c| c.to_string())));
     let _ = writeln!(s, "\n</DataArray>");
     let _ = writeln!(
         s,
         r#"<DataArray type="Int64" Name="offsets" format="ascii">"#
     );
-    s.push_str(&join(
-        (1..=space.cell_count()).map(|c| (c * npc).to_string()),
-    ));
+    s.push_str(&join((1..=ncells).map(|c| (c * npc).to_string())));
     let _ = writeln!(s, "\n</DataArray>");
     let _ = writeln!(s, r#"<DataArray type="UInt8" Name="types" format="ascii">"#);
-    s.push_str(&join((0..space.cell_count()).map(|_| vtk_type.to_string())));
+    s.push_str(&join((0..ncells).map(|_| vtk_type.to_string())));
     let _ = writeln!(s, "\n</DataArray>\n</Cells>\n<PointData>");
     for f in fields {
         let _ = writeln!(

@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 use palpa_core::axis::{Discretization, closest_point};
+use palpa_core::export::{FieldValue, PointField, write_surface_vtu};
 use palpa_core::fe::{Element, Material};
 use palpa_core::file;
 use palpa_core::mesh::triangle_normal;
@@ -169,6 +170,10 @@ pub struct EvalArgs {
     /// Modes to use (default: all the file holds).
     #[arg(long)]
     modes: Option<usize>,
+    /// Write the evaluated displacement of the rows the file holds (.vtu: its
+    /// surface triangles when it has them, else its nodes as points).
+    #[arg(long)]
+    out: Option<PathBuf>,
     #[arg(long)]
     json: bool,
 }
@@ -183,6 +188,7 @@ impl EvalArgs {
                 dir: None,
             },
             modes: None,
+            out: None,
             json: true,
         }
     }
@@ -281,6 +287,36 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
         .chunks_exact(3)
         .map(|v| f.abs() * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
         .fold(0.0, f64::max);
+    if let Some(out) = &args.out {
+        let g = m.geometry();
+        if g.nodes.is_empty() {
+            bail!("{} carries no geometry to write", args.file.display());
+        }
+        let u: Vec<f64> = full.iter().map(|v| v * f).collect();
+        let fields = [PointField {
+            name: "displacement".into(),
+            components: 3,
+            values: u,
+        }];
+        let meta = [
+            FieldValue {
+                name: "force_n".into(),
+                value: f,
+            },
+            FieldValue {
+                name: "modes_used".into(),
+                value: modes as f64,
+            },
+        ];
+        let cells: Vec<[u32; 3]> = if g.surface.is_empty() {
+            // No surface: degenerate triangles would mislead; write points only.
+            Vec::new()
+        } else {
+            g.surface.clone()
+        };
+        write_surface_vtu(out, &g.nodes, &cells, &fields, &meta)
+            .with_context(|| format!("writing {}", out.display()))?;
+    }
     let report = json!({
         "probe_point": hit.point,
         "probe_projection_distance_mm": hit.distance,
