@@ -18,6 +18,16 @@ const POINTS: [[f64; 3]; 5] = [
     [500.0, 500.0, 500.0],
 ];
 
+/// A press of `force_n` along the inward normal with the default 5 mm tool.
+fn press(at: [f64; 3], force_n: f64) -> ProbeRequest {
+    ProbeRequest {
+        at,
+        force_n,
+        dir: None,
+        radius_mm: 5.0,
+    }
+}
+
 #[test]
 fn the_consistent_load_sums_to_the_applied_force() {
     let organ = coarse_liver();
@@ -56,12 +66,7 @@ fn fixed_nodes_do_not_move_and_pressing_moves_the_surface_inward() {
     );
     for element in [Element::P1, Element::P2] {
         let space = organ_space(&organ, element);
-        let req = ProbeRequest {
-            at: POINTS[0],
-            force_n: 1.0,
-            dir: None,
-            radius_mm: 5.0,
-        };
+        let req = press(POINTS[0], 1.0);
         let sol = solve_linear(&organ, element, Material::default(), &req).expect("solve");
         for (n, &f) in space.fixed.iter().enumerate() {
             if f {
@@ -94,12 +99,7 @@ fn fixed_nodes_do_not_move_and_pressing_moves_the_surface_inward() {
 fn a_far_away_probe_is_projected_onto_the_palpable_region() {
     let organ = coarse_liver();
     let space = organ_space(&organ, Element::P1);
-    let req = ProbeRequest {
-        at: POINTS[4],
-        force_n: 1.0,
-        dir: None,
-        radius_mm: 5.0,
-    };
+    let req = press(POINTS[4], 1.0);
     let (probe, _) = locate(&space, &organ, &req).expect("projected");
     assert!(
         organ.palpable[probe.face],
@@ -122,12 +122,7 @@ fn bad_requests_get_clear_errors() {
             dir: None,
             radius_mm: 5.0,
         },
-        ProbeRequest {
-            at: POINTS[0],
-            force_n: f64::INFINITY,
-            dir: None,
-            radius_mm: 5.0,
-        },
+        press(POINTS[0], f64::INFINITY),
         ProbeRequest {
             at: POINTS[0],
             force_n: 1.0,
@@ -149,18 +144,8 @@ fn bad_requests_get_clear_errors() {
         young_kpa: 160.0,
         poisson: 0.5,
     };
-    let e = solve_linear(
-        &organ,
-        Element::P1,
-        soft,
-        &ProbeRequest {
-            at: POINTS[0],
-            force_n: 1.0,
-            dir: None,
-            radius_mm: 5.0,
-        },
-    )
-    .expect_err("ν = 0.5 is refused");
+    let e = solve_linear(&organ, Element::P1, soft, &press(POINTS[0], 1.0))
+        .expect_err("ν = 0.5 is refused");
     assert!(e.to_string().contains("Poisson"), "{e}");
 }
 
@@ -208,12 +193,7 @@ mod svk {
     #[test]
     fn newton_converges_quadratically() {
         let organ = coarse_liver();
-        let req = ProbeRequest {
-            at: POINTS[0],
-            force_n: 0.5,
-            dir: None,
-            radius_mm: 5.0,
-        };
+        let req = press(POINTS[0], 0.5);
         let (_, rep) = solve_svk(
             &organ,
             Element::P1,
@@ -243,12 +223,7 @@ mod svk {
     #[test]
     fn an_excessive_force_is_reported_not_answered() {
         let organ = coarse_liver();
-        let req = ProbeRequest {
-            at: POINTS[0],
-            force_n: 200.0,
-            dir: None,
-            radius_mm: 5.0,
-        };
+        let req = press(POINTS[0], 200.0);
         let settings = NewtonSettings {
             min_step: 1.0 / 64.0,
             ..NewtonSettings::default()

@@ -28,9 +28,9 @@ pub struct FieldValue {
     pub value: f64,
 }
 
-fn check(space: &Space, fields: &[PointField]) -> io::Result<()> {
+fn check(nodes: usize, fields: &[PointField]) -> io::Result<()> {
     for f in fields {
-        if f.values.len() != f.components * space.nodes.len() {
+        if f.values.len() != f.components * nodes {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidInput,
                 format!(
@@ -38,7 +38,7 @@ fn check(space: &Space, fields: &[PointField]) -> io::Result<()> {
                     f.name,
                     f.values.len(),
                     f.components,
-                    space.nodes.len()
+                    nodes
                 ),
             ));
         }
@@ -64,7 +64,7 @@ pub fn write_vtu(
     fields: &[PointField],
     meta: &[FieldValue],
 ) -> io::Result<()> {
-    check(space, fields)?;
+    check(space.nodes.len(), fields)?;
     let vtk_type = match space.element {
         Element::P1 => 10,
         Element::P2 => 24,
@@ -88,14 +88,7 @@ pub fn write_surface_vtu(
     fields: &[PointField],
     meta: &[FieldValue],
 ) -> io::Result<()> {
-    for f in fields {
-        if f.values.len() != f.components * nodes.len() {
-            return Err(io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!("field '{}' does not match {} nodes", f.name, nodes.len()),
-            ));
-        }
-    }
+    check(nodes.len(), fields)?;
     let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
     write_cells_vtu(path, nodes, &flat, 3, 5, fields, meta)
 }
@@ -178,7 +171,7 @@ pub fn write_msh(
     fields: &[PointField],
     meta: &[FieldValue],
 ) -> io::Result<()> {
-    check(space, fields)?;
+    check(space.nodes.len(), fields)?;
     let (lo, hi) = bbox(space);
     let n = space.nodes.len();
     let cells = space.cell_count();

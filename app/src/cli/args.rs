@@ -61,3 +61,13 @@ pub fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
         _ => bail!("{what} needs three finite comma-separated numbers, got {v:?}"),
     }
 }
+
+/// Prints a command's JSON report: one line with `--json`, indented otherwise.
+pub fn print_report(report: &serde_json::Value, json: bool) -> anyhow::Result<()> {
+    if json {
+        println!("{report}");
+    } else {
+        println!("{}", serde_json::to_string_pretty(report)?);
+    }
+    Ok(())
+}

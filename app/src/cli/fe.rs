@@ -155,10 +155,5 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         write_by_extension(out, &space, &fields, &meta)
             .with_context(|| format!("writing {}", out.display()))?;
     }
-    if args.json {
-        println!("{report}");
-    } else {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    }
-    Ok(())
+    super::args::print_report(&report, args.json)
 }

@@ -59,10 +59,5 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         "tradeoff_rows": m.tradeoff.len(),
         "geometry": { "nodes": m.geometry.nodes.len(), "surface_triangles": m.geometry.surface.len() },
     });
-    if args.json {
-        println!("{summary}");
-    } else {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
-    }
-    Ok(())
+    super::args::print_report(&summary, args.json)
 }

@@ -84,10 +84,5 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         )
         .with_context(|| format!("writing {}", out.display()))?;
     }
-    if args.json {
-        println!("{report}");
-    } else {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    }
-    Ok(())
+    super::args::print_report(&report, args.json)
 }

@@ -331,12 +331,7 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
         "full_reconstruction_us": full_us,
         "precision": T::PRECISION.name(),
     });
-    if args.json {
-        println!("{report}");
-    } else {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    }
-    Ok(())
+    super::args::print_report(&report, args.json)
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

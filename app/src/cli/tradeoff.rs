@@ -281,10 +281,5 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     let out = json!({"rows": json_rows, "held_out": args.held_out,
                      "s_interpolation_floor": {"surface_rel_error": floor_surf, "probe_rel_error": floor_probe},
                      "brute_force_solve_s": svd.as_ref().map(|s| s.2)});
-    if args.json {
-        println!("{out}");
-    } else {
-        println!("{}", serde_json::to_string_pretty(&out)?);
-    }
-    Ok(())
+    super::args::print_report(&out, args.json)
 }

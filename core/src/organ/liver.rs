@@ -114,16 +114,7 @@ impl Liver {
 
     /// The palpable region: anterior and inferior surface.
     pub fn palpable_region(&self) -> Selector {
-        Selector::Any(vec![
-            Selector::NormalWithin {
-                dir: [0.0, 1.0, 0.0],
-                max_angle_deg: 80.0,
-            },
-            Selector::NormalWithin {
-                dir: [0.0, 0.0, -1.0],
-                max_angle_deg: 70.0,
-            },
-        ])
+        Selector::anterior_inferior()
     }
 }
 

@@ -104,17 +104,7 @@ pub fn default_user_regions() -> (Selector, Selector) {
         dir: [0.0, -1.0, 0.0],
         max_angle_deg: 45.0,
     };
-    let palpable = Selector::Any(vec![
-        Selector::NormalWithin {
-            dir: [0.0, 1.0, 0.0],
-            max_angle_deg: 80.0,
-        },
-        Selector::NormalWithin {
-            dir: [0.0, 0.0, -1.0],
-            max_angle_deg: 70.0,
-        },
-    ]);
-    (fixed, palpable)
+    (fixed, Selector::anterior_inferior())
 }
 
 /// Lattice spacing of a level for a solid of bounding-box diagonal `diag_mm`, scaled

@@ -37,6 +37,21 @@ pub enum Selector {
 }
 
 impl Selector {
+    /// The surface a surgeon can reach from the front: outward normal within 80° of
+    /// anterior (+y) or within 70° of inferior (−z).
+    pub fn anterior_inferior() -> Selector {
+        Selector::Any(vec![
+            Selector::NormalWithin {
+                dir: [0.0, 1.0, 0.0],
+                max_angle_deg: 80.0,
+            },
+            Selector::NormalWithin {
+                dir: [0.0, 0.0, -1.0],
+                max_angle_deg: 70.0,
+            },
+        ])
+    }
+
     pub fn contains(&self, p: [f64; 3], n: [f64; 3]) -> bool {
         match self {
             Selector::Everything => true,
