@@ -1,6 +1,23 @@
-//! palpa-app: the command line and (as it lands) the interactive app.
+//! palpa-app: the interactive palpation app and the `palpa` command line.
 //!
-//! Platform entry points stay thin: `main.rs` calls [`cli::main`]; everything else is
-//! plain library code that a test can call.
+//! Platform entry points stay thin: `main.rs` calls [`cli::main`], [`platform`] holds
+//! `android_main`; everything else is plain library code that a test can call.
+//!
+//! - [`render`]: wgpu rendering of a scene into any texture view (window or offscreen),
+//!   GPU deformation by compute shader;
+//! - [`force`]: the 1 kHz force thread and the [`force::HapticDevice`] it drives;
+//! - [`latest`]: the lock-free latest-value cell between the threads;
+//! - [`camera`], [`pick`], [`input`]: the orbit camera, picking, and the mapping from
+//!   mouse, touch and gamepad events to probe and camera states;
+//! - [`session`]: one palpation session (scene, controls, force loop, frame statistics)
+//!   shared by the window and the headless mode;
+//! - [`ui`]: the egui panels; [`window`]: winit and the surface lifecycle;
+//!   [`headless`]: offscreen frames with a scripted probe.
 
+pub mod camera;
 pub mod cli;
+pub mod force;
+pub mod input;
+pub mod latest;
+pub mod pick;
+pub mod render;

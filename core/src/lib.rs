@@ -19,7 +19,9 @@
 //!   procedural liver with its regions, user OBJ/STL organs;
 //! - [`fe`], [`export`]: the finite-element reference (P1/P2, linear and Saint
 //!   Venant–Kirchhoff) and VTU / gmsh export;
-//! - [`pgd`]: the off-line PGD solvers (the liver palpation vademecum).
+//! - [`pgd`]: the off-line PGD solvers (the liver palpation vademecum);
+//! - [`scene`]: a vademecum prepared for palpation (surface rows, palpable map) and the
+//!   contact law `F = d / c(s)` evaluated on nine rows.
 
 pub mod axis;
 pub mod export;
@@ -32,6 +34,7 @@ pub mod organ;
 pub mod pgd;
 pub mod rng;
 pub mod scalar;
+pub mod scene;
 pub mod separated;
 pub mod surface;
 pub mod synthetic;

@@ -1,0 +1,405 @@
+//! The force loop: a named thread that evaluates the contact force at 1 kHz.
+//!
+//! ```text
+//! input/render thread            force thread (1 kHz, absolute deadlines)
+//! ───────────────────            ─────────────────────────────────────────
+//! commands.store(probe) ──────►  cmd = commands.load()
+//!                                contact law on 9 rows of X  (PalpationScene::contact)
+//!                                samples.store(force)  ──────►  render reads latest force
+//!                                haptic.apply(force)            (deforms the surface with it)
+//!                                every 50 ticks: stats.store(rate, p50/p99 period, misses)
+//! ```
+//!
+//! Nothing crosses between the threads but [`Latest`] cells: no mutex, no channel, no
+//! allocation after start-up, no GPU call. The schedule is absolute: tick `k` is due at
+//! `start + k·period`; the thread sleeps until shortly before the deadline and spins the
+//! rest, so jitter is the spin's, not the OS timer's. A tick that starts after the next
+//! deadline has passed makes those deadlines **missed**: they are counted and skipped, and
+//! the schedule stays on its grid instead of drifting.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use bytemuck::{Pod, Zeroable};
+use palpa_core::scene::{PalpationScene, ProbePoint};
+
+use crate::latest::Latest;
+
+/// How the probe is driven.
+pub const MODE_DEPTH: u32 = 0;
+pub const MODE_FORCE: u32 = 1;
+
+/// What the input side asks of the force loop (latest value wins).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct ProbeCommand {
+    /// Palpable triangle of the probe point.
+    pub triangle: u32,
+    /// 0: the probe is lifted (no force).
+    pub active: u32,
+    /// [`MODE_DEPTH`] (target = indentation, mm) or [`MODE_FORCE`] (target = force, N).
+    pub mode: u32,
+    /// Modes kept (the accuracy knob).
+    pub modes: u32,
+    pub bary: [f32; 3],
+    pub target: f32,
+}
+
+impl ProbeCommand {
+    pub fn point(&self) -> ProbePoint {
+        ProbePoint {
+            triangle: self.triangle,
+            bary: self.bary.map(f64::from),
+        }
+    }
+}
+
+/// Status of a [`ForceSample`].
+pub const STATUS_IDLE: u32 = 0;
+pub const STATUS_OK: u32 = 1;
+/// The contact law failed (e.g. non-positive compliance with too few modes): zero force.
+pub const STATUS_FAILED: u32 = 2;
+
+/// What the force loop publishes every tick.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct ForceSample {
+    pub tick: u64,
+    /// Force the probe applies to the tissue, N.
+    pub force_n: [f32; 3],
+    pub magnitude_n: f32,
+    /// Indentation along the push direction, mm.
+    pub depth_mm: f32,
+    pub compliance_mm_per_n: f32,
+    /// Time of the contact evaluation, ns.
+    pub eval_ns: f32,
+    pub status: u32,
+    /// The command this sample answers.
+    pub command: ProbeCommand,
+}
+
+/// Loop statistics since start or since the last [`ForceLoop::reset_stats`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct LoopStats {
+    pub ticks: u64,
+    pub missed_deadlines: u64,
+    pub elapsed_s: f64,
+    pub rate_hz: f64,
+    pub period_us_p50: f64,
+    pub period_us_p99: f64,
+    pub period_us_max: f64,
+    pub eval_us_p50: f64,
+}
+
+/// Receives the contact force at every tick of the force loop: a gamepad's rumble now,
+/// a haptic arm later. Called on the force thread: must not block or allocate.
+pub trait HapticDevice: Send {
+    fn apply(&mut self, force_n: [f32; 3]);
+}
+
+/// No haptic output.
+#[derive(Debug, Default)]
+pub struct NoHaptics;
+impl HapticDevice for NoHaptics {
+    fn apply(&mut self, _force_n: [f32; 3]) {}
+}
+
+/// Publishes the force magnitude in an atomic, for a device driven from another thread
+/// at its own rate (gamepad rumble is updated at frame rate; motors cannot follow 1 kHz).
+#[derive(Debug, Clone, Default)]
+pub struct AtomicHaptics {
+    magnitude_bits: Arc<AtomicU32>,
+}
+impl AtomicHaptics {
+    pub fn magnitude_n(&self) -> f32 {
+        f32::from_bits(self.magnitude_bits.load(Ordering::Relaxed))
+    }
+}
+impl HapticDevice for AtomicHaptics {
+    fn apply(&mut self, f: [f32; 3]) {
+        let m = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+        self.magnitude_bits.store(m.to_bits(), Ordering::Relaxed);
+    }
+}
+
+/// The running force loop; stops and joins its thread when dropped.
+#[derive(Debug)]
+pub struct ForceLoop {
+    commands: Arc<Latest<ProbeCommand>>,
+    samples: Arc<Latest<ForceSample>>,
+    stats: Arc<Latest<LoopStats>>,
+    stop: Arc<AtomicBool>,
+    reset: Arc<AtomicBool>,
+    handle: Option<JoinHandle<()>>,
+}
+
+/// Timing of the loop.
+#[derive(Debug, Clone, Copy)]
+pub struct LoopTiming {
+    pub period: Duration,
+    /// Sleep until this long before a deadline, then spin.
+    pub spin: Duration,
+}
+
+impl Default for LoopTiming {
+    fn default() -> Self {
+        LoopTiming {
+            period: Duration::from_millis(1),
+            // Linux's sleep overshoots by ~50–100 µs (timer slack plus wake-up).
+            spin: Duration::from_micros(250),
+        }
+    }
+}
+
+impl ForceLoop {
+    /// Starts the thread `palpa-force`.
+    pub fn spawn(
+        scene: Arc<PalpationScene>,
+        haptic: Box<dyn HapticDevice>,
+        timing: LoopTiming,
+    ) -> std::io::Result<Self> {
+        let commands = Arc::new(Latest::<ProbeCommand>::default());
+        let samples = Arc::new(Latest::<ForceSample>::default());
+        let stats = Arc::new(Latest::<LoopStats>::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let reset = Arc::new(AtomicBool::new(false));
+        let worker = Worker {
+            scene,
+            haptic,
+            timing,
+            commands: Arc::clone(&commands),
+            samples: Arc::clone(&samples),
+            stats: Arc::clone(&stats),
+            stop: Arc::clone(&stop),
+            reset: Arc::clone(&reset),
+        };
+        let handle = std::thread::Builder::new()
+            .name("palpa-force".into())
+            .spawn(move || worker.run())?;
+        Ok(ForceLoop {
+            commands,
+            samples,
+            stats,
+            stop,
+            reset,
+            handle: Some(handle),
+        })
+    }
+
+    pub fn command(&self, c: ProbeCommand) {
+        self.commands.store(c);
+    }
+    pub fn latest(&self) -> ForceSample {
+        self.samples.load()
+    }
+    pub fn stats(&self) -> LoopStats {
+        self.stats.load()
+    }
+    /// Restarts the statistics window (e.g. after warm-up).
+    pub fn reset_stats(&self) {
+        self.reset.store(true, Ordering::Release);
+    }
+}
+
+impl Drop for ForceLoop {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Release);
+        if let Some(h) = self.handle.take() {
+            // A panic on the force thread has already been reported by the panic hook.
+            let _ = h.join();
+        }
+    }
+}
+
+struct Worker {
+    scene: Arc<PalpationScene>,
+    haptic: Box<dyn HapticDevice>,
+    timing: LoopTiming,
+    commands: Arc<Latest<ProbeCommand>>,
+    samples: Arc<Latest<ForceSample>>,
+    stats: Arc<Latest<LoopStats>>,
+    stop: Arc<AtomicBool>,
+    reset: Arc<AtomicBool>,
+}
+
+/// Fixed-bin histogram (allocated once, before the loop starts).
+struct Histogram {
+    bins: Vec<u32>,
+    bin_width: f64,
+    count: u64,
+    max: f64,
+}
+
+impl Histogram {
+    fn new(bins: usize, bin_width: f64) -> Self {
+        Histogram {
+            bins: vec![0; bins],
+            bin_width,
+            count: 0,
+            max: 0.0,
+        }
+    }
+    fn add(&mut self, v: f64) {
+        let i = ((v / self.bin_width) as usize).min(self.bins.len() - 1);
+        self.bins[i] += 1;
+        self.count += 1;
+        self.max = self.max.max(v);
+    }
+    fn clear(&mut self) {
+        self.bins.fill(0);
+        self.count = 0;
+        self.max = 0.0;
+    }
+    /// Upper edge of the bin holding the q-quantile (0 when empty).
+    fn quantile(&self, q: f64) -> f64 {
+        if self.count == 0 {
+            return 0.0;
+        }
+        let target = (q * self.count as f64).ceil().max(1.0) as u64;
+        let mut seen = 0u64;
+        for (i, &b) in self.bins.iter().enumerate() {
+            seen += u64::from(b);
+            if seen >= target {
+                return (i as f64 + 0.5) * self.bin_width;
+            }
+        }
+        self.max
+    }
+}
+
+impl Worker {
+    fn run(mut self) {
+        let period = self.timing.period;
+        let mut scratch = self.scene.contact_scratch();
+        // 1 µs bins up to 20 periods; 10 ns bins up to 100 µs.
+        let mut periods = Histogram::new(20_000, 1.0);
+        let mut evals = Histogram::new(10_000, 10.0);
+        let start = Instant::now();
+        let mut window_start = start;
+        let mut window_ticks = 0u64;
+        let mut missed = 0u64;
+        let mut k: u32 = 0;
+        let mut last_tick: Option<Instant> = None;
+        let mut tick_count = 0u64;
+        while !self.stop.load(Ordering::Acquire) {
+            k += 1;
+            let deadline = start + period * k;
+            let now = Instant::now();
+            if deadline > now + self.timing.spin {
+                std::thread::sleep(deadline - now - self.timing.spin);
+            }
+            while Instant::now() < deadline {
+                std::hint::spin_loop();
+            }
+            let t0 = Instant::now();
+            let late = t0 - deadline;
+            if late >= period {
+                // The following deadlines have passed too: count them and stay on the grid.
+                let skipped = (late.as_nanos() / period.as_nanos()) as u32;
+                missed += u64::from(skipped);
+                k += skipped;
+            }
+            if self.reset.swap(false, Ordering::AcqRel) {
+                periods.clear();
+                evals.clear();
+                missed = 0;
+                window_ticks = 0;
+                window_start = t0;
+                last_tick = None;
+            }
+            if let Some(prev) = last_tick {
+                periods.add((t0 - prev).as_secs_f64() * 1e6);
+            }
+            last_tick = Some(t0);
+            tick_count += 1;
+            window_ticks += 1;
+
+            let cmd = self.commands.load();
+            let sample = self.evaluate(&cmd, tick_count, &mut scratch);
+            if sample.status == STATUS_OK {
+                evals.add(f64::from(sample.eval_ns));
+            }
+            self.haptic.apply(sample.force_n);
+            self.samples.store(sample);
+
+            if tick_count.is_multiple_of(50) {
+                let elapsed_s = (Instant::now() - window_start).as_secs_f64();
+                self.stats.store(LoopStats {
+                    ticks: window_ticks,
+                    missed_deadlines: missed,
+                    elapsed_s,
+                    rate_hz: if elapsed_s > 0.0 {
+                        window_ticks as f64 / elapsed_s
+                    } else {
+                        0.0
+                    },
+                    period_us_p50: periods.quantile(0.5),
+                    period_us_p99: periods.quantile(0.99),
+                    period_us_max: periods.max,
+                    eval_us_p50: evals.quantile(0.5) / 1000.0,
+                });
+            }
+        }
+    }
+
+    fn evaluate(
+        &self,
+        cmd: &ProbeCommand,
+        tick: u64,
+        scratch: &mut palpa_core::scene::ContactScratch,
+    ) -> ForceSample {
+        let mut s = ForceSample {
+            tick,
+            command: *cmd,
+            ..ForceSample::default()
+        };
+        if cmd.active == 0 || !(cmd.target > 0.0) {
+            s.status = STATUS_IDLE;
+            return s;
+        }
+        let t = Instant::now();
+        let contact = self
+            .scene
+            .contact(&cmd.point(), cmd.modes as usize, scratch);
+        s.eval_ns = t.elapsed().as_nanos() as f32;
+        match contact {
+            Ok(c) => {
+                let target = f64::from(cmd.target);
+                let (force, depth) = if cmd.mode == MODE_FORCE {
+                    (target, target * c.compliance_mm_per_n)
+                } else {
+                    (target / c.compliance_mm_per_n, target)
+                };
+                s.force_n = c.push_dir.map(|d| (d * force) as f32);
+                s.magnitude_n = force as f32;
+                s.depth_mm = depth as f32;
+                s.compliance_mm_per_n = c.compliance_mm_per_n as f32;
+                s.status = STATUS_OK;
+            }
+            Err(_) => s.status = STATUS_FAILED,
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn histogram_quantiles() {
+        let mut h = Histogram::new(100, 1.0);
+        for v in 0..100 {
+            h.add(v as f64);
+        }
+        assert_eq!(h.quantile(0.5), 49.5);
+        assert_eq!(h.quantile(0.99), 98.5);
+        h.add(1e9);
+        assert_eq!(h.max, 1e9);
+        h.clear();
+        assert_eq!(h.quantile(0.5), 0.0);
+    }
+}

@@ -1,0 +1,216 @@
+//! GPU deformation of the scene surface (`shaders/deform.wgsl`): the surface rows of `X`
+//! in a storage buffer, the `n` coefficients in a uniform, one compute pass for the
+//! displacement and one for the normals of the deformed surface. The outputs are the
+//! vertex buffers the surface is drawn from.
+
+use bytemuck::{Pod, Zeroable};
+use palpa_core::scene::PalpationScene;
+use wgpu::util::DeviceExt;
+
+use super::shaders::Shader;
+
+/// Most modes the coefficient uniform holds (128 × vec4).
+pub const MAX_GPU_MODES: usize = 512;
+/// Storage buffers the compute stage binds.
+pub const STORAGE_BUFFERS: u32 = 7;
+const WORKGROUP: u32 = 64;
+
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+#[repr(C)]
+struct Params {
+    vertex_count: u32,
+    modes_stride: u32,
+    modes_used: u32,
+    triangle_count: u32,
+}
+
+/// GPU buffers and pipelines of the deformation.
+#[derive(Debug)]
+pub struct Deform {
+    params: wgpu::Buffer,
+    coeffs: wgpu::Buffer,
+    /// Deformed positions (xyz, |u|), one vec4 per vertex: compute output, vertex input.
+    pub positions: wgpu::Buffer,
+    /// Unit normals of the deformed surface, one vec4 per vertex.
+    pub normals: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    displace: wgpu::ComputePipeline,
+    normals_pass: wgpu::ComputePipeline,
+    vertex_count: u32,
+    modes_stride: u32,
+    triangle_count: u32,
+}
+
+impl Deform {
+    pub fn new(device: &wgpu::Device, scene: &PalpationScene) -> Self {
+        let m = scene.model();
+        let vertex_count = scene.vertices_mm().len() as u32;
+        let triangle_count = scene.triangles().len() as u32;
+        let storage = |label: &str, contents: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let modes = storage("modes X (surface rows)", bytemuck::cast_slice(m.spatial()));
+        let rest: Vec<[f32; 4]> = scene.vertices_mm().iter().map(|p| [p[0], p[1], p[2], 0.0]).collect();
+        let rest = storage("rest positions", bytemuck::cast_slice(&rest));
+        let (offsets, adjacency) = vertex_triangles(vertex_count as usize, scene.triangles());
+        let offsets = storage("adjacency offsets", bytemuck::cast_slice(&offsets));
+        // An empty storage buffer is not allowed; a mesh always has triangles here.
+        let adjacency = storage("adjacency", bytemuck::cast_slice(&adjacency));
+        let triangles = storage("triangles", bytemuck::cast_slice(scene.triangles()));
+        let out_size = u64::from(vertex_count) * 16;
+        let output = |label: &str| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: out_size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let positions = output("deformed positions");
+        let normals = output("deformed normals");
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("deform params"),
+            size: size_of::<Params>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let coeffs = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("coefficients"),
+            size: (MAX_GPU_MODES * 4) as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+
+        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("deform"),
+            entries: &[
+                entry(0, uniform),
+                entry(1, uniform),
+                entry(2, ro),
+                entry(3, ro),
+                entry(4, rw),
+                entry(5, ro),
+                entry(6, ro),
+                entry(7, ro),
+                entry(8, rw),
+            ],
+        });
+        let buffers = [&params, &coeffs, &modes, &rest, &positions, &offsets, &adjacency, &triangles, &normals];
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("deform"),
+            layout: &layout,
+            entries: &entries,
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("deform"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = Shader::Deform.module(device);
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Deform {
+            displace: pipeline("displace"),
+            normals_pass: pipeline("normals_pass"),
+            params,
+            coeffs,
+            positions,
+            normals,
+            bind_group,
+            vertex_count,
+            modes_stride: m.modes() as u32,
+            triangle_count,
+        }
+    }
+
+    /// Uploads the coefficients (`coeffs.len()` = modes used, at most the stored count
+    /// and [`MAX_GPU_MODES`]; more are ignored).
+    pub fn set_coefficients(&self, queue: &wgpu::Queue, coeffs: &[f64]) {
+        let n = coeffs.len().min(MAX_GPU_MODES).min(self.modes_stride as usize);
+        let mut c = [0f32; MAX_GPU_MODES];
+        for (d, s) in c.iter_mut().zip(&coeffs[..n]) {
+            *d = *s as f32;
+        }
+        queue.write_buffer(&self.coeffs, 0, bytemuck::cast_slice(&c));
+        let p = Params {
+            vertex_count: self.vertex_count,
+            modes_stride: self.modes_stride,
+            modes_used: n as u32,
+            triangle_count: self.triangle_count,
+        };
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+    }
+
+    /// Records the two compute passes.
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("deform"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        let groups = self.vertex_count.div_ceil(WORKGROUP);
+        pass.set_pipeline(&self.displace);
+        pass.dispatch_workgroups(groups, 1, 1);
+        pass.set_pipeline(&self.normals_pass);
+        pass.dispatch_workgroups(groups, 1, 1);
+    }
+
+    pub fn vertex_count(&self) -> u32 {
+        self.vertex_count
+    }
+}
+
+/// For each vertex, the triangles that contain it (CSR: offsets, then triangle ids).
+pub fn vertex_triangles(vertex_count: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
+    let mut offsets = vec![0u32; vertex_count + 1];
+    for t in triangles {
+        for &v in t {
+            offsets[v as usize + 1] += 1;
+        }
+    }
+    for i in 0..vertex_count {
+        offsets[i + 1] += offsets[i];
+    }
+    let mut fill = offsets.clone();
+    let mut adjacency = vec![0u32; offsets[vertex_count] as usize];
+    for (i, t) in triangles.iter().enumerate() {
+        for &v in t {
+            adjacency[fill[v as usize] as usize] = i as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    (offsets, adjacency)
+}

@@ -1,0 +1,72 @@
+//! The GPU context: instance, adapter, device and queue, with errors that say what to do.
+
+use anyhow::{Context, anyhow};
+use serde::Serialize;
+
+/// What adapter we got, for reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct AdapterReport {
+    pub name: String,
+    pub backend: String,
+    pub device_type: String,
+}
+
+/// Instance, adapter, device and queue.
+#[derive(Debug)]
+pub struct Gpu {
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+}
+
+pub const NO_ADAPTER_HELP: &str = "no GPU adapter found. palpa renders on any Vulkan, Metal, \
+     DX12 or GL device; without a GPU, install Mesa's software Vulkan driver \
+     (Debian: `apt-get install mesa-vulkan-drivers libvulkan1`, or run scripts/deps.sh --gpu) \
+     and try again, or select a backend with WGPU_BACKEND=vulkan|gl";
+
+impl Gpu {
+    /// A context without a window (tests, `palpa headless`). Honours `WGPU_BACKEND`,
+    /// `WGPU_ADAPTER_NAME` and `WGPU_POWER_PREF`.
+    pub fn headless() -> anyhow::Result<Self> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        Self::with_instance(instance, None)
+    }
+
+    /// A context able to present to `surface`.
+    pub fn with_instance(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>) -> anyhow::Result<Self> {
+        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(&instance, surface))
+            .map_err(|e| anyhow!("{NO_ADAPTER_HELP} ({e})"))?;
+        let limits = adapter.limits();
+        if limits.max_storage_buffers_per_shader_stage < super::deform::STORAGE_BUFFERS {
+            anyhow::bail!(
+                "the adapter {:?} offers {} storage buffers per shader stage; the GPU \
+                 deformation needs {}",
+                adapter.get_info().name,
+                limits.max_storage_buffers_per_shader_stage,
+                super::deform::STORAGE_BUFFERS
+            );
+        }
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("palpa"),
+            required_limits: limits,
+            ..Default::default()
+        }))
+        .with_context(|| format!("the adapter {:?} refused a device", adapter.get_info().name))?;
+        Ok(Gpu {
+            instance,
+            adapter,
+            device,
+            queue,
+        })
+    }
+
+    pub fn report(&self) -> AdapterReport {
+        let info = self.adapter.get_info();
+        AdapterReport {
+            name: info.name,
+            backend: format!("{:?}", info.backend).to_lowercase(),
+            device_type: format!("{:?}", info.device_type).to_lowercase(),
+        }
+    }
+}

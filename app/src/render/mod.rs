@@ -1,0 +1,528 @@
+//! Rendering of a palpation scene with wgpu, into any `TextureView` (a window's surface
+//! texture, or an offscreen texture for tests and `palpa headless`).
+//!
+//! One frame: upload the frame uniform and the `n` coefficients; compute the deformed
+//! surface and its normals ([`deform`]); then draw, in one pass with depth and stencil,
+//! the ground grid, the organ's planar shadow (stencilled so it darkens each pixel
+//! once), the organ, and the probe with its force arrow.
+
+pub mod deform;
+pub mod gpu;
+pub mod meshes;
+pub mod offscreen;
+pub mod shaders;
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Quat, Vec3};
+use palpa_core::scene::PalpationScene;
+use wgpu::util::DeviceExt;
+
+use crate::camera::OrbitCamera;
+use deform::Deform;
+use meshes::{SolidVertex, UnitMeshes, unit_meshes};
+use shaders::Shader;
+
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
+/// The background colour (linear), matched by the ground's fade.
+pub const BACKGROUND: wgpu::Color = wgpu::Color {
+    r: 0.11,
+    g: 0.12,
+    b: 0.14,
+    a: 1.0,
+};
+
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+#[repr(C)]
+struct FrameUniform {
+    clip_from_world: [[f32; 4]; 4],
+    eye: [f32; 4],
+    light_dir: [f32; 4],
+    ground: [f32; 4],
+    colormap: [f32; 4],
+    center: [f32; 4],
+}
+
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+#[repr(C)]
+struct ObjectUniform {
+    world_from_model: [[f32; 4]; 4],
+    normal_from_model: [[f32; 4]; 4],
+    color: [f32; 4],
+    _pad: [f32; 28],
+}
+const OBJECT_STRIDE: u64 = 256;
+const OBJECTS: usize = 4;
+
+/// The probe as drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeVisual {
+    /// Where the tool tip touches (deformed contact point), mm.
+    pub tip_mm: Vec3,
+    /// Outward surface normal at the contact point.
+    pub outward: Vec3,
+    /// Force applied to the tissue, N.
+    pub force_n: Vec3,
+    pub radius_mm: f32,
+    /// Inside the palpable region (else drawn in warning colour).
+    pub valid: bool,
+}
+
+/// What one frame shows.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameInput<'a> {
+    pub camera: &'a OrbitCamera,
+    /// Coefficients of the modes used (`len` = modes used).
+    pub coeffs: &'a [f64],
+    /// Colour by displacement magnitude, with this value (mm) at the top of the scale.
+    pub colormap_mm: Option<f32>,
+    pub probe: Option<ProbeVisual>,
+}
+
+/// Pipelines and buffers for one scene and one target format.
+#[derive(Debug)]
+pub struct Renderer {
+    pub deform: Deform,
+    palpable: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    frame: wgpu::Buffer,
+    frame_group: wgpu::BindGroup,
+    objects: wgpu::Buffer,
+    object_group: wgpu::BindGroup,
+    solids: wgpu::Buffer,
+    unit: UnitMeshes,
+    ground: wgpu::RenderPipeline,
+    shadow: wgpu::RenderPipeline,
+    surface: wgpu::RenderPipeline,
+    solid: wgpu::RenderPipeline,
+    depth: Option<(wgpu::TextureView, (u32, u32))>,
+    bounds: (Vec3, Vec3),
+    pub format: wgpu::TextureFormat,
+}
+
+impl Renderer {
+    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, scene: &PalpationScene) -> Self {
+        let deform = Deform::new(device, scene);
+        let palpable: Vec<f32> = scene.palpable_vertices().iter().map(|&p| f32::from(u8::from(p))).collect();
+        let palpable = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("palpable flags"),
+            contents: bytemuck::cast_slice(&palpable),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("surface triangles"),
+            contents: bytemuck::cast_slice(scene.triangles()),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        let frame = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame uniform"),
+            size: size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let uniform_layout = |label: &str, dynamic: bool| {
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries: &[wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: dynamic,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                }],
+            })
+        };
+        let frame_layout = uniform_layout("frame", false);
+        let frame_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("frame"),
+            layout: &frame_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame.as_entire_binding(),
+            }],
+        });
+        let object_layout = uniform_layout("object", true);
+        let objects = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("object uniforms"),
+            size: OBJECT_STRIDE * OBJECTS as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let object_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("object"),
+            layout: &object_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &objects,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(size_of::<ObjectUniform>() as u64),
+                }),
+            }],
+        });
+        let unit = unit_meshes();
+        let solids = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("probe and arrow meshes"),
+            contents: bytemuck::cast_slice(&unit.vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+
+        let layout_frame = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("frame only"),
+            bind_group_layouts: &[Some(&frame_layout)],
+            immediate_size: 0,
+        });
+        let layout_object = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("frame and object"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&object_layout)],
+            immediate_size: 0,
+        });
+        let vec4_attr = |location: u32| wgpu::VertexAttribute {
+            format: wgpu::VertexFormat::Float32x4,
+            offset: 0,
+            shader_location: location,
+        };
+        let surface_attrs = [vec4_attr(0), vec4_attr(1), wgpu::VertexAttribute {
+            format: wgpu::VertexFormat::Float32,
+            offset: 0,
+            shader_location: 2,
+        }];
+        let surface_buffers = [
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 16,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &surface_attrs[0..1],
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 16,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &surface_attrs[1..2],
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 4,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &surface_attrs[2..3],
+            }),
+        ];
+        let solid_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
+        let solid_buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: size_of::<SolidVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &solid_attrs,
+        })];
+
+        let surface_module = Shader::Surface.module(device);
+        let ground_module = Shader::Ground.module(device);
+        let solid_module = Shader::Solid.module(device);
+        let depth = |write: bool, stencil: wgpu::StencilState| {
+            Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(write),
+                depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                stencil,
+                bias: wgpu::DepthBiasState::default(),
+            })
+        };
+        let opaque = [Some(wgpu::ColorTargetState {
+            format,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        })];
+        let blended = [Some(wgpu::ColorTargetState {
+            format,
+            blend: Some(wgpu::BlendState::ALPHA_BLENDING),
+            write_mask: wgpu::ColorWrites::ALL,
+        })];
+        // The shadow darkens a pixel only where the stencil is still 0, then marks it.
+        let once = wgpu::StencilFaceState {
+            compare: wgpu::CompareFunction::Equal,
+            fail_op: wgpu::StencilOperation::Keep,
+            depth_fail_op: wgpu::StencilOperation::Keep,
+            pass_op: wgpu::StencilOperation::IncrementClamp,
+        };
+        let shadow_stencil = wgpu::StencilState {
+            front: once,
+            back: once,
+            read_mask: 0xff,
+            write_mask: 0xff,
+        };
+        let pipeline = |label: &str,
+                        layout: &wgpu::PipelineLayout,
+                        module: &wgpu::ShaderModule,
+                        (vs, fs): (&str, &str),
+                        buffers: &[Option<wgpu::VertexBufferLayout>],
+                        cull: Option<wgpu::Face>,
+                        depth_stencil: Option<wgpu::DepthStencilState>,
+                        targets: &[Option<wgpu::ColorTargetState>]| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module,
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
+                    buffers,
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: cull,
+                    ..Default::default()
+                },
+                depth_stencil,
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module,
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let ground = pipeline(
+            "ground",
+            &layout_frame,
+            &ground_module,
+            ("vs_main", "fs_main"),
+            &[],
+            None,
+            depth(true, wgpu::StencilState::default()),
+            &opaque,
+        );
+        let shadow = pipeline(
+            "shadow",
+            &layout_frame,
+            &surface_module,
+            ("vs_shadow", "fs_shadow"),
+            &surface_buffers[..1],
+            None,
+            depth(false, shadow_stencil),
+            &blended,
+        );
+        // Both faces: a press can make the surface fold towards the camera at the rim.
+        let surface = pipeline(
+            "surface",
+            &layout_frame,
+            &surface_module,
+            ("vs_main", "fs_main"),
+            &surface_buffers,
+            None,
+            depth(true, wgpu::StencilState::default()),
+            &opaque,
+        );
+        let solid = pipeline(
+            "solid",
+            &layout_object,
+            &solid_module,
+            ("vs_main", "fs_main"),
+            &solid_buffers,
+            Some(wgpu::Face::Back),
+            depth(true, wgpu::StencilState::default()),
+            &blended,
+        );
+
+        let mut min = Vec3::splat(f32::INFINITY);
+        let mut max = Vec3::splat(f32::NEG_INFINITY);
+        for p in scene.vertices_mm() {
+            min = min.min(Vec3::from_array(*p));
+            max = max.max(Vec3::from_array(*p));
+        }
+        Renderer {
+            deform,
+            palpable,
+            indices,
+            index_count: 3 * scene.triangles().len() as u32,
+            frame,
+            frame_group,
+            objects,
+            object_group,
+            solids,
+            unit,
+            ground,
+            shadow,
+            surface,
+            solid,
+            depth: None,
+            bounds: (min, max),
+            format,
+        }
+    }
+
+    /// Rest-geometry bounds of the scene (mm).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.bounds
+    }
+
+    /// Records one frame into `encoder`, drawing into `target` of `size` pixels.
+    pub fn encode(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        size: (u32, u32),
+        input: &FrameInput<'_>,
+    ) {
+        let (w, h) = (size.0.max(1), size.1.max(1));
+        let (min, max) = self.bounds;
+        let center = 0.5 * (min + max);
+        let extent = 0.5 * (max - min);
+        let light = Vec3::new(0.35, 0.55, 1.0).normalize();
+        let uniform = FrameUniform {
+            clip_from_world: input.camera.clip_from_world(w as f32 / h as f32).to_cols_array_2d(),
+            eye: input.camera.eye().extend(1.0).to_array(),
+            light_dir: light.extend(0.0).to_array(),
+            ground: [min.z - 0.05 * extent.z.max(1.0) * 2.0, 10.0, 3.0 * extent.x.max(extent.y), 0.0],
+            colormap: [
+                f32::from(u8::from(input.colormap_mm.is_some())),
+                input.colormap_mm.unwrap_or(1.0),
+                0.0,
+                0.0,
+            ],
+            center: center.extend(0.0).to_array(),
+        };
+        queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
+        self.deform.set_coefficients(queue, input.coeffs);
+        let objects = self.object_uniforms(input.probe.as_ref());
+        for (i, o) in objects.iter().enumerate() {
+            queue.write_buffer(&self.objects, i as u64 * OBJECT_STRIDE, bytemuck::bytes_of(o));
+        }
+        self.deform.encode(encoder);
+
+        let depth_view = self.depth_view(device, (w, h)).clone();
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("scene"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(BACKGROUND),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_bind_group(0, &self.frame_group, &[]);
+        pass.set_pipeline(&self.ground);
+        pass.draw(0..6, 0..1);
+
+        pass.set_pipeline(&self.shadow);
+        pass.set_vertex_buffer(0, self.deform.positions.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.set_stencil_reference(0);
+        pass.draw_indexed(0..self.index_count, 0, 0..1);
+
+        pass.set_pipeline(&self.surface);
+        pass.set_vertex_buffer(1, self.deform.normals.slice(..));
+        pass.set_vertex_buffer(2, self.palpable.slice(..));
+        pass.draw_indexed(0..self.index_count, 0, 0..1);
+
+        if input.probe.is_some() {
+            pass.set_pipeline(&self.solid);
+            pass.set_vertex_buffer(0, self.solids.slice(..));
+            let draws = [
+                self.unit.cylinder.clone(),
+                self.unit.sphere.clone(),
+                self.unit.cylinder.clone(),
+                self.unit.cone.clone(),
+            ];
+            for (i, range) in draws.into_iter().enumerate() {
+                if objects[i].color[3] > 0.0 {
+                    pass.set_bind_group(1, &self.object_group, &[(i as u64 * OBJECT_STRIDE) as u32]);
+                    pass.draw(range, 0..1);
+                }
+            }
+        }
+    }
+
+    fn depth_view(&mut self, device: &wgpu::Device, size: (u32, u32)) -> &wgpu::TextureView {
+        if self.depth.as_ref().is_none_or(|(_, s)| *s != size) {
+            let tex = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("depth"),
+                size: wgpu::Extent3d {
+                    width: size.0,
+                    height: size.1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: DEPTH_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                view_formats: &[],
+            });
+            self.depth = Some((tex.create_view(&Default::default()), size));
+        }
+        &self.depth.as_ref().expect("created above").0
+    }
+
+    /// Rod, tip, arrow shaft, arrow head (alpha 0: not drawn).
+    fn object_uniforms(&self, probe: Option<&ProbeVisual>) -> [ObjectUniform; OBJECTS] {
+        let hidden = ObjectUniform::zeroed();
+        let Some(p) = probe else {
+            return [hidden; OBJECTS];
+        };
+        let steel = if p.valid {
+            [0.78, 0.80, 0.84, 1.0]
+        } else {
+            [0.9, 0.55, 0.2, 1.0]
+        };
+        let out = p.outward.normalize_or(Vec3::Z);
+        let to_out = Quat::from_rotation_arc(Vec3::Z, out);
+        let r = p.radius_mm;
+        // The rod rises from the tip's centre (a hemisphere of the tool's radius).
+        let tip_center = p.tip_mm + out * r;
+        let rod = Mat4::from_scale_rotation_translation(Vec3::new(r, r, 70.0), to_out, tip_center);
+        let tip = Mat4::from_scale_rotation_translation(Vec3::splat(r), Quat::IDENTITY, tip_center);
+        let mut objects = [object(rod, steel), object(tip, steel), hidden, hidden];
+        let f = p.force_n.length();
+        if f > 1e-4 {
+            // The arrow points along the force and ends at the contact point, offset to
+            // the side of the rod so it stays visible. 15 mm per newton, capped.
+            let dir = p.force_n / f;
+            let length = (15.0 * f).clamp(6.0, 120.0);
+            let side = dir.any_orthonormal_vector() * (r + 4.0);
+            let head = 0.3 * length.min(30.0);
+            let end = p.tip_mm + side;
+            let start = end - dir * length;
+            let rot = Quat::from_rotation_arc(Vec3::Z, dir);
+            let yellow = [0.98, 0.82, 0.2, 1.0];
+            objects[2] = object(
+                Mat4::from_scale_rotation_translation(Vec3::new(1.2, 1.2, length - head), rot, start),
+                yellow,
+            );
+            objects[3] = object(
+                Mat4::from_scale_rotation_translation(Vec3::new(3.5, 3.5, head), rot, end - dir * head),
+                yellow,
+            );
+        }
+        objects
+    }
+}
+
+fn object(world_from_model: Mat4, color: [f32; 4]) -> ObjectUniform {
+    let normal = Mat4::from_mat3(glam::Mat3::from_mat4(world_from_model).inverse().transpose());
+    ObjectUniform {
+        world_from_model: world_from_model.to_cols_array_2d(),
+        normal_from_model: normal.to_cols_array_2d(),
+        color,
+        _pad: [0.0; 28],
+    }
+}
