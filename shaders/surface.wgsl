@@ -46,24 +46,25 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let l = frame.light_dir.xyz;
     let v = normalize(frame.eye.xyz - in.world);
     let h = normalize(l + v);
-    var base = mix(vec3<f32>(0.42, 0.13, 0.10), vec3<f32>(0.58, 0.20, 0.15), in.palpable);
+    // Liver red-brown (linear); the palpable region a shade lighter.
+    var base = mix(vec3<f32>(0.20, 0.040, 0.028), vec3<f32>(0.26, 0.055, 0.036), in.palpable);
     if (frame.colormap.x > 0.5) {
         base = ramp(in.magnitude / max(frame.colormap.y, 1e-6));
     }
     // Sky/ground hemisphere ambient, Lambert diffuse, Blinn-Phong wet-tissue highlight.
-    let ambient = mix(vec3<f32>(0.20, 0.18, 0.17), vec3<f32>(0.35, 0.37, 0.42), 0.5 + 0.5 * n.z);
+    let ambient = mix(vec3<f32>(0.12, 0.11, 0.10), vec3<f32>(0.30, 0.32, 0.36), 0.5 + 0.5 * n.z);
     let diffuse = max(dot(n, l), 0.0);
-    let specular = pow(max(dot(n, h), 0.0), 48.0) * 0.35;
-    let rim = pow(1.0 - max(dot(n, v), 0.0), 3.0) * 0.15;
+    let specular = pow(max(dot(n, h), 0.0), 48.0) * 0.25;
+    let rim = pow(1.0 - max(dot(n, v), 0.0), 3.0) * 0.06;
     let color = base * (ambient + 0.85 * diffuse) + vec3<f32>(specular + rim);
     return vec4<f32>(color, 1.0);
 }
 
 @vertex
-fn vs_shadow(v: VertexIn) -> @builtin(position) vec4<f32> {
+fn vs_shadow(@location(0) position: vec4<f32>) -> @builtin(position) vec4<f32> {
     // Project along the light onto the plane z = ground (a hair above it).
     let l = frame.light_dir.xyz;
-    let p = v.position.xyz;
+    let p = position.xyz;
     let t = (p.z - frame.ground.x - 0.3) / max(l.z, 0.05);
     let q = p - l * t;
     return frame.clip_from_world * vec4<f32>(q, 1.0);

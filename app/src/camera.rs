@@ -32,7 +32,7 @@ impl OrbitCamera {
             target_mm: 0.5 * (min_mm + max_mm),
             yaw: 100f32.to_radians(),
             pitch: 25f32.to_radians(),
-            distance_mm: 1.15 * radius / (0.5 * fov_y).sin(),
+            distance_mm: 0.9 * radius / (0.5 * fov_y).sin(),
             fov_y,
         }
     }
@@ -63,7 +63,9 @@ impl OrbitCamera {
             2.0 * pos_px.x / size_px.x.max(1.0) - 1.0,
             1.0 - 2.0 * pos_px.y / size_px.y.max(1.0),
         );
-        let world_from_clip = self.clip_from_world(size_px.x / size_px.y.max(1.0)).inverse();
+        let world_from_clip = self
+            .clip_from_world(size_px.x / size_px.y.max(1.0))
+            .inverse();
         let near = world_from_clip * Vec4::new(ndc.x, ndc.y, 0.0, 1.0);
         let far = world_from_clip * Vec4::new(ndc.x, ndc.y, 1.0, 1.0);
         let near = near.truncate() / near.w;
@@ -94,7 +96,8 @@ impl OrbitCamera {
 
     /// Moves the target in the view plane by a screen-space delta in pixels.
     pub fn pan(&mut self, delta_px: Vec2, viewport_height_px: f32) {
-        let mm_per_px = 2.0 * self.distance_mm * (0.5 * self.fov_y).tan() / viewport_height_px.max(1.0);
+        let mm_per_px =
+            2.0 * self.distance_mm * (0.5 * self.fov_y).tan() / viewport_height_px.max(1.0);
         let (right, up) = self.screen_axes();
         self.target_mm += (-delta_px.x * right + delta_px.y * up) * mm_per_px;
     }
@@ -121,9 +124,16 @@ mod tests {
 
     #[test]
     fn ray_through_a_projected_point_passes_through_it() {
-        let cam = OrbitCamera::framing(Vec3::new(-100.0, -80.0, -50.0), Vec3::new(100.0, 80.0, 50.0));
+        let cam = OrbitCamera::framing(
+            Vec3::new(-100.0, -80.0, -50.0),
+            Vec3::new(100.0, 80.0, 50.0),
+        );
         let size = Vec2::new(640.0, 480.0);
-        for p in [Vec3::ZERO, Vec3::new(30.0, 40.0, -20.0), Vec3::new(-60.0, 10.0, 35.0)] {
+        for p in [
+            Vec3::ZERO,
+            Vec3::new(30.0, 40.0, -20.0),
+            Vec3::new(-60.0, 10.0, 35.0),
+        ] {
             let px = cam.project(p, size).expect("in front of the camera");
             let ray = cam.ray(px, size);
             let to_p = p - ray.origin;

@@ -92,6 +92,9 @@ pub struct LoopStats {
     pub period_us_p99: f64,
     pub period_us_max: f64,
     pub eval_us_p50: f64,
+    /// What scheduling the thread got (see [`crate::priority`]).
+    pub priority: u32,
+    pub _pad: u32,
 }
 
 /// Receives the contact force at every tick of the force loop: a gamepad's rumble now,
@@ -272,6 +275,7 @@ impl Histogram {
 
 impl Worker {
     fn run(mut self) {
+        let priority = crate::priority::raise_current_thread();
         let period = self.timing.period;
         let mut scratch = self.scene.contact_scratch();
         // 1 µs bins up to 20 periods; 10 ns bins up to 100 µs.
@@ -340,6 +344,8 @@ impl Worker {
                     period_us_p99: periods.quantile(0.99),
                     period_us_max: periods.max,
                     eval_us_p50: evals.quantile(0.5) / 1000.0,
+                    priority,
+                    _pad: 0,
                 });
             }
         }

@@ -51,7 +51,9 @@ pub enum InputEvent {
         time_s: f64,
     },
     /// Wheel or trackpad scroll, in lines (positive away from the user: zoom in).
-    Wheel { lines: f32 },
+    Wheel {
+        lines: f32,
+    },
     /// The gamepad's state, once per frame.
     Gamepad {
         left: Vec2,
@@ -110,17 +112,29 @@ impl Default for Mapping {
 enum Gesture {
     None,
     /// Pressing with this pointer; depth follows the drag from `anchor`.
-    Press { id: PointerId, anchor_px: Vec2 },
+    Press {
+        id: PointerId,
+        anchor_px: Vec2,
+    },
     /// A touch resting on the palpable surface, not yet a press.
     Hold {
         id: u64,
         start_px: Vec2,
         start_s: f64,
     },
-    Orbit { id: PointerId, last_px: Vec2 },
-    Pan { id: PointerId, last_px: Vec2 },
+    Orbit {
+        id: PointerId,
+        last_px: Vec2,
+    },
+    Pan {
+        id: PointerId,
+        last_px: Vec2,
+    },
     /// Two fingers: their last positions.
-    Pinch { a: (u64, Vec2), b: (u64, Vec2) },
+    Pinch {
+        a: (u64, Vec2),
+        b: (u64, Vec2),
+    },
 }
 
 /// The probe and camera as the user has set them.
@@ -146,7 +160,8 @@ pub struct Controls {
     trigger_pressing: bool,
 }
 
-pub const OUTSIDE_PALPABLE: &str = "outside the palpable region: press the anterior or inferior surface";
+pub const OUTSIDE_PALPABLE: &str =
+    "outside the palpable region: press the anterior or inferior surface";
 
 impl Controls {
     pub fn new(camera: OrbitCamera, modes: u32) -> Self {
@@ -196,7 +211,9 @@ impl Controls {
                 pos_px,
                 time_s,
             } => self.down(id, button, pos_px, time_s, picker),
-            InputEvent::PointerMove { id, pos_px, time_s } => self.moved(id, pos_px, time_s, viewport_px),
+            InputEvent::PointerMove { id, pos_px, time_s } => {
+                self.moved(id, pos_px, time_s, viewport_px)
+            }
             InputEvent::PointerUp { id, .. } => self.up(id),
             InputEvent::Wheel { lines } => self.camera.zoom(0.9f32.powf(lines)),
             InputEvent::Gamepad {
@@ -208,7 +225,14 @@ impl Controls {
         }
     }
 
-    fn down(&mut self, id: PointerId, button: Button, pos_px: Vec2, time_s: f64, picker: &dyn Picker) {
+    fn down(
+        &mut self,
+        id: PointerId,
+        button: Button,
+        pos_px: Vec2,
+        time_s: f64,
+        picker: &dyn Picker,
+    ) {
         if let PointerId::Touch(t) = id {
             self.touch_down(t, pos_px, time_s, picker);
             return;
@@ -220,15 +244,27 @@ impl Controls {
                     self.feedback = None;
                     self.pressing = true;
                     self.depth_mm = 0.0;
-                    Gesture::Press { id, anchor_px: pos_px }
+                    Gesture::Press {
+                        id,
+                        anchor_px: pos_px,
+                    }
                 }
                 Pick::Outside => {
                     self.feedback = Some(OUTSIDE_PALPABLE);
-                    Gesture::Orbit { id, last_px: pos_px }
+                    Gesture::Orbit {
+                        id,
+                        last_px: pos_px,
+                    }
                 }
-                Pick::Miss => Gesture::Orbit { id, last_px: pos_px },
+                Pick::Miss => Gesture::Orbit {
+                    id,
+                    last_px: pos_px,
+                },
             },
-            Button::Secondary | Button::Middle => Gesture::Pan { id, last_px: pos_px },
+            Button::Secondary | Button::Middle => Gesture::Pan {
+                id,
+                last_px: pos_px,
+            },
         };
     }
 
@@ -282,7 +318,8 @@ impl Controls {
         let m = self.mapping;
         match self.gesture {
             Gesture::Press { id: g, anchor_px } if g == id => {
-                self.depth_mm = ((pos_px.y - anchor_px.y) * m.depth_mm_per_px).clamp(0.0, m.max_depth_mm);
+                self.depth_mm =
+                    ((pos_px.y - anchor_px.y) * m.depth_mm_per_px).clamp(0.0, m.max_depth_mm);
             }
             Gesture::Hold {
                 id: t,
@@ -292,20 +329,32 @@ impl Controls {
                 if time_s - start_s >= m.hold_s {
                     self.pressing = true;
                     self.depth_mm = 0.0;
-                    self.gesture = Gesture::Press { id, anchor_px: pos_px };
+                    self.gesture = Gesture::Press {
+                        id,
+                        anchor_px: pos_px,
+                    };
                 } else if pos_px.distance(start_px) > m.hold_slop_px {
                     // A quick swipe across the organ rotates the view instead.
-                    self.gesture = Gesture::Orbit { id, last_px: pos_px };
+                    self.gesture = Gesture::Orbit {
+                        id,
+                        last_px: pos_px,
+                    };
                     self.orbit_by(pos_px - start_px);
                 }
             }
             Gesture::Orbit { id: g, last_px } if g == id => {
                 self.orbit_by(pos_px - last_px);
-                self.gesture = Gesture::Orbit { id, last_px: pos_px };
+                self.gesture = Gesture::Orbit {
+                    id,
+                    last_px: pos_px,
+                };
             }
             Gesture::Pan { id: g, last_px } if g == id => {
                 self.camera.pan(pos_px - last_px, viewport_px.y);
-                self.gesture = Gesture::Pan { id, last_px: pos_px };
+                self.gesture = Gesture::Pan {
+                    id,
+                    last_px: pos_px,
+                };
             }
             Gesture::Pinch { a, b } => {
                 let find = |t: u64, old: Vec2| {
@@ -342,7 +391,9 @@ impl Controls {
             }
         }
         let ends = match self.gesture {
-            Gesture::Press { id: g, .. } | Gesture::Orbit { id: g, .. } | Gesture::Pan { id: g, .. } => g == id,
+            Gesture::Press { id: g, .. }
+            | Gesture::Orbit { id: g, .. }
+            | Gesture::Pan { id: g, .. } => g == id,
             Gesture::Hold { id: t, .. } => id == PointerId::Touch(t),
             // Lifting one finger of a pinch ends it; the other does not start anything.
             Gesture::Pinch { .. } => true,
@@ -364,11 +415,19 @@ impl Controls {
 
     fn gamepad(&mut self, left: Vec2, right: Vec2, trigger: f32, dt_s: f32, picker: &dyn Picker) {
         let m = self.mapping;
-        let dz = |v: Vec2| if v.length() < m.dead_zone { Vec2::ZERO } else { v };
+        let dz = |v: Vec2| {
+            if v.length() < m.dead_zone {
+                Vec2::ZERO
+            } else {
+                v
+            }
+        };
         let (left, right) = (dz(left), dz(right));
         if right != Vec2::ZERO {
-            self.camera
-                .orbit(-right.x * m.orbit_rad_per_s * dt_s, right.y * m.orbit_rad_per_s * dt_s);
+            self.camera.orbit(
+                -right.x * m.orbit_rad_per_s * dt_s,
+                right.y * m.orbit_rad_per_s * dt_s,
+            );
         }
         if left != Vec2::ZERO
             && let Some(p) = self.probe
@@ -376,7 +435,11 @@ impl Controls {
         {
             self.probe = Some(q);
         }
-        let trigger = if trigger.is_finite() { trigger.clamp(0.0, 1.0) } else { 0.0 };
+        let trigger = if trigger.is_finite() {
+            trigger.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         if trigger > 0.02 && self.probe.is_some() {
             self.mode = PressMode::Force;
             self.force_n = trigger * m.max_force_n;

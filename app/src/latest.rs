@@ -83,9 +83,8 @@ impl<T: Pod> Latest<T> {
             }
         }
         let mut out = T::zeroed();
-        bytemuck::bytes_of_mut(&mut out).copy_from_slice(
-            &bytemuck::cast_slice::<u64, u8>(&buf[..n])[..size_of::<T>()],
-        );
+        bytemuck::bytes_of_mut(&mut out)
+            .copy_from_slice(&bytemuck::cast_slice::<u64, u8>(&buf[..n])[..size_of::<T>()]);
         out
     }
 

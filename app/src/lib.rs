@@ -17,7 +17,12 @@
 pub mod camera;
 pub mod cli;
 pub mod force;
+pub mod headless;
 pub mod input;
 pub mod latest;
 pub mod pick;
+pub mod priority;
 pub mod render;
+pub mod scenes;
+pub mod session;
+pub mod stats;

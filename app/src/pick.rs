@@ -29,7 +29,11 @@ pub trait Picker {
 }
 
 /// The closest ray hit: triangle, barycentric coordinates and ray parameter.
-pub fn intersect(ray: &Ray, vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Option<(u32, [f64; 3], f32)> {
+pub fn intersect(
+    ray: &Ray,
+    vertices: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+) -> Option<(u32, [f64; 3], f32)> {
     let mut best: Option<(u32, [f64; 3], f32)> = None;
     for (i, t) in triangles.iter().enumerate() {
         let [a, b, c] = t.map(|v| Vec3::from_array(vertices[v as usize]));

@@ -40,11 +40,11 @@ pub enum SceneError {
     Components(u32),
     #[error("the model carries no surface geometry (nodes and boundary triangles)")]
     NoGeometry,
-    #[error(
-        "the model's rows ({rows}) do not match its geometry ({nodes} nodes × 3 components)"
-    )]
+    #[error("the model's rows ({rows}) do not match its geometry ({nodes} nodes × 3 components)")]
     RowsGeometry { rows: usize, nodes: usize },
-    #[error("palpable vertex {vertex} has no field node in the model (was it exported without it?)")]
+    #[error(
+        "palpable vertex {vertex} has no field node in the model (was it exported without it?)"
+    )]
     PalpableWithoutNode { vertex: usize },
     #[error("the model could not keep its surface rows: {0}")]
     Select(String),
@@ -173,10 +173,7 @@ impl PalpationScene {
             } => field_nodes.clone(),
             _ => field_nodes,
         };
-        if let Some(vertex) = axis_node
-            .iter()
-            .position(|&f| f as usize >= g.nodes.len())
-        {
+        if let Some(vertex) = axis_node.iter().position(|&f| f as usize >= g.nodes.len()) {
             return Err(SceneError::PalpableWithoutNode { vertex });
         }
         let vertices_mm: Vec<[f32; 3]> = g.nodes.iter().map(|p| p.map(|c| c as f32)).collect();
@@ -248,7 +245,10 @@ impl PalpationScene {
         for (i, &c) in corner.iter().enumerate() {
             b[c as usize] = bary[i];
         }
-        Some(ProbePoint { triangle: a, bary: b })
+        Some(ProbePoint {
+            triangle: a,
+            bary: b,
+        })
     }
 
     /// The palpable point closest to `p_mm` (rest geometry), and its distance in mm.
@@ -314,7 +314,8 @@ impl PalpationScene {
         let push_dir = normal.map(|c| -c);
         let n = modes.min(scratch.coeffs.len());
         let coeffs = &mut scratch.coeffs[..n];
-        self.model.particularize(&[self.param(p, push_dir)], coeffs)?;
+        self.model
+            .particularize(&[self.param(p, push_dir)], coeffs)?;
         let vs = self.probe_vertices(p);
         let rows: [u32; 9] = std::array::from_fn(|i| 3 * vs[i / 3] + (i % 3) as u32);
         let mut out = [0.0; 9];
@@ -349,7 +350,8 @@ impl PalpationScene {
         coeffs: &mut [f64],
         out_mm: &mut [f64],
     ) -> Result<(), EvalError> {
-        self.model.particularize(&[self.param(p, force_n)], coeffs)?;
+        self.model
+            .particularize(&[self.param(p, force_n)], coeffs)?;
         self.model.reconstruct(coeffs, out_mm);
         Ok(())
     }

@@ -4,6 +4,7 @@ mod args;
 mod bench;
 mod bench_fe;
 mod fe;
+mod headless;
 mod info;
 mod memory;
 mod mesh;
@@ -49,6 +50,8 @@ enum Command {
     ExportScene(pgd::ExportSceneArgs),
     /// Measure the speed/accuracy table of a vademecum and store it in its header.
     Tradeoff(tradeoff::TradeoffArgs),
+    /// Render frames offscreen with a scripted probe while the force thread runs; report timings.
+    Headless(headless::HeadlessArgs),
 }
 
 /// Parses `std::env::args` and runs the command; errors are printed with their causes.
@@ -85,6 +88,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Eval(args)) => pgd::eval(&args),
         Some(Command::ExportScene(args)) => pgd::export_scene(&args),
         Some(Command::Tradeoff(args)) => tradeoff::run(&args),
+        Some(Command::Headless(args)) => headless::run_cmd(&args),
         None => default_job(),
     }
 }

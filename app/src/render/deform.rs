@@ -54,7 +54,11 @@ impl Deform {
             })
         };
         let modes = storage("modes X (surface rows)", bytemuck::cast_slice(m.spatial()));
-        let rest: Vec<[f32; 4]> = scene.vertices_mm().iter().map(|p| [p[0], p[1], p[2], 0.0]).collect();
+        let rest: Vec<[f32; 4]> = scene
+            .vertices_mm()
+            .iter()
+            .map(|p| [p[0], p[1], p[2], 0.0])
+            .collect();
         let rest = storage("rest positions", bytemuck::cast_slice(&rest));
         let (offsets, adjacency) = vertex_triangles(vertex_count as usize, scene.triangles());
         let offsets = storage("adjacency offsets", bytemuck::cast_slice(&offsets));
@@ -66,7 +70,9 @@ impl Deform {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: out_size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::VERTEX
+                    | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             })
         };
@@ -112,7 +118,9 @@ impl Deform {
                 entry(8, rw),
             ],
         });
-        let buffers = [&params, &coeffs, &modes, &rest, &positions, &offsets, &adjacency, &triangles, &normals];
+        let buffers = [
+            &params, &coeffs, &modes, &rest, &positions, &offsets, &adjacency, &triangles, &normals,
+        ];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -159,7 +167,10 @@ impl Deform {
     /// Uploads the coefficients (`coeffs.len()` = modes used, at most the stored count
     /// and [`MAX_GPU_MODES`]; more are ignored).
     pub fn set_coefficients(&self, queue: &wgpu::Queue, coeffs: &[f64]) {
-        let n = coeffs.len().min(MAX_GPU_MODES).min(self.modes_stride as usize);
+        let n = coeffs
+            .len()
+            .min(MAX_GPU_MODES)
+            .min(self.modes_stride as usize);
         let mut c = [0f32; MAX_GPU_MODES];
         for (d, s) in c.iter_mut().zip(&coeffs[..n]) {
             *d = *s as f32;

@@ -29,14 +29,20 @@ impl Gpu {
     /// A context without a window (tests, `palpa headless`). Honours `WGPU_BACKEND`,
     /// `WGPU_ADAPTER_NAME` and `WGPU_POWER_PREF`.
     pub fn headless() -> anyhow::Result<Self> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         Self::with_instance(instance, None)
     }
 
     /// A context able to present to `surface`.
-    pub fn with_instance(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>) -> anyhow::Result<Self> {
-        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(&instance, surface))
-            .map_err(|e| anyhow!("{NO_ADAPTER_HELP} ({e})"))?;
+    pub fn with_instance(
+        instance: wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+    ) -> anyhow::Result<Self> {
+        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+            &instance, surface,
+        ))
+        .map_err(|e| anyhow!("{NO_ADAPTER_HELP} ({e})"))?;
         let limits = adapter.limits();
         if limits.max_storage_buffers_per_shader_stage < super::deform::STORAGE_BUFFERS {
             anyhow::bail!(

@@ -103,7 +103,11 @@ pub struct Renderer {
 impl Renderer {
     pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, scene: &PalpationScene) -> Self {
         let deform = Deform::new(device, scene);
-        let palpable: Vec<f32> = scene.palpable_vertices().iter().map(|&p| f32::from(u8::from(p))).collect();
+        let palpable: Vec<f32> = scene
+            .palpable_vertices()
+            .iter()
+            .map(|&p| f32::from(u8::from(p)))
+            .collect();
         let palpable = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("palpable flags"),
             contents: bytemuck::cast_slice(&palpable),
@@ -185,11 +189,15 @@ impl Renderer {
             offset: 0,
             shader_location: location,
         };
-        let surface_attrs = [vec4_attr(0), vec4_attr(1), wgpu::VertexAttribute {
-            format: wgpu::VertexFormat::Float32,
-            offset: 0,
-            shader_location: 2,
-        }];
+        let surface_attrs = [
+            vec4_attr(0),
+            vec4_attr(1),
+            wgpu::VertexAttribute {
+                format: wgpu::VertexFormat::Float32,
+                offset: 0,
+                shader_location: 2,
+            },
+        ];
         let surface_buffers = [
             Some(wgpu::VertexBufferLayout {
                 array_stride: 16,
@@ -372,10 +380,18 @@ impl Renderer {
         let extent = 0.5 * (max - min);
         let light = Vec3::new(0.35, 0.55, 1.0).normalize();
         let uniform = FrameUniform {
-            clip_from_world: input.camera.clip_from_world(w as f32 / h as f32).to_cols_array_2d(),
+            clip_from_world: input
+                .camera
+                .clip_from_world(w as f32 / h as f32)
+                .to_cols_array_2d(),
             eye: input.camera.eye().extend(1.0).to_array(),
             light_dir: light.extend(0.0).to_array(),
-            ground: [min.z - 0.05 * extent.z.max(1.0) * 2.0, 10.0, 3.0 * extent.x.max(extent.y), 0.0],
+            ground: [
+                min.z - 0.1 * extent.z,
+                10.0,
+                3.0 * extent.x.max(extent.y),
+                0.0,
+            ],
             colormap: [
                 f32::from(u8::from(input.colormap_mm.is_some())),
                 input.colormap_mm.unwrap_or(1.0),
@@ -388,7 +404,11 @@ impl Renderer {
         self.deform.set_coefficients(queue, input.coeffs);
         let objects = self.object_uniforms(input.probe.as_ref());
         for (i, o) in objects.iter().enumerate() {
-            queue.write_buffer(&self.objects, i as u64 * OBJECT_STRIDE, bytemuck::bytes_of(o));
+            queue.write_buffer(
+                &self.objects,
+                i as u64 * OBJECT_STRIDE,
+                bytemuck::bytes_of(o),
+            );
         }
         self.deform.encode(encoder);
 
@@ -445,7 +465,11 @@ impl Renderer {
             ];
             for (i, range) in draws.into_iter().enumerate() {
                 if objects[i].color[3] > 0.0 {
-                    pass.set_bind_group(1, &self.object_group, &[(i as u64 * OBJECT_STRIDE) as u32]);
+                    pass.set_bind_group(
+                        1,
+                        &self.object_group,
+                        &[(i as u64 * OBJECT_STRIDE) as u32],
+                    );
                     pass.draw(range, 0..1);
                 }
             }
@@ -505,11 +529,19 @@ impl Renderer {
             let rot = Quat::from_rotation_arc(Vec3::Z, dir);
             let yellow = [0.98, 0.82, 0.2, 1.0];
             objects[2] = object(
-                Mat4::from_scale_rotation_translation(Vec3::new(1.2, 1.2, length - head), rot, start),
+                Mat4::from_scale_rotation_translation(
+                    Vec3::new(1.2, 1.2, length - head),
+                    rot,
+                    start,
+                ),
                 yellow,
             );
             objects[3] = object(
-                Mat4::from_scale_rotation_translation(Vec3::new(3.5, 3.5, head), rot, end - dir * head),
+                Mat4::from_scale_rotation_translation(
+                    Vec3::new(3.5, 3.5, head),
+                    rot,
+                    end - dir * head,
+                ),
                 yellow,
             );
         }
@@ -518,7 +550,11 @@ impl Renderer {
 }
 
 fn object(world_from_model: Mat4, color: [f32; 4]) -> ObjectUniform {
-    let normal = Mat4::from_mat3(glam::Mat3::from_mat4(world_from_model).inverse().transpose());
+    let normal = Mat4::from_mat3(
+        glam::Mat3::from_mat4(world_from_model)
+            .inverse()
+            .transpose(),
+    );
     ObjectUniform {
         world_from_model: world_from_model.to_cols_array_2d(),
         normal_from_model: normal.to_cols_array_2d(),

@@ -132,15 +132,25 @@ impl Image {
     }
 
     pub fn load_png(path: &Path) -> anyhow::Result<Self> {
-        let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+        let file =
+            std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
         let mut dec = png::Decoder::new(std::io::BufReader::new(file));
         dec.set_transformations(png::Transformations::EXPAND | png::Transformations::ALPHA);
-        let mut reader = dec.read_info().with_context(|| format!("{} is not a PNG", path.display()))?;
+        let mut reader = dec
+            .read_info()
+            .with_context(|| format!("{} is not a PNG", path.display()))?;
         let mut buf = vec![0; reader.output_buffer_size().context("PNG too large")?];
-        let info = reader.next_frame(&mut buf).with_context(|| format!("decoding {}", path.display()))?;
+        let info = reader
+            .next_frame(&mut buf)
+            .with_context(|| format!("decoding {}", path.display()))?;
         buf.truncate(info.buffer_size());
         if info.color_type != png::ColorType::Rgba || info.bit_depth != png::BitDepth::Eight {
-            anyhow::bail!("{}: expected 8-bit RGBA, found {:?} {:?}", path.display(), info.color_type, info.bit_depth);
+            anyhow::bail!(
+                "{}: expected 8-bit RGBA, found {:?} {:?}",
+                path.display(),
+                info.color_type,
+                info.bit_depth
+            );
         }
         Ok(Image {
             width: info.width,

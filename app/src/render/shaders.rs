@@ -13,7 +13,12 @@ pub enum Shader {
 }
 
 impl Shader {
-    pub const ALL: [Shader; 4] = [Shader::Deform, Shader::Surface, Shader::Ground, Shader::Solid];
+    pub const ALL: [Shader; 4] = [
+        Shader::Deform,
+        Shader::Surface,
+        Shader::Ground,
+        Shader::Solid,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -28,7 +33,9 @@ impl Shader {
     pub fn source(self) -> String {
         match self {
             Shader::Deform => include_str!("../../../shaders/deform.wgsl").to_string(),
-            Shader::Surface => format!("{FRAME}\n{}", include_str!("../../../shaders/surface.wgsl")),
+            Shader::Surface => {
+                format!("{FRAME}\n{}", include_str!("../../../shaders/surface.wgsl"))
+            }
             Shader::Ground => format!("{FRAME}\n{}", include_str!("../../../shaders/ground.wgsl")),
             Shader::Solid => format!("{FRAME}\n{}", include_str!("../../../shaders/solid.wgsl")),
         }

@@ -1,0 +1,103 @@
+//! `palpa headless`: offscreen frames with a scripted probe, on whatever adapter wgpu
+//! gives (Mesa's software Vulkan on a machine without a GPU).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use clap::Args;
+
+use crate::headless::{HeadlessOptions, run};
+
+#[derive(Debug, Args)]
+pub struct HeadlessArgs {
+    /// `liver` (the built-in default scene) or a palpation `.palpa` file.
+    #[arg(long, default_value = "liver")]
+    scene: String,
+    /// Frames to render (25 per scripted second of the probe path).
+    #[arg(long, default_value_t = 250)]
+    frames: u32,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720")]
+    size: String,
+    /// `default` or a JSON file `{"keyframes": [{"t_s", "at_mm", "depth_mm"}, ...]}`.
+    #[arg(long, default_value = "default")]
+    probe_path: String,
+    /// Where to write the last frame (PNG).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Modes kept (default: all the scene has).
+    #[arg(long)]
+    modes: Option<u32>,
+    /// Colour by displacement magnitude, this many mm at the top of the scale.
+    #[arg(long)]
+    colormap_mm: Option<f32>,
+    /// Frame pacing, frames per second, as a display's refresh would pace them
+    /// (0: back to back, the force thread's worst case).
+    #[arg(long, default_value_t = 60.0)]
+    fps: f64,
+    /// Print the report as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
+    let size = parse_size(&args.size)?;
+    let opts = HeadlessOptions {
+        scene: args.scene.clone(),
+        frames: args.frames,
+        size,
+        probe_path: (args.probe_path != "default").then(|| PathBuf::from(&args.probe_path)),
+        out: args.out.clone(),
+        modes: args.modes,
+        colormap_mm: args.colormap_mm,
+        fps: args.fps,
+    };
+    if !(args.fps.is_finite() && args.fps >= 0.0) {
+        bail!(
+            "--fps {}: expected a frame rate ≥ 0 (0: back to back)",
+            args.fps
+        );
+    }
+    let (report, _) = run(&opts)?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).context("encoding the report")?
+        );
+    } else {
+        println!(
+            "{} frames at {}x{} on {} ({}, {}): frame p50 {:.2} ms, p95 {:.2} ms",
+            report.frames,
+            size.0,
+            size.1,
+            report.adapter.name,
+            report.adapter.backend,
+            report.adapter.device_type,
+            report.frame_ms_p50,
+            report.frame_ms_p95
+        );
+        println!(
+            "force loop: {:.1} Hz, period p50 {:.1} µs, p99 {:.1} µs, {} missed deadlines; contact eval p50 {:.2} µs",
+            report.force_hz,
+            report.force_period_us_p50,
+            report.force_period_us_p99,
+            report.missed_deadlines,
+            report.eval_us_p50
+        );
+        if let Some(out) = &report.out {
+            println!("last frame: {out}");
+        }
+    }
+    Ok(())
+}
+
+/// `WIDTHxHEIGHT`.
+pub fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
+    let parsed = s
+        .split_once(['x', 'X'])
+        .and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)));
+    match parsed {
+        Some((w, h)) if w > 0 && h > 0 => Ok((w, h)),
+        _ => bail!("--size {s:?}: expected WIDTHxHEIGHT, e.g. 1280x720"),
+    }
+}

@@ -1,0 +1,283 @@
+//! Headless mode: K frames rendered offscreen with a scripted probe pressing the organ
+//! while the force thread runs, the last frame saved as PNG, timings reported as JSON.
+//!
+//! Frames are paced at `fps` (as a window's vsync paces them; 0 renders back to back,
+//! the worst case for the force thread, which shares the CPU with the software
+//! rasterizer). A frame's time runs from taking the input to the GPU finishing it. The script runs on its own clock, 25 frames per
+//! scripted second, so the images do not depend on the machine's speed; before the last
+//! frame the session waits until the force loop has answered the last command.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::force::NoHaptics;
+use crate::input::PressMode;
+use crate::render::Renderer;
+use crate::render::gpu::{AdapterReport, Gpu};
+use crate::render::offscreen::{FORMAT, Image, Offscreen};
+use crate::session::Session;
+use crate::stats::percentile;
+
+/// One keyframe of a probe path: at scripted time `t_s`, the probe is at the palpable
+/// point nearest `at_mm`, indenting `depth_mm`. Linear in between.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Keyframe {
+    pub t_s: f64,
+    pub at_mm: [f64; 3],
+    pub depth_mm: f64,
+}
+
+/// A probe path (`--probe-path FILE`: JSON `{"keyframes": [...]}`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProbePath {
+    pub keyframes: Vec<Keyframe>,
+}
+
+impl ProbePath {
+    /// Over the front of the organ: press, slide sideways while pressing, lift.
+    pub fn default_for(center_mm: Vec3, front_mm: Vec3) -> Self {
+        let c = front_mm.as_dvec3();
+        let side = (front_mm - center_mm)
+            .cross(Vec3::Z)
+            .normalize_or(Vec3::X)
+            .as_dvec3()
+            * 35.0;
+        let at = |s: f64| (c + side * s).to_array();
+        let k = |t_s, s, depth_mm| Keyframe {
+            t_s,
+            at_mm: at(s),
+            depth_mm,
+        };
+        ProbePath {
+            keyframes: vec![
+                k(0.0, -1.0, 0.0),
+                k(1.5, -1.0, 8.0),
+                k(4.0, 0.0, 10.0),
+                k(6.5, 1.0, 6.0),
+                k(8.0, 1.0, 0.0),
+                k(10.0, 0.0, 8.0),
+            ],
+        }
+    }
+
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let p: ProbePath = serde_json::from_str(&text).with_context(|| {
+            format!(
+                "{}: expected {{\"keyframes\": [{{\"t_s\": 0, \"at_mm\": [x, y, z], \"depth_mm\": 5}}, ...]}}",
+                path.display()
+            )
+        })?;
+        p.validate()
+            .with_context(|| format!("{}", path.display()))?;
+        Ok(p)
+    }
+
+    fn validate(&self) -> anyhow::Result<()> {
+        if self.keyframes.is_empty() {
+            bail!("a probe path needs at least one keyframe");
+        }
+        for (i, k) in self.keyframes.iter().enumerate() {
+            if !(k.t_s.is_finite()
+                && k.depth_mm.is_finite()
+                && k.at_mm.iter().all(|c| c.is_finite()))
+            {
+                bail!("keyframe {i} has a non-finite value");
+            }
+            if k.depth_mm < 0.0 {
+                bail!("keyframe {i}: depth_mm = {} (expected ≥ 0)", k.depth_mm);
+            }
+            if i > 0 && k.t_s <= self.keyframes[i - 1].t_s {
+                bail!("keyframe {i}: t_s = {} does not increase", k.t_s);
+            }
+        }
+        Ok(())
+    }
+
+    /// Position and depth at scripted time `t_s` (held constant past the ends).
+    pub fn at(&self, t_s: f64) -> ([f64; 3], f64) {
+        let ks = &self.keyframes;
+        let last = ks[ks.len() - 1];
+        if t_s <= ks[0].t_s {
+            return (ks[0].at_mm, ks[0].depth_mm);
+        }
+        if t_s >= last.t_s {
+            return (last.at_mm, last.depth_mm);
+        }
+        let i = ks.iter().position(|k| k.t_s > t_s).unwrap_or(ks.len() - 1);
+        let (a, b) = (ks[i - 1], ks[i]);
+        let w = (t_s - a.t_s) / (b.t_s - a.t_s);
+        let lerp = |x: f64, y: f64| x + w * (y - x);
+        (
+            [0, 1, 2].map(|c| lerp(a.at_mm[c], b.at_mm[c])),
+            lerp(a.depth_mm, b.depth_mm),
+        )
+    }
+}
+
+/// What `palpa headless` was asked to do.
+#[derive(Debug, Clone)]
+pub struct HeadlessOptions {
+    pub scene: String,
+    pub frames: u32,
+    pub size: (u32, u32),
+    pub probe_path: Option<PathBuf>,
+    pub out: Option<PathBuf>,
+    pub modes: Option<u32>,
+    pub colormap_mm: Option<f32>,
+    /// Frame pacing (frames per second); 0: back to back.
+    pub fps: f64,
+}
+
+/// The JSON report.
+#[derive(Debug, Clone, Serialize)]
+pub struct HeadlessReport {
+    pub frames: u32,
+    pub size: [u32; 2],
+    pub fps: f64,
+    pub scene: String,
+    pub modes_used: u32,
+    pub frame_ms_p50: f64,
+    pub frame_ms_p95: f64,
+    pub frame_ms_max: f64,
+    /// Contact evaluation on the force thread, µs (median).
+    pub eval_us_p50: f64,
+    /// Render-side evaluation per frame (particularization + contact rows), µs.
+    pub render_eval_us_p50: f64,
+    pub force_hz: f64,
+    pub force_ticks: u64,
+    pub force_period_us_p50: f64,
+    pub force_period_us_p99: f64,
+    pub force_period_us_max: f64,
+    pub missed_deadlines: u64,
+    /// Scheduling the force thread got: realtime, raised or normal.
+    pub force_priority: &'static str,
+    pub final_force_n: f32,
+    pub final_depth_mm: f32,
+    pub adapter: AdapterReport,
+    pub out: Option<String>,
+}
+
+/// Renders the frames and returns the report and the last image.
+pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
+    let (w, h) = opts.size;
+    if w == 0 || h == 0 || w > 8192 || h > 8192 {
+        bail!("--size {w}x{h}: expected width and height in 1..=8192");
+    }
+    if opts.frames == 0 {
+        bail!("--frames 0: expected at least one frame");
+    }
+    let loaded = crate::scenes::load(&opts.scene)?;
+    let gpu = Gpu::headless()?;
+    let mut renderer = Renderer::new(&gpu.device, FORMAT, &loaded.scene);
+    let mut session =
+        Session::new(loaded.scene, Box::new(NoHaptics)).context("starting the force thread")?;
+    if let Some(n) = opts.modes {
+        session.controls.modes = n.clamp(1, session.scene.modes() as u32);
+    }
+    session.colormap_mm = opts.colormap_mm;
+    let (min, max) = renderer.bounds();
+    let cam = session.controls.camera;
+    let front = session.controls.probe.map_or(cam.target_mm, |p| {
+        let (x, _) = session.scene.frame(&p);
+        Vec3::new(x[0] as f32, x[1] as f32, x[2] as f32)
+    });
+    let path = match &opts.probe_path {
+        Some(p) => ProbePath::load(p)?,
+        None => ProbePath::default_for(0.5 * (min + max), front),
+    };
+    let target = Offscreen::new(&gpu.device, opts.size);
+    session.controls.mode = PressMode::Depth;
+
+    let mut frame_ms = Vec::with_capacity(opts.frames as usize);
+    let warmup = opts.frames.min(5);
+    let pace = (opts.fps > 0.0).then(|| Duration::from_secs_f64(1.0 / opts.fps));
+    let start = Instant::now();
+    for i in 0..opts.frames {
+        if let Some(p) = pace {
+            let due = start + p * i;
+            let now = Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+        }
+        let (at, depth) = path.at(f64::from(i) / 25.0);
+        if let Some((p, _)) = session.scene.closest_palpable(at) {
+            session.controls.probe = Some(p);
+        }
+        session.controls.pressing = depth > 0.0;
+        session.controls.depth_mm = depth as f32;
+        let last = i + 1 == opts.frames;
+        if last {
+            session.force.command(session.controls.command());
+            settle(&session, Duration::from_millis(500));
+        }
+        if i == warmup {
+            session.force.reset_stats();
+        }
+        let t0 = Instant::now();
+        let input = session.frame();
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        renderer.encode(
+            &gpu.device,
+            &gpu.queue,
+            &mut encoder,
+            &target.view,
+            opts.size,
+            &input,
+        );
+        if last {
+            target.encode_copy(&mut encoder);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| anyhow::anyhow!("waiting for the GPU: {e}"))?;
+        if i >= warmup || opts.frames <= warmup {
+            frame_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let image = target.read(&gpu.device)?;
+    if let Some(out) = &opts.out {
+        image.save_png(out)?;
+    }
+    let stats = session.force.stats();
+    let report = HeadlessReport {
+        frames: opts.frames,
+        size: [w, h],
+        fps: opts.fps,
+        scene: opts.scene.clone(),
+        modes_used: session.controls.modes,
+        frame_ms_p50: percentile(frame_ms.clone(), 0.5),
+        frame_ms_p95: percentile(frame_ms.clone(), 0.95),
+        frame_ms_max: percentile(frame_ms, 1.0),
+        eval_us_p50: stats.eval_us_p50,
+        render_eval_us_p50: session.render_eval_us.quantile(0.5),
+        force_hz: stats.rate_hz,
+        force_ticks: stats.ticks,
+        force_period_us_p50: stats.period_us_p50,
+        force_period_us_p99: stats.period_us_p99,
+        force_period_us_max: stats.period_us_max,
+        missed_deadlines: stats.missed_deadlines,
+        force_priority: crate::priority::name(stats.priority),
+        final_force_n: session.sample.magnitude_n,
+        final_depth_mm: session.sample.depth_mm,
+        adapter: gpu.report(),
+        out: opts.out.as_ref().map(|p| p.display().to_string()),
+    };
+    Ok((report, image))
+}
+
+/// Waits (up to `timeout`) until the force loop has answered the latest command.
+pub fn settle(session: &Session, timeout: Duration) {
+    let want = session.controls.command();
+    let t0 = Instant::now();
+    while session.force.latest().command != want && t0.elapsed() < timeout {
+        std::thread::sleep(Duration::from_micros(200));
+    }
+}

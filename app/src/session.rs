@@ -1,0 +1,215 @@
+//! One palpation session: the scene, the user's controls, the force loop, and what each
+//! frame needs from them. Shared by the window and the headless mode, so both run the
+//! same code between input and pixels.
+//!
+//! Per frame ([`Session::frame`]): the latest probe command goes to the force loop; the
+//! latest force sample comes back; the surface is deformed by the force *that sample
+//! computed, at the point it computed it for*, so the picture and the force never
+//! disagree (they lag the input by at most one force tick, 1 ms).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use palpa_core::scene::{PalpationScene, ProbePoint};
+
+use crate::camera::OrbitCamera;
+use crate::force::{ForceLoop, ForceSample, HapticDevice, LoopTiming, STATUS_OK};
+use crate::input::{Controls, InputEvent};
+use crate::pick::ScenePicker;
+use crate::render::{FrameInput, ProbeVisual};
+use crate::stats::Ring;
+
+/// Radius of the probe tool, mm (the load radius the vademecum was computed with).
+pub const TOOL_RADIUS_MM: f32 = 5.0;
+
+/// A scene being palpated.
+#[derive(Debug)]
+pub struct Session {
+    pub scene: Arc<PalpationScene>,
+    pub controls: Controls,
+    pub force: ForceLoop,
+    /// Colour by displacement, with this value (mm) at the top of the scale.
+    pub colormap_mm: Option<f32>,
+    /// The sample the current frame shows.
+    pub sample: ForceSample,
+    /// Render-side evaluation time (particularization + contact rows), µs, recent frames.
+    pub render_eval_us: Ring,
+    /// |F| over time (s since start, N), for the plot.
+    pub force_history: Ring2,
+    started: Instant,
+    coeffs: Vec<f64>,
+    deformed_mm: Vec<[f32; 3]>,
+    displacement: Vec<f64>,
+    deformed_valid: bool,
+}
+
+/// Pairs (x, y) in a ring (the force plot).
+#[derive(Debug, Clone)]
+pub struct Ring2 {
+    pub x: Ring,
+    pub y: Ring,
+}
+
+impl Session {
+    /// Starts the force loop on `scene`; the camera frames the organ and the probe rests
+    /// on the palpable point nearest the front of the organ.
+    pub fn new(scene: PalpationScene, haptic: Box<dyn HapticDevice>) -> std::io::Result<Self> {
+        let scene = Arc::new(scene);
+        let (min, max) = bounds(scene.vertices_mm());
+        let camera = OrbitCamera::framing(min, max);
+        let mut controls = Controls::new(camera, scene.modes() as u32);
+        let front =
+            camera.target_mm + (camera.eye() - camera.target_mm).normalize() * (max - min).length();
+        controls.probe = scene
+            .closest_palpable(front.as_dvec3().to_array())
+            .map(|(p, _)| p);
+        let force = ForceLoop::spawn(Arc::clone(&scene), haptic, LoopTiming::default())?;
+        let n = scene.modes();
+        let rows = scene.model().rows();
+        let vertices = scene.vertices_mm().to_vec();
+        Ok(Session {
+            scene,
+            controls,
+            force,
+            colormap_mm: None,
+            sample: ForceSample::default(),
+            render_eval_us: Ring::new(256),
+            force_history: Ring2 {
+                x: Ring::new(2000),
+                y: Ring::new(2000),
+            },
+            started: Instant::now(),
+            coeffs: vec![0.0; n],
+            deformed_mm: vertices,
+            displacement: vec![0.0; rows],
+            deformed_valid: true,
+        })
+    }
+
+    /// Handles one input event (picking against the currently shown deformation).
+    pub fn handle(&mut self, ev: InputEvent, viewport_px: Vec2) {
+        let needs_pick = matches!(
+            ev,
+            InputEvent::PointerDown { .. } | InputEvent::Gamepad { .. }
+        );
+        if needs_pick {
+            self.update_deformed();
+        }
+        let camera = self.controls.camera;
+        let picker = ScenePicker {
+            scene: &self.scene,
+            camera: &camera,
+            viewport_px,
+            deformed_mm: &self.deformed_mm,
+        };
+        self.controls.handle(ev, &picker, viewport_px);
+    }
+
+    /// Sends the controls to the force loop and prepares what this frame draws.
+    pub fn frame(&mut self) -> FrameInput<'_> {
+        self.force.command(self.controls.command());
+        self.sample = self.force.latest();
+        let t0 = Instant::now();
+        let n = (self.controls.modes as usize).clamp(1, self.scene.modes());
+        let s = self.sample;
+        let probe = self.controls.probe;
+        let mut visual = None;
+        let ok = s.status == STATUS_OK;
+        // Deform by the sample's force at the sample's point; no force: rest shape.
+        let (point, force) = if ok {
+            (Some(s.command.point()), s.force_n.map(f64::from))
+        } else {
+            (probe, [0.0; 3])
+        };
+        if let Some(p) = point {
+            match self
+                .scene
+                .model()
+                .particularize(&[self.scene.param(&p, force)], &mut self.coeffs[..n])
+            {
+                Ok(_) => {}
+                Err(_) => self.coeffs[..n].fill(0.0),
+            }
+            let tip = self.contact_point(&p, n);
+            let (_, normal) = self.scene.frame(&p);
+            visual = Some(ProbeVisual {
+                tip_mm: tip,
+                outward: Vec3::new(normal[0] as f32, normal[1] as f32, normal[2] as f32),
+                force_n: Vec3::from_array(if ok { s.force_n } else { [0.0; 3] }),
+                radius_mm: TOOL_RADIUS_MM,
+                valid: self.controls.feedback.is_none(),
+            });
+        } else {
+            self.coeffs[..n].fill(0.0);
+        }
+        self.render_eval_us.push(t0.elapsed().as_secs_f64() * 1e6);
+        self.force_history
+            .x
+            .push(self.started.elapsed().as_secs_f64());
+        self.force_history
+            .y
+            .push(if ok { f64::from(s.magnitude_n) } else { 0.0 });
+        self.deformed_valid = false;
+        FrameInput {
+            camera: &self.controls.camera,
+            coeffs: &self.coeffs[..n],
+            colormap_mm: self.colormap_mm,
+            probe: visual,
+        }
+    }
+
+    /// Deformed contact point for the current coefficients (nine rows).
+    fn contact_point(&self, p: &ProbePoint, n: usize) -> Vec3 {
+        let (x, _) = self.scene.frame(p);
+        let vs = self.scene.probe_vertices(p);
+        let rows: [u32; 9] = std::array::from_fn(|i| 3 * vs[i / 3] + (i % 3) as u32);
+        let mut u = [0.0; 9];
+        self.scene
+            .model()
+            .reconstruct_rows(&rows, &self.coeffs[..n], &mut u);
+        let mut tip = x;
+        for i in 0..3 {
+            for c in 0..3 {
+                tip[c] += p.bary[i] * u[3 * i + c];
+            }
+        }
+        Vec3::new(tip[0] as f32, tip[1] as f32, tip[2] as f32)
+    }
+
+    /// Brings the CPU copy of the deformed surface up to date (for picking).
+    fn update_deformed(&mut self) {
+        if self.deformed_valid {
+            return;
+        }
+        let n = (self.controls.modes as usize).clamp(1, self.scene.modes());
+        self.scene
+            .model()
+            .reconstruct(&self.coeffs[..n], &mut self.displacement);
+        for (i, (d, r)) in self
+            .deformed_mm
+            .iter_mut()
+            .zip(self.scene.vertices_mm())
+            .enumerate()
+        {
+            for c in 0..3 {
+                d[c] = r[c] + self.displacement[3 * i + c] as f32;
+            }
+        }
+        self.deformed_valid = true;
+    }
+
+    /// The CPU-deformed surface for the current frame (the GPU path's reference).
+    pub fn deformed_mm(&mut self) -> &[[f32; 3]] {
+        self.update_deformed();
+        &self.deformed_mm
+    }
+}
+
+/// Axis-aligned bounds of a point set.
+pub fn bounds(points: &[[f32; 3]]) -> (Vec3, Vec3) {
+    points.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(Vec3::from_array(*p)), hi.max(Vec3::from_array(*p))),
+    )
+}
