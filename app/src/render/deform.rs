@@ -199,6 +199,30 @@ impl Deform {
         pass.dispatch_workgroups(groups, 1, 1);
     }
 
+    /// Reads back the deformed positions and normals (tests, and checking a new GPU):
+    /// `(positions, normals)`, xyz + w each.
+    pub fn read_back(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> anyhow::Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+        let size = u64::from(self.vertex_count) * 16;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("deform read-back"),
+            size: 2 * size,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&self.positions, 0, &staging, 0, size);
+        encoder.copy_buffer_to_buffer(&self.normals, 0, &staging, size, size);
+        queue.submit([encoder.finish()]);
+        let bytes = super::offscreen::read_buffer(device, &staging)?;
+        let all: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        let (p, n) = all.split_at(self.vertex_count as usize);
+        Ok((p.to_vec(), n.to_vec()))
+    }
+
     pub fn vertex_count(&self) -> u32 {
         self.vertex_count
     }

@@ -34,6 +34,14 @@ impl Gpu {
         Self::with_instance(instance, None)
     }
 
+    /// A context without a window on the given backends only (tests pin Vulkan so
+    /// reference images are reproducible).
+    pub fn headless_on(backends: wgpu::Backends) -> anyhow::Result<Self> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = backends;
+        Self::with_instance(wgpu::Instance::new(desc), None)
+    }
+
     /// A context able to present to `surface`.
     pub fn with_instance(
         instance: wgpu::Instance,

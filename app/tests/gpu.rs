@@ -1,0 +1,137 @@
+//! GPU tests on the software adapter (Mesa's lavapipe through Vulkan; scripts/deps.sh
+//! --gpu installs it): the compute deformation against the CPU path of palpa-core, and
+//! an offscreen render of the default scene against a reference image.
+
+use std::path::{Path, PathBuf};
+
+use palpa_app::force::NoHaptics;
+use palpa_app::headless::settle;
+use palpa_app::render::Renderer;
+use palpa_app::render::gpu::Gpu;
+use palpa_app::render::offscreen::{FORMAT, Image, Offscreen};
+use palpa_app::scenes;
+use palpa_app::session::Session;
+
+fn gpu() -> Gpu {
+    // Vulkan only, so the reference image does not depend on which driver wgpu finds.
+    Gpu::headless_on(wgpu::Backends::VULKAN).unwrap_or_else(|e| {
+        panic!("{e:#}\n(the GPU tests need a Vulkan adapter: run scripts/deps.sh --gpu)")
+    })
+}
+
+/// A session pressing the front of the organ 8 mm deep, with the force loop answered.
+fn pressing_session() -> Session {
+    let loaded = scenes::built_in().expect("built-in scene");
+    let mut s = Session::new(loaded.scene, Box::new(NoHaptics)).expect("force thread");
+    assert!(s.controls.probe.is_some(), "the session starts with the probe on the organ");
+    s.controls.pressing = true;
+    s.controls.depth_mm = 8.0;
+    s.force.command(s.controls.command());
+    settle(&s, std::time::Duration::from_secs(2));
+    assert_eq!(s.force.latest().command, s.controls.command(), "force loop answered");
+    s
+}
+
+#[test]
+fn gpu_and_cpu_deformation_agree() {
+    let gpu = gpu();
+    let mut session = pressing_session();
+    for modes in [1, 7, session.scene.modes() as u32] {
+        session.controls.modes = modes;
+        settle(&session, std::time::Duration::from_secs(2));
+        let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
+        let target = Offscreen::new(&gpu.device, (64, 64));
+        let input = session.frame();
+        assert_eq!(input.coeffs.len(), modes as usize);
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        renderer.encode(&gpu.device, &gpu.queue, &mut encoder, &target.view, (64, 64), &input);
+        gpu.queue.submit([encoder.finish()]);
+        let (positions, normals) = renderer.deform.read_back(&gpu.device, &gpu.queue).expect("read back");
+        let cpu = session.deformed_mm().to_vec();
+        let rest = session.scene.vertices_mm();
+        let mut max_u: f32 = 0.0;
+        let mut max_err: f32 = 0.0;
+        for ((g, c), r) in positions.iter().zip(&cpu).zip(rest) {
+            let u: f32 = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f32>().sqrt();
+            max_u = max_u.max(u);
+            for k in 0..3 {
+                max_err = max_err.max((g[k] - c[k]).abs());
+            }
+            // w holds |u|.
+            assert!((g[3] - u).abs() <= 1e-4 * u.max(1.0), "|u| {} vs {u}", g[3]);
+        }
+        assert!(max_u > 1.0, "an 8 mm press moves the surface by more than 1 mm ({max_u})");
+        // f32 sums of n terms on the GPU against f64 sums of the same f32 data: a few
+        // ulps of the position (~200 mm) plus n·eps·|u|.
+        let tol = 1e-4 * 200.0 + modes as f32 * f32::EPSILON * 4.0 * max_u;
+        assert!(max_err < tol, "n = {modes}: GPU and CPU differ by {max_err} mm (tolerance {tol})");
+        // Normals of the deformed surface are unit vectors and agree with the CPU's.
+        let cpu_normals = palpa_core::scene::vertex_normals(&cpu, session.scene.triangles());
+        for (g, c) in normals.iter().zip(&cpu_normals) {
+            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+            assert!((len - 1.0).abs() < 1e-4);
+            let dot = g[0] * c[0] + g[1] * c[1] + g[2] * c[2];
+            assert!(dot > 0.999, "normal {g:?} vs {c:?}");
+        }
+    }
+}
+
+fn reference_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference")
+}
+
+/// Pixels differing by more than this (max over channels) count as different.
+const PIXEL_TOLERANCE: u8 = 24;
+/// At most this fraction of pixels may differ: rasterization on another Mesa version
+/// moves a few edge pixels, a wrong shader or camera changes thousands.
+const MAX_DIFFERENT_FRACTION: f64 = 0.005;
+
+#[test]
+fn default_scene_matches_the_reference_image() {
+    let gpu = gpu();
+    let mut session = pressing_session();
+    session.colormap_mm = None;
+    let size = (320, 240);
+    let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
+    let target = Offscreen::new(&gpu.device, size);
+    let input = session.frame();
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    renderer.encode(&gpu.device, &gpu.queue, &mut encoder, &target.view, size, &input);
+    target.encode_copy(&mut encoder);
+    gpu.queue.submit([encoder.finish()]);
+    let actual = target.read(&gpu.device).expect("read back");
+
+    let reference_path = reference_dir().join("liver-press.png");
+    if std::env::var_os("PALPA_UPDATE_REFERENCE").is_some() {
+        actual.save_png(&reference_path).expect("write reference");
+    }
+    let reference = Image::load_png(&reference_path)
+        .expect("reference image (PALPA_UPDATE_REFERENCE=1 writes it)");
+    assert_eq!((reference.width, reference.height), (actual.width, actual.height));
+    let mut diff = actual.clone();
+    let mut different = 0usize;
+    for (i, (a, r)) in actual.rgba.chunks(4).zip(reference.rgba.chunks(4)).enumerate() {
+        let d = (0..3).map(|c| a[c].abs_diff(r[c])).max().unwrap_or(0);
+        if d > PIXEL_TOLERANCE {
+            different += 1;
+        }
+        let v = d.saturating_mul(4);
+        diff.rgba[4 * i..4 * i + 4].copy_from_slice(&[v, v, v, 255]);
+    }
+    let fraction = different as f64 / (actual.width * actual.height) as f64;
+    if fraction > MAX_DIFFERENT_FRACTION {
+        let out = Path::new(env!("CARGO_TARGET_TMPDIR"));
+        actual.save_png(&out.join("liver-press-actual.png")).expect("write actual");
+        diff.save_png(&out.join("liver-press-diff.png")).expect("write diff");
+        panic!(
+            "{:.3}% of pixels differ by more than {PIXEL_TOLERANCE} (allowed {:.3}%); \
+             see {}/liver-press-actual.png and -diff.png",
+            100.0 * fraction,
+            100.0 * MAX_DIFFERENT_FRACTION,
+            out.display()
+        );
+    }
+    // The picture is not empty: the organ covers a good part of the frame.
+    let organ_like = actual.rgba.chunks(4).filter(|p| p[0] > p[1].saturating_add(40)).count();
+    assert!(organ_like > 5_000, "only {organ_like} organ-coloured pixels");
+}
