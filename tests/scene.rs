@@ -8,7 +8,8 @@ use palpa_core::scene::{ContactError, PalpationScene, SceneError};
 fn scene() -> PalpationScene {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.palpa");
-    PalpationScene::new(file::load_any(&path).expect("asset loads")).expect("asset is a palpation scene")
+    PalpationScene::new(file::load_any(&path).expect("asset loads"))
+        .expect("asset is a palpation scene")
 }
 
 #[test]
@@ -27,16 +28,24 @@ fn palpable_points_from_surface_triangles_are_the_same_points() {
         // The same physical point, computed from the boundary triangle's own corners.
         let tri = s.triangles()[t as usize];
         let want: [f64; 3] = std::array::from_fn(|c| {
-            (0..3).map(|i| bary[i] * f64::from(s.vertices_mm()[tri[i] as usize][c])).sum()
+            (0..3)
+                .map(|i| bary[i] * f64::from(s.vertices_mm()[tri[i] as usize][c]))
+                .sum()
         });
         let (got, n) = s.frame(&p);
         for c in 0..3 {
-            assert!((got[c] - want[c]).abs() < 1e-9, "triangle {t}: {got:?} vs {want:?}");
+            assert!(
+                (got[c] - want[c]).abs() < 1e-9,
+                "triangle {t}: {got:?} vs {want:?}"
+            );
         }
         assert!((n.iter().map(|x| x * x).sum::<f64>() - 1.0).abs() < 1e-9);
     }
     // The palpable region is a proper part of the surface.
-    assert!(palpable > 100 && palpable < s.triangles().len(), "{palpable} palpable triangles");
+    assert!(
+        palpable > 100 && palpable < s.triangles().len(),
+        "{palpable} palpable triangles"
+    );
 }
 
 #[test]
@@ -53,7 +62,9 @@ fn pressing_to_a_depth_with_the_force_from_the_compliance_gives_that_depth() {
         let Some(p) = s.palpable_point(t, [1.0 / 3.0; 3]) else {
             continue;
         };
-        let c = s.contact(&p, n, &mut scratch).expect("full model: positive compliance");
+        let c = s
+            .contact(&p, n, &mut scratch)
+            .expect("full model: positive compliance");
         // Soft tissue, 5 mm tool, E = 160 kPa: Hertz gives c ≈ 1/(2 E* a) ≈ 0.5 mm/N
         // locally; the whole organ moving adds to it. Anything outside this is wrong.
         assert!(
@@ -75,7 +86,10 @@ fn pressing_to_a_depth_with_the_force_from_the_compliance_gives_that_depth() {
             })
             .sum();
         // f32 storage: relative 1e-5 of the result.
-        assert!((along - depth_mm).abs() < 1e-4 * depth_mm, "depth {along} mm, wanted {depth_mm}");
+        assert!(
+            (along - depth_mm).abs() < 1e-4 * depth_mm,
+            "depth {along} mm, wanted {depth_mm}"
+        );
         checked += 1;
     }
 }
@@ -84,15 +98,18 @@ fn pressing_to_a_depth_with_the_force_from_the_compliance_gives_that_depth() {
 fn too_many_modes_are_clamped_and_one_mode_is_either_positive_or_reported() {
     let s = scene();
     let mut scratch = s.contact_scratch();
-    let p = s.palpable_point(
-        (0..s.triangles().len() as u32)
-            .find(|&t| s.palpable_point(t, [1.0 / 3.0; 3]).is_some())
-            .expect("a palpable triangle"),
-        [1.0 / 3.0; 3],
-    )
-    .expect("palpable");
+    let p = s
+        .palpable_point(
+            (0..s.triangles().len() as u32)
+                .find(|&t| s.palpable_point(t, [1.0 / 3.0; 3]).is_some())
+                .expect("a palpable triangle"),
+            [1.0 / 3.0; 3],
+        )
+        .expect("palpable");
     let all = s.contact(&p, s.modes(), &mut scratch).expect("all modes");
-    let more = s.contact(&p, 10 * s.modes(), &mut scratch).expect("clamped");
+    let more = s
+        .contact(&p, 10 * s.modes(), &mut scratch)
+        .expect("clamped");
     assert_eq!(all, more);
     match s.contact(&p, 1, &mut scratch) {
         Ok(c) => assert!(c.compliance_mm_per_n > 0.0),

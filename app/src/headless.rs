@@ -16,11 +16,13 @@ use serde::{Deserialize, Serialize};
 
 use crate::force::NoHaptics;
 use crate::input::PressMode;
+use crate::overlay::{Overlay, headless_input};
 use crate::render::Renderer;
 use crate::render::gpu::{AdapterReport, Gpu};
-use crate::render::offscreen::{FORMAT, Image, Offscreen};
+use crate::render::offscreen::{FORMAT, Image, Offscreen, UI_FORMAT};
 use crate::session::Session;
 use crate::stats::percentile;
+use crate::ui::Hud;
 
 /// One keyframe of a probe path: at scripted time `t_s`, the probe is at the palpable
 /// point nearest `at_mm`, indenting `depth_mm`. Linear in between.
@@ -132,6 +134,8 @@ pub struct HeadlessOptions {
     pub colormap_mm: Option<f32>,
     /// Frame pacing (frames per second); 0: back to back.
     pub fps: f64,
+    /// Draw the egui interface over the scene.
+    pub ui: bool,
 }
 
 /// The JSON report.
@@ -173,6 +177,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         bail!("--frames 0: expected at least one frame");
     }
     let loaded = crate::scenes::load(&opts.scene)?;
+    let loaded_source = loaded.source.clone();
     let gpu = Gpu::headless()?;
     let mut renderer = Renderer::new(&gpu.device, FORMAT, &loaded.scene);
     let mut session =
@@ -192,6 +197,8 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         None => ProbePath::default_for(0.5 * (min + max), front),
     };
     let target = Offscreen::new(&gpu.device, opts.size);
+    let mut overlay = opts.ui.then(|| Overlay::new(&gpu.device, UI_FORMAT));
+    let mut hud = Hud::new(loaded_source);
     session.controls.mode = PressMode::Depth;
 
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
@@ -231,6 +238,19 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
             opts.size,
             &input,
         );
+        if let Some(o) = overlay.as_mut() {
+            let raw = headless_input(opts.size, 1.0, f64::from(i) / 25.0);
+            o.paint(
+                &gpu.device,
+                &gpu.queue,
+                &mut encoder,
+                &target.ui_view,
+                opts.size,
+                1.0,
+                raw,
+                |ctx| crate::ui::show(ctx, &mut session, &mut hud),
+            );
+        }
         if last {
             target.encode_copy(&mut encoder);
         }
@@ -238,8 +258,10 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         gpu.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| anyhow::anyhow!("waiting for the GPU: {e}"))?;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        hud.frame_ms.push(ms);
         if i >= warmup || opts.frames <= warmup {
-            frame_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+            frame_ms.push(ms);
         }
     }
     let image = target.read(&gpu.device)?;

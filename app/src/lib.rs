@@ -17,12 +17,15 @@
 pub mod camera;
 pub mod cli;
 pub mod force;
+pub mod gamepad;
 pub mod headless;
 pub mod input;
 pub mod latest;
+pub mod overlay;
 pub mod pick;
 pub mod priority;
 pub mod render;
 pub mod scenes;
 pub mod session;
 pub mod stats;
+pub mod ui;

@@ -23,12 +23,19 @@ fn gpu() -> Gpu {
 fn pressing_session() -> Session {
     let loaded = scenes::built_in().expect("built-in scene");
     let mut s = Session::new(loaded.scene, Box::new(NoHaptics)).expect("force thread");
-    assert!(s.controls.probe.is_some(), "the session starts with the probe on the organ");
+    assert!(
+        s.controls.probe.is_some(),
+        "the session starts with the probe on the organ"
+    );
     s.controls.pressing = true;
     s.controls.depth_mm = 8.0;
     s.force.command(s.controls.command());
     settle(&s, std::time::Duration::from_secs(2));
-    assert_eq!(s.force.latest().command, s.controls.command(), "force loop answered");
+    assert_eq!(
+        s.force.latest().command,
+        s.controls.command(),
+        "force loop answered"
+    );
     s
 }
 
@@ -44,9 +51,19 @@ fn gpu_and_cpu_deformation_agree() {
         let input = session.frame();
         assert_eq!(input.coeffs.len(), modes as usize);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        renderer.encode(&gpu.device, &gpu.queue, &mut encoder, &target.view, (64, 64), &input);
+        renderer.encode(
+            &gpu.device,
+            &gpu.queue,
+            &mut encoder,
+            &target.view,
+            (64, 64),
+            &input,
+        );
         gpu.queue.submit([encoder.finish()]);
-        let (positions, normals) = renderer.deform.read_back(&gpu.device, &gpu.queue).expect("read back");
+        let (positions, normals) = renderer
+            .deform
+            .read_back(&gpu.device, &gpu.queue)
+            .expect("read back");
         let cpu = session.deformed_mm().to_vec();
         let rest = session.scene.vertices_mm();
         let mut max_u: f32 = 0.0;
@@ -60,11 +77,17 @@ fn gpu_and_cpu_deformation_agree() {
             // w holds |u|.
             assert!((g[3] - u).abs() <= 1e-4 * u.max(1.0), "|u| {} vs {u}", g[3]);
         }
-        assert!(max_u > 1.0, "an 8 mm press moves the surface by more than 1 mm ({max_u})");
+        assert!(
+            max_u > 1.0,
+            "an 8 mm press moves the surface by more than 1 mm ({max_u})"
+        );
         // f32 sums of n terms on the GPU against f64 sums of the same f32 data: a few
         // ulps of the position (~200 mm) plus n·eps·|u|.
         let tol = 1e-4 * 200.0 + modes as f32 * f32::EPSILON * 4.0 * max_u;
-        assert!(max_err < tol, "n = {modes}: GPU and CPU differ by {max_err} mm (tolerance {tol})");
+        assert!(
+            max_err < tol,
+            "n = {modes}: GPU and CPU differ by {max_err} mm (tolerance {tol})"
+        );
         // Normals of the deformed surface are unit vectors and agree with the CPU's.
         let cpu_normals = palpa_core::scene::vertex_normals(&cpu, session.scene.triangles());
         for (g, c) in normals.iter().zip(&cpu_normals) {
@@ -96,7 +119,14 @@ fn default_scene_matches_the_reference_image() {
     let target = Offscreen::new(&gpu.device, size);
     let input = session.frame();
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    renderer.encode(&gpu.device, &gpu.queue, &mut encoder, &target.view, size, &input);
+    renderer.encode(
+        &gpu.device,
+        &gpu.queue,
+        &mut encoder,
+        &target.view,
+        size,
+        &input,
+    );
     target.encode_copy(&mut encoder);
     gpu.queue.submit([encoder.finish()]);
     let actual = target.read(&gpu.device).expect("read back");
@@ -107,10 +137,18 @@ fn default_scene_matches_the_reference_image() {
     }
     let reference = Image::load_png(&reference_path)
         .expect("reference image (PALPA_UPDATE_REFERENCE=1 writes it)");
-    assert_eq!((reference.width, reference.height), (actual.width, actual.height));
+    assert_eq!(
+        (reference.width, reference.height),
+        (actual.width, actual.height)
+    );
     let mut diff = actual.clone();
     let mut different = 0usize;
-    for (i, (a, r)) in actual.rgba.chunks(4).zip(reference.rgba.chunks(4)).enumerate() {
+    for (i, (a, r)) in actual
+        .rgba
+        .chunks(4)
+        .zip(reference.rgba.chunks(4))
+        .enumerate()
+    {
         let d = (0..3).map(|c| a[c].abs_diff(r[c])).max().unwrap_or(0);
         if d > PIXEL_TOLERANCE {
             different += 1;
@@ -121,8 +159,11 @@ fn default_scene_matches_the_reference_image() {
     let fraction = different as f64 / (actual.width * actual.height) as f64;
     if fraction > MAX_DIFFERENT_FRACTION {
         let out = Path::new(env!("CARGO_TARGET_TMPDIR"));
-        actual.save_png(&out.join("liver-press-actual.png")).expect("write actual");
-        diff.save_png(&out.join("liver-press-diff.png")).expect("write diff");
+        actual
+            .save_png(&out.join("liver-press-actual.png"))
+            .expect("write actual");
+        diff.save_png(&out.join("liver-press-diff.png"))
+            .expect("write diff");
         panic!(
             "{:.3}% of pixels differ by more than {PIXEL_TOLERANCE} (allowed {:.3}%); \
              see {}/liver-press-actual.png and -diff.png",
@@ -132,6 +173,13 @@ fn default_scene_matches_the_reference_image() {
         );
     }
     // The picture is not empty: the organ covers a good part of the frame.
-    let organ_like = actual.rgba.chunks(4).filter(|p| p[0] > p[1].saturating_add(40)).count();
-    assert!(organ_like > 5_000, "only {organ_like} organ-coloured pixels");
+    let organ_like = actual
+        .rgba
+        .chunks(4)
+        .filter(|p| p[0] > p[1].saturating_add(40))
+        .count();
+    assert!(
+        organ_like > 5_000,
+        "only {organ_like} organ-coloured pixels"
+    );
 }

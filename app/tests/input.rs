@@ -29,7 +29,11 @@ fn to_vec3(p: [f64; 3]) -> Vec3 {
 }
 
 /// Palpable points facing the camera (so nothing else of the organ hides them).
-fn visible_palpable(s: &PalpationScene, cam: &OrbitCamera, picker: &ScenePicker) -> Vec<(ProbePoint, Vec2)> {
+fn visible_palpable(
+    s: &PalpationScene,
+    cam: &OrbitCamera,
+    picker: &ScenePicker,
+) -> Vec<(ProbePoint, Vec2)> {
     let mut out = Vec::new();
     for t in 0..s.triangles().len() as u32 {
         let Some(p) = s.palpable_point(t, [1.0 / 3.0; 3]) else {
@@ -59,7 +63,11 @@ fn known_screen_points_pick_known_surface_points() {
         deformed_mm: s.vertices_mm(),
     };
     let visible = visible_palpable(&s, &cam, &picker);
-    assert!(visible.len() > 50, "{} visible palpable triangles", visible.len());
+    assert!(
+        visible.len() > 50,
+        "{} visible palpable triangles",
+        visible.len()
+    );
     for (p, px) in &visible {
         let Pick::Palpable(q) = picker.pick(*px) else {
             panic!("pixel {px} of a visible palpable point does not pick it");
@@ -139,7 +147,10 @@ fn mouse_press_and_drag_sets_the_depth_and_release_lifts() {
     c.handle(mv(m, 400.0, 400.0, 0.1), &on, VIEW);
     assert!((c.depth_mm - 100.0 * c.mapping.depth_mm_per_px).abs() < 1e-5);
     let cmd = c.command();
-    assert_eq!((cmd.active, cmd.mode, cmd.triangle, cmd.modes), (1, MODE_DEPTH, 5, 40));
+    assert_eq!(
+        (cmd.active, cmd.mode, cmd.triangle, cmd.modes),
+        (1, MODE_DEPTH, 5, 40)
+    );
     // Dragging upwards past the start clamps at zero; far down clamps at the maximum.
     c.handle(mv(m, 400.0, 100.0, 0.2), &on, VIEW);
     assert_eq!(c.depth_mm, 0.0);
@@ -165,7 +176,11 @@ fn mouse_outside_the_palpable_region_orbits_and_says_so() {
     // Right-drag pans, the wheel zooms.
     let target = c.camera.target_mm;
     c.handle(up(m, 0.2), &outside, VIEW);
-    c.handle(down(m, Button::Secondary, 100.0, 100.0, 0.3), &outside, VIEW);
+    c.handle(
+        down(m, Button::Secondary, 100.0, 100.0, 0.3),
+        &outside,
+        VIEW,
+    );
     c.handle(mv(m, 150.0, 100.0, 0.4), &outside, VIEW);
     assert!(c.camera.target_mm.distance(target) > 1.0);
     let d = c.camera.distance_mm;
@@ -213,7 +228,12 @@ fn two_fingers_pinch_zoom_and_cancel_a_press() {
     let d = c.camera.distance_mm;
     // Spread the fingers to twice the distance: zoom in by half.
     c.handle(mv(b, 500.0, 300.0, 0.5), &on, VIEW);
-    assert!((c.camera.distance_mm / d - 0.5).abs() < 0.02, "{} → {}", d, c.camera.distance_mm);
+    assert!(
+        (c.camera.distance_mm / d - 0.5).abs() < 0.02,
+        "{} → {}",
+        d,
+        c.camera.distance_mm
+    );
     c.handle(up(b, 0.6), &on, VIEW);
     c.handle(up(a, 0.6), &on, VIEW);
     assert!(!c.pressing);
@@ -273,7 +293,8 @@ fn gamepad_slide_on_the_real_scene_stays_on_the_palpable_surface() {
 #[test]
 fn the_force_loop_keeps_its_schedule_under_load() {
     let s = std::sync::Arc::new(scene());
-    let fl = ForceLoop::spawn(s.clone(), Box::new(NoHaptics), LoopTiming::default()).expect("spawn");
+    let fl =
+        ForceLoop::spawn(s.clone(), Box::new(NoHaptics), LoopTiming::default()).expect("spawn");
     let p = (0..s.triangles().len() as u32)
         .find_map(|t| s.palpable_point(t, [1.0 / 3.0; 3]))
         .expect("palpable");
@@ -324,7 +345,11 @@ fn the_force_loop_keeps_its_schedule_under_load() {
         // With real-time scheduling the loop must hold 1 kHz ± 1% against the load.
         assert!((st.rate_hz - 1000.0).abs() < 10.0, "rate {} Hz", st.rate_hz);
         assert!(st.missed_deadlines <= 3, "{} missed", st.missed_deadlines);
-        assert!(st.period_us_p99 <= 1200.0, "p99 period {} µs", st.period_us_p99);
+        assert!(
+            st.period_us_p99 <= 1200.0,
+            "p99 period {} µs",
+            st.period_us_p99
+        );
     } else {
         eprintln!(
             "force loop without real-time priority: {:.1} Hz, {} missed, p99 {:.0} µs \

@@ -35,6 +35,9 @@ pub struct HeadlessArgs {
     /// (0: back to back, the force thread's worst case).
     #[arg(long, default_value_t = 60.0)]
     fps: f64,
+    /// Leave out the egui interface (the scene only).
+    #[arg(long)]
+    no_ui: bool,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
@@ -51,6 +54,7 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
         modes: args.modes,
         colormap_mm: args.colormap_mm,
         fps: args.fps,
+        ui: !args.no_ui,
     };
     if !(args.fps.is_finite() && args.fps >= 0.0) {
         bail!(

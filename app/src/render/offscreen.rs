@@ -6,12 +6,16 @@ use anyhow::{Context, anyhow};
 
 /// The offscreen colour format (sRGB, so images match what a window shows).
 pub const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// The same texture seen without sRGB encoding, for egui (which blends in gamma space).
+pub const UI_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 
 /// A colour texture of a fixed size and a buffer to read it back.
 #[derive(Debug)]
 pub struct Offscreen {
     pub texture: wgpu::Texture,
     pub view: wgpu::TextureView,
+    /// A [`UI_FORMAT`] view of the same texture, for the egui overlay.
+    pub ui_view: wgpu::TextureView,
     readback: wgpu::Buffer,
     pub size: (u32, u32),
     padded_row: u32,
@@ -39,9 +43,13 @@ impl Offscreen {
             dimension: wgpu::TextureDimension::D2,
             format: FORMAT,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
+            view_formats: &[UI_FORMAT],
         });
         let view = texture.create_view(&Default::default());
+        let ui_view = texture.create_view(&wgpu::TextureViewDescriptor {
+            format: Some(UI_FORMAT),
+            ..Default::default()
+        });
         let padded_row = (4 * size.0).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("offscreen readback"),
@@ -52,6 +60,7 @@ impl Offscreen {
         Offscreen {
             texture,
             view,
+            ui_view,
             readback,
             size,
             padded_row,

@@ -1,0 +1,291 @@
+//! The egui panels: the accuracy knob with the expected error and time from the file's
+//! tradeoff table, press mode and force, colormap and legend, live loop statistics, the
+//! force-over-time plot, scene and material info, a screenshot button, and help.
+//!
+//! Everything here draws into a given `egui::Ui` and reads or changes the [`Session`];
+//! the window and headless mode own the egui context and its painting ([`overlay`]).
+//!
+//! [`overlay`]: crate::overlay
+
+use egui::{Color32, RichText};
+use palpa_core::TradeoffRow;
+
+use crate::input::PressMode;
+use crate::session::Session;
+use crate::stats::Ring;
+
+/// Interface state that is not the session's.
+#[derive(Debug)]
+pub struct Hud {
+    pub frame_ms: Ring,
+    /// Where the scene came from.
+    pub scene_source: String,
+    /// Gamepad name, or None when no pad is connected.
+    pub gamepad: Option<String>,
+    /// A message to show until dismissed (e.g. why the requested scene did not open).
+    pub message: Option<String>,
+    pub show_help: bool,
+    pub screenshot_requested: bool,
+    pub last_screenshot: Option<String>,
+}
+
+impl Hud {
+    pub fn new(scene_source: String) -> Self {
+        Hud {
+            frame_ms: Ring::new(240),
+            scene_source,
+            gamepad: None,
+            message: None,
+            show_help: false,
+            screenshot_requested: false,
+            last_screenshot: None,
+        }
+    }
+}
+
+/// The row of the tradeoff table that describes `n` kept modes: the largest measured
+/// mode count not above `n` (a conservative error estimate), or the smallest row.
+pub fn tradeoff_for(rows: &[TradeoffRow], n: u32) -> Option<&TradeoffRow> {
+    rows.iter()
+        .filter(|r| r.modes <= n)
+        .max_by_key(|r| r.modes)
+        .or_else(|| rows.iter().min_by_key(|r| r.modes))
+}
+
+/// Draws the whole interface.
+pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
+    egui::Window::new("palpa")
+        .default_pos([12.0, 12.0])
+        .default_width(290.0)
+        .resizable(false)
+        .show(ctx, |ui| panel(ui, session, hud));
+    if let Some(msg) = hud.message.clone() {
+        egui::Window::new("Notice")
+            .anchor(egui::Align2::CENTER_TOP, [0.0, 12.0])
+            .collapsible(false)
+            .resizable(false)
+            .show(ctx, |ui| {
+                ui.label(msg);
+                if ui.button("Dismiss").clicked() {
+                    hud.message = None;
+                }
+            });
+    }
+    if let Some(text) = session.controls.feedback {
+        egui::Area::new(egui::Id::unique("palpa-feedback"))
+            .anchor(egui::Align2::CENTER_BOTTOM, [0.0, -16.0])
+            .show(ctx, |ui| {
+                ui.label(
+                    RichText::new(text)
+                        .color(Color32::from_rgb(255, 190, 90))
+                        .size(16.0),
+                );
+            });
+    }
+    if hud.show_help {
+        egui::Window::new("Controls")
+            .anchor(egui::Align2::RIGHT_TOP, [-12.0, 12.0])
+            .collapsible(false)
+            .resizable(false)
+            .open(&mut hud.show_help)
+            .show(ctx, |ui| help(ui));
+    }
+}
+
+fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
+    let n_all = session.scene.modes() as u32;
+    ui.heading("Accuracy");
+    ui.add(egui::Slider::new(&mut session.controls.modes, 1..=n_all).text("modes kept"));
+    match tradeoff_for(session.scene.tradeoff(), session.controls.modes) {
+        Some(r) => {
+            ui.label(format!(
+                "expected error (measured at {} modes): surface {:.1}%, probe {:.1}%",
+                r.modes,
+                100.0 * r.surface_rel_error,
+                100.0 * r.probe_rel_error
+            ));
+            ui.label(format!(
+                "expected time: surface {:.0} µs, contact {:.0} ns",
+                r.surface_eval_us, r.contact_eval_ns
+            ));
+        }
+        None => {
+            ui.label("this file has no tradeoff table (run palpa tradeoff FILE)");
+        }
+    }
+    ui.separator();
+
+    ui.heading("Probe");
+    ui.horizontal(|ui| {
+        ui.radio_value(&mut session.controls.mode, PressMode::Depth, "depth (drag)");
+        ui.radio_value(&mut session.controls.mode, PressMode::Force, "force");
+    });
+    if session.controls.mode == PressMode::Force {
+        let max = session.controls.mapping.max_force_n;
+        ui.add(egui::Slider::new(&mut session.controls.force_n, 0.0..=max).text("N"));
+        ui.checkbox(&mut session.controls.pressing, "pressing");
+    }
+    let s = session.sample;
+    if s.status == crate::force::STATUS_OK {
+        ui.label(format!(
+            "force {:.2} N · depth {:.2} mm · compliance {:.3} mm/N",
+            s.magnitude_n, s.depth_mm, s.compliance_mm_per_n
+        ));
+    } else if s.status == crate::force::STATUS_FAILED {
+        ui.colored_label(
+            Color32::from_rgb(255, 120, 90),
+            "no force: too few modes for a positive compliance here",
+        );
+    } else {
+        ui.label("probe lifted");
+    }
+    force_plot(ui, session);
+    ui.separator();
+
+    ui.heading("View");
+    let mut on = session.colormap_mm.is_some();
+    ui.checkbox(&mut on, "colour by displacement");
+    if on {
+        let mut top = session.colormap_mm.unwrap_or(10.0);
+        ui.add(
+            egui::Slider::new(&mut top, 0.5..=40.0)
+                .logarithmic(true)
+                .text("mm at top"),
+        );
+        legend(ui, top);
+        session.colormap_mm = Some(top);
+    } else {
+        session.colormap_mm = None;
+    }
+    ui.separator();
+
+    ui.heading("Live");
+    let st = session.force.stats();
+    ui.label(format!(
+        "frame {:.1} ms (p95 {:.1}) · render eval {:.1} µs",
+        hud.frame_ms.quantile(0.5),
+        hud.frame_ms.quantile(0.95),
+        session.render_eval_us.quantile(0.5)
+    ));
+    ui.label(format!(
+        "force loop {:.1} Hz · p99 period {:.0} µs · missed {} · contact {:.2} µs ({})",
+        st.rate_hz,
+        st.period_us_p99,
+        st.missed_deadlines,
+        st.eval_us_p50,
+        crate::priority::name(st.priority)
+    ));
+    ui.label(match &hud.gamepad {
+        Some(name) => format!("gamepad: {name}"),
+        None => "gamepad: none found".into(),
+    });
+    ui.separator();
+
+    ui.collapsing("Scene", |ui| {
+        let m = session.scene.model();
+        ui.label(&hud.scene_source);
+        ui.label(format!(
+            "{} surface vertices, {} triangles, {} modes ({})",
+            session.scene.vertices_mm().len(),
+            session.scene.triangles().len(),
+            m.modes(),
+            m.precision().name()
+        ));
+        let desc = &m.provenance().mesh;
+        let get = |k| palpa_core::pgd::palpation::describe_get(desc, k).unwrap_or("?");
+        ui.label(format!(
+            "material: linear elastic, E = {} kPa, ν = {}; tool radius {} mm; {} elements",
+            get("young_kpa"),
+            get("poisson"),
+            get("radius_mm"),
+            get("element")
+        ));
+    });
+    ui.horizontal(|ui| {
+        if ui.button("Screenshot").clicked() {
+            hud.screenshot_requested = true;
+        }
+        if ui.button("Help (H)").clicked() {
+            hud.show_help = !hud.show_help;
+        }
+    });
+    if let Some(p) = &hud.last_screenshot {
+        ui.label(format!("saved {p}"));
+    }
+}
+
+fn force_plot(ui: &mut egui::Ui, session: &Session) {
+    let h = &session.force_history;
+    let now = h.x.last().unwrap_or(0.0);
+    let points: Vec<[f64; 2]> =
+        h.x.iter()
+            .zip(h.y.iter())
+            .filter(|(t, _)| now - t <= 10.0)
+            .map(|(t, f)| [t - now, f])
+            .collect();
+    egui_plot::Plot::new("force")
+        .height(90.0)
+        .include_y(0.0)
+        .include_y(1.0)
+        .allow_zoom(false)
+        .allow_drag(false)
+        .allow_scroll(false)
+        .show(ui, |plot| {
+            plot.line(egui_plot::Line::new("|F| (N) over the last 10 s", points));
+        });
+}
+
+/// The colormap's legend: the ramp of `surface.wgsl` with its end values.
+fn legend(ui: &mut egui::Ui, top_mm: f32) {
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(240.0, 14.0), egui::Sense::hover());
+    let steps = 48;
+    for i in 0..steps {
+        let t0 = i as f32 / steps as f32;
+        let x0 = rect.left() + rect.width() * t0;
+        let x1 = rect.left() + rect.width() * (i + 1) as f32 / steps as f32;
+        let r = egui::Rect::from_min_max(egui::pos2(x0, rect.top()), egui::pos2(x1, rect.bottom()));
+        ui.painter()
+            .rect_filled(r, 0.0, ramp(t0 + 0.5 / steps as f32));
+    }
+    ui.horizontal(|ui| {
+        ui.label("0 mm");
+        ui.add_space(150.0);
+        ui.label(format!("{top_mm:.1} mm"));
+    });
+}
+
+/// The same ramp as `shaders/surface.wgsl` (linear values, shown through sRGB).
+pub fn ramp(t: f32) -> Color32 {
+    let x = t.clamp(0.0, 1.0);
+    let c = |k: f32| (1.5 - (4.0 * x - k).abs()).clamp(0.0, 1.0);
+    egui::Rgba::from_rgb(c(3.0), c(2.0), c(1.0)).into()
+}
+
+fn help(ui: &mut egui::Ui) {
+    egui::Grid::new("help").striped(true).show(ui, |ui| {
+        for (what, how) in [
+            (
+                "Press (mouse)",
+                "left-press on the lighter, palpable surface; drag down to indent",
+            ),
+            (
+                "Press (touch)",
+                "rest a finger on the surface for ¼ s, then drag down",
+            ),
+            ("Press (gamepad)", "right trigger (force-controlled)"),
+            ("Move the probe (gamepad)", "left stick"),
+            (
+                "Orbit",
+                "left-drag off the organ · one-finger swipe · right stick",
+            ),
+            ("Pan", "right- or middle-drag · two-finger drag"),
+            ("Zoom", "wheel · pinch"),
+            ("Colormap", "C"),
+            ("Help", "H or F1"),
+        ] {
+            ui.label(what);
+            ui.label(how);
+            ui.end_row();
+        }
+    });
+}
