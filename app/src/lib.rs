@@ -28,4 +28,6 @@ pub mod render;
 pub mod scenes;
 pub mod session;
 pub mod stats;
+pub mod surface;
 pub mod ui;
+pub mod window;

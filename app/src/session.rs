@@ -37,6 +37,8 @@ pub struct Session {
     pub render_eval_us: Ring,
     /// |F| over time (s since start, N), for the plot.
     pub force_history: Ring2,
+    /// Where the mouse last was (mouse button events carry no position).
+    pub last_pointer_px: Vec2,
     started: Instant,
     coeffs: Vec<f64>,
     deformed_mm: Vec<[f32; 3]>,
@@ -79,6 +81,7 @@ impl Session {
                 x: Ring::new(2000),
                 y: Ring::new(2000),
             },
+            last_pointer_px: Vec2::ZERO,
             started: Instant::now(),
             coeffs: vec![0.0; n],
             deformed_mm: vertices,
@@ -89,6 +92,14 @@ impl Session {
 
     /// Handles one input event (picking against the currently shown deformation).
     pub fn handle(&mut self, ev: InputEvent, viewport_px: Vec2) {
+        if let InputEvent::PointerMove {
+            id: crate::input::PointerId::Mouse,
+            pos_px,
+            ..
+        } = ev
+        {
+            self.last_pointer_px = pos_px;
+        }
         let needs_pick = matches!(
             ev,
             InputEvent::PointerDown { .. } | InputEvent::Gamepad { .. }

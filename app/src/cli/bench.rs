@@ -29,19 +29,6 @@ pub enum BenchCommand {
     Fe(super::bench_fe::FeBenchArgs),
 }
 
-impl BenchCommand {
-    /// A short sweep for the default job.
-    pub fn quick() -> Self {
-        BenchCommand::Eval(EvalArgs {
-            rows: vec![10_000, 30_000],
-            modes: vec![50, 167],
-            precision: vec![Precision::F32, Precision::F64],
-            min_time_ms: 150,
-            json: false,
-        })
-    }
-}
-
 #[derive(Debug, Args)]
 pub struct EvalArgs {
     /// Field rows (node × component), comma-separated.

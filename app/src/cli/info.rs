@@ -16,12 +16,6 @@ pub struct InfoArgs {
     json: bool,
 }
 
-impl InfoArgs {
-    pub fn new(file: PathBuf, json: bool) -> Self {
-        InfoArgs { file, json }
-    }
-}
-
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let h = file::read_header(&args.file)
         .with_context(|| format!("reading the header of {}", args.file.display()))?;

@@ -50,6 +50,8 @@ enum Command {
     ExportScene(pgd::ExportSceneArgs),
     /// Measure the speed/accuracy table of a vademecum and store it in its header.
     Tradeoff(tradeoff::TradeoffArgs),
+    /// Open the interactive app in a window (the default with no subcommand).
+    Open(OpenArgs),
     /// Render frames offscreen with a scripted probe while the force thread runs; report timings.
     Headless(headless::HeadlessArgs),
 }
@@ -89,34 +91,21 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::ExportScene(args)) => pgd::export_scene(&args),
         Some(Command::Tradeoff(args)) => tradeoff::run(&args),
         Some(Command::Headless(args)) => headless::run_cmd(&args),
+        Some(Command::Open(args)) => crate::window::run(&args.scene),
         None => default_job(),
     }
 }
 
-/// The default scene shipped in `assets/`.
-const DEFAULT_SCENE: &str = "assets/liver-coarse.palpa";
+/// Options of the interactive app.
+#[derive(Debug, clap::Args)]
+pub struct OpenArgs {
+    /// `liver` (the default scene shipped in assets/, built into the binary) or a
+    /// palpation `.palpa` file (e.g. one written by `palpa export-scene`).
+    #[arg(long, default_value = "liver")]
+    scene: String,
+}
 
-/// With no subcommand: the interactive app once it lands; until then, what the shipped
-/// scene holds, one evaluation of it, and a short evaluator benchmark.
+/// With no subcommand: the interactive app on the default scene.
 fn default_job() -> anyhow::Result<()> {
-    println!(
-        "palpa {} — real-time PGD meta-models",
-        env!("CARGO_PKG_VERSION")
-    );
-    println!(
-        "The interactive palpation app is not built yet (see README for the commands).\n\n\
-         Default scene: {DEFAULT_SCENE}"
-    );
-    let scene = std::path::Path::new(DEFAULT_SCENE);
-    if scene.exists() {
-        info::run(&info::InfoArgs::new(scene.into(), true))?;
-        println!(
-            "\nPressing it with 1 N at the anterior right lobe (no solving, just evaluation):"
-        );
-        pgd::eval(&pgd::EvalArgs::new(scene.into(), [-30.0, 90.0, 25.0], 1.0))?;
-    } else {
-        println!("(not found: run from the repository root, or scripts/make-assets.sh)");
-    }
-    println!("\nEvaluator speed against memory bandwidth, short sweep:\n");
-    bench::run(&bench::BenchCommand::quick())
+    crate::window::run("liver")
 }

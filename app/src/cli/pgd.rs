@@ -178,22 +178,6 @@ pub struct EvalArgs {
     json: bool,
 }
 
-impl EvalArgs {
-    pub fn new(file: PathBuf, at: [f64; 3], force_n: f64) -> Self {
-        EvalArgs {
-            file,
-            probe: ProbeArgs {
-                at: at.to_vec(),
-                force_n,
-                dir: None,
-            },
-            modes: None,
-            out: None,
-            json: true,
-        }
-    }
-}
-
 pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     match file::load_any(&args.file).with_context(|| format!("loading {}", args.file.display()))? {
         palpa_core::AnyModel::F32(m) => eval_model(&m, args),

@@ -1,0 +1,391 @@
+//! The interactive app in a window (winit): events to [`InputEvent`]s, the visual loop
+//! at the display rate (vsync), the egui interface, gamepads, screenshots.
+//!
+//! ```text
+//! winit event loop (main thread)           palpa-force (1 kHz)
+//! ──────────────────────────────           ───────────────────
+//! events → egui first, then Controls       reads the latest ProbeCommand
+//! RedrawRequested:                         evaluates the contact (9 rows)
+//!   gamepad poll, rumble                   publishes the latest ForceSample
+//!   Session::frame → coefficients
+//!   compute deform + draw + egui → present
+//! ```
+//!
+//! Nothing here is desktop-only: on Android the same handler runs under
+//! `android_main` ([`crate::platform`]), with the surface created on `resumed` and
+//! dropped on `suspended`.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Context;
+use glam::Vec2;
+use winit::application::ApplicationHandler;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, TouchPhase, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{Key, NamedKey};
+use winit::window::{Window, WindowId};
+
+use crate::force::AtomicHaptics;
+use crate::gamepad::Gamepads;
+use crate::input::{Button, InputEvent, PointerId};
+use crate::overlay::Overlay;
+use crate::render::Renderer;
+use crate::render::gpu::Gpu;
+use crate::render::offscreen::{FORMAT, Offscreen, UI_FORMAT};
+use crate::session::Session;
+use crate::surface::SurfaceHost;
+use crate::ui::Hud;
+
+/// GPU state, created at the first resume (it needs a surface to pick an adapter).
+struct Graphics {
+    gpu: Gpu,
+    renderer: Renderer,
+    overlay: Overlay,
+    egui: egui_winit::State,
+}
+
+/// The app: everything that outlives a surface.
+pub struct App {
+    session: Session,
+    hud: Hud,
+    haptics: AtomicHaptics,
+    gamepads: Gamepads,
+    window: Option<Arc<Window>>,
+    surface: SurfaceHost,
+    graphics: Option<Graphics>,
+    /// A failure that ends the app (reported by [`run`] after the loop).
+    fatal: Option<anyhow::Error>,
+    started: Instant,
+}
+
+impl std::fmt::Debug for App {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("App")
+            .field("session", &self.session)
+            .finish_non_exhaustive()
+    }
+}
+
+impl App {
+    /// Opens `scene` (`liver` or a file); if it cannot be opened, the built-in scene is
+    /// shown with a notice saying why.
+    pub fn new(scene: &str) -> anyhow::Result<Self> {
+        let (loaded, message) = crate::scenes::load_or_default(scene)?;
+        let haptics = AtomicHaptics::default();
+        let session = Session::new(loaded.scene, Box::new(haptics.clone()))
+            .context("starting the force thread")?;
+        let mut hud = Hud::new(loaded.source);
+        hud.message = message;
+        Ok(App {
+            session,
+            hud,
+            haptics,
+            gamepads: Gamepads::new(),
+            window: None,
+            surface: SurfaceHost::default(),
+            graphics: None,
+            fatal: None,
+            started: Instant::now(),
+        })
+    }
+
+    fn viewport(&self) -> Vec2 {
+        self.surface
+            .size()
+            .map_or(Vec2::ONE, |(w, h)| Vec2::new(w as f32, h as f32))
+    }
+
+    fn start_graphics(&mut self, event_loop: &ActiveEventLoop) -> anyhow::Result<()> {
+        let window = match &self.window {
+            Some(w) => Arc::clone(w),
+            None => {
+                let attrs = Window::default_attributes()
+                    .with_title("palpa — liver palpation")
+                    .with_inner_size(winit::dpi::LogicalSize::new(1280.0, 720.0));
+                let w = Arc::new(
+                    event_loop
+                        .create_window(attrs)
+                        .context("cannot open a window")?,
+                );
+                self.window = Some(Arc::clone(&w));
+                w
+            }
+        };
+        if self.graphics.is_none() {
+            let desc = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
+                event_loop.owned_display_handle(),
+            ));
+            let instance = wgpu::Instance::new(desc);
+            self.surface.create(&instance, Arc::clone(&window))?;
+            let gpu = Gpu::with_instance(instance, self.surface.surface())?;
+            let formats = self.surface.configure(&gpu)?;
+            let renderer = Renderer::new(&gpu.device, formats.scene, &self.session.scene);
+            let overlay = Overlay::new(&gpu.device, formats.surface);
+            let egui = egui_winit::State::new(
+                overlay.ctx.clone(),
+                egui::ViewportId::ROOT,
+                &window,
+                Some(window.scale_factor() as f32),
+                None,
+                Some(gpu.device.limits().max_texture_dimension_2d as usize),
+            );
+            tracing::info!("rendering on {:?}", gpu.report());
+            self.graphics = Some(Graphics {
+                gpu,
+                renderer,
+                overlay,
+                egui,
+            });
+        } else if let Some(g) = &self.graphics {
+            // Resumed after a suspend: a new surface for the same device.
+            self.surface.create(&g.gpu.instance, Arc::clone(&window))?;
+            self.surface.configure(&g.gpu)?;
+        }
+        Ok(())
+    }
+
+    fn redraw(&mut self) {
+        let frame_start = Instant::now();
+        let viewport = self.viewport();
+        if let Some(ev) = self.gamepads.poll() {
+            self.session.handle(ev, viewport);
+        }
+        self.gamepads.rumble(&self.haptics);
+        self.hud.gamepad = self.gamepads.name();
+        let (Some(g), Some(window)) = (self.graphics.as_mut(), self.window.clone()) else {
+            return;
+        };
+        let Some(frame) = self.surface.acquire(&g.gpu, &g.gpu.instance) else {
+            return;
+        };
+        let size = (
+            frame.texture.texture.width(),
+            frame.texture.texture.height(),
+        );
+        let mut encoder = g.gpu.device.create_command_encoder(&Default::default());
+        let input = self.session.frame();
+        g.renderer.encode(
+            &g.gpu.device,
+            &g.gpu.queue,
+            &mut encoder,
+            &frame.view,
+            size,
+            &input,
+        );
+        let raw = g.egui.take_egui_input(&window);
+        let (session, hud) = (&mut self.session, &mut self.hud);
+        let output = g.overlay.paint(
+            &g.gpu.device,
+            &g.gpu.queue,
+            &mut encoder,
+            &frame.ui_view,
+            size,
+            window.scale_factor() as f32,
+            raw,
+            |ctx| crate::ui::show(ctx, session, hud),
+        );
+        g.egui.handle_platform_output(&window, output);
+        g.gpu.queue.submit([encoder.finish()]);
+        window.pre_present_notify();
+        g.gpu.queue.present(frame.texture);
+        if self.hud.screenshot_requested {
+            self.hud.screenshot_requested = false;
+            match self.screenshot(size) {
+                Ok(p) => self.hud.last_screenshot = Some(p),
+                Err(e) => self.hud.message = Some(format!("screenshot failed: {e:#}")),
+            }
+        }
+        self.hud
+            .frame_ms
+            .push(frame_start.elapsed().as_secs_f64() * 1e3);
+    }
+
+    /// Renders the current frame offscreen (with the interface) and saves it as PNG in
+    /// the working folder.
+    fn screenshot(&mut self, size: (u32, u32)) -> anyhow::Result<String> {
+        let g = self.graphics.as_mut().context("no GPU yet")?;
+        let target = Offscreen::new(&g.gpu.device, size);
+        let mut renderer = Renderer::new(&g.gpu.device, FORMAT, &self.session.scene);
+        let mut overlay = Overlay::new(&g.gpu.device, UI_FORMAT);
+        let mut encoder = g.gpu.device.create_command_encoder(&Default::default());
+        let input = self.session.frame();
+        renderer.encode(
+            &g.gpu.device,
+            &g.gpu.queue,
+            &mut encoder,
+            &target.view,
+            size,
+            &input,
+        );
+        let (session, hud) = (&mut self.session, &mut self.hud);
+        let raw = crate::overlay::headless_input(size, 1.0, self.started.elapsed().as_secs_f64());
+        overlay.paint(
+            &g.gpu.device,
+            &g.gpu.queue,
+            &mut encoder,
+            &target.ui_view,
+            size,
+            1.0,
+            raw,
+            |ctx| crate::ui::show(ctx, session, hud),
+        );
+        target.encode_copy(&mut encoder);
+        g.gpu.queue.submit([encoder.finish()]);
+        let image = target.read(&g.gpu.device)?;
+        let secs = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        let path = format!("palpa-screenshot-{secs}.png");
+        image.save_png(std::path::Path::new(&path))?;
+        Ok(path)
+    }
+
+    fn pointer(&mut self, ev: InputEvent) {
+        let viewport = self.viewport();
+        self.session.handle(ev, viewport);
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if let Err(e) = self.start_graphics(event_loop) {
+            self.fatal = Some(e);
+            event_loop.exit();
+        }
+    }
+
+    fn suspended(&mut self, _event_loop: &ActiveEventLoop) {
+        self.surface.suspend();
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        if let (Some(g), Some(w)) = (self.graphics.as_mut(), self.window.as_ref())
+            && g.egui.on_window_event(w, &event).consumed
+        {
+            return;
+        }
+        let t = self.started.elapsed().as_secs_f64();
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                if let Some(g) = &self.graphics {
+                    self.surface.resize(&g.gpu, size.width, size.height);
+                }
+            }
+            WindowEvent::RedrawRequested => self.redraw(),
+            WindowEvent::CursorMoved { position, .. } => self.pointer(InputEvent::PointerMove {
+                id: PointerId::Mouse,
+                pos_px: Vec2::new(position.x as f32, position.y as f32),
+                time_s: t,
+            }),
+            WindowEvent::MouseInput { state, button, .. } => {
+                let button = match button {
+                    MouseButton::Left => Button::Primary,
+                    MouseButton::Right => Button::Secondary,
+                    MouseButton::Middle => Button::Middle,
+                    _ => return,
+                };
+                let ev = match state {
+                    ElementState::Pressed => InputEvent::PointerDown {
+                        id: PointerId::Mouse,
+                        button,
+                        pos_px: self.cursor(),
+                        time_s: t,
+                    },
+                    ElementState::Released => InputEvent::PointerUp {
+                        id: PointerId::Mouse,
+                        time_s: t,
+                    },
+                };
+                self.pointer(ev);
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                self.pointer(InputEvent::Wheel { lines });
+            }
+            WindowEvent::Touch(touch) => {
+                let id = PointerId::Touch(touch.id);
+                let pos_px = Vec2::new(touch.location.x as f32, touch.location.y as f32);
+                self.pointer(match touch.phase {
+                    TouchPhase::Started => InputEvent::PointerDown {
+                        id,
+                        button: Button::Primary,
+                        pos_px,
+                        time_s: t,
+                    },
+                    TouchPhase::Moved => InputEvent::PointerMove {
+                        id,
+                        pos_px,
+                        time_s: t,
+                    },
+                    TouchPhase::Ended | TouchPhase::Cancelled => {
+                        InputEvent::PointerUp { id, time_s: t }
+                    }
+                });
+            }
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                match event.logical_key {
+                    Key::Named(NamedKey::F1) => self.hud.show_help = !self.hud.show_help,
+                    Key::Character(c) if c.eq_ignore_ascii_case("h") => {
+                        self.hud.show_help = !self.hud.show_help
+                    }
+                    Key::Character(c) if c.eq_ignore_ascii_case("c") => {
+                        self.session.colormap_mm = match self.session.colormap_mm {
+                            Some(_) => None,
+                            None => Some(10.0),
+                        };
+                    }
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        // Continuous redraw: vsync (AutoVsync) paces the loop at the display rate.
+        match &self.window {
+            Some(w) if self.surface.size().is_some() => {
+                event_loop.set_control_flow(ControlFlow::Poll);
+                w.request_redraw();
+            }
+            _ => event_loop.set_control_flow(ControlFlow::WaitUntil(
+                Instant::now() + crate::gamepad::POLL_INTERVAL,
+            )),
+        }
+    }
+}
+
+impl App {
+    /// The last known cursor position (egui-winit tracks it; we keep our own copy).
+    fn cursor(&self) -> Vec2 {
+        self.session.last_pointer_px
+    }
+}
+
+/// Runs the app on `event_loop` until the window closes.
+pub fn run_on(event_loop: EventLoop<()>, scene: &str) -> anyhow::Result<()> {
+    let mut app = App::new(scene)?;
+    event_loop
+        .run_app(&mut app)
+        .context("the event loop failed")?;
+    match app.fatal.take() {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+/// The desktop app: opens a window on `scene`.
+pub fn run(scene: &str) -> anyhow::Result<()> {
+    let event_loop = EventLoop::new().map_err(|e| {
+        anyhow::anyhow!(
+            "cannot open a window ({e}): no display found. Set DISPLAY or WAYLAND_DISPLAY, \
+             run under `xvfb-run`, or use `palpa headless` to render offscreen"
+        )
+    })?;
+    run_on(event_loop, scene)
+}
