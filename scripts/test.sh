@@ -1,10 +1,17 @@
 #!/usr/bin/env bash
-# Every test of the workspace: unit, integration, property, doc tests, and each
-# benchmark run once in test mode. This is exactly what CI runs (.ci/run).
+# Every test of the workspace: unit, integration, property, doc tests, GPU tests on
+# Mesa's software Vulkan driver (lavapipe), and each benchmark run once in test mode.
+# This is exactly what CI runs (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/deps.sh
+# --gpu: lavapipe for the rendering tests, libudev for gilrs.
+scripts/deps.sh --gpu
 [[ -f "$HOME/.cargo/env" ]] && source "$HOME/.cargo/env"
 export CARGO_TERM_COLOR=never
+# Mesa wants a private runtime folder; without one it prints a harmless complaint.
+if [[ -z "${XDG_RUNTIME_DIR:-}" || ! -d "${XDG_RUNTIME_DIR}" ]]; then
+  XDG_RUNTIME_DIR=$(mktemp -d)
+  export XDG_RUNTIME_DIR
+fi
 cargo test --locked --workspace --all-targets
 cargo test --locked --workspace --doc

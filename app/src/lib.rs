@@ -23,6 +23,7 @@ pub mod input;
 pub mod latest;
 pub mod overlay;
 pub mod pick;
+pub mod platform;
 pub mod priority;
 pub mod render;
 pub mod scenes;

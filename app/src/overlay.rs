@@ -40,7 +40,7 @@ impl Overlay {
         input: egui::RawInput,
         mut ui: impl FnMut(&egui::Context),
     ) -> egui::PlatformOutput {
-        let output = self.ctx.run_pass(input, |ctx| ui(ctx));
+        let mut output = self.ctx.run_pass(input, |ctx| ui(ctx));
         let jobs = self.ctx.tessellate(output.shapes, output.pixels_per_point);
         for (id, deltas) in &output.textures_delta.set {
             for delta in deltas {
@@ -81,6 +81,8 @@ impl Overlay {
         for id in &output.textures_delta.free {
             self.renderer.free_texture(id);
         }
+        // Applied above; epaint asserts (in debug builds) that deltas are not dropped unseen.
+        output.textures_delta.clear();
         output.platform_output
     }
 }

@@ -1,0 +1,122 @@
+//! `palpa headless` end to end on the software adapter: the JSON report, the PNG, and
+//! clear errors for bad input.
+
+use std::process::Command;
+
+fn palpa(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(args)
+        // Vulkan (lavapipe) only: the GL probe prints driver noise and is not needed.
+        .env("WGPU_BACKEND", "vulkan")
+        .output()
+        .expect("palpa runs")
+}
+
+#[test]
+fn headless_renders_frames_and_reports_the_loops() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = dir.path().join("shot.png");
+    let out = palpa(&[
+        "headless",
+        "--frames",
+        "40",
+        "--size",
+        "320x200",
+        "--fps",
+        "0",
+        "--out",
+        png.to_str().expect("utf-8"),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    for key in [
+        "frames",
+        "frame_ms_p50",
+        "frame_ms_p95",
+        "eval_us_p50",
+        "force_hz",
+        "force_period_us_p50",
+        "force_period_us_p99",
+        "missed_deadlines",
+    ] {
+        assert!(v[key].is_number(), "{key} missing in {v}");
+    }
+    assert_eq!(v["frames"], 40);
+    for key in ["name", "backend", "device_type"] {
+        assert!(v["adapter"][key].is_string(), "adapter.{key} missing");
+    }
+    // The scripted path presses at the end: a positive force and the depth it scripted.
+    assert!(v["final_force_n"].as_f64().expect("number") > 0.1);
+    assert!(v["force_ticks"].as_u64().expect("number") > 0);
+    let img = palpa_app::render::offscreen::Image::load_png(&png).expect("a PNG was written");
+    assert_eq!((img.width, img.height), (320, 200));
+}
+
+#[test]
+fn headless_bad_input_gets_clear_errors() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec!["--size".into(), "0x10".into()], "WIDTHxHEIGHT"),
+        (vec!["--size".into(), "big".into()], "WIDTHxHEIGHT"),
+        (vec!["--frames".into(), "0".into()], "at least one frame"),
+        (vec!["--fps".into(), "NaN".into()], "frame rate"),
+        (
+            vec![
+                "--scene".into(),
+                dir.path().join("nope.palpa").display().to_string(),
+            ],
+            "cannot open the scene",
+        ),
+        (
+            vec!["--probe-path".into(), {
+                let p = dir.path().join("path.json");
+                std::fs::write(
+                    &p,
+                    r#"{"keyframes": [{"t_s": 1, "at_mm": [0,0,0], "depth_mm": -2}]}"#,
+                )
+                .expect("write");
+                p.display().to_string()
+            }],
+            "expected ≥ 0",
+        ),
+        (
+            vec!["--probe-path".into(), {
+                let p = dir.path().join("garbage.json");
+                std::fs::write(&p, "not json").expect("write");
+                p.display().to_string()
+            }],
+            "expected {\"keyframes\"",
+        ),
+    ];
+    for (args, want) in cases {
+        let mut all = vec!["headless".to_string()];
+        if !args.iter().any(|a| a == "--frames") {
+            all.extend(["--frames".into(), "2".into()]);
+        }
+        all.extend(args.iter().cloned());
+        let refs: Vec<&str> = all.iter().map(String::as_str).collect();
+        let out = palpa(&refs);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(err.contains(want), "{args:?}: expected {want:?} in: {err}");
+        assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    }
+}
+
+#[test]
+fn a_file_that_is_not_a_palpation_scene_is_refused_by_name() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let f = dir.path().join("s.palpa");
+    let f = f.to_str().expect("utf-8");
+    let out = palpa(&["synth", "--rows", "30", "--modes", "4", "--out", f]);
+    assert!(out.status.success());
+    let out = palpa(&["headless", "--frames", "2", "--scene", f]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("is not a palpation scene"), "{err}");
+}
