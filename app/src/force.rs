@@ -362,7 +362,7 @@ impl Worker {
             command: *cmd,
             ..ForceSample::default()
         };
-        if cmd.active == 0 || !(cmd.target > 0.0) {
+        if cmd.active == 0 || cmd.target.is_nan() || cmd.target <= 0.0 {
             s.status = STATUS_IDLE;
             return s;
         }

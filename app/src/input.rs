@@ -212,7 +212,7 @@ impl Controls {
                 time_s,
             } => self.down(id, button, pos_px, time_s, picker),
             InputEvent::PointerMove { id, pos_px, time_s } => {
-                self.moved(id, pos_px, time_s, viewport_px)
+                self.moved(id, pos_px, time_s, viewport_px);
             }
             InputEvent::PointerUp { id, .. } => self.up(id),
             InputEvent::Wheel { lines } => self.camera.zoom(0.9f32.powf(lines)),

@@ -88,7 +88,7 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
             .collapsible(false)
             .resizable(false)
             .open(&mut hud.show_help)
-            .show(ctx, |ui| help(ui));
+            .show(ctx, help);
     }
 }
 

@@ -331,7 +331,7 @@ impl ApplicationHandler for App {
                 match event.logical_key {
                     Key::Named(NamedKey::F1) => self.hud.show_help = !self.hud.show_help,
                     Key::Character(c) if c.eq_ignore_ascii_case("h") => {
-                        self.hud.show_help = !self.hud.show_help
+                        self.hud.show_help = !self.hud.show_help;
                     }
                     Key::Character(c) if c.eq_ignore_ascii_case("c") => {
                         self.session.colormap_mm = match self.session.colormap_mm {

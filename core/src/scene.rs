@@ -327,7 +327,8 @@ impl PalpationScene {
             }
         }
         let compliance = w[0] * push_dir[0] + w[1] * push_dir[1] + w[2] * push_dir[2];
-        if !(compliance > 0.0) {
+        // NaN counts as non-positive.
+        if compliance.is_nan() || compliance <= 0.0 {
             return Err(ContactError::NonPositiveCompliance {
                 compliance_mm_per_n: compliance,
                 modes: n,

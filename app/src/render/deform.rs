@@ -15,6 +15,9 @@ pub const MAX_GPU_MODES: usize = 512;
 pub const STORAGE_BUFFERS: u32 = 7;
 const WORKGROUP: u32 = 64;
 
+/// One vec4 of a GPU buffer (xyz and w).
+pub type Vec4Data = [f32; 4];
+
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 #[repr(C)]
 struct Params {
@@ -205,7 +208,7 @@ impl Deform {
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-    ) -> anyhow::Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    ) -> anyhow::Result<(Vec<Vec4Data>, Vec<Vec4Data>)> {
         let size = u64::from(self.vertex_count) * 16;
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("deform read-back"),
@@ -218,7 +221,7 @@ impl Deform {
         encoder.copy_buffer_to_buffer(&self.normals, 0, &staging, size, size);
         queue.submit([encoder.finish()]);
         let bytes = super::offscreen::read_buffer(device, &staging)?;
-        let all: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        let all: &[Vec4Data] = bytemuck::cast_slice(&bytes);
         let (p, n) = all.split_at(self.vertex_count as usize);
         Ok((p.to_vec(), n.to_vec()))
     }
