@@ -20,10 +20,13 @@
 //! - [`fe`], [`export`]: the finite-element reference (P1/P2, linear and Saint
 //!   Venant–Kirchhoff) and VTU / gmsh export;
 //! - [`pgd`]: the off-line PGD solvers (the liver palpation vademecum);
+//! - [`cme`]: gene networks (TOML, separable propensities), the chemical master
+//!   equation by exact finite state projection and by stochastic simulation;
 //! - [`scene`]: a vademecum prepared for palpation (surface rows, palpable map) and the
 //!   contact law `F = d / c(s)` evaluated on nine rows.
 
 pub mod axis;
+pub mod cme;
 pub mod export;
 pub mod fe;
 pub mod file;

@@ -3,6 +3,7 @@
 mod args;
 mod bench;
 mod bench_fe;
+mod cme;
 mod fe;
 mod headless;
 mod info;
@@ -50,6 +51,9 @@ enum Command {
     ExportScene(pgd::ExportSceneArgs),
     /// Measure the speed/accuracy table of a vademecum and store it in its header.
     Tradeoff(tradeoff::TradeoffArgs),
+    /// Gene-network models: the chemical master equation.
+    #[command(subcommand)]
+    Cme(cme::CmeCommand),
     /// Open the interactive app in a window (the default with no subcommand).
     Open(OpenArgs),
     /// Render frames offscreen with a scripted probe while the force thread runs; report timings.
@@ -91,6 +95,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::ExportScene(args)) => pgd::export_scene(&args),
         Some(Command::Tradeoff(args)) => tradeoff::run(&args),
         Some(Command::Headless(args)) => headless::run_cmd(&args),
+        Some(Command::Cme(cmd)) => cme::run(&cmd),
         Some(Command::Open(args)) => crate::window::run(&args.scene),
         None => default_job(),
     }

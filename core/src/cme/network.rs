@@ -1,0 +1,500 @@
+//! Reaction networks with separable propensities, read from TOML.
+//!
+//! A network has species (each with a copy-number box `0..max`), parameters (a value,
+//! or a range with a grid: an extra coordinate of the PGD meta-model), and reactions: a
+//! change vector and a propensity that is a **product of one-species factors** times a
+//! rate (a constant times named parameters):
+//!
+//! `a_r(z; p) = k_r · Π_q p_q · Π_i f_{r,i}(z_i)`.
+//!
+//! Separability is what makes the CME operator a short sum of Kronecker products (see
+//! `METHOD-NOTES.md` §3); a factor that depends on several species is refused.
+//!
+//! ```toml
+//! name = "cascade"
+//! [[species]]
+//! name = "z1"
+//! max = 200          # states 0..199 (or "auto": FSP grows the box until the leak is small)
+//! initial = 0
+//! [[parameters]]
+//! name = "delta"
+//! range = [0.01, 0.045]
+//! grid = 36
+//! value = 0.02       # used when no value is given on the command line
+//! [[reactions]]
+//! change = { z1 = -1 }
+//! rate = ["delta"]   # numbers and parameter names, multiplied
+//! factors = [{ species = "z1", kind = "linear" }]
+//! ```
+//!
+//! Factor kinds: `linear` (z), `hill_repression` (β/(β + γ zⁿ)), `saturation`
+//! (βz/(βz + γ)), `hill_activation` (βzⁿ/(βzⁿ + γ)); a reaction with no factor has a
+//! constant propensity.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+use thiserror::Error;
+
+/// Why a network description was refused.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum NetworkError {
+    #[error("{source_name}: {message}")]
+    Syntax {
+        source_name: String,
+        message: String,
+    },
+    #[error("{source_name}: {what}")]
+    Invalid { source_name: String, what: String },
+    #[error(
+        "unknown built-in network {0:?}; expected toggle, cascade or signaling-cascade-D (D = 2..20)"
+    )]
+    UnknownBuiltIn(String),
+}
+
+/// One species.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Species {
+    pub name: String,
+    /// Box size: copy numbers `0..max`; `None`: automatic.
+    pub max: Option<usize>,
+    pub initial: usize,
+}
+
+/// One parameter: a fixed value, or a range that becomes a coordinate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parameter {
+    pub name: String,
+    pub value: f64,
+    /// `(lo, hi, grid points)` when the parameter is an extra coordinate.
+    pub range: Option<(f64, f64, usize)>,
+}
+
+/// A one-species factor of a propensity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Factor {
+    Linear,
+    HillRepression { beta: f64, gamma: f64, n: f64 },
+    Saturation { beta: f64, gamma: f64 },
+    HillActivation { beta: f64, gamma: f64, n: f64 },
+}
+
+impl Factor {
+    pub fn eval(&self, z: f64) -> f64 {
+        match *self {
+            Factor::Linear => z,
+            Factor::HillRepression { beta, gamma, n } => beta / (beta + gamma * z.powf(n)),
+            Factor::Saturation { beta, gamma } => beta * z / (beta * z + gamma),
+            Factor::HillActivation { beta, gamma, n } => {
+                let zn = z.powf(n);
+                if zn == 0.0 {
+                    0.0
+                } else {
+                    beta * zn / (beta * zn + gamma)
+                }
+            }
+        }
+    }
+}
+
+/// One reaction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reaction {
+    pub name: String,
+    /// Change of each species' copy number (one entry per species).
+    pub change: Vec<i32>,
+    /// Constant part of the rate.
+    pub constant: f64,
+    /// Parameters multiplying the rate (indices into [`Network::parameters`]).
+    pub params: Vec<usize>,
+    /// `(species index, factor)`; at most one factor per species.
+    pub factors: Vec<(usize, Factor)>,
+}
+
+/// A reaction network with separable propensities.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Network {
+    pub name: String,
+    pub species: Vec<Species>,
+    pub parameters: Vec<Parameter>,
+    pub reactions: Vec<Reaction>,
+}
+
+impl Network {
+    /// Propensity of reaction `r` at state `z` with parameter values `p`.
+    pub fn propensity(&self, r: usize, z: &[i64], p: &[f64]) -> f64 {
+        let re = &self.reactions[r];
+        let mut a = re.constant;
+        for &q in &re.params {
+            a *= p[q];
+        }
+        for &(i, f) in &re.factors {
+            a *= f.eval(z[i] as f64);
+        }
+        a
+    }
+
+    /// The parameters' values: the defaults, overridden by `set` (name, value).
+    /// A value outside a range parameter's range is clamped and reported.
+    pub fn parameter_values(
+        &self,
+        set: &[(String, f64)],
+    ) -> Result<(Vec<f64>, Vec<String>), NetworkError> {
+        let mut v: Vec<f64> = self.parameters.iter().map(|p| p.value).collect();
+        let mut clamped = Vec::new();
+        for (name, value) in set {
+            let Some(i) = self.parameters.iter().position(|p| &p.name == name) else {
+                return Err(self.invalid(format!(
+                    "no parameter {name:?}; the network has {}",
+                    self.parameters
+                        .iter()
+                        .map(|p| p.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )));
+            };
+            if !value.is_finite() || *value < 0.0 {
+                return Err(self.invalid(format!(
+                    "parameter {name} = {value}: expected a finite value ≥ 0"
+                )));
+            }
+            let mut x = *value;
+            if let Some((lo, hi, _)) = self.parameters[i].range
+                && !(lo..=hi).contains(&x)
+            {
+                x = x.clamp(lo, hi);
+                clamped.push(format!(
+                    "{name} = {value} is outside its trained range [{lo}, {hi}]: clamped to {x}"
+                ));
+            }
+            v[i] = x;
+        }
+        Ok((v, clamped))
+    }
+
+    fn invalid(&self, what: String) -> NetworkError {
+        NetworkError::Invalid {
+            source_name: self.name.clone(),
+            what,
+        }
+    }
+
+    /// Parses a TOML description; `source_name` names it in errors (a file path).
+    pub fn from_toml(text: &str, source_name: &str) -> Result<Self, NetworkError> {
+        let raw: RawNetwork = toml::from_str(text).map_err(|e| NetworkError::Syntax {
+            source_name: source_name.to_string(),
+            message: line_message(text, &e),
+        })?;
+        raw.build(source_name)
+    }
+
+    /// A built-in network by name: `toggle`, `cascade`, `signaling-cascade-D`.
+    pub fn built_in(name: &str) -> Result<Self, NetworkError> {
+        let text = match name {
+            "toggle" => TOGGLE.to_string(),
+            "cascade" => CASCADE.to_string(),
+            _ => match name
+                .strip_prefix("signaling-cascade-")
+                .and_then(|d| d.parse::<usize>().ok())
+            {
+                Some(d) if (2..=20).contains(&d) => signaling_cascade(d),
+                _ => return Err(NetworkError::UnknownBuiltIn(name.to_string())),
+            },
+        };
+        Self::from_toml(&text, name)
+    }
+}
+
+fn line_message(text: &str, e: &toml::de::Error) -> String {
+    match e.span() {
+        Some(span) => {
+            let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
+            format!("line {line}: {}", e.message())
+        }
+        None => e.message().to_string(),
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawNetwork {
+    name: String,
+    species: Vec<RawSpecies>,
+    #[serde(default)]
+    parameters: Vec<RawParameter>,
+    reactions: Vec<RawReaction>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSpecies {
+    name: String,
+    max: toml::Value,
+    #[serde(default)]
+    initial: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawParameter {
+    name: String,
+    value: Option<f64>,
+    range: Option<[f64; 2]>,
+    grid: Option<usize>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawReaction {
+    #[serde(default)]
+    name: Option<String>,
+    change: BTreeMap<String, i32>,
+    #[serde(default)]
+    rate: Vec<toml::Value>,
+    #[serde(default)]
+    factors: Vec<RawFactor>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFactor {
+    species: toml::Value,
+    kind: String,
+    beta: Option<f64>,
+    gamma: Option<f64>,
+    n: Option<f64>,
+}
+
+impl RawNetwork {
+    fn build(self, src: &str) -> Result<Network, NetworkError> {
+        let bad = |what: String| NetworkError::Invalid {
+            source_name: src.to_string(),
+            what,
+        };
+        if self.species.is_empty() {
+            return Err(bad("a network needs at least one species".into()));
+        }
+        let mut species = Vec::new();
+        for s in &self.species {
+            let max = match &s.max {
+                toml::Value::Integer(m) if *m >= 2 && *m <= 1 << 20 => Some(*m as usize),
+                toml::Value::String(a) if a == "auto" => None,
+                other => {
+                    return Err(bad(format!(
+                        "species {}: max = {other}: expected an integer in 2..=1048576 or \"auto\"",
+                        s.name
+                    )));
+                }
+            };
+            if max.is_some_and(|m| s.initial >= m) {
+                return Err(bad(format!(
+                    "species {}: initial {} is outside its box 0..{}",
+                    s.name,
+                    s.initial,
+                    max.unwrap_or(0)
+                )));
+            }
+            if species.iter().any(|x: &Species| x.name == s.name) {
+                return Err(bad(format!("species {} is declared twice", s.name)));
+            }
+            species.push(Species {
+                name: s.name.clone(),
+                max,
+                initial: s.initial,
+            });
+        }
+        let mut parameters = Vec::new();
+        for p in &self.parameters {
+            let range = match (p.range, p.grid) {
+                (Some([lo, hi]), g) => {
+                    if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi) {
+                        return Err(bad(format!(
+                            "parameter {}: range [{lo}, {hi}]: expected 0 ≤ lo < hi",
+                            p.name
+                        )));
+                    }
+                    let g = g.unwrap_or(17);
+                    if g < 2 {
+                        return Err(bad(format!(
+                            "parameter {}: grid = {g}: expected at least 2 points",
+                            p.name
+                        )));
+                    }
+                    Some((lo, hi, g))
+                }
+                (None, Some(_)) => {
+                    return Err(bad(format!("parameter {}: a grid needs a range", p.name)));
+                }
+                (None, None) => None,
+            };
+            let value = match (p.value, range) {
+                (Some(v), _) if v.is_finite() && v >= 0.0 => v,
+                (Some(v), _) => {
+                    return Err(bad(format!(
+                        "parameter {}: value {v}: expected a finite value ≥ 0",
+                        p.name
+                    )));
+                }
+                (None, Some((lo, hi, _))) => 0.5 * (lo + hi),
+                (None, None) => {
+                    return Err(bad(format!(
+                        "parameter {} needs a value or a range",
+                        p.name
+                    )));
+                }
+            };
+            parameters.push(Parameter {
+                name: p.name.clone(),
+                value,
+                range,
+            });
+        }
+        let species_index = |name: &str| species.iter().position(|s| s.name == name);
+        let mut reactions = Vec::new();
+        for (k, r) in self.reactions.iter().enumerate() {
+            let rname = r
+                .name
+                .clone()
+                .unwrap_or_else(|| format!("reaction {}", k + 1));
+            let mut change = vec![0; species.len()];
+            for (name, &c) in &r.change {
+                let i = species_index(name)
+                    .ok_or_else(|| bad(format!("{rname}: change of unknown species {name:?}")))?;
+                change[i] = c;
+            }
+            let mut constant = 1.0;
+            let mut params = Vec::new();
+            for v in &r.rate {
+                match v {
+                    toml::Value::Float(x) => constant *= x,
+                    toml::Value::Integer(x) => constant *= *x as f64,
+                    toml::Value::String(name) => {
+                        let q = parameters
+                            .iter()
+                            .position(|p: &Parameter| &p.name == name)
+                            .ok_or_else(|| {
+                                bad(format!("{rname}: rate uses unknown parameter {name:?}"))
+                            })?;
+                        params.push(q);
+                    }
+                    other => {
+                        return Err(bad(format!(
+                            "{rname}: rate entry {other}: expected a number or a parameter name"
+                        )));
+                    }
+                }
+            }
+            if !(constant.is_finite() && constant >= 0.0) {
+                return Err(bad(format!(
+                    "{rname}: rate constant {constant}: expected a finite value ≥ 0"
+                )));
+            }
+            let mut factors: Vec<(usize, Factor)> = Vec::new();
+            for f in &r.factors {
+                let name = match &f.species {
+                    toml::Value::String(s) => s.clone(),
+                    toml::Value::Array(list) => {
+                        return Err(bad(format!(
+                            "{rname}: a propensity factor of several species ({}) is not separable; \
+                             write the propensity as a product of one-species factors",
+                            list.iter()
+                                .map(|v| v.to_string())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        )));
+                    }
+                    other => {
+                        return Err(bad(format!(
+                            "{rname}: factor species {other}: expected a species name"
+                        )));
+                    }
+                };
+                let i = species_index(&name)
+                    .ok_or_else(|| bad(format!("{rname}: factor of unknown species {name:?}")))?;
+                if factors.iter().any(|(j, _)| *j == i) {
+                    return Err(bad(format!(
+                        "{rname}: two factors of species {name}: merge them into one"
+                    )));
+                }
+                let need = |v: Option<f64>, what: &str| -> Result<f64, NetworkError> {
+                    match v {
+                        Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+                        Some(x) => Err(bad(format!(
+                            "{rname}: {what} = {x}: expected a finite value > 0"
+                        ))),
+                        None => Err(bad(format!("{rname}: factor {} needs {what}", f.kind))),
+                    }
+                };
+                let factor = match f.kind.as_str() {
+                    "linear" => Factor::Linear,
+                    "hill_repression" => Factor::HillRepression {
+                        beta: need(f.beta, "beta")?,
+                        gamma: need(f.gamma, "gamma")?,
+                        n: f.n.map_or(Ok(1.0), |n| need(Some(n), "n"))?,
+                    },
+                    "saturation" => Factor::Saturation {
+                        beta: need(f.beta, "beta")?,
+                        gamma: need(f.gamma, "gamma")?,
+                    },
+                    "hill_activation" => Factor::HillActivation {
+                        beta: need(f.beta, "beta")?,
+                        gamma: need(f.gamma, "gamma")?,
+                        n: f.n.map_or(Ok(1.0), |n| need(Some(n), "n"))?,
+                    },
+                    other => {
+                        return Err(bad(format!(
+                            "{rname}: factor kind {other:?}: expected linear, hill_repression, saturation or hill_activation"
+                        )));
+                    }
+                };
+                factors.push((i, factor));
+            }
+            reactions.push(Reaction {
+                name: rname,
+                change,
+                constant,
+                params,
+                factors,
+            });
+        }
+        if reactions.is_empty() {
+            return Err(bad("a network needs at least one reaction".into()));
+        }
+        Ok(Network {
+            name: self.name,
+            species,
+            parameters,
+            reactions,
+        })
+    }
+}
+
+/// The λ-phage toggle switch (paper eq. 6).
+pub const TOGGLE: &str = include_str!("../../../assets/networks/toggle.toml");
+/// The two-gene cascade with unknown degradation rate (paper eq. 7).
+pub const CASCADE: &str = include_str!("../../../assets/networks/cascade.toml");
+
+/// The signaling cascade with `d` species: 0 → S1 at 0.7; S_{i−1} → S_{i−1} + S_i at
+/// `z_{i−1}/(5 + z_{i−1})`; each S_i degraded at 0.07 z_i; 64 states per species.
+pub fn signaling_cascade(d: usize) -> String {
+    let mut s = format!("name = \"signaling-cascade-{d}\"\n");
+    for i in 1..=d {
+        s += &format!("\n[[species]]\nname = \"S{i}\"\nmax = 64\ninitial = 0\n");
+    }
+    s += "\n[[reactions]]\nname = \"S1 birth\"\nchange = { S1 = 1 }\nrate = [0.7]\n";
+    for i in 2..=d {
+        // z/(5 + z) = saturation with β = 1, γ = 5.
+        s += &format!(
+            "\n[[reactions]]\nname = \"S{i} production\"\nchange = {{ S{i} = 1 }}\nrate = [1.0]\n\
+             factors = [{{ species = \"S{p}\", kind = \"saturation\", beta = 1.0, gamma = 5.0 }}]\n",
+            p = i - 1
+        );
+    }
+    for i in 1..=d {
+        s += &format!(
+            "\n[[reactions]]\nname = \"S{i} degradation\"\nchange = {{ S{i} = -1 }}\nrate = [0.07]\n\
+             factors = [{{ species = \"S{i}\", kind = \"linear\" }}]\n"
+        );
+    }
+    s
+}
