@@ -235,3 +235,90 @@ fn eval_on_the_default_scene() {
     let text = std::fs::read_to_string(&vtu).expect("vtu written");
     assert!(text.starts_with("<?xml") && text.contains("Name=\"displacement\""));
 }
+
+#[test]
+fn cme_solve_prints_the_documented_json_for_fsp_and_ssa() {
+    for method in ["fsp", "ssa"] {
+        let out = palpa(&[
+            "cme",
+            "solve",
+            "cascade",
+            "--method",
+            method,
+            "--param",
+            "delta=0.03",
+            "--t",
+            "10,30",
+            "--trajectories",
+            "500",
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+        assert_eq!(v["model"], "cascade");
+        assert_eq!(v["method"], method);
+        assert_eq!(v["t"].as_array().map(Vec::len), Some(2));
+        assert_eq!(v["species"][0], "z1");
+        for key in ["mean", "var", "marginals", "cov"] {
+            assert_eq!(v[key].as_array().map(Vec::len), Some(2), "{key}");
+        }
+        assert!(v["seconds"].is_number());
+        // The marginals are probability vectors from 0.
+        let total: f64 = v["marginals"][1][0]
+            .as_array()
+            .expect("vector")
+            .iter()
+            .filter_map(|x| x.as_f64())
+            .sum();
+        assert!((total - 1.0).abs() < 1e-6, "{total}");
+        assert_eq!(v["leaked"].is_array(), method == "fsp");
+    }
+}
+
+#[test]
+fn cme_errors_are_clear() {
+    let out = palpa(&[
+        "cme",
+        "solve",
+        "cascade",
+        "--method",
+        "fsp",
+        "--param",
+        "delta=0.2",
+        "--t",
+        "5",
+    ]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("outside its trained range"));
+    for (args, want) in [
+        (
+            vec!["cme", "solve", "nosuch", "--method", "fsp", "--t", "1"],
+            "unknown built-in network",
+        ),
+        (
+            vec!["cme", "solve", "toggle", "--method", "fsp", "--t", "5,1"],
+            "increasing order",
+        ),
+        (
+            vec![
+                "cme", "solve", "toggle", "--method", "fsp", "--param", "delta", "--t", "1",
+            ],
+            "NAME=VALUE",
+        ),
+        (
+            vec!["cme", "solve", "toggle", "--method", "pgd", "--t", "1"],
+            "not implemented yet",
+        ),
+    ] {
+        let out = palpa(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(want),
+            "{args:?}: {err}"
+        );
+    }
+}

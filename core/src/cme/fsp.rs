@@ -109,6 +109,17 @@ impl Generator {
         self.diag.len()
     }
 
+    /// `out = A x` (for checks; the solver uses the uniformized product).
+    pub fn apply(&self, x: &[f64], out: &mut [f64]) {
+        for (row, o) in out.iter_mut().enumerate() {
+            let mut s = self.diag[row] * x[row];
+            for e in self.row_start[row]..self.row_start[row + 1] {
+                s += self.vals[e] * x[self.cols[e] as usize];
+            }
+            *o = s;
+        }
+    }
+
     /// `out = (I + A/q) x`.
     fn uniformized(&self, q: f64, x: &[f64], out: &mut [f64]) {
         let inv = 1.0 / q;

@@ -14,6 +14,7 @@
 //! means, variances and the covariance of the first two species.
 
 pub mod fsp;
+pub mod kron;
 pub mod moments;
 pub mod network;
 pub mod ssa;
