@@ -26,6 +26,7 @@ use thiserror::Error;
 
 use crate::axis::{Discretization, ParamValue, closest_point};
 use crate::file::AnyModel;
+use crate::mesh::{cross, sub};
 use crate::separated::{EvalError, SeparatedModel, TradeoffRow};
 
 /// Why a model cannot be shown as a palpation scene.
@@ -370,13 +371,7 @@ pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32
     let mut n = vec![[0.0f64; 3]; vertices.len()];
     for t in triangles {
         let [a, b, c] = t.map(|i| vertices[i as usize].map(f64::from));
-        let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let cr = [
-            e1[1] * e2[2] - e1[2] * e2[1],
-            e1[2] * e2[0] - e1[0] * e2[2],
-            e1[0] * e2[1] - e1[1] * e2[0],
-        ];
+        let cr = cross(sub(b, a), sub(c, a));
         for &v in t {
             for c in 0..3 {
                 n[v as usize][c] += cr[c];
