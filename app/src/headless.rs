@@ -229,15 +229,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         }
         let t0 = Instant::now();
         let input = session.frame();
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        renderer.encode(
-            &gpu.device,
-            &gpu.queue,
-            &mut encoder,
-            &target.view,
-            opts.size,
-            &input,
-        );
+        let mut encoder = renderer.encode_frame(&gpu, &target.view, opts.size, &input);
         if let Some(o) = overlay.as_mut() {
             let raw = headless_input(opts.size, 1.0, f64::from(i) / 25.0);
             o.paint(

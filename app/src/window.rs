@@ -163,16 +163,8 @@ impl App {
             frame.texture.texture.width(),
             frame.texture.texture.height(),
         );
-        let mut encoder = g.gpu.device.create_command_encoder(&Default::default());
         let input = self.session.frame();
-        g.renderer.encode(
-            &g.gpu.device,
-            &g.gpu.queue,
-            &mut encoder,
-            &frame.view,
-            size,
-            &input,
-        );
+        let mut encoder = g.renderer.encode_frame(&g.gpu, &frame.view, size, &input);
         let raw = g.egui.take_egui_input(&window);
         let (session, hud) = (&mut self.session, &mut self.hud);
         let output = g.overlay.paint(
@@ -208,16 +200,8 @@ impl App {
         let target = Offscreen::new(&g.gpu.device, size);
         let mut renderer = Renderer::new(&g.gpu.device, FORMAT, &self.session.scene);
         let mut overlay = Overlay::new(&g.gpu.device, UI_FORMAT);
-        let mut encoder = g.gpu.device.create_command_encoder(&Default::default());
         let input = self.session.frame();
-        renderer.encode(
-            &g.gpu.device,
-            &g.gpu.queue,
-            &mut encoder,
-            &target.view,
-            size,
-            &input,
-        );
+        let mut encoder = renderer.encode_frame(&g.gpu, &target.view, size, &input);
         let (session, hud) = (&mut self.session, &mut self.hud);
         let raw = crate::overlay::headless_input(size, 1.0, self.started.elapsed().as_secs_f64());
         overlay.paint(

@@ -1,5 +1,7 @@
 //! The `palpa` binary end to end: synth → info, bench output shape, clear errors.
 
+mod common;
+
 use std::process::Command;
 
 fn palpa(args: &[&str]) -> std::process::Output {
@@ -212,12 +214,7 @@ fn eval_on_the_default_scene() {
         vtu.to_str().expect("utf-8"),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let v = common::json_ok(&out);
     for key in [
         "probe_point",
         "probe_displacement_mm",
@@ -253,12 +250,7 @@ fn cme_solve_prints_the_documented_json_for_fsp_and_ssa() {
             "500",
             "--json",
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+        let v = common::json_ok(&out);
         assert_eq!(v["model"], "cascade");
         assert_eq!(v["method"], method);
         assert_eq!(v["t"].as_array().map(Vec::len), Some(2));

@@ -50,15 +50,7 @@ fn gpu_and_cpu_deformation_agree() {
         let target = Offscreen::new(&gpu.device, (64, 64));
         let input = session.frame();
         assert_eq!(input.coeffs.len(), modes as usize);
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        renderer.encode(
-            &gpu.device,
-            &gpu.queue,
-            &mut encoder,
-            &target.view,
-            (64, 64),
-            &input,
-        );
+        let encoder = renderer.encode_frame(&gpu, &target.view, (64, 64), &input);
         gpu.queue.submit([encoder.finish()]);
         let (positions, normals) = renderer
             .deform
@@ -118,15 +110,7 @@ fn default_scene_matches_the_reference_image() {
     let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
     let target = Offscreen::new(&gpu.device, size);
     let input = session.frame();
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    renderer.encode(
-        &gpu.device,
-        &gpu.queue,
-        &mut encoder,
-        &target.view,
-        size,
-        &input,
-    );
+    let mut encoder = renderer.encode_frame(&gpu, &target.view, size, &input);
     target.encode_copy(&mut encoder);
     gpu.queue.submit([encoder.finish()]);
     let actual = target.read(&gpu.device).expect("read back");

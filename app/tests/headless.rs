@@ -1,6 +1,8 @@
 //! `palpa headless` end to end on the software adapter: the JSON report, the PNG, and
 //! clear errors for bad input.
 
+mod common;
+
 use std::process::Command;
 
 fn palpa(args: &[&str]) -> std::process::Output {
@@ -28,12 +30,7 @@ fn headless_renders_frames_and_reports_the_loops() {
         png.to_str().expect("utf-8"),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let v = common::json_ok(&out);
     for key in [
         "frames",
         "frame_ms_p50",

@@ -28,6 +28,16 @@ fn to_vec3(p: [f64; 3]) -> Vec3 {
     Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)
 }
 
+/// Picks on the undeformed scene.
+fn rest_picker<'a>(s: &'a PalpationScene, cam: &'a OrbitCamera) -> ScenePicker<'a> {
+    ScenePicker {
+        scene: s,
+        camera: cam,
+        viewport_px: VIEW,
+        deformed_mm: s.vertices_mm(),
+    }
+}
+
 /// Palpable points facing the camera (so nothing else of the organ hides them).
 fn visible_palpable(
     s: &PalpationScene,
@@ -56,12 +66,7 @@ fn visible_palpable(
 fn known_screen_points_pick_known_surface_points() {
     let s = scene();
     let cam = camera(&s);
-    let picker = ScenePicker {
-        scene: &s,
-        camera: &cam,
-        viewport_px: VIEW,
-        deformed_mm: s.vertices_mm(),
-    };
+    let picker = rest_picker(&s, &cam);
     let visible = visible_palpable(&s, &cam, &picker);
     assert!(
         visible.len() > 50,
@@ -277,12 +282,7 @@ fn gamepad_slides_presses_with_the_trigger_and_orbits() {
 fn gamepad_slide_on_the_real_scene_stays_on_the_palpable_surface() {
     let s = scene();
     let cam = camera(&s);
-    let picker = ScenePicker {
-        scene: &s,
-        camera: &cam,
-        viewport_px: VIEW,
-        deformed_mm: s.vertices_mm(),
-    };
+    let picker = rest_picker(&s, &cam);
     let (p, _) = visible_palpable(&s, &cam, &picker)[0];
     let start = to_vec3(s.frame(&p).0);
     let q = picker.slide(&p, Vec2::X, 5.0).expect("slides");

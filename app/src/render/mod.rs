@@ -476,22 +476,30 @@ impl Renderer {
         }
     }
 
+    /// A new command encoder with this frame recorded in it (the caller adds the
+    /// interface or a read-back, then submits).
+    pub fn encode_frame(
+        &mut self,
+        gpu: &gpu::Gpu,
+        target: &wgpu::TextureView,
+        size: (u32, u32),
+        input: &FrameInput<'_>,
+    ) -> wgpu::CommandEncoder {
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        self.encode(&gpu.device, &gpu.queue, &mut encoder, target, size, input);
+        encoder
+    }
+
     fn depth_view(&mut self, device: &wgpu::Device, size: (u32, u32)) -> &wgpu::TextureView {
         if self.depth.as_ref().is_none_or(|(_, s)| *s != size) {
-            let tex = device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("depth"),
-                size: wgpu::Extent3d {
-                    width: size.0,
-                    height: size.1,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: DEPTH_FORMAT,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-                view_formats: &[],
-            });
+            let tex = texture_2d(
+                device,
+                "depth",
+                size,
+                DEPTH_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT,
+                &[],
+            );
             self.depth = Some((tex.create_view(&Default::default()), size));
         }
         &self.depth.as_ref().expect("created above").0
@@ -547,6 +555,31 @@ impl Renderer {
         }
         objects
     }
+}
+
+/// A single-sample 2-D texture of `size` pixels.
+pub fn texture_2d(
+    device: &wgpu::Device,
+    label: &str,
+    size: (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+    view_formats: &[wgpu::TextureFormat],
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: size.0,
+            height: size.1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats,
+    })
 }
 
 fn object(world_from_model: Mat4, color: [f32; 4]) -> ObjectUniform {
