@@ -1,17 +1,90 @@
 //! `palpa cme …`: gene-network models (the chemical master equation).
 
-use std::path::Path;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
-use palpa_core::cme::{Moments, Network, fsp, ssa};
+use palpa_core::cme::model::CmeModel;
+use palpa_core::cme::{Moments, Network, fsp, pgd, ssa};
+use palpa_core::file;
 use serde::Serialize;
 
 #[derive(Debug, Subcommand)]
 pub enum CmeCommand {
     /// Solve a network: exact FSP, stochastic simulation, or PGD.
     Solve(SolveArgs),
+    /// Compute a network's PGD meta-model (species × time × parameters) into a file.
+    Offline(OfflineArgs),
+    /// Evaluate a CME meta-model file at a time and parameter values (no solving).
+    Eval(EvalArgs),
+}
+
+/// Time grid and PGD settings shared by `offline` and `solve --method pgd`.
+#[derive(Debug, Args)]
+pub struct PgdArgs {
+    /// End of the time axis (the model is valid on [0, T]).
+    #[arg(long = "t-end")]
+    t_end: Option<f64>,
+    /// First time step (steps then grow geometrically).
+    #[arg(long, default_value_t = 0.02)]
+    first_step: f64,
+    /// Largest time step.
+    #[arg(long, default_value_t = 1.0)]
+    max_step: f64,
+    /// Most terms of the final model.
+    #[arg(long, default_value_t = 400)]
+    modes: usize,
+    /// Relative L2 error of the compressed time history.
+    #[arg(long, default_value_t = 1e-5)]
+    tol: f64,
+    /// Relative residual of each implicit time step.
+    #[arg(long, default_value_t = 1e-6)]
+    step_tol: f64,
+}
+
+impl PgdArgs {
+    fn options(&self, t_default: f64) -> pgd::Options {
+        let mut o = pgd::Options {
+            t_end: self.t_end.unwrap_or(t_default),
+            h_first: self.first_step,
+            h_max: self.max_step,
+            ..pgd::Options::default()
+        };
+        o.max_modes = self.modes;
+        o.compress_tol = self.tol;
+        o.step_tol = self.step_tol;
+        o
+    }
+}
+
+#[derive(Debug, Args)]
+pub struct OfflineArgs {
+    /// A built-in network or a TOML file.
+    model: String,
+    #[command(flatten)]
+    pgd: PgdArgs,
+    /// Output meta-model file.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// A CME meta-model file (from `palpa cme offline`).
+    file: PathBuf,
+    /// Times, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true)]
+    t: Vec<f64>,
+    /// Parameter values, NAME=VALUE (repeatable); outside the trained range: clamped and flagged.
+    #[arg(long = "param")]
+    params: Vec<String>,
+    /// Use only the first n terms.
+    #[arg(long)]
+    modes: Option<usize>,
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -48,6 +121,8 @@ pub struct SolveArgs {
     /// Print one JSON object.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    pgd: PgdArgs,
 }
 
 #[derive(Debug, Serialize)]
@@ -104,6 +179,8 @@ fn parse_params(list: &[String]) -> anyhow::Result<Vec<(String, f64)>> {
 pub fn run(cmd: &CmeCommand) -> anyhow::Result<()> {
     match cmd {
         CmeCommand::Solve(args) => solve(args),
+        CmeCommand::Offline(args) => offline(args),
+        CmeCommand::Eval(args) => eval(args),
     }
 }
 
@@ -151,14 +228,31 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
             }
             ("ssa", sol.moments, None, None, Some(sol.trajectories))
         }
-        Method::Pgd => bail!(
-            "--method pgd is not implemented yet (the separated CME solver is the open part of \
-             the gene-network issue); use fsp (exact, up to ~3 species) or ssa"
-        ),
+        Method::Pgd => {
+            let t_end = args.t.last().copied().unwrap_or(1.0).max(1e-3);
+            let model = CmeModel::new(run_pgd(&network, &args.pgd.options(t_end))?.0)?;
+            let set: Vec<(String, f64)> = model
+                .parameters()
+                .iter()
+                .filter_map(|(name, _, _)| {
+                    let q = network.parameters.iter().position(|x| &x.name == name)?;
+                    Some((name.clone(), p[q]))
+                })
+                .collect();
+            let mut out = Vec::new();
+            for &t in &args.t {
+                let e = model.evaluate(t, &set, usize::MAX)?;
+                if e.most_negative < -1e-8 {
+                    warnings.push(format!(
+                        "t = {t}: most negative probability {:.2e}",
+                        e.most_negative
+                    ));
+                }
+                out.push(e.moments);
+            }
+            ("pgd", out, None, None, None)
+        }
     };
-    for w in &warnings {
-        eprintln!("warning: {w}");
-    }
     let report = Report {
         model: network.name.clone(),
         method,
@@ -182,7 +276,14 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         warnings,
         seconds: start.elapsed().as_secs_f64(),
     };
-    if args.json {
+    print_report(&report, args.json)
+}
+
+fn print_report(report: &Report, json: bool) -> anyhow::Result<()> {
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    if json {
         println!(
             "{}",
             serde_json::to_string(&report).context("encoding the report")?
@@ -208,4 +309,125 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Runs the PGD solver with a progress line on stderr.
+fn run_pgd(
+    network: &Network,
+    options: &pgd::Options,
+) -> anyhow::Result<(palpa_core::separated::SeparatedModel<f64>, pgd::Report)> {
+    let start = Instant::now();
+    let max = options.max_modes;
+    let out = pgd::solve(network, options, &mut |p| {
+        match p {
+            pgd::Progress::Step {
+                k,
+                n,
+                rank,
+                residual,
+            } => {
+                let per = start.elapsed().as_secs_f64() / k as f64;
+                eprint!(
+                    "\rstep {k:>5}/{n}  rank {rank:>3}  residual {residual:.1e}  ETA ≈ {:.0} s   ",
+                    per * (n - k) as f64
+                );
+            }
+            pgd::Progress::Compress { terms, residual } => {
+                eprint!("\rcompressing the history: {terms:>4}/{max} terms, error {residual:.2e}          ");
+            }
+        }
+        let _ = std::io::stderr().flush();
+    })?;
+    eprintln!();
+    Ok(out)
+}
+
+fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
+    let network = load_network(&args.model)?;
+    let start = Instant::now();
+    let (model, report) = run_pgd(&network, &args.pgd.options(300.0))?;
+    let seconds = start.elapsed().as_secs_f64();
+    file::save(&model, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    let res = model.provenance().residual_per_mode.last().copied();
+    println!(
+        "{}",
+        serde_json::json!({
+            "out": args.out,
+            "model": network.name,
+            "terms": model.modes(),
+            "compress_error": res,
+            "steps": report.steps,
+            "max_step_rank": report.max_step_rank,
+            "worst_step_residual": report.worst_step_residual,
+            "history_terms": report.history_terms,
+            "seconds": seconds,
+            "bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
+        })
+    );
+    Ok(())
+}
+
+fn eval(args: &EvalArgs) -> anyhow::Result<()> {
+    let loaded = file::load::<f64>(&args.file)
+        .with_context(|| format!("loading {}", args.file.display()))?;
+    let model = CmeModel::new(loaded).with_context(|| args.file.display().to_string())?;
+    let set = parse_params(&args.params)?;
+    let n = args.modes.unwrap_or(usize::MAX);
+    let start = Instant::now();
+    let mut moments = Vec::new();
+    let mut warnings = Vec::new();
+    for &t in &args.t {
+        if t > model.t_end() {
+            warnings.push(format!(
+                "t = {t} is past the model's time range [0, {}]: clamped to its end",
+                model.t_end()
+            ));
+        }
+        let e = model.evaluate(t, &set, n)?;
+        for name in e.clamped.iter().filter(|c| *c != "t") {
+            warnings.push(format!(
+                "{name} is outside its trained range: clamped, not extrapolated"
+            ));
+        }
+        if e.most_negative < -1e-8 {
+            warnings.push(format!(
+                "t = {t}: most negative probability {:.2e}",
+                e.most_negative
+            ));
+        }
+        moments.push(e.moments);
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let names = model.species_names();
+    let parameters = model
+        .parameters()
+        .into_iter()
+        .map(|(name, lo, hi)| {
+            let v = set
+                .iter()
+                .rev()
+                .find(|(p, _)| *p == name)
+                .map_or(0.5 * (lo + hi), |(_, v)| v.clamp(lo, hi));
+            (name, v)
+        })
+        .collect();
+    let report = Report {
+        model: args.file.display().to_string(),
+        method: "pgd",
+        t: args.t.clone(),
+        species: names,
+        parameters,
+        mean: moments.iter().map(|m| m.mean.clone()).collect(),
+        var: moments.iter().map(|m| m.var.clone()).collect(),
+        marginals: moments.iter().map(|m| m.marginals.clone()).collect(),
+        cov: moments.iter().map(|m| m.cov01).collect(),
+        mean_se: None,
+        var_se: None,
+        leaked: Some(moments.iter().map(|m| 1.0 - m.mass).collect()),
+        box_sizes: None,
+        trajectories: None,
+        warnings,
+        seconds,
+    };
+    print_report(&report, args.json)
 }

@@ -13,10 +13,13 @@
 //! [`Moments`] holds what every solver reports at each output time: the marginals,
 //! means, variances and the covariance of the first two species.
 
+pub mod cp;
 pub mod fsp;
 pub mod kron;
+pub mod model;
 pub mod moments;
 pub mod network;
+pub mod pgd;
 pub mod ssa;
 
 pub use moments::Moments;

@@ -43,6 +43,13 @@ impl Moments {
             }
         }
         let mass: f64 = p.iter().sum();
+        Self::from_marginals(t, marginals, e01, mass)
+    }
+
+    /// From the marginals, `E[z_0 z_1]` (unnormalized) and the total mass; means and
+    /// variances are those of the distribution renormalized to mass 1.
+    pub fn from_marginals(t: f64, marginals: Vec<Vec<f64>>, e01: f64, mass: f64) -> Self {
+        let d = marginals.len();
         let mean: Vec<f64> = marginals
             .iter()
             .map(|m| {

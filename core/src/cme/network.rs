@@ -68,6 +68,38 @@ pub struct Parameter {
     pub value: f64,
     /// `(lo, hi, grid points)` when the parameter is an extra coordinate.
     pub range: Option<(f64, f64, usize)>,
+    /// How the grid points are spread over the range.
+    pub spacing: Spacing,
+}
+
+/// Spread of a parameter grid. A rate δ that sets a mean copy number `~1/δ` moves the
+/// distribution evenly in `1/δ`: `reciprocal` spacing keeps the interpolation error
+/// between grid points the same across the range.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Spacing {
+    #[default]
+    Linear,
+    Log,
+    Reciprocal,
+}
+
+impl Parameter {
+    /// The grid points of a range parameter (increasing), `None` for a fixed one.
+    pub fn grid(&self) -> Option<Vec<f64>> {
+        let (lo, hi, n) = self.range?;
+        let s = |i: usize| i as f64 / (n - 1) as f64;
+        let mut g: Vec<f64> = (0..n)
+            .map(|i| match self.spacing {
+                Spacing::Linear => lo + (hi - lo) * s(i),
+                Spacing::Log if lo > 0.0 => lo * (hi / lo).powf(s(i)),
+                Spacing::Reciprocal if lo > 0.0 => 1.0 / (1.0 / lo + (1.0 / hi - 1.0 / lo) * s(i)),
+                _ => lo + (hi - lo) * s(i),
+            })
+            .collect();
+        g[0] = lo;
+        g[n - 1] = hi;
+        Some(g)
+    }
 }
 
 /// A one-species factor of a propensity.
@@ -241,6 +273,7 @@ struct RawParameter {
     value: Option<f64>,
     range: Option<[f64; 2]>,
     grid: Option<usize>,
+    spacing: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -343,10 +376,29 @@ impl RawNetwork {
                     )));
                 }
             };
+            let spacing = match p.spacing.as_deref() {
+                None | Some("linear") => Spacing::Linear,
+                Some("log") | Some("reciprocal") if range.is_some_and(|r| r.0 <= 0.0) => {
+                    return Err(bad(format!(
+                        "parameter {}: {} spacing needs a range above 0",
+                        p.name,
+                        p.spacing.as_deref().unwrap_or_default()
+                    )));
+                }
+                Some("log") => Spacing::Log,
+                Some("reciprocal") => Spacing::Reciprocal,
+                Some(other) => {
+                    return Err(bad(format!(
+                        "parameter {}: spacing {other:?}: expected linear, log or reciprocal",
+                        p.name
+                    )));
+                }
+            };
             parameters.push(Parameter {
                 name: p.name.clone(),
                 value,
                 range,
+                spacing,
             });
         }
         let species_index = |name: &str| species.iter().position(|s| s.name == name);
