@@ -83,6 +83,10 @@ pub struct EvalArgs {
     /// Use only the first n terms.
     #[arg(long)]
     modes: Option<usize>,
+    /// Also solve this network (built-in name or TOML) exactly by FSP at the same time
+    /// and parameters, and report the L1 distance of the joint distributions.
+    #[arg(long, value_name = "MODEL")]
+    check_fsp: Option<String>,
     #[arg(long)]
     json: bool,
 }
@@ -146,6 +150,11 @@ struct Report {
     box_sizes: Option<Vec<usize>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     trajectories: Option<usize>,
+    /// `palpa cme eval --check-fsp`: L1 distance of the joint to FSP's at each time.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    l1_joint_vs_fsp: Option<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    most_negative: Option<Vec<f64>>,
     warnings: Vec<String>,
     seconds: f64,
 }
@@ -273,6 +282,8 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         leaked,
         box_sizes,
         trajectories,
+        l1_joint_vs_fsp: None,
+        most_negative: None,
         warnings,
         seconds: start.elapsed().as_secs_f64(),
     };
@@ -333,7 +344,9 @@ fn run_pgd(
                 );
             }
             pgd::Progress::Compress { terms, residual } => {
-                eprint!("\rcompressing the history: {terms:>4}/{max} terms, error {residual:.2e}          ");
+                eprint!(
+                    "\rcompressing the history: {terms:>4}/{max} terms, error {residual:.2e}          "
+                );
             }
         }
         let _ = std::io::stderr().flush();
@@ -375,6 +388,7 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     let n = args.modes.unwrap_or(usize::MAX);
     let start = Instant::now();
     let mut moments = Vec::new();
+    let mut negatives = Vec::new();
     let mut warnings = Vec::new();
     for &t in &args.t {
         if t > model.t_end() {
@@ -395,6 +409,7 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
                 e.most_negative
             ));
         }
+        negatives.push(e.most_negative);
         moments.push(e.moments);
     }
     let seconds = start.elapsed().as_secs_f64();
@@ -426,8 +441,45 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
         leaked: Some(moments.iter().map(|m| 1.0 - m.mass).collect()),
         box_sizes: None,
         trajectories: None,
+        l1_joint_vs_fsp: None,
+        most_negative: Some(negatives),
         warnings,
         seconds,
     };
+    let report = match &args.check_fsp {
+        Some(name) => Report {
+            l1_joint_vs_fsp: Some(check_fsp(&model, name, &report.parameters, &args.t, n)?),
+            ..report
+        },
+        None => report,
+    };
     print_report(&report, args.json)
+}
+
+/// L1 distance between the model's joint and FSP's on the same box, at each time.
+fn check_fsp(
+    model: &CmeModel,
+    name: &str,
+    params: &[(String, f64)],
+    times: &[f64],
+    n: usize,
+) -> anyhow::Result<Vec<f64>> {
+    let network = load_network(name)?;
+    let (p, _) = network.parameter_values(params)?;
+    let sizes: Vec<usize> = model
+        .model()
+        .axes()
+        .iter()
+        .take(network.species.len())
+        .map(|a| a.info.discretization.node_count())
+        .collect();
+    let exact = fsp::solve_on(&network, &p, &sizes, times)?;
+    times
+        .iter()
+        .zip(&exact.joint)
+        .map(|(&t, q)| {
+            let joint = model.joint(t, params, n)?;
+            Ok(palpa_core::cme::moments::l1(&joint, q))
+        })
+        .collect()
 }

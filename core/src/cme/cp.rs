@@ -43,7 +43,11 @@ impl Sparse1d {
     }
 
     pub fn diagonal(d: &[f64]) -> Self {
-        Self::from_triplets(d.len(), d.len(), d.iter().enumerate().map(|(i, &v)| (i, i, v)))
+        Self::from_triplets(
+            d.len(),
+            d.len(),
+            d.iter().enumerate().map(|(i, &v)| (i, i, v)),
+        )
     }
 
     /// From `(row, col, value)` entries (duplicates are summed).
@@ -59,7 +63,10 @@ impl Sparse1d {
         let mut val: Vec<f64> = Vec::with_capacity(e.len());
         let mut last = None;
         for (r, c, v) in e {
-            assert!(r < rows && c < cols, "entry ({r}, {c}) outside {rows}×{cols}");
+            assert!(
+                r < rows && c < cols,
+                "entry ({r}, {c}) outside {rows}×{cols}"
+            );
             if last == Some((r, c)) {
                 *val.last_mut().expect("a previous entry") += v;
                 continue;
@@ -205,7 +212,11 @@ fn op_inner(ops: &[OpTerm], u: &Mode, v: &Mode) -> f64 {
     let mut s = 0.0;
     for (a, ta) in ops.iter().enumerate() {
         for (b, tb) in ops.iter().enumerate() {
-            let p: f64 = u.lw[a].iter().zip(&v.lw[b]).map(|(x, y)| dot(x, y)).product();
+            let p: f64 = u.lw[a]
+                .iter()
+                .zip(&v.lw[b])
+                .map(|(x, y)| dot(x, y))
+                .product();
             s += ta.coef * tb.coef * p;
         }
     }
@@ -353,7 +364,13 @@ fn enrich(
     // lw[a][o] = B_a^o w_o, and the dot tables against every residual term per axis.
     let mut lw: Vec<Vec<Vec<f64>>> = ops
         .iter()
-        .map(|t| t.factors.iter().zip(&w).map(|(b, x)| b.applied(x)).collect())
+        .map(|t| {
+            t.factors
+                .iter()
+                .zip(&w)
+                .map(|(b, x)| b.applied(x))
+                .collect()
+        })
         .collect();
     // Residual terms: F's, then −α_j c_b B_b u_j for every mode j and operator term b.
     let res_count = rhs.len() + modes.len() * nops;
@@ -402,9 +419,7 @@ fn enrich(
             let mut mat = Banded::new(m);
             for (a, ta) in ops.iter().enumerate() {
                 for (b, tb) in ops.iter().enumerate() {
-                    let gab = ta.coef
-                        * tb.coef
-                        * product_except((0..d).map(|o| wdot[o][a][b]), k);
+                    let gab = ta.coef * tb.coef * product_except((0..d).map(|o| wdot[o][a][b]), k);
                     if gab == 0.0 {
                         continue;
                     }
@@ -443,14 +458,17 @@ fn enrich(
             }
             let new: Vec<f64> = sol.iter().map(|x| x / n).collect();
             // Sign: keep the factor's largest entry positive so sweeps can converge.
-            let sign = if new.iter().copied().fold(0.0, |s: f64, x| {
-                if x.abs() > s.abs() { x } else { s }
-            }) < 0.0
-            {
-                -1.0
-            } else {
-                1.0
-            };
+            let sign =
+                if new
+                    .iter()
+                    .copied()
+                    .fold(0.0, |s: f64, x| if x.abs() > s.abs() { x } else { s })
+                    < 0.0
+                {
+                    -1.0
+                } else {
+                    1.0
+                };
             let new: Vec<f64> = new.into_iter().map(|x| sign * x).collect();
             let diff: f64 = new
                 .iter()
@@ -610,7 +628,10 @@ mod tests {
             &mut |_, _| {},
         );
         let res = &sol.residual_per_mode;
-        assert!(res.windows(2).all(|w| w[1] <= w[0] * (1.0 + 1e-9)), "{res:?}");
+        assert!(
+            res.windows(2).all(|w| w[1] <= w[0] * (1.0 + 1e-9)),
+            "{res:?}"
+        );
         // Dense check: apply L to u and compare with F.
         let full = |terms: &[RankOne]| -> Vec<f64> {
             let mut u = vec![0.0; m * m];
@@ -638,7 +659,12 @@ mod tests {
             }
         }
         let fu = full(&rhs);
-        let err: f64 = lu.iter().zip(&fu).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+        let err: f64 = lu
+            .iter()
+            .zip(&fu)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
         assert!(
             err < 2e-5 * norm(&fu),
             "residual {err}, reported {:?}",

@@ -165,7 +165,10 @@ impl CmeModel {
         let modes = self.model.modes();
         let mut c: Vec<f64> = self.model.spatial()[..n].to_vec();
         let mut clamped = Vec::new();
-        for (axis, value) in self.model.axes()[self.species..].iter().zip(&values[self.species..]) {
+        for (axis, value) in self.model.axes()[self.species..]
+            .iter()
+            .zip(&values[self.species..])
+        {
             let st = axis
                 .info
                 .discretization
@@ -228,11 +231,7 @@ impl CmeModel {
             0.0
         };
         let mass: f64 = marginals.first().map_or(0.0, |m| m.iter().sum());
-        let most_negative = marginals
-            .iter()
-            .flatten()
-            .copied()
-            .fold(0.0, f64::min);
+        let most_negative = marginals.iter().flatten().copied().fold(0.0, f64::min);
         Ok(Evaluation {
             moments: Moments::from_marginals(t, marginals, e01, mass),
             most_negative,
@@ -242,7 +241,12 @@ impl CmeModel {
 
     /// The joint distribution at `(t, p)` on the whole box (species 0 fastest), for
     /// checks against FSP on small boxes.
-    pub fn joint(&self, t: f64, set: &[(String, f64)], n: usize) -> Result<Vec<f64>, CmeModelError> {
+    pub fn joint(
+        &self,
+        t: f64,
+        set: &[(String, f64)],
+        n: usize,
+    ) -> Result<Vec<f64>, CmeModelError> {
         let (c, _) = self.coefficients(t, set, n)?;
         let modes = self.model.modes();
         let axes = &self.model.axes()[..self.species];
