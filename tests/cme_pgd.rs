@@ -134,10 +134,12 @@ fn a_cme_model_survives_the_file_and_bad_requests_get_named_errors() {
     file::save(&model, &path).expect("saves");
     let back = CmeModel::new(file::load::<f64>(&path).expect("loads")).expect("a CME model");
     let cme = CmeModel::new(model).expect("a CME model");
-    let a = cme.evaluate(1.5, &[("g".into(), 0.3)], usize::MAX).unwrap();
+    let a = cme
+        .evaluate(1.5, &[("g".into(), 0.3)], usize::MAX)
+        .expect("ok");
     let b = back
         .evaluate(1.5, &[("g".into(), 0.3)], usize::MAX)
-        .unwrap();
+        .expect("ok");
     assert_eq!(a, b);
     assert_eq!(cme.species_names(), vec!["x".to_string()]);
     assert!(matches!(
@@ -153,7 +155,7 @@ fn a_cme_model_survives_the_file_and_bad_requests_get_named_errors() {
         Err(CmeModelError::BadParameter { .. })
     ));
     // Past the trained time range: clamped to its end and said so.
-    let late = cme.evaluate(50.0, &[], usize::MAX).unwrap();
+    let late = cme.evaluate(50.0, &[], usize::MAX).expect("ok");
     assert!(late.clamped.contains(&"t".to_string()));
     // A model of another kind is refused by name.
     let other = palpa_core::synthetic::palpation_like::<f64>(30, 4, 4, 1);
@@ -163,7 +165,7 @@ fn a_cme_model_survives_the_file_and_bad_requests_get_named_errors() {
     }
     // An automatic box is refused with the species' name.
     let auto = IMMIGRATION_DEATH.replace("max = 48", "max = \"auto\"");
-    let net = Network::from_toml(&auto, "auto").unwrap();
-    let err = pgd::solve(&net, &opts, &mut |_| {}).unwrap_err();
+    let net = Network::from_toml(&auto, "auto").expect("ok");
+    let err = pgd::solve(&net, &opts, &mut |_| {}).expect_err("refused");
     assert!(err.to_string().contains("species x"), "{err}");
 }

@@ -301,9 +301,10 @@ fn cme_errors_are_clear() {
             ],
             "NAME=VALUE",
         ),
+        (vec!["cme", "eval", "Cargo.toml", "--t", "1"], "not a palpa"),
         (
-            vec!["cme", "solve", "toggle", "--method", "pgd", "--t", "1"],
-            "not implemented yet",
+            vec!["cme", "offline", "toggle", "--t-end=-1", "--out", "x.palpa"],
+            "invalid time grid",
         ),
     ] {
         let out = palpa(&args);
@@ -313,4 +314,71 @@ fn cme_errors_are_clear() {
             "{args:?}: {err}"
         );
     }
+}
+
+#[test]
+fn cme_offline_then_eval_reproduces_fsp_and_solve_by_pgd_prints_the_same_json() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let f = dir.path().join("toggle.palpa");
+    let f = f.to_str().expect("utf-8 path");
+    let out = palpa(&[
+        "cme",
+        "offline",
+        "toggle",
+        "--t-end",
+        "2",
+        "--max-step",
+        "0.1",
+        "--out",
+        f,
+    ]);
+    let v = common::json_ok(&out);
+    assert!(v["terms"].as_u64().expect("terms") > 1);
+    assert!(v["compress_error"].as_f64().expect("error") < 1e-4);
+    let out = palpa(&[
+        "cme",
+        "eval",
+        f,
+        "--t",
+        "1,2",
+        "--check-fsp",
+        "toggle",
+        "--json",
+    ]);
+    let v = common::json_ok(&out);
+    assert_eq!(v["method"], "pgd");
+    assert_eq!(v["species"][1], "z2");
+    for key in [
+        "mean",
+        "var",
+        "marginals",
+        "cov",
+        "most_negative",
+        "l1_joint_vs_fsp",
+    ] {
+        assert_eq!(v[key].as_array().map(Vec::len), Some(2), "{key}");
+    }
+    for l1 in v["l1_joint_vs_fsp"].as_array().expect("list") {
+        let l1 = l1.as_f64().expect("number");
+        assert!(l1 < 1e-2, "joint L1 {l1}");
+    }
+    // Past the trained range: a warning, not an extrapolation.
+    let out = palpa(&["cme", "eval", f, "--t", "5"]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("past the model's time range"));
+    let out = palpa(&[
+        "cme",
+        "solve",
+        "toggle",
+        "--method",
+        "pgd",
+        "--t",
+        "0.5,1",
+        "--max-step",
+        "0.1",
+        "--json",
+    ]);
+    let v = common::json_ok(&out);
+    assert_eq!(v["method"], "pgd");
+    assert_eq!(v["marginals"].as_array().map(Vec::len), Some(2));
 }
