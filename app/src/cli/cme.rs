@@ -42,6 +42,9 @@ pub struct PgdArgs {
     /// Relative residual of each implicit time step.
     #[arg(long, default_value_t = 1e-6)]
     step_tol: f64,
+    /// Adaptive steps: relative local error per step (0: fixed geometric steps).
+    #[arg(long, default_value_t = 3e-5)]
+    step_error: f64,
 }
 
 impl PgdArgs {
@@ -55,6 +58,7 @@ impl PgdArgs {
         o.max_modes = self.modes;
         o.compress_tol = self.tol;
         o.step_tol = self.step_tol;
+        o.step_error_tol = self.step_error;
         o
     }
 }

@@ -168,6 +168,24 @@ pub struct Solution {
     pub residual_per_mode: Vec<f64>,
 }
 
+/// `‖Σ_r r‖₂²` of a sum of rank-one tensors.
+pub fn norm_sq(terms: &[RankOne]) -> f64 {
+    let mut s = 0.0;
+    for (i, a) in terms.iter().enumerate() {
+        for b in &terms[i..] {
+            let p: f64 = a
+                .factors
+                .iter()
+                .zip(&b.factors)
+                .map(|(x, y)| dot(x, y))
+                .product();
+            let w = if std::ptr::eq(a, b) { 1.0 } else { 2.0 };
+            s += w * a.scale * b.scale * p;
+        }
+    }
+    s
+}
+
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }

@@ -64,6 +64,9 @@ pub struct Options {
     pub growth: f64,
     /// Relative residual of each implicit step.
     pub step_tol: f64,
+    /// Adaptive steps: the estimated local error of a step, relative to the state, is
+    /// kept near this (0: the fixed geometric grid from `h_first`, `growth`, `h_max`).
+    pub step_error_tol: f64,
     /// Most terms of one step's state.
     pub step_modes: usize,
     /// Stored time nodes (the model's time axis) are spaced at most this fraction of
@@ -85,6 +88,7 @@ impl Default for Options {
             h_max: 1.0,
             growth: 1.1,
             step_tol: 1e-6,
+            step_error_tol: 3e-5,
             step_modes: 40,
             store_rel: 0.02,
             store_max: 1.0,
@@ -178,8 +182,8 @@ pub fn solve(
         .iter()
         .map(|s| s.max.ok_or_else(|| CmePgdError::AutoBox(s.name.clone())))
         .collect::<Result<_, _>>()?;
-    let t = options.time_nodes()?;
-    let h: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let fixed_t = options.time_nodes()?;
+    let adaptive = options.step_error_tol > 0.0;
     let d = sizes.len();
     // Range parameters become axes after the species; fixed ones fold into coefficients.
     let coords: Vec<(usize, Vec<f64>)> = network
@@ -254,8 +258,24 @@ pub fn solve(
     };
     let mut report = Report::default();
     let mut history: Vec<Vec<RankOne>> = vec![vec![p0]];
-    for k in 1..t.len() {
-        let hk = h[k - 1];
+    let mut t = vec![0.0];
+    let mut h: Vec<f64> = Vec::new();
+    let mut next_h = options.h_first;
+    let mut k = 0;
+    while *t.last().expect("t_0") < options.t_end * (1.0 - 1e-12) {
+        k += 1;
+        let now = *t.last().expect("t_0");
+        let hk = if adaptive {
+            let rest = options.t_end - now;
+            // No sliver of a last step: BDF2's step ratio would blow up.
+            if rest - next_h < 0.3 * next_h {
+                rest
+            } else {
+                next_h
+            }
+        } else {
+            fixed_t[k] - fixed_t[k - 1]
+        };
         let (c0, rhs) = if k == 1 {
             (1.0, history[0].clone())
         } else {
@@ -283,13 +303,49 @@ pub fn solve(
         let residual = sol.residual_per_mode.last().copied().unwrap_or(0.0);
         report.max_step_rank = report.max_step_rank.max(sol.terms.len());
         report.worst_step_residual = report.worst_step_residual.max(residual);
+        t.push(now + hk);
+        h.push(hk);
+        history.push(sol.terms);
+        // Next step: the local error of BDF2 is about 2/9 of the distance between the
+        // new state and the quadratic extrapolation of the three before (both O(h³)).
+        next_h = (hk * options.growth).min(options.h_max);
+        if adaptive && k >= 3 {
+            let lagrange = |i: usize| -> f64 {
+                let nodes = [t[k - 3], t[k - 2], t[k - 1]];
+                (0..3)
+                    .filter(|&j| j != i)
+                    .map(|j| (t[k] - nodes[j]) / (nodes[i] - nodes[j]))
+                    .product()
+            };
+            let mut diff: Vec<RankOne> = history[k].clone();
+            for i in 0..3 {
+                let l = lagrange(i);
+                diff.extend(history[k - 3 + i].iter().map(|r| RankOne {
+                    scale: -l * r.scale,
+                    factors: r.factors.clone(),
+                }));
+            }
+            let state_norm = cp::norm_sq(&history[k]).sqrt().max(1e-300);
+            let est = 2.0 / 9.0 * cp::norm_sq(&diff).max(0.0).sqrt() / state_norm;
+            let factor = if est > 0.0 {
+                (0.9 * (options.step_error_tol / est).cbrt()).clamp(0.5, options.growth)
+            } else {
+                options.growth
+            };
+            next_h = (hk * factor).clamp(options.h_first.min(hk), options.h_max);
+        }
+        let remaining = ((options.t_end - t[k]) / next_h).ceil() as usize;
         progress(Progress::Step {
             k,
-            n: t.len() - 1,
-            rank: sol.terms.len(),
+            n: k + remaining,
+            rank: history[k].len(),
             residual,
         });
-        history.push(sol.terms);
+        if k > 1_000_000 {
+            return Err(CmePgdError::TimeGrid(
+                "more than a million time steps".into(),
+            ));
+        }
     }
     report.steps = t.len() - 1;
 
