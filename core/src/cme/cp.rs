@@ -147,6 +147,10 @@ pub struct Settings {
     /// A term's sweeps stop when its factors change less than this (relative).
     pub sweep_tol: f64,
     pub seed: u64,
+    /// For approximation problems (`L` = identity): every this many terms, re-fit one
+    /// axis's factors of all terms together (the others fixed), a linear least-squares
+    /// problem: the PGD *update* applied to a whole axis, e.g. the time functions.
+    pub refit: Option<(usize, usize)>,
 }
 
 impl Default for Settings {
@@ -157,6 +161,7 @@ impl Default for Settings {
             max_sweeps: 12,
             sweep_tol: 1e-4,
             seed: 1,
+            refit: None,
         }
     }
 }
@@ -327,6 +332,21 @@ pub fn solve_from(
         g.push(op_rhs_inner(ops, &mode, rhs));
         modes.push(mode);
         alpha = solve_spd(&gram, &g);
+        if let Some((axis, every)) = settings.refit
+            && every > 0
+            && modes.len().is_multiple_of(every)
+            && ops.len() == 1
+            && ops[0].factors.iter().all(|f| f.identity)
+            && axis < d
+        {
+            refit_axis(ops, rhs, &mut modes, axis);
+            gram = modes
+                .iter()
+                .map(|u| modes.iter().map(|v| op_inner(ops, u, v)).collect())
+                .collect();
+            g = modes.iter().map(|u| op_rhs_inner(ops, u, rhs)).collect();
+            alpha = solve_spd(&gram, &g);
+        }
         // ‖F − Lu‖² = ‖F‖² − 2αᵀg + αᵀGα = ‖F‖² − αᵀg at the least-squares optimum.
         let res_sq = rhs_sq - dot(&alpha, &g);
         let rel = (res_sq.max(0.0)).sqrt() / rhs_norm;
@@ -350,6 +370,102 @@ pub fn solve_from(
         })
         .collect();
     out
+}
+
+/// Re-fits axis `a` of every term together for `min ‖F − Σ_j ⊗_k w_j^k‖` (identity
+/// operator), the other axes fixed: `Σ_j G_ij v_j = Σ_f s_f Π_{o≠a}⟨w_i^o, f^o⟩ f^a`,
+/// `G_ij = Π_{o≠a}⟨w_i^o, w_j^o⟩`. The weights are folded in afterwards by the caller's
+/// weight update; here each new factor is normalized.
+fn refit_axis(ops: &[OpTerm], rhs: &[RankOne], modes: &mut [Mode], a: usize) {
+    let n = modes.len();
+    let d = modes[0].factors.len();
+    let ma = modes[0].factors[a].len();
+    let others = |x: &[Vec<f64>], y: &[Vec<f64>]| -> f64 {
+        (0..d)
+            .filter(|&o| o != a)
+            .map(|o| dot(&x[o], &y[o]))
+            .product()
+    };
+    let mut gm = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..=i {
+            let v = others(&modes[i].factors, &modes[j].factors);
+            gm[i * n + j] = v;
+            gm[j * n + i] = v;
+        }
+    }
+    // R (n × m_a), row i = Σ_f s_f Π_{o≠a}⟨w_i^o, f^o⟩ f^a.
+    let mut r = vec![0.0; n * ma];
+    for (i, m) in modes.iter().enumerate() {
+        let row = &mut r[i * ma..(i + 1) * ma];
+        for f in rhs {
+            let c = f.scale * others(&m.factors, &f.factors);
+            for (x, y) in row.iter_mut().zip(&f.factors[a]) {
+                *x += c * y;
+            }
+        }
+    }
+    let Some(chol) = cholesky(&gm, n) else {
+        return;
+    };
+    let mut col = vec![0.0; n];
+    let mut v = vec![0.0; n * ma];
+    for z in 0..ma {
+        for i in 0..n {
+            col[i] = r[i * ma + z];
+        }
+        chol_solve(&chol, n, &mut col);
+        for i in 0..n {
+            v[i * ma + z] = col[i];
+        }
+    }
+    for (j, m) in modes.iter_mut().enumerate() {
+        let vj = &v[j * ma..(j + 1) * ma];
+        let nv = norm(vj);
+        if nv > 0.0 && nv.is_finite() {
+            m.factors[a] = vj.iter().map(|x| x / nv).collect();
+            *m = Mode::new(ops, std::mem::take(&mut m.factors));
+        }
+    }
+}
+
+/// Dense Cholesky `G = L Lᵀ` (row-major lower factor), with a tiny diagonal shift.
+fn cholesky(g: &[f64], n: usize) -> Option<Vec<f64>> {
+    let mut l = g.to_vec();
+    let scale = (0..n).map(|i| g[i * n + i].abs()).fold(0.0, f64::max);
+    for i in 0..n {
+        l[i * n + i] += 1e-12 * scale;
+    }
+    for j in 0..n {
+        let mut s = l[j * n + j];
+        for k in 0..j {
+            s -= l[j * n + k] * l[j * n + k];
+        }
+        if s.is_nan() || s <= 0.0 {
+            return None;
+        }
+        let djj = s.sqrt();
+        l[j * n + j] = djj;
+        for i in j + 1..n {
+            let mut s = l[i * n + j];
+            for k in 0..j {
+                s -= l[i * n + k] * l[j * n + k];
+            }
+            l[i * n + j] = s / djj;
+        }
+    }
+    Some(l)
+}
+
+fn chol_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let s: f64 = (0..i).map(|k| l[i * n + k] * b[k]).sum();
+        b[i] = (b[i] - s) / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let s: f64 = (i + 1..n).map(|k| l[k * n + i] * b[k]).sum();
+        b[i] = (b[i] - s) / l[i * n + i];
+    }
 }
 
 /// One new rank-one term by alternating directions on the minimal-residual problem.

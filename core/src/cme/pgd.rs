@@ -392,6 +392,8 @@ pub fn solve(
         &cp::Settings {
             max_modes: options.max_modes,
             tol: options.compress_tol,
+            // Re-fit all time functions together every 20 terms.
+            refit: Some((d, 20)),
             ..cp::Settings::default()
         },
         &mut |terms, residual| progress(Progress::Compress { terms, residual }),
