@@ -17,12 +17,16 @@
 //! Both sides are sums of Kronecker products over (species…, parameters…): the
 //! generator's terms ([`super::kron`]) and the previous states' terms. Each step is
 //! solved by greedy minimal-residual PGD ([`super::cp::solve`]) to a relative residual
-//! `step_tol`, so a state keeps only the rank it needs.
+//! `step_tol`, so a state keeps only the rank it needs. Steps adapt: the local error is
+//! estimated as 2/9 of the distance between the new state and the quadratic
+//! extrapolation of the three before (both O(h³)), from Gram products, and kept near
+//! `step_error_tol`.
 //!
 //! **Time functions.** The states `P_k` (node indicator `e_k` in time) are then
 //! compressed into one representation with smooth time functions by the same greedy
 //! solver with the identity operator: `min ‖Σ_k e_k ⊗ P_k − Σ_j α_j ⊗ F^j‖₂`, to a
-//! relative tolerance `compress_tol`.
+//! relative tolerance `compress_tol`; every 20 terms all time functions are re-fitted
+//! together (one linear least-squares problem over the time axis).
 //!
 //! (A space-time formulation `(D_t ⊗ I − H ⊗ A) Q = h ⊗ A P_0` solved directly by
 //! greedy minimal-residual PGD was tried first: its residual falls to 1e-3 while the
