@@ -569,10 +569,9 @@ fn enrich(
             }
             // Right-hand side.
             let mut rvec = vec![0.0; m];
-            let mut acc = vec![0.0; ops[0].factors[k].rows];
+            let mut acc = vec![0.0; m];
             for (a, ta) in ops.iter().enumerate() {
-                acc.iter_mut().for_each(|x| *x = 0.0);
-                acc.resize(ta.factors[k].rows, 0.0);
+                acc.fill(0.0);
                 for r in 0..res_count {
                     let s = res_scale(r) * product_except((0..d).map(|o| rdot[o][a][r]), k);
                     if s != 0.0 {

@@ -151,8 +151,8 @@ impl CmeModel {
                 });
             }
         }
-        let mut values = vec![ParamValue::Index(0); self.species];
-        values.push(ParamValue::Scalar(t));
+        // Time, then each parameter (the species axes are summed, not particularized).
+        let mut values = vec![ParamValue::Scalar(t)];
         for (name, lo, hi) in &params {
             let v = set
                 .iter()
@@ -165,10 +165,7 @@ impl CmeModel {
         let modes = self.model.modes();
         let mut c: Vec<f64> = self.model.spatial()[..n].to_vec();
         let mut clamped = Vec::new();
-        for (axis, value) in self.model.axes()[self.species..]
-            .iter()
-            .zip(&values[self.species..])
-        {
+        for (axis, value) in self.model.axes()[self.species..].iter().zip(&values) {
             let st = axis
                 .info
                 .discretization
