@@ -5,6 +5,7 @@
 use palpa_core::cme::moments::l1;
 use palpa_core::cme::network::{Network, NetworkError};
 use palpa_core::cme::{fsp, ssa};
+use palpa_tests::poisson;
 
 const IMMIGRATION_DEATH: &str = r#"
 name = "immigration-death"
@@ -26,15 +27,6 @@ change = { x = -1 }
 rate = ["g"]
 factors = [{ species = "x", kind = "linear" }]
 "#;
-
-fn poisson(mean: f64, n: usize) -> Vec<f64> {
-    let mut p = vec![0.0; n];
-    p[0] = (-mean).exp();
-    for k in 1..n {
-        p[k] = p[k - 1] * mean / k as f64;
-    }
-    p
-}
 
 #[test]
 fn fsp_reproduces_the_immigration_death_closed_form() {

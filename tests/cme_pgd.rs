@@ -6,6 +6,7 @@ use palpa_core::cme::moments::l1;
 use palpa_core::cme::network::Network;
 use palpa_core::cme::{fsp, pgd};
 use palpa_core::file;
+use palpa_tests::poisson;
 
 /// Immigration at k = 4, death at rate g ∈ [0.2, 0.5] (a coordinate), from 0 copies:
 /// the law at time t is Poisson with mean (k/g)(1 − e^{−g t}).
@@ -28,15 +29,6 @@ change = { x = -1 }
 rate = ["g"]
 factors = [{ species = "x", kind = "linear" }]
 "#;
-
-fn poisson(mean: f64, n: usize) -> Vec<f64> {
-    let mut p = vec![0.0; n];
-    p[0] = (-mean).exp();
-    for k in 1..n {
-        p[k] = p[k - 1] * mean / k as f64;
-    }
-    p
-}
 
 fn options(t_end: f64) -> pgd::Options {
     pgd::Options {

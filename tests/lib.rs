@@ -76,3 +76,14 @@ pub fn coarse_liver() -> palpa_core::organ::OrganMesh {
         &liver.palpable_region(),
     )
 }
+
+/// The Poisson law with `mean` on `0..n` (the CME tests' closed form for
+/// immigration–death from 0 copies).
+pub fn poisson(mean: f64, n: usize) -> Vec<f64> {
+    let mut p = vec![0.0; n];
+    p[0] = (-mean).exp();
+    for k in 1..n {
+        p[k] = p[k - 1] * mean / k as f64;
+    }
+    p
+}
