@@ -128,6 +128,9 @@ fn offline_resumes_after_kill_9() {
         "30",
         "--tol",
         "1e-9",
+        // Small blocks, so the kill lands after at least one whole block.
+        "--block",
+        "2",
     ];
     let run = |out: &std::path::Path, extra: &[&str]| -> Vec<String> {
         let mut a: Vec<String> = base.iter().map(|s| s.to_string()).collect();
@@ -193,6 +196,65 @@ fn offline_resumes_after_kill_9() {
         diff <= 1e-6 * scale,
         "resumed vademecum differs: {diff:e} (scale {scale:e})"
     );
+}
+
+/// `palpa offline` in blocks, then `palpa tradeoff --plot`: the table carries the
+/// optimal errors on coarse (PGD never below them), and the PNG is written.
+#[test]
+fn offline_in_blocks_then_tradeoff_with_plot() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dir.path().join("m.palpa");
+    let png = dir.path().join("t.png");
+    let m = model.to_str().expect("utf-8");
+    let out = palpa(&[
+        "offline",
+        "liver",
+        "--level",
+        "coarse",
+        "--element",
+        "p1",
+        "--modes",
+        "6",
+        "--block",
+        "3",
+        "--tol",
+        "1e-9",
+        "--out",
+        m,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = palpa(&[
+        "tradeoff",
+        m,
+        "--held-out",
+        "2",
+        "--json",
+        "--plot",
+        png.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let rows = v["rows"].as_array().expect("rows");
+    assert_eq!(rows.last().expect("row")["modes"], 6);
+    for r in rows {
+        let (pgd, opt) = (r["map_rel_error"].as_f64(), r["svd_rel_error"].as_f64());
+        let (pgd, opt) = (pgd.expect("map error"), opt.expect("optimum"));
+        assert!(pgd >= opt * (1.0 - 1e-9) && pgd < 1.25 * opt, "{r}");
+        let surf = r["svd_surface_map_rel_error"]
+            .as_f64()
+            .expect("surface optimum");
+        assert!(surf > 0.0 && surf < 1.0, "{r}");
+    }
+    let bytes = std::fs::read(&png).expect("png written");
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
 }
 
 /// `palpa eval` on the shipped scene: JSON keys, a clamped mode request with notice,

@@ -11,6 +11,7 @@ mod memory;
 mod mesh;
 mod organ;
 mod pgd;
+mod plot;
 mod synth;
 mod tradeoff;
 

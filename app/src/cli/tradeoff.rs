@@ -22,7 +22,7 @@ use palpa_core::file;
 use palpa_core::mesh::triangle_normal;
 use palpa_core::pgd::linear::map_error;
 use palpa_core::pgd::palpation::{
-    describe, describe_get, optimal_errors, setup, svd_error, terms_from_model,
+    describe, describe_get, optimal_errors_on, setup, svd_error, terms_from_model,
 };
 use palpa_core::rng::Rng;
 use palpa_core::{ParamValue, TradeoffRow};
@@ -41,6 +41,9 @@ pub struct TradeoffArgs {
     svd: bool,
     #[arg(long)]
     json: bool,
+    /// Also plot error and evaluation time against the number of modes (PNG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
 }
 
 pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
@@ -154,7 +157,15 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         .collect();
 
     let svd = if level == LevelArg::Coarse || args.svd {
-        Some(optimal_errors(&s))
+        // Surface rows as free dofs (fixed nodes carry no unknown).
+        let surface_dofs: Vec<u32> = surface_rows
+            .iter()
+            .filter_map(|&r| {
+                let d = s.space.dof[(r / 3) as usize];
+                if d == u32::MAX { None } else { Some(d + r % 3) }
+            })
+            .collect();
+        Some(optimal_errors_on(&s, &surface_dofs))
     } else {
         None
     };
@@ -164,6 +175,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         .collect();
     ns.push(n_max);
     let mut rows = Vec::new();
+    let mut surface_optimum = Vec::new();
     for &n in &ns {
         let mut coeffs = vec![0.0; n];
         let mut out = vec![0.0; surface_rows.len()];
@@ -226,12 +238,13 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         }
         let contact_eval_ns = t0.elapsed().as_nanos() as f64 / f64::from(reps);
         let (map, opt) = match &svd {
-            Some((g2, ev, _)) => (
-                Some(map_error(&s.ops(), &terms, n, *g2)),
-                Some(svd_error(ev, n)),
+            Some(o) => (
+                Some(map_error(&s.ops(), &terms, n, o.g2)),
+                Some(svd_error(&o.ev, n)),
             ),
             None => (None, None),
         };
+        surface_optimum.push(svd.as_ref().map(|o| svd_error(&o.surface_ev, n)));
         let bytes = ((surface_rows.len() + model.axes()[0].values().len() / n_max) * n * 4) as u64;
         rows.push(TradeoffRow {
             modes: n as u32,
@@ -249,8 +262,10 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     file::save(&model, &args.file).with_context(|| format!("writing {}", args.file.display()))?;
     let json_rows: Vec<_> = rows
         .iter()
-        .map(|r| {
+        .zip(&surface_optimum)
+        .map(|(r, surf_opt)| {
             json!({"modes": r.modes, "surface_rel_error": r.surface_rel_error, "probe_rel_error": r.probe_rel_error,
+                   "svd_surface_map_rel_error": surf_opt,
                    "map_rel_error": r.map_rel_error, "svd_rel_error": r.svd_rel_error,
                    "pgd_over_svd": r.map_rel_error.zip(r.svd_rel_error).map(|(a, b)| a / b),
                    "surface_eval_us": r.surface_eval_us, "contact_eval_ns": r.contact_eval_ns, "bytes": r.bytes})
@@ -278,8 +293,59 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         };
         floor_probe = floor_probe.max((along(interp) - along(u_fe)).abs() / along(u_fe).abs());
     }
+    if let Some(path) = &args.plot {
+        plot(&rows, &surface_optimum, path)?;
+    }
     let out = json!({"rows": json_rows, "held_out": args.held_out,
                      "s_interpolation_floor": {"surface_rel_error": floor_surf, "probe_rel_error": floor_probe},
-                     "brute_force_solve_s": svd.as_ref().map(|s| s.2)});
+                     "brute_force_solve_s": svd.as_ref().map(|s| s.solve_s)});
     super::args::print_report(&out, args.json)
+}
+
+/// Error and time against modes, two log–log panels.
+fn plot(
+    rows: &[TradeoffRow],
+    surface_optimum: &[Option<f64>],
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    use super::plot::{Panel, Series, write_png};
+    let series = |name: &str, f: &dyn Fn(usize, &TradeoffRow) -> Option<f64>| Series {
+        name: name.into(),
+        points: rows
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| f(i, r).map(|v| [f64::from(r.modes), v]))
+            .collect(),
+    };
+    let mut errors = vec![
+        series("surface, held-out (max)", &|_, r| Some(r.surface_rel_error)),
+        series("probe, held-out (max)", &|_, r| Some(r.probe_rel_error)),
+    ];
+    if rows.iter().any(|r| r.map_rel_error.is_some()) {
+        errors.push(series("map, PGD", &|_, r| r.map_rel_error));
+        errors.push(series("map, optimal rank n", &|_, r| r.svd_rel_error));
+        errors.push(series("surface map, optimal rank n", &|i, _| {
+            surface_optimum[i]
+        }));
+    }
+    let panels = [
+        Panel {
+            title: "relative error".into(),
+            x_label: "modes n".into(),
+            y_label: "relative error".into(),
+            series: errors,
+        },
+        Panel {
+            title: "evaluation time".into(),
+            x_label: "modes n".into(),
+            y_label: "µs".into(),
+            series: vec![
+                series("whole surface (µs)", &|_, r| Some(r.surface_eval_us)),
+                series("contact, 3 nodes (µs)", &|_, r| {
+                    Some(r.contact_eval_ns * 1e-3)
+                }),
+            ],
+        },
+    ];
+    write_png(&panels, 1400, 560, path)
 }

@@ -42,8 +42,10 @@ impl Journal {
 
     /// Opens an existing journal written for the same `setup`, returning the terms it
     /// holds (`kx`, `ftx` left empty: the caller recomputes them) and truncating a
-    /// partial last record.
-    pub fn resume(path: &Path, setup: &str) -> io::Result<(Journal, Terms)> {
+    /// partial last record. Terms computed together in blocks of `whole` are kept only
+    /// as whole blocks (a block interrupted while being appended is dropped), so a
+    /// resumed run partitions the remaining terms as the uninterrupted one did.
+    pub fn resume(path: &Path, setup: &str, whole: usize) -> io::Result<(Journal, Terms)> {
         let mut file = OpenOptions::new().read(true).write(true).open(path)?;
         let len = file.metadata()?.len();
         let mut magic = [0u8; 8];
@@ -68,6 +70,7 @@ impl Journal {
         }
         let mut terms = Terms::default();
         let mut good_end = file.stream_position()?;
+        let mut ends = vec![good_end];
         loop {
             let mut u = [0u8; 8];
             if file.read_exact(&mut u).is_err() {
@@ -93,7 +96,15 @@ impl Journal {
             terms.fixed_point_iterations.push(0);
             terms.seconds_per_mode.push(0.0);
             good_end = file.stream_position()?;
+            ends.push(good_end);
         }
+        let keep = terms.x.len() / whole.max(1) * whole.max(1);
+        terms.residual_per_mode.truncate(keep);
+        terms.x.truncate(keep);
+        terms.y.truncate(keep);
+        terms.fixed_point_iterations.truncate(keep);
+        terms.seconds_per_mode.truncate(keep);
+        good_end = ends[keep];
         file.set_len(good_end)?;
         file.seek(SeekFrom::Start(good_end))?;
         Ok((Journal { file }, terms))
@@ -161,18 +172,27 @@ mod tests {
             .expect("open")
             .set_len(len - 20)
             .expect("cut");
-        let (mut j, back) = Journal::resume(&p, "setup A").expect("resume");
+        let (mut j, back) = Journal::resume(&p, "setup A", 1).expect("resume");
         assert_eq!(back.x.len(), 2);
         assert_eq!(back.x[1], vec![1.0; 5]);
         assert_eq!(back.y[1], vec![-1.0; 4]);
         // Appending continues cleanly after the truncation.
         j.append(&t, 2).expect("append");
         drop(j);
-        let (_, again) = Journal::resume(&p, "setup A").expect("resume");
+        let (_, again) = Journal::resume(&p, "setup A", 1).expect("resume");
         assert_eq!(again.x.len(), 3);
         assert!(
-            Journal::resume(&p, "setup B").is_err(),
+            Journal::resume(&p, "setup B", 1).is_err(),
             "another setup is refused"
         );
+        // In blocks of 2, the third term is an unfinished block: dropped, and the file
+        // is cut back so appending continues after the second.
+        let (mut j, whole) = Journal::resume(&p, "setup A", 2).expect("resume");
+        assert_eq!(whole.x.len(), 2);
+        j.append(&t, 2).expect("append");
+        drop(j);
+        let (_, again) = Journal::resume(&p, "setup A", 1).expect("resume");
+        assert_eq!(again.x.len(), 3);
+        assert_eq!(again.x[2], vec![2.0; 5]);
     }
 }

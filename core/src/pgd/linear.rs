@@ -63,6 +63,9 @@ pub struct Settings {
     /// Galerkin update of all parametric functions after each enrichment.
     pub update: bool,
     pub seed: u64,
+    /// Terms found together per fixed point (multi-RHS solves, see
+    /// [`block`](super::block)); 1 is the classic one-term greedy enrichment.
+    pub block: usize,
 }
 
 impl Default for Settings {
@@ -74,6 +77,7 @@ impl Default for Settings {
             fixed_point_max_iter: 15,
             update: true,
             seed: 1,
+            block: 1,
         }
     }
 }

@@ -11,6 +11,7 @@
 //! parameters) enter as further alternating steps of the same fixed point; the solver
 //! here handles one combined parametric index and is written so that step is local.
 
+pub mod block;
 pub mod journal;
 pub mod linear;
 pub mod palpation;

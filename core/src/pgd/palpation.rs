@@ -188,7 +188,11 @@ pub fn compute(
     start: Terms,
     progress: impl FnMut(&Terms),
 ) -> Terms {
-    solve(&setup.ops(), settings, start, progress)
+    if settings.block > 1 {
+        super::block::solve(&setup.ops(), settings, start, progress)
+    } else {
+        solve(&setup.ops(), settings, start, progress)
+    }
 }
 
 /// Packs terms into a meta-model: rows are all nodes × 3 (fixed nodes zero), one
@@ -252,10 +256,35 @@ pub fn to_model(
 /// error in the natural norm (Eckart–Young). Returns (‖G‖², eigenvalues descending,
 /// seconds spent in the solves).
 pub fn optimal_errors(setup: &Setup) -> (f64, Vec<f64>, f64) {
+    let o = optimal_errors_on(setup, &[]);
+    (o.g2, o.ev, o.solve_s)
+}
+
+/// The optimal separated approximations of the nodal map, in the natural norm and
+/// in a surface norm.
+#[derive(Debug, Clone)]
+pub struct Optimal {
+    /// ‖G‖² in the natural norm (energy × L²(s)).
+    pub g2: f64,
+    /// Eigenvalues (descending) whose tail sums give the optimal rank-n error in the
+    /// natural norm.
+    pub ev: Vec<f64>,
+    /// The same in the surface norm: Euclidean over the given surface dofs × L²(s),
+    /// i.e. the eigenvalues of `Lᵀ G_Sᵀ G_S L` (empty when no dofs were given).
+    pub surface_ev: Vec<f64>,
+    /// Seconds spent in the solves.
+    pub solve_s: f64,
+}
+
+/// [`optimal_errors`], plus the Eckart–Young bound in the surface norm over the free
+/// dofs `surface_dofs`: no rank-n separated representation has a smaller relative
+/// surface error over the whole map.
+pub fn optimal_errors_on(setup: &Setup, surface_dofs: &[u32]) -> Optimal {
     let t0 = Instant::now();
     let n = setup.f.rows;
     let m = setup.f.cols.len();
     let mut c = faer::Mat::<f64>::zeros(m, m);
+    let mut gs = faer::Mat::<f64>::zeros(surface_dofs.len(), m);
     const BATCH: usize = 64;
     for start in (0..m).step_by(BATCH) {
         let end = (start + BATCH).min(m);
@@ -273,6 +302,9 @@ pub fn optimal_errors(setup: &Setup) -> (f64, Vec<f64>, f64) {
                     .map(|&(r, v)| v * rhs[(r as usize, j - start)])
                     .sum();
             }
+            for (i, &d) in surface_dofs.iter().enumerate() {
+                gs[(i, j)] = rhs[(d as usize, j - start)];
+            }
         }
     }
     let solve_s = t0.elapsed().as_secs_f64();
@@ -289,13 +321,26 @@ pub fn optimal_errors(setup: &Setup) -> (f64, Vec<f64>, f64) {
         .expect("surface mass is SPD")
         .L()
         .to_owned();
-    let b = l.transpose() * &c * &l;
-    let mut ev = b
-        .self_adjoint_eigenvalues(faer::Side::Lower)
-        .expect("symmetric eigenvalues");
-    ev.reverse();
-    let g2: f64 = ev.iter().sum();
-    (g2, ev, solve_s)
+    let eig = |c: &faer::Mat<f64>| {
+        let b = l.transpose() * c * &l;
+        let mut ev = b
+            .self_adjoint_eigenvalues(faer::Side::Lower)
+            .expect("symmetric eigenvalues");
+        ev.reverse();
+        ev
+    };
+    let ev = eig(&c);
+    let surface_ev = if surface_dofs.is_empty() {
+        Vec::new()
+    } else {
+        eig(&(gs.transpose() * &gs))
+    };
+    Optimal {
+        g2: ev.iter().sum(),
+        ev,
+        surface_ev,
+        solve_s,
+    }
 }
 
 /// Optimal relative error with n terms from the eigenvalues.
