@@ -257,6 +257,41 @@ fn offline_in_blocks_then_tradeoff_with_plot() {
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
 }
 
+/// `palpa bench offline`: PGD and the brute-force route timed in one run; the brute
+/// force is the optimum, and the PGD stays within 1.25× of it.
+#[test]
+fn bench_offline_compares_pgd_with_brute_force() {
+    let out = palpa(&[
+        "bench",
+        "offline",
+        "--level",
+        "coarse",
+        "--element",
+        "p1",
+        "--modes",
+        "12",
+        "--block",
+        "1,4",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert!(v["brute_force"]["total_s"].as_f64().expect("time") > 0.0);
+    let runs = v["pgd"].as_array().expect("pgd runs");
+    assert_eq!(runs.len(), 2);
+    for run in runs {
+        assert!(run["brute_force_over_pgd_time"].as_f64().expect("ratio") > 0.0);
+        for a in run["accuracy"].as_array().expect("rows") {
+            let r = a["pgd_over_optimal"].as_f64().expect("ratio");
+            assert!((1.0 - 1e-9..1.25).contains(&r), "{a}");
+        }
+    }
+}
+
 /// `palpa eval` on the shipped scene: JSON keys, a clamped mode request with notice,
 /// and a VTU of the scene's surface.
 #[test]
@@ -443,4 +478,40 @@ fn cme_offline_then_eval_reproduces_fsp_and_solve_by_pgd_prints_the_same_json() 
     let v = common::json_ok(&out);
     assert_eq!(v["method"], "pgd");
     assert_eq!(v["marginals"].as_array().map(Vec::len), Some(2));
+}
+
+/// `palpa bench cme`: PGD, FSP and SSA in one run; the PGD model is closer to FSP than
+/// a small SSA run, so SSA needs more trajectories than it ran to match it.
+#[test]
+fn bench_cme_sets_pgd_against_ssa_at_equal_accuracy() {
+    let out = palpa(&[
+        "bench",
+        "cme",
+        "toggle",
+        "--t",
+        "1,2",
+        "--max-step",
+        "0.1",
+        "--trajectories",
+        "400",
+        "--json",
+    ]);
+    let v = common::json_ok(&out);
+    let pgd = v["pgd"]["marginal_l1_vs_fsp"].as_f64().expect("pgd error");
+    let ssa = v["ssa"][1]["marginal_l1_vs_fsp"]
+        .as_f64()
+        .expect("ssa error");
+    assert!(pgd < ssa, "{v}");
+    assert!(v["pgd"]["eval_us"].as_f64().expect("eval") > 0.0);
+    let needed = v["ssa_trajectories_for_pgd_accuracy"]
+        .as_f64()
+        .expect("count");
+    assert!(needed > 400.0, "{v}");
+    assert!(
+        v["ssa_error_exponent"]
+            .as_f64()
+            .expect("exponent")
+            .is_finite()
+    );
+    assert_eq!(v["fsp"]["leak"].as_array().map(Vec::len), Some(2));
 }

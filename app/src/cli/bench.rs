@@ -27,6 +27,11 @@ pub enum BenchCommand {
     Eval(EvalArgs),
     /// Full FE cost per level and element, locking, SVK Newton (JSON lines).
     Fe(super::bench_fe::FeBenchArgs),
+    /// Off-line vademecum cost: PGD (per block size) against brute force + SVD.
+    Offline(super::bench_pgd::OfflineBenchArgs),
+    /// Gene-network meta-model: off-line and evaluation time, accuracy against FSP,
+    /// and the SSA cost of the same marginal accuracy.
+    Cme(super::bench_cme::CmeBenchArgs),
 }
 
 #[derive(Debug, Args)]
@@ -67,6 +72,8 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Eval(args) => eval(args),
         BenchCommand::Fe(args) => super::bench_fe::run(args),
+        BenchCommand::Offline(args) => super::bench_pgd::run(args),
+        BenchCommand::Cme(args) => super::bench_cme::run(args),
     }
 }
 

@@ -48,7 +48,7 @@ pub struct PgdArgs {
 }
 
 impl PgdArgs {
-    fn options(&self, t_default: f64) -> pgd::Options {
+    pub fn options(&self, t_default: f64) -> pgd::Options {
         let mut o = pgd::Options {
             t_end: self.t_end.unwrap_or(t_default),
             h_first: self.first_step,
@@ -174,7 +174,7 @@ pub fn load_network(model: &str) -> anyhow::Result<Network> {
     }
 }
 
-fn parse_params(list: &[String]) -> anyhow::Result<Vec<(String, f64)>> {
+pub fn parse_params(list: &[String]) -> anyhow::Result<Vec<(String, f64)>> {
     list.iter()
         .map(|s| {
             let (k, v) = s
@@ -327,7 +327,7 @@ fn print_report(report: &Report, json: bool) -> anyhow::Result<()> {
 }
 
 /// Runs the PGD solver with a progress line on stderr.
-fn run_pgd(
+pub fn run_pgd(
     network: &Network,
     options: &pgd::Options,
 ) -> anyhow::Result<(palpa_core::separated::SeparatedModel<f64>, pgd::Report)> {

@@ -2,7 +2,9 @@
 
 mod args;
 mod bench;
+mod bench_cme;
 mod bench_fe;
+mod bench_pgd;
 mod cme;
 mod fe;
 mod headless;

@@ -280,6 +280,33 @@ pub struct Optimal {
 /// dofs `surface_dofs`: no rank-n separated representation has a smaller relative
 /// surface error over the whole map.
 pub fn optimal_errors_on(setup: &Setup, surface_dofs: &[u32]) -> Optimal {
+    let (c, gs, solve_s) = map_grams(setup, surface_dofs);
+    let l = surface_mass_factor(setup);
+    let eig = |c: &faer::Mat<f64>| {
+        let b = l.transpose() * c * &l;
+        let mut ev = b
+            .self_adjoint_eigenvalues(faer::Side::Lower)
+            .expect("symmetric eigenvalues");
+        ev.reverse();
+        ev
+    };
+    let ev = eig(&c);
+    let surface_ev = if surface_dofs.is_empty() {
+        Vec::new()
+    } else {
+        eig(&(gs.transpose() * &gs))
+    };
+    Optimal {
+        g2: ev.iter().sum(),
+        ev,
+        surface_ev,
+        solve_s,
+    }
+}
+
+/// One FE solve per column of F (batched), giving `C = Fᵀ K⁻¹ F` (m × m) and the
+/// solutions' values at `surface_dofs` (G_S, rows × m), and the seconds spent.
+fn map_grams(setup: &Setup, surface_dofs: &[u32]) -> (faer::Mat<f64>, faer::Mat<f64>, f64) {
     let t0 = Instant::now();
     let n = setup.f.rows;
     let m = setup.f.cols.len();
@@ -307,7 +334,12 @@ pub fn optimal_errors_on(setup: &Setup, surface_dofs: &[u32]) -> Optimal {
             }
         }
     }
-    let solve_s = t0.elapsed().as_secs_f64();
+    (c, gs, t0.elapsed().as_secs_f64())
+}
+
+/// L with `Ms = L Lᵀ` (dense).
+fn surface_mass_factor(setup: &Setup) -> faer::Mat<f64> {
+    let m = setup.f.cols.len();
     let mut ms = faer::Mat::<f64>::zeros(m, m);
     for col in 0..m {
         for k in setup.ms.col_ptr[col]..setup.ms.col_ptr[col + 1] {
@@ -316,31 +348,70 @@ pub fn optimal_errors_on(setup: &Setup, surface_dofs: &[u32]) -> Optimal {
             ms[(col, r)] = setup.ms.val[k];
         }
     }
-    let l = ms
-        .llt(faer::Side::Lower)
+    ms.llt(faer::Side::Lower)
         .expect("surface mass is SPD")
         .L()
-        .to_owned();
-    let eig = |c: &faer::Mat<f64>| {
-        let b = l.transpose() * c * &l;
-        let mut ev = b
-            .self_adjoint_eigenvalues(faer::Side::Lower)
-            .expect("symmetric eigenvalues");
-        ev.reverse();
-        ev
-    };
-    let ev = eig(&c);
-    let surface_ev = if surface_dofs.is_empty() {
-        Vec::new()
-    } else {
-        eig(&(gs.transpose() * &gs))
-    };
-    Optimal {
-        g2: ev.iter().sum(),
-        ev,
-        surface_ev,
-        solve_s,
+        .to_owned()
+}
+
+/// The brute-force vademecum, for comparison with the PGD: one FE solve per palpable
+/// vertex and direction, then the optimal rank-`modes` separated form of that map in
+/// the natural norm. With `B = Lᵀ C L = V Λ Vᵀ` (Ms = L Lᵀ, C = FᵀK⁻¹F), the optimum
+/// is `G L V Vᵀ L⁻¹`, i.e. `X_k = K⁻¹F L v_k / √λ_k` (K-normalized: `modes` more
+/// solves) and `y_k = √λ_k L⁻ᵀ v_k`. Returns the terms, ‖G‖² in the natural norm
+/// (Σ λ, for [`map_error`](super::linear::map_error)) and (solve, eigen, total)
+/// seconds.
+pub fn brute_force(setup: &Setup, modes: usize) -> (Terms, f64, [f64; 3]) {
+    let t0 = Instant::now();
+    let (c, _, solve_s) = map_grams(setup, &[]);
+    let t1 = Instant::now();
+    let l = surface_mass_factor(setup);
+    let b = l.transpose() * &c * &l;
+    let b = faer::Mat::from_fn(b.nrows(), b.ncols(), |i, j| 0.5 * (b[(i, j)] + b[(j, i)]));
+    let evd = b
+        .self_adjoint_eigen(faer::Side::Lower)
+        .expect("symmetric eigen-decomposition");
+    let eigen_s = t1.elapsed().as_secs_f64();
+    let m = b.nrows();
+    let modes = modes.min(m);
+    let lam = evd.S().column_vector();
+    let v = evd.U();
+    // Descending order, dropping null directions.
+    let order: Vec<usize> = (0..m).rev().take(modes).filter(|&k| lam[k] > 0.0).collect();
+    let lv = &l * v;
+    let mut rhs = faer::Mat::<f64>::zeros(setup.f.rows, order.len());
+    for (j, &k) in order.iter().enumerate() {
+        let w = lv.col(k);
+        for (p, colp) in setup.f.cols.iter().enumerate() {
+            let wp = w[p] / lam[k].sqrt();
+            for &(r, x) in colp {
+                rhs[(r as usize, j)] += x * wp;
+            }
+        }
     }
+    setup.problem.factor.solve_many(&mut rhs);
+    // y_k = √λ_k L⁻ᵀ v_k: solve Lᵀ y = √λ v.
+    let mut y = faer::Mat::from_fn(m, order.len(), |i, j| {
+        v[(i, order[j])] * lam[order[j]].sqrt()
+    });
+    faer::linalg::triangular_solve::solve_upper_triangular_in_place(
+        l.transpose(),
+        y.as_mut(),
+        faer::Par::Seq,
+    );
+    let mut t = Terms::default();
+    for j in 0..order.len() {
+        let x: Vec<f64> = rhs.col(j).iter().copied().collect();
+        let mut kx = vec![0.0; x.len()];
+        setup.problem.stiffness.mul(&x, &mut kx);
+        t.ftx.push(setup.f.mul_t(&x));
+        t.x.push(x);
+        t.kx.push(kx);
+        t.y.push(y.col(j).iter().copied().collect());
+    }
+    t.extend_gram();
+    let g2 = (0..m).map(|k| lam[k]).sum();
+    (t, g2, [solve_s, eigen_s, t0.elapsed().as_secs_f64()])
 }
 
 /// Optimal relative error with n terms from the eigenvalues.
