@@ -100,11 +100,13 @@ pub fn solve(
         let mut r = Mat::<f64>::zeros(n, 0);
         let mut kr = Mat::<f64>::zeros(n, 0);
         let mut lambda: Vec<f64> = Vec::new();
+        // Ms S of the current S, carried from the Rayleigh–Ritz step to the next R-step.
+        let mut ms_s_cur: Option<Mat<f64>> = None;
         let mut iters = 0;
         for it in 0..settings.fixed_point_max_iter {
             iters = it + 1;
             // S fixed → R.
-            let b = sym_mul_cols(ops.ms, &s);
+            let b = ms_s_cur.take().unwrap_or_else(|| sym_mul_cols(ops.ms, &s));
             let mut r_new = Mat::<f64>::zeros(n, b.ncols());
             for j in 0..b.ncols() {
                 let bj = col(&b, j);
@@ -167,7 +169,7 @@ pub fn solve(
             let converged = if r.ncols() >= k && k > 0 {
                 let old2: f64 = lambda[..k].iter().sum();
                 let rk = r.subcols(0, k).transpose() * kr_new.subcols(0, k);
-                let sm = s_new.subcols(0, k).transpose() * ms_s_of(ops, &s, k);
+                let sm = s_new.subcols(0, k).transpose() * b.subcols(0, k);
                 let mut cross = 0.0;
                 for a in 0..k {
                     for c in 0..k {
@@ -182,6 +184,7 @@ pub fn solve(
             r = r_new;
             kr = kr_new;
             s = s_new;
+            ms_s_cur = Some(&ms_s * &hw);
             lambda = hv;
             if converged {
                 break;
@@ -236,9 +239,4 @@ pub fn solve(
         }
     }
     t
-}
-
-/// `Ms S[:, ..k]`.
-fn ms_s_of(ops: &Operators, s: &Mat<f64>, k: usize) -> Mat<f64> {
-    sym_mul_cols(ops.ms, &s.subcols(0, k).to_owned())
 }
