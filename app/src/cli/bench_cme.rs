@@ -13,7 +13,7 @@ use palpa_core::cme::model::CmeModel;
 use palpa_core::cme::{Moments, fsp, ssa};
 use serde_json::json;
 
-use super::cme::{PgdArgs, load_network, parse_params, run_pgd};
+use super::cme::{PgdArgs, load_network, model_coordinates, parse_params, run_pgd};
 
 #[derive(Debug, Args)]
 pub struct CmeBenchArgs {
@@ -69,14 +69,7 @@ pub fn run(args: &CmeBenchArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let model = CmeModel::new(run_pgd(&network, &args.pgd.options(t_last))?.0)?;
     let offline_s = t0.elapsed().as_secs_f64();
-    let set: Vec<(String, f64)> = model
-        .parameters()
-        .iter()
-        .filter_map(|(name, _, _)| {
-            let q = network.parameters.iter().position(|x| &x.name == name)?;
-            Some((name.clone(), p[q]))
-        })
-        .collect();
+    let set = model_coordinates(&model, &network, &p);
     let mut pgd_moments = Vec::new();
     for &t in &args.t {
         pgd_moments.push(model.evaluate(t, &set, usize::MAX)?.moments);

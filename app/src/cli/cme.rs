@@ -244,14 +244,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         Method::Pgd => {
             let t_end = args.t.last().copied().unwrap_or(1.0).max(1e-3);
             let model = CmeModel::new(run_pgd(&network, &args.pgd.options(t_end))?.0)?;
-            let set: Vec<(String, f64)> = model
-                .parameters()
-                .iter()
-                .filter_map(|(name, _, _)| {
-                    let q = network.parameters.iter().position(|x| &x.name == name)?;
-                    Some((name.clone(), p[q]))
-                })
-                .collect();
+            let set = model_coordinates(&model, &network, &p);
             let mut out = Vec::new();
             for &t in &args.t {
                 let e = model.evaluate(t, &set, usize::MAX)?;
@@ -324,6 +317,18 @@ fn print_report(report: &Report, json: bool) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The values `p` of the network's parameters that are coordinates of `model`.
+pub fn model_coordinates(model: &CmeModel, network: &Network, p: &[f64]) -> Vec<(String, f64)> {
+    model
+        .parameters()
+        .iter()
+        .filter_map(|(name, _, _)| {
+            let q = network.parameters.iter().position(|x| &x.name == name)?;
+            Some((name.clone(), p[q]))
+        })
+        .collect()
 }
 
 /// Runs the PGD solver with a progress line on stderr.
