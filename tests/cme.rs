@@ -175,6 +175,11 @@ fn automatic_boxes_grow_until_the_leak_is_small() {
         fsp::solve(&net, &p, &[10.0]),
         Err(fsp::FspError::AutoBox(_))
     ));
+    // A box with the wrong number of sizes is refused, not indexed out of range.
+    assert!(matches!(
+        fsp::solve_on(&net, &p, &[32, 32], &[10.0]),
+        Err(fsp::FspError::BoxShape { got: 2, species: 1 })
+    ));
     // Mean 160 · (1 − e^{−2.5}) ≈ 147: 32 → 64 → 128 → 256 states.
     let (sol, met) = fsp::solve_auto(&net, &p, &[10.0], 1e-8).expect("solves");
     assert!(met);

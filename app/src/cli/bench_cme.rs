@@ -83,13 +83,7 @@ pub fn run(args: &CmeBenchArgs) -> anyhow::Result<()> {
     }
     let eval_us = te.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
 
-    let sizes: Vec<usize> = model
-        .model()
-        .axes()
-        .iter()
-        .take(network.species.len())
-        .map(|a| a.info.discretization.node_count())
-        .collect();
+    let sizes = model.box_sizes();
     let tf = Instant::now();
     let exact = fsp::solve_on(&network, &p, &sizes, &args.t)?;
     let fsp_s = tf.elapsed().as_secs_f64();

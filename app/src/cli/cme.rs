@@ -475,13 +475,7 @@ fn check_fsp(
 ) -> anyhow::Result<Vec<f64>> {
     let network = load_network(name)?;
     let (p, _) = network.parameter_values(params)?;
-    let sizes: Vec<usize> = model
-        .model()
-        .axes()
-        .iter()
-        .take(network.species.len())
-        .map(|a| a.info.discretization.node_count())
-        .collect();
+    let sizes = model.box_sizes();
     let exact = fsp::solve_on(&network, &p, &sizes, times)?;
     times
         .iter()

@@ -36,6 +36,8 @@ pub enum FspError {
     AutoBox(String),
     #[error("output times must be finite, ≥ 0 and increasing; got {0:?}")]
     Times(Vec<f64>),
+    #[error("the box has {got} sizes but the network has {species} species")]
+    BoxShape { got: usize, species: usize },
 }
 
 /// The generator on a box, in CSR (rows: target states).
@@ -51,6 +53,12 @@ pub struct Generator {
 impl Generator {
     /// Builds `A` for `network` with parameter values `p` on the box `sizes`.
     pub fn new(network: &Network, p: &[f64], sizes: &[usize]) -> Result<Self, FspError> {
+        if sizes.len() != network.species.len() {
+            return Err(FspError::BoxShape {
+                got: sizes.len(),
+                species: network.species.len(),
+            });
+        }
         let n: usize = sizes.iter().product();
         if n > MAX_STATES || sizes.contains(&0) {
             return Err(FspError::TooLarge { states: n });

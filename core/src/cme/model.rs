@@ -99,6 +99,14 @@ impl CmeModel {
             .collect()
     }
 
+    /// The truncation box: states per species axis (what an FSP check must use).
+    pub fn box_sizes(&self) -> Vec<usize> {
+        self.model.axes()[..self.species]
+            .iter()
+            .map(|a| a.info.discretization.node_count())
+            .collect()
+    }
+
     /// Names and ranges of the parameter coordinates.
     pub fn parameters(&self) -> Vec<(String, f64, f64)> {
         self.model.axes()[self.species + 1..]
