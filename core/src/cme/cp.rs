@@ -117,7 +117,18 @@ impl Sparse1d {
         }
     }
 
-    fn row(&self, r: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+    /// `s · B`.
+    pub fn scaled(mut self, s: f64) -> Self {
+        if s != 1.0 {
+            self.identity = false;
+            for v in &mut self.val {
+                *v *= s;
+            }
+        }
+        self
+    }
+
+    pub fn row(&self, r: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
         (self.ptr[r]..self.ptr[r + 1]).map(|e| (self.idx[e], self.val[e]))
     }
 }

@@ -13,6 +13,7 @@
 //! [`Moments`] holds what every solver reports at each output time: the marginals,
 //! means, variances and the covariance of the first two species.
 
+pub mod amen;
 pub mod cp;
 pub mod fsp;
 pub mod kron;
@@ -21,6 +22,7 @@ pub mod moments;
 pub mod network;
 pub mod pgd;
 pub mod ssa;
+pub mod tt;
 
 pub use moments::Moments;
 pub use network::{Network, NetworkError};

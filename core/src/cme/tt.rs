@@ -1,0 +1,448 @@
+//! Tensor trains: `X(i_1, …, i_d) = G_1[i_1] G_2[i_2] ⋯ G_d[i_d]`, each `G_k[i]` an
+//! `r_{k−1} × r_k` matrix (`r_0 = r_d = 1`).
+//!
+//! A tensor train is a separated representation whose terms share factors: expanded, it
+//! is `Σ_{a_1…a_{d−1}} Π_k G_k(a_{k−1}, i_k, a_k)`, a sum of products of one-variable
+//! functions, like a PGD sum, but its ranks `r_k` are set by SVDs (`round`) instead of
+//! greedy enrichment, which is what lets the CME solver keep the error of every time step
+//! below a tolerance (Oseledets 2011, "Tensor-train decomposition").
+//!
+//! Storage: core `k` is row-major `[a][i][b]` (`(a·n + i)·r1 + b`); read as an
+//! `(r0·n) × r1` matrix it is the core's *left* unfolding, as an `r0 × (n·r1)` matrix
+//! its *right* unfolding.
+
+use faer::{Accum, Mat, MatRef, Par};
+
+/// One core, `r0 × n × r1`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Core {
+    pub r0: usize,
+    pub n: usize,
+    pub r1: usize,
+    pub v: Vec<f64>,
+}
+
+impl Core {
+    pub fn zeros(r0: usize, n: usize, r1: usize) -> Self {
+        Core {
+            r0,
+            n,
+            r1,
+            v: vec![0.0; r0 * n * r1],
+        }
+    }
+
+    pub fn at(&self, a: usize, i: usize, b: usize) -> f64 {
+        self.v[(a * self.n + i) * self.r1 + b]
+    }
+
+    /// The `(r0·n) × r1` unfolding.
+    pub fn left(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.v, self.r0 * self.n, self.r1)
+    }
+
+    /// The `r0 × (n·r1)` unfolding.
+    pub fn right(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.v, self.r0, self.n * self.r1)
+    }
+
+    /// `v` of a row-major `rows × cols` matrix.
+    pub fn from_mat(r0: usize, n: usize, r1: usize, m: MatRef<'_, f64>) -> Self {
+        debug_assert_eq!(m.nrows() * m.ncols(), r0 * n * r1);
+        let cols = m.ncols();
+        let mut v = vec![0.0; r0 * n * r1];
+        for (idx, x) in v.iter_mut().enumerate() {
+            *x = m[(idx / cols, idx % cols)];
+        }
+        Core { r0, n, r1, v }
+    }
+
+    /// `v[a][i][b] · w_i` summed over `i`: an `r0 × r1` matrix (row-major).
+    pub fn contract(&self, w: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.r0 * self.r1];
+        for a in 0..self.r0 {
+            for (i, &wi) in w.iter().enumerate() {
+                if wi == 0.0 {
+                    continue;
+                }
+                let row = &self.v[(a * self.n + i) * self.r1..][..self.r1];
+                for (o, x) in out[a * self.r1..][..self.r1].iter_mut().zip(row) {
+                    *o += wi * x;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// `dst (m×n) = α·a·b (+ dst)`, sequential (the callers run in parallel over steps or
+/// are small).
+pub fn gemm(dst: &mut Mat<f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64, add: bool) {
+    faer::linalg::matmul::matmul(
+        dst.as_mut(),
+        if add { Accum::Add } else { Accum::Replace },
+        a,
+        b,
+        alpha,
+        Par::Seq,
+    );
+}
+
+pub fn mul(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut out = Mat::zeros(a.nrows(), b.ncols());
+    gemm(&mut out, a, b, 1.0, false);
+    out
+}
+
+/// Row-major values of a matrix.
+pub fn row_major(m: MatRef<'_, f64>) -> Vec<f64> {
+    let mut v = Vec::with_capacity(m.nrows() * m.ncols());
+    for i in 0..m.nrows() {
+        for j in 0..m.ncols() {
+            v.push(m[(i, j)]);
+        }
+    }
+    v
+}
+
+/// A tensor train.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tt {
+    pub cores: Vec<Core>,
+}
+
+impl Tt {
+    /// `⊗_k factors[k]`.
+    pub fn rank_one(factors: &[Vec<f64>]) -> Self {
+        Tt {
+            cores: factors
+                .iter()
+                .map(|f| Core {
+                    r0: 1,
+                    n: f.len(),
+                    r1: 1,
+                    v: f.clone(),
+                })
+                .collect(),
+        }
+    }
+
+    pub fn zeros(sizes: &[usize]) -> Self {
+        Tt {
+            cores: sizes.iter().map(|&n| Core::zeros(1, n, 1)).collect(),
+        }
+    }
+
+    pub fn sizes(&self) -> Vec<usize> {
+        self.cores.iter().map(|c| c.n).collect()
+    }
+
+    /// Bond ranks `r_1 … r_{d−1}`.
+    pub fn ranks(&self) -> Vec<usize> {
+        self.cores[..self.cores.len() - 1]
+            .iter()
+            .map(|c| c.r1)
+            .collect()
+    }
+
+    pub fn max_rank(&self) -> usize {
+        self.ranks().into_iter().max().unwrap_or(1)
+    }
+
+    /// Stored numbers.
+    pub fn len(&self) -> usize {
+        self.cores.iter().map(|c| c.v.len()).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.cores.is_empty()
+    }
+
+    pub fn scale(&mut self, s: f64) {
+        for x in &mut self.cores[0].v {
+            *x *= s;
+        }
+    }
+
+    /// `⟨self, other⟩`, left to right in `O(d n r³)`.
+    pub fn dot(&self, other: &Tt) -> f64 {
+        let mut l = Mat::<f64>::from_fn(1, 1, |_, _| 1.0);
+        for (a, b) in self.cores.iter().zip(&other.cores) {
+            l = dot_step(&l, a, b);
+        }
+        l[(0, 0)]
+    }
+
+    pub fn norm(&self) -> f64 {
+        self.dot(self).max(0.0).sqrt()
+    }
+
+    /// `Σ_j c_j X_j` exactly (ranks add).
+    pub fn sum(terms: &[(f64, &Tt)]) -> Tt {
+        let d = terms[0].1.cores.len();
+        let mut cores = Vec::with_capacity(d);
+        for k in 0..d {
+            let n = terms[0].1.cores[k].n;
+            let r0: usize = if k == 0 {
+                1
+            } else {
+                terms.iter().map(|t| t.1.cores[k].r0).sum()
+            };
+            let r1: usize = if k + 1 == d {
+                1
+            } else {
+                terms.iter().map(|t| t.1.cores[k].r1).sum()
+            };
+            let mut core = Core::zeros(r0, n, r1);
+            let (mut off0, mut off1) = (0, 0);
+            for (c, x) in terms {
+                let g = &x.cores[k];
+                let s = if k == 0 { *c } else { 1.0 };
+                for a in 0..g.r0 {
+                    for i in 0..n {
+                        for b in 0..g.r1 {
+                            core.v[((off0 + a) * n + i) * r1 + off1 + b] += s * g.at(a, i, b);
+                        }
+                    }
+                }
+                if k > 0 {
+                    off0 += g.r0;
+                }
+                if k + 1 < d {
+                    off1 += g.r1;
+                }
+            }
+            cores.push(core);
+        }
+        Tt { cores }
+    }
+
+    /// Makes cores `1…d−1` right-orthonormal (`Σ_{i,b} G[a,i,b] G[a',i,b] = δ_aa'`);
+    /// the norm moves into core 0.
+    pub fn orthogonalize_right(&mut self) {
+        for k in (1..self.cores.len()).rev() {
+            let (q, r) = right_qr(&self.cores[k]);
+            self.cores[k] = q;
+            self.cores[k - 1] = times_right(&self.cores[k - 1], r.as_ref());
+        }
+    }
+
+    /// TT-SVD rounding: the result differs from `self` by at most `rel_eps·‖self‖`
+    /// (Frobenius), and no rank exceeds `max_rank` (which may add more error).
+    /// Returns the relative error committed (from the discarded singular values).
+    pub fn round(&mut self, rel_eps: f64, max_rank: usize) -> f64 {
+        let d = self.cores.len();
+        if d == 1 {
+            return 0.0;
+        }
+        self.orthogonalize_right();
+        let norm = frob(&self.cores[0].v);
+        let per_bond = rel_eps * norm / ((d - 1) as f64).sqrt();
+        let mut discarded_sq = 0.0;
+        for k in 0..d - 1 {
+            let c = &self.cores[k];
+            let svd = c.left().thin_svd();
+            let Ok(svd) = svd else {
+                continue;
+            };
+            let s = svd.S().column_vector();
+            let mut keep = s.nrows();
+            let mut tail = 0.0;
+            while keep > 1 {
+                let x = s[keep - 1];
+                if tail + x * x > per_bond * per_bond {
+                    break;
+                }
+                tail += x * x;
+                keep -= 1;
+            }
+            if keep > max_rank {
+                for j in max_rank..keep {
+                    tail += s[j] * s[j];
+                }
+                keep = max_rank;
+            }
+            discarded_sq += tail;
+            let u = svd.U().subcols(0, keep);
+            let sv = Mat::<f64>::from_fn(keep, c.r1, |i, j| s[i] * svd.V()[(j, i)]);
+            let (r0, n) = (c.r0, c.n);
+            self.cores[k] = Core::from_mat(r0, n, keep, u);
+            self.cores[k + 1] = times_left(sv.as_ref(), &self.cores[k + 1]);
+        }
+        if norm > 0.0 {
+            discarded_sq.sqrt() / norm
+        } else {
+            0.0
+        }
+    }
+
+    /// Contracts core `k` with `w_k` where given, leaving the other indices open; with
+    /// every core contracted, the value `Σ X(i) Π_k w_k(i_k)`.
+    pub fn contract_all(&self, w: &[&[f64]]) -> f64 {
+        let mut v = vec![1.0];
+        for (c, wk) in self.cores.iter().zip(w) {
+            let m = c.contract(wk);
+            let mut next = vec![0.0; c.r1];
+            for (a, &va) in v.iter().enumerate() {
+                for (b, x) in next.iter_mut().enumerate() {
+                    *x += va * m[a * c.r1 + b];
+                }
+            }
+            v = next;
+        }
+        v[0]
+    }
+
+    /// The full tensor, first index fastest (for checks on small boxes).
+    pub fn full(&self) -> Vec<f64> {
+        // Right to left: t[(i_k…i_d), a_{k−1}] built as rows over the trailing indices.
+        let d = self.cores.len();
+        let mut t: Vec<f64> = vec![1.0];
+        let mut count = 1usize;
+        for k in (0..d).rev() {
+            let c = &self.cores[k];
+            // new[(i_k, rest), a] = Σ_b c[a, i_k, b] t[rest, b]; stored with i_k fastest.
+            let mut next = vec![0.0; c.n * count * c.r0];
+            for rest in 0..count {
+                for i in 0..c.n {
+                    for a in 0..c.r0 {
+                        let mut s = 0.0;
+                        for b in 0..c.r1 {
+                            s += c.at(a, i, b) * t[rest * c.r1 + b];
+                        }
+                        next[(rest * c.n + i) * c.r0 + a] = s;
+                    }
+                }
+            }
+            t = next;
+            count *= c.n;
+        }
+        t
+    }
+}
+
+fn frob(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// `l' = Σ_{a,c,i} l[a,c] A[a,i,·] B[c,i,·]`.
+fn dot_step(l: &Mat<f64>, a: &Core, b: &Core) -> Mat<f64> {
+    // t = lᵀ·A_right : (rb0 × n·ra1)
+    let t = mul(l.transpose(), a.right());
+    let mut out = Mat::<f64>::zeros(a.r1, b.r1);
+    for c in 0..b.r0 {
+        for i in 0..a.n {
+            for x in 0..a.r1 {
+                let tv = t[(c, i * a.r1 + x)];
+                if tv == 0.0 {
+                    continue;
+                }
+                for y in 0..b.r1 {
+                    out[(x, y)] += tv * b.at(c, i, y);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Core = R·Q with Q right-orthonormal: returns (Q as a core, R: r0 × r0').
+fn right_qr(c: &Core) -> (Core, Mat<f64>) {
+    // QR of the transpose of the right unfolding: Gᵀ = Q̃ R̃ → G = R̃ᵀ Q̃ᵀ.
+    let gt = c.right().transpose().to_owned();
+    let qr = gt.qr();
+    let q = qr.compute_thin_Q();
+    let r = qr.thin_R().to_owned();
+    let rank = q.ncols();
+    let qt = q.transpose().to_owned();
+    (
+        Core::from_mat(rank, c.n, c.r1, qt.as_ref()),
+        r.transpose().to_owned(),
+    )
+}
+
+/// Core = Q·R with Q left-orthonormal: returns (Q as a core, R: r1' × r1).
+pub fn left_qr(c: &Core) -> (Core, Mat<f64>) {
+    let qr = c.left().to_owned().qr();
+    let q = qr.compute_thin_Q();
+    let r = qr.thin_R().to_owned();
+    (Core::from_mat(c.r0, c.n, q.ncols(), q.as_ref()), r)
+}
+
+/// `core · m` over the right index (m: r1 × r1').
+pub fn times_right(c: &Core, m: MatRef<'_, f64>) -> Core {
+    let out = mul(c.left(), m);
+    Core::from_mat(c.r0, c.n, m.ncols(), out.as_ref())
+}
+
+/// `m · core` over the left index (m: r0' × r0).
+pub fn times_left(m: MatRef<'_, f64>, c: &Core) -> Core {
+    let out = mul(m, c.right());
+    Core::from_mat(m.nrows(), c.n, c.r1, out.as_ref())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    fn random(sizes: &[usize], ranks: &[usize], seed: u64) -> Tt {
+        let mut rng = Rng::seed(seed);
+        let d = sizes.len();
+        Tt {
+            cores: (0..d)
+                .map(|k| {
+                    let r0 = if k == 0 { 1 } else { ranks[k - 1] };
+                    let r1 = if k + 1 == d { 1 } else { ranks[k] };
+                    let mut c = Core::zeros(r0, sizes[k], r1);
+                    for x in &mut c.v {
+                        *x = rng.uniform() - 0.5;
+                    }
+                    c
+                })
+                .collect(),
+        }
+    }
+
+    fn dist(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
+    }
+
+    #[test]
+    fn dot_sum_and_round_agree_with_the_full_tensor() {
+        let sizes = [4, 5, 3, 6];
+        let x = random(&sizes, &[2, 3, 2], 1);
+        let y = random(&sizes, &[3, 2, 4], 2);
+        let (fx, fy) = (x.full(), y.full());
+        let dot: f64 = fx.iter().zip(&fy).map(|(a, b)| a * b).sum();
+        assert!((x.dot(&y) - dot).abs() < 1e-12 * dot.abs().max(1.0));
+        let s = Tt::sum(&[(2.0, &x), (-0.5, &y)]);
+        let fs: Vec<f64> = fx.iter().zip(&fy).map(|(a, b)| 2.0 * a - 0.5 * b).collect();
+        assert!(dist(&s.full(), &fs) < 1e-12);
+        // x + x has rank 2·r but represents a rank-r tensor: rounding recovers r.
+        let mut xx = Tt::sum(&[(1.0, &x), (1.0, &x)]);
+        let err = xx.round(1e-12, 100);
+        assert_eq!(xx.ranks(), vec![2, 3, 2]);
+        let f2: Vec<f64> = fx.iter().map(|a| 2.0 * a).collect();
+        assert!(dist(&xx.full(), &f2) < 1e-10 * frob(&f2));
+        assert!(err < 1e-12);
+        // Truncation to rank 1 reports the error it commits.
+        let mut r1 = s.clone();
+        let err = r1.round(0.0, 1);
+        let actual = dist(&r1.full(), &fs) / frob(&fs);
+        assert!(
+            (err - actual).abs() < 0.5 * actual,
+            "estimate {err}, actual {actual}"
+        );
+    }
+
+    #[test]
+    fn contract_all_sums_the_tensor() {
+        let sizes = [3, 4, 2];
+        let x = random(&sizes, &[2, 2], 3);
+        let ones: Vec<Vec<f64>> = sizes.iter().map(|&n| vec![1.0; n]).collect();
+        let w: Vec<&[f64]> = ones.iter().map(|v| v.as_slice()).collect();
+        let total: f64 = x.full().iter().sum();
+        assert!((x.contract_all(&w) - total).abs() < 1e-12);
+    }
+}
