@@ -23,6 +23,7 @@ pub mod network;
 pub mod pgd;
 pub mod ssa;
 pub mod tt;
+pub mod ttsolve;
 
 pub use moments::Moments;
 pub use network::{Network, NetworkError};
