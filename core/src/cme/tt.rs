@@ -293,6 +293,58 @@ impl Tt {
         v[0]
     }
 
+    /// Every marginal: `out[k][i] = Σ_{all indices but k} X(…, i_k = i, …)`, from one
+    /// left and one right pass of partial sums (`O(d n r²)`).
+    pub fn marginals(&self) -> Vec<Vec<f64>> {
+        let d = self.cores.len();
+        let sums: Vec<Vec<f64>> = self
+            .cores
+            .iter()
+            .map(|c| c.contract(&vec![1.0; c.n]))
+            .collect();
+        // left[k]: row vector of length r_{k−1}; right[k]: column vector of length r_k.
+        let mut left = vec![vec![1.0]];
+        for k in 0..d - 1 {
+            let c = &self.cores[k];
+            let l = &left[k];
+            left.push(
+                (0..c.r1)
+                    .map(|b| (0..c.r0).map(|a| l[a] * sums[k][a * c.r1 + b]).sum())
+                    .collect(),
+            );
+        }
+        let mut right = vec![vec![1.0]; d];
+        for k in (0..d - 1).rev() {
+            let c = &self.cores[k + 1];
+            right[k] = (0..c.r0)
+                .map(|a| {
+                    (0..c.r1)
+                        .map(|b| sums[k + 1][a * c.r1 + b] * right[k + 1][b])
+                        .sum()
+                })
+                .collect();
+        }
+        (0..d)
+            .map(|k| {
+                let c = &self.cores[k];
+                (0..c.n)
+                    .map(|i| {
+                        let mut s = 0.0;
+                        for a in 0..c.r0 {
+                            if left[k][a] == 0.0 {
+                                continue;
+                            }
+                            for b in 0..c.r1 {
+                                s += left[k][a] * c.at(a, i, b) * right[k][b];
+                            }
+                        }
+                        s
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
     /// The full tensor, first index fastest (for checks on small boxes).
     pub fn full(&self) -> Vec<f64> {
         // Right to left: t[(i_k…i_d), a_{k−1}] built as rows over the trailing indices.
