@@ -11,8 +11,11 @@
 //!     24     8  xxh3-64 of the header bytes
 //!     32     H  header: bincode 2 (standard config) of [`Header`]
 //!      …        zero padding to a multiple of 64
-//!      P        payload: X (rows × modes), then each axis's values (nodes × modes),
-//!               each block row-major, little-endian f32 or f64, padded to 64 bytes
+//!      P        payload, each block row-major, little-endian f32 or f64, padded to 64
+//!               bytes. Separated layout (version 1): X (rows × modes), then each
+//!               axis's values (nodes × modes). Tensor-train layout (version 2, the
+//!               header's `layout` names the ranks): one core per axis, r_{k−1} ×
+//!               nodes × r_k, f64
 //! P + len       end of file (trailing bytes are an error)
 //! ```
 //!
@@ -35,12 +38,16 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
+use crate::cme::tt::Core;
 use crate::fsutil::atomic_write;
 use crate::scalar::{Precision, Scalar};
 use crate::separated::{ModelError, ModelMeta, SeparatedModel};
 
 pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
-pub const FORMAT_VERSION: u32 = 1;
+/// Version 1: separated (sum-of-products) models. Version 2 adds [`Layout`] to the
+/// header, for tensor trains; separated models are still written as version 1 so older
+/// builds keep reading them.
+pub const FORMAT_VERSION: u32 = 2;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
@@ -56,6 +63,29 @@ pub struct Header {
     pub modes: u64,
     pub payload_len: u64,
     pub payload_xxh3: u64,
+    pub layout: Layout,
+}
+
+/// How the payload's arrays make the model.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub enum Layout {
+    /// `X` (rows × modes), then each axis's values (nodes × modes).
+    #[default]
+    Separated,
+    /// One core per axis, `r_{k−1} × nodes_k × r_k` row-major; `ranks` holds
+    /// `r_0 = 1, r_1, …, r_d = 1`. No `X` block.
+    TensorTrain { ranks: Vec<u64> },
+}
+
+/// The version-1 header (no layout: always separated).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct HeaderV1 {
+    meta: ModelMeta,
+    precision: Precision,
+    rows: u64,
+    modes: u64,
+    payload_len: u64,
+    payload_xxh3: u64,
 }
 
 /// Why a meta-model file could not be read or written.
@@ -108,6 +138,12 @@ pub enum FileError {
         expected: Precision,
         found: Precision,
     },
+    #[error("{path}: holds a {found} model, but a {expected} model was asked for")]
+    WrongLayout {
+        path: PathBuf,
+        expected: &'static str,
+        found: &'static str,
+    },
     #[error("{path}: invalid model: {source}")]
     Model { path: PathBuf, source: ModelError },
 }
@@ -153,6 +189,24 @@ fn bincode_config() -> impl bincode::config::Config {
 /// `None` if a product overflows (only possible for a crafted header).
 fn block_lens(h: &Header) -> Option<Vec<u64>> {
     let bytes = h.precision.bytes() as u64;
+    if let Layout::TensorTrain { ranks } = &h.layout {
+        if ranks.len() != h.meta.axes.len() + 1 {
+            return None;
+        }
+        return h
+            .meta
+            .axes
+            .iter()
+            .enumerate()
+            .map(|(k, a)| {
+                let nodes = a.discretization.node_count() as u64;
+                ranks[k]
+                    .checked_mul(nodes)?
+                    .checked_mul(ranks[k + 1])?
+                    .checked_mul(bytes)
+            })
+            .collect();
+    }
     let mut out = vec![h.rows.checked_mul(h.modes)?.checked_mul(bytes)?];
     for a in &h.meta.axes {
         let nodes = a.discretization.node_count() as u64;
@@ -171,38 +225,95 @@ const ZEROS: [u8; ALIGN as usize] = [0; ALIGN as usize];
 
 /// Writes `model` to `path` atomically (temp file, fsync, rename).
 pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
-    let io_err = |source| FileError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
     let (x, axes) = model.arrays();
     let blocks: Vec<&[u8]> = std::iter::once(x)
         .chain(axes)
         .map(bytemuck::cast_slice::<T, u8>)
         .collect();
+    let (payload_len, payload_xxh3) = payload_sum(&blocks);
+    let header = HeaderV1 {
+        meta: model.meta(),
+        precision: T::PRECISION,
+        rows: model.rows() as u64,
+        modes: model.modes() as u64,
+        payload_len,
+        payload_xxh3,
+    };
+    write_file(path, 1, &header, &blocks)
+}
+
+/// Writes a tensor-train model (f64 cores, one per axis of `meta`) atomically.
+pub fn save_train(meta: &ModelMeta, cores: &[Core], path: &Path) -> Result<(), FileError> {
+    let inconsistent = |reason: String| FileError::Inconsistent {
+        path: path.to_path_buf(),
+        reason,
+    };
+    if cores.len() != meta.axes.len() {
+        return Err(inconsistent(format!(
+            "{} cores for {} axes",
+            cores.len(),
+            meta.axes.len()
+        )));
+    }
+    let mut ranks = vec![1u64];
+    for (k, (c, a)) in cores.iter().zip(&meta.axes).enumerate() {
+        if c.n != a.discretization.node_count() || c.r0 as u64 != ranks[k] {
+            return Err(inconsistent(format!(
+                "core {k} is {}×{}×{}, axis {} has {} nodes",
+                c.r0,
+                c.n,
+                c.r1,
+                a.name,
+                a.discretization.node_count()
+            )));
+        }
+        if c.v.iter().any(|x| !x.is_finite()) {
+            return Err(inconsistent(format!("core {k} holds a non-finite value")));
+        }
+        ranks.push(c.r1 as u64);
+    }
+    let blocks: Vec<&[u8]> = cores
+        .iter()
+        .map(|c| bytemuck::cast_slice::<f64, u8>(&c.v))
+        .collect();
+    let (payload_len, payload_xxh3) = payload_sum(&blocks);
+    let header = Header {
+        meta: meta.clone(),
+        precision: Precision::F64,
+        rows: 0,
+        modes: 0,
+        payload_len,
+        payload_xxh3,
+        layout: Layout::TensorTrain { ranks },
+    };
+    write_file(path, 2, &header, &blocks)
+}
+
+fn payload_sum(blocks: &[&[u8]]) -> (u64, u64) {
+    let mut hasher = Xxh3::new();
+    let mut payload_len = 0u64;
+    for b in blocks {
+        let pad = (padded(b.len() as u64) - b.len() as u64) as usize;
+        hasher.update(b);
+        hasher.update(&ZEROS[..pad]);
+        payload_len += padded(b.len() as u64);
+    }
+    (payload_len, hasher.digest())
+}
+
+fn write_file<H: Serialize>(
+    path: &Path,
+    version: u32,
+    header: &H,
+    blocks: &[&[u8]],
+) -> Result<(), FileError> {
     // Little-endian on disk; every supported target is little-endian, and a big-endian
     // host would need a byte swap here (see Scalar::le_to_native for the read side).
     const _: () = assert!(
         cfg!(target_endian = "little"),
         "writer assumes little-endian"
     );
-    let mut hasher = Xxh3::new();
-    let mut payload_len = 0u64;
-    for b in &blocks {
-        let pad = (padded(b.len() as u64) - b.len() as u64) as usize;
-        hasher.update(b);
-        hasher.update(&ZEROS[..pad]);
-        payload_len += padded(b.len() as u64);
-    }
-    let header = Header {
-        meta: model.meta(),
-        precision: T::PRECISION,
-        rows: model.rows() as u64,
-        modes: model.modes() as u64,
-        payload_len,
-        payload_xxh3: hasher.digest(),
-    };
-    let header_bytes = bincode::serde::encode_to_vec(&header, bincode_config()).map_err(|e| {
+    let header_bytes = bincode::serde::encode_to_vec(header, bincode_config()).map_err(|e| {
         FileError::HeaderCorrupt {
             path: path.to_path_buf(),
             reason: format!("cannot encode: {e}"),
@@ -211,19 +322,22 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
     let header_end = PREAMBLE as u64 + header_bytes.len() as u64;
     atomic_write(path, |w| {
         w.write_all(&MAGIC)?;
-        w.write_all(&FORMAT_VERSION.to_le_bytes())?;
+        w.write_all(&version.to_le_bytes())?;
         w.write_all(&0u32.to_le_bytes())?;
         w.write_all(&(header_bytes.len() as u64).to_le_bytes())?;
         w.write_all(&xxh3_64(&header_bytes).to_le_bytes())?;
         w.write_all(&header_bytes)?;
         w.write_all(&ZEROS[..(padded(header_end) - header_end) as usize])?;
-        for b in &blocks {
+        for b in blocks {
             w.write_all(b)?;
             w.write_all(&ZEROS[..(padded(b.len() as u64) - b.len() as u64) as usize])?;
         }
         Ok(())
     })
-    .map_err(io_err)
+    .map_err(|source| FileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Reads and checks the preamble and header of `path` (not the payload).
@@ -349,11 +463,28 @@ fn read_header_from<R: Read>(path: &Path, f: &mut Opened<R>) -> Result<Located, 
     }
     // The byte limit bounds every length-prefixed allocation inside the decoder.
     let cfg = bincode::config::standard().with_limit::<{ MAX_HEADER_BYTES as usize }>();
-    let (header, used): (Header, usize) =
-        bincode::serde::decode_from_slice(&hbytes, cfg).map_err(|e| FileError::HeaderCorrupt {
-            path: p(),
-            reason: format!("cannot decode: {e}"),
-        })?;
+    let corrupt = |e: bincode::error::DecodeError| FileError::HeaderCorrupt {
+        path: p(),
+        reason: format!("cannot decode: {e}"),
+    };
+    let (header, used): (Header, usize) = if version == 1 {
+        let (h, used): (HeaderV1, usize) =
+            bincode::serde::decode_from_slice(&hbytes, cfg).map_err(corrupt)?;
+        (
+            Header {
+                meta: h.meta,
+                precision: h.precision,
+                rows: h.rows,
+                modes: h.modes,
+                payload_len: h.payload_len,
+                payload_xxh3: h.payload_xxh3,
+                layout: Layout::Separated,
+            },
+            used,
+        )
+    } else {
+        bincode::serde::decode_from_slice(&hbytes, cfg).map_err(corrupt)?
+    };
     if used != hbytes.len() {
         return Err(FileError::HeaderCorrupt {
             path: p(),
@@ -411,6 +542,78 @@ fn load_payload<T: Scalar, R: Read>(
     f: &mut Opened<R>,
     located: Located,
 ) -> Result<SeparatedModel<T>, FileError> {
+    let p = || path.to_path_buf();
+    if located.header.layout != Layout::Separated {
+        return Err(FileError::WrongLayout {
+            path: p(),
+            expected: "separated",
+            found: "tensor-train",
+        });
+    }
+    let (header, arrays) = read_arrays::<T, R>(path, f, located)?;
+    let inconsistent = |reason: String| FileError::Inconsistent { path: p(), reason };
+    let rows = usize::try_from(header.rows).map_err(|_| inconsistent("rows overflow".into()))?;
+    let modes = usize::try_from(header.modes).map_err(|_| inconsistent("modes overflow".into()))?;
+    let mut arrays = arrays.into_iter();
+    let x = arrays.next().expect("block_lens always yields X first");
+    let model = SeparatedModel::new(header.meta, rows, modes, x, arrays.collect())
+        .map_err(|source| FileError::Model { path: p(), source })?;
+    model
+        .check_finite()
+        .map_err(|source| FileError::Model { path: p(), source })?;
+    Ok(model)
+}
+
+/// Loads a tensor-train model: its metadata and one core per axis.
+pub fn load_train(path: &Path) -> Result<(ModelMeta, Vec<Core>), FileError> {
+    let mut f = open(path)?;
+    let located = read_header_from(path, &mut f)?;
+    let p = || path.to_path_buf();
+    let Layout::TensorTrain { ranks } = located.header.layout.clone() else {
+        return Err(FileError::WrongLayout {
+            path: p(),
+            expected: "tensor-train",
+            found: "separated",
+        });
+    };
+    if located.header.precision != Precision::F64 {
+        return Err(FileError::WrongPrecision {
+            path: p(),
+            expected: Precision::F64,
+            found: located.header.precision,
+        });
+    }
+    let (header, arrays) = read_arrays::<f64, File>(path, &mut f, located)?;
+    let mut cores = Vec::with_capacity(arrays.len());
+    for (k, v) in arrays.into_iter().enumerate() {
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(FileError::Inconsistent {
+                path: p(),
+                reason: format!("core {k} holds a non-finite value"),
+            });
+        }
+        cores.push(Core {
+            r0: ranks[k] as usize,
+            n: header.meta.axes[k].discretization.node_count(),
+            r1: ranks[k + 1] as usize,
+            v,
+        });
+    }
+    if ranks.first() != Some(&1) || ranks.last() != Some(&1) {
+        return Err(FileError::Inconsistent {
+            path: p(),
+            reason: format!("tensor-train ranks {ranks:?} must start and end with 1"),
+        });
+    }
+    Ok((header.meta, cores))
+}
+
+/// Checks the payload's size and checksum and reads its blocks.
+fn read_arrays<T: Scalar, R: Read>(
+    path: &Path,
+    f: &mut Opened<R>,
+    located: Located,
+) -> Result<(Header, Vec<Vec<T>>), FileError> {
     let Located {
         header,
         header_end,
@@ -419,7 +622,7 @@ fn load_payload<T: Scalar, R: Read>(
     let p = || path.to_path_buf();
     let inconsistent = |reason: String| FileError::Inconsistent { path: p(), reason };
     let blocks =
-        block_lens(&header).ok_or_else(|| inconsistent("array sizes overflow 64 bits".into()))?;
+        block_lens(&header).ok_or_else(|| inconsistent("array sizes overflow 64 bits, or the tensor-train ranks do not match the axes".into()))?;
     let expected_len =
         payload_len(&blocks).ok_or_else(|| inconsistent("payload size overflows".into()))?;
     if expected_len != header.payload_len {
@@ -485,14 +688,5 @@ fn load_payload<T: Scalar, R: Read>(
             found,
         });
     }
-    let rows = usize::try_from(header.rows).map_err(|_| inconsistent("rows overflow".into()))?;
-    let modes = usize::try_from(header.modes).map_err(|_| inconsistent("modes overflow".into()))?;
-    let mut arrays = arrays.into_iter();
-    let x = arrays.next().expect("block_lens always yields X first");
-    let model = SeparatedModel::new(header.meta, rows, modes, x, arrays.collect())
-        .map_err(|source| FileError::Model { path: p(), source })?;
-    model
-        .check_finite()
-        .map_err(|source| FileError::Model { path: p(), source })?;
-    Ok(model)
+    Ok((header, arrays))
 }
