@@ -90,13 +90,38 @@ pub struct Report {
     pub compress_seconds: f64,
 }
 
-/// The solution: a tensor train over (t, species…, range parameters…).
+/// What a core of the state's train holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Slot {
+    /// Species `i` (network order).
+    Species(usize),
+    /// Parameter axis `q` (index into [`History::params`]).
+    Param(usize),
+}
+
+/// Core order of the state: the parameter axes sit between the first half of the
+/// species and the rest. A parameter usually multiplies reactions of several species
+/// (the cascade's δ degrades z1 and z2); in the middle it couples to both through short
+/// bonds, and the big species cores stay at the ends, where their local systems are
+/// `n × r` instead of `r × n × r`.
+pub fn slot_order(species: usize, params: usize) -> Vec<Slot> {
+    let half = species.div_ceil(2);
+    (0..half)
+        .map(Slot::Species)
+        .chain((0..params).map(Slot::Param))
+        .chain((half..species).map(Slot::Species))
+        .collect()
+}
+
+/// The solution: a tensor train over (t, slots…).
 #[derive(Debug, Clone, PartialEq)]
 pub struct History {
     pub sizes: Vec<usize>,
     pub t: Vec<f64>,
-    /// `(parameter index, grid)` of each parameter axis.
+    /// `(parameter index in the network, grid)` of each parameter axis.
     pub params: Vec<(usize, Vec<f64>)>,
+    /// What cores `1…` of `tt` hold (core 0 is time).
+    pub order: Vec<Slot>,
     pub tt: Tt,
     /// The state at `t_end` as the stepping left it (before the history's rounding).
     pub last: Tt,
@@ -189,23 +214,38 @@ pub fn solve(
     }
     let started = std::time::Instant::now();
     let (terms, coords) = generator(network, &sizes);
-    let axis_sizes: Vec<usize> = sizes
+    let order = slot_order(sizes.len(), coords.len());
+    let natural = |slot: Slot| match slot {
+        Slot::Species(i) => i,
+        Slot::Param(q) => sizes.len() + q,
+    };
+    let terms: Vec<LocalTerm> = terms
+        .into_iter()
+        .map(|t| LocalTerm {
+            coef: t.coef,
+            factors: order.iter().map(|&o| t.factors[natural(o)].clone()).collect(),
+        })
+        .collect();
+    let axis_sizes: Vec<usize> = order
         .iter()
-        .copied()
-        .chain(coords.iter().map(|(_, g)| g.len()))
+        .map(|&o| match o {
+            Slot::Species(i) => sizes[i],
+            Slot::Param(q) => coords[q].1.len(),
+        })
         .collect();
     let generator_op = Mpo::from_terms(&axis_sizes, &terms);
     let p0 = Tt::rank_one(
-        &network
-            .species
+        &order
             .iter()
-            .zip(&sizes)
-            .map(|(s, &m)| {
-                let mut v = vec![0.0; m];
-                v[s.initial.min(m - 1)] = 1.0;
-                v
+            .map(|&o| match o {
+                Slot::Species(i) => {
+                    let m = sizes[i];
+                    let mut v = vec![0.0; m];
+                    v[network.species[i].initial.min(m - 1)] = 1.0;
+                    v
+                }
+                Slot::Param(q) => vec![1.0; coords[q].1.len()],
             })
-            .chain(coords.iter().map(|(_, g)| vec![1.0; g.len()]))
             .collect::<Vec<_>>(),
     );
     let settings = amen::Settings {
@@ -261,9 +301,9 @@ pub fn solve(
         // FSP leak rate). Rescale to that balance, per parameter value where there is one
         // parameter axis.
         let (mass_rhs, mass_x, leak) = (
-            masses(&rhs, sizes.len()),
-            masses(&x, sizes.len()),
-            masses(&generator_op.apply(&x), sizes.len()),
+            masses(&rhs, &order),
+            masses(&x, &order),
+            masses(&generator_op.apply(&x), &order),
         );
         let ratio: Vec<f64> = (0..mass_x.len())
             .map(|i| {
@@ -274,7 +314,7 @@ pub fn solve(
         for &q in &ratio {
             report.worst_mass_correction = report.worst_mass_correction.max((q - 1.0).abs());
         }
-        scale_by_parameter(&mut x, sizes.len(), &ratio);
+        scale_by_parameter(&mut x, &order, &ratio);
         report.max_rank = report.max_rank.max(r.max_rank);
         report.worst_local_residual = report.worst_local_residual.max(r.local_residual);
         report.sweeps += r.sweeps;
@@ -346,6 +386,7 @@ pub fn solve(
             sizes,
             t: stored_t,
             params: coords,
+            order,
             tt: history,
             last: recent.pop().expect("a state"),
         },
@@ -354,43 +395,48 @@ pub fn solve(
 }
 
 /// Total probability: one value, or one per grid value when there is exactly one
-/// parameter axis (after the `species` species axes).
-pub fn masses(x: &Tt, species: usize) -> Vec<f64> {
-    let mut v = vec![1.0];
-    for c in &x.cores[..species] {
-        let m = c.contract(&vec![1.0; c.n]);
-        v = (0..c.r1)
-            .map(|b| (0..c.r0).map(|a| v[a] * m[a * c.r1 + b]).sum())
-            .collect();
-    }
-    let rest = &x.cores[species..];
-    if rest.len() == 1 {
-        let c = &rest[0];
-        (0..c.n)
-            .map(|i| (0..c.r0).map(|a| v[a] * c.at(a, i, 0)).sum())
-            .collect()
-    } else {
-        let mut total = v;
-        for c in rest {
-            let m = c.contract(&vec![1.0; c.n]);
-            total = (0..c.r1)
-                .map(|b| (0..c.r0).map(|a| total[a] * m[a * c.r1 + b]).sum())
+/// parameter axis.
+pub fn masses(x: &Tt, order: &[Slot]) -> Vec<f64> {
+    let single = order.iter().filter(|o| matches!(o, Slot::Param(_))).count() == 1;
+    // v[j][a]: partial sums for each value j of the open parameter (one row if none).
+    let mut v: Vec<Vec<f64>> = vec![vec![1.0]];
+    for (c, slot) in x.cores.iter().zip(order) {
+        if single && matches!(slot, Slot::Param(_)) {
+            v = (0..c.n)
+                .map(|i| {
+                    (0..c.r1)
+                        .map(|b| (0..c.r0).map(|a| v[0][a] * c.at(a, i, b)).sum())
+                        .collect()
+                })
                 .collect();
+        } else {
+            let m = c.contract(&vec![1.0; c.n]);
+            for row in &mut v {
+                *row = (0..c.r1)
+                    .map(|b| (0..c.r0).map(|a| row[a] * m[a * c.r1 + b]).sum())
+                    .collect();
+            }
         }
-        total
     }
+    v.into_iter().map(|row| row[0]).collect()
 }
 
 /// Multiplies by `ratio` (one value, or one per value of the single parameter axis).
-fn scale_by_parameter(x: &mut Tt, species: usize, ratio: &[f64]) {
+fn scale_by_parameter(x: &mut Tt, order: &[Slot], ratio: &[f64]) {
     if ratio.len() == 1 {
         x.scale(ratio[0]);
         return;
     }
-    let c = &mut x.cores[species];
+    let k = order
+        .iter()
+        .position(|o| matches!(o, Slot::Param(_)))
+        .expect("one value per parameter grid value means one parameter axis");
+    let c = &mut x.cores[k];
     for a in 0..c.r0 {
         for (i, q) in ratio.iter().enumerate() {
-            c.v[a * c.n + i] *= q;
+            for b in 0..c.r1 {
+                c.v[(a * c.n + i) * c.r1 + b] *= q;
+            }
         }
     }
 }
@@ -545,6 +591,22 @@ pub fn lagrange_weights(nodes: &[f64], x: f64, points: usize) -> (Vec<f64>, bool
     (w, outside)
 }
 
+fn mat_mul(a: &[f64], rows: usize, inner: usize, b: &[f64], cols: usize) -> Vec<f64> {
+    let mut out = vec![0.0; rows * cols];
+    for i in 0..rows {
+        for k in 0..inner {
+            let x = a[i * inner + k];
+            if x == 0.0 {
+                continue;
+            }
+            for j in 0..cols {
+                out[i * cols + j] += x * b[k * cols + j];
+            }
+        }
+    }
+    out
+}
+
 impl History {
     /// The tensor train over the species at time `t` and parameter values `p` (one per
     /// parameter axis), interpolated linearly between nodes and clamped to the range.
@@ -553,30 +615,47 @@ impl History {
     }
 
     /// As [`Self::particularize`], with Lagrange interpolation through `points` nodes.
+    /// The result's cores are the species in network order.
     pub fn particularize_with(&self, t: f64, p: &[f64], points: usize) -> Tt {
-        let d = self.sizes.len();
         let (wt, _) = lagrange_weights(&self.t, t, points);
-        let time = self.tt.cores[0].contract(&wt); // 1 × ρ
-        let mut cores: Vec<Core> = self.tt.cores[1..=d].to_vec();
-        cores[0] = super::tt::times_left(
-            faer::MatRef::from_row_major_slice(&time, 1, self.tt.cores[0].r1),
-            &cores[0],
-        );
-        // Parameters: contract from the right end into the last species core.
-        let mut right = vec![1.0];
-        for (q, core) in self.tt.cores[d + 1..].iter().enumerate().rev() {
-            let (w, _) = lagrange_weights(&self.params[q].1, p[q], points);
-            let m = core.contract(&w); // r0 × r1
-            right = (0..core.r0)
-                .map(|a| (0..core.r1).map(|b| m[a * core.r1 + b] * right[b]).sum())
-                .collect();
+        // `pending`: a matrix (rows × r) to multiply into the next species core.
+        let c0 = &self.tt.cores[0];
+        let mut pending: Option<(usize, Vec<f64>)> = Some((1, c0.contract(&wt)));
+        let mut kept: Vec<(usize, Core)> = Vec::new();
+        for (slot, core) in self.order.iter().zip(&self.tt.cores[1..]) {
+            match *slot {
+                Slot::Param(q) => {
+                    let (w, _) = lagrange_weights(&self.params[q].1, p[q], points);
+                    let m = core.contract(&w); // r0 × r1
+                    pending = Some(match pending.take() {
+                        Some((rows, l)) => (rows, mat_mul(&l, rows, core.r0, &m, core.r1)),
+                        None => (core.r0, m),
+                    });
+                }
+                Slot::Species(i) => {
+                    let c = match pending.take() {
+                        Some((rows, l)) => super::tt::times_left(
+                            faer::MatRef::from_row_major_slice(&l, rows, core.r0),
+                            core,
+                        ),
+                        None => core.clone(),
+                    };
+                    kept.push((i, c));
+                }
+            }
         }
-        let last = cores.len() - 1;
-        let r = right.len();
-        cores[last] = super::tt::times_right(
-            &cores[last],
-            faer::MatRef::from_row_major_slice(&right, r, 1),
-        );
-        Tt { cores }
+        if let Some((rows, l)) = pending {
+            let last = kept.len() - 1;
+            let c = &kept[last].1;
+            let cols = l.len() / rows;
+            kept[last].1 =
+                super::tt::times_right(c, faer::MatRef::from_row_major_slice(&l, rows, cols));
+        }
+        kept.sort_by_key(|(i, _)| *i);
+        // Species cores in network order are still a train only if the order kept them
+        // contiguous, which slot_order does (parameters are contracted away).
+        Tt {
+            cores: kept.into_iter().map(|(_, c)| c).collect(),
+        }
     }
 }
