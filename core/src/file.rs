@@ -621,8 +621,11 @@ fn read_arrays<T: Scalar, R: Read>(
     } = located;
     let p = || path.to_path_buf();
     let inconsistent = |reason: String| FileError::Inconsistent { path: p(), reason };
-    let blocks =
-        block_lens(&header).ok_or_else(|| inconsistent("array sizes overflow 64 bits, or the tensor-train ranks do not match the axes".into()))?;
+    let blocks = block_lens(&header).ok_or_else(|| {
+        inconsistent(
+            "array sizes overflow 64 bits, or the tensor-train ranks do not match the axes".into(),
+        )
+    })?;
     let expected_len =
         payload_len(&blocks).ok_or_else(|| inconsistent("payload size overflows".into()))?;
     if expected_len != header.payload_len {

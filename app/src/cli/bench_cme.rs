@@ -9,11 +9,10 @@ use std::time::Instant;
 
 use anyhow::bail;
 use clap::Args;
-use palpa_core::cme::model::CmeModel;
 use palpa_core::cme::{Moments, fsp, ssa};
 use serde_json::json;
 
-use super::cme::{PgdArgs, load_network, model_coordinates, parse_params, run_pgd};
+use super::cme::{PgdArgs, load_network, model_coordinates, parse_params};
 
 #[derive(Debug, Args)]
 pub struct CmeBenchArgs {
@@ -67,8 +66,9 @@ pub fn run(args: &CmeBenchArgs) -> anyhow::Result<()> {
     let t_last = *args.t.last().expect("at least one time");
 
     let t0 = Instant::now();
-    let model = CmeModel::new(run_pgd(&network, &args.pgd.options(t_last))?.0)?;
+    let built = args.pgd.build(&network, t_last)?;
     let offline_s = t0.elapsed().as_secs_f64();
+    let model = built.model;
     let set = model_coordinates(&model, &network, &p);
     let mut pgd_moments = Vec::new();
     for &t in &args.t {
@@ -106,7 +106,7 @@ pub fn run(args: &CmeBenchArgs) -> anyhow::Result<()> {
         "model": network.name,
         "t": args.t,
         "parameters": network.parameters.iter().map(|q| q.name.clone()).zip(p.iter().copied()).collect::<Vec<_>>(),
-        "pgd": {"offline_s": offline_s, "terms": model.model().modes(), "eval_us": eval_us,
+        "pgd": {"offline_s": offline_s, "representation": model.describe(), "stored_values": model.stored_values(), "solver": built.report, "eval_us": eval_us,
                 "marginal_l1_vs_fsp": pgd_err},
         "fsp": {"seconds": fsp_s, "box": sizes, "leak": exact.leak},
         "ssa": ssa_runs.iter().map(|(k, s, e)| json!({"trajectories": k, "seconds": s, "marginal_l1_vs_fsp": e})).collect::<Vec<_>>(),

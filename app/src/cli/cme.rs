@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
-use palpa_core::cme::model::CmeModel;
-use palpa_core::cme::{Moments, Network, fsp, pgd, ssa};
+use palpa_core::cme::model::{self, CmeModel};
+use palpa_core::cme::{Moments, Network, fsp, pgd, ssa, ttsolve};
 use palpa_core::file;
 use serde::Serialize;
 
@@ -21,45 +21,180 @@ pub enum CmeCommand {
     Eval(EvalArgs),
 }
 
-/// Time grid and PGD settings shared by `offline` and `solve --method pgd`.
+/// Which off-line solver builds the meta-model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Solver {
+    /// Tensor-train BDF2 steps (ALS with enrichment), ranks set by SVD: the default.
+    Tt,
+    /// Greedy rank-one PGD per step, history compressed into a separated sum.
+    Greedy,
+}
+
+/// Time grid and solver settings shared by `offline`, `solve --method pgd` and
+/// `bench cme`.
 #[derive(Debug, Args)]
 pub struct PgdArgs {
+    #[arg(long, value_enum, default_value = "tt")]
+    solver: Solver,
     /// End of the time axis (the model is valid on [0, T]).
     #[arg(long = "t-end")]
     t_end: Option<f64>,
-    /// First time step (steps then grow geometrically).
-    #[arg(long, default_value_t = 0.02)]
-    first_step: f64,
-    /// Largest time step.
-    #[arg(long, default_value_t = 1.0)]
-    max_step: f64,
-    /// Most terms of the final model.
+    /// First time step [tt: 0.01, greedy: 0.02].
+    #[arg(long)]
+    first_step: Option<f64>,
+    /// Largest time step [tt: 5, greedy: 1].
+    #[arg(long)]
+    max_step: Option<f64>,
+    /// Adaptive steps: relative local error per step [tt: 3e-6, greedy: 3e-5; greedy
+    /// only: 0 = fixed geometric steps].
+    #[arg(long)]
+    step_error: Option<f64>,
+    /// tt: relative SVD truncation of each step's state.
+    #[arg(long, default_value_t = 1e-8)]
+    eps: f64,
+    /// tt: relative truncation of each stored state in the history.
+    #[arg(long, default_value_t = 1e-6)]
+    compress_eps: f64,
+    /// tt: largest rank of a step's state.
+    #[arg(long, default_value_t = 120)]
+    max_rank: usize,
+    /// greedy: most terms of the final model.
     #[arg(long, default_value_t = 400)]
     modes: usize,
-    /// Relative L2 error of the compressed time history.
+    /// greedy: relative L2 error of the compressed time history.
     #[arg(long, default_value_t = 1e-5)]
     tol: f64,
-    /// Relative residual of each implicit time step.
+    /// greedy: relative residual of each implicit time step.
     #[arg(long, default_value_t = 1e-6)]
     step_tol: f64,
-    /// Adaptive steps: relative local error per step (0: fixed geometric steps).
-    #[arg(long, default_value_t = 3e-5)]
-    step_error: f64,
+}
+
+/// A built meta-model, what to save, and the solver's figures.
+pub struct Built {
+    pub model: CmeModel,
+    pub save: Saved,
+    pub report: serde_json::Value,
+}
+
+pub enum Saved {
+    Separated(palpa_core::separated::SeparatedModel<f64>),
+    Train(Box<ttsolve::History>, palpa_core::separated::Provenance),
+}
+
+impl Built {
+    pub fn save(&self, network: &Network, out: &Path) -> anyhow::Result<()> {
+        match &self.save {
+            Saved::Separated(m) => file::save(m, out),
+            Saved::Train(h, prov) => model::save_train(network, h, prov.clone(), out),
+        }
+        .with_context(|| format!("writing {}", out.display()))
+    }
 }
 
 impl PgdArgs {
     pub fn options(&self, t_default: f64) -> pgd::Options {
         let mut o = pgd::Options {
             t_end: self.t_end.unwrap_or(t_default),
-            h_first: self.first_step,
-            h_max: self.max_step,
+            h_first: self.first_step.unwrap_or(0.02),
+            h_max: self.max_step.unwrap_or(1.0),
             ..pgd::Options::default()
         };
         o.max_modes = self.modes;
         o.compress_tol = self.tol;
         o.step_tol = self.step_tol;
-        o.step_error_tol = self.step_error;
+        o.step_error_tol = self.step_error.unwrap_or(3e-5);
         o
+    }
+
+    pub fn tt_options(&self, t_default: f64) -> ttsolve::Options {
+        ttsolve::Options {
+            t_end: self.t_end.unwrap_or(t_default),
+            h_first: self.first_step.unwrap_or(0.01),
+            h_max: self.max_step.unwrap_or(5.0),
+            step_error_tol: self.step_error.unwrap_or(3e-6),
+            eps: self.eps,
+            compress_eps: self.compress_eps,
+            max_rank: self.max_rank,
+            ..ttsolve::Options::default()
+        }
+    }
+
+    /// Builds the meta-model of `network` on [0, t_end] (default `t_default`).
+    pub fn build(&self, network: &Network, t_default: f64) -> anyhow::Result<Built> {
+        let start = Instant::now();
+        match self.solver {
+            Solver::Greedy => {
+                let (m, r) = run_pgd(network, &self.options(t_default))?;
+                let report = serde_json::json!({
+                    "solver": "greedy",
+                    "terms": m.modes(),
+                    "compress_error": m.provenance().residual_per_mode.last().copied(),
+                    "steps": r.steps,
+                    "max_step_rank": r.max_step_rank,
+                    "worst_step_residual": r.worst_step_residual,
+                    "history_terms": r.history_terms,
+                    "seconds": start.elapsed().as_secs_f64(),
+                });
+                Ok(Built {
+                    model: CmeModel::new(m.clone())?,
+                    save: Saved::Separated(m),
+                    report,
+                })
+            }
+            Solver::Tt => {
+                let o = self.tt_options(t_default);
+                let mut shown = Instant::now();
+                let (h, r) = ttsolve::solve(network, &o, &mut |s| {
+                    // A progress line at most 4 times a second.
+                    if shown.elapsed().as_secs_f64() < 0.25 && s.t < o.t_end {
+                        return;
+                    }
+                    shown = Instant::now();
+                    eprint!(
+                        "\rstep {:>5}  t {:>9.3} / {}  h {:.2e}  rank {:>3}  history rank {:>3}   ",
+                        s.k, s.t, o.t_end, s.h, s.rank, s.history_rank
+                    );
+                    let _ = std::io::stderr().flush();
+                })?;
+                eprintln!();
+                let seconds = start.elapsed().as_secs_f64();
+                let mut prov = palpa_core::separated::Provenance::now(
+                    "cme tensor train: BDF2 steps by ALS with enrichment, mass balanced, history rounded",
+                    &format!(
+                        "network {}; box {:?}; {} steps to t = {}; {o:?}",
+                        network.name, h.sizes, r.steps, o.t_end
+                    ),
+                    o.compress_eps,
+                    Vec::new(),
+                );
+                prov.input_hash = format!(
+                    "{:016x}",
+                    xxhash_rust::xxh3::xxh3_64(format!("{network:?}{o:?}").as_bytes())
+                );
+                let report = serde_json::json!({
+                    "solver": "tt",
+                    "steps": r.steps,
+                    "stored_times": r.stored,
+                    "max_step_rank": r.max_rank,
+                    "history_ranks": r.history_ranks,
+                    "worst_local_residual": r.worst_local_residual,
+                    "worst_mass_correction": r.worst_mass_correction,
+                    "sweeps": r.sweeps,
+                    "gmres_iterations": r.gmres_iterations,
+                    "solve_seconds": r.solve_seconds,
+                    "compress_seconds": r.compress_seconds,
+                    "stored_values": h.tt.len(),
+                    "seconds": seconds,
+                });
+                let meta = model::train_meta(network, &h, prov.clone());
+                let model = CmeModel::from_train(meta, h.tt.cores.clone())?;
+                Ok(Built {
+                    model,
+                    save: Saved::Train(Box::new(h), prov),
+                    report,
+                })
+            }
+        }
     }
 }
 
@@ -243,7 +378,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         }
         Method::Pgd => {
             let t_end = args.t.last().copied().unwrap_or(1.0).max(1e-3);
-            let model = CmeModel::new(run_pgd(&network, &args.pgd.options(t_end))?.0)?;
+            let model = args.pgd.build(&network, t_end)?.model;
             let set = model_coordinates(&model, &network, &p);
             let mut out = Vec::new();
             for &t in &args.t {
@@ -366,33 +501,20 @@ pub fn run_pgd(
 
 fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     let network = load_network(&args.model)?;
-    let start = Instant::now();
-    let (model, report) = run_pgd(&network, &args.pgd.options(300.0))?;
-    let seconds = start.elapsed().as_secs_f64();
-    file::save(&model, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
-    let res = model.provenance().residual_per_mode.last().copied();
-    println!(
-        "{}",
-        serde_json::json!({
-            "out": args.out,
-            "model": network.name,
-            "terms": model.modes(),
-            "compress_error": res,
-            "steps": report.steps,
-            "max_step_rank": report.max_step_rank,
-            "worst_step_residual": report.worst_step_residual,
-            "history_terms": report.history_terms,
-            "seconds": seconds,
-            "bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
-        })
-    );
+    let built = args.pgd.build(&network, 300.0)?;
+    built.save(&network, &args.out)?;
+    let mut report = built.report;
+    report["out"] = serde_json::json!(args.out);
+    report["model"] = serde_json::json!(network.name);
+    report["representation"] = serde_json::json!(built.model.describe());
+    report["bytes"] = serde_json::json!(std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0));
+    println!("{report}");
     Ok(())
 }
 
 fn eval(args: &EvalArgs) -> anyhow::Result<()> {
-    let loaded = file::load::<f64>(&args.file)
-        .with_context(|| format!("loading {}", args.file.display()))?;
-    let model = CmeModel::new(loaded).with_context(|| args.file.display().to_string())?;
+    let model =
+        model::load(&args.file).with_context(|| format!("loading {}", args.file.display()))?;
     let set = parse_params(&args.params)?;
     let n = args.modes.unwrap_or(usize::MAX);
     let start = Instant::now();

@@ -83,7 +83,13 @@ impl Mpo {
             let r1 = if k + 1 == d { 1 } else { bond_rank(k) };
             // Boundary bonds have a single channel: "not started" on the left, "done" on
             // the right.
-            let left = |ch: usize| if k == 0 { (ch == NS).then_some(0) } else { Some(ch) };
+            let left = |ch: usize| {
+                if k == 0 {
+                    (ch == NS).then_some(0)
+                } else {
+                    Some(ch)
+                }
+            };
             let right = |ch: usize| {
                 if k + 1 == d {
                     (ch == DONE).then_some(0)
@@ -221,10 +227,21 @@ fn rm_mut(v: &mut [f64], rows: usize, cols: usize) -> MatMut<'_, f64> {
     MatMut::from_row_major_slice_mut(v, rows, cols)
 }
 
-fn gemm_rm(dst: &mut [f64], rows: usize, cols: usize, a: MatRef<'_, f64>, b: MatRef<'_, f64>, add: bool) {
+fn gemm_rm(
+    dst: &mut [f64],
+    rows: usize,
+    cols: usize,
+    a: MatRef<'_, f64>,
+    b: MatRef<'_, f64>,
+    add: bool,
+) {
     faer::linalg::matmul::matmul(
         rm_mut(dst, rows, cols),
-        if add { faer::Accum::Add } else { faer::Accum::Replace },
+        if add {
+            faer::Accum::Add
+        } else {
+            faer::Accum::Replace
+        },
         a,
         b,
         1.0,
@@ -255,7 +272,14 @@ impl Local<'_> {
         for (_, be, _) in &self.w.blocks {
             if z[*be].is_none() {
                 let mut buf = vec![0.0; len];
-                gemm_rm(&mut buf, r0 * n, r1, rm(y, r0 * n, r1), self.right[*be].transpose(), false);
+                gemm_rm(
+                    &mut buf,
+                    r0 * n,
+                    r1,
+                    rm(y, r0 * n, r1),
+                    self.right[*be].transpose(),
+                    false,
+                );
                 z[*be] = Some(buf);
             }
         }
@@ -271,7 +295,14 @@ impl Local<'_> {
                 }
             }
             if any {
-                gemm_rm(out, r0, n * r1, self.left[al].as_ref(), rm(&acc, r0, n * r1), true);
+                gemm_rm(
+                    out,
+                    r0,
+                    n * r1,
+                    self.left[al].as_ref(),
+                    rm(&acc, r0, n * r1),
+                    true,
+                );
             }
         }
     }
@@ -449,7 +480,14 @@ fn prev_right(w: &MpoCore, right: &[Mat<f64>], x: &Core) -> Vec<Mat<f64>> {
     for (_, be, _) in &w.blocks {
         if g[*be].is_none() {
             let mut buf = vec![0.0; len];
-            gemm_rm(&mut buf, r0 * n, r1, x.left(), right[*be].transpose(), false);
+            gemm_rm(
+                &mut buf,
+                r0 * n,
+                r1,
+                x.left(),
+                right[*be].transpose(),
+                false,
+            );
             g[*be] = Some(buf);
         }
     }
@@ -547,7 +585,14 @@ pub fn solve(op: &Mpo, b: &Tt, x: &mut Tt, s: &Settings) -> Report {
 }
 
 /// Local solve at core k: returns (new core values, starting residual, iterations).
-fn solve_local(op: &Mpo, b: &Tt, x: &Tt, fr: &Frames, k: usize, tol: f64) -> (Vec<f64>, f64, usize) {
+fn solve_local(
+    op: &Mpo,
+    b: &Tt,
+    x: &Tt,
+    fr: &Frames,
+    k: usize,
+    tol: f64,
+) -> (Vec<f64>, f64, usize) {
     let c = &x.cores[k];
     let local = Local {
         w: &op.cores[k],
@@ -564,7 +609,13 @@ fn solve_local(op: &Mpo, b: &Tt, x: &Tt, fr: &Frames, k: usize, tol: f64) -> (Ve
     let mut my = vec![0.0; y.len()];
     local.apply(&y, &mut my);
     let fnorm = norm(&f).max(f64::MIN_POSITIVE);
-    let res = f.iter().zip(&my).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt() / fnorm;
+    let res = f
+        .iter()
+        .zip(&my)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        .sqrt()
+        / fnorm;
     if res <= tol {
         return (y, res, 0);
     }
@@ -575,7 +626,15 @@ fn solve_local(op: &Mpo, b: &Tt, x: &Tt, fr: &Frames, k: usize, tol: f64) -> (Ve
 
 /// Adds up to `s.enrich` residual directions to the solved core `y` and makes it
 /// left-orthonormal; returns (core k, core k+1 carrying y's weight).
-fn enrich(op: &Mpo, b: &Tt, x: &Tt, fr: &Frames, k: usize, y: &[f64], s: &Settings) -> (Core, Core) {
+fn enrich(
+    op: &Mpo,
+    b: &Tt,
+    x: &Tt,
+    fr: &Frames,
+    k: usize,
+    y: &[f64],
+    s: &Settings,
+) -> (Core, Core) {
     let c = &x.cores[k];
     let (r0, n, r1) = (c.r0, c.n, c.r1);
     let rows = r0 * n;
@@ -646,7 +705,11 @@ fn enrich(op: &Mpo, b: &Tt, x: &Tt, fr: &Frames, k: usize, y: &[f64], s: &Settin
         {
             let add = e.ncols().min(rows - r1);
             stacked = Mat::from_fn(rows, r1 + add, |i, j| {
-                if j < r1 { ycore.left()[(i, j)] } else { e[(i, j - r1)] }
+                if j < r1 {
+                    ycore.left()[(i, j)]
+                } else {
+                    e[(i, j - r1)]
+                }
             });
             cols = r1 + add;
         }
@@ -726,13 +789,21 @@ mod tests {
         for (k, &m) in sizes.iter().enumerate() {
             let mut f = vec![None; 4];
             f[k] = Some(birth_death(m, 1.0 + k as f64, 0.3));
-            terms.push(LocalTerm { coef: -h, factors: f });
+            terms.push(LocalTerm {
+                coef: -h,
+                factors: f,
+            });
         }
         // A coupling term between axes 0 and 2 (crossing two bonds).
         let mut f = vec![None; 4];
-        f[0] = Some(Sparse1d::diagonal(&(0..12).map(|z| 0.1 * z as f64).collect::<Vec<_>>()));
+        f[0] = Some(Sparse1d::diagonal(
+            &(0..12).map(|z| 0.1 * z as f64).collect::<Vec<_>>(),
+        ));
         f[2] = Some(birth_death(8, 0.5, 0.0));
-        terms.push(LocalTerm { coef: -h, factors: f });
+        terms.push(LocalTerm {
+            coef: -h,
+            factors: f,
+        });
         let op = Mpo::from_terms(&sizes, &terms);
         assert_eq!(op.cores[1].r0, 3);
         assert_eq!(op.cores[1].r1, 3);

@@ -13,8 +13,63 @@ use thiserror::Error;
 
 use super::moments::Moments;
 use super::pgd::KIND;
+use super::tt::{Core, Tt};
+use super::ttsolve::{History, Slot};
 use crate::axis::{Discretization, ParamValue};
-use crate::separated::SeparatedModel;
+use crate::separated::{AxisInfo, FieldInfo, ModelMeta, Provenance, SeparatedModel};
+
+/// The kind string of a tensor-train CME meta-model file.
+pub const TRAIN_KIND: &str = "cme-tensor-train";
+
+/// The file description of a solved history: axes in core order (t, then species as
+/// discrete axes and parameters as grids, in the solver's slot order).
+pub fn train_meta(
+    network: &super::Network,
+    history: &History,
+    provenance: Provenance,
+) -> ModelMeta {
+    let mut axes = vec![AxisInfo {
+        name: "t".into(),
+        unit: "time".into(),
+        discretization: Discretization::Grid {
+            nodes: history.t.clone(),
+        },
+    }];
+    for slot in &history.order {
+        axes.push(match *slot {
+            Slot::Species(i) => AxisInfo {
+                name: network.species[i].name.clone(),
+                unit: "copies".into(),
+                discretization: Discretization::Discrete {
+                    labels: (0..history.sizes[i]).map(|z| z.to_string()).collect(),
+                },
+            },
+            Slot::Param(q) => {
+                let (index, grid) = &history.params[q];
+                AxisInfo {
+                    name: network.parameters[*index].name.clone(),
+                    unit: String::new(),
+                    discretization: Discretization::Grid {
+                        nodes: grid.clone(),
+                    },
+                }
+            }
+        });
+    }
+    ModelMeta {
+        kind: TRAIN_KIND.into(),
+        field: FieldInfo {
+            name: "probability".into(),
+            unit: "1".into(),
+            components: 1,
+            node_ids: Vec::new(),
+        },
+        axes,
+        provenance,
+        tradeoff: Vec::new(),
+        geometry: Default::default(),
+    }
+}
 
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum CmeModelError {
@@ -32,15 +87,35 @@ pub enum CmeModelError {
     Eval(String),
 }
 
-/// A loaded CME meta-model, ready to evaluate.
+/// A loaded CME meta-model, ready to evaluate: a separated sum (greedy PGD) or a
+/// tensor train ([`super::ttsolve`]).
 #[derive(Debug, Clone)]
 pub struct CmeModel {
+    repr: Repr,
+}
+
+#[derive(Debug, Clone)]
+enum Repr {
+    Separated(Separated),
+    Train(Train),
+}
+
+#[derive(Debug, Clone)]
+struct Separated {
     model: SeparatedModel<f64>,
     /// Number of species axes (the first axes).
     species: usize,
     /// `sums[i][j]`, `firsts[i][j]`: Σ_z F_i^j(z) and Σ_z z F_i^j(z).
     sums: Vec<Vec<f64>>,
     firsts: Vec<Vec<f64>>,
+}
+
+#[derive(Debug, Clone)]
+struct Train {
+    meta: ModelMeta,
+    history: History,
+    species: Vec<String>,
+    params: Vec<String>,
 }
 
 /// What one evaluation gives.
@@ -54,8 +129,83 @@ pub struct Evaluation {
 }
 
 impl CmeModel {
+    /// A tensor-train model as [`super::ttsolve::solve`] leaves it, described by `meta`
+    /// (see [`train_meta`]).
+    pub fn from_train(meta: ModelMeta, cores: Vec<Core>) -> Result<Self, CmeModelError> {
+        if meta.kind != TRAIN_KIND {
+            return Err(CmeModelError::WrongKind(meta.kind.clone()));
+        }
+        let bad = |why: String| CmeModelError::Eval(format!("tensor-train model: {why}"));
+        if meta.axes.first().map(|a| a.name.as_str()) != Some("t") || cores.len() != meta.axes.len()
+        {
+            return Err(CmeModelError::NoTime);
+        }
+        let nodes = |a: &AxisInfo| match &a.discretization {
+            Discretization::Grid { nodes } => Some(nodes.clone()),
+            _ => None,
+        };
+        let t = nodes(&meta.axes[0]).ok_or_else(|| bad("time axis is not a grid".into()))?;
+        let (mut order, mut sizes, mut species, mut params, mut grids) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for a in &meta.axes[1..] {
+            match &a.discretization {
+                Discretization::Discrete { labels } => {
+                    order.push(Slot::Species(species.len()));
+                    sizes.push(labels.len());
+                    species.push(a.name.clone());
+                }
+                Discretization::Grid { nodes } => {
+                    order.push(Slot::Param(params.len()));
+                    grids.push((params.len(), nodes.clone()));
+                    params.push(a.name.clone());
+                }
+                _ => return Err(bad(format!("axis {} is neither species nor grid", a.name))),
+            }
+        }
+        if species.is_empty() {
+            return Err(bad("no species axis".into()));
+        }
+        let tt = Tt { cores };
+        Ok(CmeModel {
+            repr: Repr::Train(Train {
+                meta,
+                history: History {
+                    sizes,
+                    t,
+                    params: grids,
+                    order,
+                    last: tt.clone(),
+                    tt,
+                },
+                species,
+                params,
+            }),
+        })
+    }
+
+    /// The numbers stored (terms × axis sizes, or the train's cores).
+    pub fn stored_values(&self) -> usize {
+        match &self.repr {
+            Repr::Separated(s) => s.model.array_bytes() / 8,
+            Repr::Train(t) => t.history.tt.len(),
+        }
+    }
+
+    /// "separated, N terms" or "tensor train, ranks […]".
+    pub fn describe(&self) -> String {
+        match &self.repr {
+            Repr::Separated(s) => format!("separated, {} terms", s.model.modes()),
+            Repr::Train(t) => format!("tensor train, ranks {:?}", t.history.tt.ranks()),
+        }
+    }
+
     pub fn new(model: SeparatedModel<f64>) -> Result<Self, CmeModelError> {
         if model.kind() != KIND {
+            if model.kind() == TRAIN_KIND {
+                return Err(CmeModelError::Eval(
+                    "a tensor-train model needs CmeModel::from_train".into(),
+                ));
+            }
             return Err(CmeModelError::WrongKind(model.kind().to_string()));
         }
         let species = model
@@ -81,62 +231,80 @@ impl CmeModel {
             firsts.push(f);
         }
         Ok(CmeModel {
-            model,
-            species,
-            sums,
-            firsts,
+            repr: Repr::Separated(Separated {
+                model,
+                species,
+                sums,
+                firsts,
+            }),
         })
     }
 
-    pub fn model(&self) -> &SeparatedModel<f64> {
-        &self.model
+    pub fn meta(&self) -> ModelMeta {
+        match &self.repr {
+            Repr::Separated(s) => s.model.meta(),
+            Repr::Train(t) => t.meta.clone(),
+        }
     }
 
     pub fn species_names(&self) -> Vec<String> {
-        self.model.axes()[..self.species]
-            .iter()
-            .map(|a| a.info.name.clone())
-            .collect()
+        match &self.repr {
+            Repr::Separated(s) => s.model.axes()[..s.species]
+                .iter()
+                .map(|a| a.info.name.clone())
+                .collect(),
+            Repr::Train(t) => t.species.clone(),
+        }
     }
 
     /// The truncation box: states per species axis (what an FSP check must use).
     pub fn box_sizes(&self) -> Vec<usize> {
-        self.model.axes()[..self.species]
-            .iter()
-            .map(|a| a.info.discretization.node_count())
-            .collect()
+        match &self.repr {
+            Repr::Separated(s) => s.model.axes()[..s.species]
+                .iter()
+                .map(|a| a.info.discretization.node_count())
+                .collect(),
+            Repr::Train(t) => t.history.sizes.clone(),
+        }
     }
 
     /// Names and ranges of the parameter coordinates.
     pub fn parameters(&self) -> Vec<(String, f64, f64)> {
-        self.model.axes()[self.species + 1..]
-            .iter()
-            .map(|a| {
-                let (lo, hi) = match &a.info.discretization {
-                    Discretization::Grid { nodes } => (nodes[0], nodes[nodes.len() - 1]),
-                    _ => (f64::NAN, f64::NAN),
-                };
-                (a.info.name.clone(), lo, hi)
-            })
-            .collect()
+        let range = |d: &Discretization| match d {
+            Discretization::Grid { nodes } => (nodes[0], nodes[nodes.len() - 1]),
+            _ => (f64::NAN, f64::NAN),
+        };
+        match &self.repr {
+            Repr::Separated(s) => s.model.axes()[s.species + 1..]
+                .iter()
+                .map(|a| {
+                    let (lo, hi) = range(&a.info.discretization);
+                    (a.info.name.clone(), lo, hi)
+                })
+                .collect(),
+            Repr::Train(t) => t
+                .params
+                .iter()
+                .zip(&t.history.params)
+                .map(|(name, (_, g))| (name.clone(), g[0], g[g.len() - 1]))
+                .collect(),
+        }
     }
 
     /// The trained time range's end.
     pub fn t_end(&self) -> f64 {
-        match &self.model.axes()[self.species].info.discretization {
-            Discretization::Grid { nodes } => nodes[nodes.len() - 1],
-            _ => f64::NAN,
+        match &self.repr {
+            Repr::Separated(s) => match &s.model.axes()[s.species].info.discretization {
+                Discretization::Grid { nodes } => nodes[nodes.len() - 1],
+                _ => f64::NAN,
+            },
+            Repr::Train(t) => t.history.t[t.history.t.len() - 1],
         }
     }
 
-    /// Term coefficients `c_j` at time `t` and parameters `set` (name, value); parameters
-    /// not given take the middle of their range. Uses the first `n` terms.
-    fn coefficients(
-        &self,
-        t: f64,
-        set: &[(String, f64)],
-        n: usize,
-    ) -> Result<(Vec<f64>, Vec<String>), CmeModelError> {
+    /// Checks `t` and `set`; returns each parameter's value (given, or the middle of its
+    /// range) in model order.
+    fn resolve(&self, t: f64, set: &[(String, f64)]) -> Result<Vec<f64>, CmeModelError> {
         if !(t.is_finite() && t >= 0.0) {
             return Err(CmeModelError::BadTime(t));
         }
@@ -159,21 +327,57 @@ impl CmeModel {
                 });
             }
         }
-        // Time, then each parameter (the species axes are summed, not particularized).
-        let mut values = vec![ParamValue::Scalar(t)];
-        for (name, lo, hi) in &params {
-            let v = set
-                .iter()
-                .rev()
-                .find(|(p, _)| p == name)
-                .map_or(0.5 * (lo + hi), |(_, v)| *v);
-            values.push(ParamValue::Scalar(v));
-        }
-        let n = n.min(self.model.modes());
-        let modes = self.model.modes();
-        let mut c: Vec<f64> = self.model.spatial()[..n].to_vec();
+        Ok(params
+            .iter()
+            .map(|(name, lo, hi)| {
+                set.iter()
+                    .rev()
+                    .find(|(p, _)| p == name)
+                    .map_or(0.5 * (lo + hi), |(_, v)| *v)
+            })
+            .collect())
+    }
+
+    /// The train's species distribution at `(t, p)` and the names of clamped values.
+    fn train_state(
+        &self,
+        tr: &Train,
+        t: f64,
+        set: &[(String, f64)],
+    ) -> Result<(Tt, Vec<String>), CmeModelError> {
+        let values = self.resolve(t, set)?;
+        let h = &tr.history;
         let mut clamped = Vec::new();
-        for (axis, value) in self.model.axes()[self.species..].iter().zip(&values) {
+        if t > h.t[h.t.len() - 1] {
+            clamped.push("t".to_string());
+        }
+        for ((name, (_, g)), &v) in tr.params.iter().zip(&h.params).zip(&values) {
+            if v < g[0] || v > g[g.len() - 1] {
+                clamped.push(name.clone());
+            }
+        }
+        Ok((h.particularize(t, &values), clamped))
+    }
+
+    /// Term coefficients `c_j` at time `t` and parameters `set` (name, value); parameters
+    /// not given take the middle of their range. Uses the first `n` terms.
+    fn coefficients(
+        &self,
+        sep: &Separated,
+        t: f64,
+        set: &[(String, f64)],
+        n: usize,
+    ) -> Result<(Vec<f64>, Vec<String>), CmeModelError> {
+        // Time, then each parameter (the species axes are summed, not particularized).
+        let values: Vec<ParamValue> = std::iter::once(t)
+            .chain(self.resolve(t, set)?)
+            .map(ParamValue::Scalar)
+            .collect();
+        let n = n.min(sep.model.modes());
+        let modes = sep.model.modes();
+        let mut c: Vec<f64> = sep.model.spatial()[..n].to_vec();
+        let mut clamped = Vec::new();
+        for (axis, value) in sep.model.axes()[sep.species..].iter().zip(&values) {
             let st = axis
                 .info
                 .discretization
@@ -192,18 +396,50 @@ impl CmeModel {
         Ok((c, clamped))
     }
 
-    /// Marginals and moments at time `t` and parameters `set`, from the first `n` terms.
+    /// Marginals and moments at time `t` and parameters `set`, from the first `n` terms
+    /// (all of a tensor train).
     pub fn evaluate(
         &self,
         t: f64,
         set: &[(String, f64)],
         n: usize,
     ) -> Result<Evaluation, CmeModelError> {
-        let (c, clamped) = self.coefficients(t, set, n)?;
+        let sep = match &self.repr {
+            Repr::Separated(s) => s,
+            Repr::Train(tr) => {
+                let (x, clamped) = self.train_state(tr, t, set)?;
+                let marginals = x.marginals();
+                let d = marginals.len();
+                let e01 = if d >= 2 {
+                    let w: Vec<Vec<f64>> = x
+                        .cores
+                        .iter()
+                        .enumerate()
+                        .map(|(k, c)| {
+                            (0..c.n)
+                                .map(|z| if k < 2 { z as f64 } else { 1.0 })
+                                .collect()
+                        })
+                        .collect();
+                    let w: Vec<&[f64]> = w.iter().map(|v| v.as_slice()).collect();
+                    x.contract_all(&w)
+                } else {
+                    0.0
+                };
+                let mass: f64 = marginals[0].iter().sum();
+                let most_negative = marginals.iter().flatten().copied().fold(0.0, f64::min);
+                return Ok(Evaluation {
+                    moments: Moments::from_marginals(t, marginals, e01, mass),
+                    most_negative,
+                    clamped,
+                });
+            }
+        };
+        let (c, clamped) = self.coefficients(sep, t, set, n)?;
         let n = c.len();
-        let d = self.species;
-        let modes = self.model.modes();
-        let axes = self.model.axes();
+        let d = sep.species;
+        let modes = sep.model.modes();
+        let axes = sep.model.axes();
         let mut marginals = Vec::with_capacity(d);
         let mut weight = vec![0.0; n];
         for i in 0..d {
@@ -211,7 +447,7 @@ impl CmeModel {
                 *w = c[j]
                     * (0..d)
                         .filter(|&k| k != i)
-                        .map(|k| self.sums[k][j])
+                        .map(|k| sep.sums[k][j])
                         .product::<f64>();
             }
             let v = axes[i].values();
@@ -227,9 +463,9 @@ impl CmeModel {
         let e01 = if d >= 2 {
             (0..n)
                 .map(|j| {
-                    c[j] * self.firsts[0][j]
-                        * self.firsts[1][j]
-                        * (2..d).map(|k| self.sums[k][j]).product::<f64>()
+                    c[j] * sep.firsts[0][j]
+                        * sep.firsts[1][j]
+                        * (2..d).map(|k| sep.sums[k][j]).product::<f64>()
                 })
                 .sum()
         } else {
@@ -252,9 +488,13 @@ impl CmeModel {
         set: &[(String, f64)],
         n: usize,
     ) -> Result<Vec<f64>, CmeModelError> {
-        let (c, _) = self.coefficients(t, set, n)?;
-        let modes = self.model.modes();
-        let axes = &self.model.axes()[..self.species];
+        let sep = match &self.repr {
+            Repr::Separated(s) => s,
+            Repr::Train(tr) => return Ok(self.train_state(tr, t, set)?.0.full()),
+        };
+        let (c, _) = self.coefficients(sep, t, set, n)?;
+        let modes = sep.model.modes();
+        let axes = &sep.model.axes()[..sep.species];
         let sizes: Vec<usize> = axes.iter().map(|a| a.values().len() / modes).collect();
         let total: usize = sizes.iter().product();
         let mut out = vec![0.0; total];
@@ -279,4 +519,47 @@ impl CmeModel {
         }
         Ok(out)
     }
+}
+
+/// Why a CME model file could not be loaded.
+#[derive(Debug, Error)]
+pub enum CmeLoadError {
+    #[error(transparent)]
+    File(#[from] crate::file::FileError),
+    #[error("{path}: {source}")]
+    Model {
+        path: std::path::PathBuf,
+        source: CmeModelError,
+    },
+}
+
+/// Loads a CME meta-model file of either layout.
+pub fn load(path: &std::path::Path) -> Result<CmeModel, CmeLoadError> {
+    use crate::file::{self, Layout};
+    let header = file::read_header(path)?;
+    let model = match header.layout {
+        Layout::TensorTrain { .. } => {
+            let (meta, cores) = file::load_train(path)?;
+            CmeModel::from_train(meta, cores)
+        }
+        Layout::Separated => CmeModel::new(file::load_any(path)?.into_f64()),
+    };
+    model.map_err(|source| CmeLoadError::Model {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Saves a solved history (see [`train_meta`]) atomically.
+pub fn save_train(
+    network: &super::Network,
+    history: &History,
+    provenance: Provenance,
+    path: &std::path::Path,
+) -> Result<(), crate::file::FileError> {
+    crate::file::save_train(
+        &train_meta(network, history, provenance),
+        &history.tt.cores,
+        path,
+    )
 }

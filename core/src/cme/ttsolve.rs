@@ -128,10 +128,7 @@ pub struct History {
 }
 
 fn is_identity(f: &Factor1d) -> bool {
-    f.cols
-        .iter()
-        .enumerate()
-        .all(|(j, c)| *c == Some((j, 1.0)))
+    f.cols.iter().enumerate().all(|(j, c)| *c == Some((j, 1.0)))
 }
 
 fn sparse_of(f: &Factor1d) -> Sparse1d {
@@ -223,7 +220,10 @@ pub fn solve(
         .into_iter()
         .map(|t| LocalTerm {
             coef: t.coef,
-            factors: order.iter().map(|&o| t.factors[natural(o)].clone()).collect(),
+            factors: order
+                .iter()
+                .map(|&o| t.factors[natural(o)].clone())
+                .collect(),
         })
         .collect();
     let axis_sizes: Vec<usize> = order
@@ -308,7 +308,11 @@ pub fn solve(
         let ratio: Vec<f64> = (0..mass_x.len())
             .map(|i| {
                 let target = (mass_rhs[i] + hk * leak[i]) / c0;
-                if mass_x[i].abs() > 1e-300 { target / mass_x[i] } else { 1.0 }
+                if mass_x[i].abs() > 1e-300 {
+                    target / mass_x[i]
+                } else {
+                    1.0
+                }
             })
             .collect();
         for &q in &ratio {
@@ -544,7 +548,11 @@ impl Stored {
 
     /// The largest bond rank over the blocks.
     fn max_rank(&self) -> usize {
-        self.blocks.iter().map(|(_, b)| b.max_rank()).max().unwrap_or(0)
+        self.blocks
+            .iter()
+            .map(|(_, b)| b.max_rank())
+            .max()
+            .unwrap_or(0)
     }
 
     /// The history with the norms restored, and the stored times.
