@@ -77,7 +77,7 @@ pub struct Built {
 }
 
 pub enum Saved {
-    Separated(palpa_core::separated::SeparatedModel<f64>),
+    Separated(Box<palpa_core::separated::SeparatedModel<f64>>),
     Train(Box<ttsolve::History>, palpa_core::separated::Provenance),
 }
 
@@ -137,7 +137,7 @@ impl PgdArgs {
                 });
                 Ok(Built {
                     model: CmeModel::new(m.clone())?,
-                    save: Saved::Separated(m),
+                    save: Saved::Separated(Box::new(m)),
                     report,
                 })
             }
