@@ -677,7 +677,6 @@ fn enrich(
             }
         }
     }
-    let mut cols = r1;
     let mut stacked: Mat<f64>;
     if !z_cols.is_empty() {
         // Remove the core's own span, keep the leading `room` directions of the rest.
@@ -711,7 +710,6 @@ fn enrich(
                     e[(i, j - r1)]
                 }
             });
-            cols = r1 + add;
         }
     } else {
         stacked = Mat::from_fn(rows, r1, |i, j| ycore.left()[(i, j)]);
@@ -722,7 +720,6 @@ fn enrich(
     let q = qr.compute_thin_Q();
     let r = qr.thin_R().to_owned();
     let new_rank = q.ncols();
-    let _ = cols;
     let core = Core::from_mat(r0, n, new_rank, q.as_ref());
     let r_y = r.subcols(0, r1);
     let next = times_left(r_y, &x.cores[k + 1]);

@@ -174,7 +174,6 @@ impl CmeModel {
                     t,
                     params: grids,
                     order,
-                    last: tt.clone(),
                     tt,
                 },
                 species,

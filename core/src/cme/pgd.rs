@@ -138,7 +138,8 @@ impl Options {
     }
 }
 
-fn sparse_of(f: &Factor1d) -> Sparse1d {
+/// A 1-D Kronecker factor as a sparse matrix.
+pub(crate) fn sparse_of(f: &Factor1d) -> Sparse1d {
     let m = f.cols.len();
     Sparse1d::from_triplets(
         m,

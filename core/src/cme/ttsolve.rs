@@ -23,7 +23,7 @@ use super::amen::{self, LocalTerm, Mpo};
 use super::cp::Sparse1d;
 use super::kron::{Factor1d, generator_terms};
 use super::network::Network;
-use super::pgd::CmePgdError;
+use super::pgd::{CmePgdError, sparse_of};
 use super::tt::{Core, Tt};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -123,24 +123,10 @@ pub struct History {
     /// What cores `1…` of `tt` hold (core 0 is time).
     pub order: Vec<Slot>,
     pub tt: Tt,
-    /// The state at `t_end` as the stepping left it (before the history's rounding).
-    pub last: Tt,
 }
 
 fn is_identity(f: &Factor1d) -> bool {
     f.cols.iter().enumerate().all(|(j, c)| *c == Some((j, 1.0)))
-}
-
-fn sparse_of(f: &Factor1d) -> Sparse1d {
-    let m = f.cols.len();
-    Sparse1d::from_triplets(
-        m,
-        m,
-        f.cols
-            .iter()
-            .enumerate()
-            .filter_map(|(j, c)| c.map(|(i, v)| (i, j, v))),
-    )
 }
 
 /// The generator `A` as local terms over (species…, range parameters…).
@@ -392,7 +378,6 @@ pub fn solve(
             params: coords,
             order,
             tt: history,
-            last: recent.pop().expect("a state"),
         },
         report,
     ))
