@@ -138,6 +138,29 @@ impl Options {
     }
 }
 
+/// Weights `l_i` of the quadratic through `(t[0..3], P_i)` evaluated at `t[3]`: the
+/// BDF2 error estimate is 2/9 of `‖P_3 − Σ l_i P_i‖` (both O(h³)).
+pub(crate) fn extrapolation_weights(t: &[f64]) -> [f64; 3] {
+    let l = |i: usize| -> f64 {
+        (0..3)
+            .filter(|&j| j != i)
+            .map(|j| (t[3] - t[j]) / (t[i] - t[j]))
+            .product()
+    };
+    [l(0), l(1), l(2)]
+}
+
+/// The next step after `h` given the relative error estimate `est` of the last one:
+/// the cube-root rule (BDF2 is second order), changed by at most ×0.5 … ×growth.
+pub(crate) fn next_step(h: f64, est: f64, tol: f64, growth: f64, h_min: f64, h_max: f64) -> f64 {
+    let factor = if est > 0.0 {
+        (0.9 * (tol / est).cbrt()).clamp(0.5, growth)
+    } else {
+        growth
+    };
+    (h * factor).clamp(h_min.min(h), h_max)
+}
+
 /// A 1-D Kronecker factor as a sparse matrix.
 pub(crate) fn sparse_of(f: &Factor1d) -> Sparse1d {
     let m = f.cols.len();
@@ -315,16 +338,10 @@ pub fn solve(
         // new state and the quadratic extrapolation of the three before (both O(h³)).
         next_h = (hk * options.growth).min(options.h_max);
         if adaptive && k >= 3 {
-            let lagrange = |i: usize| -> f64 {
-                let nodes = [t[k - 3], t[k - 2], t[k - 1]];
-                (0..3)
-                    .filter(|&j| j != i)
-                    .map(|j| (t[k] - nodes[j]) / (nodes[i] - nodes[j]))
-                    .product()
-            };
+            let weights = extrapolation_weights(&t[k - 3..=k]);
             let mut diff: Vec<RankOne> = history[k].clone();
             for i in 0..3 {
-                let l = lagrange(i);
+                let l = weights[i];
                 diff.extend(history[k - 3 + i].iter().map(|r| RankOne {
                     scale: -l * r.scale,
                     factors: r.factors.clone(),
@@ -332,12 +349,14 @@ pub fn solve(
             }
             let state_norm = cp::norm_sq(&history[k]).sqrt().max(1e-300);
             let est = 2.0 / 9.0 * cp::norm_sq(&diff).max(0.0).sqrt() / state_norm;
-            let factor = if est > 0.0 {
-                (0.9 * (options.step_error_tol / est).cbrt()).clamp(0.5, options.growth)
-            } else {
-                options.growth
-            };
-            next_h = (hk * factor).clamp(options.h_first.min(hk), options.h_max);
+            next_h = next_step(
+                hk,
+                est,
+                options.step_error_tol,
+                options.growth,
+                options.h_first,
+                options.h_max,
+            );
         }
         let remaining = ((options.t_end - t[k]) / next_h).ceil() as usize;
         progress(Progress::Step {

@@ -23,7 +23,7 @@ use super::amen::{self, LocalTerm, Mpo};
 use super::cp::Sparse1d;
 use super::kron::{Factor1d, generator_terms};
 use super::network::Network;
-use super::pgd::{CmePgdError, sparse_of};
+use super::pgd::{CmePgdError, extrapolation_weights, next_step, sparse_of};
 use super::tt::{Core, Tt};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -317,28 +317,24 @@ pub fn solve(
         }
         next_h = (hk * options.growth).min(options.h_max);
         if k >= 3 {
-            let lagrange = |i: usize| -> f64 {
-                let nodes = [t[k - 3], t[k - 2], t[k - 1]];
-                (0..3)
-                    .filter(|&j| j != i)
-                    .map(|j| (t[k] - nodes[j]) / (nodes[i] - nodes[j]))
-                    .product()
-            };
+            let l = extrapolation_weights(&t[k - 3..=k]);
             let n = recent.len();
             let diff = Tt::sum(&[
                 (1.0, &recent[n - 1]),
-                (-lagrange(0), &recent[n - 4]),
-                (-lagrange(1), &recent[n - 3]),
-                (-lagrange(2), &recent[n - 2]),
+                (-l[0], &recent[n - 4]),
+                (-l[1], &recent[n - 3]),
+                (-l[2], &recent[n - 2]),
             ]);
             let state = recent[n - 1].norm().max(1e-300);
             let est = 2.0 / 9.0 * diff.norm() / state;
-            let factor = if est > 0.0 {
-                (0.9 * (options.step_error_tol / est).cbrt()).clamp(0.5, options.growth)
-            } else {
-                options.growth
-            };
-            next_h = (hk * factor).clamp(options.h_first.min(hk), options.h_max);
+            next_h = next_step(
+                hk,
+                est,
+                options.step_error_tol,
+                options.growth,
+                options.h_first,
+                options.h_max,
+            );
         }
         // Store the state before this one if the next stored time would be too far.
         let tc = std::time::Instant::now();
