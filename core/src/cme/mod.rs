@@ -23,6 +23,7 @@ pub mod network;
 pub mod pgd;
 pub mod ssa;
 pub mod tt;
+pub mod tteval;
 pub mod ttsolve;
 
 pub use moments::Moments;

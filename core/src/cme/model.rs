@@ -14,6 +14,7 @@ use thiserror::Error;
 use super::moments::Moments;
 use super::pgd::KIND;
 use super::tt::{Core, Tt};
+use super::tteval::TrainEvaluator;
 use super::ttsolve::{History, Slot};
 use crate::axis::{Discretization, ParamValue};
 use crate::separated::{AxisInfo, FieldInfo, ModelMeta, Provenance, SeparatedModel};
@@ -114,6 +115,7 @@ struct Separated {
 struct Train {
     meta: ModelMeta,
     history: History,
+    tables: TrainEvaluator,
     species: Vec<String>,
     params: Vec<String>,
 }
@@ -165,17 +167,18 @@ impl CmeModel {
         if species.is_empty() {
             return Err(bad("no species axis".into()));
         }
-        let tt = Tt { cores };
+        let history = History {
+            sizes,
+            t,
+            params: grids,
+            order,
+            tt: Tt { cores },
+        };
         Ok(CmeModel {
             repr: Repr::Train(Train {
                 meta,
-                history: History {
-                    sizes,
-                    t,
-                    params: grids,
-                    order,
-                    tt,
-                },
+                tables: TrainEvaluator::new(&history),
+                history,
                 species,
                 params,
             }),
@@ -337,13 +340,14 @@ impl CmeModel {
             .collect())
     }
 
-    /// The train's species distribution at `(t, p)` and the names of clamped values.
-    fn train_state(
+    /// The parameter values at which to evaluate the train, and the names of clamped
+    /// values.
+    fn train_point(
         &self,
         tr: &Train,
         t: f64,
         set: &[(String, f64)],
-    ) -> Result<(Tt, Vec<String>), CmeModelError> {
+    ) -> Result<(Vec<f64>, Vec<String>), CmeModelError> {
         let values = self.resolve(t, set)?;
         let h = &tr.history;
         let mut clamped = Vec::new();
@@ -355,7 +359,7 @@ impl CmeModel {
                 clamped.push(name.clone());
             }
         }
-        Ok((h.particularize(t, &values), clamped))
+        Ok((values, clamped))
     }
 
     /// Term coefficients `c_j` at time `t` and parameters `set` (name, value); parameters
@@ -406,29 +410,11 @@ impl CmeModel {
         let sep = match &self.repr {
             Repr::Separated(s) => s,
             Repr::Train(tr) => {
-                let (x, clamped) = self.train_state(tr, t, set)?;
-                let marginals = x.marginals();
-                let d = marginals.len();
-                let e01 = if d >= 2 {
-                    let w: Vec<Vec<f64>> = x
-                        .cores
-                        .iter()
-                        .enumerate()
-                        .map(|(k, c)| {
-                            (0..c.n)
-                                .map(|z| if k < 2 { z as f64 } else { 1.0 })
-                                .collect()
-                        })
-                        .collect();
-                    let w: Vec<&[f64]> = w.iter().map(|v| v.as_slice()).collect();
-                    x.contract_all(&w)
-                } else {
-                    0.0
-                };
-                let mass: f64 = marginals[0].iter().sum();
-                let most_negative = marginals.iter().flatten().copied().fold(0.0, f64::min);
+                let (p, clamped) = self.train_point(tr, t, set)?;
+                let v = tr.tables.evaluate(&tr.history, t, &p);
+                let most_negative = v.marginals.iter().flatten().copied().fold(0.0, f64::min);
                 return Ok(Evaluation {
-                    moments: Moments::from_marginals(t, marginals, e01, mass),
+                    moments: Moments::from_marginals(t, v.marginals, v.e01, v.mass),
                     most_negative,
                     clamped,
                 });
@@ -489,7 +475,10 @@ impl CmeModel {
     ) -> Result<Vec<f64>, CmeModelError> {
         let sep = match &self.repr {
             Repr::Separated(s) => s,
-            Repr::Train(tr) => return Ok(self.train_state(tr, t, set)?.0.full()),
+            Repr::Train(tr) => {
+                let (p, _) = self.train_point(tr, t, set)?;
+                return Ok(tr.history.particularize(t, &p).full());
+            }
         };
         let (c, _) = self.coefficients(sep, t, set, n)?;
         let modes = sep.model.modes();

@@ -73,6 +73,14 @@ impl Core {
         }
         out
     }
+
+    /// `v[a][i][b] · r_b` summed over `b`: an `r0 × n` matrix (row-major).
+    pub fn contract_right(&self, r: &[f64]) -> Vec<f64> {
+        self.v
+            .chunks_exact(self.r1)
+            .map(|row| row.iter().zip(r).map(|(x, y)| x * y).sum())
+            .collect()
+    }
 }
 
 /// `dst (m×n) = α·a·b (+ dst)`, sequential (the callers run in parallel over steps or
