@@ -301,3 +301,37 @@ fn the_kronecker_form_of_the_generator_is_the_fsp_generator() {
         assert!(err <= 1e-12 * scale.max(1.0), "{model}: {err:e}");
     }
 }
+
+#[test]
+fn parameter_grids_hold_their_ends_and_space_as_asked() {
+    let with = |spacing: &str| {
+        IMMIGRATION_DEATH.replace(
+            "name = \"g\"\nvalue = 0.25",
+            &format!("name = \"g\"\nvalue = 0.25\nrange = [0.01, 0.04]\ngrid = 7\nspacing = \"{spacing}\""),
+        )
+    };
+    // Each spacing: the quantity that should step evenly.
+    let cases: [(&str, fn(f64) -> f64); 4] = [
+        ("linear", |g| g),
+        ("log", f64::ln),
+        ("reciprocal", |g| 1.0 / g),
+        ("reciprocal-sqrt", |g| 1.0 / g.sqrt()),
+    ];
+    for (spacing, even) in cases {
+        let net = Network::from_toml(&with(spacing), "grid.toml").expect(spacing);
+        let g = net.parameters[1].grid().expect("a range");
+        assert_eq!((g.len(), g[0], g[6]), (7, 0.01, 0.04), "{spacing}");
+        let steps: Vec<f64> = g.windows(2).map(|w| even(w[1]) - even(w[0])).collect();
+        for s in &steps {
+            assert!(
+                (s - steps[0]).abs() < 1e-9 * steps[0].abs(),
+                "{spacing}: {steps:?}"
+            );
+        }
+    }
+    let bad = with("reciprocal-sqrt").replace("[0.01, 0.04]", "[0.0, 0.04]");
+    let err = Network::from_toml(&bad, "grid.toml")
+        .expect_err("δ = 0")
+        .to_string();
+    assert!(err.contains("range above 0"), "{err}");
+}

@@ -19,6 +19,7 @@
 use faer::{Mat, MatMut, MatRef};
 
 use super::cp::Sparse1d;
+use super::dense::{thin_qr, thin_svd};
 use super::tt::{Core, Tt, gemm, left_qr, mul, times_left};
 
 /// One core of the operator: `r0 × r1` channels, each non-zero block a sparse `n × n`.
@@ -686,17 +687,13 @@ fn enrich(
         let proj = mul(qm.transpose(), z.as_ref());
         let mut rest = z.clone();
         gemm(&mut rest, qm, proj.as_ref(), -1.0, true);
-        let extra = match rest.thin_svd() {
-            Ok(svd) => {
-                let sv = svd.S().column_vector();
-                let top = if sv.nrows() > 0 { sv[0] } else { 0.0 };
-                let keep = (0..sv.nrows().min(room))
-                    .take_while(|&j| sv[j] > 1e-12 * top && top > 0.0)
-                    .count();
-                Some(svd.U().subcols(0, keep).to_owned())
-            }
-            Err(_) => None,
-        };
+        let extra = thin_svd(rest.as_ref()).map(|svd| {
+            let top = svd.s.first().copied().unwrap_or(0.0);
+            let keep = (0..svd.s.len().min(room))
+                .take_while(|&j| svd.s[j] > 1e-12 * top && top > 0.0)
+                .count();
+            svd.u.subcols(0, keep).to_owned()
+        });
         stacked = Mat::from_fn(rows, r1, |i, j| ycore.left()[(i, j)]);
         if let Some(e) = extra
             && e.ncols() > 0
@@ -716,9 +713,7 @@ fn enrich(
     }
     // [Y | Z] = Q R; the next core becomes R[:, :r1] · X_{k+1} (the directions added
     // carry zero weight until the next solve gives them some).
-    let qr = stacked.qr();
-    let q = qr.compute_thin_Q();
-    let r = qr.thin_R().to_owned();
+    let (q, r) = thin_qr(stacked.as_ref());
     let new_rank = q.ncols();
     let core = Core::from_mat(r0, n, new_rank, q.as_ref());
     let r_y = r.subcols(0, r1);
@@ -730,14 +725,13 @@ fn enrich(
 /// right-orthonormal core, U·S to multiply into the previous core).
 fn truncate_right(y: &Core, eps: f64, max_rank: usize) -> (Core, Mat<f64>) {
     let m = y.right();
-    let svd = match m.thin_svd() {
-        Ok(s) => s,
+    let Some(svd) = thin_svd(m) else {
         // No SVD: keep the core as it is (untruncated, and not orthonormal).
-        Err(_) => return (y.clone(), Mat::identity(y.r0, y.r0)),
+        return (y.clone(), Mat::identity(y.r0, y.r0));
     };
-    let s = svd.S().column_vector();
-    let total: f64 = (0..s.nrows()).map(|j| s[j] * s[j]).sum();
-    let mut keep = s.nrows();
+    let s = &svd.s;
+    let total: f64 = s.iter().map(|x| x * x).sum();
+    let mut keep = s.len();
     let mut tail = 0.0;
     while keep > 1 {
         let x = s[keep - 1];
@@ -748,8 +742,8 @@ fn truncate_right(y: &Core, eps: f64, max_rank: usize) -> (Core, Mat<f64>) {
         keep -= 1;
     }
     keep = keep.min(max_rank).max(1);
-    let vt = svd.V().subcols(0, keep).transpose().to_owned();
-    let us = Mat::from_fn(y.r0, keep, |i, j| svd.U()[(i, j)] * s[j]);
+    let vt = svd.v.subcols(0, keep).transpose().to_owned();
+    let us = Mat::from_fn(y.r0, keep, |i, j| svd.u[(i, j)] * s[j]);
     (Core::from_mat(keep, y.n, y.r1, vt.as_ref()), us)
 }
 

@@ -15,6 +15,7 @@
 
 pub mod amen;
 pub mod cp;
+pub mod dense;
 pub mod fsp;
 pub mod kron;
 pub mod model;

@@ -73,14 +73,19 @@ pub struct Parameter {
 }
 
 /// Spread of a parameter grid. A rate δ that sets a mean copy number `~1/δ` moves the
-/// distribution evenly in `1/δ`: `reciprocal` spacing keeps the interpolation error
-/// between grid points the same across the range.
+/// distribution evenly in `1/δ` (`reciprocal`); its spread `~√(1/δ)` grows with the
+/// mean, so steps even in `1/√δ` (`reciprocal-sqrt`) move the mean by the same fraction
+/// of the spread everywhere (`Δ(1/δ)/√(1/δ) = 2Δ(1/√δ)`), which is what sets the
+/// interpolation error between grid points. On the cascade to t = 600, a 36-point
+/// reciprocal grid gave a joint L1 of 2e-2 between its two highest-δ points and 7e-4
+/// between its lowest.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Spacing {
     #[default]
     Linear,
     Log,
     Reciprocal,
+    ReciprocalSqrt,
 }
 
 impl Parameter {
@@ -93,6 +98,10 @@ impl Parameter {
                 Spacing::Linear => lo + (hi - lo) * s(i),
                 Spacing::Log if lo > 0.0 => lo * (hi / lo).powf(s(i)),
                 Spacing::Reciprocal if lo > 0.0 => 1.0 / (1.0 / lo + (1.0 / hi - 1.0 / lo) * s(i)),
+                Spacing::ReciprocalSqrt if lo > 0.0 => {
+                    let (a, b) = (1.0 / lo.sqrt(), 1.0 / hi.sqrt());
+                    (a + (b - a) * s(i)).powi(-2)
+                }
                 _ => lo + (hi - lo) * s(i),
             })
             .collect();
@@ -378,7 +387,9 @@ impl RawNetwork {
             };
             let spacing = match p.spacing.as_deref() {
                 None | Some("linear") => Spacing::Linear,
-                Some("log") | Some("reciprocal") if range.is_some_and(|r| r.0 <= 0.0) => {
+                Some("log" | "reciprocal" | "reciprocal-sqrt")
+                    if range.is_some_and(|r| r.0 <= 0.0) =>
+                {
                     return Err(bad(format!(
                         "parameter {}: {} spacing needs a range above 0",
                         p.name,
@@ -387,9 +398,10 @@ impl RawNetwork {
                 }
                 Some("log") => Spacing::Log,
                 Some("reciprocal") => Spacing::Reciprocal,
+                Some("reciprocal-sqrt") => Spacing::ReciprocalSqrt,
                 Some(other) => {
                     return Err(bad(format!(
-                        "parameter {}: spacing {other:?}: expected linear, log or reciprocal",
+                        "parameter {}: spacing {other:?}: expected linear, log, reciprocal or reciprocal-sqrt",
                         p.name
                     )));
                 }

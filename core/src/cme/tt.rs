@@ -13,6 +13,8 @@
 
 use faer::{Accum, Mat, MatRef, Par};
 
+use super::dense::{thin_qr, thin_svd};
+
 /// One core, `r0 × n × r1`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Core {
@@ -249,12 +251,11 @@ impl Tt {
         let mut discarded_sq = 0.0;
         for k in 0..d - 1 {
             let c = &self.cores[k];
-            let svd = c.left().thin_svd();
-            let Ok(svd) = svd else {
+            let Some(svd) = thin_svd(c.left()) else {
                 continue;
             };
-            let s = svd.S().column_vector();
-            let mut keep = s.nrows();
+            let s = &svd.s;
+            let mut keep = s.len();
             let mut tail = 0.0;
             while keep > 1 {
                 let x = s[keep - 1];
@@ -271,8 +272,8 @@ impl Tt {
                 keep = max_rank;
             }
             discarded_sq += tail;
-            let u = svd.U().subcols(0, keep);
-            let sv = Mat::<f64>::from_fn(keep, c.r1, |i, j| s[i] * svd.V()[(j, i)]);
+            let u = svd.u.subcols(0, keep);
+            let sv = Mat::<f64>::from_fn(keep, c.r1, |i, j| s[i] * svd.v[(j, i)]);
             let (r0, n) = (c.r0, c.n);
             self.cores[k] = Core::from_mat(r0, n, keep, u);
             self.cores[k + 1] = times_left(sv.as_ref(), &self.cores[k + 1]);
@@ -385,34 +386,28 @@ fn frob(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
-/// `l' = Σ_{a,c,i} l[a,c] A[a,i,·] B[c,i,·]`.
+/// `l' = Σ_{a,c,i} l[a,c] A[a,i,·] B[c,i,·]`: `t = lᵀ A` laid out row-major as an
+/// `(rb0·n) × ra1` matrix, then `l' = tᵀ B_left`.
 fn dot_step(l: &Mat<f64>, a: &Core, b: &Core) -> Mat<f64> {
-    // t = lᵀ·A_right : (rb0 × n·ra1)
-    let t = mul(l.transpose(), a.right());
-    let mut out = Mat::<f64>::zeros(a.r1, b.r1);
-    for c in 0..b.r0 {
-        for i in 0..a.n {
-            for x in 0..a.r1 {
-                let tv = t[(c, i * a.r1 + x)];
-                if tv == 0.0 {
-                    continue;
-                }
-                for y in 0..b.r1 {
-                    out[(x, y)] += tv * b.at(c, i, y);
-                }
-            }
-        }
-    }
-    out
+    let mut t = vec![0.0; b.r0 * a.n * a.r1];
+    faer::linalg::matmul::matmul(
+        faer::MatMut::from_row_major_slice_mut(&mut t, b.r0, a.n * a.r1),
+        Accum::Replace,
+        l.transpose(),
+        a.right(),
+        1.0,
+        Par::Seq,
+    );
+    mul(
+        MatRef::from_row_major_slice(&t, b.r0 * a.n, a.r1).transpose(),
+        b.left(),
+    )
 }
 
 /// Core = R·Q with Q right-orthonormal: returns (Q as a core, R: r0 × r0').
 fn right_qr(c: &Core) -> (Core, Mat<f64>) {
     // QR of the transpose of the right unfolding: Gᵀ = Q̃ R̃ → G = R̃ᵀ Q̃ᵀ.
-    let gt = c.right().transpose().to_owned();
-    let qr = gt.qr();
-    let q = qr.compute_thin_Q();
-    let r = qr.thin_R().to_owned();
+    let (q, r) = thin_qr(c.right().transpose());
     let rank = q.ncols();
     let qt = q.transpose().to_owned();
     (
@@ -423,9 +418,7 @@ fn right_qr(c: &Core) -> (Core, Mat<f64>) {
 
 /// Core = Q·R with Q left-orthonormal: returns (Q as a core, R: r1' × r1).
 pub fn left_qr(c: &Core) -> (Core, Mat<f64>) {
-    let qr = c.left().to_owned().qr();
-    let q = qr.compute_thin_Q();
-    let r = qr.thin_R().to_owned();
+    let (q, r) = thin_qr(c.left());
     (Core::from_mat(c.r0, c.n, q.ncols(), q.as_ref()), r)
 }
 
