@@ -55,6 +55,11 @@ pub struct PgdArgs {
     /// tt: relative truncation of each stored state in the history.
     #[arg(long, default_value_t = 1e-6)]
     compress_eps: f64,
+    /// tt: floor of the history's probability weights, relative to each marginal's
+    /// peak: small weighs the tails as much as the bulk (mass exact, ranks high),
+    /// large approaches plain L2 (ranks low).
+    #[arg(long, default_value_t = 1e-2)]
+    weight_floor: f64,
     /// tt: largest rank of a step's state.
     #[arg(long, default_value_t = 120)]
     max_rank: usize,
@@ -114,6 +119,7 @@ impl PgdArgs {
             step_error_tol: self.step_error.unwrap_or(3e-6),
             eps: self.eps,
             compress_eps: self.compress_eps,
+            weight_floor: self.weight_floor,
             max_rank: self.max_rank,
             ..ttsolve::Options::default()
         }
@@ -121,6 +127,17 @@ impl PgdArgs {
 
     /// Builds the meta-model of `network` on [0, t_end] (default `t_default`).
     pub fn build(&self, network: &Network, t_default: f64) -> anyhow::Result<Built> {
+        self.build_for(network, t_default, None)
+    }
+
+    /// As [`Self::build`]; with `times`, the tensor-train solver keeps the states at
+    /// those times only (no history to compress: what `cme solve` needs).
+    pub fn build_for(
+        &self,
+        network: &Network,
+        t_default: f64,
+        times: Option<&[f64]>,
+    ) -> anyhow::Result<Built> {
         let start = Instant::now();
         match self.solver {
             Solver::Greedy => {
@@ -144,7 +161,7 @@ impl PgdArgs {
             Solver::Tt => {
                 let o = self.tt_options(t_default);
                 let mut shown = Instant::now();
-                let (h, r) = ttsolve::solve(network, &o, &mut |s| {
+                let mut progress = |s: ttsolve::Step| {
                     // A progress line at most 4 times a second.
                     if shown.elapsed().as_secs_f64() < 0.25 && s.t < o.t_end {
                         return;
@@ -155,7 +172,11 @@ impl PgdArgs {
                         s.k, s.t, o.t_end, s.h, s.rank, s.history_rank
                     );
                     let _ = std::io::stderr().flush();
-                })?;
+                };
+                let (h, r) = match times {
+                    Some(times) => ttsolve::solve_at(network, &o, times, &mut progress)?,
+                    None => ttsolve::solve(network, &o, &mut progress)?,
+                };
                 eprintln!();
                 let seconds = start.elapsed().as_secs_f64();
                 let mut prov = palpa_core::separated::Provenance::now(
@@ -381,7 +402,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         }
         Method::Pgd => {
             let t_end = args.t.last().copied().unwrap_or(1.0).max(1e-3);
-            let model = args.pgd.build(&network, t_end)?.model;
+            let model = args.pgd.build_for(&network, t_end, Some(&args.t))?.model;
             let set = model_coordinates(&model, &network, &p);
             let mut out = Vec::new();
             for &t in &args.t {

@@ -246,6 +246,15 @@ impl Tt {
             return 0.0;
         }
         self.orthogonalize_right();
+        self.round_orthogonal(rel_eps, max_rank)
+    }
+
+    /// The SVD sweep of [`Self::round`], for a train already right-orthogonalized.
+    pub fn round_orthogonal(&mut self, rel_eps: f64, max_rank: usize) -> f64 {
+        let d = self.cores.len();
+        if d == 1 {
+            return 0.0;
+        }
         let norm = frob(&self.cores[0].v);
         let per_bond = rel_eps * norm / ((d - 1) as f64).sqrt();
         let mut discarded_sq = 0.0;
@@ -282,6 +291,18 @@ impl Tt {
             discarded_sq.sqrt() / norm
         } else {
             0.0
+        }
+    }
+
+    /// Multiplies core `k` by `w` along its index (`w.len() == n_k`).
+    pub fn scale_axis(&mut self, k: usize, w: &[f64]) {
+        let c = &mut self.cores[k];
+        for a in 0..c.r0 {
+            for (i, &s) in w.iter().enumerate() {
+                for v in &mut c.v[(a * c.n + i) * c.r1..(a * c.n + i + 1) * c.r1] {
+                    *v *= s;
+                }
+            }
         }
     }
 
