@@ -311,7 +311,8 @@ fn parameter_grids_hold_their_ends_and_space_as_asked() {
         )
     };
     // Each spacing: the quantity that should step evenly.
-    let cases: [(&str, fn(f64) -> f64); 4] = [
+    type Even = fn(f64) -> f64;
+    let cases: [(&str, Even); 4] = [
         ("linear", |g| g),
         ("log", f64::ln),
         ("reciprocal", |g| 1.0 / g),
