@@ -13,7 +13,7 @@
 //! `π_k(z) = Σ_c w_c · l_k H_c[·, z]`, 4 × 46 × 220 for z1. Cores whose combinations
 //! would exceed the memory budget fall back to the direct contraction.
 
-use super::tt::{Core, Tt};
+use super::tt::Core;
 use super::ttsolve::{History, Slot, lagrange_weights};
 
 /// Largest number of precomputed values over all cores (32 MB of f64).
@@ -305,39 +305,40 @@ impl TrainEvaluator {
     }
 }
 
-/// The same values from the particularized train, for checks.
-pub fn reference(h: &History, t: f64, p: &[f64]) -> TrainValues {
-    let x: Tt = h.particularize(t, p);
-    let marginals = x.marginals();
-    let w: Vec<Vec<f64>> = x
-        .cores
-        .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            (0..c.n)
-                .map(|z| if k < 2 { z as f64 } else { 1.0 })
-                .collect()
-        })
-        .collect();
-    let w: Vec<&[f64]> = w.iter().map(|v| v.as_slice()).collect();
-    let e01 = if x.cores.len() >= 2 {
-        x.contract_all(&w)
-    } else {
-        0.0
-    };
-    let mass = marginals[0].iter().sum();
-    TrainValues {
-        marginals,
-        e01,
-        mass,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cme::tt::Tt;
     use crate::cme::ttsolve::slot_order;
     use crate::rng::Rng;
+
+    /// The same values from the particularized train, for checks.
+    fn reference(h: &History, t: f64, p: &[f64]) -> TrainValues {
+        let x: Tt = h.particularize(t, p);
+        let marginals = x.marginals();
+        let w: Vec<Vec<f64>> = x
+            .cores
+            .iter()
+            .enumerate()
+            .map(|(k, c)| {
+                (0..c.n)
+                    .map(|z| if k < 2 { z as f64 } else { 1.0 })
+                    .collect()
+            })
+            .collect();
+        let w: Vec<&[f64]> = w.iter().map(|v| v.as_slice()).collect();
+        let e01 = if x.cores.len() >= 2 {
+            x.contract_all(&w)
+        } else {
+            0.0
+        };
+        let mass = marginals[0].iter().sum();
+        TrainValues {
+            marginals,
+            e01,
+            mass,
+        }
+    }
 
     /// A random history over (t, 3 species, 2 parameters) in solver order.
     fn history(seed: u64) -> History {
