@@ -1,7 +1,9 @@
 // Deformation of the scene's surface by the meta-model, on the GPU.
 //
-// displace: u_v = Σ_{k<n} X[3v + c, k] · coeffs[k]  (c = x, y, z), one invocation per
-//           vertex; writes the deformed position and |u| (for the colormap).
+// displace: u_v = Σ_{k<n} X[3v + c, k] · coeffs[k] + near_v  (c = x, y, z), one
+//           invocation per vertex; writes the deformed position and |u| (for the
+//           colormap). near_v is the exact near field under the tool, computed on the
+//           CPU each frame (zero for a model without one).
 // normals:  n_v = normalize(Σ_{t ∋ v} (b − a) × (c − a)) over the deformed triangles
 //           incident to v (area-weighted), read from a CSR adjacency list.
 // The CPU path (palpa-core's SeparatedModel::reconstruct) is the reference; the tests
@@ -25,6 +27,7 @@ struct Params {
 @group(0) @binding(6) var<storage, read> adjacency: array<u32>;
 @group(0) @binding(7) var<storage, read> triangles: array<u32>;
 @group(0) @binding(8) var<storage, read_write> normals: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read> near: array<vec4<f32>>;
 
 fn coeff(k: u32) -> f32 {
     return coeffs[k / 4u][k % 4u];
@@ -45,6 +48,7 @@ fn displace(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         u[c] = s;
     }
+    u += near[v].xyz;
     deformed[v] = vec4<f32>(rest[v].xyz + u, length(u));
 }
 

@@ -43,6 +43,10 @@ pub struct Session {
     coeffs: Vec<f64>,
     deformed_mm: Vec<[f32; 3]>,
     displacement: Vec<f64>,
+    /// The near field of the current frame (rows of the scene; zero without one) and
+    /// the same per render vertex for the GPU.
+    near_rows: Vec<f64>,
+    near_gpu: Vec<[f32; 4]>,
     deformed_valid: bool,
 }
 
@@ -86,6 +90,8 @@ impl Session {
             coeffs: vec![0.0; n],
             deformed_mm: vertices,
             displacement: vec![0.0; rows],
+            near_rows: vec![0.0; rows],
+            near_gpu: vec![[0.0; 4]; rows / 3],
             deformed_valid: true,
         })
     }
@@ -142,6 +148,7 @@ impl Session {
                 Ok(_) => {}
                 Err(_) => self.coeffs[..n].fill(0.0),
             }
+            self.update_near(Some((&p, force)));
             let tip = self.contact_point(&p, n);
             let (_, normal) = self.scene.frame(&p);
             visual = Some(ProbeVisual {
@@ -153,6 +160,7 @@ impl Session {
             });
         } else {
             self.coeffs[..n].fill(0.0);
+            self.update_near(None);
         }
         self.render_eval_us.push(t0.elapsed().as_secs_f64() * 1e6);
         self.force_history
@@ -165,8 +173,29 @@ impl Session {
         FrameInput {
             camera: &self.controls.camera,
             coeffs: &self.coeffs[..n],
+            near_mm: &self.near_gpu,
             colormap_mm: self.colormap_mm,
             probe: visual,
+        }
+    }
+
+    /// The exact near field under the tool for this frame (zero with no probe or no
+    /// near field in the scene).
+    fn update_near(&mut self, probe: Option<(&ProbePoint, [f64; 3])>) {
+        if self.scene.near().is_none() {
+            return;
+        }
+        self.near_rows.fill(0.0);
+        if let Some((p, force)) = probe
+            && self
+                .scene
+                .add_near_displacement(p, force, &mut self.near_rows)
+                .is_err()
+        {
+            self.near_rows.fill(0.0);
+        }
+        for (g, r) in self.near_gpu.iter_mut().zip(self.near_rows.chunks_exact(3)) {
+            *g = [r[0] as f32, r[1] as f32, r[2] as f32, 0.0];
         }
     }
 
@@ -182,7 +211,8 @@ impl Session {
         let mut tip = x;
         for i in 0..3 {
             for c in 0..3 {
-                tip[c] += p.bary[i] * u[3 * i + c];
+                let near = self.near_rows[3 * vs[i] as usize + c];
+                tip[c] += p.bary[i] * (u[3 * i + c] + near);
             }
         }
         Vec3::new(tip[0] as f32, tip[1] as f32, tip[2] as f32)
@@ -204,7 +234,8 @@ impl Session {
             .enumerate()
         {
             for c in 0..3 {
-                d[c] = r[c] + self.displacement[3 * i + c] as f32;
+                let u = self.displacement[3 * i + c] + self.near_rows[3 * i + c];
+                d[c] = r[c] + u as f32;
             }
         }
         self.deformed_valid = true;

@@ -44,7 +44,30 @@ pub enum Discretization {
         /// rows of a probe point are known.
         field_nodes: Vec<u32>,
     },
+    /// Unit nodal forces at the surface FE nodes under any tool position (node
+    /// `3·j + c`: load node `j`, direction `c`). A probe of radius `radius_mm` at a point
+    /// `s` of face `f` is the exact combination `Σ_j w_j(s) t_c` of these loads, with the
+    /// consistent disk shares `w_j(s)` of [`crate::disk`]: the particularization is the
+    /// FE load itself, not an interpolation between responses to other loads.
+    SurfaceLoad {
+        /// Position of every load node (corners, then for P2 the midsides), mm.
+        positions: Vec<[f64; 3]>,
+        /// Faces over the load nodes: 3 corners, then 3 midsides on the edges 01, 12,
+        /// 02 (all `u32::MAX` for P1).
+        faces: Vec<[u32; 6]>,
+        /// Whether the probe may be centred on each face (the palpable region; the
+        /// other faces are the rim a tool near the border still presses).
+        palpable: Vec<bool>,
+        /// The model's field node at each load node (`u32::MAX` if none).
+        field_nodes: Vec<u32>,
+        /// Tool radius the shares integrate, mm.
+        radius_mm: f64,
+    },
 }
+
+/// Most load nodes a tool may cover in one particularization (the stack buffer of the
+/// allocation-free path): a 10 mm tool on the medium P2 liver covers about 150.
+pub const MAX_LOAD_NODES: usize = 1024;
 
 /// A parameter value to particularize at.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -129,6 +152,7 @@ impl Discretization {
             Discretization::Surface { vertices, .. } => vertices.len(),
             Discretization::Discrete { labels } => labels.len(),
             Discretization::SurfaceVector { vertices, .. } => 3 * vertices.len(),
+            Discretization::SurfaceLoad { positions, .. } => 3 * positions.len(),
         }
     }
 
@@ -138,6 +162,7 @@ impl Discretization {
             Discretization::Surface { .. } => "surface",
             Discretization::Discrete { .. } => "discrete",
             Discretization::SurfaceVector { .. } => "surface-vector",
+            Discretization::SurfaceLoad { .. } => "surface-load",
         }
     }
 
@@ -189,6 +214,49 @@ impl Discretization {
             Discretization::Discrete { labels } => {
                 if labels.is_empty() {
                     return bad("a discrete axis needs at least one entry".into());
+                }
+            }
+            Discretization::SurfaceLoad {
+                positions,
+                faces,
+                palpable,
+                field_nodes,
+                radius_mm,
+            } => {
+                if !(radius_mm.is_finite() && *radius_mm > 0.0) {
+                    return bad(format!("tool radius {radius_mm} mm must be positive"));
+                }
+                if faces.is_empty() || palpable.len() != faces.len() {
+                    return bad(format!(
+                        "a load axis needs faces and one palpable flag each ({} faces, {} flags)",
+                        faces.len(),
+                        palpable.len()
+                    ));
+                }
+                if field_nodes.len() != positions.len() {
+                    return bad(format!(
+                        "{} field nodes for {} load nodes",
+                        field_nodes.len(),
+                        positions.len()
+                    ));
+                }
+                if let Some(v) = positions.iter().find(|v| v.iter().any(|c| !c.is_finite())) {
+                    return bad(format!("load node {v:?} is not finite"));
+                }
+                for (f, face) in faces.iter().enumerate() {
+                    let p2 = face[3] != u32::MAX;
+                    let used = if p2 { &face[..] } else { &face[..3] };
+                    if let Some(&i) = used.iter().find(|&&i| i as usize >= positions.len()) {
+                        return bad(format!(
+                            "face {f} names load node {i}, but there are {}",
+                            positions.len()
+                        ));
+                    }
+                    if !p2 && face[4..].iter().any(|&i| i != u32::MAX)
+                        || p2 && face[4..].contains(&u32::MAX)
+                    {
+                        return bad(format!("face {f} mixes P1 and P2 midsides: {face:?}"));
+                    }
                 }
             }
         }
@@ -267,9 +335,98 @@ impl Discretization {
                     ParamValue::Surface { .. } => "surface-point",
                     ParamValue::SurfaceMix { .. } => "surface-mix",
                 },
+                // A load axis has no ≤ 9-node stencil: SeparatedModel::particularize
+                // takes its shares from `load_shares`.
                 axis: axis.kind_name(),
             }),
         }
+    }
+}
+
+impl Discretization {
+    /// The consistent shares `(load node, w_j)` of a tool centred at barycentric `bary`
+    /// of face `face` of a [`Discretization::SurfaceLoad`] axis, written to `out`;
+    /// returns how many. Allocation-free; O(faces) (a tool is a few faces wide, but the
+    /// face list is scanned by bounding sphere). `clamped` reports a centre outside the
+    /// palpable region. Shares sum to 1.
+    pub fn load_shares(
+        &self,
+        face: u32,
+        bary: [f64; 3],
+        out: &mut [(u32, f64)],
+    ) -> Result<(usize, bool), AxisError> {
+        let Discretization::SurfaceLoad {
+            positions,
+            faces,
+            palpable,
+            radius_mm,
+            ..
+        } = self
+        else {
+            return Err(AxisError::WrongKind {
+                given: "surface-load point",
+                axis: self.kind_name(),
+            });
+        };
+        let f0 = *faces.get(face as usize).ok_or(AxisError::NoSuchTriangle {
+            triangle: face,
+            count: faces.len(),
+        })?;
+        if let Some(&v) = bary.iter().find(|v| !v.is_finite()) {
+            return Err(AxisError::NotFinite { value: v });
+        }
+        let sum: f64 = bary.iter().map(|b| b.max(0.0)).sum();
+        if sum <= 0.0 {
+            return Err(AxisError::DegenerateBary { bary });
+        }
+        let b = bary.map(|v| v.max(0.0) / sum);
+        let corners = |f: &[u32; 6]| [0, 1, 2].map(|i| positions[f[i] as usize]);
+        let c0 = corners(&f0);
+        let center = [0, 1, 2].map(|d| b[0] * c0[0][d] + b[1] * c0[1][d] + b[2] * c0[2][d]);
+        let p2 = f0[3] != u32::MAX;
+        let npf = if p2 { 6 } else { 3 };
+        let mut len = 0usize;
+        let mut acc = [0.0; 6];
+        for f in faces {
+            if !crate::disk::face_weights(corners(f), p2, center, *radius_mm, &mut acc) {
+                continue;
+            }
+            for a in 0..npf {
+                if acc[a] == 0.0 {
+                    continue;
+                }
+                // Merge a node shared by several faces (a short linear scan: the
+                // stencil has tens of entries).
+                match out[..len].iter_mut().find(|e| e.0 == f[a]) {
+                    Some(e) => e.1 += acc[a],
+                    None => {
+                        if len == out.len() {
+                            return Err(AxisError::Invalid(format!(
+                                "the tool covers more than {} load nodes",
+                                out.len()
+                            )));
+                        }
+                        out[len] = (f[a], acc[a]);
+                        len += 1;
+                    }
+                }
+            }
+        }
+        let total: f64 = out[..len].iter().map(|e| e.1).sum();
+        if total > 0.0 {
+            for e in &mut out[..len] {
+                e.1 /= total;
+            }
+        } else {
+            // Tool smaller than the quadrature resolution: a consistent point load.
+            let mut nvals = [0.0; 6];
+            crate::disk::tri_shape(p2, b, &mut nvals);
+            len = npf.min(out.len());
+            for a in 0..len {
+                out[a] = (f0[a], nvals[a]);
+            }
+        }
+        Ok((len, !palpable[face as usize]))
     }
 }
 

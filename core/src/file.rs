@@ -15,7 +15,10 @@
 //!               bytes. Separated layout (version 1): X (rows × modes), then each
 //!               axis's values (nodes × modes). Tensor-train layout (version 2, the
 //!               header's `layout` names the ranks): one core per axis, r_{k−1} ×
-//!               nodes × r_k, f64
+//!               nodes × r_k, f64. Version 3 adds the separated layout with a near
+//!               field (band and compliance table, f32, carried in the header; see
+//!               `nearfield`), and is the version of every model with a nodal-load
+//!               axis, which older builds cannot decode
 //! P + len       end of file (trailing bytes are an error)
 //! ```
 //!
@@ -39,15 +42,18 @@ use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
 use crate::cme::tt::Core;
+use crate::axis::Discretization;
 use crate::fsutil::atomic_write;
+use crate::nearfield::NearField;
 use crate::scalar::{Precision, Scalar};
 use crate::separated::{ModelError, ModelMeta, SeparatedModel};
 
 pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
 /// Version 1: separated (sum-of-products) models. Version 2 adds [`Layout`] to the
 /// header, for tensor trains; separated models are still written as version 1 so older
-/// builds keep reading them.
-pub const FORMAT_VERSION: u32 = 2;
+/// builds keep reading them. Version 3: nodal-load axes and the near field
+/// ([`Layout::SeparatedNear`]); only models that use them are written as version 3.
+pub const FORMAT_VERSION: u32 = 3;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
@@ -75,6 +81,15 @@ pub enum Layout {
     /// One core per axis, `r_{k−1} × nodes_k × r_k` row-major; `ranks` holds
     /// `r_0 = 1, r_1, …, r_d = 1`. No `X` block.
     TensorTrain { ranks: Vec<u64> },
+    /// As `Separated`, plus the near field of a nodal-load vademecum (version 3).
+    SeparatedNear { near: Box<NearField> },
+}
+
+impl Layout {
+    /// Whether the payload is `X` then the axes (separated, with or without near field).
+    pub fn is_separated(&self) -> bool {
+        matches!(self, Layout::Separated | Layout::SeparatedNear { .. })
+    }
 }
 
 /// The version-1 header (no layout: always separated).
@@ -231,15 +246,49 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
         .map(bytemuck::cast_slice::<T, u8>)
         .collect();
     let (payload_len, payload_xxh3) = payload_sum(&blocks);
-    let header = HeaderV1 {
-        meta: model.meta(),
+    let meta = model.meta();
+    let load_axis = meta
+        .axes
+        .iter()
+        .any(|a| matches!(a.discretization, Discretization::SurfaceLoad { .. }));
+    if model.near().is_none() && !load_axis {
+        let header = HeaderV1 {
+            meta,
+            precision: T::PRECISION,
+            rows: model.rows() as u64,
+            modes: model.modes() as u64,
+            payload_len,
+            payload_xxh3,
+        };
+        return write_file(path, 1, &header, &blocks);
+    }
+    let header = Header {
+        meta,
         precision: T::PRECISION,
         rows: model.rows() as u64,
         modes: model.modes() as u64,
         payload_len,
         payload_xxh3,
+        layout: match model.near() {
+            Some(near) => {
+                let mut near = Box::new(near.clone());
+                near.tradeoff_extra = model
+                    .tradeoff()
+                    .iter()
+                    .map(|r| {
+                        [
+                            f64::from(r.modes),
+                            r.compliance_rel_error.unwrap_or(f64::NAN),
+                            r.surface_max_nodal_error_mm.unwrap_or(f64::NAN),
+                        ]
+                    })
+                    .collect();
+                Layout::SeparatedNear { near }
+            }
+            None => Layout::Separated,
+        },
     };
-    write_file(path, 1, &header, &blocks)
+    write_file(path, 3, &header, &blocks)
 }
 
 /// Writes a tensor-train model (f64 cores, one per axis of `meta`) atomically.
@@ -543,21 +592,38 @@ fn load_payload<T: Scalar, R: Read>(
     located: Located,
 ) -> Result<SeparatedModel<T>, FileError> {
     let p = || path.to_path_buf();
-    if located.header.layout != Layout::Separated {
+    if !located.header.layout.is_separated() {
         return Err(FileError::WrongLayout {
             path: p(),
             expected: "separated",
             found: "tensor-train",
         });
     }
+    let near = match &located.header.layout {
+        Layout::SeparatedNear { near } => Some(near.as_ref().clone()),
+        _ => None,
+    };
     let (header, arrays) = read_arrays::<T, R>(path, f, located)?;
     let inconsistent = |reason: String| FileError::Inconsistent { path: p(), reason };
     let rows = usize::try_from(header.rows).map_err(|_| inconsistent("rows overflow".into()))?;
     let modes = usize::try_from(header.modes).map_err(|_| inconsistent("modes overflow".into()))?;
     let mut arrays = arrays.into_iter();
     let x = arrays.next().expect("block_lens always yields X first");
-    let model = SeparatedModel::new(header.meta, rows, modes, x, arrays.collect())
+    let mut model = SeparatedModel::new(header.meta, rows, modes, x, arrays.collect())
         .map_err(|source| FileError::Model { path: p(), source })?;
+    if let Some(near) = near {
+        let mut rows = model.tradeoff().to_vec();
+        for r in &mut rows {
+            if let Some(x) = near.tradeoff_extra.iter().find(|x| x[0] == f64::from(r.modes)) {
+                r.compliance_rel_error = x[1].is_finite().then_some(x[1]);
+                r.surface_max_nodal_error_mm = x[2].is_finite().then_some(x[2]);
+            }
+        }
+        model.set_tradeoff(rows);
+        model = model
+            .with_near(near)
+            .map_err(|source| FileError::Model { path: p(), source })?;
+    }
     model
         .check_finite()
         .map_err(|source| FileError::Model { path: p(), source })?;

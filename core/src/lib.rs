@@ -27,11 +27,13 @@
 
 pub mod axis;
 pub mod cme;
+pub mod disk;
 pub mod export;
 pub mod fe;
 pub mod file;
 pub mod fsutil;
 pub mod kernels;
+pub mod nearfield;
 pub mod mesh;
 pub mod organ;
 pub mod pgd;

@@ -27,6 +27,7 @@ use thiserror::Error;
 use crate::axis::{Discretization, ParamValue, closest_point};
 use crate::file::AnyModel;
 use crate::mesh::{cross, sub};
+use crate::nearfield::NearField;
 use crate::separated::{EvalError, SeparatedModel, TradeoffRow};
 
 /// Why a model cannot be shown as a palpation scene.
@@ -112,6 +113,9 @@ pub struct PalpationScene {
     axis_triangles: Vec<[u32; 3]>,
     axis_vertices_mm: Vec<[f64; 3]>,
     axis_node: Vec<u32>,
+    /// For a nodal-load axis: the load face of each palpable triangle (the axis's
+    /// own triangle numbering otherwise, i.e. the identity).
+    axis_face: Option<Vec<u32>>,
 }
 
 impl PalpationScene {
@@ -123,13 +127,32 @@ impl PalpationScene {
             AnyModel::F64(m) => m.convert(),
         };
         let axes = model.axes();
-        let (axis_vertices_mm, axis_triangles, field_nodes) = match axes {
+        let (axis_vertices_mm, axis_triangles, field_nodes, axis_face) = match axes {
             [a] => match &a.info.discretization {
                 Discretization::SurfaceVector {
                     vertices,
                     triangles,
                     field_nodes,
-                } => (vertices.clone(), triangles.clone(), field_nodes.clone()),
+                } => (vertices.clone(), triangles.clone(), field_nodes.clone(), None),
+                Discretization::SurfaceLoad {
+                    positions,
+                    faces,
+                    palpable,
+                    field_nodes,
+                    ..
+                } => {
+                    let pal: Vec<u32> = (0..faces.len() as u32)
+                        .filter(|&f| palpable[f as usize])
+                        .collect();
+                    let tris = pal
+                        .iter()
+                        .map(|&f| {
+                            let c = faces[f as usize];
+                            [c[0], c[1], c[2]]
+                        })
+                        .collect();
+                    (positions.clone(), tris, field_nodes.clone(), Some(pal))
+                }
                 _ => return Err(not_palpation(&model)),
             },
             _ => return Err(not_palpation(&model)),
@@ -167,15 +190,25 @@ impl PalpationScene {
                 nodes: g.nodes.len(),
             });
         }
-        // The SurfaceVector axis of a selected model may have lost some field nodes.
+        // The axis of a selected model may have lost some field nodes (a load axis's
+        // midside nodes are not render vertices); the palpable corners must remain.
         let axis_node = match model.axes()[0].info.discretization {
             Discretization::SurfaceVector {
+                ref field_nodes, ..
+            }
+            | Discretization::SurfaceLoad {
                 ref field_nodes, ..
             } => field_nodes.clone(),
             _ => field_nodes,
         };
-        if let Some(vertex) = axis_node.iter().position(|&f| f as usize >= g.nodes.len()) {
-            return Err(SceneError::PalpableWithoutNode { vertex });
+        if let Some(&vertex) = axis_triangles
+            .iter()
+            .flatten()
+            .find(|&&v| axis_node.get(v as usize).is_none_or(|&f| f as usize >= g.nodes.len()))
+        {
+            return Err(SceneError::PalpableWithoutNode {
+                vertex: vertex as usize,
+            });
         }
         let vertices_mm: Vec<[f32; 3]> = g.nodes.iter().map(|p| p.map(|c| c as f32)).collect();
         let triangles = g.surface.clone();
@@ -207,7 +240,13 @@ impl PalpationScene {
             axis_triangles,
             axis_vertices_mm,
             axis_node,
+            axis_face,
         })
+    }
+
+    /// The near field (exact band and compliance table), if the scene's model has one.
+    pub fn near(&self) -> Option<&NearField> {
+        self.model.near()
     }
 
     pub fn model(&self) -> &SeparatedModel<f32> {
@@ -232,8 +271,10 @@ impl PalpationScene {
     /// Whether render vertex `v` belongs to the palpable region.
     pub fn palpable_vertices(&self) -> Vec<bool> {
         let mut out = vec![false; self.vertices_mm.len()];
-        for &n in &self.axis_node {
-            out[n as usize] = true;
+        for &n in self.axis_triangles.iter().flatten() {
+            if let Some(o) = self.axis_node.get(n as usize).and_then(|&f| out.get_mut(f as usize)) {
+                *o = true;
+            }
         }
         out
     }
@@ -290,8 +331,12 @@ impl PalpationScene {
 
     /// The parameter value for a force vector `force_n` (N) applied at `p`.
     pub fn param(&self, p: &ProbePoint, force_n: [f64; 3]) -> ParamValue {
+        let triangle = match &self.axis_face {
+            Some(faces) => faces[p.triangle as usize],
+            None => p.triangle,
+        };
         ParamValue::SurfaceMix {
-            triangle: p.triangle,
+            triangle,
             bary: p.bary,
             mix: force_n,
         }
@@ -314,6 +359,27 @@ impl PalpationScene {
         let (point_mm, normal) = self.frame(p);
         let push_dir = normal.map(|c| -c);
         let n = modes.min(scratch.coeffs.len());
+        // A nodal-load model carries the exact compliance tensor: no modes involved.
+        if let (Some(near), Some(faces)) = (self.model.near(), &self.axis_face) {
+            if let Some(c) = near.compliance_tensor(faces[p.triangle as usize], p.bary) {
+                let w: [f64; 3] = std::array::from_fn(|d| {
+                    c[d][0] * push_dir[0] + c[d][1] * push_dir[1] + c[d][2] * push_dir[2]
+                });
+                let compliance = w[0] * push_dir[0] + w[1] * push_dir[1] + w[2] * push_dir[2];
+                if compliance.is_nan() || compliance <= 0.0 {
+                    return Err(ContactError::NonPositiveCompliance {
+                        compliance_mm_per_n: compliance,
+                        modes: n,
+                    });
+                }
+                return Ok(Contact {
+                    point_mm,
+                    push_dir,
+                    unit_displacement_mm_per_n: w,
+                    compliance_mm_per_n: compliance,
+                });
+            }
+        }
         let coeffs = &mut scratch.coeffs[..n];
         self.model
             .particularize(&[self.param(p, push_dir)], coeffs)?;
@@ -352,10 +418,22 @@ impl PalpationScene {
         coeffs: &mut [f64],
         out_mm: &mut [f64],
     ) -> Result<(), EvalError> {
-        self.model
-            .particularize(&[self.param(p, force_n)], coeffs)?;
+        let v = [self.param(p, force_n)];
+        self.model.particularize(&v, coeffs)?;
         self.model.reconstruct(coeffs, out_mm);
-        Ok(())
+        self.model.add_near_field(&v, out_mm)
+    }
+
+    /// The near-field part of the displacement alone (added to `out_mm`), for a
+    /// renderer that computes the modes' part elsewhere (the GPU). A no-op without a
+    /// near field.
+    pub fn add_near_displacement(
+        &self,
+        p: &ProbePoint,
+        force_n: [f64; 3],
+        out_mm: &mut [f64],
+    ) -> Result<(), EvalError> {
+        self.model.add_near_field(&[self.param(p, force_n)], out_mm)
     }
 }
 

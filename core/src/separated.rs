@@ -21,8 +21,9 @@
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::axis::{AxisError, Discretization, ParamValue};
+use crate::axis::{AxisError, Discretization, MAX_LOAD_NODES, ParamValue};
 use crate::kernels;
+use crate::nearfield::{NearField, NearFieldError};
 use crate::scalar::{Precision, Scalar};
 
 /// What the field rows are: `rows = nodes × components`, row `r` is component
@@ -86,6 +87,13 @@ pub struct TradeoffRow {
     pub surface_eval_us: f64,
     pub contact_eval_ns: f64,
     pub bytes: u64,
+    /// Nodal-load models: max relative compliance error over held-out points (stored
+    /// in the near field's part of a version-3 header, so older headers decode).
+    #[serde(skip)]
+    pub compliance_rel_error: Option<f64>,
+    /// Nodal-load models: largest surface nodal error at 1 N over held-out points, mm.
+    #[serde(skip)]
+    pub surface_max_nodal_error_mm: Option<f64>,
 }
 
 /// Everything about a model except its arrays: what the file header carries.
@@ -149,6 +157,13 @@ pub enum ModelError {
     NoSuchRow { row: usize, rows: usize },
     #[error("value {value} in {what} is not finite")]
     NotFinite { what: String, value: f64 },
+    #[error(
+        "a near field needs a single surface-load axis (probe position × nodal load); \
+         this model's first axis is {axis}"
+    )]
+    NearWithoutLoadAxis { axis: String },
+    #[error(transparent)]
+    Near(#[from] NearFieldError),
 }
 
 /// An evaluation request that cannot be honoured.
@@ -197,6 +212,8 @@ pub struct SeparatedModel<T> {
     modes: usize,
     x: Vec<T>,
     axes: Vec<Axis<T>>,
+    /// The exact near field of a nodal-load vademecum (see [`crate::nearfield`]).
+    near: Option<Box<NearField>>,
 }
 
 impl<T: Scalar> SeparatedModel<T> {
@@ -284,7 +301,48 @@ impl<T: Scalar> SeparatedModel<T> {
             modes,
             x,
             axes,
+            near: None,
         })
+    }
+
+    /// Attaches a near field (band and compliance table) to a model whose one axis is a
+    /// [`Discretization::SurfaceLoad`]; checks its shapes.
+    pub fn with_near(mut self, near: NearField) -> Result<Self, ModelError> {
+        let (load_nodes, faces) = match self.axes.as_slice() {
+            [a] => match &a.info.discretization {
+                Discretization::SurfaceLoad {
+                    positions, faces, ..
+                } => (positions.len(), faces.len()),
+                d => {
+                    return Err(ModelError::NearWithoutLoadAxis {
+                        axis: d.kind_name().into(),
+                    });
+                }
+            },
+            _ => {
+                return Err(ModelError::NearWithoutLoadAxis {
+                    axis: format!("one of {} axes", self.axes.len()),
+                });
+            }
+        };
+        near.validate(
+            load_nodes,
+            faces,
+            self.rows / self.field.components as usize,
+        )?;
+        self.near = Some(Box::new(near));
+        Ok(self)
+    }
+
+    /// The near field, if the model carries one.
+    pub fn near(&self) -> Option<&NearField> {
+        self.near.as_deref()
+    }
+
+    /// The model without its near field (what an older file holds).
+    pub fn without_near(mut self) -> Self {
+        self.near = None;
+        self
     }
 
     pub fn rows(&self) -> usize {
@@ -365,6 +423,13 @@ impl<T: Scalar> SeparatedModel<T> {
         coeffs.fill(1.0);
         let mut report = ClampReport::default();
         for (j, (axis, &value)) in self.axes.iter().zip(values).enumerate() {
+            if let Discretization::SurfaceLoad { .. } = axis.info.discretization {
+                let clamped = self.scale_by_load(j, value, coeffs)?;
+                if clamped {
+                    report.mask |= 1 << j;
+                }
+                continue;
+            }
             let st = axis
                 .info
                 .discretization
@@ -380,6 +445,75 @@ impl<T: Scalar> SeparatedModel<T> {
             kernels::scale_by_stencil(coeffs, &axis.values, self.modes, &st);
         }
         Ok(report)
+    }
+
+    /// `coeffs[k] *= Σ_j w_j(s) Σ_c t_c P[3j + c, k]` on a load axis. Allocation-free.
+    fn scale_by_load(
+        &self,
+        j: usize,
+        value: ParamValue,
+        coeffs: &mut [f64],
+    ) -> Result<bool, EvalError> {
+        let axis = &self.axes[j];
+        let wrap = |source| EvalError::Axis {
+            axis: j,
+            name: axis.info.name.clone(),
+            source,
+        };
+        let mut buf = [(0u32, 0.0f64); MAX_LOAD_NODES];
+        let (len, clamped, mix) = load_shares(&axis.info.discretization, value, &mut buf)
+            .map_err(wrap)?;
+        let m = self.modes;
+        let n = coeffs.len();
+        let mut acc = [0.0f64; 512];
+        if n > acc.len() {
+            return Err(EvalError::TooManyModes {
+                requested: n,
+                available: acc.len(),
+            });
+        }
+        let acc = &mut acc[..n];
+        for &(node, w) in &buf[..len] {
+            for (c, &t) in mix.iter().enumerate() {
+                let wt = w * t;
+                if wt == 0.0 {
+                    continue;
+                }
+                let row = &axis.values[(3 * node as usize + c) * m..][..n];
+                for (a, y) in acc.iter_mut().zip(row) {
+                    *a += wt * y.to_f64();
+                }
+            }
+        }
+        for (o, a) in coeffs.iter_mut().zip(acc.iter()) {
+            *o *= a;
+        }
+        Ok(clamped)
+    }
+
+    /// Adds the near-field band of the probe `values` to the full field `out` (rows of
+    /// this model). A no-op for a model without a near field. Allocation-free.
+    pub fn add_near_field(&self, values: &[ParamValue], out: &mut [f64]) -> Result<(), EvalError> {
+        let Some(near) = self.near.as_deref() else {
+            return Ok(());
+        };
+        let (Some(axis), Some(&value)) = (self.axes.first(), values.first()) else {
+            return Err(EvalError::ParamCount {
+                given: values.len(),
+                expected: self.axes.len(),
+            });
+        };
+        let mut buf = [(0u32, 0.0f64); MAX_LOAD_NODES];
+        let (len, _, mix) =
+            load_shares(&axis.info.discretization, value, &mut buf).map_err(|source| {
+                EvalError::Axis {
+                    axis: 0,
+                    name: axis.info.name.clone(),
+                    source,
+                }
+            })?;
+        near.add_band(&buf[..len], mix, out);
+        Ok(())
     }
 
     /// `out[i] = Σ_{k<n} X[first + i, k] · coeffs[k]` for the contiguous rows
@@ -502,13 +636,16 @@ impl<T: Scalar> SeparatedModel<T> {
                 .collect();
             // Axes that refer to field nodes follow the renumbering.
             for a in &mut out.axes {
-                if let Discretization::SurfaceVector { field_nodes, .. } =
-                    &mut a.info.discretization
+                if let Discretization::SurfaceVector { field_nodes, .. }
+                | Discretization::SurfaceLoad { field_nodes, .. } = &mut a.info.discretization
                 {
                     for f in field_nodes.iter_mut() {
                         *f = new_index.get(*f as usize).copied().unwrap_or(u32::MAX);
                     }
                 }
+            }
+            if let Some(near) = out.near.as_deref_mut() {
+                near.remap_nodes(&new_index);
             }
         }
         Ok(out)
@@ -534,6 +671,7 @@ impl<T: Scalar> SeparatedModel<T> {
                     values: cv(&a.values),
                 })
                 .collect(),
+            near: self.near.clone(),
         }
     }
 
@@ -565,4 +703,28 @@ impl<T: Scalar> SeparatedModel<T> {
     pub(crate) fn arrays(&self) -> (&[T], impl Iterator<Item = &[T]>) {
         (&self.x, self.axes.iter().map(|a| a.values.as_slice()))
     }
+}
+
+/// The shares and direction of a probe value on a load axis.
+fn load_shares(
+    d: &Discretization,
+    value: ParamValue,
+    buf: &mut [(u32, f64)],
+) -> Result<(usize, bool, [f64; 3]), AxisError> {
+    let ParamValue::SurfaceMix {
+        triangle,
+        bary,
+        mix,
+    } = value
+    else {
+        return Err(AxisError::WrongKind {
+            given: "non-surface-mix",
+            axis: d.kind_name(),
+        });
+    };
+    if let Some(&v) = mix.iter().find(|v| !v.is_finite()) {
+        return Err(AxisError::NotFinite { value: v });
+    }
+    let (len, clamped) = d.load_shares(triangle, bary, buf)?;
+    Ok((len, clamped, mix))
 }

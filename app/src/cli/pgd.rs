@@ -14,6 +14,7 @@ use palpa_core::file;
 use palpa_core::mesh::triangle_normal;
 use palpa_core::pgd::journal::Journal;
 use palpa_core::pgd::linear::{Settings, update};
+use palpa_core::pgd::nodal::{self, NodalSettings};
 use palpa_core::pgd::palpation::{compute, describe, setup, to_model};
 use palpa_core::{ParamValue, Precision, Scalar, SeparatedModel};
 use serde_json::json;
@@ -21,8 +22,28 @@ use serde_json::json;
 use super::args::ProbeArgs;
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
 
+/// How the vademecum is computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Unit nodal loads on the parametric axis (exact at any probe position), modes by a
+    /// randomized SVD of the surface map, plus the exact near field and compliance table.
+    Nodal,
+    /// The PGD over tool loads centred at palpable vertices (interpolated in between).
+    Pgd,
+}
+
 #[derive(Debug, Args)]
 pub struct OfflineArgs {
+    /// `nodal` (default) or `pgd` (the earlier vertex-load vademecum).
+    #[arg(long, value_enum, default_value = "nodal")]
+    method: MethodArg,
+    /// Nodal method: surface nodes within this distance of a loaded node get the exact
+    /// near field (mm).
+    #[arg(long, default_value_t = NodalSettings::default().band_radius_mm)]
+    band_radius_mm: f64,
+    /// Nodal method: degree of the compliance lattice on each palpable face.
+    #[arg(long, default_value_t = NodalSettings::default().table_degree)]
+    table_degree: usize,
     #[arg(value_enum, default_value = "liver")]
     organ: OrganName,
     #[arg(long, value_enum, default_value = "coarse")]
@@ -64,6 +85,9 @@ fn journal_path(out: &Path) -> PathBuf {
 }
 
 pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
+    if args.method == MethodArg::Nodal {
+        return offline_nodal(args);
+    }
     let t0 = Instant::now();
     let material = Material::default();
     let organ = mesh_organ(args.organ, args.level, None)?;
@@ -180,6 +204,75 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `palpa offline liver --method nodal`: see `palpa_core::pgd::nodal`.
+fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    if args.resume {
+        bail!("--resume applies to --method pgd; the nodal build has no journal");
+    }
+    if args.modes == 0 {
+        bail!("--modes must be at least 1");
+    }
+    if !(args.band_radius_mm.is_finite() && args.band_radius_mm >= 0.0) {
+        bail!("--band-radius-mm {} must be ≥ 0", args.band_radius_mm);
+    }
+    if !(1..=8).contains(&args.table_degree) {
+        bail!("--table-degree {} must be 1 to 8", args.table_degree);
+    }
+    let material = Material::default();
+    let organ = mesh_organ(args.organ, args.level, None)?;
+    let s = nodal::setup(&organ, args.element, material, args.radius_mm)
+        .context("building the FE operators and the load axis")?;
+    let desc = describe(
+        &organ,
+        &format!("{:?}", args.level).to_lowercase(),
+        args.element,
+        material,
+        args.radius_mm,
+        false,
+    );
+    let settings = NodalSettings {
+        modes: args.modes,
+        band_radius_mm: args.band_radius_mm,
+        table_degree: args.table_degree,
+        ..NodalSettings::default()
+    };
+    let (mut model, report) = nodal::build(&s, &settings, &desc, |stage| {
+        eprintln!("palpa: {stage} ({:.1} s)", t0.elapsed().as_secs_f64());
+    })
+    .context("computing the nodal vademecum")?;
+    let mut prov = model.provenance().clone();
+    prov.input_hash = format!("{:016x}", xxhash_rust::xxh3::xxh3_64(desc.as_bytes()));
+    model.set_provenance(prov);
+    file::save(&model, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    println!(
+        "{}",
+        json!({
+            "out": args.out,
+            "method": "nodal",
+            "modes": model.modes(),
+            "load_nodes": report.load_nodes,
+            "solves": report.solves,
+            "free_dofs": s.space.free_dofs,
+            "surface_rows": report.surface_rows,
+            "surface_map_rel_error": report.surface_map_rel_error,
+            "band_radius_mm": settings.band_radius_mm,
+            "band_entries": report.band_entries,
+            "table_degree": settings.table_degree,
+            "near_bytes": report.near_bytes,
+            "setup_s": report.setup_s,
+            "solve_s": report.solve_s,
+            "svd_s": report.svd_s,
+            "modes_s": report.modes_s,
+            "band_s": report.band_s,
+            "table_s": report.table_s,
+            "total_s": t0.elapsed().as_secs_f64(),
+            "bytes": std::fs::metadata(&args.out).map(|m| m.len()).ok(),
+        })
+    );
+    Ok(())
+}
+
 #[derive(Debug, Args)]
 pub struct EvalArgs {
     file: PathBuf,
@@ -205,6 +298,10 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
 
 fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Result<()> {
     let at = args.probe.at()?;
+    if let Some(Discretization::SurfaceLoad { .. }) = m.axes().first().map(|a| &a.info.discretization)
+    {
+        return eval_nodal(m, args, at);
+    }
     let Some(Discretization::SurfaceVector {
         vertices,
         triangles,
@@ -285,6 +382,151 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
         });
         Some(u[0] * dir[0] + u[1] * dir[1] + u[2] * dir[2])
     };
+    report_eval(
+        m,
+        args,
+        &full,
+        json!({
+            "probe_point": hit.point,
+            "probe_projection_distance_mm": hit.distance,
+            "direction": dir,
+            "force_n": f,
+            "probe_displacement_mm": probe_displacement_mm,
+            "modes_used": modes,
+            "modes_available": available,
+            "modes_clamped": clamped_modes,
+            "eval_us": contact_eval_ns / 1e3,
+            "full_reconstruction_us": full_us,
+            "precision": T::PRECISION.name(),
+        }),
+    )
+}
+
+/// `palpa eval` on a nodal-load vademecum: the load particularized exactly at the
+/// probe point, the near field added, the probe displacement from the compliance table.
+fn eval_nodal<T: Scalar>(
+    m: &SeparatedModel<T>,
+    args: &EvalArgs,
+    at: [f64; 3],
+) -> anyhow::Result<()> {
+    let Some(Discretization::SurfaceLoad {
+        positions,
+        faces,
+        palpable,
+        field_nodes,
+        ..
+    }) = m.axes().first().map(|a| &a.info.discretization)
+    else {
+        bail!("{} is not a nodal-load vademecum", args.file.display());
+    };
+    let pal: Vec<u32> = (0..faces.len() as u32)
+        .filter(|&f| palpable[f as usize])
+        .collect();
+    let tris: Vec<[u32; 3]> = pal
+        .iter()
+        .map(|&f| {
+            let c = faces[f as usize];
+            [c[0], c[1], c[2]]
+        })
+        .collect();
+    let hit = closest_point(positions, &tris, at).context("the probe surface is empty")?;
+    let face = pal[hit.triangle as usize];
+    let [a, b, c] = tris[hit.triangle as usize].map(|i| positions[i as usize]);
+    let dir = match args.probe.dir()? {
+        Some(d) => {
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if !(l.is_finite() && l > 0.0) {
+                bail!("--dir has no length");
+            }
+            d.map(|v| v / l)
+        }
+        None => triangle_normal(a, b, c).map(|v| -v),
+    };
+    let available = m.modes();
+    let modes = match args.modes {
+        Some(0) => bail!("--modes must be at least 1"),
+        Some(k) if k > available => {
+            eprintln!("palpa: {k} modes asked, the file holds {available}; using {available}");
+            available
+        }
+        Some(k) => k,
+        None => available,
+    };
+    let f = args.probe.force_n;
+    let value = [ParamValue::SurfaceMix {
+        triangle: face,
+        bary: hit.bary,
+        mix: dir,
+    }];
+    let mut coeffs = vec![0.0; modes];
+    let t = Instant::now();
+    m.particularize(&value, &mut coeffs)?;
+    let particularize_us = t.elapsed().as_secs_f64() * 1e6;
+    let mut full = vec![0.0; m.rows()];
+    let t = Instant::now();
+    m.reconstruct(&coeffs, &mut full);
+    m.add_near_field(&value, &mut full)?;
+    let full_us = t.elapsed().as_secs_f64() * 1e6;
+    // The probe displacement: the compliance table where there is one, else the P2
+    // interpolation of the reconstructed field at the probe point.
+    let (probe_unit, source) = match m.near().and_then(|n| n.compliance_tensor(face, hit.bary)) {
+        Some(cten) => {
+            let w: [f64; 3] = std::array::from_fn(|d| (0..3).map(|e| cten[d][e] * dir[e]).sum());
+            (Some(w), "compliance table")
+        }
+        None => {
+            let fc = faces[face as usize];
+            let p2 = fc[3] != u32::MAX;
+            let mut nv = [0.0; 6];
+            palpa_core::disk::tri_shape(p2, hit.bary, &mut nv);
+            let npf = if p2 { 6 } else { 3 };
+            let rows: Option<Vec<u32>> = fc[..npf]
+                .iter()
+                .map(|&j| field_nodes.get(j as usize).copied().filter(|&x| x != u32::MAX))
+                .collect();
+            match rows {
+                Some(rows) => {
+                    let w: [f64; 3] = std::array::from_fn(|d| {
+                        (0..npf).map(|a| nv[a] * full[3 * rows[a] as usize + d]).sum()
+                    });
+                    (Some(w), "field rows")
+                }
+                None => (None, "unavailable"),
+            }
+        }
+    };
+    let probe_displacement_mm =
+        probe_unit.map(|w| f * (w[0] * dir[0] + w[1] * dir[1] + w[2] * dir[2]));
+    report_eval(
+        m,
+        args,
+        &full,
+        json!({
+            "probe_point": hit.point,
+            "probe_projection_distance_mm": hit.distance,
+            "direction": dir,
+            "force_n": f,
+            "probe_displacement_mm": probe_displacement_mm,
+            "probe_displacement_source": source,
+            "modes_used": modes,
+            "modes_available": available,
+            "modes_clamped": args.modes.is_some_and(|k| k > available),
+            "near_field": m.near().is_some(),
+            "eval_us": particularize_us,
+            "full_reconstruction_us": full_us,
+            "precision": T::PRECISION.name(),
+        }),
+    )
+}
+
+/// Adds the maximum displacement, writes `--out`, prints the report.
+fn report_eval<T: Scalar>(
+    m: &SeparatedModel<T>,
+    args: &EvalArgs,
+    full: &[f64],
+    mut report: serde_json::Value,
+) -> anyhow::Result<()> {
+    let f = args.probe.force_n;
     let max = full
         .chunks_exact(3)
         .map(|v| f.abs() * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
@@ -307,7 +549,7 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
             },
             FieldValue {
                 name: "modes_used".into(),
-                value: modes as f64,
+                value: report["modes_used"].as_f64().unwrap_or(0.0),
             },
         ];
         let cells: Vec<[u32; 3]> = if g.surface.is_empty() {
@@ -319,20 +561,7 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
         write_surface_vtu(out, &g.nodes, &cells, &fields, &meta)
             .with_context(|| format!("writing {}", out.display()))?;
     }
-    let report = json!({
-        "probe_point": hit.point,
-        "probe_projection_distance_mm": hit.distance,
-        "direction": dir,
-        "force_n": f,
-        "probe_displacement_mm": probe_displacement_mm,
-        "max_displacement_mm": max,
-        "modes_used": modes,
-        "modes_available": available,
-        "modes_clamped": clamped_modes,
-        "eval_us": contact_eval_ns / 1e3,
-        "full_reconstruction_us": full_us,
-        "precision": T::PRECISION.name(),
-    });
+    report["max_displacement_mm"] = json!(max);
     super::args::print_report(&report, args.json)
 }
 

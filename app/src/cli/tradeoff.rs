@@ -33,8 +33,9 @@ use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
 #[derive(Debug, Args)]
 pub struct TradeoffArgs {
     file: PathBuf,
-    /// Held-out probe positions.
-    #[arg(long, default_value_t = 8)]
+    /// Random held-out probe positions (a nodal model adds two near the fixed region,
+    /// two on the sharpest border and two on the left lobe).
+    #[arg(long, default_value_t = 24)]
     held_out: usize,
     /// Compute the optimal (SVD) errors even above the coarse level.
     #[arg(long)]
@@ -80,6 +81,11 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
             "{}: the organ mesh or settings changed since this vademecum was computed; recompute it",
             args.file.display()
         );
+    }
+    if let Some(Discretization::SurfaceLoad { .. }) =
+        model.axes().first().map(|a| &a.info.discretization)
+    {
+        return run_nodal(args, model, &organ, element, material, radius_mm);
     }
     let s = setup(&organ, element, material, radius_mm)?;
     let terms = terms_from_model(&s, &model);
@@ -255,6 +261,8 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
             surface_eval_us,
             contact_eval_ns,
             bytes,
+            compliance_rel_error: None,
+            surface_max_nodal_error_mm: None,
         });
     }
     let mut model = model;
@@ -302,6 +310,121 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     super::args::print_report(&out, args.json)
 }
 
+/// The tradeoff of a nodal-load vademecum: held-out errors with the near field (and,
+/// for comparison, without it) for n = 1 … N, and the time of what the app runs.
+fn run_nodal(
+    args: &TradeoffArgs,
+    model: palpa_core::SeparatedModel<f64>,
+    organ: &palpa_core::organ::OrganMesh,
+    element: Element,
+    material: Material,
+    radius_mm: f64,
+) -> anyhow::Result<()> {
+    use palpa_core::fe::elasticity::LinearProblem;
+    use palpa_core::fe::probe::organ_space;
+    use palpa_core::pgd::heldout;
+    let t0 = Instant::now();
+    let space = organ_space(organ, element);
+    let problem = LinearProblem::new(&space, material)?;
+    let cases = heldout::cases(&space, &problem, organ, radius_mm, args.held_out, 0x7e57)?;
+    let fe_s = t0.elapsed().as_secs_f64();
+    let mut surface_nodes: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
+    surface_nodes.sort_unstable();
+    surface_nodes.dedup();
+    let surface_rows: Vec<u32> = surface_nodes
+        .iter()
+        .flat_map(|&n| (0..3).map(move |c| 3 * n + c))
+        .collect();
+    let n_max = model.modes();
+    let mut ns: Vec<usize> = [1, 2, 5, 10, 20, 50, 100, 150, 200, 300, 400]
+        .into_iter()
+        .filter(|&n| n < n_max)
+        .collect();
+    ns.push(n_max);
+    let near_bytes = model.near().map_or(0, |n| n.bytes());
+    let axis_nodes = model.axes()[0].info.discretization.node_count();
+    let bare = model.clone().without_near();
+    let near = model.near().context("a nodal model without its near field")?;
+    let face0 = near
+        .table_block
+        .iter()
+        .position(|&b| b != u32::MAX)
+        .context("the compliance table covers no face")? as u32;
+    let probe = [ParamValue::SurfaceMix {
+        triangle: face0,
+        bary: [1.0 / 3.0; 3],
+        mix: cases[0].dir,
+    }];
+    let mut rows = Vec::new();
+    let mut json_rows = Vec::new();
+    for &n in &ns {
+        let e = heldout::nodal_errors(&model, &space, &cases, &surface_nodes, n)?;
+        let e_bare = heldout::nodal_errors(&bare, &space, &cases, &surface_nodes, n)?;
+        // What a frame runs: particularize, the surface rows, the band.
+        let mut coeffs = vec![0.0; n];
+        let mut out = vec![0.0; surface_rows.len()];
+        let mut full = vec![0.0; model.rows()];
+        let reps = 20;
+        let t = Instant::now();
+        for _ in 0..reps {
+            model.particularize(std::hint::black_box(&probe), &mut coeffs)?;
+            model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
+            model.add_near_field(&probe, &mut full)?;
+        }
+        let surface_eval_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
+        // What the force loop runs: the compliance tensor at a point.
+        let near = model.near().context("a nodal model without its near field")?;
+        let reps = 20_000;
+        let t = Instant::now();
+        let mut acc = 0.0;
+        for i in 0..reps {
+            let b = f64::from(i % 7) * 0.1;
+            if let Some(ct) = near.compliance_tensor(face0, std::hint::black_box([0.2 + b * 0.5, 0.3, 0.5 - b * 0.5])) {
+                acc += ct[2][2];
+            }
+        }
+        std::hint::black_box(acc);
+        let contact_eval_ns = t.elapsed().as_nanos() as f64 / f64::from(reps);
+        let bytes = ((surface_rows.len() + axis_nodes) * n * 4 + near_bytes) as u64;
+        rows.push(TradeoffRow {
+            modes: n as u32,
+            surface_rel_error: e.surface_rel_error,
+            probe_rel_error: e.compliance_rel_error,
+            map_rel_error: None,
+            svd_rel_error: None,
+            surface_eval_us,
+            contact_eval_ns,
+            bytes,
+            compliance_rel_error: Some(e.compliance_rel_error),
+            surface_max_nodal_error_mm: Some(e.surface_max_nodal_error_mm),
+        });
+        json_rows.push(json!({
+            "modes": n, "surface_rel_error": e.surface_rel_error,
+            "probe_rel_error": e.compliance_rel_error,
+            "compliance_rel_error": e.compliance_rel_error,
+            "surface_max_nodal_error_mm": e.surface_max_nodal_error_mm,
+            "surface_max_nodal_rel_error": e.surface_max_nodal_rel_error,
+            "worst_surface_case": {"kind": cases[e.worst_surface_case].kind,
+                                   "point_mm": cases[e.worst_surface_case].point},
+            "map_rel_error": null, "svd_rel_error": null,
+            "without_near_field": {"surface_rel_error": e_bare.surface_rel_error,
+                                   "surface_max_nodal_error_mm": e_bare.surface_max_nodal_error_mm,
+                                   "compliance_rel_error": e_bare.compliance_rel_error},
+            "surface_eval_us": surface_eval_us, "contact_eval_ns": contact_eval_ns, "bytes": bytes,
+        }));
+    }
+    let mut model = model;
+    model.set_tradeoff(rows.clone());
+    file::save(&model, &args.file).with_context(|| format!("writing {}", args.file.display()))?;
+    if let Some(path) = &args.plot {
+        plot(&rows, &vec![None; rows.len()], path)?;
+    }
+    let kinds: Vec<&str> = cases.iter().map(|c| c.kind).collect();
+    let out = json!({"rows": json_rows, "held_out": cases.len(), "held_out_kinds": kinds,
+                     "method": "nodal", "fe_reference_s": fe_s});
+    super::args::print_report(&out, args.json)
+}
+
 /// Error and time against modes, two log–log panels.
 fn plot(
     rows: &[TradeoffRow],
@@ -321,6 +444,14 @@ fn plot(
         series("surface, held-out (max)", &|_, r| Some(r.surface_rel_error)),
         series("probe, held-out (max)", &|_, r| Some(r.probe_rel_error)),
     ];
+    if rows.iter().any(|r| r.compliance_rel_error.is_some()) {
+        errors.push(series("compliance, held-out (max)", &|_, r| {
+            r.compliance_rel_error
+        }));
+        errors.push(series("surface max nodal error at 1 N (mm)", &|_, r| {
+            r.surface_max_nodal_error_mm
+        }));
+    }
     if rows.iter().any(|r| r.map_rel_error.is_some()) {
         errors.push(series("map, PGD", &|_, r| r.map_rel_error));
         errors.push(series("map, optimal rank n", &|_, r| r.svd_rel_error));

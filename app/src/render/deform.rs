@@ -12,7 +12,7 @@ use super::shaders::Shader;
 /// Most modes the coefficient uniform holds (128 × vec4).
 pub const MAX_GPU_MODES: usize = 512;
 /// Storage buffers the compute stage binds.
-pub const STORAGE_BUFFERS: u32 = 7;
+pub const STORAGE_BUFFERS: u32 = 8;
 const WORKGROUP: u32 = 64;
 
 /// One vec4 of a GPU buffer (xyz and w).
@@ -32,6 +32,8 @@ struct Params {
 pub struct Deform {
     params: wgpu::Buffer,
     coeffs: wgpu::Buffer,
+    /// The near-field displacement per vertex (xyz), written each frame.
+    near: wgpu::Buffer,
     /// Deformed positions (xyz, |u|), one vec4 per vertex: compute output, vertex input.
     pub positions: wgpu::Buffer,
     /// Unit normals of the deformed surface, one vec4 per vertex.
@@ -80,6 +82,12 @@ impl Deform {
             })
         };
         let positions = output("deformed positions");
+        let near = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("near-field displacement"),
+            size: out_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let normals = output("deformed normals");
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("deform params"),
@@ -119,10 +127,12 @@ impl Deform {
                 entry(6, ro),
                 entry(7, ro),
                 entry(8, rw),
+                entry(9, ro),
             ],
         });
         let buffers = [
             &params, &coeffs, &modes, &rest, &positions, &offsets, &adjacency, &triangles, &normals,
+            &near,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
@@ -158,6 +168,7 @@ impl Deform {
             normals_pass: pipeline("normals_pass"),
             params,
             coeffs,
+            near,
             positions,
             normals,
             bind_group,
@@ -186,6 +197,13 @@ impl Deform {
             triangle_count: self.triangle_count,
         };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+    }
+
+    /// Uploads the near-field displacement (one xyz_ per vertex; fewer entries leave
+    /// the rest as they were, so pass all of them).
+    pub fn set_near(&self, queue: &wgpu::Queue, near_mm: &[Vec4Data]) {
+        let n = near_mm.len().min(self.vertex_count as usize);
+        queue.write_buffer(&self.near, 0, bytemuck::cast_slice(&near_mm[..n]));
     }
 
     /// Records the two compute passes.

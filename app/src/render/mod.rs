@@ -73,6 +73,8 @@ pub struct FrameInput<'a> {
     pub camera: &'a OrbitCamera,
     /// Coefficients of the modes used (`len` = modes used).
     pub coeffs: &'a [f64],
+    /// The near-field displacement per render vertex (mm, xyz_), added to the modes'.
+    pub near_mm: &'a [[f32; 4]],
     /// Colour by displacement magnitude, with this value (mm) at the top of the scale.
     pub colormap_mm: Option<f32>,
     pub probe: Option<ProbeVisual>,
@@ -402,6 +404,7 @@ impl Renderer {
         };
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
         self.deform.set_coefficients(queue, input.coeffs);
+        self.deform.set_near(queue, input.near_mm);
         let objects = self.object_uniforms(input.probe.as_ref());
         for (i, o) in objects.iter().enumerate() {
             queue.write_buffer(

@@ -99,44 +99,14 @@ pub fn probe_weights(
     let p2 = space.element == super::Element::P2;
     let npf = space.element.nodes_per_face();
     let mut weights: Vec<(u32, f64)> = Vec::new();
-    let mut nvals = [0.0; 6];
+    let mut acc = [0.0; 6];
     for f in 0..space.face_count() {
-        let c = face_corners(space, f);
-        // Skip faces entirely outside the ball (by their circumscribing distance).
-        let cen = [0, 1, 2].map(|d| (c[0][d] + c[1][d] + c[2][d]) / 3.0);
-        let rad = c.iter().map(|v| norm(sub(*v, cen))).fold(0.0, f64::max);
-        if norm(sub(cen, s.point)) > radius_mm + rad {
-            continue;
-        }
-        let area = 0.5 * norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
-        let level = ((2.0 * rad * 6.0 / radius_mm).log2().ceil().max(0.0) as u32).min(7);
-        let k = 1usize << level; // sub-triangles per edge; k² of them
-        let sub_area = area / (k * k) as f64;
-        let face = space.face(f);
-        let mut acc = [0.0; 6];
-        for i in 0..k {
-            for j in 0..k - i {
-                // Upward sub-triangle centroid, then the downward one (if any).
-                for (di, dj, up) in [(1.0 / 3.0, 1.0 / 3.0, true), (2.0 / 3.0, 2.0 / 3.0, false)] {
-                    if !up && i + j + 1 >= k {
-                        continue;
-                    }
-                    let b1 = (i as f64 + di) / k as f64;
-                    let b2 = (j as f64 + dj) / k as f64;
-                    let l = [1.0 - b1 - b2, b1, b2];
-                    let x = [0, 1, 2].map(|d| l[0] * c[0][d] + l[1] * c[1][d] + l[2] * c[2][d]);
-                    if norm(sub(x, s.point)) <= radius_mm {
-                        tri_values(p2, l, &mut nvals);
-                        for a in 0..npf {
-                            acc[a] += nvals[a] * sub_area;
-                        }
-                    }
+        if crate::disk::face_weights(face_corners(space, f), p2, s.point, radius_mm, &mut acc) {
+            let face = space.face(f);
+            for a in 0..npf {
+                if acc[a] != 0.0 {
+                    weights.push((face[a], acc[a]));
                 }
-            }
-        }
-        for a in 0..npf {
-            if acc[a] != 0.0 {
-                weights.push((face[a], acc[a]));
             }
         }
     }
@@ -154,6 +124,7 @@ pub fn probe_weights(
         Ok(merged.into_iter().map(|(n, w)| (n, w / total)).collect())
     } else {
         // Tool smaller than the quadrature resolution: a consistent point load at s.
+        let mut nvals = [0.0; 6];
         tri_values(p2, s.bary, &mut nvals);
         let face = space.face(s.face);
         Ok((0..npf).map(|a| (face[a], nvals[a])).collect())

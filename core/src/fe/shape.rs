@@ -8,7 +8,7 @@
 /// Edges of a tetrahedron in VTK `tetra10` order.
 pub const TET_EDGES: [(usize, usize); 6] = [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)];
 /// Edges of a triangle in VTK `quadratic_triangle` order.
-pub const TRI_EDGES: [(usize, usize); 3] = [(0, 1), (1, 2), (0, 2)];
+pub use crate::disk::TRI_EDGES;
 
 /// Values of the tetrahedron's shape functions at barycentric `l` (4 or 10 entries).
 pub fn tet_values(p2: bool, l: [f64; 4], out: &mut [f64]) {
@@ -41,16 +41,7 @@ pub fn tet_gradients(p2: bool, l: [f64; 4], gl: &[[f64; 3]; 4], out: &mut [[f64;
 
 /// Values of the triangle's shape functions at barycentric `l` (3 or 6 entries).
 pub fn tri_values(p2: bool, l: [f64; 3], out: &mut [f64]) {
-    if p2 {
-        for i in 0..3 {
-            out[i] = l[i] * (2.0 * l[i] - 1.0);
-        }
-        for (e, &(i, j)) in TRI_EDGES.iter().enumerate() {
-            out[3 + e] = 4.0 * l[i] * l[j];
-        }
-    } else {
-        out[..3].copy_from_slice(&l);
-    }
+    crate::disk::tri_shape(p2, l, out);
 }
 
 /// Barycentric gradients of a straight tetrahedron and its volume.

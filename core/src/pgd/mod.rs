@@ -12,6 +12,8 @@
 //! here handles one combined parametric index and is written so that step is local.
 
 pub mod block;
+pub mod heldout;
 pub mod journal;
 pub mod linear;
+pub mod nodal;
 pub mod palpation;

@@ -1,0 +1,559 @@
+//! The nodal-load liver vademecum: exact between the nodes, with an exact near field.
+//!
+//! **Why.** The first vademecum ([`super::palpation`]) put the *tool load* centred at
+//! each palpable vertex on the parametric axis and interpolated between vertices: at a
+//! point between vertices it returns a blend of responses to loads centred elsewhere.
+//! Here the parametric axis carries **unit nodal forces** at every FE node a tool can
+//! press (the nodes of the palpable faces and of a rim one tool radius wide), index
+//! `p = 3j + c` (node j, direction c). The tool load at any `s` is the known sparse
+//! combination `f(s) = Σ_j w_j(s) e_j ⊗ t` ([`crate::disk`]), so with the exact map
+//! `G = K⁻¹E`, `u(s) = G f(s)` holds at every point, not only at nodes.
+//!
+//! **Off-line.** One solve per free load column (multi-right-hand-side batches over the
+//! factored K), keeping:
+//! - `G_S`: the rows of the surface corner nodes (what a scene renders), dense;
+//! - `G` between load nodes closer than `r + 2h`: what the contact point's compliance
+//!   needs.
+//!
+//! The separated part is the rank-N truncated SVD of `G_S` in the Euclidean norm over
+//! the surface rows ("model only what a scene requires": the surface, not the
+//! interior), by a randomized range finder (N + 10 columns, two power iterations,
+//! Halko–Martinsson–Tropp): `Y = V_N` (orthonormal), `X = G Y = K⁻¹ E Y` on every node
+//! (N more solves; its surface rows are `G_S Y`). Then [`crate::nearfield`]'s two
+//! parts: the band `E_N = G_S − X_S Yᵀ` for surface nodes within the band radius of
+//! each load node, and the compliance tensor `C(s)` on a degree-q lattice of every
+//! palpable face, computed exactly from `G` (the same formula the FE reference uses for
+//! its probe displacement).
+//!
+//! **Cost.** `3·(load nodes)` solves dominate; memory is `G_S` (surface rows × load
+//! columns, f64).
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use faer::Mat;
+use rayon::prelude::*;
+
+use crate::axis::{Discretization, MAX_LOAD_NODES};
+use crate::cme::dense::{thin_qr, thin_svd};
+use crate::disk::{lattice, tri_shape};
+use crate::fe::elasticity::LinearProblem;
+use crate::fe::probe::organ_space;
+use crate::fe::space::Space;
+use crate::fe::{Element, FeError, Material};
+use crate::mesh::{norm, sub};
+use crate::nearfield::NearField;
+use crate::organ::OrganMesh;
+use crate::rng::Rng;
+use crate::separated::{AxisInfo, FieldInfo, Geometry, ModelMeta, Provenance, SeparatedModel};
+
+/// The load axis and the operators, built once.
+#[derive(Debug)]
+pub struct NodalSetup {
+    pub space: Space,
+    pub problem: LinearProblem,
+    pub radius_mm: f64,
+    /// The load axis (a [`Discretization::SurfaceLoad`]).
+    pub axis: Discretization,
+    /// Space node of each load node.
+    pub load_nodes: Vec<u32>,
+    /// Space face of each load face.
+    pub load_faces: Vec<usize>,
+    /// Space nodes of the boundary corners (the rows a scene keeps).
+    pub surface_nodes: Vec<u32>,
+    pub boundary: Vec<[u32; 3]>,
+    pub setup_s: f64,
+}
+
+/// Options of the build.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodalSettings {
+    pub modes: usize,
+    /// Surface nodes within this distance of a load node get the exact near field.
+    pub band_radius_mm: f64,
+    /// Lattice degree of the compliance table.
+    pub table_degree: usize,
+    /// Power iterations of the randomized SVD.
+    pub power_iterations: usize,
+    pub seed: u64,
+}
+
+impl Default for NodalSettings {
+    fn default() -> Self {
+        NodalSettings {
+            modes: 100,
+            band_radius_mm: 20.0,
+            table_degree: 3,
+            power_iterations: 2,
+            seed: 0x5eed_0f_10ad,
+        }
+    }
+}
+
+/// What the build measured.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct NodalReport {
+    pub load_nodes: usize,
+    pub solves: usize,
+    pub surface_rows: usize,
+    pub setup_s: f64,
+    pub solve_s: f64,
+    pub svd_s: f64,
+    pub modes_s: f64,
+    pub band_s: f64,
+    pub table_s: f64,
+    /// Singular values of `G_S` kept (descending), mm/N.
+    pub singular_values: Vec<f64>,
+    /// `‖G_S − X_S Yᵀ‖_F / ‖G_S‖_F` over the whole nodal map.
+    pub surface_map_rel_error: f64,
+    pub band_entries: usize,
+    pub near_bytes: usize,
+}
+
+/// Builds the load axis for an organ mesh and factors K.
+pub fn setup(
+    organ: &OrganMesh,
+    element: Element,
+    material: Material,
+    radius_mm: f64,
+) -> Result<NodalSetup, FeError> {
+    let t0 = Instant::now();
+    if !(radius_mm.is_finite() && radius_mm > 0.0) {
+        return Err(FeError::Load(format!(
+            "tool radius {radius_mm} mm must be positive"
+        )));
+    }
+    let space = organ_space(organ, element);
+    let problem = LinearProblem::new(&space, material)?;
+    let corners = |f: usize| {
+        let face = space.face(f);
+        [0, 1, 2].map(|i| space.nodes[face[i] as usize])
+    };
+    let mut palpable_vertices: Vec<[f64; 3]> = Vec::new();
+    let mut h_pal = 0.0f64;
+    for f in 0..space.face_count() {
+        if organ.palpable[f] {
+            let c = corners(f);
+            palpable_vertices.extend_from_slice(&c);
+            for i in 0..3 {
+                h_pal = h_pal.max(norm(sub(c[i], c[(i + 1) % 3])));
+            }
+        }
+    }
+    if palpable_vertices.is_empty() {
+        return Err(FeError::Load("the organ has no palpable surface".into()));
+    }
+    // A face belongs to the load axis when a tool centred anywhere on the palpable
+    // region can reach it: within r + (palpable edge) of a palpable vertex, measured
+    // from the face's circumscribing sphere.
+    let reach: Vec<bool> = (0..space.face_count())
+        .into_par_iter()
+        .map(|f| {
+            if organ.palpable[f] {
+                return true;
+            }
+            let c = corners(f);
+            let cen = [0, 1, 2].map(|d| (c[0][d] + c[1][d] + c[2][d]) / 3.0);
+            let rad = c.iter().map(|v| norm(sub(*v, cen))).fold(0.0, f64::max);
+            palpable_vertices
+                .iter()
+                .any(|p| norm(sub(*p, cen)) <= radius_mm + h_pal + rad)
+        })
+        .collect();
+    let npf = element.nodes_per_face();
+    let mut index: HashMap<u32, u32> = HashMap::new();
+    let mut load_nodes = Vec::new();
+    let mut faces = Vec::new();
+    let mut load_faces = Vec::new();
+    let mut palpable = Vec::new();
+    for f in (0..space.face_count()).filter(|&f| reach[f]) {
+        let face = space.face(f);
+        let mut ids = [u32::MAX; 6];
+        for a in 0..npf {
+            ids[a] = *index.entry(face[a]).or_insert_with(|| {
+                load_nodes.push(face[a]);
+                (load_nodes.len() - 1) as u32
+            });
+        }
+        faces.push(ids);
+        load_faces.push(f);
+        palpable.push(organ.palpable[f]);
+    }
+    let positions = load_nodes
+        .iter()
+        .map(|&n| space.nodes[n as usize])
+        .collect();
+    let axis = Discretization::SurfaceLoad {
+        positions,
+        faces,
+        palpable,
+        field_nodes: load_nodes.clone(),
+        radius_mm,
+    };
+    let mut surface_nodes: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
+    surface_nodes.sort_unstable();
+    surface_nodes.dedup();
+    Ok(NodalSetup {
+        space,
+        problem,
+        radius_mm,
+        axis,
+        load_nodes,
+        load_faces,
+        surface_nodes,
+        boundary: organ.boundary.clone(),
+        setup_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// `G` between nearby load nodes: for column node j, `(a, G[3a+d, 3j+c])` sorted by a.
+type NearLists = Vec<Vec<(u32, [f64; 9])>>;
+
+impl NodalSetup {
+    fn positions(&self) -> &[[f64; 3]] {
+        match &self.axis {
+            Discretization::SurfaceLoad { positions, .. } => positions,
+            _ => unreachable!("the setup's axis is a load axis by construction"),
+        }
+    }
+
+    fn faces(&self) -> &[[u32; 6]] {
+        match &self.axis {
+            Discretization::SurfaceLoad { faces, .. } => faces,
+            _ => unreachable!("the setup's axis is a load axis by construction"),
+        }
+    }
+
+    /// Longest edge of a load face, mm.
+    fn h_max(&self) -> f64 {
+        let p = self.positions();
+        self.faces()
+            .iter()
+            .map(|f| {
+                (0..3)
+                    .map(|i| norm(sub(p[f[i] as usize], p[f[(i + 1) % 3] as usize])))
+                    .fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Load nodes within `radius` of each load node (itself included), sorted.
+    fn neighbours(&self, radius: f64) -> Vec<Vec<u32>> {
+        let p = self.positions();
+        (0..p.len())
+            .into_par_iter()
+            .map(|j| {
+                (0..p.len() as u32)
+                    .filter(|&a| norm(sub(p[a as usize], p[j])) <= radius)
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// One solve per free load column: the surface block `G_S` (3·surface × 3·load) and
+/// `G` between load nodes within `near_radius` of each other.
+fn solve_columns(s: &NodalSetup, near_radius: f64) -> (Mat<f64>, NearLists, usize) {
+    let m = s.load_nodes.len();
+    let n = s.space.free_dofs;
+    let mut gs = Mat::<f64>::zeros(3 * s.surface_nodes.len(), 3 * m);
+    let neighbours = s.neighbours(near_radius);
+    let mut near: NearLists = neighbours
+        .iter()
+        .map(|nb| nb.iter().map(|&a| (a, [0.0; 9])).collect())
+        .collect();
+    // Free columns (load node, direction, dof).
+    let cols: Vec<(usize, usize, usize)> = (0..m)
+        .filter_map(|j| {
+            let d = s.space.dof[s.load_nodes[j] as usize];
+            (d != u32::MAX).then_some(d as usize)
+                .map(|d| (0..3).map(move |c| (j, c, d + c)))
+        })
+        .flatten()
+        .collect();
+    // Batches of columns; a group of batches is solved in parallel (one triangular
+    // pass per batch is memory-bound and single-threaded), then scattered.
+    const BATCH: usize = 96;
+    let threads = rayon::current_num_threads().max(1);
+    for group in cols.chunks(BATCH * threads) {
+        let solved: Vec<Mat<f64>> = group
+            .par_chunks(BATCH)
+            .map(|chunk| {
+                let mut rhs = Mat::<f64>::zeros(n, chunk.len());
+                for (b, &(_, _, dof)) in chunk.iter().enumerate() {
+                    rhs[(dof, b)] = 1.0;
+                }
+                s.problem.factor.solve_many(&mut rhs);
+                rhs
+            })
+            .collect();
+        for (chunk, rhs) in group.chunks(BATCH).zip(&solved) {
+            let value = |node: u32, d: usize, b: usize| -> f64 {
+                let dof = s.space.dof[node as usize];
+                if dof == u32::MAX {
+                    0.0
+                } else {
+                    rhs[(dof as usize + d, b)]
+                }
+            };
+            for (b, &(j, c, _)) in chunk.iter().enumerate() {
+                for (i, &v) in s.surface_nodes.iter().enumerate() {
+                    for d in 0..3 {
+                        gs[(3 * i + d, 3 * j + c)] = value(v, d, b);
+                    }
+                }
+                for (a, blk) in near[j].iter_mut() {
+                    for d in 0..3 {
+                        blk[3 * d + c] = value(s.load_nodes[*a as usize], d, b);
+                    }
+                }
+            }
+        }
+    }
+    (gs, near, cols.len())
+}
+
+/// Randomized rank-`modes` SVD of `a`: returns `Y` (cols × N, orthonormal) and the
+/// singular values.
+fn randomized_svd(a: &Mat<f64>, modes: usize, power: usize, seed: u64) -> (Mat<f64>, Vec<f64>) {
+    let (r, c) = (a.nrows(), a.ncols());
+    let l = (modes + 10).min(r).min(c);
+    let mut rng = Rng::seed(seed);
+    let omega = Mat::<f64>::from_fn(c, l, |_, _| rng.range(-1.0, 1.0));
+    let mut q = thin_qr((a * &omega).as_ref()).0;
+    for _ in 0..power {
+        let z = thin_qr((a.transpose() * &q).as_ref()).0;
+        q = thin_qr((a * &z).as_ref()).0;
+    }
+    let b = q.transpose() * a; // l × c
+    let svd = thin_svd(b.as_ref()).expect("SVD of a small dense block converges");
+    let k = modes.min(svd.s.len());
+    let y = Mat::<f64>::from_fn(c, k, |i, j| svd.v[(i, j)]);
+    (y, svd.s[..k].to_vec())
+}
+
+/// Builds the nodal-load vademecum with its near field.
+pub fn build(
+    s: &NodalSetup,
+    settings: &NodalSettings,
+    mesh_desc: &str,
+    mut progress: impl FnMut(&str),
+) -> Result<(SeparatedModel<f64>, NodalReport), FeError> {
+    let mut report = NodalReport {
+        load_nodes: s.load_nodes.len(),
+        surface_rows: 3 * s.surface_nodes.len(),
+        setup_s: s.setup_s,
+        ..NodalReport::default()
+    };
+    let h = s.h_max();
+    let near_radius = s.radius_mm + 2.0 * h;
+    progress(&format!(
+        "solving {} load nodes × 3 directions",
+        s.load_nodes.len()
+    ));
+    let t = Instant::now();
+    let (gs, near_g, solves) = solve_columns(s, near_radius);
+    report.solves = solves;
+    report.solve_s = t.elapsed().as_secs_f64();
+
+    progress("randomized SVD of the surface map");
+    let t = Instant::now();
+    let (y, sv) = randomized_svd(&gs, settings.modes, settings.power_iterations, settings.seed);
+    let n = y.ncols();
+    let xs = &gs * &y; // surface rows × N
+    let g2: f64 = gs.squared_norm_l2();
+    let kept: f64 = xs.squared_norm_l2();
+    report.surface_map_rel_error = ((g2 - kept).max(0.0) / g2).sqrt();
+    report.singular_values = sv;
+    report.svd_s = t.elapsed().as_secs_f64();
+
+    progress("spatial modes on every node");
+    let t = Instant::now();
+    let m = s.load_nodes.len();
+    let mut rhs = Mat::<f64>::zeros(s.space.free_dofs, n);
+    for j in 0..m {
+        let dof = s.space.dof[s.load_nodes[j] as usize];
+        if dof == u32::MAX {
+            continue;
+        }
+        for c in 0..3 {
+            for k in 0..n {
+                rhs[(dof as usize + c, k)] += y[(3 * j + c, k)];
+            }
+        }
+    }
+    s.problem.factor.solve_many(&mut rhs);
+    report.modes_s = t.elapsed().as_secs_f64();
+
+    progress("near-field band");
+    let t = Instant::now();
+    let positions = s.positions();
+    let surf_pos: Vec<[f64; 3]> = s
+        .surface_nodes
+        .iter()
+        .map(|&v| s.space.nodes[v as usize])
+        .collect();
+    let band: Vec<Vec<(u32, [f32; 9])>> = (0..m)
+        .into_par_iter()
+        .map(|j| {
+            if s.space.dof[s.load_nodes[j] as usize] == u32::MAX {
+                return Vec::new();
+            }
+            let mut out = Vec::new();
+            for (i, p) in surf_pos.iter().enumerate() {
+                if norm(sub(*p, positions[j])) > settings.band_radius_mm {
+                    continue;
+                }
+                let mut blk = [0.0f32; 9];
+                for d in 0..3 {
+                    for c in 0..3 {
+                        let mut v = gs[(3 * i + d, 3 * j + c)];
+                        for k in 0..n {
+                            v -= xs[(3 * i + d, k)] * y[(3 * j + c, k)];
+                        }
+                        blk[3 * d + c] = v as f32;
+                    }
+                }
+                out.push((s.surface_nodes[i], blk));
+            }
+            out
+        })
+        .collect();
+    let mut band_ptr = vec![0u32];
+    let mut band_nodes = Vec::new();
+    let mut band_values = Vec::new();
+    for list in &band {
+        for (x, blk) in list {
+            band_nodes.push(*x);
+            band_values.extend_from_slice(blk);
+        }
+        band_ptr.push(band_nodes.len() as u32);
+    }
+    report.band_entries = band_nodes.len();
+    report.band_s = t.elapsed().as_secs_f64();
+
+    progress("compliance table");
+    let t = Instant::now();
+    let q = settings.table_degree.clamp(1, 8);
+    let lat = lattice(q);
+    let faces = s.faces();
+    let palpable = match &s.axis {
+        Discretization::SurfaceLoad { palpable, .. } => palpable,
+        _ => unreachable!("load axis"),
+    };
+    let p2 = s.space.element == Element::P2;
+    let npf = s.space.element.nodes_per_face();
+    let table: Vec<Option<Vec<f32>>> = (0..faces.len())
+        .into_par_iter()
+        .map(|f| {
+            if !palpable[f] {
+                return Ok(None);
+            }
+            let mut shares = vec![(0u32, 0.0f64); MAX_LOAD_NODES];
+            let mut vals = Vec::with_capacity(9 * lat.len());
+            let mut nvals = [0.0; 6];
+            for b in &lat {
+                let (len, _) = s
+                    .axis
+                    .load_shares(f as u32, *b, &mut shares)
+                    .map_err(|e| FeError::Load(format!("compliance table, face {f}: {e}")))?;
+                tri_shape(p2, *b, &mut nvals);
+                let mut cten = [0.0f64; 9];
+                for &(j, w) in &shares[..len] {
+                    let list = &near_g[j as usize];
+                    for a in 0..npf {
+                        let node = faces[f][a];
+                        let blk = match list.binary_search_by_key(&node, |e| e.0) {
+                            Ok(i) => &list[i].1,
+                            Err(_) => {
+                                return Err(FeError::Load(format!(
+                                    "compliance table: load nodes {node} and {j} are farther \
+                                     apart than the near radius {near_radius:.1} mm"
+                                )));
+                            }
+                        };
+                        for e in 0..9 {
+                            cten[e] += nvals[a] * w * blk[e];
+                        }
+                    }
+                }
+                vals.extend(cten.iter().map(|&v| v as f32));
+            }
+            Ok(Some(vals))
+        })
+        .collect::<Result<_, FeError>>()?;
+    let mut table_block = Vec::with_capacity(faces.len());
+    let mut table_values = Vec::new();
+    let mut blocks = 0u32;
+    for t in table {
+        match t {
+            Some(v) => {
+                table_block.push(blocks);
+                table_values.extend(v);
+                blocks += 1;
+            }
+            None => table_block.push(u32::MAX),
+        }
+    }
+    report.table_s = t.elapsed().as_secs_f64();
+    let near = NearField {
+        band_radius_mm: settings.band_radius_mm,
+        band_modes: n as u32,
+        band_ptr,
+        band_nodes,
+        band_values,
+        table_degree: q as u32,
+        table_block,
+        table_values,
+        tradeoff_extra: Vec::new(),
+    };
+    report.near_bytes = near.bytes();
+
+    // Pack: X on every node (fixed nodes zero), Y row-major.
+    let nodes = s.space.nodes.len();
+    let mut x = vec![0.0; 3 * nodes * n];
+    for (v, &dof) in s.space.dof.iter().enumerate() {
+        if dof == u32::MAX {
+            continue;
+        }
+        for c in 0..3 {
+            for k in 0..n {
+                x[(3 * v + c) * n + k] = rhs[(dof as usize + c, k)];
+            }
+        }
+    }
+    let yv: Vec<f64> = (0..3 * m)
+        .flat_map(|p| (0..n).map(move |k| (p, k)))
+        .map(|(p, k)| y[(p, k)])
+        .collect();
+    let sigma0 = report.singular_values.first().copied().unwrap_or(1.0);
+    let meta = ModelMeta {
+        kind: "liver-palpation-nodal".into(),
+        field: FieldInfo {
+            name: "displacement per newton".into(),
+            unit: "mm/N".into(),
+            components: 3,
+            node_ids: Vec::new(),
+        },
+        axes: vec![AxisInfo {
+            name: "nodal load (probe position × direction)".into(),
+            unit: "mm".into(),
+            discretization: s.axis.clone(),
+        }],
+        provenance: Provenance::now(
+            "nodal loads: brute-force solves, randomized SVD of the surface map, near-field band and compliance table",
+            mesh_desc,
+            0.0,
+            report.singular_values.iter().map(|v| v / sigma0).collect(),
+        ),
+        tradeoff: Vec::new(),
+        geometry: Geometry {
+            nodes: s.space.nodes.clone(),
+            surface: s.boundary.clone(),
+        },
+    };
+    let model = SeparatedModel::new(meta, 3 * nodes, n, x, vec![yv])
+        .and_then(|m| m.with_near(near))
+        .map_err(|e| FeError::Load(format!("packing the nodal vademecum: {e}")))?;
+    Ok((model, report))
+}
