@@ -32,7 +32,7 @@ fn the_default_scene_matches_the_current_mesh_and_settings() {
         Element::P2,
         Material::default(),
         radius,
-        true,
+        describe_get(desc, "update") == Some("true"),
     );
     assert_eq!(
         desc, &now,
@@ -42,13 +42,16 @@ fn the_default_scene_matches_the_current_mesh_and_settings() {
         model.provenance().input_hash,
         format!("{:016x}", xxhash_rust::xxh3::xxh3_64(now.as_bytes()))
     );
-    // The probe surface is the current palpable surface, vertex for vertex.
-    let Discretization::SurfaceVector { vertices, .. } = &model.axes()[0].info.discretization
+    // The load axis covers the current palpable surface, face for face.
+    let Discretization::SurfaceLoad { palpable: faces, .. } = &model.axes()[0].info.discretization
     else {
-        panic!("a palpation scene has a surface-vector axis");
+        panic!("the default scene is a nodal-load vademecum");
     };
     let palpable: usize = organ.palpable.iter().filter(|&&p| p).count();
-    assert!(vertices.len() > 100 && palpable > 100);
+    assert_eq!(faces.iter().filter(|&&p| p).count(), palpable);
+    assert!(palpable > 100);
+    let near = model.near().expect("the default scene carries its near field");
+    assert!(near.band_nodes.len() > 1000 && !near.table_values.is_empty());
     // Surface-only: every row belongs to a boundary node, and the geometry is there.
     assert_eq!(model.geometry().nodes.len() * 3, model.rows());
     assert!(!model.geometry().surface.is_empty());

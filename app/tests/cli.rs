@@ -120,6 +120,8 @@ fn offline_resumes_after_kill_9() {
     let base = [
         "offline",
         "liver",
+        "--method",
+        "pgd",
         "--level",
         "coarse",
         "--element",
@@ -209,6 +211,8 @@ fn offline_in_blocks_then_tradeoff_with_plot() {
     let out = palpa(&[
         "offline",
         "liver",
+        "--method",
+        "pgd",
         "--level",
         "coarse",
         "--element",

@@ -461,32 +461,32 @@ impl<T: Scalar> SeparatedModel<T> {
             source,
         };
         let mut buf = [(0u32, 0.0f64); MAX_LOAD_NODES];
-        let (len, clamped, mix) = load_shares(&axis.info.discretization, value, &mut buf)
-            .map_err(wrap)?;
+        let (len_shares, clamped, mix) =
+            load_shares(&axis.info.discretization, value, &mut buf).map_err(wrap)?;
         let m = self.modes;
         let n = coeffs.len();
-        let mut acc = [0.0f64; 512];
-        if n > acc.len() {
-            return Err(EvalError::TooManyModes {
-                requested: n,
-                available: acc.len(),
-            });
-        }
-        let acc = &mut acc[..n];
-        for &(node, w) in &buf[..len] {
-            for (c, &t) in mix.iter().enumerate() {
-                let wt = w * t;
-                if wt == 0.0 {
-                    continue;
-                }
-                let row = &axis.values[(3 * node as usize + c) * m..][..n];
-                for (a, y) in acc.iter_mut().zip(row) {
-                    *a += wt * y.to_f64();
+        // Mode chunks of a stack accumulator: any number of modes, no allocation.
+        const CHUNK: usize = 256;
+        let mut acc = [0.0f64; CHUNK];
+        for k0 in (0..n).step_by(CHUNK) {
+            let len = CHUNK.min(n - k0);
+            let acc = &mut acc[..len];
+            acc.fill(0.0);
+            for &(node, w) in &buf[..len_shares] {
+                for (c, &t) in mix.iter().enumerate() {
+                    let wt = w * t;
+                    if wt == 0.0 {
+                        continue;
+                    }
+                    let row = &axis.values[(3 * node as usize + c) * m + k0..][..len];
+                    for (a, y) in acc.iter_mut().zip(row) {
+                        *a += wt * y.to_f64();
+                    }
                 }
             }
-        }
-        for (o, a) in coeffs.iter_mut().zip(acc.iter()) {
-            *o *= a;
+            for (o, a) in coeffs[k0..k0 + len].iter_mut().zip(acc.iter()) {
+                *o *= a;
+            }
         }
         Ok(clamped)
     }

@@ -15,11 +15,12 @@
 //! - `G` between load nodes closer than `r + 2h`: what the contact point's compliance
 //!   needs.
 //!
-//! The separated part is the rank-N truncated SVD of `G_S` in the Euclidean norm over
-//! the surface rows ("model only what a scene requires": the surface, not the
-//! interior), by a randomized range finder (N + 10 columns, two power iterations,
-//! Halko–Martinsson–Tropp): `Y = V_N` (orthonormal), `X = G Y = K⁻¹ E Y` on every node
-//! (N more solves; its surface rows are `G_S Y`). Then [`crate::nearfield`]'s two
+//! The separated part is the rank-N truncated SVD of `G_S D⁻¹` (each column scaled to
+//! unit norm, so stiff and soft regions get the same relative accuracy) in the
+//! Euclidean norm over the surface rows ("model only what a scene requires": the
+//! surface, not the interior), by a randomized range finder (N + 10 columns, two power
+//! iterations, Halko–Martinsson–Tropp): with `V_N` its right singular vectors,
+//! `Y = D V_N` and `X = G D⁻¹ V_N = K⁻¹ E D⁻¹ V_N` on every node (N more solves). Then [`crate::nearfield`]'s two
 //! parts: the band `E_N = G_S − X_S Yᵀ` for surface nodes within the band radius of
 //! each load node, and the compliance tensor `C(s)` on a degree-q lattice of every
 //! palpable face, computed exactly from `G` (the same formula the FE reference uses for
@@ -83,7 +84,7 @@ impl Default for NodalSettings {
         NodalSettings {
             modes: 100,
             band_radius_mm: 20.0,
-            table_degree: 3,
+            table_degree: 5,
             power_iterations: 2,
             seed: 0x5eed_0f_10ad,
         }
@@ -313,8 +314,8 @@ fn solve_columns(s: &NodalSetup, near_radius: f64) -> (Mat<f64>, NearLists, usiz
     (gs, near, cols.len())
 }
 
-/// Randomized rank-`modes` SVD of `a`: returns `Y` (cols × N, orthonormal) and the
-/// singular values.
+/// Randomized rank-`modes` SVD of `a`: returns `V` (cols × N, orthonormal right
+/// singular vectors) and the singular values.
 fn randomized_svd(a: &Mat<f64>, modes: usize, power: usize, seed: u64) -> (Mat<f64>, Vec<f64>) {
     let (r, c) = (a.nrows(), a.ncols());
     let l = (modes + 10).min(r).min(c);
@@ -358,18 +359,36 @@ pub fn build(
 
     progress("randomized SVD of the surface map");
     let t = Instant::now();
-    let (y, sv) = randomized_svd(&gs, settings.modes, settings.power_iterations, settings.seed);
-    let n = y.ncols();
-    let xs = &gs * &y; // surface rows × N
+    // Each column is scaled to unit norm before the SVD, so a stiff region (small
+    // responses next to the fixed attachment) is approximated to the same relative
+    // accuracy as a soft one: G_S D⁻¹ ≈ Ĝ V Vᵀ, hence G ≈ (G D⁻¹ V)(D V)ᵀ.
+    let m = s.load_nodes.len();
+    let mut gs = gs;
+    let scale: Vec<f64> = (0..3 * m)
+        .map(|p| {
+            let nrm = gs.col(p).norm_l2();
+            if nrm > 0.0 { nrm } else { 1.0 }
+        })
+        .collect();
+    for (p, &d) in scale.iter().enumerate() {
+        gs.col_mut(p).iter_mut().for_each(|v| *v /= d);
+    }
+    let (v, sv) = randomized_svd(&gs, settings.modes, settings.power_iterations, settings.seed);
+    let n = v.ncols();
+    let xs = &gs * &v; // surface rows × N: G_S D⁻¹ V
     let g2: f64 = gs.squared_norm_l2();
     let kept: f64 = xs.squared_norm_l2();
     report.surface_map_rel_error = ((g2 - kept).max(0.0) / g2).sqrt();
+    for (p, &d) in scale.iter().enumerate() {
+        gs.col_mut(p).iter_mut().for_each(|x| *x *= d);
+    }
+    // Y = D V (the axis values); the spatial modes take D⁻¹ V.
+    let y = Mat::<f64>::from_fn(3 * m, n, |p, k| scale[p] * v[(p, k)]);
     report.singular_values = sv;
     report.svd_s = t.elapsed().as_secs_f64();
 
     progress("spatial modes on every node");
     let t = Instant::now();
-    let m = s.load_nodes.len();
     let mut rhs = Mat::<f64>::zeros(s.space.free_dofs, n);
     for j in 0..m {
         let dof = s.space.dof[s.load_nodes[j] as usize];
@@ -378,7 +397,7 @@ pub fn build(
         }
         for c in 0..3 {
             for k in 0..n {
-                rhs[(dof as usize + c, k)] += y[(3 * j + c, k)];
+                rhs[(dof as usize + c, k)] += v[(3 * j + c, k)] / scale[3 * j + c];
             }
         }
     }

@@ -1,0 +1,107 @@
+//! The nodal-load vademecum on the coarse P1 liver: the load particularization is
+//! exact (a full-rank model reproduces a direct FE solve at a vertex and between
+//! vertices to solver precision), the compliance table is exact at its lattice points
+//! and close between them, a truncated model keeps the near field exact under the tool,
+//! and the file round trip keeps the near field.
+
+use palpa_core::fe::load::SurfacePoint;
+use palpa_core::fe::{Element, Material};
+use palpa_core::pgd::heldout::{nodal_errors, solve_case};
+use palpa_core::pgd::nodal::{NodalSettings, build, setup};
+use palpa_core::{SeparatedModel, file};
+
+use palpa_tests::coarse_liver;
+
+fn press(
+    s: &palpa_core::pgd::nodal::NodalSetup,
+    face: usize,
+    bary: [f64; 3],
+    kind: &'static str,
+) -> palpa_core::pgd::heldout::Case {
+    let fc = s.space.face(face);
+    let c = [0, 1, 2].map(|i| s.space.nodes[fc[i] as usize]);
+    let point = [0, 1, 2].map(|d| (0..3).map(|i| bary[i] * c[i][d]).sum::<f64>());
+    let n = palpa_core::mesh::triangle_normal(c[0], c[1], c[2]);
+    let sp = SurfacePoint {
+        face,
+        bary,
+        point,
+        normal: n,
+        distance_mm: 0.0,
+    };
+    solve_case(&s.space, &s.problem, sp, n.map(|v| -v), s.radius_mm, kind).expect("FE solve")
+}
+
+#[test]
+fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_the_near_field()
+{
+    let organ = coarse_liver();
+    let s = setup(&organ, Element::P1, Material::default(), 5.0).expect("setup");
+    let mut surface: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
+    surface.sort_unstable();
+    surface.dedup();
+    let face = (0..organ.boundary.len())
+        .find(|&f| organ.palpable[f])
+        .expect("a palpable face");
+    // A point on a vertex, on an edge, at the centroid and a generic interior point.
+    let cases = vec![
+        press(&s, face, [1.0, 0.0, 0.0], "vertex"),
+        press(&s, face, [0.5, 0.5, 0.0], "edge"),
+        press(&s, face, [1.0 / 3.0; 3], "centroid"),
+        press(&s, face, [0.17, 0.29, 0.54], "interior"),
+    ];
+    // Full rank: the surface rows span at most 3·(surface nodes) directions.
+    let full_rank = 3 * surface.len();
+    let settings = NodalSettings {
+        modes: full_rank,
+        table_degree: 4,
+        ..NodalSettings::default()
+    };
+    let (model, report) = build(&s, &settings, "test", |_| {}).expect("build");
+    assert!(report.surface_map_rel_error < 1e-6, "{report:?}");
+    for c in &cases {
+        let e = nodal_errors(&model, &s.space, std::slice::from_ref(c), &surface, model.modes())
+            .expect("evaluates");
+        // Exact up to the solver and the f32 band: relative 1e-5.
+        assert!(e.surface_rel_error < 1e-5, "{}: {e:?}", c.kind);
+        // The compliance table is exact at its lattice points (a vertex, an edge
+        // midpoint of a degree-4 lattice) and interpolated elsewhere.
+        let tol = if c.kind == "vertex" || c.kind == "edge" { 1e-5 } else { 5e-3 };
+        assert!(e.compliance_rel_error < tol, "{}: {e:?}", c.kind);
+    }
+    // Without the near field the same full-rank modes are still exact on the surface.
+    let bare = model.clone().without_near();
+    let e = nodal_errors(&bare, &s.space, &cases, &surface, bare.modes()).expect("evaluates");
+    assert!(e.surface_rel_error < 1e-5, "{e:?}");
+
+    // Truncated to 30 modes: the near field keeps every node within the band exact, so
+    // the error falls well below the bare truncation's.
+    let settings = NodalSettings {
+        modes: 30,
+        ..NodalSettings::default()
+    };
+    let (small, _) = build(&s, &settings, "test", |_| {}).expect("build");
+    let with = nodal_errors(&small, &s.space, &cases, &surface, 30).expect("evaluates");
+    let without = nodal_errors(&small.clone().without_near(), &s.space, &cases, &surface, 30)
+        .expect("evaluates");
+    assert!(
+        with.surface_max_nodal_error_mm < 0.5 * without.surface_max_nodal_error_mm,
+        "with {with:?}, without {without:?}"
+    );
+    assert!(with.compliance_rel_error < 2e-2, "{with:?}");
+
+    // The file keeps the near field; the surface-only f32 scene evaluates the same.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("nodal.palpa");
+    file::save(&small, &path).expect("save");
+    let back: SeparatedModel<f64> = file::load(&path).expect("load");
+    assert_eq!(back.near(), small.near());
+    let f32_scene = small.select_nodes(&surface).expect("surface").convert::<f32>();
+    let near = f32_scene.near().expect("near kept");
+    assert!(near.band_nodes.iter().all(|&x| (x as usize) < surface.len()));
+    // A model without a load axis refuses a near field with its reason.
+    let err = palpa_core::synthetic::palpation_like::<f64>(12, 2, 3, 1)
+        .with_near(small.near().expect("near").clone())
+        .expect_err("no load axis");
+    assert!(err.to_string().contains("surface-load"), "{err}");
+}
