@@ -43,14 +43,18 @@ fn the_default_scene_matches_the_current_mesh_and_settings() {
         format!("{:016x}", xxhash_rust::xxh3::xxh3_64(now.as_bytes()))
     );
     // The load axis covers the current palpable surface, face for face.
-    let Discretization::SurfaceLoad { palpable: faces, .. } = &model.axes()[0].info.discretization
+    let Discretization::SurfaceLoad {
+        palpable: faces, ..
+    } = &model.axes()[0].info.discretization
     else {
         panic!("the default scene is a nodal-load vademecum");
     };
     let palpable: usize = organ.palpable.iter().filter(|&&p| p).count();
     assert_eq!(faces.iter().filter(|&&p| p).count(), palpable);
     assert!(palpable > 100);
-    let near = model.near().expect("the default scene carries its near field");
+    let near = model
+        .near()
+        .expect("the default scene carries its near field");
     assert!(near.band_nodes.len() > 1000 && !near.table_values.is_empty());
     // Surface-only: every row belongs to a boundary node, and the geometry is there.
     assert_eq!(model.geometry().nodes.len() * 3, model.rows());

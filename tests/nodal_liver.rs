@@ -33,8 +33,7 @@ fn press(
 }
 
 #[test]
-fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_the_near_field()
-{
+fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_the_near_field() {
     let organ = coarse_liver();
     let s = setup(&organ, Element::P1, Material::default(), 5.0).expect("setup");
     let mut surface: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
@@ -60,13 +59,23 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     let (model, report) = build(&s, &settings, "test", |_| {}).expect("build");
     assert!(report.surface_map_rel_error < 1e-6, "{report:?}");
     for c in &cases {
-        let e = nodal_errors(&model, &s.space, std::slice::from_ref(c), &surface, model.modes())
-            .expect("evaluates");
+        let e = nodal_errors(
+            &model,
+            &s.space,
+            std::slice::from_ref(c),
+            &surface,
+            model.modes(),
+        )
+        .expect("evaluates");
         // Exact up to the solver and the f32 band: relative 1e-5.
         assert!(e.surface_rel_error < 1e-5, "{}: {e:?}", c.kind);
         // The compliance table is exact at its lattice points (a vertex, an edge
         // midpoint of a degree-4 lattice) and interpolated elsewhere.
-        let tol = if c.kind == "vertex" || c.kind == "edge" { 1e-5 } else { 5e-3 };
+        let tol = if c.kind == "vertex" || c.kind == "edge" {
+            1e-5
+        } else {
+            5e-3
+        };
         assert!(e.compliance_rel_error < tol, "{}: {e:?}", c.kind);
     }
     // Without the near field the same full-rank modes are still exact on the surface.
@@ -82,8 +91,14 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     };
     let (small, _) = build(&s, &settings, "test", |_| {}).expect("build");
     let with = nodal_errors(&small, &s.space, &cases, &surface, 30).expect("evaluates");
-    let without = nodal_errors(&small.clone().without_near(), &s.space, &cases, &surface, 30)
-        .expect("evaluates");
+    let without = nodal_errors(
+        &small.clone().without_near(),
+        &s.space,
+        &cases,
+        &surface,
+        30,
+    )
+    .expect("evaluates");
     assert!(
         with.surface_max_nodal_error_mm < 0.5 * without.surface_max_nodal_error_mm,
         "with {with:?}, without {without:?}"
@@ -96,9 +111,16 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     file::save(&small, &path).expect("save");
     let back: SeparatedModel<f64> = file::load(&path).expect("load");
     assert_eq!(back.near(), small.near());
-    let f32_scene = small.select_nodes(&surface).expect("surface").convert::<f32>();
+    let f32_scene = small
+        .select_nodes(&surface)
+        .expect("surface")
+        .convert::<f32>();
     let near = f32_scene.near().expect("near kept");
-    assert!(near.band_nodes.iter().all(|&x| (x as usize) < surface.len()));
+    assert!(
+        near.band_nodes
+            .iter()
+            .all(|&x| (x as usize) < surface.len())
+    );
     // A model without a load axis refuses a near field with its reason.
     let err = palpa_core::synthetic::palpation_like::<f64>(12, 2, 3, 1)
         .with_near(small.near().expect("near").clone())

@@ -98,12 +98,22 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     ui.add(egui::Slider::new(&mut session.controls.modes, 1..=n_all).text("modes kept"));
     match tradeoff_for(session.scene.tradeoff(), session.controls.modes) {
         Some(r) => {
-            ui.label(format!(
-                "expected error (measured at {} modes): surface {:.1}%, probe {:.1}%",
-                r.modes,
-                100.0 * r.surface_rel_error,
-                100.0 * r.probe_rel_error
-            ));
+            match (r.compliance_rel_error, r.surface_max_nodal_error_mm) {
+                (Some(c), Some(mm)) => ui.label(format!(
+                    "expected error (held-out, {} modes): surface {:.1}% (max {:.2} mm/N), \
+                     force {:.1}%",
+                    r.modes,
+                    100.0 * r.surface_rel_error,
+                    mm,
+                    100.0 * c
+                )),
+                _ => ui.label(format!(
+                    "expected error (measured at {} modes): surface {:.1}%, probe {:.1}%",
+                    r.modes,
+                    100.0 * r.surface_rel_error,
+                    100.0 * r.probe_rel_error
+                )),
+            };
             ui.label(format!(
                 "expected time: surface {:.0} µs, contact {:.0} ns",
                 r.surface_eval_us, r.contact_eval_ns

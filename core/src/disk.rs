@@ -135,7 +135,11 @@ mod tests {
             lagrange_tri(q, at, &mut v);
             let interp: f64 = pts.iter().zip(&v).map(|(p, w)| w * f(*p)).sum();
             if q >= 3 {
-                assert!((interp - f(at)).abs() < 1e-12, "q {q}: {interp} vs {}", f(at));
+                assert!(
+                    (interp - f(at)).abs() < 1e-12,
+                    "q {q}: {interp} vs {}",
+                    f(at)
+                );
             }
         }
     }
@@ -150,7 +154,11 @@ mod tests {
             assert!(acc[a].abs() < 1e-12, "corner {a}: {}", acc[a]);
         }
         for a in 3..6 {
-            assert!((acc[a] - 0.5 / 3.0).abs() < 1e-12, "midside {a}: {}", acc[a]);
+            assert!(
+                (acc[a] - 0.5 / 3.0).abs() < 1e-12,
+                "midside {a}: {}",
+                acc[a]
+            );
         }
         assert!(!face_weights(c, true, [30.0, 0.0, 0.0], 2.0, &mut acc));
     }

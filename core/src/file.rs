@@ -41,8 +41,8 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
-use crate::cme::tt::Core;
 use crate::axis::Discretization;
+use crate::cme::tt::Core;
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
 use crate::scalar::{Precision, Scalar};
@@ -614,7 +614,11 @@ fn load_payload<T: Scalar, R: Read>(
     if let Some(near) = near {
         let mut rows = model.tradeoff().to_vec();
         for r in &mut rows {
-            if let Some(x) = near.tradeoff_extra.iter().find(|x| x[0] == f64::from(r.modes)) {
+            if let Some(x) = near
+                .tradeoff_extra
+                .iter()
+                .find(|x| x[0] == f64::from(r.modes))
+            {
                 r.compliance_rel_error = x[1].is_finite().then_some(x[1]);
                 r.surface_max_nodal_error_mm = x[2].is_finite().then_some(x[2]);
             }

@@ -35,7 +35,11 @@ pub enum NearFieldError {
         expected: usize,
     },
     #[error("near field: band entry {entry} names field node {node}, the model has {nodes}")]
-    NoSuchNode { entry: usize, node: u32, nodes: usize },
+    NoSuchNode {
+        entry: usize,
+        node: u32,
+        nodes: usize,
+    },
     #[error("near field: band pointers must rise from 0 to the entry count (at load node {at})")]
     Pointers { at: usize },
     #[error("near field: {what} holds a non-finite value")]

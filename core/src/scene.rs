@@ -133,7 +133,12 @@ impl PalpationScene {
                     vertices,
                     triangles,
                     field_nodes,
-                } => (vertices.clone(), triangles.clone(), field_nodes.clone(), None),
+                } => (
+                    vertices.clone(),
+                    triangles.clone(),
+                    field_nodes.clone(),
+                    None,
+                ),
                 Discretization::SurfaceLoad {
                     positions,
                     faces,
@@ -201,11 +206,11 @@ impl PalpationScene {
             } => field_nodes.clone(),
             _ => field_nodes,
         };
-        if let Some(&vertex) = axis_triangles
-            .iter()
-            .flatten()
-            .find(|&&v| axis_node.get(v as usize).is_none_or(|&f| f as usize >= g.nodes.len()))
-        {
+        if let Some(&vertex) = axis_triangles.iter().flatten().find(|&&v| {
+            axis_node
+                .get(v as usize)
+                .is_none_or(|&f| f as usize >= g.nodes.len())
+        }) {
             return Err(SceneError::PalpableWithoutNode {
                 vertex: vertex as usize,
             });
@@ -272,7 +277,11 @@ impl PalpationScene {
     pub fn palpable_vertices(&self) -> Vec<bool> {
         let mut out = vec![false; self.vertices_mm.len()];
         for &n in self.axis_triangles.iter().flatten() {
-            if let Some(o) = self.axis_node.get(n as usize).and_then(|&f| out.get_mut(f as usize)) {
+            if let Some(o) = self
+                .axis_node
+                .get(n as usize)
+                .and_then(|&f| out.get_mut(f as usize))
+            {
                 *o = true;
             }
         }

@@ -298,7 +298,8 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
 
 fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Result<()> {
     let at = args.probe.at()?;
-    if let Some(Discretization::SurfaceLoad { .. }) = m.axes().first().map(|a| &a.info.discretization)
+    if let Some(Discretization::SurfaceLoad { .. }) =
+        m.axes().first().map(|a| &a.info.discretization)
     {
         return eval_nodal(m, args, at);
     }
@@ -482,12 +483,19 @@ fn eval_nodal<T: Scalar>(
             let npf = if p2 { 6 } else { 3 };
             let rows: Option<Vec<u32>> = fc[..npf]
                 .iter()
-                .map(|&j| field_nodes.get(j as usize).copied().filter(|&x| x != u32::MAX))
+                .map(|&j| {
+                    field_nodes
+                        .get(j as usize)
+                        .copied()
+                        .filter(|&x| x != u32::MAX)
+                })
                 .collect();
             match rows {
                 Some(rows) => {
                     let w: [f64; 3] = std::array::from_fn(|d| {
-                        (0..npf).map(|a| nv[a] * full[3 * rows[a] as usize + d]).sum()
+                        (0..npf)
+                            .map(|a| nv[a] * full[3 * rows[a] as usize + d])
+                            .sum()
                     });
                     (Some(w), "field rows")
                 }

@@ -344,7 +344,9 @@ fn run_nodal(
     let near_bytes = model.near().map_or(0, |n| n.bytes());
     let axis_nodes = model.axes()[0].info.discretization.node_count();
     let bare = model.clone().without_near();
-    let near = model.near().context("a nodal model without its near field")?;
+    let near = model
+        .near()
+        .context("a nodal model without its near field")?;
     let face0 = near
         .table_block
         .iter()
@@ -373,13 +375,18 @@ fn run_nodal(
         }
         let surface_eval_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
         // What the force loop runs: the compliance tensor at a point.
-        let near = model.near().context("a nodal model without its near field")?;
+        let near = model
+            .near()
+            .context("a nodal model without its near field")?;
         let reps = 20_000;
         let t = Instant::now();
         let mut acc = 0.0;
         for i in 0..reps {
             let b = f64::from(i % 7) * 0.1;
-            if let Some(ct) = near.compliance_tensor(face0, std::hint::black_box([0.2 + b * 0.5, 0.3, 0.5 - b * 0.5])) {
+            if let Some(ct) = near.compliance_tensor(
+                face0,
+                std::hint::black_box([0.2 + b * 0.5, 0.3, 0.5 - b * 0.5]),
+            ) {
                 acc += ct[2][2];
             }
         }

@@ -131,8 +131,8 @@ impl Deform {
             ],
         });
         let buffers = [
-            &params, &coeffs, &modes, &rest, &positions, &offsets, &adjacency, &triangles, &normals,
-            &near,
+            &params, &coeffs, &modes, &rest, &positions, &offsets, &adjacency, &triangles,
+            &normals, &near,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()

@@ -11,10 +11,10 @@
 use std::collections::HashMap;
 
 use crate::axis::{Discretization, ParamValue};
+use crate::fe::FeError;
 use crate::fe::elasticity::LinearProblem;
 use crate::fe::load::{SurfacePoint, probe_load, value_at};
 use crate::fe::space::Space;
-use crate::fe::FeError;
 use crate::mesh::{dot, norm, sub, triangle_normal};
 use crate::organ::OrganMesh;
 use crate::rng::Rng;
@@ -101,7 +101,11 @@ pub fn cases(
     let mut picks: Vec<(usize, &'static str)> = (0..random)
         .map(|_| (pal[rng.below(pal.len())], "random"))
         .collect();
-    let mut near: Vec<usize> = pal.iter().copied().filter(|&f| dist_fixed(f) <= 10.0).collect();
+    let mut near: Vec<usize> = pal
+        .iter()
+        .copied()
+        .filter(|&f| dist_fixed(f) <= 10.0)
+        .collect();
     near.sort_by(|&a, &b| dist_fixed(a).total_cmp(&dist_fixed(b)));
     picks.extend(near.iter().take(2).map(|&f| (f, "near-fixed")));
     let mut sharp = pal.clone();

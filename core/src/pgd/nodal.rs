@@ -267,7 +267,8 @@ fn solve_columns(s: &NodalSetup, near_radius: f64) -> (Mat<f64>, NearLists, usiz
     let cols: Vec<(usize, usize, usize)> = (0..m)
         .filter_map(|j| {
             let d = s.space.dof[s.load_nodes[j] as usize];
-            (d != u32::MAX).then_some(d as usize)
+            (d != u32::MAX)
+                .then_some(d as usize)
                 .map(|d| (0..3).map(move |c| (j, c, d + c)))
         })
         .flatten()
@@ -373,7 +374,12 @@ pub fn build(
     for (p, &d) in scale.iter().enumerate() {
         gs.col_mut(p).iter_mut().for_each(|v| *v /= d);
     }
-    let (v, sv) = randomized_svd(&gs, settings.modes, settings.power_iterations, settings.seed);
+    let (v, sv) = randomized_svd(
+        &gs,
+        settings.modes,
+        settings.power_iterations,
+        settings.seed,
+    );
     let n = v.ncols();
     let xs = &gs * &v; // surface rows × N: G_S D⁻¹ V
     let g2: f64 = gs.squared_norm_l2();
