@@ -4,9 +4,8 @@
 //! and close between them, a truncated model keeps the near field exact under the tool,
 //! and the file round trip keeps the near field.
 
-use palpa_core::fe::load::SurfacePoint;
 use palpa_core::fe::{Element, Material};
-use palpa_core::pgd::heldout::{nodal_errors, solve_case};
+use palpa_core::pgd::heldout::{self, nodal_errors};
 use palpa_core::pgd::nodal::{NodalSettings, build, setup};
 use palpa_core::{SeparatedModel, file};
 
@@ -17,28 +16,15 @@ fn press(
     face: usize,
     bary: [f64; 3],
     kind: &'static str,
-) -> palpa_core::pgd::heldout::Case {
-    let fc = s.space.face(face);
-    let c = [0, 1, 2].map(|i| s.space.nodes[fc[i] as usize]);
-    let point = [0, 1, 2].map(|d| (0..3).map(|i| bary[i] * c[i][d]).sum::<f64>());
-    let n = palpa_core::mesh::triangle_normal(c[0], c[1], c[2]);
-    let sp = SurfacePoint {
-        face,
-        bary,
-        point,
-        normal: n,
-        distance_mm: 0.0,
-    };
-    solve_case(&s.space, &s.problem, sp, n.map(|v| -v), s.radius_mm, kind).expect("FE solve")
+) -> heldout::Case {
+    heldout::press(&s.space, &s.problem, face, bary, s.radius_mm, kind).expect("FE solve")
 }
 
 #[test]
 fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_the_near_field() {
     let organ = coarse_liver();
     let s = setup(&organ, Element::P1, Material::default(), 5.0).expect("setup");
-    let mut surface: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
-    surface.sort_unstable();
-    surface.dedup();
+    let surface = organ.surface_nodes();
     let face = (0..organ.boundary.len())
         .find(|&f| organ.palpable[f])
         .expect("a palpable face");

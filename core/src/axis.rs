@@ -344,6 +344,31 @@ impl Discretization {
 }
 
 impl Discretization {
+    /// [`Self::load_shares`] for a probe value `SurfaceMix { triangle: face, bary, mix }`;
+    /// returns (shares written, clamped, the direction mix).
+    pub fn probe_shares(
+        &self,
+        value: ParamValue,
+        out: &mut [(u32, f64)],
+    ) -> Result<(usize, bool, [f64; 3]), AxisError> {
+        let ParamValue::SurfaceMix {
+            triangle,
+            bary,
+            mix,
+        } = value
+        else {
+            return Err(AxisError::WrongKind {
+                given: "non-surface-mix",
+                axis: self.kind_name(),
+            });
+        };
+        if let Some(&v) = mix.iter().find(|v| !v.is_finite()) {
+            return Err(AxisError::NotFinite { value: v });
+        }
+        let (len, clamped) = self.load_shares(triangle, bary, out)?;
+        Ok((len, clamped, mix))
+    }
+
     /// The consistent shares `(load node, w_j)` of a tool centred at barycentric `bary`
     /// of face `face` of a [`Discretization::SurfaceLoad`] axis, written to `out`;
     /// returns how many. Allocation-free; O(faces) (a tool is a few faces wide, but the

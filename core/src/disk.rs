@@ -19,15 +19,26 @@ pub const TRI_EDGES: [(usize, usize); 3] = [(0, 1), (1, 2), (0, 2)];
 
 /// Values of the triangle's shape functions at barycentric `l` (3 or 6 entries).
 pub fn tri_shape(p2: bool, l: [f64; 3], out: &mut [f64]) {
+    simplex_shape(p2, l, &TRI_EDGES, out);
+}
+
+/// Lagrange shape functions of a simplex with `V` vertices at barycentric `l`: P1 the
+/// coordinates themselves; P2 the vertices `λ_i(2λ_i − 1)`, then `4λ_iλ_j` on `edges`.
+pub fn simplex_shape<const V: usize>(
+    p2: bool,
+    l: [f64; V],
+    edges: &[(usize, usize)],
+    out: &mut [f64],
+) {
     if p2 {
-        for i in 0..3 {
+        for i in 0..V {
             out[i] = l[i] * (2.0 * l[i] - 1.0);
         }
-        for (e, &(i, j)) in TRI_EDGES.iter().enumerate() {
-            out[3 + e] = 4.0 * l[i] * l[j];
+        for (e, &(i, j)) in edges.iter().enumerate() {
+            out[V + e] = 4.0 * l[i] * l[j];
         }
     } else {
-        out[..3].copy_from_slice(&l);
+        out[..V].copy_from_slice(&l);
     }
 }
 

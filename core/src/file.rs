@@ -251,17 +251,6 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
         .axes
         .iter()
         .any(|a| matches!(a.discretization, Discretization::SurfaceLoad { .. }));
-    if model.near().is_none() && !load_axis {
-        let header = HeaderV1 {
-            meta,
-            precision: T::PRECISION,
-            rows: model.rows() as u64,
-            modes: model.modes() as u64,
-            payload_len,
-            payload_xxh3,
-        };
-        return write_file(path, 1, &header, &blocks);
-    }
     let header = Header {
         meta,
         precision: T::PRECISION,
@@ -288,6 +277,18 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
             None => Layout::Separated,
         },
     };
+    if model.near().is_none() && !load_axis {
+        // Version 1, so older builds keep reading plain separated models.
+        let h = HeaderV1 {
+            meta: header.meta,
+            precision: header.precision,
+            rows: header.rows,
+            modes: header.modes,
+            payload_len,
+            payload_xxh3,
+        };
+        return write_file(path, 1, &h, &blocks);
+    }
     write_file(path, 3, &header, &blocks)
 }
 

@@ -369,25 +369,25 @@ impl PalpationScene {
         let push_dir = normal.map(|c| -c);
         let n = modes.min(scratch.coeffs.len());
         // A nodal-load model carries the exact compliance tensor: no modes involved.
-        if let (Some(near), Some(faces)) = (self.model.near(), &self.axis_face) {
-            if let Some(c) = near.compliance_tensor(faces[p.triangle as usize], p.bary) {
-                let w: [f64; 3] = std::array::from_fn(|d| {
-                    c[d][0] * push_dir[0] + c[d][1] * push_dir[1] + c[d][2] * push_dir[2]
-                });
-                let compliance = w[0] * push_dir[0] + w[1] * push_dir[1] + w[2] * push_dir[2];
-                if compliance.is_nan() || compliance <= 0.0 {
-                    return Err(ContactError::NonPositiveCompliance {
-                        compliance_mm_per_n: compliance,
-                        modes: n,
-                    });
-                }
-                return Ok(Contact {
-                    point_mm,
-                    push_dir,
-                    unit_displacement_mm_per_n: w,
+        if let (Some(near), Some(faces)) = (self.model.near(), &self.axis_face)
+            && let Some(c) = near.compliance_tensor(faces[p.triangle as usize], p.bary)
+        {
+            let w: [f64; 3] = std::array::from_fn(|d| {
+                c[d][0] * push_dir[0] + c[d][1] * push_dir[1] + c[d][2] * push_dir[2]
+            });
+            let compliance = w[0] * push_dir[0] + w[1] * push_dir[1] + w[2] * push_dir[2];
+            if compliance.is_nan() || compliance <= 0.0 {
+                return Err(ContactError::NonPositiveCompliance {
                     compliance_mm_per_n: compliance,
+                    modes: n,
                 });
             }
+            return Ok(Contact {
+                point_mm,
+                push_dir,
+                unit_displacement_mm_per_n: w,
+                compliance_mm_per_n: compliance,
+            });
         }
         let coeffs = &mut scratch.coeffs[..n];
         self.model

@@ -461,8 +461,11 @@ impl<T: Scalar> SeparatedModel<T> {
             source,
         };
         let mut buf = [(0u32, 0.0f64); MAX_LOAD_NODES];
-        let (len_shares, clamped, mix) =
-            load_shares(&axis.info.discretization, value, &mut buf).map_err(wrap)?;
+        let (len_shares, clamped, mix) = axis
+            .info
+            .discretization
+            .probe_shares(value, &mut buf)
+            .map_err(wrap)?;
         let m = self.modes;
         let n = coeffs.len();
         // Mode chunks of a stack accumulator: any number of modes, no allocation.
@@ -504,13 +507,14 @@ impl<T: Scalar> SeparatedModel<T> {
             });
         };
         let mut buf = [(0u32, 0.0f64); MAX_LOAD_NODES];
-        let (len, _, mix) =
-            load_shares(&axis.info.discretization, value, &mut buf).map_err(|source| {
-                EvalError::Axis {
-                    axis: 0,
-                    name: axis.info.name.clone(),
-                    source,
-                }
+        let (len, _, mix) = axis
+            .info
+            .discretization
+            .probe_shares(value, &mut buf)
+            .map_err(|source| EvalError::Axis {
+                axis: 0,
+                name: axis.info.name.clone(),
+                source,
             })?;
         near.add_band(&buf[..len], mix, out);
         Ok(())
@@ -703,28 +707,4 @@ impl<T: Scalar> SeparatedModel<T> {
     pub(crate) fn arrays(&self) -> (&[T], impl Iterator<Item = &[T]>) {
         (&self.x, self.axes.iter().map(|a| a.values.as_slice()))
     }
-}
-
-/// The shares and direction of a probe value on a load axis.
-fn load_shares(
-    d: &Discretization,
-    value: ParamValue,
-    buf: &mut [(u32, f64)],
-) -> Result<(usize, bool, [f64; 3]), AxisError> {
-    let ParamValue::SurfaceMix {
-        triangle,
-        bary,
-        mix,
-    } = value
-    else {
-        return Err(AxisError::WrongKind {
-            given: "non-surface-mix",
-            axis: d.kind_name(),
-        });
-    };
-    if let Some(&v) = mix.iter().find(|v| !v.is_finite()) {
-        return Err(AxisError::NotFinite { value: v });
-    }
-    let (len, clamped) = d.load_shares(triangle, bary, buf)?;
-    Ok((len, clamped, mix))
 }

@@ -62,6 +62,23 @@ pub fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
     }
 }
 
+/// Mean time of `f` over `reps` calls, in nanoseconds (stops at the first error).
+pub fn mean_ns(reps: u32, mut f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<f64> {
+    let t = std::time::Instant::now();
+    for _ in 0..reps {
+        f()?;
+    }
+    Ok(t.elapsed().as_nanos() as f64 / f64::from(reps.max(1)))
+}
+
+/// Every row (`3·node + c`) of the given nodes, in order.
+pub fn rows_of(nodes: &[u32]) -> Vec<u32> {
+    nodes
+        .iter()
+        .flat_map(|&n| (0..3).map(move |c| 3 * n + c))
+        .collect()
+}
+
 /// Prints a command's JSON report: one line with `--json`, indented otherwise.
 pub fn print_report(report: &serde_json::Value, json: bool) -> anyhow::Result<()> {
     if json {

@@ -336,15 +336,8 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
         None => n.map(|v| -v),
     };
     let available = m.modes();
-    let (modes, clamped_modes) = match args.modes {
-        Some(k) if k > available => {
-            eprintln!("palpa: {k} modes asked, the file holds {available}; using {available}");
-            (available, true)
-        }
-        Some(0) => bail!("--modes must be at least 1"),
-        Some(k) => (k, false),
-        None => (available, false),
-    };
+    let used = ModesUsed::of(args.modes, available)?;
+    let modes = used.used;
     let mut coeffs = vec![0.0; modes];
     let value = [ParamValue::SurfaceMix {
         triangle: hit.triangle,
@@ -360,13 +353,11 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
     };
     let mut contact = vec![0.0; contact_rows.len()];
     // Time the on-line path (particularize + contact rows) over repetitions.
-    let reps = 2000;
-    let t = Instant::now();
-    for _ in 0..reps {
+    let contact_eval_ns = super::args::mean_ns(2000, || {
         m.particularize(std::hint::black_box(&value), &mut coeffs)?;
         m.reconstruct_rows(&contact_rows, &coeffs, &mut contact);
-    }
-    let contact_eval_ns = t.elapsed().as_nanos() as f64 / f64::from(reps);
+        Ok(())
+    })?;
     let mut full = vec![0.0; m.rows()];
     let t = Instant::now();
     m.reconstruct(&coeffs, &mut full);
@@ -383,24 +374,9 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
         });
         Some(u[0] * dir[0] + u[1] * dir[1] + u[2] * dir[2])
     };
-    report_eval(
-        m,
-        args,
-        &full,
-        json!({
-            "probe_point": hit.point,
-            "probe_projection_distance_mm": hit.distance,
-            "direction": dir,
-            "force_n": f,
-            "probe_displacement_mm": probe_displacement_mm,
-            "modes_used": modes,
-            "modes_available": available,
-            "modes_clamped": clamped_modes,
-            "eval_us": contact_eval_ns / 1e3,
-            "full_reconstruction_us": full_us,
-            "precision": T::PRECISION.name(),
-        }),
-    )
+    let times_us = [contact_eval_ns / 1e3, full_us];
+    let facts = Evaluated::new(&hit, dir, probe_displacement_mm, used, times_us);
+    report_eval(m, args, &full, &facts, json!({}))
 }
 
 /// `palpa eval` on a nodal-load vademecum: the load particularized exactly at the
@@ -444,15 +420,8 @@ fn eval_nodal<T: Scalar>(
         None => triangle_normal(a, b, c).map(|v| -v),
     };
     let available = m.modes();
-    let modes = match args.modes {
-        Some(0) => bail!("--modes must be at least 1"),
-        Some(k) if k > available => {
-            eprintln!("palpa: {k} modes asked, the file holds {available}; using {available}");
-            available
-        }
-        Some(k) => k,
-        None => available,
-    };
+    let used = ModesUsed::of(args.modes, available)?;
+    let modes = used.used;
     let f = args.probe.force_n;
     let value = [ParamValue::SurfaceMix {
         triangle: face,
@@ -505,36 +474,94 @@ fn eval_nodal<T: Scalar>(
     };
     let probe_displacement_mm =
         probe_unit.map(|w| f * (w[0] * dir[0] + w[1] * dir[1] + w[2] * dir[2]));
-    report_eval(
-        m,
-        args,
-        &full,
-        json!({
-            "probe_point": hit.point,
-            "probe_projection_distance_mm": hit.distance,
-            "direction": dir,
-            "force_n": f,
-            "probe_displacement_mm": probe_displacement_mm,
-            "probe_displacement_source": source,
-            "modes_used": modes,
-            "modes_available": available,
-            "modes_clamped": args.modes.is_some_and(|k| k > available),
-            "near_field": m.near().is_some(),
-            "eval_us": particularize_us,
-            "full_reconstruction_us": full_us,
-            "precision": T::PRECISION.name(),
-        }),
-    )
+    let times_us = [particularize_us, full_us];
+    let facts = Evaluated::new(&hit, dir, probe_displacement_mm, used, times_us);
+    let extra = json!({"probe_displacement_source": source, "near_field": m.near().is_some()});
+    report_eval(m, args, &full, &facts, extra)
 }
 
-/// Adds the maximum displacement, writes `--out`, prints the report.
+/// The modes `palpa eval` uses: all by default, clamped (with a notice) to what the
+/// file holds.
+#[derive(Debug, Clone, Copy)]
+struct ModesUsed {
+    used: usize,
+    available: usize,
+    clamped: bool,
+}
+
+impl ModesUsed {
+    fn of(asked: Option<usize>, available: usize) -> anyhow::Result<Self> {
+        let (used, clamped) = match asked {
+            Some(0) => bail!("--modes must be at least 1"),
+            Some(k) if k > available => {
+                eprintln!("palpa: {k} modes asked, the file holds {available}; using {available}");
+                (available, true)
+            }
+            Some(k) => (k, false),
+            None => (available, false),
+        };
+        Ok(ModesUsed {
+            used,
+            available,
+            clamped,
+        })
+    }
+}
+
+/// What both kinds of `palpa eval` report.
+struct Evaluated<'a> {
+    hit: &'a palpa_core::axis::SurfaceHit,
+    dir: [f64; 3],
+    probe_displacement_mm: Option<f64>,
+    modes: ModesUsed,
+    /// Evaluation (particularization, contact) and full reconstruction, µs.
+    times_us: [f64; 2],
+}
+
+impl<'a> Evaluated<'a> {
+    fn new(
+        hit: &'a palpa_core::axis::SurfaceHit,
+        dir: [f64; 3],
+        probe_displacement_mm: Option<f64>,
+        modes: ModesUsed,
+        times_us: [f64; 2],
+    ) -> Self {
+        Evaluated {
+            hit,
+            dir,
+            probe_displacement_mm,
+            modes,
+            times_us,
+        }
+    }
+}
+
+/// Builds the report (the common keys, then `extra`'s), adds the maximum
+/// displacement, writes `--out`, prints it.
 fn report_eval<T: Scalar>(
     m: &SeparatedModel<T>,
     args: &EvalArgs,
     full: &[f64],
-    mut report: serde_json::Value,
+    e: &Evaluated<'_>,
+    extra: serde_json::Value,
 ) -> anyhow::Result<()> {
     let f = args.probe.force_n;
+    let mut report = json!({
+        "probe_point": e.hit.point,
+        "probe_projection_distance_mm": e.hit.distance,
+        "direction": e.dir,
+        "force_n": f,
+        "probe_displacement_mm": e.probe_displacement_mm,
+        "modes_used": e.modes.used,
+        "modes_available": e.modes.available,
+        "modes_clamped": e.modes.clamped,
+        "eval_us": e.times_us[0],
+        "full_reconstruction_us": e.times_us[1],
+        "precision": T::PRECISION.name(),
+    });
+    if let (Some(r), serde_json::Value::Object(x)) = (report.as_object_mut(), extra) {
+        r.extend(x);
+    }
     let max = full
         .chunks_exact(3)
         .map(|v| f.abs() * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
@@ -557,7 +584,7 @@ fn report_eval<T: Scalar>(
             },
             FieldValue {
                 name: "modes_used".into(),
-                value: report["modes_used"].as_f64().unwrap_or(0.0),
+                value: e.modes.used as f64,
             },
         ];
         let cells: Vec<[u32; 3]> = if g.surface.is_empty() {

@@ -28,6 +28,7 @@ use palpa_core::rng::Rng;
 use palpa_core::{ParamValue, TradeoffRow};
 use serde_json::json;
 
+use super::args::{mean_ns, rows_of};
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
 
 #[derive(Debug, Args)]
@@ -151,16 +152,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         floors.push(interp);
         cases.push((t as u32, bary, dir, u));
     }
-    let surface_nodes: Vec<u32> = {
-        let mut v: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
-        v.sort_unstable();
-        v.dedup();
-        v
-    };
-    let surface_rows: Vec<u32> = surface_nodes
-        .iter()
-        .flat_map(|&n| (0..3).map(move |c| 3 * n + c))
-        .collect();
+    let surface_rows = rows_of(&organ.surface_nodes());
 
     let svd = if level == LevelArg::Coarse || args.svd {
         // Surface rows as free dofs (fixed nodes carry no unknown).
@@ -227,22 +219,19 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
             bary: cases[0].1,
             mix: cases[0].2,
         }];
-        let reps = 50;
-        let t0 = Instant::now();
-        for _ in 0..reps {
-            model.particularize(&v, &mut coeffs)?;
-            model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
-        }
-        let surface_eval_us = t0.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
+        let surface_eval_us = 1e-3
+            * mean_ns(50, || {
+                model.particularize(&v, &mut coeffs)?;
+                model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
+                Ok(())
+            })?;
         let contact_rows: Vec<u32> = surface_rows[..9].to_vec();
         let mut c9 = [0.0; 9];
-        let reps = 5000;
-        let t0 = Instant::now();
-        for _ in 0..reps {
+        let contact_eval_ns = mean_ns(5000, || {
             model.particularize(std::hint::black_box(&v), &mut coeffs)?;
             model.reconstruct_rows(&contact_rows, &coeffs, &mut c9);
-        }
-        let contact_eval_ns = t0.elapsed().as_nanos() as f64 / f64::from(reps);
+            Ok(())
+        })?;
         let (map, opt) = match &svd {
             Some(o) => (
                 Some(map_error(&s.ops(), &terms, n, o.g2)),
@@ -328,13 +317,8 @@ fn run_nodal(
     let problem = LinearProblem::new(&space, material)?;
     let cases = heldout::cases(&space, &problem, organ, radius_mm, args.held_out, 0x7e57)?;
     let fe_s = t0.elapsed().as_secs_f64();
-    let mut surface_nodes: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
-    surface_nodes.sort_unstable();
-    surface_nodes.dedup();
-    let surface_rows: Vec<u32> = surface_nodes
-        .iter()
-        .flat_map(|&n| (0..3).map(move |c| 3 * n + c))
-        .collect();
+    let surface_nodes = organ.surface_nodes();
+    let surface_rows = rows_of(&surface_nodes);
     let n_max = model.modes();
     let mut ns: Vec<usize> = [1, 2, 5, 10, 20, 50, 100, 150, 200, 300, 400]
         .into_iter()
@@ -366,14 +350,13 @@ fn run_nodal(
         let mut coeffs = vec![0.0; n];
         let mut out = vec![0.0; surface_rows.len()];
         let mut full = vec![0.0; model.rows()];
-        let reps = 20;
-        let t = Instant::now();
-        for _ in 0..reps {
-            model.particularize(std::hint::black_box(&probe), &mut coeffs)?;
-            model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
-            model.add_near_field(&probe, &mut full)?;
-        }
-        let surface_eval_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
+        let surface_eval_us = 1e-3
+            * mean_ns(20, || {
+                model.particularize(std::hint::black_box(&probe), &mut coeffs)?;
+                model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
+                model.add_near_field(&probe, &mut full)?;
+                Ok(())
+            })?;
         // What the force loop runs: the compliance tensor at a point.
         let near = model
             .near()

@@ -8,7 +8,7 @@
 //! `a_r(z; p) = k_r · Π_q p_q · Π_i f_{r,i}(z_i)`.
 //!
 //! Separability is what makes the CME operator a short sum of Kronecker products (see
-//! `METHOD-NOTES.md` §3); a factor that depends on several species is refused.
+//! `docs/methods.md` §3); a factor that depends on several species is refused.
 //!
 //! ```toml
 //! name = "cascade"

@@ -9,7 +9,7 @@
 //! `0 = t_0 < … < t_n`, steps growing geometrically from `h_first` to `h_max` so the
 //! transient after the point-mass start is resolved.
 //!
-//! **Stepping in separated form** (METHOD-NOTES §3, the robust variant). Variable-step
+//! **Stepping in separated form** (docs/methods.md §3). Variable-step
 //! BDF2 (BDF1 for the first step), stable for the stiff modes a point mass excites:
 //!
 //! `[(1+2ω)/(1+ω) I − h_k A] P_k = (1+ω) P_{k−1} − ω²/(1+ω) P_{k−2}`, `ω = h_k/h_{k−1}`.

@@ -12,16 +12,7 @@ pub use crate::disk::TRI_EDGES;
 
 /// Values of the tetrahedron's shape functions at barycentric `l` (4 or 10 entries).
 pub fn tet_values(p2: bool, l: [f64; 4], out: &mut [f64]) {
-    if p2 {
-        for i in 0..4 {
-            out[i] = l[i] * (2.0 * l[i] - 1.0);
-        }
-        for (e, &(i, j)) in TET_EDGES.iter().enumerate() {
-            out[4 + e] = 4.0 * l[i] * l[j];
-        }
-    } else {
-        out[..4].copy_from_slice(&l);
-    }
+    crate::disk::simplex_shape(p2, l, &TET_EDGES, out);
 }
 
 /// Physical gradients of the shape functions at barycentric `l`, given the

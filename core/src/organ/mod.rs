@@ -59,6 +59,16 @@ pub struct OrganMesh {
     pub h_mm: f64,
 }
 
+impl OrganMesh {
+    /// The boundary's vertices, sorted, each once (the rows a palpation scene keeps).
+    pub fn surface_nodes(&self) -> Vec<u32> {
+        let mut v: Vec<u32> = self.boundary.iter().flatten().copied().collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+}
+
 /// Meshes an implicit solid and classifies its boundary with the two selectors.
 /// A boundary triangle is fixed (all three vertices clamped) when `fixed` contains its
 /// centroid and normal; it is palpable when `palpable` does and it is not fixed.

@@ -119,20 +119,33 @@ pub fn cases(
         // Strictly inside the face: never a node, never an edge.
         let (a, b) = (rng.range(0.1, 0.8), rng.range(0.1, 0.9));
         let bary = [a, (1.0 - a) * b, (1.0 - a) * (1.0 - b)];
-        let c = corners(face);
-        let point = [0, 1, 2].map(|d| (0..3).map(|i| bary[i] * c[i][d]).sum::<f64>());
-        let n = normal(face);
-        let dir = n.map(|v| -v);
-        let sp = SurfacePoint {
-            face,
-            bary,
-            point,
-            normal: n,
-            distance_mm: 0.0,
-        };
-        out.push(solve_case(space, problem, sp, dir, radius_mm, kind)?);
+        out.push(press(space, problem, face, bary, radius_mm, kind)?);
     }
     Ok(out)
+}
+
+/// The FE answer for a unit push along the inward normal at barycentric `bary` of
+/// space face `face`.
+pub fn press(
+    space: &Space,
+    problem: &LinearProblem,
+    face: usize,
+    bary: [f64; 3],
+    radius_mm: f64,
+    kind: &'static str,
+) -> Result<Case, FeError> {
+    let fc = space.face(face);
+    let c = [0, 1, 2].map(|i| space.nodes[fc[i] as usize]);
+    let point = [0, 1, 2].map(|d| (0..3).map(|i| bary[i] * c[i][d]).sum::<f64>());
+    let n = triangle_normal(c[0], c[1], c[2]);
+    let sp = SurfacePoint {
+        face,
+        bary,
+        point,
+        normal: n,
+        distance_mm: 0.0,
+    };
+    solve_case(space, problem, sp, n.map(|v| -v), radius_mm, kind)
 }
 
 /// The FE answer for one press (unit force along `dir`).

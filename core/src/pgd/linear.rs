@@ -1,4 +1,4 @@
-//! Greedy PGD for `K U Ms = F Ms` (METHOD-NOTES §1).
+//! Greedy PGD for `K U Ms = F Ms` (docs/methods.md §1).
 //!
 //! Given `U_n = Σ_{k≤n} X_k y_kᵀ`, the next pair (R, S) solves, alternately,
 //!

@@ -1,7 +1,7 @@
 //! Proper Generalized Decomposition: off-line solvers that compute a separated
 //! representation of a parametric solution without sampling the parameters.
 //!
-//! [`linear`] solves the linear parametric problem of METHOD-NOTES §1,
+//! [`linear`] solves the linear parametric problem of docs/methods.md §1,
 //! `K U Ms = F Ms` for `U ≈ Σ_k X_k y_kᵀ` (space × one parametric index with mass
 //! matrix `Ms`), by greedy enrichment with an alternating-directions fixed point and an
 //! optional Galerkin update of all parametric functions. [`palpation`] builds the

@@ -35,6 +35,7 @@ use std::time::Instant;
 use faer::Mat;
 use rayon::prelude::*;
 
+use super::palpation::vademecum_meta;
 use crate::axis::{Discretization, MAX_LOAD_NODES};
 use crate::cme::dense::{thin_qr, thin_svd};
 use crate::disk::{lattice, tri_shape};
@@ -46,7 +47,7 @@ use crate::mesh::{norm, sub};
 use crate::nearfield::NearField;
 use crate::organ::OrganMesh;
 use crate::rng::Rng;
-use crate::separated::{AxisInfo, FieldInfo, Geometry, ModelMeta, Provenance, SeparatedModel};
+use crate::separated::{AxisInfo, Provenance, SeparatedModel};
 
 /// The load axis and the operators, built once.
 #[derive(Debug)]
@@ -86,7 +87,7 @@ impl Default for NodalSettings {
             band_radius_mm: 20.0,
             table_degree: 5,
             power_iterations: 2,
-            seed: 0x5eed_0f_10ad,
+            seed: 0x005e_ed0f_10ad,
         }
     }
 }
@@ -191,9 +192,7 @@ pub fn setup(
         field_nodes: load_nodes.clone(),
         radius_mm,
     };
-    let mut surface_nodes: Vec<u32> = organ.boundary.iter().flatten().copied().collect();
-    surface_nodes.sort_unstable();
-    surface_nodes.dedup();
+    let surface_nodes = organ.surface_nodes();
     Ok(NodalSetup {
         space,
         problem,
@@ -552,31 +551,22 @@ pub fn build(
         .map(|(p, k)| y[(p, k)])
         .collect();
     let sigma0 = report.singular_values.first().copied().unwrap_or(1.0);
-    let meta = ModelMeta {
-        kind: "liver-palpation-nodal".into(),
-        field: FieldInfo {
-            name: "displacement per newton".into(),
-            unit: "mm/N".into(),
-            components: 3,
-            node_ids: Vec::new(),
-        },
-        axes: vec![AxisInfo {
+    let meta = vademecum_meta(
+        "liver-palpation-nodal",
+        AxisInfo {
             name: "nodal load (probe position × direction)".into(),
             unit: "mm".into(),
             discretization: s.axis.clone(),
-        }],
-        provenance: Provenance::now(
+        },
+        Provenance::now(
             "nodal loads: brute-force solves, randomized SVD of the surface map, near-field band and compliance table",
             mesh_desc,
             0.0,
             report.singular_values.iter().map(|v| v / sigma0).collect(),
         ),
-        tradeoff: Vec::new(),
-        geometry: Geometry {
-            nodes: s.space.nodes.clone(),
-            surface: s.boundary.clone(),
-        },
-    };
+        &s.space,
+        &s.boundary,
+    );
     let model = SeparatedModel::new(meta, 3 * nodes, n, x, vec![yv])
         .and_then(|m| m.with_near(near))
         .map_err(|e| FeError::Load(format!("packing the nodal vademecum: {e}")))?;

@@ -1,7 +1,7 @@
 //! The liver palpation vademecum: `u(x; s, t) ≈ Σ_k X_k(x) Y_k(s, t)` for a unit probe
 //! force along direction `t` at any point `s` of the palpable surface.
 //!
-//! Discretization (METHOD-NOTES §1): space is the FE space (P1/P2) on the free dofs;
+//! Discretization (docs/methods.md §1): space is the FE space (P1/P2) on the free dofs;
 //! the parametric index is (palpable surface vertex j, direction c ∈ {x, y, z}),
 //! `p = 3j + c`, with P1 hat functions in s (barycentric between vertices) and the
 //! surface mass matrix `Ms ⊗ I₃`. Column p of F is the consistent load of a unit force
@@ -219,15 +219,9 @@ pub fn to_model(
             y[p * n + k] = terms.y[k][p];
         }
     }
-    let meta = ModelMeta {
-        kind: "liver-palpation-linear".into(),
-        field: FieldInfo {
-            name: "displacement per newton".into(),
-            unit: "mm/N".into(),
-            components: 3,
-            node_ids: Vec::new(),
-        },
-        axes: vec![AxisInfo {
+    let meta = vademecum_meta(
+        "liver-palpation-linear",
+        AxisInfo {
             name: "probe position × load direction".into(),
             unit: "mm".into(),
             discretization: Discretization::SurfaceVector {
@@ -235,20 +229,44 @@ pub fn to_model(
                 triangles: setup.axis_triangles.clone(),
                 field_nodes: setup.axis_nodes.clone(),
             },
-        }],
-        provenance: Provenance::now(
+        },
+        Provenance::now(
             "pgd-linear (greedy + Galerkin update)",
             mesh_desc,
             tolerance,
             terms.residual_per_mode.clone(),
         ),
+        &setup.space,
+        &setup.boundary,
+    );
+    SeparatedModel::new(meta, 3 * nodes, n, x, vec![y]).expect("shapes match by construction")
+}
+
+/// The header of a liver vademecum: displacement per newton on every node of `space`
+/// (rows `3·node + c`), one parametric axis, the geometry for rendering and export.
+pub fn vademecum_meta(
+    kind: &str,
+    axis: AxisInfo,
+    provenance: Provenance,
+    space: &Space,
+    boundary: &[[u32; 3]],
+) -> ModelMeta {
+    ModelMeta {
+        kind: kind.into(),
+        field: FieldInfo {
+            name: "displacement per newton".into(),
+            unit: "mm/N".into(),
+            components: 3,
+            node_ids: Vec::new(),
+        },
+        axes: vec![axis],
+        provenance,
         tradeoff: Vec::new(),
         geometry: Geometry {
-            nodes: setup.space.nodes.clone(),
-            surface: setup.boundary.clone(),
+            nodes: space.nodes.clone(),
+            surface: boundary.to_vec(),
         },
-    };
-    SeparatedModel::new(meta, 3 * nodes, n, x, vec![y]).expect("shapes match by construction")
+    }
 }
 
 /// Brute-force reference over the nodal map: `C = Fᵀ K⁻¹ F` (one solve per column) and
