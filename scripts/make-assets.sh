@@ -5,12 +5,17 @@
 # inputs (mesh hash, element, material, tool) match the current code.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-MODES="${MODES:-100}"
+# MODES overrides the nodal build's global modes; PALPA a palpa binary already built.
+modes=()
+[ -n "${MODES:-}" ] && modes=(--modes "$MODES")
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-cargo build --release --locked -q -p palpa-app --bin palpa
-palpa=target/release/palpa
-$palpa offline liver --level coarse --element p2 --modes "$MODES" --tol 1e-9 --out "$tmp/full.palpa"
+palpa="${PALPA:-}"
+if [ -z "$palpa" ]; then
+  cargo build --release --locked -q -p palpa-app --bin palpa
+  palpa=target/release/palpa
+fi
+$palpa offline liver --level coarse --element p2 "${modes[@]}" --out "$tmp/full.palpa"
 $palpa tradeoff "$tmp/full.palpa" --json > "$tmp/tradeoff.json"
 $palpa export-scene "$tmp/full.palpa" --surface-only --precision f32 --out assets/liver-coarse.palpa
 echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"

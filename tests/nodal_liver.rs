@@ -90,6 +90,17 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
         "with {with:?}, without {without:?}"
     );
     assert!(with.compliance_rel_error < 2e-2, "{with:?}");
+    // The hierarchical far field carries what the band leaves: the surface goals hold
+    // at these points, and dropping the far field loses them.
+    assert!(small.near().and_then(|n| n.far.as_ref()).is_some());
+    assert!(with.surface_rel_error < 0.02, "{with:?}");
+    assert!(with.surface_max_nodal_rel_error < 0.03, "{with:?}");
+    let band_only = small.clone().with_far_tolerance(None);
+    let band_only = nodal_errors(&band_only, &s.space, &cases, &surface, 30).expect("evaluates");
+    assert!(
+        band_only.surface_rel_error > 2.0 * with.surface_rel_error,
+        "band only {band_only:?}, with far field {with:?}"
+    );
 
     // The file keeps the near field; the surface-only f32 scene evaluates the same.
     let dir = tempfile::tempdir().expect("tempdir");
@@ -107,6 +118,25 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
             .iter()
             .all(|&x| (x as usize) < surface.len())
     );
+    let far = near.far.as_ref().expect("far field kept");
+    assert!(far.rows.iter().all(|&x| (x as usize) < surface.len()));
+    // The scene's near and far field give the full model's values on its rows.
+    let probe = [palpa_core::axis::ParamValue::SurfaceMix {
+        triangle: 0,
+        bary: [0.2, 0.3, 0.5],
+        mix: [0.0, 0.0, 1.0],
+    }];
+    let mut full = vec![0.0; small.rows()];
+    small.add_near_field(&probe, &mut full).expect("full");
+    let mut rows = vec![0.0; f32_scene.rows()];
+    f32_scene.add_near_field(&probe, &mut rows).expect("scene");
+    let scale = full.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (i, &x) in surface.iter().enumerate() {
+        for d in 0..3 {
+            let (a, b) = (rows[3 * i + d], full[3 * x as usize + d]);
+            assert!((a - b).abs() <= 1e-5 * scale, "node {x}: {a} vs {b}");
+        }
+    }
     // A model without a load axis refuses a near field with its reason.
     let err = palpa_core::synthetic::palpation_like::<f64>(12, 2, 3, 1)
         .with_near(small.near().expect("near").clone())

@@ -43,6 +43,7 @@ use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
 use crate::axis::Discretization;
 use crate::cme::tt::Core;
+use crate::farfield::FarBlocks;
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
 use crate::scalar::{Precision, Scalar};
@@ -53,7 +54,9 @@ pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
 /// header, for tensor trains; separated models are still written as version 1 so older
 /// builds keep reading them. Version 3: nodal-load axes and the near field
 /// ([`Layout::SeparatedNear`]); only models that use them are written as version 3.
-pub const FORMAT_VERSION: u32 = 3;
+/// Version 4: the near field with its hierarchical far field
+/// ([`Layout::SeparatedNearFar`]), written only for models that have one.
+pub const FORMAT_VERSION: u32 = 4;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
@@ -83,12 +86,20 @@ pub enum Layout {
     TensorTrain { ranks: Vec<u64> },
     /// As `Separated`, plus the near field of a nodal-load vademecum (version 3).
     SeparatedNear { near: Box<NearField> },
+    /// As `SeparatedNear`, plus the far field's low-rank blocks (version 4).
+    SeparatedNearFar {
+        near: Box<NearField>,
+        far: Box<FarBlocks>,
+    },
 }
 
 impl Layout {
     /// Whether the payload is `X` then the axes (separated, with or without near field).
     pub fn is_separated(&self) -> bool {
-        matches!(self, Layout::Separated | Layout::SeparatedNear { .. })
+        matches!(
+            self,
+            Layout::Separated | Layout::SeparatedNear { .. } | Layout::SeparatedNearFar { .. }
+        )
     }
 }
 
@@ -272,7 +283,10 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
                         ]
                     })
                     .collect();
-                Layout::SeparatedNear { near }
+                match near.far.take() {
+                    Some(far) => Layout::SeparatedNearFar { near, far },
+                    None => Layout::SeparatedNear { near },
+                }
             }
             None => Layout::Separated,
         },
@@ -289,7 +303,11 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
         };
         return write_file(path, 1, &h, &blocks);
     }
-    write_file(path, 3, &header, &blocks)
+    let version = match header.layout {
+        Layout::SeparatedNearFar { .. } => 4,
+        _ => 3,
+    };
+    write_file(path, version, &header, &blocks)
 }
 
 /// Writes a tensor-train model (f64 cores, one per axis of `meta`) atomically.
@@ -602,6 +620,11 @@ fn load_payload<T: Scalar, R: Read>(
     }
     let near = match &located.header.layout {
         Layout::SeparatedNear { near } => Some(near.as_ref().clone()),
+        Layout::SeparatedNearFar { near, far } => {
+            let mut near = near.as_ref().clone();
+            near.far = Some(far.clone());
+            Some(near)
+        }
         _ => None,
     };
     let (header, arrays) = read_arrays::<T, R>(path, f, located)?;

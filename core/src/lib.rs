@@ -29,6 +29,7 @@ pub mod axis;
 pub mod cme;
 pub mod disk;
 pub mod export;
+pub mod farfield;
 pub mod fe;
 pub mod file;
 pub mod fsutil;

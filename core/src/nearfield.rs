@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::disk::lagrange_tri;
+use crate::farfield::FarBlocks;
 
 /// Why a near-field part is inconsistent with its model.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -68,6 +69,10 @@ pub struct NearField {
     /// The tradeoff columns only nodal models have, one per tradeoff row:
     /// `[modes, compliance_rel_error, surface_max_nodal_error_mm]` (NaN = not measured).
     pub tradeoff_extra: Vec<[f64; 3]>,
+    /// The hierarchical far field, if the model has one (stored in its own layout
+    /// part, so files without it keep their encoding).
+    #[serde(skip)]
+    pub far: Option<Box<FarBlocks>>,
 }
 
 impl NearField {
@@ -84,6 +89,7 @@ impl NearField {
             + self.band_values.len()
             + self.table_block.len()
             + self.table_values.len())
+            + self.far.as_ref().map_or(0, |f| f.bytes())
     }
 
     /// Checks the shapes against a load axis of `load_nodes` nodes and `faces` faces
@@ -151,6 +157,9 @@ impl NearField {
                 expected: self.table_block.iter().filter(|&&b| b != u32::MAX).count(),
             });
         }
+        if let Some(far) = &self.far {
+            far.validate(load_nodes, field_nodes)?;
+        }
         if self.band_values.iter().any(|v| !v.is_finite()) {
             return Err(NearFieldError::NotFinite { what: "the band" });
         }
@@ -162,8 +171,16 @@ impl NearField {
         Ok(())
     }
 
-    /// Adds `Σ_j w_j E_N[x, j] t` to `out` (rows `3x + d` of the model's field nodes).
-    /// Allocation-free.
+    /// Adds the remainder `Σ_j w_j E_N[x, j] t` to `out` (rows `3x + d` of the model's
+    /// field nodes): the band, then the far field's blocks. Allocation-free.
+    pub fn add(&self, shares: &[(u32, f64)], mix: [f64; 3], out: &mut [f64]) {
+        self.add_band(shares, mix, out);
+        if let Some(far) = &self.far {
+            far.add(shares, mix, out);
+        }
+    }
+
+    /// The band's part of [`Self::add`].
     pub fn add_band(&self, shares: &[(u32, f64)], mix: [f64; 3], out: &mut [f64]) {
         for &(j, w) in shares {
             let j = j as usize;
@@ -230,5 +247,8 @@ impl NearField {
         self.band_ptr = ptr;
         self.band_nodes = nodes;
         self.band_values = vals;
+        if let Some(far) = &mut self.far {
+            far.remap_nodes(new_index);
+        }
     }
 }

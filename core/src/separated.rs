@@ -339,6 +339,18 @@ impl<T: Scalar> SeparatedModel<T> {
         self.near.as_deref()
     }
 
+    /// The model with its far field's terms at or below `tolerance` dropped (`None`:
+    /// without the far field); the accuracy knob of a nodal-load model.
+    pub fn with_far_tolerance(mut self, tolerance: Option<f64>) -> Self {
+        if let Some(near) = self.near.as_deref_mut() {
+            near.far = match (tolerance, near.far.take()) {
+                (Some(t), Some(far)) => Some(Box::new(far.truncated(t))),
+                _ => None,
+            };
+        }
+        self
+    }
+
     /// The model without its near field (what an older file holds).
     pub fn without_near(mut self) -> Self {
         self.near = None;
@@ -516,7 +528,7 @@ impl<T: Scalar> SeparatedModel<T> {
                 name: axis.info.name.clone(),
                 source,
             })?;
-        near.add_band(&buf[..len], mix, out);
+        near.add(&buf[..len], mix, out);
         Ok(())
     }
 

@@ -12,6 +12,7 @@ use palpa_core::export::{FieldValue, PointField, write_surface_vtu};
 use palpa_core::fe::{Element, Material};
 use palpa_core::file;
 use palpa_core::mesh::triangle_normal;
+use palpa_core::pgd::cluster::FarSettings;
 use palpa_core::pgd::journal::Journal;
 use palpa_core::pgd::linear::{Settings, update};
 use palpa_core::pgd::nodal::{self, NodalSettings};
@@ -44,15 +45,22 @@ pub struct OfflineArgs {
     /// Nodal method: degree of the compliance lattice on each palpable face.
     #[arg(long, default_value_t = NodalSettings::default().table_degree)]
     table_degree: usize,
+    /// Nodal method: tolerance of the hierarchical far field (singular values of the
+    /// remainder's well-separated blocks, per unit load response, below it are
+    /// dropped); `none` keeps only the band within `--band-radius-mm`.
+    #[arg(long, default_value = "0.01")]
+    far_tolerance: FarTolerance,
     #[arg(value_enum, default_value = "liver")]
     organ: OrganName,
     #[arg(long, value_enum, default_value = "coarse")]
     level: LevelArg,
     #[arg(long, default_value = "p2")]
     element: Element,
-    /// Maximum number of terms.
-    #[arg(long, default_value_t = 100)]
-    modes: usize,
+    /// Number of separated terms: for `pgd` the most it computes (default 100); for
+    /// `nodal` the global modes beside the far field (default 20: the far field's
+    /// blocks compress the remainder of few modes better than of many).
+    #[arg(long)]
+    modes: Option<usize>,
     /// Stop when a new term's relative norm falls below this.
     #[arg(long, default_value_t = 1e-4)]
     tol: f64,
@@ -102,7 +110,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
         !args.no_update,
     );
     let settings = Settings {
-        max_modes: args.modes,
+        max_modes: args.modes.unwrap_or(100),
         tol: args.tol,
         update: !args.no_update,
         fixed_point_tol: args.fp_tol,
@@ -210,7 +218,8 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
     if args.resume {
         bail!("--resume applies to --method pgd; the nodal build has no journal");
     }
-    if args.modes == 0 {
+    let modes = args.modes.unwrap_or(NodalSettings::default().modes);
+    if modes == 0 {
         bail!("--modes must be at least 1");
     }
     if !(args.band_radius_mm.is_finite() && args.band_radius_mm >= 0.0) {
@@ -232,9 +241,13 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
         false,
     );
     let settings = NodalSettings {
-        modes: args.modes,
+        modes,
         band_radius_mm: args.band_radius_mm,
         table_degree: args.table_degree,
+        far: args.far_tolerance.0.map(|tolerance| FarSettings {
+            tolerance,
+            ..FarSettings::default()
+        }),
         ..NodalSettings::default()
     };
     let (mut model, report) = nodal::build(&s, &settings, &desc, |stage| {
@@ -259,6 +272,9 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
             "band_radius_mm": settings.band_radius_mm,
             "band_entries": report.band_entries,
             "table_degree": settings.table_degree,
+            "far_tolerance": settings.far.map(|f| f.tolerance),
+            "far_blocks": report.far_blocks,
+            "far_bytes": report.far_bytes,
             "near_bytes": report.near_bytes,
             "setup_s": report.setup_s,
             "solve_s": report.solve_s,
@@ -657,4 +673,23 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
                "bytes": bytes})
     );
     Ok(())
+}
+
+/// `--far-tolerance`: a positive number or `none`.
+#[derive(Debug, Clone, Copy)]
+struct FarTolerance(Option<f64>);
+
+impl std::str::FromStr for FarTolerance {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s == "none" {
+            return Ok(FarTolerance(None));
+        }
+        match s.parse::<f64>() {
+            Ok(t) if t.is_finite() && t > 0.0 => Ok(FarTolerance(Some(t))),
+            _ => Err(format!(
+                "expected a positive tolerance or `none`, got `{s}`"
+            )),
+        }
+    }
 }

@@ -346,17 +346,7 @@ fn run_nodal(
     for &n in &ns {
         let e = heldout::nodal_errors(&model, &space, &cases, &surface_nodes, n)?;
         let e_bare = heldout::nodal_errors(&bare, &space, &cases, &surface_nodes, n)?;
-        // What a frame runs: particularize, the surface rows, the band.
-        let mut coeffs = vec![0.0; n];
-        let mut out = vec![0.0; surface_rows.len()];
-        let mut full = vec![0.0; model.rows()];
-        let surface_eval_us = 1e-3
-            * mean_ns(20, || {
-                model.particularize(std::hint::black_box(&probe), &mut coeffs)?;
-                model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
-                model.add_near_field(&probe, &mut full)?;
-                Ok(())
-            })?;
+        let surface_eval_us = frame_us(&model, &probe, &surface_rows, n)?;
         // What the force loop runs: the compliance tensor at a point.
         let near = model
             .near()
@@ -403,6 +393,46 @@ fn run_nodal(
             "surface_eval_us": surface_eval_us, "contact_eval_ns": contact_eval_ns, "bytes": bytes,
         }));
     }
+    // The far field's knob: its blocks truncated on load to coarser tolerances, and
+    // no far field at all (the dense near blocks stay).
+    let mut far_rows = Vec::new();
+    if let Some(t0) = near.far.as_ref().map(|f| f.tolerance) {
+        let tols = [1.0, 2.0, 5.0, 10.0, 30.0].map(|f| Some(f * t0));
+        for tol in tols.into_iter().chain([None]) {
+            let m = model.clone().with_far_tolerance(tol);
+            let e = heldout::nodal_errors(&m, &space, &cases, &surface_nodes, n_max)?;
+            let near_bytes = m.near().map_or(0, |n| n.bytes());
+            far_rows.push(json!({
+                "far_tolerance": tol, "modes": n_max,
+                "surface_rel_error": e.surface_rel_error,
+                "surface_max_nodal_error_mm": e.surface_max_nodal_error_mm,
+                "surface_max_nodal_rel_error": e.surface_max_nodal_rel_error,
+                "compliance_rel_error": e.compliance_rel_error,
+                "surface_eval_us": frame_us(&m, &probe, &surface_rows, n_max)?,
+                "bytes": (surface_rows.len() + axis_nodes) * n_max * 4 + near_bytes,
+            }));
+        }
+    }
+    // The far field's knob: its blocks truncated on load to coarser tolerances, and
+    // no far field at all (the dense near blocks stay).
+    let mut far_rows = Vec::new();
+    if let Some(t0) = near.far.as_ref().map(|f| f.tolerance) {
+        let tols = [1.0, 2.0, 5.0, 10.0, 30.0].map(|f| Some(f * t0));
+        for tol in tols.into_iter().chain([None]) {
+            let m = model.clone().with_far_tolerance(tol);
+            let e = heldout::nodal_errors(&m, &space, &cases, &surface_nodes, n_max)?;
+            let near_bytes = m.near().map_or(0, |n| n.bytes());
+            far_rows.push(json!({
+                "far_tolerance": tol, "modes": n_max,
+                "surface_rel_error": e.surface_rel_error,
+                "surface_max_nodal_error_mm": e.surface_max_nodal_error_mm,
+                "surface_max_nodal_rel_error": e.surface_max_nodal_rel_error,
+                "compliance_rel_error": e.compliance_rel_error,
+                "surface_eval_us": frame_us(&m, &probe, &surface_rows, n_max)?,
+                "bytes": (surface_rows.len() + axis_nodes) * n_max * 4 + near_bytes,
+            }));
+        }
+    }
     let mut model = model;
     model.set_tradeoff(rows.clone());
     file::save(&model, &args.file).with_context(|| format!("writing {}", args.file.display()))?;
@@ -410,9 +440,28 @@ fn run_nodal(
         plot(&rows, &vec![None; rows.len()], path)?;
     }
     let kinds: Vec<&str> = cases.iter().map(|c| c.kind).collect();
-    let out = json!({"rows": json_rows, "held_out": cases.len(), "held_out_kinds": kinds,
-                     "method": "nodal", "fe_reference_s": fe_s});
+    let out = json!({"rows": json_rows, "far_rows": far_rows, "held_out": cases.len(),
+                     "held_out_kinds": kinds, "method": "nodal", "fe_reference_s": fe_s});
     super::args::print_report(&out, args.json)
+}
+
+/// What a frame runs: particularize, the surface rows, the near and far field (µs).
+fn frame_us(
+    model: &palpa_core::SeparatedModel<f64>,
+    probe: &[ParamValue],
+    surface_rows: &[u32],
+    n: usize,
+) -> anyhow::Result<f64> {
+    let mut coeffs = vec![0.0; n];
+    let mut out = vec![0.0; surface_rows.len()];
+    let mut full = vec![0.0; model.rows()];
+    Ok(1e-3
+        * mean_ns(20, || {
+            model.particularize(std::hint::black_box(probe), &mut coeffs)?;
+            model.reconstruct_rows(surface_rows, &coeffs, &mut out);
+            model.add_near_field(probe, &mut full)?;
+            Ok(())
+        })?)
 }
 
 /// Error and time against modes, two log–log panels.

@@ -12,6 +12,7 @@
 //! here handles one combined parametric index and is written so that step is local.
 
 pub mod block;
+pub mod cluster;
 pub mod heldout;
 pub mod journal;
 pub mod linear;

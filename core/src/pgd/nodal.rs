@@ -35,6 +35,7 @@ use std::time::Instant;
 use faer::Mat;
 use rayon::prelude::*;
 
+use super::cluster::{FarSettings, compress};
 use super::palpation::vademecum_meta;
 use crate::axis::{Discretization, MAX_LOAD_NODES};
 use crate::cme::dense::{thin_qr, thin_svd};
@@ -77,16 +78,20 @@ pub struct NodalSettings {
     pub table_degree: usize,
     /// Power iterations of the randomized SVD.
     pub power_iterations: usize,
+    /// Hierarchical compression of the remainder (dense near blocks plus low-rank far
+    /// blocks); `None` keeps only the band within `band_radius_mm`.
+    pub far: Option<FarSettings>,
     pub seed: u64,
 }
 
 impl Default for NodalSettings {
     fn default() -> Self {
         NodalSettings {
-            modes: 100,
+            modes: 20,
             band_radius_mm: 20.0,
             table_degree: 5,
             power_iterations: 2,
+            far: Some(FarSettings::default()),
             seed: 0x005e_ed0f_10ad,
         }
     }
@@ -109,6 +114,9 @@ pub struct NodalReport {
     /// `‖G_S − X_S Yᵀ‖_F / ‖G_S‖_F` over the whole nodal map.
     pub surface_map_rel_error: f64,
     pub band_entries: usize,
+    /// Low-rank blocks of the far field and their bytes.
+    pub far_blocks: usize,
+    pub far_bytes: usize,
     pub near_bytes: usize,
 }
 
@@ -384,9 +392,6 @@ pub fn build(
     let g2: f64 = gs.squared_norm_l2();
     let kept: f64 = xs.squared_norm_l2();
     report.surface_map_rel_error = ((g2 - kept).max(0.0) / g2).sqrt();
-    for (p, &d) in scale.iter().enumerate() {
-        gs.col_mut(p).iter_mut().for_each(|x| *x *= d);
-    }
     // Y = D V (the axis values); the spatial modes take D⁻¹ V.
     let y = Mat::<f64>::from_fn(3 * m, n, |p, k| scale[p] * v[(p, k)]);
     report.singular_values = sv;
@@ -409,40 +414,75 @@ pub fn build(
     s.problem.factor.solve_many(&mut rhs);
     report.modes_s = t.elapsed().as_secs_f64();
 
-    progress("near-field band");
+    progress("near field");
     let t = Instant::now();
+    // The remainder the modes leave, still column-scaled: R D⁻¹ = G_S D⁻¹ − X_S Vᵀ.
+    let mut res = gs;
+    faer::linalg::matmul::matmul(
+        res.as_mut(),
+        faer::Accum::Add,
+        xs.as_ref(),
+        v.transpose(),
+        -1.0,
+        faer::Par::rayon(0),
+    );
     let positions = s.positions();
     let surf_pos: Vec<[f64; 3]> = s
         .surface_nodes
         .iter()
         .map(|&v| s.space.nodes[v as usize])
         .collect();
-    let band: Vec<Vec<(u32, [f32; 9])>> = (0..m)
-        .into_par_iter()
-        .map(|j| {
-            if s.space.dof[s.load_nodes[j] as usize] == u32::MAX {
-                return Vec::new();
-            }
-            let mut out = Vec::new();
-            for (i, p) in surf_pos.iter().enumerate() {
-                if norm(sub(*p, positions[j])) > settings.band_radius_mm {
-                    continue;
-                }
-                let mut blk = [0.0f32; 9];
-                for d in 0..3 {
-                    for c in 0..3 {
-                        let mut v = gs[(3 * i + d, 3 * j + c)];
-                        for k in 0..n {
-                            v -= xs[(3 * i + d, k)] * y[(3 * j + c, k)];
-                        }
-                        blk[3 * d + c] = v as f32;
+    let free: Vec<bool> = (0..m)
+        .map(|j| s.space.dof[s.load_nodes[j] as usize] != u32::MAX)
+        .collect();
+    // Per load node, the surface rows that get the exact remainder.
+    let (dense, far) = match settings.far {
+        Some(fs) => {
+            let c = compress(
+                res.as_ref(),
+                &scale,
+                &surf_pos,
+                &s.surface_nodes,
+                positions,
+                &free,
+                fs,
+            );
+            report.far_blocks = c.far.blocks();
+            report.far_bytes = c.far.bytes();
+            (c.dense, Some(Box::new(c.far)))
+        }
+        None => {
+            let radius = settings.band_radius_mm;
+            let dense = (0..m)
+                .into_par_iter()
+                .map(|j| {
+                    if !free[j] {
+                        return Vec::new();
                     }
-                }
-                out.push((s.surface_nodes[i], blk));
-            }
-            out
+                    (0..surf_pos.len())
+                        .filter(|&i| norm(sub(surf_pos[i], positions[j])) <= radius)
+                        .collect()
+                })
+                .collect();
+            (dense, None)
+        }
+    };
+    let band: Vec<Vec<(u32, [f32; 9])>> = dense
+        .par_iter()
+        .enumerate()
+        .map(|(j, rows)| {
+            rows.iter()
+                .map(|&i| {
+                    let blk = std::array::from_fn(|e| {
+                        let (d, c) = (e / 3, e % 3);
+                        (res[(3 * i + d, 3 * j + c)] * scale[3 * j + c]) as f32
+                    });
+                    (s.surface_nodes[i], blk)
+                })
+                .collect()
         })
         .collect();
+    drop(res);
     let mut band_ptr = vec![0u32];
     let mut band_nodes = Vec::new();
     let mut band_values = Vec::new();
@@ -530,6 +570,7 @@ pub fn build(
         table_block,
         table_values,
         tradeoff_extra: Vec::new(),
+        far,
     };
     report.near_bytes = near.bytes();
 
