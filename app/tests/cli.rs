@@ -520,3 +520,70 @@ fn bench_cme_sets_pgd_against_ssa_at_equal_accuracy() {
     );
     assert_eq!(v["fsp"]["leak"].as_array().map(Vec::len), Some(2));
 }
+
+/// The default (nodal) route end to end on coarse P1 for tool radii 2 and 10 mm (the
+/// representation does not assume 5): `palpa offline` then `palpa tradeoff`. The
+/// held-out surface and force goals hold with the defaults, the far-field rows grow in
+/// error as their tolerance coarsens, and dropping the far field costs accuracy.
+#[test]
+fn nodal_offline_then_tradeoff_meets_the_held_out_goals_for_small_and_large_tools() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for radius in ["2", "10"] {
+        let model = dir.path().join(format!("nodal-{radius}.palpa"));
+        let m = model.to_str().expect("utf-8");
+        let out = palpa(&[
+            "offline",
+            "liver",
+            "--level",
+            "coarse",
+            "--element",
+            "p1",
+            "--radius-mm",
+            radius,
+            "--out",
+            m,
+        ]);
+        let built = common::json_ok(&out);
+        assert_eq!(built["method"], "nodal");
+        assert!(built["far_blocks"].as_u64() > Some(0), "{built}");
+        let v = common::json_ok(&palpa(&["tradeoff", m, "--json"]));
+        let rows = v["rows"].as_array().expect("rows");
+        let last = rows.last().expect("a row");
+        for key in [
+            "modes",
+            "surface_rel_error",
+            "probe_rel_error",
+            "compliance_rel_error",
+            "surface_max_nodal_error_mm",
+            "surface_eval_us",
+            "bytes",
+        ] {
+            assert!(
+                !last[key].is_null(),
+                "radius {radius}: {key} missing in {last}"
+            );
+        }
+        let f = |r: &serde_json::Value, k: &str| r[k].as_f64().expect(k);
+        assert!(
+            f(last, "surface_rel_error") <= 0.02,
+            "radius {radius}: {last}"
+        );
+        assert!(
+            f(last, "surface_max_nodal_rel_error") <= 0.03,
+            "radius {radius}: {last}"
+        );
+        assert!(
+            f(last, "compliance_rel_error") <= 0.02,
+            "radius {radius}: {last}"
+        );
+        let far = v["far_rows"].as_array().expect("far rows");
+        let (first, none) = (&far[0], far.last().expect("row"));
+        assert!(none["far_tolerance"].is_null());
+        assert_eq!(f(first, "surface_rel_error"), f(last, "surface_rel_error"));
+        assert!(
+            f(none, "surface_rel_error") > 2.0 * f(first, "surface_rel_error"),
+            "radius {radius}: {far:?}"
+        );
+        assert!(f(none, "bytes") < f(first, "bytes"));
+    }
+}

@@ -413,7 +413,18 @@ impl Discretization {
         let mut len = 0usize;
         let mut acc = [0.0; 6];
         for f in faces {
-            if !crate::disk::face_weights(corners(f), p2, center, *radius_mm, &mut acc) {
+            // Most faces are far: reject them by bounding boxes before the disk rule
+            // (a few comparisons instead of three square roots each).
+            let c = corners(f);
+            let r = *radius_mm;
+            if (0..3).any(|d| {
+                let lo = c[0][d].min(c[1][d]).min(c[2][d]);
+                let hi = c[0][d].max(c[1][d]).max(c[2][d]);
+                lo > center[d] + r || hi < center[d] - r
+            }) {
+                continue;
+            }
+            if !crate::disk::face_weights(c, p2, center, r, &mut acc) {
                 continue;
             }
             for a in 0..npf {

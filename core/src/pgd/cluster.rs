@@ -337,7 +337,11 @@ mod tests {
         assert!(c.far.blocks() > 0);
         let dense_entries: usize = c.dense.iter().map(Vec::len).sum();
         let stored = 9 * dense_entries + c.far.u.len() + c.far.v.len();
-        assert!(stored < a.nrows() * a.ncols() * 3 / 4, "{stored} of {}", a.nrows() * a.ncols());
+        assert!(
+            stored < a.nrows() * a.ncols() * 3 / 4,
+            "{stored} of {}",
+            a.nrows() * a.ncols()
+        );
         // Rebuild each column from the blocks and the dense rows.
         let mut worst = 0.0f64;
         for j in 0..cp.len() {
