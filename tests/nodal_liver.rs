@@ -39,7 +39,7 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     let full_rank = 3 * surface.len();
     let settings = NodalSettings {
         modes: full_rank,
-        table_degree: 4,
+        table_degree: Some(4),
         ..NodalSettings::default()
     };
     let (model, report) = build(&s, &settings, "test", |_| {}).expect("build");

@@ -521,8 +521,8 @@ fn bench_cme_sets_pgd_against_ssa_at_equal_accuracy() {
     assert_eq!(v["fsp"]["leak"].as_array().map(Vec::len), Some(2));
 }
 
-/// The default (nodal) route end to end on coarse P1 for tool radii 2 and 10 mm (the
-/// representation does not assume 5): `palpa offline` then `palpa tradeoff`. The
+/// The default (nodal) route end to end on coarse P2 for tool radii 2 and 10 mm (the
+/// representation does not assume 5; a 2 mm tool gets a degree-8 compliance table): `palpa offline` then `palpa tradeoff`. The
 /// held-out surface and force goals hold with the defaults, the far-field rows grow in
 /// error as their tolerance coarsens, and dropping the far field costs accuracy.
 #[test]
@@ -536,8 +536,6 @@ fn nodal_offline_then_tradeoff_meets_the_held_out_goals_for_small_and_large_tool
             "liver",
             "--level",
             "coarse",
-            "--element",
-            "p1",
             "--radius-mm",
             radius,
             "--out",
@@ -546,6 +544,8 @@ fn nodal_offline_then_tradeoff_meets_the_held_out_goals_for_small_and_large_tool
         let built = common::json_ok(&out);
         assert_eq!(built["method"], "nodal");
         assert!(built["far_blocks"].as_u64() > Some(0), "{built}");
+        let degree = if radius == "2" { 8 } else { 5 };
+        assert_eq!(built["table_degree"], degree, "{built}");
         let v = common::json_ok(&palpa(&["tradeoff", m, "--json"]));
         let rows = v["rows"].as_array().expect("rows");
         let last = rows.last().expect("a row");

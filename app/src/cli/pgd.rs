@@ -43,8 +43,9 @@ pub struct OfflineArgs {
     #[arg(long, default_value_t = NodalSettings::default().band_radius_mm)]
     band_radius_mm: f64,
     /// Nodal method: degree of the compliance lattice on each palpable face.
-    #[arg(long, default_value_t = NodalSettings::default().table_degree)]
-    table_degree: usize,
+    /// (Default: 5, raised up to 8 for tools small against the mesh.)
+    #[arg(long)]
+    table_degree: Option<usize>,
     /// Nodal method: tolerance of the hierarchical far field (singular values of the
     /// remainder's well-separated blocks, per unit load response, below it are
     /// dropped); `none` keeps only the band within `--band-radius-mm`.
@@ -225,8 +226,10 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
     if !(args.band_radius_mm.is_finite() && args.band_radius_mm >= 0.0) {
         bail!("--band-radius-mm {} must be ≥ 0", args.band_radius_mm);
     }
-    if !(1..=8).contains(&args.table_degree) {
-        bail!("--table-degree {} must be 1 to 8", args.table_degree);
+    if let Some(q) = args.table_degree
+        && !(1..=8).contains(&q)
+    {
+        bail!("--table-degree {q} must be 1 to 8");
     }
     let material = Material::default();
     let organ = mesh_organ(args.organ, args.level, None)?;
@@ -271,7 +274,7 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
             "surface_map_rel_error": report.surface_map_rel_error,
             "band_radius_mm": settings.band_radius_mm,
             "band_entries": report.band_entries,
-            "table_degree": settings.table_degree,
+            "table_degree": report.table_degree,
             "far_tolerance": settings.far.map(|f| f.tolerance),
             "far_blocks": report.far_blocks,
             "far_bytes": report.far_bytes,

@@ -75,7 +75,8 @@ pub struct NodalSettings {
     /// Surface nodes within this distance of a load node get the exact near field.
     pub band_radius_mm: f64,
     /// Lattice degree of the compliance table.
-    pub table_degree: usize,
+    /// `None`: [`table_degree_for`] the mesh and the tool.
+    pub table_degree: Option<usize>,
     /// Power iterations of the randomized SVD.
     pub power_iterations: usize,
     /// Hierarchical compression of the remainder (dense near blocks plus low-rank far
@@ -89,7 +90,7 @@ impl Default for NodalSettings {
         NodalSettings {
             modes: 20,
             band_radius_mm: 20.0,
-            table_degree: 5,
+            table_degree: None,
             power_iterations: 2,
             far: Some(FarSettings::default()),
             seed: 0x005e_ed0f_10ad,
@@ -114,6 +115,8 @@ pub struct NodalReport {
     /// `‖G_S − X_S Yᵀ‖_F / ‖G_S‖_F` over the whole nodal map.
     pub surface_map_rel_error: f64,
     pub band_entries: usize,
+    /// Degree of the compliance table built.
+    pub table_degree: usize,
     /// Low-rank blocks of the far field and their bytes.
     pub far_blocks: usize,
     pub far_bytes: usize,
@@ -233,6 +236,21 @@ impl NodalSetup {
     }
 
     /// Longest edge of a load face, mm.
+    /// Mean over the load faces of their longest edge (mm).
+    fn h_mean(&self) -> f64 {
+        let p = self.positions();
+        let faces = self.faces();
+        let sum: f64 = faces
+            .iter()
+            .map(|f| {
+                (0..3)
+                    .map(|i| norm(sub(p[f[i] as usize], p[f[(i + 1) % 3] as usize])))
+                    .fold(0.0, f64::max)
+            })
+            .sum();
+        sum / faces.len().max(1) as f64
+    }
+
     fn h_max(&self) -> f64 {
         let p = self.positions();
         self.faces()
@@ -320,6 +338,14 @@ fn solve_columns(s: &NodalSetup, near_radius: f64) -> (Mat<f64>, NearLists, usiz
         }
     }
     (gs, near, cols.len())
+}
+
+/// The compliance table's default degree: the compliance varies on the scale of the
+/// tool, so a face `h_mm` across needs more lattice points the smaller the tool.
+/// Measured on coarse P2: degree 5 holds the force law within 0.7 % for a
+/// 5 mm tool but 3.4 % for a 2 mm one, where degree 8 gives 0.8 %.
+pub fn table_degree_for(h_mm: f64, radius_mm: f64) -> usize {
+    ((2.0 * h_mm / radius_mm.max(1e-3)).ceil() as usize).clamp(5, 8)
 }
 
 /// Randomized rank-`modes` SVD of `a`: returns `V` (cols × N, orthonormal right
@@ -498,7 +524,10 @@ pub fn build(
 
     progress("compliance table");
     let t = Instant::now();
-    let q = settings.table_degree.clamp(1, 8);
+    let q = settings
+        .table_degree
+        .unwrap_or_else(|| table_degree_for(s.h_mean(), s.radius_mm))
+        .clamp(1, 8);
     let lat = lattice(q);
     let faces = s.faces();
     let palpable = match &s.axis {
@@ -560,6 +589,7 @@ pub fn build(
         }
     }
     report.table_s = t.elapsed().as_secs_f64();
+    report.table_degree = q;
     let near = NearField {
         band_radius_mm: settings.band_radius_mm,
         band_modes: n as u32,
