@@ -18,7 +18,7 @@ fn options(t_end: f64) -> ttsolve::Options {
     }
 }
 
-fn build(net: &Network, o: &ttsolve::Options) -> (ttsolve::History, CmeModel) {
+fn build(net: &Network, o: &ttsolve::Options) -> (palpa_core::cme::history::History, CmeModel) {
     let (h, report) = ttsolve::solve(net, o, &mut |_| {}).expect("solves");
     assert!(report.worst_mass_correction < 1e-4, "{report:?}");
     let meta = model::train_meta(net, &h, Provenance::now("test", "", 0.0, Vec::new()));

@@ -20,8 +20,28 @@
 //! `rows × k`, and nothing is allocated.
 
 use serde::{Deserialize, Serialize};
+use thiserror::Error;
 
-use crate::nearfield::NearFieldError;
+/// Why stored far-field blocks are inconsistent with their model.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FarFieldError {
+    #[error("far field: {what} has {found} entries, expected {expected}")]
+    Length {
+        what: &'static str,
+        found: usize,
+        expected: usize,
+    },
+    #[error("far field: row {entry} names field node {node}, the model has {nodes}")]
+    NoSuchNode {
+        entry: usize,
+        node: u32,
+        nodes: usize,
+    },
+    #[error("far field: {what} pointers must rise from 0 (at {at})")]
+    Pointers { what: &'static str, at: usize },
+    #[error("far field: a stored factor holds a non-finite value")]
+    NotFinite,
+}
 
 /// Largest rank of one block (the on-line accumulator's width).
 pub const MAX_RANK: usize = 32;
@@ -72,12 +92,12 @@ impl FarBlocks {
     }
 
     /// Checks every length and index against `load_nodes` and `field_nodes`.
-    pub fn validate(&self, load_nodes: usize, field_nodes: usize) -> Result<(), NearFieldError> {
+    pub fn validate(&self, load_nodes: usize, field_nodes: usize) -> Result<(), FarFieldError> {
         let len = |what, found: usize, expected: usize| {
             if found == expected {
                 Ok(())
             } else {
-                Err(NearFieldError::Length {
+                Err(FarFieldError::Length {
                     what,
                     found,
                     expected,
@@ -92,12 +112,16 @@ impl FarBlocks {
             self.col_ptr.len(),
             load_nodes + 1,
         )?;
-        for ptr in [&self.row_ptr, &self.u_ptr, &self.col_ptr] {
+        for (what, ptr) in [
+            ("row", &self.row_ptr),
+            ("U", &self.u_ptr),
+            ("column", &self.col_ptr),
+        ] {
             if ptr.first() != Some(&0) {
-                return Err(NearFieldError::Pointers { at: 0 });
+                return Err(FarFieldError::Pointers { what, at: 0 });
             }
             if let Some(at) = ptr.windows(2).position(|w| w[0] > w[1]) {
-                return Err(NearFieldError::Pointers { at });
+                return Err(FarFieldError::Pointers { what, at });
             }
         }
         len("far-field rows", self.rows.len(), self.row_ptr[nb] as usize)?;
@@ -105,7 +129,7 @@ impl FarBlocks {
         for b in 0..nb {
             let k = self.rank[b] as usize;
             if k > MAX_RANK {
-                return Err(NearFieldError::Length {
+                return Err(FarFieldError::Length {
                     what: "far-field block rank",
                     found: k,
                     expected: MAX_RANK,
@@ -124,7 +148,7 @@ impl FarBlocks {
         for e in 0..entries {
             let b = self.col_block[e] as usize;
             if b >= nb {
-                return Err(NearFieldError::Length {
+                return Err(FarFieldError::Length {
                     what: "far-field column block index",
                     found: b,
                     expected: nb,
@@ -132,7 +156,7 @@ impl FarBlocks {
             }
             let end = self.v_off[e] as usize + 3 * self.rank[b] as usize;
             if end > self.v.len() {
-                return Err(NearFieldError::Length {
+                return Err(FarFieldError::Length {
                     what: "far-field V",
                     found: self.v.len(),
                     expected: end,
@@ -140,22 +164,20 @@ impl FarBlocks {
             }
         }
         if let Some(entry) = self.rows.iter().position(|&x| x as usize >= field_nodes) {
-            return Err(NearFieldError::NoSuchNode {
+            return Err(FarFieldError::NoSuchNode {
                 entry,
                 node: self.rows[entry],
                 nodes: field_nodes,
             });
         }
         if self.u.iter().chain(&self.v).any(|v| !v.is_finite()) {
-            return Err(NearFieldError::NotFinite {
-                what: "the far field",
-            });
+            return Err(FarFieldError::NotFinite);
         }
         Ok(())
     }
 
     /// Adds `Σ_j w_j R[·, j] t` to `out` (rows `3x + d` of the model's field nodes).
-    /// Allocation-free: coefficients of up to [`ACC_BLOCKS`] blocks are gathered on the
+    /// Allocation-free: coefficients of up to 64 blocks are gathered on the
     /// stack, then applied.
     pub fn add(&self, shares: &[(u32, f64)], mix: [f64; 3], out: &mut [f64]) {
         let mut ids = [u32::MAX; ACC_BLOCKS];
@@ -354,16 +376,13 @@ mod tests {
         f.rows[1] = 9;
         assert!(matches!(
             f.validate(2, 4),
-            Err(NearFieldError::NoSuchNode { node: 9, .. })
+            Err(FarFieldError::NoSuchNode { node: 9, .. })
         ));
         let mut f = one_block();
         f.u.pop();
         assert!(f.validate(2, 4).is_err());
         let mut f = one_block();
         f.v[0] = f32::NAN;
-        assert!(matches!(
-            f.validate(2, 4),
-            Err(NearFieldError::NotFinite { .. })
-        ));
+        assert!(matches!(f.validate(2, 4), Err(FarFieldError::NotFinite)));
     }
 }

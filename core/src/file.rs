@@ -42,12 +42,12 @@ use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
 use crate::axis::Discretization;
-use crate::cme::tt::Core;
 use crate::farfield::FarBlocks;
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
 use crate::scalar::{Precision, Scalar};
 use crate::separated::{ModelError, ModelMeta, SeparatedModel};
+use crate::tensor::tt::Core;
 
 pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
 /// Version 1: separated (sum-of-products) models. Version 2 adds [`Layout`] to the

@@ -11,7 +11,7 @@
 //!   and reconstruction (coefficients → field rows), allocation-free on the hot path;
 //! - [`axis`]: the discretization of one parameter axis (1-D grid, triangulated
 //!   surface, discrete index, surface × direction) and its interpolation stencils;
-//! - [`file`]: the meta-model file (magic, version, checksummed header and payload,
+//! - [`file`](mod@file): the meta-model file (magic, version, checksummed header and payload,
 //!   atomic writes, a loader that never trusts a length it has not checked);
 //! - [`kernels`]: the streaming dot products that bound on-line cost by memory bandwidth;
 //! - [`synthetic`]: reproducible random models for benchmarks and tests;
@@ -19,9 +19,16 @@
 //!   procedural liver with its regions, user OBJ/STL organs;
 //! - [`fe`], [`export`]: the finite-element reference (P1/P2, linear and Saint
 //!   Venant–Kirchhoff) and VTU / gmsh export;
-//! - [`pgd`]: the off-line PGD solvers (the liver palpation vademecum);
+//! - [`pgd`]: the off-line solvers of the liver vademecum (the PGD over tool loads, and
+//!   the default nodal-load route with its hierarchical compression);
+//! - [`disk`], [`nearfield`], [`farfield`]: the tool disk's nodal shares, and what a
+//!   nodal-load vademecum stores beside its modes (dense near blocks, the compliance
+//!   table, low-rank far blocks);
+//! - [`tensor`]: general tensor algebra (dense QR/SVD, sparse 1-D factors, tensor
+//!   trains, AMEn), below every model that uses it;
 //! - [`cme`]: gene networks (TOML, separable propensities), the chemical master
-//!   equation by exact finite state projection and by stochastic simulation;
+//!   equation by exact finite state projection and by stochastic simulation, and its
+//!   parametric meta-models (greedy PGD in CP form, BDF2 on tensor trains);
 //! - [`scene`]: a vademecum prepared for palpation (surface rows, palpable map) and the
 //!   contact law `F = d / c(s)` evaluated on nine rows.
 
@@ -44,6 +51,7 @@ pub mod scene;
 pub mod separated;
 pub mod surface;
 pub mod synthetic;
+pub mod tensor;
 
 pub use axis::{AxisError, Discretization, ParamValue, Stencil};
 pub use file::{AnyModel, FileError};

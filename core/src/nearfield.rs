@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::disk::lagrange_tri;
-use crate::farfield::FarBlocks;
+use crate::farfield::{FarBlocks, FarFieldError};
 
 /// Why a near-field part is inconsistent with its model.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -47,6 +47,8 @@ pub enum NearFieldError {
     NotFinite { what: &'static str },
     #[error("near field: table degree {0} (expected 1 to 8)")]
     Degree(u32),
+    #[error(transparent)]
+    Far(#[from] FarFieldError),
 }
 
 /// The stored near field (f32: it is a correction to the modes' answer).

@@ -83,7 +83,10 @@ pub struct Built {
 
 pub enum Saved {
     Separated(Box<palpa_core::separated::SeparatedModel<f64>>),
-    Train(Box<ttsolve::History>, palpa_core::separated::Provenance),
+    Train(
+        Box<palpa_core::cme::history::History>,
+        palpa_core::separated::Provenance,
+    ),
 }
 
 impl Built {

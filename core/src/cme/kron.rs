@@ -15,6 +15,7 @@
 //! solver to apply.
 
 use super::network::Network;
+use crate::tensor::Sparse1d;
 
 /// One 1-D factor: for each column j, `Some((row, value))` or `None` (a zero column).
 #[derive(Debug, Clone, PartialEq)]
@@ -114,4 +115,17 @@ pub fn apply_rank_one(terms: &[KronTerm], p: &[f64], x: &[Vec<f64>]) -> Vec<(f64
             (scale, ys)
         })
         .collect()
+}
+
+/// A 1-D Kronecker factor as a sparse matrix.
+pub fn sparse_of(f: &Factor1d) -> Sparse1d {
+    let m = f.cols.len();
+    Sparse1d::from_triplets(
+        m,
+        m,
+        f.cols
+            .iter()
+            .enumerate()
+            .filter_map(|(j, c)| c.map(|(i, v)| (i, j, v))),
+    )
 }

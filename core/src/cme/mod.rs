@@ -10,20 +10,29 @@
 //! - [`ssa`]: Gillespie's direct method, seeded, parallel over trajectories, with
 //!   standard errors of the moments.
 //!
+//!
+//! And the parametric meta-models, with unknown rates as extra coordinates:
+//! - [`kron`], [`cp`], [`pgd`]: the generator in Kronecker form and the greedy
+//!   minimal-residual PGD in canonical (CP) form over (species…, parameters…);
+//! - [`ttsolve`]: BDF2 in time on tensor trains (AMEn for each step, from
+//!   [`crate::tensor`]), with [`step`]'s error-controlled step size;
+//! - [`history`]: the solution train over (time, species…, parameters…) and the
+//!   Lagrange weights that read it; [`tteval`] evaluates it on-line, [`model`] wraps
+//!   either form as one meta-model that a scene or `palpa cme eval` queries.
+//!
 //! [`Moments`] holds what every solver reports at each output time: the marginals,
 //! means, variances and the covariance of the first two species.
 
-pub mod amen;
 pub mod cp;
-pub mod dense;
 pub mod fsp;
+pub mod history;
 pub mod kron;
 pub mod model;
 pub mod moments;
 pub mod network;
 pub mod pgd;
 pub mod ssa;
-pub mod tt;
+pub mod step;
 pub mod tteval;
 pub mod ttsolve;
 

@@ -11,13 +11,13 @@
 
 use thiserror::Error;
 
+use super::history::{History, Slot};
 use super::moments::Moments;
 use super::pgd::KIND;
-use super::tt::{Core, Tt};
 use super::tteval::TrainEvaluator;
-use super::ttsolve::{History, Slot};
 use crate::axis::{Discretization, ParamValue};
 use crate::separated::{AxisInfo, FieldInfo, ModelMeta, Provenance, SeparatedModel};
+use crate::tensor::tt::{Core, Tt};
 
 /// The kind string of a tensor-train CME meta-model file.
 pub const TRAIN_KIND: &str = "cme-tensor-train";

@@ -37,11 +37,13 @@ use std::fmt::Write as _;
 
 use thiserror::Error;
 
-use super::cp::{self, OpTerm, RankOne, Sparse1d};
-use super::kron::{Factor1d, generator_terms};
+use super::cp::{self, OpTerm, RankOne};
+use super::kron::{generator_terms, sparse_of};
 use super::network::Network;
+use super::step::{extrapolation_weights, next_step};
 use crate::axis::Discretization;
 use crate::separated::{AxisInfo, FieldInfo, ModelMeta, Provenance, SeparatedModel};
+use crate::tensor::Sparse1d;
 
 /// The kind string of a CME meta-model file.
 pub const KIND: &str = "cme-probability";
@@ -136,42 +138,6 @@ impl Options {
         }
         Ok(t)
     }
-}
-
-/// Weights `l_i` of the quadratic through `(t[0..3], P_i)` evaluated at `t[3]`: the
-/// BDF2 error estimate is 2/9 of `‖P_3 − Σ l_i P_i‖` (both O(h³)).
-pub(crate) fn extrapolation_weights(t: &[f64]) -> [f64; 3] {
-    let l = |i: usize| -> f64 {
-        (0..3)
-            .filter(|&j| j != i)
-            .map(|j| (t[3] - t[j]) / (t[i] - t[j]))
-            .product()
-    };
-    [l(0), l(1), l(2)]
-}
-
-/// The next step after `h` given the relative error estimate `est` of the last one:
-/// the cube-root rule (BDF2 is second order), changed by at most ×0.5 … ×growth.
-pub(crate) fn next_step(h: f64, est: f64, tol: f64, growth: f64, h_min: f64, h_max: f64) -> f64 {
-    let factor = if est > 0.0 {
-        (0.9 * (tol / est).cbrt()).clamp(0.5, growth)
-    } else {
-        growth
-    };
-    (h * factor).clamp(h_min.min(h), h_max)
-}
-
-/// A 1-D Kronecker factor as a sparse matrix.
-pub(crate) fn sparse_of(f: &Factor1d) -> Sparse1d {
-    let m = f.cols.len();
-    Sparse1d::from_triplets(
-        m,
-        m,
-        f.cols
-            .iter()
-            .enumerate()
-            .filter_map(|(j, c)| c.map(|(i, v)| (i, j, v))),
-    )
 }
 
 /// Progress of an off-line solve.

@@ -13,8 +13,8 @@
 //! `π_k(z) = Σ_c w_c · l_k H_c[·, z]`, 4 × 46 × 220 for z1. Cores whose combinations
 //! would exceed the memory budget fall back to the direct contraction.
 
-use super::tt::Core;
-use super::ttsolve::{History, Slot, lagrange_weights};
+use super::history::{History, Slot, lagrange_weights};
+use crate::tensor::tt::Core;
 
 /// Largest number of precomputed values over all cores (32 MB of f64).
 const BUDGET_VALUES: usize = 4 << 20;
@@ -308,9 +308,9 @@ impl TrainEvaluator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cme::tt::Tt;
-    use crate::cme::ttsolve::slot_order;
+    use crate::cme::history::slot_order;
     use crate::rng::Rng;
+    use crate::tensor::tt::Tt;
 
     /// The same values from the particularized train, for checks.
     fn reference(h: &History, t: f64, p: &[f64]) -> TrainValues {

@@ -1,13 +1,13 @@
 //! The CME in tensor-train form: implicit time steps whose ranks follow the error.
 //!
 //! `P(t, z_1…z_d, p_1…p_q)` is kept as a tensor train over (species…, parameters…)
-//! ([`super::tt`]); each range parameter is an axis on its grid, entering the generator
+//! ([`crate::tensor::tt`]); each range parameter is an axis on its grid, entering the generator
 //! as `diag(grid)` on its own axis, so one solve covers every parameter value. The step
 //! is the variable-step BDF2 of [`super::pgd`] (BDF1 first):
 //!
 //! `[(1+2ω)/(1+ω) I − h_k A] P_k = (1+ω) P_{k−1} − ω²/(1+ω) P_{k−2}`, `ω = h_k/h_{k−1}`,
 //!
-//! solved by ALS with residual enrichment ([`super::amen`]), the ranks set by SVD
+//! solved by ALS with residual enrichment ([`crate::tensor::amen`]), the ranks set by SVD
 //! truncation to `eps` (relative), not capped by a greedy budget. Steps adapt so the
 //! BDF2 local error estimate (2/9 of the distance to the quadratic extrapolation of the
 //! three states before) stays near `step_error_tol`.
@@ -20,12 +20,14 @@
 //! truncation is measured in probability and every stored time keeps the same relative
 //! accuracy.
 
-use super::amen::{self, LocalTerm, Mpo};
-use super::cp::Sparse1d;
-use super::kron::{Factor1d, generator_terms};
+use super::history::{History, Slot, lagrange_weights, slot_order};
+use super::kron::{Factor1d, generator_terms, sparse_of};
 use super::network::Network;
-use super::pgd::{CmePgdError, extrapolation_weights, next_step, sparse_of};
-use super::tt::{Core, Tt};
+use super::pgd::CmePgdError;
+use super::step::{extrapolation_weights, next_step};
+use crate::tensor::Sparse1d;
+use crate::tensor::amen::{self, LocalTerm, Mpo};
+use crate::tensor::tt::{Core, Tt};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Options {
@@ -93,41 +95,6 @@ pub struct Report {
     pub history_ranks: Vec<usize>,
     pub solve_seconds: f64,
     pub compress_seconds: f64,
-}
-
-/// What a core of the state's train holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Slot {
-    /// Species `i` (network order).
-    Species(usize),
-    /// Parameter axis `q` (index into [`History::params`]).
-    Param(usize),
-}
-
-/// Core order of the state: the parameter axes sit between the first half of the
-/// species and the rest. A parameter usually multiplies reactions of several species
-/// (the cascade's δ degrades z1 and z2); in the middle it couples to both through short
-/// bonds, and the big species cores stay at the ends, where their local systems are
-/// `n × r` instead of `r × n × r`.
-pub fn slot_order(species: usize, params: usize) -> Vec<Slot> {
-    let half = species.div_ceil(2);
-    (0..half)
-        .map(Slot::Species)
-        .chain((0..params).map(Slot::Param))
-        .chain((half..species).map(Slot::Species))
-        .collect()
-}
-
-/// The solution: a tensor train over (t, slots…).
-#[derive(Debug, Clone, PartialEq)]
-pub struct History {
-    pub sizes: Vec<usize>,
-    pub t: Vec<f64>,
-    /// `(parameter index in the network, grid)` of each parameter axis.
-    pub params: Vec<(usize, Vec<f64>)>,
-    /// What cores `1…` of `tt` hold (core 0 is time).
-    pub order: Vec<Slot>,
-    pub tt: Tt,
 }
 
 fn is_identity(f: &Factor1d) -> bool {
@@ -693,34 +660,6 @@ impl Stored {
     }
 }
 
-/// Local Lagrange weights of `x` on `nodes` through the `points` nodes nearest the
-/// interval holding `x` (2: linear, 4: cubic); clamped to the ends, `true` if `x` lay
-/// outside. Cubic interpolation turns the O(h²) error of hat functions into O(h⁴), which
-/// is what the parameter axes need: at δ = 0.02 the cascade's stationary z1 ~ 50 ± 7
-/// moves by 1.1 copies between neighbouring grid points.
-pub fn lagrange_weights(nodes: &[f64], x: f64, points: usize) -> (Vec<f64>, bool) {
-    let n = nodes.len();
-    let outside = n > 1 && (x < nodes[0] || x > nodes[n - 1]);
-    let x = x.clamp(nodes[0], nodes[n - 1]);
-    let p = points.clamp(1, n);
-    let mut w = vec![0.0; n];
-    if let Some(j) = nodes.iter().position(|&v| v == x) {
-        w[j] = 1.0;
-        return (w, outside);
-    }
-    let i = nodes.partition_point(|&v| v <= x).clamp(1, n - 1) - 1; // x in [i, i+1]
-    let first = (i + 1).saturating_sub(p / 2).min(n - p);
-    let idx: Vec<usize> = (first..first + p).collect();
-    for &j in &idx {
-        w[j] = idx
-            .iter()
-            .filter(|&&m| m != j)
-            .map(|&m| (x - nodes[m]) / (nodes[j] - nodes[m]))
-            .product();
-    }
-    (w, outside)
-}
-
 fn mat_mul(a: &[f64], rows: usize, inner: usize, b: &[f64], cols: usize) -> Vec<f64> {
     let mut out = vec![0.0; rows * cols];
     for i in 0..rows {
@@ -764,7 +703,7 @@ impl History {
                 }
                 Slot::Species(i) => {
                     let c = match pending.take() {
-                        Some((rows, l)) => super::tt::times_left(
+                        Some((rows, l)) => crate::tensor::tt::times_left(
                             faer::MatRef::from_row_major_slice(&l, rows, core.r0),
                             core,
                         ),
@@ -778,8 +717,10 @@ impl History {
             let last = kept.len() - 1;
             let c = &kept[last].1;
             let cols = l.len() / rows;
-            kept[last].1 =
-                super::tt::times_right(c, faer::MatRef::from_row_major_slice(&l, rows, cols));
+            kept[last].1 = crate::tensor::tt::times_right(
+                c,
+                faer::MatRef::from_row_major_slice(&l, rows, cols),
+            );
         }
         kept.sort_by_key(|(i, _)| *i);
         // Species cores in network order are still a train only if the order kept them

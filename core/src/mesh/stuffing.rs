@@ -19,7 +19,7 @@
 //!
 //! The paper's angle bound (10.7°–164.8°) assumes its parity rule for the diagonals;
 //! this implementation uses the index rule instead, and measures the angles it gets
-//! ([`super::quality`]). The surface is resolved to O(h): features thinner than about
+//! ([`super::quality`](mod@super::quality)). The surface is resolved to O(h): features thinner than about
 //! h (a sharp edge, a thin lobe) are rounded off at coarse levels.
 
 use std::collections::HashMap;

@@ -14,8 +14,8 @@
 
 use faer::{Mat, MatRef};
 
-use crate::cme::dense::thin_svd;
 use crate::farfield::{FarBlocks, MAX_RANK};
+use crate::tensor::dense::thin_svd;
 
 /// Options of the compression.
 #[derive(Debug, Clone, Copy, PartialEq)]

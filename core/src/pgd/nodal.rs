@@ -38,7 +38,6 @@ use rayon::prelude::*;
 use super::cluster::{FarSettings, compress};
 use super::palpation::vademecum_meta;
 use crate::axis::{Discretization, MAX_LOAD_NODES};
-use crate::cme::dense::{thin_qr, thin_svd};
 use crate::disk::{lattice, tri_shape};
 use crate::fe::elasticity::LinearProblem;
 use crate::fe::probe::organ_space;
@@ -49,6 +48,7 @@ use crate::nearfield::NearField;
 use crate::organ::OrganMesh;
 use crate::rng::Rng;
 use crate::separated::{AxisInfo, Provenance, SeparatedModel};
+use crate::tensor::dense::{thin_qr, thin_svd};
 
 /// The load axis and the operators, built once.
 #[derive(Debug)]

@@ -18,7 +18,7 @@
 
 use faer::{Mat, MatMut, MatRef};
 
-use super::cp::Sparse1d;
+use super::Sparse1d;
 use super::dense::{thin_qr, thin_svd};
 use super::tt::{Core, Tt, gemm, left_qr, mul, times_left};
 
