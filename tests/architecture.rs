@@ -13,7 +13,7 @@ const FLOORS: &[(&str, u32)] = &[
     ("tensor", 1),
     ("disk", 1),
     ("axis", 1),
-    ("surface", 1),
+    ("surface_import", 1),
     ("farfield", 1),
     ("kernels", 2),
     ("nearfield", 2),

@@ -128,7 +128,7 @@ fn the_first_three_species_of_a_signaling_cascade_match_their_closed_chain() {
     }
     assert!(matches!(
         ttsolve::solve_at(&net, &o, &[5.0, 1.0], &mut |_| {}),
-        Err(palpa_core::cme::pgd::CmePgdError::TimeGrid(_))
+        Err(palpa_core::cme::greedy::CmePgdError::TimeGrid(_))
     ));
 }
 

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use palpa_core::mesh::quality;
 use palpa_core::organ::liver::{Liver, spacing_mm};
 use palpa_core::organ::{Level, default_user_regions, mesh_organ};
-use palpa_core::surface::{SurfaceSolid, TriSurface};
+use palpa_core::surface_import::{SurfaceSolid, TriSurface};
 
 #[test]
 fn the_liver_surface_round_trips_through_obj_into_a_volume_mesh() {

@@ -12,15 +12,15 @@
 //! - [`session`]: one palpation session (scene, controls, force loop, frame statistics)
 //!   shared by the window and the headless mode;
 //! - [`ui`]: the egui panels; [`window`]: winit and the surface lifecycle;
-//!   [`headless`]: offscreen frames with a scripted probe.
+//!   [`offscreen`]: headless frames rendered offscreen with a scripted probe.
 
 pub mod camera;
 pub mod cli;
 pub mod force;
 pub mod gamepad;
-pub mod headless;
 pub mod input;
 pub mod latest;
+pub mod offscreen;
 pub mod overlay;
 pub mod pick;
 pub mod platform;
@@ -29,6 +29,6 @@ pub mod render;
 pub mod scenes;
 pub mod session;
 pub mod stats;
-pub mod surface;
+pub mod swapchain;
 pub mod ui;
 pub mod window;

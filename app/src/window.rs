@@ -34,7 +34,7 @@ use crate::render::Renderer;
 use crate::render::gpu::Gpu;
 use crate::render::offscreen::{FORMAT, Offscreen, UI_FORMAT};
 use crate::session::Session;
-use crate::surface::SurfaceHost;
+use crate::swapchain::SurfaceHost;
 use crate::ui::Hud;
 
 /// GPU state, created at the first resume (it needs a surface to pick an adapter).

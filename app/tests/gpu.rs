@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use palpa_app::force::NoHaptics;
-use palpa_app::headless::settle;
+use palpa_app::offscreen::settle;
 use palpa_app::render::Renderer;
 use palpa_app::render::gpu::Gpu;
 use palpa_app::render::offscreen::{FORMAT, Image, Offscreen};

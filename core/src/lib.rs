@@ -15,7 +15,7 @@
 //!   atomic writes, a loader that never trusts a length it has not checked);
 //! - [`kernels`]: the streaming dot products that bound on-line cost by memory bandwidth;
 //! - [`synthetic`]: reproducible random models for benchmarks and tests;
-//! - [`mesh`], [`organ`], [`surface`]: tetrahedral meshing (isosurface stuffing), the
+//! - [`mesh`], [`organ`], [`surface_import`]: tetrahedral meshing (isosurface stuffing), the
 //!   procedural liver with its regions, user OBJ/STL organs;
 //! - [`fe`], [`export`]: the finite-element reference (P1/P2, linear and Saint
 //!   Venant–Kirchhoff) and VTU / gmsh export;
@@ -49,7 +49,7 @@ pub mod rng;
 pub mod scalar;
 pub mod scene;
 pub mod separated;
-pub mod surface;
+pub mod surface_import;
 pub mod synthetic;
 pub mod tensor;
 

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::cme::model::{self, CmeModel};
-use palpa_core::cme::{Moments, Network, fsp, pgd, ssa, ttsolve};
+use palpa_core::cme::{Moments, Network, fsp, greedy, ssa, ttsolve};
 use palpa_core::file;
 use serde::Serialize;
 
@@ -100,12 +100,12 @@ impl Built {
 }
 
 impl PgdArgs {
-    pub fn options(&self, t_default: f64) -> pgd::Options {
-        let mut o = pgd::Options {
+    pub fn options(&self, t_default: f64) -> greedy::Options {
+        let mut o = greedy::Options {
             t_end: self.t_end.unwrap_or(t_default),
             h_first: self.first_step.unwrap_or(0.02),
             h_max: self.max_step.unwrap_or(1.0),
-            ..pgd::Options::default()
+            ..greedy::Options::default()
         };
         o.max_modes = self.modes;
         o.compress_tol = self.tol;
@@ -497,13 +497,13 @@ pub fn model_coordinates(model: &CmeModel, network: &Network, p: &[f64]) -> Vec<
 /// Runs the PGD solver with a progress line on stderr.
 pub fn run_pgd(
     network: &Network,
-    options: &pgd::Options,
-) -> anyhow::Result<(palpa_core::separated::SeparatedModel<f64>, pgd::Report)> {
+    options: &greedy::Options,
+) -> anyhow::Result<(palpa_core::separated::SeparatedModel<f64>, greedy::Report)> {
     let start = Instant::now();
     let max = options.max_modes;
-    let out = pgd::solve(network, options, &mut |p| {
+    let out = greedy::solve(network, options, &mut |p| {
         match p {
-            pgd::Progress::Step {
+            greedy::Progress::Step {
                 k,
                 n,
                 rank,
@@ -515,7 +515,7 @@ pub fn run_pgd(
                     per * (n - k) as f64
                 );
             }
-            pgd::Progress::Compress { terms, residual } => {
+            greedy::Progress::Compress { terms, residual } => {
                 eprint!(
                     "\rcompressing the history: {terms:>4}/{max} terms, error {residual:.2e}          "
                 );

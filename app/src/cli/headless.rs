@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use clap::Args;
 
-use crate::headless::{HeadlessOptions, run};
+use crate::offscreen::{HeadlessOptions, run};
 
 #[derive(Debug, Args)]
 pub struct HeadlessArgs {

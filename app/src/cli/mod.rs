@@ -9,10 +9,10 @@ mod cme;
 mod fe;
 mod headless;
 mod info;
+mod liver;
 mod memory;
 mod mesh;
 mod organ;
-mod pgd;
 mod plot;
 mod synth;
 mod tradeoff;
@@ -47,11 +47,11 @@ enum Command {
     #[command(subcommand)]
     Fe(fe::FeCommand),
     /// Compute a PGD vademecum off-line (resumable).
-    Offline(pgd::OfflineArgs),
+    Offline(liver::OfflineArgs),
     /// Evaluate a palpation meta-model at a probe point (no solving).
-    Eval(pgd::EvalArgs),
+    Eval(liver::EvalArgs),
     /// Keep only what a scene needs (surface rows, n modes, f32) for shipping.
-    ExportScene(pgd::ExportSceneArgs),
+    ExportScene(liver::ExportSceneArgs),
     /// Measure the speed/accuracy table of a vademecum and store it in its header.
     Tradeoff(tradeoff::TradeoffArgs),
     /// Gene-network models: the chemical master equation.
@@ -93,9 +93,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Synth(args)) => synth::run(&args),
         Some(Command::Mesh(args)) => mesh::run(&args),
         Some(Command::Fe(cmd)) => fe::run(&cmd),
-        Some(Command::Offline(args)) => pgd::offline(&args),
-        Some(Command::Eval(args)) => pgd::eval(&args),
-        Some(Command::ExportScene(args)) => pgd::export_scene(&args),
+        Some(Command::Offline(args)) => liver::offline(&args),
+        Some(Command::Eval(args)) => liver::eval(&args),
+        Some(Command::ExportScene(args)) => liver::export_scene(&args),
         Some(Command::Tradeoff(args)) => tradeoff::run(&args),
         Some(Command::Headless(args)) => headless::run_cmd(&args),
         Some(Command::Cme(cmd)) => cme::run(&cmd),

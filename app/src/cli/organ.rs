@@ -7,7 +7,7 @@ use clap::ValueEnum;
 use palpa_core::mesh::stuffing::Implicit;
 use palpa_core::organ::liver::{Liver, spacing_mm};
 use palpa_core::organ::{Level, OrganMesh, default_user_regions, mesh_organ, spacing_for_diagonal};
-use palpa_core::surface::{SurfaceSolid, TriSurface};
+use palpa_core::surface_import::{SurfaceSolid, TriSurface};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum OrganName {

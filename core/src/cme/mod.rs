@@ -12,7 +12,7 @@
 //!
 //!
 //! And the parametric meta-models, with unknown rates as extra coordinates:
-//! - [`kron`], [`cp`], [`pgd`]: the generator in Kronecker form and the greedy
+//! - [`kron`], [`cp`], [`greedy`]: the generator in Kronecker form and the greedy
 //!   minimal-residual PGD in canonical (CP) form over (species…, parameters…);
 //! - [`ttsolve`]: BDF2 in time on tensor trains (AMEn for each step, from
 //!   [`crate::tensor`]), with [`step`]'s error-controlled step size;
@@ -25,12 +25,12 @@
 
 pub mod cp;
 pub mod fsp;
+pub mod greedy;
 pub mod history;
 pub mod kron;
 pub mod model;
 pub mod moments;
 pub mod network;
-pub mod pgd;
 pub mod ssa;
 pub mod step;
 pub mod tteval;

@@ -11,9 +11,9 @@
 
 use thiserror::Error;
 
+use super::greedy::KIND;
 use super::history::{History, Slot};
 use super::moments::Moments;
-use super::pgd::KIND;
 use super::tteval::TrainEvaluator;
 use crate::axis::{Discretization, ParamValue};
 use crate::separated::{AxisInfo, FieldInfo, ModelMeta, Provenance, SeparatedModel};

@@ -3,7 +3,7 @@
 //! `P(t, z_1…z_d, p_1…p_q)` is kept as a tensor train over (species…, parameters…)
 //! ([`crate::tensor::tt`]); each range parameter is an axis on its grid, entering the generator
 //! as `diag(grid)` on its own axis, so one solve covers every parameter value. The step
-//! is the variable-step BDF2 of [`super::pgd`] (BDF1 first):
+//! is the variable-step BDF2 of [`super::greedy`] (BDF1 first):
 //!
 //! `[(1+2ω)/(1+ω) I − h_k A] P_k = (1+ω) P_{k−1} − ω²/(1+ω) P_{k−2}`, `ω = h_k/h_{k−1}`,
 //!
@@ -20,10 +20,10 @@
 //! truncation is measured in probability and every stored time keeps the same relative
 //! accuracy.
 
+use super::greedy::CmePgdError;
 use super::history::{History, Slot, lagrange_weights, slot_order};
 use super::kron::{Factor1d, generator_terms, sparse_of};
 use super::network::Network;
-use super::pgd::CmePgdError;
 use super::step::{extrapolation_weights, next_step};
 use crate::tensor::Sparse1d;
 use crate::tensor::amen::{self, LocalTerm, Mpo};

@@ -2,7 +2,7 @@
 //!
 //! Units: millimetres. Axes follow the patient: +x towards the patient's left, +y
 //! anterior, +z superior (cranial). The default organ is a procedural liver
-//! ([`liver::Liver`]); a user's closed surface can stand in for it ([`crate::surface`]).
+//! ([`liver::Liver`]); a user's closed surface can stand in for it ([`crate::surface_import`]).
 
 pub mod liver;
 pub mod region;

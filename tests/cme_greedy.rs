@@ -4,7 +4,7 @@
 use palpa_core::cme::model::{CmeModel, CmeModelError};
 use palpa_core::cme::moments::l1;
 use palpa_core::cme::network::Network;
-use palpa_core::cme::{fsp, pgd};
+use palpa_core::cme::{fsp, greedy};
 use palpa_core::file;
 use palpa_tests::poisson;
 
@@ -30,19 +30,19 @@ rate = ["g"]
 factors = [{ species = "x", kind = "linear" }]
 "#;
 
-fn options(t_end: f64) -> pgd::Options {
-    pgd::Options {
+fn options(t_end: f64) -> greedy::Options {
+    greedy::Options {
         t_end,
         h_first: 0.01,
         h_max: 0.1,
-        ..pgd::Options::default()
+        ..greedy::Options::default()
     }
 }
 
 #[test]
 fn a_rate_as_a_coordinate_matches_the_closed_form_on_and_between_grid_points() {
     let net = Network::from_toml(IMMIGRATION_DEATH, "test").expect("parses");
-    let (model, report) = pgd::solve(&net, &options(10.0), &mut |_| {}).expect("solves");
+    let (model, report) = greedy::solve(&net, &options(10.0), &mut |_| {}).expect("solves");
     assert!(report.worst_step_residual <= 1e-5, "{report:?}");
     let res = &model.provenance().residual_per_mode;
     assert!(
@@ -92,7 +92,7 @@ fn a_rate_as_a_coordinate_matches_the_closed_form_on_and_between_grid_points() {
 #[test]
 fn the_toggle_switch_by_pgd_matches_exact_fsp() {
     let net = Network::built_in("toggle").expect("built in");
-    let (model, _) = pgd::solve(&net, &options(20.0), &mut |_| {}).expect("solves");
+    let (model, _) = greedy::solve(&net, &options(20.0), &mut |_| {}).expect("solves");
     let cme = CmeModel::new(model).expect("a CME model");
     let (p, _) = net.parameter_values(&[]).expect("defaults");
     let times = [2.0, 20.0];
@@ -115,11 +115,11 @@ fn the_toggle_switch_by_pgd_matches_exact_fsp() {
 #[test]
 fn a_cme_model_survives_the_file_and_bad_requests_get_named_errors() {
     let net = Network::from_toml(IMMIGRATION_DEATH, "test").expect("parses");
-    let opts = pgd::Options {
+    let opts = greedy::Options {
         max_modes: 30,
         ..options(2.0)
     };
-    let (model, _) = pgd::solve(&net, &opts, &mut |_| {}).expect("solves");
+    let (model, _) = greedy::solve(&net, &opts, &mut |_| {}).expect("solves");
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("id.palpa");
     file::save(&model, &path).expect("saves");
@@ -157,6 +157,6 @@ fn a_cme_model_survives_the_file_and_bad_requests_get_named_errors() {
     // An automatic box is refused with the species' name.
     let auto = IMMIGRATION_DEATH.replace("max = 48", "max = \"auto\"");
     let net = Network::from_toml(&auto, "auto").expect("ok");
-    let err = pgd::solve(&net, &opts, &mut |_| {}).expect_err("refused");
+    let err = greedy::solve(&net, &opts, &mut |_| {}).expect_err("refused");
     assert!(err.to_string().contains("species x"), "{err}");
 }
