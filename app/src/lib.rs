@@ -1,6 +1,7 @@
-//! palpa-app: the interactive palpation app and the `palpa` command line.
+//! palpa-app: the interactive palpation app (the `palpa` command line is the binary's
+//! own module tree, `src/cli/`, so the mobile `cdylib` never compiles it).
 //!
-//! Platform entry points stay thin: `main.rs` calls [`cli::main`], [`platform`] holds
+//! Platform entry points stay thin: `main.rs` parses and dispatches, [`platform`] holds
 //! `android_main`; everything else is plain library code that a test can call.
 //!
 //! - [`render`]: wgpu rendering of a scene into any texture view (window or offscreen),
@@ -15,7 +16,6 @@
 //!   [`offscreen`]: headless frames rendered offscreen with a scripted probe.
 
 pub mod camera;
-pub mod cli;
 pub mod force;
 pub mod gamepad;
 pub mod input;

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use clap::Args;
 
-use crate::offscreen::{HeadlessOptions, run};
+use palpa_app::offscreen::{HeadlessOptions, run};
 
 #[derive(Debug, Args)]
 pub struct HeadlessArgs {

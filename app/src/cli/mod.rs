@@ -99,7 +99,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Tradeoff(args)) => tradeoff::run(&args),
         Some(Command::Headless(args)) => headless::run_cmd(&args),
         Some(Command::Cme(cmd)) => cme::run(&cmd),
-        Some(Command::Open(args)) => crate::window::run(&args.scene),
+        Some(Command::Open(args)) => palpa_app::window::run(&args.scene),
         None => default_job(),
     }
 }
@@ -115,5 +115,5 @@ pub struct OpenArgs {
 
 /// With no subcommand: the interactive app on the default scene.
 fn default_job() -> anyhow::Result<()> {
-    crate::window::run("liver")
+    palpa_app::window::run("liver")
 }
