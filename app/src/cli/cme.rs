@@ -50,27 +50,27 @@ pub struct PgdArgs {
     #[arg(long)]
     step_error: Option<f64>,
     /// tt: relative SVD truncation of each step's state.
-    #[arg(long, default_value_t = 1e-8)]
+    #[arg(long, default_value_t = ttsolve::Options::default().eps)]
     eps: f64,
     /// tt: relative truncation of each stored state in the history.
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, default_value_t = ttsolve::Options::default().compress_eps)]
     compress_eps: f64,
     /// tt: floor of the history's probability weights, relative to each marginal's
     /// peak: small weighs the tails as much as the bulk (mass exact, ranks high),
     /// large approaches plain L2 (ranks low).
-    #[arg(long, default_value_t = 1e-2)]
+    #[arg(long, default_value_t = ttsolve::Options::default().weight_floor)]
     weight_floor: f64,
     /// tt: largest rank of a step's state.
-    #[arg(long, default_value_t = 120)]
+    #[arg(long, default_value_t = ttsolve::Options::default().max_rank)]
     max_rank: usize,
     /// greedy: most terms of the final model.
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = greedy::Options::default().max_modes)]
     modes: usize,
     /// greedy: relative L2 error of the compressed time history.
-    #[arg(long, default_value_t = 1e-5)]
+    #[arg(long, default_value_t = greedy::Options::default().compress_tol)]
     tol: f64,
     /// greedy: relative residual of each implicit time step.
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, default_value_t = greedy::Options::default().step_tol)]
     step_tol: f64,
 }
 
@@ -101,30 +101,32 @@ impl Built {
 
 impl PgdArgs {
     pub fn options(&self, t_default: f64) -> greedy::Options {
-        let mut o = greedy::Options {
+        // The solver's own defaults are the one source; flags only override them.
+        let d = greedy::Options::default();
+        greedy::Options {
             t_end: self.t_end.unwrap_or(t_default),
-            h_first: self.first_step.unwrap_or(0.02),
-            h_max: self.max_step.unwrap_or(1.0),
-            ..greedy::Options::default()
-        };
-        o.max_modes = self.modes;
-        o.compress_tol = self.tol;
-        o.step_tol = self.step_tol;
-        o.step_error_tol = self.step_error.unwrap_or(3e-5);
-        o
+            h_first: self.first_step.unwrap_or(d.h_first),
+            h_max: self.max_step.unwrap_or(d.h_max),
+            max_modes: self.modes,
+            compress_tol: self.tol,
+            step_tol: self.step_tol,
+            step_error_tol: self.step_error.unwrap_or(d.step_error_tol),
+            ..d
+        }
     }
 
     pub fn tt_options(&self, t_default: f64) -> ttsolve::Options {
+        let d = ttsolve::Options::default();
         ttsolve::Options {
             t_end: self.t_end.unwrap_or(t_default),
-            h_first: self.first_step.unwrap_or(0.01),
-            h_max: self.max_step.unwrap_or(5.0),
-            step_error_tol: self.step_error.unwrap_or(3e-6),
+            h_first: self.first_step.unwrap_or(d.h_first),
+            h_max: self.max_step.unwrap_or(d.h_max),
+            step_error_tol: self.step_error.unwrap_or(d.step_error_tol),
             eps: self.eps,
             compress_eps: self.compress_eps,
             weight_floor: self.weight_floor,
             max_rank: self.max_rank,
-            ..ttsolve::Options::default()
+            ..d
         }
     }
 
@@ -182,19 +184,7 @@ impl PgdArgs {
                 };
                 eprintln!();
                 let seconds = start.elapsed().as_secs_f64();
-                let mut prov = palpa_core::separated::Provenance::now(
-                    "cme tensor train: BDF2 steps by ALS with enrichment, mass balanced, history rounded",
-                    &format!(
-                        "network {}; box {:?}; {} steps to t = {}; {o:?}",
-                        network.name, h.sizes, r.steps, o.t_end
-                    ),
-                    o.compress_eps,
-                    Vec::new(),
-                );
-                prov.input_hash = format!(
-                    "{:016x}",
-                    xxhash_rust::xxh3::xxh3_64(format!("{network:?}{o:?}").as_bytes())
-                );
+                let prov = model::train_provenance(network, &h, r.steps, &o);
                 let report = serde_json::json!({
                     "solver": "tt",
                     "steps": r.steps,

@@ -1,18 +1,24 @@
-//! Organ selection shared by the mesh and FE commands.
+//! Organ and level arguments shared by the mesh, FE and vademecum commands (parsing
+//! only: the catalogue is `palpa_core::organ::catalogue`).
 
 use std::path::Path;
 
-use anyhow::Context;
 use clap::ValueEnum;
-use palpa_core::mesh::stuffing::Implicit;
-use palpa_core::organ::liver::{Liver, spacing_mm};
-use palpa_core::organ::{Level, OrganMesh, default_user_regions, mesh_organ, spacing_for_diagonal};
-use palpa_core::surface_import::{SurfaceSolid, TriSurface};
+use palpa_core::organ::catalogue;
+use palpa_core::organ::{Level, OrganMesh};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum OrganName {
     /// The procedural liver (≈ 200 × 150 × 100 mm).
     Liver,
+}
+
+impl From<OrganName> for catalogue::OrganName {
+    fn from(o: OrganName) -> catalogue::OrganName {
+        match o {
+            OrganName::Liver => catalogue::OrganName::Liver,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -38,30 +44,5 @@ pub fn mesh(
     level: LevelArg,
     surface: Option<&Path>,
 ) -> anyhow::Result<OrganMesh> {
-    if let Some(path) = surface {
-        let mut s = TriSurface::read(path)?;
-        s.validate()
-            .with_context(|| format!("{} cannot be meshed", path.display()))?;
-        let solid = SurfaceSolid::new(s);
-        let (lo, hi) = solid.bounds();
-        let diag = (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt();
-        let (fixed, palpable) = default_user_regions();
-        return Ok(mesh_organ(
-            &solid,
-            spacing_for_diagonal(level.into(), diag),
-            &fixed,
-            &palpable,
-        ));
-    }
-    Ok(match organ {
-        OrganName::Liver => {
-            let liver = Liver::default();
-            mesh_organ(
-                &liver,
-                spacing_mm(level.into()),
-                &liver.fixed_region(),
-                &liver.palpable_region(),
-            )
-        }
-    })
+    Ok(catalogue::mesh(organ.into(), level.into(), surface)?)
 }

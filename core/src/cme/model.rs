@@ -22,6 +22,30 @@ use crate::tensor::tt::{Core, Tt};
 /// The kind string of a tensor-train CME meta-model file.
 pub const TRAIN_KIND: &str = "cme-tensor-train";
 
+/// The provenance of a tensor-train meta-model: method, network, box, steps and the
+/// options, hashed so a later run can tell whether its inputs changed.
+pub fn train_provenance(
+    network: &super::network::Network,
+    history: &History,
+    steps: usize,
+    options: &super::ttsolve::Options,
+) -> Provenance {
+    let mut prov = Provenance::now(
+        "cme tensor train: BDF2 steps by ALS with enrichment, mass balanced, history rounded",
+        &format!(
+            "network {}; box {:?}; {} steps to t = {}; {options:?}",
+            network.name, history.sizes, steps, options.t_end
+        ),
+        options.compress_eps,
+        Vec::new(),
+    );
+    prov.input_hash = format!(
+        "{:016x}",
+        xxhash_rust::xxh3::xxh3_64(format!("{network:?}{options:?}").as_bytes())
+    );
+    prov
+}
+
 /// The file description of a solved history: axes in core order (t, then species as
 /// discrete axes and parameters as grids, in the solver's slot order).
 pub fn train_meta(

@@ -4,6 +4,7 @@
 //! anterior, +z superior (cranial). The default organ is a procedural liver
 //! ([`liver::Liver`]); a user's closed surface can stand in for it ([`crate::surface_import`]).
 
+pub mod catalogue;
 pub mod liver;
 pub mod region;
 
