@@ -720,3 +720,11 @@ impl<T: Scalar> SeparatedModel<T> {
         (&self.x, self.axes.iter().map(|a| a.values.as_slice()))
     }
 }
+
+/// Every row (`3·node + c`) of the given nodes, in order.
+pub fn node_rows(nodes: &[u32]) -> Vec<u32> {
+    nodes
+        .iter()
+        .flat_map(|&n| (0..3).map(move |c| 3 * n + c))
+        .collect()
+}

@@ -73,10 +73,7 @@ pub fn mean_ns(reps: u32, mut f: impl FnMut() -> anyhow::Result<()>) -> anyhow::
 
 /// Every row (`3·node + c`) of the given nodes, in order.
 pub fn rows_of(nodes: &[u32]) -> Vec<u32> {
-    nodes
-        .iter()
-        .flat_map(|&n| (0..3).map(move |c| 3 * n + c))
-        .collect()
+    palpa_core::separated::node_rows(nodes)
 }
 
 /// Prints a command's JSON report: one line with `--json`, indented otherwise.

@@ -11,7 +11,6 @@
 //! and direction).
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::Args;
@@ -299,8 +298,8 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     super::args::print_report(&out, args.json)
 }
 
-/// The tradeoff of a nodal-load vademecum: held-out errors with the near field (and,
-/// for comparison, without it) for n = 1 … N, and the time of what the app runs.
+/// The tradeoff of a nodal-load vademecum (measured by `palpa_core::pgd::tradeoff`),
+/// stored in the file's header and printed.
 fn run_nodal(
     args: &TradeoffArgs,
     model: palpa_core::SeparatedModel<f64>,
@@ -309,159 +308,75 @@ fn run_nodal(
     material: Material,
     radius_mm: f64,
 ) -> anyhow::Result<()> {
-    use palpa_core::fe::elasticity::LinearProblem;
-    use palpa_core::fe::probe::organ_space;
-    use palpa_core::pgd::heldout;
-    let t0 = Instant::now();
-    let space = organ_space(organ, element);
-    let problem = LinearProblem::new(&space, material)?;
-    let cases = heldout::cases(&space, &problem, organ, radius_mm, args.held_out, 0x7e57)?;
-    let fe_s = t0.elapsed().as_secs_f64();
-    let surface_nodes = organ.surface_nodes();
-    let surface_rows = rows_of(&surface_nodes);
-    let n_max = model.modes();
-    let mut ns: Vec<usize> = [1, 2, 5, 10, 20, 50, 100, 150, 200, 300, 400]
-        .into_iter()
-        .filter(|&n| n < n_max)
-        .collect();
-    ns.push(n_max);
-    let near_bytes = model.near().map_or(0, |n| n.bytes());
-    let axis_nodes = model.axes()[0].info.discretization.node_count();
-    let bare = model.clone().without_near();
-    let near = model
-        .near()
-        .context("a nodal model without its near field")?;
-    let face0 = near
-        .table_block
+    use palpa_core::pgd::tradeoff::nodal_table;
+    let t = nodal_table(&model, organ, element, material, radius_mm, args.held_out)?;
+    let worst = |e: &palpa_core::pgd::heldout::Errors| {
+        let c = &t.cases[e.worst_surface_case];
+        json!({"kind": c.kind, "point_mm": c.point})
+    };
+    let rows: Vec<TradeoffRow> = t
+        .rows
         .iter()
-        .position(|&b| b != u32::MAX)
-        .context("the compliance table covers no face")? as u32;
-    let probe = [ParamValue::SurfaceMix {
-        triangle: face0,
-        bary: [1.0 / 3.0; 3],
-        mix: cases[0].dir,
-    }];
-    let mut rows = Vec::new();
-    let mut json_rows = Vec::new();
-    for &n in &ns {
-        let e = heldout::nodal_errors(&model, &space, &cases, &surface_nodes, n)?;
-        let e_bare = heldout::nodal_errors(&bare, &space, &cases, &surface_nodes, n)?;
-        let surface_eval_us = frame_us(&model, &probe, &surface_rows, n)?;
-        // What the force loop runs: the compliance tensor at a point.
-        let near = model
-            .near()
-            .context("a nodal model without its near field")?;
-        let reps = 20_000;
-        let t = Instant::now();
-        let mut acc = 0.0;
-        for i in 0..reps {
-            let b = f64::from(i % 7) * 0.1;
-            if let Some(ct) = near.compliance_tensor(
-                face0,
-                std::hint::black_box([0.2 + b * 0.5, 0.3, 0.5 - b * 0.5]),
-            ) {
-                acc += ct[2][2];
-            }
-        }
-        std::hint::black_box(acc);
-        let contact_eval_ns = t.elapsed().as_nanos() as f64 / f64::from(reps);
-        let bytes = ((surface_rows.len() + axis_nodes) * n * 4 + near_bytes) as u64;
-        rows.push(TradeoffRow {
-            modes: n as u32,
-            surface_rel_error: e.surface_rel_error,
-            probe_rel_error: e.compliance_rel_error,
+        .map(|r| TradeoffRow {
+            modes: r.modes as u32,
+            surface_rel_error: r.errors.surface_rel_error,
+            probe_rel_error: r.errors.compliance_rel_error,
             map_rel_error: None,
             svd_rel_error: None,
-            surface_eval_us,
-            contact_eval_ns,
-            bytes,
-            compliance_rel_error: Some(e.compliance_rel_error),
-            surface_max_nodal_error_mm: Some(e.surface_max_nodal_error_mm),
-        });
-        json_rows.push(json!({
-            "modes": n, "surface_rel_error": e.surface_rel_error,
-            "probe_rel_error": e.compliance_rel_error,
-            "compliance_rel_error": e.compliance_rel_error,
-            "surface_max_nodal_error_mm": e.surface_max_nodal_error_mm,
-            "surface_max_nodal_rel_error": e.surface_max_nodal_rel_error,
-            "worst_surface_case": {"kind": cases[e.worst_surface_case].kind,
-                                   "point_mm": cases[e.worst_surface_case].point},
-            "map_rel_error": null, "svd_rel_error": null,
-            "without_near_field": {"surface_rel_error": e_bare.surface_rel_error,
-                                   "surface_max_nodal_error_mm": e_bare.surface_max_nodal_error_mm,
-                                   "compliance_rel_error": e_bare.compliance_rel_error},
-            "surface_eval_us": surface_eval_us, "contact_eval_ns": contact_eval_ns, "bytes": bytes,
-        }));
-    }
-    // The far field's knob: its blocks truncated on load to coarser tolerances, and
-    // no far field at all (the dense near blocks stay).
-    let mut far_rows = Vec::new();
-    if let Some(t0) = near.far.as_ref().map(|f| f.tolerance) {
-        let tols = [1.0, 2.0, 5.0, 10.0, 30.0].map(|f| Some(f * t0));
-        for tol in tols.into_iter().chain([None]) {
-            let m = model.clone().with_far_tolerance(tol);
-            let e = heldout::nodal_errors(&m, &space, &cases, &surface_nodes, n_max)?;
-            let near_bytes = m.near().map_or(0, |n| n.bytes());
-            far_rows.push(json!({
-                "far_tolerance": tol, "modes": n_max,
+            surface_eval_us: r.surface_eval_us,
+            contact_eval_ns: r.contact_eval_ns,
+            bytes: r.bytes,
+            compliance_rel_error: Some(r.errors.compliance_rel_error),
+            surface_max_nodal_error_mm: Some(r.errors.surface_max_nodal_error_mm),
+        })
+        .collect();
+    let json_rows: Vec<_> = t
+        .rows
+        .iter()
+        .map(|r| {
+            let (e, b) = (&r.errors, &r.without_near);
+            json!({
+                "modes": r.modes, "surface_rel_error": e.surface_rel_error,
+                "probe_rel_error": e.compliance_rel_error,
+                "compliance_rel_error": e.compliance_rel_error,
+                "surface_max_nodal_error_mm": e.surface_max_nodal_error_mm,
+                "surface_max_nodal_rel_error": e.surface_max_nodal_rel_error,
+                "worst_surface_case": worst(e),
+                "map_rel_error": null, "svd_rel_error": null,
+                "without_near_field": {"surface_rel_error": b.surface_rel_error,
+                                       "surface_max_nodal_error_mm": b.surface_max_nodal_error_mm,
+                                       "compliance_rel_error": b.compliance_rel_error},
+                "surface_eval_us": r.surface_eval_us, "contact_eval_ns": r.contact_eval_ns,
+                "bytes": r.bytes,
+            })
+        })
+        .collect();
+    let far_rows: Vec<_> = t
+        .far_rows
+        .iter()
+        .map(|r| {
+            let e = &r.errors;
+            json!({
+                "far_tolerance": r.tolerance, "modes": r.modes,
                 "surface_rel_error": e.surface_rel_error,
                 "surface_max_nodal_error_mm": e.surface_max_nodal_error_mm,
                 "surface_max_nodal_rel_error": e.surface_max_nodal_rel_error,
                 "compliance_rel_error": e.compliance_rel_error,
-                "surface_eval_us": frame_us(&m, &probe, &surface_rows, n_max)?,
-                "bytes": (surface_rows.len() + axis_nodes) * n_max * 4 + near_bytes,
-            }));
-        }
-    }
-    // The far field's knob: its blocks truncated on load to coarser tolerances, and
-    // no far field at all (the dense near blocks stay).
-    let mut far_rows = Vec::new();
-    if let Some(t0) = near.far.as_ref().map(|f| f.tolerance) {
-        let tols = [1.0, 2.0, 5.0, 10.0, 30.0].map(|f| Some(f * t0));
-        for tol in tols.into_iter().chain([None]) {
-            let m = model.clone().with_far_tolerance(tol);
-            let e = heldout::nodal_errors(&m, &space, &cases, &surface_nodes, n_max)?;
-            let near_bytes = m.near().map_or(0, |n| n.bytes());
-            far_rows.push(json!({
-                "far_tolerance": tol, "modes": n_max,
-                "surface_rel_error": e.surface_rel_error,
-                "surface_max_nodal_error_mm": e.surface_max_nodal_error_mm,
-                "surface_max_nodal_rel_error": e.surface_max_nodal_rel_error,
-                "compliance_rel_error": e.compliance_rel_error,
-                "surface_eval_us": frame_us(&m, &probe, &surface_rows, n_max)?,
-                "bytes": (surface_rows.len() + axis_nodes) * n_max * 4 + near_bytes,
-            }));
-        }
-    }
+                "surface_eval_us": r.surface_eval_us, "bytes": r.bytes,
+            })
+        })
+        .collect();
     let mut model = model;
     model.set_tradeoff(rows.clone());
     file::save(&model, &args.file).with_context(|| format!("writing {}", args.file.display()))?;
     if let Some(path) = &args.plot {
         plot(&rows, &vec![None; rows.len()], path)?;
     }
-    let kinds: Vec<&str> = cases.iter().map(|c| c.kind).collect();
-    let out = json!({"rows": json_rows, "far_rows": far_rows, "held_out": cases.len(),
-                     "held_out_kinds": kinds, "method": "nodal", "fe_reference_s": fe_s});
+    let kinds: Vec<&str> = t.cases.iter().map(|c| c.kind).collect();
+    let out = json!({"rows": json_rows, "far_rows": far_rows, "held_out": t.cases.len(),
+                     "held_out_kinds": kinds, "method": "nodal",
+                     "fe_reference_s": t.fe_reference_s});
     super::args::print_report(&out, args.json)
-}
-
-/// What a frame runs: particularize, the surface rows, the near and far field (µs).
-fn frame_us(
-    model: &palpa_core::SeparatedModel<f64>,
-    probe: &[ParamValue],
-    surface_rows: &[u32],
-    n: usize,
-) -> anyhow::Result<f64> {
-    let mut coeffs = vec![0.0; n];
-    let mut out = vec![0.0; surface_rows.len()];
-    let mut full = vec![0.0; model.rows()];
-    Ok(1e-3
-        * mean_ns(20, || {
-            model.particularize(std::hint::black_box(probe), &mut coeffs)?;
-            model.reconstruct_rows(surface_rows, &coeffs, &mut out);
-            model.add_near_field(probe, &mut full)?;
-            Ok(())
-        })?)
 }
 
 /// Error and time against modes, two log–log panels.

@@ -18,3 +18,4 @@ pub mod journal;
 pub mod linear;
 pub mod nodal;
 pub mod palpation;
+pub mod tradeoff;
