@@ -18,6 +18,7 @@
 //! caller is told ([`Stencil::clamped`]); nothing is extrapolated, and non-finite input
 //! is an error rather than a NaN in the output.
 
+use crate::mesh::{dot, sub};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -572,12 +573,6 @@ pub fn closest_point(
     best
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     let d = sub(a, b);
     dot(d, d).sqrt()

@@ -230,15 +230,7 @@ pub fn write_msh(
 }
 
 fn bbox(space: &Space) -> ([f64; 3], [f64; 3]) {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in &space.nodes {
-        for d in 0..3 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
-    (lo, hi)
+    crate::mesh::bounds_of(&space.nodes)
 }
 
 /// Writes `.vtu` or `.msh` by the path's extension.

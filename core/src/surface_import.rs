@@ -381,14 +381,7 @@ impl SurfaceSolid {
     /// Builds the distance acceleration and pseudo-normals. The surface must have
     /// passed [`TriSurface::validate`].
     pub fn new(s: TriSurface) -> SurfaceSolid {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for v in &s.vertices {
-            for d in 0..3 {
-                lo[d] = lo[d].min(v[d]);
-                hi[d] = hi[d].max(v[d]);
-            }
-        }
+        let (lo, hi) = crate::mesh::bounds_of(&s.vertices);
         let diag = norm(sub(hi, lo));
         let cell = (diag / 48.0).max(1e-9);
         let dims = [0, 1, 2].map(|d| (((hi[d] - lo[d]) / cell).floor() as usize + 1).max(1));
@@ -407,13 +400,7 @@ impl SurfaceSolid {
         let mut vert_n = vec![[0.0; 3]; s.vertices.len()];
         for (t, tri) in s.triangles.iter().enumerate() {
             let pts = tri.map(|i| s.vertices[i as usize]);
-            let (mut tlo, mut thi) = (pts[0], pts[0]);
-            for p in &pts {
-                for d in 0..3 {
-                    tlo[d] = tlo[d].min(p[d]);
-                    thi[d] = thi[d].max(p[d]);
-                }
-            }
+            let (tlo, thi) = crate::mesh::bounds_of(&pts);
             let c0 = [0, 1, 2].map(|d| (((tlo[d] - lo[d]) / cell) as usize).min(dims[d] - 1));
             let c1 = [0, 1, 2].map(|d| (((thi[d] - lo[d]) / cell) as usize).min(dims[d] - 1));
             for k in c0[2]..=c1[2] {

@@ -95,7 +95,7 @@ pub fn norm_sq(terms: &[RankOne]) -> f64 {
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    crate::kernels::dot(a, b)
 }
 
 fn norm(a: &[f64]) -> f64 {

@@ -58,15 +58,7 @@ impl TetMesh {
     }
 
     pub fn bounding_box(&self) -> ([f64; 3], [f64; 3]) {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for v in &self.vertices {
-            for d in 0..3 {
-                lo[d] = lo[d].min(v[d]);
-                hi[d] = hi[d].max(v[d]);
-            }
-        }
-        (lo, hi)
+        bounds_of(&self.vertices)
     }
 
     pub fn volume(&self) -> f64 {
@@ -89,6 +81,19 @@ pub fn triangle_normal(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
 /// Area of triangle abc.
 pub fn triangle_area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
     0.5 * norm(cross(sub(b, a), sub(c, a)))
+}
+
+/// Axis-aligned bounds `(lo, hi)` of a point set (infinite and reversed when empty).
+pub fn bounds_of<'a>(points: impl IntoIterator<Item = &'a [f64; 3]>) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for d in 0..3 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    (lo, hi)
 }
 
 pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

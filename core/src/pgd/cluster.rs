@@ -15,6 +15,7 @@
 use faer::{Mat, MatRef};
 
 use crate::farfield::{FarBlocks, MAX_RANK};
+use crate::mesh::bounds_of;
 use crate::tensor::dense::thin_svd;
 
 /// Options of the compression.
@@ -67,13 +68,7 @@ impl Tree {
 
     /// Builds the cluster of `perm[lo..hi]` and its descendants; returns its index.
     fn split(&mut self, points: &[[f64; 3]], lo: usize, hi: usize, leaf: usize) -> usize {
-        let (mut min, mut max) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for &i in &self.perm[lo..hi] {
-            for d in 0..3 {
-                min[d] = min[d].min(points[i][d]);
-                max[d] = max[d].max(points[i][d]);
-            }
-        }
+        let (min, max) = bounds_of(self.perm[lo..hi].iter().map(|&i| &points[i]));
         let me = self.nodes.len();
         self.nodes.push(Cluster {
             lo,

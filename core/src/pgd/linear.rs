@@ -114,7 +114,7 @@ impl Terms {
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    crate::kernels::dot(a, b)
 }
 
 /// The problem's operators: factored K (and K itself for products), F, Ms.
