@@ -49,7 +49,7 @@ pub enum SceneError {
     )]
     PalpableWithoutNode { vertex: usize },
     #[error("the model could not keep its surface rows: {0}")]
-    Select(String),
+    Select(crate::separated::ModelError),
 }
 
 /// Why a contact could not be evaluated.
@@ -184,9 +184,7 @@ impl PalpationScene {
             let keep: Vec<u32> = (0..g.nodes.len() as u32)
                 .filter(|&v| used[v as usize])
                 .collect();
-            model
-                .select_nodes(&keep)
-                .map_err(|e| SceneError::Select(e.to_string()))?
+            model.select_nodes(&keep).map_err(SceneError::Select)?
         };
         let g = model.geometry();
         if model.rows() != 3 * g.nodes.len() {

@@ -108,8 +108,17 @@ pub enum CmeModelError {
     UnknownParameter { name: String, known: String },
     #[error("parameter {name} = {value}: expected a finite value")]
     BadParameter { name: String, value: f64 },
-    #[error("evaluating: {0}")]
-    Eval(String),
+    #[error("tensor-train model: {0}")]
+    BadTrain(&'static str),
+    #[error("tensor-train model: axis {0} is neither species nor grid")]
+    TrainAxis(String),
+    #[error("a tensor-train model needs CmeModel::from_train")]
+    NeedsTrain,
+    #[error("evaluating parameter {name}: {error}")]
+    Axis {
+        name: String,
+        error: crate::axis::AxisError,
+    },
 }
 
 /// A loaded CME meta-model, ready to evaluate: a separated sum (greedy PGD) or a
@@ -161,7 +170,6 @@ impl CmeModel {
         if meta.kind != TRAIN_KIND {
             return Err(CmeModelError::WrongKind(meta.kind.clone()));
         }
-        let bad = |why: String| CmeModelError::Eval(format!("tensor-train model: {why}"));
         if meta.axes.first().map(|a| a.name.as_str()) != Some("t") || cores.len() != meta.axes.len()
         {
             return Err(CmeModelError::NoTime);
@@ -170,7 +178,7 @@ impl CmeModel {
             Discretization::Grid { nodes } => Some(nodes.clone()),
             _ => None,
         };
-        let t = nodes(&meta.axes[0]).ok_or_else(|| bad("time axis is not a grid".into()))?;
+        let t = nodes(&meta.axes[0]).ok_or(CmeModelError::BadTrain("time axis is not a grid"))?;
         let (mut order, mut sizes, mut species, mut params, mut grids) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for a in &meta.axes[1..] {
@@ -185,11 +193,11 @@ impl CmeModel {
                     grids.push((params.len(), nodes.clone()));
                     params.push(a.name.clone());
                 }
-                _ => return Err(bad(format!("axis {} is neither species nor grid", a.name))),
+                _ => return Err(CmeModelError::TrainAxis(a.name.clone())),
             }
         }
         if species.is_empty() {
-            return Err(bad("no species axis".into()));
+            return Err(CmeModelError::BadTrain("no species axis"));
         }
         let history = History {
             sizes,
@@ -228,9 +236,7 @@ impl CmeModel {
     pub fn new(model: SeparatedModel<f64>) -> Result<Self, CmeModelError> {
         if model.kind() != KIND {
             if model.kind() == TRAIN_KIND {
-                return Err(CmeModelError::Eval(
-                    "a tensor-train model needs CmeModel::from_train".into(),
-                ));
+                return Err(CmeModelError::NeedsTrain);
             }
             return Err(CmeModelError::WrongKind(model.kind().to_string()));
         }
@@ -405,11 +411,14 @@ impl CmeModel {
         let mut c: Vec<f64> = sep.model.spatial()[..n].to_vec();
         let mut clamped = Vec::new();
         for (axis, value) in sep.model.axes()[sep.species..].iter().zip(&values) {
-            let st = axis
-                .info
-                .discretization
-                .stencil(*value)
-                .map_err(|e| CmeModelError::Eval(format!("{}: {e}", axis.info.name)))?;
+            let st =
+                axis.info
+                    .discretization
+                    .stencil(*value)
+                    .map_err(|error| CmeModelError::Axis {
+                        name: axis.info.name.clone(),
+                        error,
+                    })?;
             if st.clamped {
                 clamped.push(axis.info.name.clone());
             }

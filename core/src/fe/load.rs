@@ -68,11 +68,11 @@ pub fn probe_load(
     radius_mm: f64,
 ) -> Result<Vec<f64>, FeError> {
     if !force_n.is_finite() {
-        return Err(FeError::Load(format!("force {force_n} N is not finite")));
+        return Err(FeError::ForceNotFinite { force_n });
     }
     let dl = norm(dir);
     if !(dl.is_finite() && dl > 0.0) {
-        return Err(FeError::Load(format!("direction {dir:?} has no length")));
+        return Err(FeError::NoDirection { dir });
     }
     let t = dir.map(|v| v / dl);
     let mut f = vec![0.0; 3 * space.nodes.len()];
@@ -92,9 +92,7 @@ pub fn probe_weights(
     radius_mm: f64,
 ) -> Result<Vec<(u32, f64)>, FeError> {
     if !(radius_mm.is_finite() && radius_mm > 0.0) {
-        return Err(FeError::Load(format!(
-            "tool radius {radius_mm} mm must be positive"
-        )));
+        return Err(FeError::ToolRadius { radius_mm });
     }
     let p2 = space.element == super::Element::P2;
     let npf = space.element.nodes_per_face();

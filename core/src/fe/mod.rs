@@ -127,8 +127,16 @@ pub enum FeError {
         "the stiffness is not positive definite (is the body fixed anywhere? {fixed_nodes} fixed nodes): {detail}"
     )]
     NotPositiveDefinite { fixed_nodes: usize, detail: String },
-    #[error("invalid load: {0}")]
-    Load(String),
+    #[error("the organ has no palpable surface (no boundary face is marked palpable)")]
+    NoPalpableSurface,
+    #[error("invalid load: force {force_n} N is not finite")]
+    ForceNotFinite { force_n: f64 },
+    #[error("invalid load: direction {dir:?} has no length (expected a finite non-zero vector)")]
+    NoDirection { dir: [f64; 3] },
+    #[error("invalid load: probe point {point:?} is not finite")]
+    PointNotFinite { point: [f64; 3] },
+    #[error("invalid load: tool radius {radius_mm} mm must be finite and positive")]
+    ToolRadius { radius_mm: f64 },
     #[error("Newton did not converge: {0}")]
     NoConvergence(String),
     #[error(

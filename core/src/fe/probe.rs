@@ -53,18 +53,14 @@ pub fn locate(
     req: &ProbeRequest,
 ) -> Result<(SurfacePoint, [f64; 3]), FeError> {
     if req.at.iter().any(|c| !c.is_finite()) {
-        return Err(FeError::Load(format!(
-            "probe point {:?} is not finite",
-            req.at
-        )));
+        return Err(FeError::PointNotFinite { point: req.at });
     }
-    let probe = project(space, &organ.palpable, req.at)
-        .ok_or_else(|| FeError::Load("the organ has no palpable surface".into()))?;
+    let probe = project(space, &organ.palpable, req.at).ok_or(FeError::NoPalpableSurface)?;
     let dir = match req.dir {
         Some(d) => {
             let l = dot(d, d).sqrt();
             if !(l.is_finite() && l > 0.0) {
-                return Err(FeError::Load(format!("direction {d:?} has no length")));
+                return Err(FeError::NoDirection { dir: d });
             }
             d.map(|v| v / l)
         }

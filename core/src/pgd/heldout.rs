@@ -51,7 +51,7 @@ pub fn cases(
         .filter(|&f| organ.palpable[f])
         .collect();
     if pal.is_empty() {
-        return Err(FeError::Load("the organ has no palpable surface".into()));
+        return Err(FeError::NoPalpableSurface);
     }
     let corners = |f: usize| {
         let face = space.face(f);

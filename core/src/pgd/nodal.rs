@@ -34,10 +34,11 @@ use std::time::Instant;
 
 use faer::Mat;
 use rayon::prelude::*;
+use thiserror::Error;
 
 use super::cluster::{FarSettings, compress};
 use super::palpation::vademecum_meta;
-use crate::axis::{Discretization, MAX_LOAD_NODES};
+use crate::axis::{AxisError, Discretization, MAX_LOAD_NODES};
 use crate::disk::{lattice, tri_shape};
 use crate::fe::elasticity::LinearProblem;
 use crate::fe::probe::organ_space;
@@ -47,8 +48,23 @@ use crate::mesh::{norm, sub};
 use crate::nearfield::NearField;
 use crate::organ::OrganMesh;
 use crate::rng::Rng;
-use crate::separated::{AxisInfo, Provenance, SeparatedModel};
+use crate::separated::{AxisInfo, ModelError, Provenance, SeparatedModel};
 use crate::tensor::dense::{thin_qr, thin_svd};
+
+/// Why the nodal vademecum could not be built.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum NodalError {
+    #[error(transparent)]
+    Fe(#[from] FeError),
+    #[error("compliance table, face {face}: {error}")]
+    Shares { face: usize, error: AxisError },
+    #[error(
+        "compliance table: load nodes {a} and {b} are farther apart than the near radius {radius_mm:.1} mm"
+    )]
+    NearRadius { a: u32, b: u32, radius_mm: f64 },
+    #[error("packing the nodal vademecum: {0}")]
+    Pack(ModelError),
+}
 
 /// The load axis and the operators, built once.
 #[derive(Debug)]
@@ -132,9 +148,7 @@ pub fn setup(
 ) -> Result<NodalSetup, FeError> {
     let t0 = Instant::now();
     if !(radius_mm.is_finite() && radius_mm > 0.0) {
-        return Err(FeError::Load(format!(
-            "tool radius {radius_mm} mm must be positive"
-        )));
+        return Err(FeError::ToolRadius { radius_mm });
     }
     let space = organ_space(organ, element);
     let problem = LinearProblem::new(&space, material)?;
@@ -154,7 +168,7 @@ pub fn setup(
         }
     }
     if palpable_vertices.is_empty() {
-        return Err(FeError::Load("the organ has no palpable surface".into()));
+        return Err(FeError::NoPalpableSurface);
     }
     // A face belongs to the load axis when a tool centred anywhere on the palpable
     // region can reach it: within r + (palpable edge) of a palpable vertex, measured
@@ -373,7 +387,7 @@ pub fn build(
     settings: &NodalSettings,
     mesh_desc: &str,
     mut progress: impl FnMut(&str),
-) -> Result<(SeparatedModel<f64>, NodalReport), FeError> {
+) -> Result<(SeparatedModel<f64>, NodalReport), NodalError> {
     let mut report = NodalReport {
         load_nodes: s.load_nodes.len(),
         surface_rows: 3 * s.surface_nodes.len(),
@@ -549,7 +563,7 @@ pub fn build(
                 let (len, _) = s
                     .axis
                     .load_shares(f as u32, *b, &mut shares)
-                    .map_err(|e| FeError::Load(format!("compliance table, face {f}: {e}")))?;
+                    .map_err(|error| NodalError::Shares { face: f, error })?;
                 tri_shape(p2, *b, &mut nvals);
                 let mut cten = [0.0f64; 9];
                 for &(j, w) in &shares[..len] {
@@ -559,10 +573,11 @@ pub fn build(
                         let blk = match list.binary_search_by_key(&node, |e| e.0) {
                             Ok(i) => &list[i].1,
                             Err(_) => {
-                                return Err(FeError::Load(format!(
-                                    "compliance table: load nodes {node} and {j} are farther \
-                                     apart than the near radius {near_radius:.1} mm"
-                                )));
+                                return Err(NodalError::NearRadius {
+                                    a: node,
+                                    b: j,
+                                    radius_mm: near_radius,
+                                });
                             }
                         };
                         for e in 0..9 {
@@ -574,7 +589,7 @@ pub fn build(
             }
             Ok(Some(vals))
         })
-        .collect::<Result<_, FeError>>()?;
+        .collect::<Result<_, NodalError>>()?;
     let mut table_block = Vec::with_capacity(faces.len());
     let mut table_values = Vec::new();
     let mut blocks = 0u32;
@@ -640,6 +655,6 @@ pub fn build(
     );
     let model = SeparatedModel::new(meta, 3 * nodes, n, x, vec![yv])
         .and_then(|m| m.with_near(near))
-        .map_err(|e| FeError::Load(format!("packing the nodal vademecum: {e}")))?;
+        .map_err(NodalError::Pack)?;
     Ok((model, report))
 }

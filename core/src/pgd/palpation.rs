@@ -84,7 +84,7 @@ pub fn setup(
         axis_triangles.push(t);
     }
     if axis_nodes.is_empty() {
-        return Err(FeError::Load("the organ has no palpable surface".into()));
+        return Err(FeError::NoPalpableSurface);
     }
     let axis_vertices: Vec<[f64; 3]> = axis_nodes
         .iter()
