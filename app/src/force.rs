@@ -27,9 +27,33 @@ use palpa_core::scene::{PalpationScene, ProbePoint};
 
 use crate::latest::Latest;
 
-/// How the probe is driven.
-pub const MODE_DEPTH: u32 = 0;
-pub const MODE_FORCE: u32 = 1;
+/// How the indentation is controlled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PressMode {
+    /// The pointer sets the depth; the force follows from the compliance.
+    Depth,
+    /// The slider (or the trigger) sets the force.
+    Force,
+}
+
+impl PressMode {
+    // The wire encoding stays in this file: `ProbeCommand` crosses threads as plain
+    // bytes, so its fields are integers.
+    fn to_wire(self) -> u32 {
+        match self {
+            PressMode::Depth => 0,
+            PressMode::Force => 1,
+        }
+    }
+
+    fn from_wire(v: u32) -> PressMode {
+        if v == 1 {
+            PressMode::Force
+        } else {
+            PressMode::Depth
+        }
+    }
+}
 
 /// What the input side asks of the force loop (latest value wins).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
@@ -39,8 +63,8 @@ pub struct ProbeCommand {
     pub triangle: u32,
     /// 0: the probe is lifted (no force).
     pub active: u32,
-    /// [`MODE_DEPTH`] (target = indentation, mm) or [`MODE_FORCE`] (target = force, N).
-    pub mode: u32,
+    /// [`PressMode`] on the wire: see [`ProbeCommand::mode`].
+    mode: u32,
     /// Modes kept (the accuracy knob).
     pub modes: u32,
     pub bary: [f32; 3],
@@ -48,6 +72,31 @@ pub struct ProbeCommand {
 }
 
 impl ProbeCommand {
+    /// No probe on the organ, `modes` kept.
+    pub fn lifted(modes: u32) -> ProbeCommand {
+        ProbeCommand {
+            modes,
+            ..ProbeCommand::default()
+        }
+    }
+
+    /// A probe at `point`, pressing or not, to `target` (mm in depth mode, N in force
+    /// mode).
+    pub fn at(point: ProbePoint, pressing: bool, mode: PressMode, modes: u32, target: f32) -> Self {
+        ProbeCommand {
+            triangle: point.triangle,
+            active: u32::from(pressing),
+            mode: mode.to_wire(),
+            modes,
+            bary: point.bary.map(|b| b as f32),
+            target,
+        }
+    }
+
+    pub fn mode(&self) -> PressMode {
+        PressMode::from_wire(self.mode)
+    }
+
     pub fn point(&self) -> ProbePoint {
         ProbePoint {
             triangle: self.triangle,
@@ -57,10 +106,33 @@ impl ProbeCommand {
 }
 
 /// Status of a [`ForceSample`].
-pub const STATUS_IDLE: u32 = 0;
-pub const STATUS_OK: u32 = 1;
-/// The contact law failed (e.g. non-positive compliance with too few modes): zero force.
-pub const STATUS_FAILED: u32 = 2;
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleStatus {
+    /// No probe pressing.
+    Idle,
+    Ok,
+    /// The contact law failed (e.g. non-positive compliance with too few modes): zero
+    /// force.
+    Failed,
+}
+
+impl SampleStatus {
+    fn to_wire(self) -> u32 {
+        match self {
+            SampleStatus::Idle => 0,
+            SampleStatus::Ok => 1,
+            SampleStatus::Failed => 2,
+        }
+    }
+
+    fn from_wire(v: u32) -> SampleStatus {
+        match v {
+            1 => SampleStatus::Ok,
+            2 => SampleStatus::Failed,
+            _ => SampleStatus::Idle,
+        }
+    }
+}
 
 /// What the force loop publishes every tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
@@ -75,9 +147,20 @@ pub struct ForceSample {
     pub compliance_mm_per_n: f32,
     /// Time of the contact evaluation, ns.
     pub eval_ns: f32,
-    pub status: u32,
+    /// [`SampleStatus`] on the wire: see [`ForceSample::status`].
+    status: u32,
     /// The command this sample answers.
     pub command: ProbeCommand,
+}
+
+impl ForceSample {
+    pub fn status(&self) -> SampleStatus {
+        SampleStatus::from_wire(self.status)
+    }
+
+    pub fn set_status(&mut self, status: SampleStatus) {
+        self.status = status.to_wire();
+    }
 }
 
 /// Loop statistics since start or since the last [`ForceLoop::reset_stats`].
@@ -92,9 +175,16 @@ pub struct LoopStats {
     pub period_us_p99: f64,
     pub period_us_max: f64,
     pub eval_us_p50: f64,
-    /// What scheduling the thread got (see [`crate::priority`]).
-    pub priority: u32,
+    /// What scheduling the thread got: see [`LoopStats::priority`].
+    priority: u32,
     pub _pad: u32,
+}
+
+impl LoopStats {
+    /// What scheduling the force thread got.
+    pub fn priority(&self) -> crate::priority::Priority {
+        crate::priority::Priority::from_wire(self.priority)
+    }
 }
 
 /// Receives the contact force at every tick of the force loop: a gamepad's rumble now,
@@ -323,7 +413,7 @@ impl Worker {
 
             let cmd = self.commands.load();
             let sample = self.evaluate(&cmd, tick_count, &mut scratch);
-            if sample.status == STATUS_OK {
+            if sample.status() == SampleStatus::Ok {
                 evals.add(f64::from(sample.eval_ns));
             }
             self.haptic.apply(sample.force_n);
@@ -344,7 +434,7 @@ impl Worker {
                     period_us_p99: periods.quantile(0.99),
                     period_us_max: periods.max,
                     eval_us_p50: evals.quantile(0.5) / 1000.0,
-                    priority,
+                    priority: priority.to_wire(),
                     _pad: 0,
                 });
             }
@@ -363,7 +453,7 @@ impl Worker {
             ..ForceSample::default()
         };
         if cmd.active == 0 || cmd.target.is_nan() || cmd.target <= 0.0 {
-            s.status = STATUS_IDLE;
+            s.set_status(SampleStatus::Idle);
             return s;
         }
         let t = Instant::now();
@@ -374,7 +464,7 @@ impl Worker {
         match contact {
             Ok(c) => {
                 let target = f64::from(cmd.target);
-                let (force, depth) = if cmd.mode == MODE_FORCE {
+                let (force, depth) = if cmd.mode() == PressMode::Force {
                     (target, target * c.compliance_mm_per_n)
                 } else {
                     (target / c.compliance_mm_per_n, target)
@@ -383,9 +473,9 @@ impl Worker {
                 s.magnitude_n = force as f32;
                 s.depth_mm = depth as f32;
                 s.compliance_mm_per_n = c.compliance_mm_per_n as f32;
-                s.status = STATUS_OK;
+                s.set_status(SampleStatus::Ok);
             }
-            Err(_) => s.status = STATUS_FAILED,
+            Err(_) => s.set_status(SampleStatus::Failed),
         }
         s
     }

@@ -15,7 +15,7 @@ use glam::Vec2;
 use palpa_core::scene::ProbePoint;
 
 use crate::camera::OrbitCamera;
-use crate::force::{MODE_DEPTH, MODE_FORCE, ProbeCommand};
+use crate::force::ProbeCommand;
 use crate::pick::{Pick, Picker};
 
 /// Which pointer an event comes from.
@@ -64,14 +64,7 @@ pub enum InputEvent {
     },
 }
 
-/// How the indentation is controlled.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PressMode {
-    /// The pointer sets the depth; the force follows from the compliance.
-    Depth,
-    /// The slider (or the trigger) sets the force.
-    Force,
-}
+pub use crate::force::PressMode;
 
 /// Tunable constants of the mappings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -184,23 +177,13 @@ impl Controls {
     /// The command for the force loop.
     pub fn command(&self) -> ProbeCommand {
         let Some(p) = self.probe else {
-            return ProbeCommand {
-                modes: self.modes,
-                ..ProbeCommand::default()
-            };
+            return ProbeCommand::lifted(self.modes);
         };
-        let (mode, target) = match self.mode {
-            PressMode::Depth => (MODE_DEPTH, self.depth_mm),
-            PressMode::Force => (MODE_FORCE, self.force_n),
+        let target = match self.mode {
+            PressMode::Depth => self.depth_mm,
+            PressMode::Force => self.force_n,
         };
-        ProbeCommand {
-            triangle: p.triangle,
-            active: u32::from(self.pressing),
-            mode,
-            modes: self.modes,
-            bary: p.bary.map(|b| b as f32),
-            target,
-        }
+        ProbeCommand::at(p, self.pressing, self.mode, self.modes, target)
     }
 
     pub fn handle(&mut self, ev: InputEvent, picker: &dyn Picker, viewport_px: Vec2) {

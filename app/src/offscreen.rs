@@ -278,7 +278,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         force_period_us_p99: stats.period_us_p99,
         force_period_us_max: stats.period_us_max,
         missed_deadlines: stats.missed_deadlines,
-        force_priority: crate::priority::name(stats.priority),
+        force_priority: stats.priority().name(),
         final_force_n: session.sample.magnitude_n,
         final_depth_mm: session.sample.depth_mm,
         adapter: gpu.report(),

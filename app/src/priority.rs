@@ -7,12 +7,44 @@
 //! we are and say so in the statistics.
 
 /// What the force thread got.
-pub const PRIORITY_NORMAL: u32 = 0;
-pub const PRIORITY_RAISED: u32 = 1;
-pub const PRIORITY_REALTIME: u32 = 2;
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Priority {
+    #[default]
+    Normal,
+    Raised,
+    Realtime,
+}
 
-/// Raises the calling thread's priority; returns one of the constants above.
-pub fn raise_current_thread() -> u32 {
+impl Priority {
+    /// A name for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Priority::Realtime => "realtime",
+            Priority::Raised => "raised",
+            Priority::Normal => "normal",
+        }
+    }
+
+    /// The encoding in [`crate::force::LoopStats`] (plain bytes between threads).
+    pub(crate) fn to_wire(self) -> u32 {
+        match self {
+            Priority::Normal => 0,
+            Priority::Raised => 1,
+            Priority::Realtime => 2,
+        }
+    }
+
+    pub(crate) fn from_wire(v: u32) -> Priority {
+        match v {
+            2 => Priority::Realtime,
+            1 => Priority::Raised,
+            _ => Priority::Normal,
+        }
+    }
+}
+
+/// Raises the calling thread's priority as far as the platform allows.
+pub fn raise_current_thread() -> Priority {
     #[cfg(unix)]
     {
         use thread_priority::unix::{
@@ -28,21 +60,12 @@ pub fn raise_current_thread() -> u32 {
             )
             .is_ok()
         {
-            return PRIORITY_REALTIME;
+            return Priority::Realtime;
         }
     }
     if thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Max).is_ok() {
-        PRIORITY_RAISED
+        Priority::Raised
     } else {
-        PRIORITY_NORMAL
-    }
-}
-
-/// A name for reports.
-pub fn name(p: u32) -> &'static str {
-    match p {
-        PRIORITY_REALTIME => "realtime",
-        PRIORITY_RAISED => "raised",
-        _ => "normal",
+        Priority::Normal
     }
 }

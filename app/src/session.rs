@@ -14,7 +14,7 @@ use glam::{Vec2, Vec3};
 use palpa_core::scene::{PalpationScene, ProbePoint};
 
 use crate::camera::OrbitCamera;
-use crate::force::{ForceLoop, ForceSample, HapticDevice, LoopTiming, STATUS_OK};
+use crate::force::{ForceLoop, ForceSample, HapticDevice, LoopTiming, SampleStatus};
 use crate::input::{Controls, InputEvent};
 use crate::pick::ScenePicker;
 use crate::render::{FrameInput, ProbeVisual};
@@ -132,7 +132,7 @@ impl Session {
         let s = self.sample;
         let probe = self.controls.probe;
         let mut visual = None;
-        let ok = s.status == STATUS_OK;
+        let ok = s.status() == SampleStatus::Ok;
         // Deform by the sample's force at the sample's point; no force: rest shape.
         let (point, force) = if ok {
             (Some(s.command.point()), s.force_n.map(f64::from))

@@ -136,12 +136,12 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
         ui.checkbox(&mut session.controls.pressing, "pressing");
     }
     let s = session.sample;
-    if s.status == crate::force::STATUS_OK {
+    if s.status() == crate::force::SampleStatus::Ok {
         ui.label(format!(
             "force {:.2} N · depth {:.2} mm · compliance {:.3} mm/N",
             s.magnitude_n, s.depth_mm, s.compliance_mm_per_n
         ));
-    } else if s.status == crate::force::STATUS_FAILED {
+    } else if s.status() == crate::force::SampleStatus::Failed {
         ui.colored_label(
             Color32::from_rgb(255, 120, 90),
             "no force: too few modes for a positive compliance here",
@@ -183,7 +183,7 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
         st.period_us_p99,
         st.missed_deadlines,
         st.eval_us_p50,
-        crate::priority::name(st.priority)
+        st.priority().name()
     ));
     ui.label(match &hud.gamepad {
         Some(name) => format!("gamepad: {name}"),

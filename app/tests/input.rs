@@ -6,10 +6,10 @@ use std::time::Duration;
 
 use glam::{Vec2, Vec3};
 use palpa_app::camera::OrbitCamera;
-use palpa_app::force::{ForceLoop, LoopTiming, MODE_DEPTH, MODE_FORCE, NoHaptics, STATUS_OK};
+use palpa_app::force::{ForceLoop, LoopTiming, NoHaptics, SampleStatus};
 use palpa_app::input::{Button, Controls, InputEvent, OUTSIDE_PALPABLE, PointerId, PressMode};
 use palpa_app::pick::{Pick, Picker, ScenePicker};
-use palpa_app::priority::PRIORITY_REALTIME;
+use palpa_app::priority::Priority;
 use palpa_app::scenes;
 use palpa_core::scene::{PalpationScene, ProbePoint};
 
@@ -153,8 +153,8 @@ fn mouse_press_and_drag_sets_the_depth_and_release_lifts() {
     assert!((c.depth_mm - 100.0 * c.mapping.depth_mm_per_px).abs() < 1e-5);
     let cmd = c.command();
     assert_eq!(
-        (cmd.active, cmd.mode, cmd.triangle, cmd.modes),
-        (1, MODE_DEPTH, 5, 40)
+        (cmd.active, cmd.mode(), cmd.triangle, cmd.modes),
+        (1, PressMode::Depth, 5, 40)
     );
     // Dragging upwards past the start clamps at zero; far down clamps at the maximum.
     c.handle(mv(m, 400.0, 100.0, 0.2), &on, VIEW);
@@ -268,7 +268,7 @@ fn gamepad_slides_presses_with_the_trigger_and_orbits() {
     c.handle(pad(Vec2::ZERO, Vec2::ZERO, 0.5), &on, VIEW);
     assert!(c.pressing);
     assert_eq!(c.mode, PressMode::Force);
-    assert_eq!(c.command().mode, MODE_FORCE);
+    assert_eq!(c.command().mode(), PressMode::Force);
     assert!((c.force_n - 0.5 * c.mapping.max_force_n).abs() < 1e-6);
     c.handle(pad(Vec2::ZERO, Vec2::ZERO, 0.0), &on, VIEW);
     assert!(!c.pressing, "releasing the trigger lifts the probe");
@@ -305,7 +305,7 @@ fn the_force_loop_keeps_its_schedule_under_load() {
     fl.command(c.command());
     std::thread::sleep(Duration::from_millis(100));
     let sample = fl.latest();
-    assert_eq!(sample.status, STATUS_OK);
+    assert_eq!(sample.status(), SampleStatus::Ok);
     assert!((sample.depth_mm - 5.0).abs() < 1e-5 && sample.magnitude_n > 0.0);
 
     // Load both cores with busy threads (twice as many as cores), as rendering would.
@@ -341,7 +341,7 @@ fn the_force_loop_keeps_its_schedule_under_load() {
         st.ticks,
         st.missed_deadlines
     );
-    if st.priority == PRIORITY_REALTIME {
+    if st.priority() == Priority::Realtime {
         // With real-time scheduling the loop must hold 1 kHz ± 1% against the load.
         assert!((st.rate_hz - 1000.0).abs() < 10.0, "rate {} Hz", st.rate_hz);
         assert!(st.missed_deadlines <= 3, "{} missed", st.missed_deadlines);
