@@ -10,6 +10,7 @@ pub mod deform;
 pub mod gpu;
 pub mod meshes;
 pub mod offscreen;
+mod pipelines;
 pub mod shaders;
 
 use bytemuck::{Pod, Zeroable};
@@ -19,8 +20,8 @@ use wgpu::util::DeviceExt;
 
 use crate::camera::OrbitCamera;
 use deform::Deform;
-use meshes::{SolidVertex, UnitMeshes, unit_meshes};
-use shaders::Shader;
+use meshes::{UnitMeshes, unit_meshes};
+use pipelines::{Layouts, Pipelines};
 
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth24PlusStencil8;
 /// The background colour (linear), matched by the ground's fade.
@@ -126,31 +127,15 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let uniform_layout = |label: &str, dynamic: bool| {
-            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some(label),
-                entries: &[wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: dynamic,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                }],
-            })
-        };
-        let frame_layout = uniform_layout("frame", false);
+        let layouts = Layouts::new(device);
         let frame_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("frame"),
-            layout: &frame_layout,
+            layout: &layouts.frame,
             entries: &[wgpu::BindGroupEntry {
                 binding: 0,
                 resource: frame.as_entire_binding(),
             }],
         });
-        let object_layout = uniform_layout("object", true);
         let objects = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("object uniforms"),
             size: OBJECT_STRIDE * OBJECTS as u64,
@@ -159,7 +144,7 @@ impl Renderer {
         });
         let object_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("object"),
-            layout: &object_layout,
+            layout: &layouts.object,
             entries: &[wgpu::BindGroupEntry {
                 binding: 0,
                 resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
@@ -175,171 +160,14 @@ impl Renderer {
             contents: bytemuck::cast_slice(&unit.vertices),
             usage: wgpu::BufferUsages::VERTEX,
         });
+        let Pipelines {
+            ground,
+            shadow,
+            surface,
+            solid,
+        } = Pipelines::new(device, format, &layouts);
 
-        let layout_frame = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("frame only"),
-            bind_group_layouts: &[Some(&frame_layout)],
-            immediate_size: 0,
-        });
-        let layout_object = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("frame and object"),
-            bind_group_layouts: &[Some(&frame_layout), Some(&object_layout)],
-            immediate_size: 0,
-        });
-        let vec4_attr = |location: u32| wgpu::VertexAttribute {
-            format: wgpu::VertexFormat::Float32x4,
-            offset: 0,
-            shader_location: location,
-        };
-        let surface_attrs = [
-            vec4_attr(0),
-            vec4_attr(1),
-            wgpu::VertexAttribute {
-                format: wgpu::VertexFormat::Float32,
-                offset: 0,
-                shader_location: 2,
-            },
-        ];
-        let surface_buffers = [
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 16,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &surface_attrs[0..1],
-            }),
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 16,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &surface_attrs[1..2],
-            }),
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 4,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &surface_attrs[2..3],
-            }),
-        ];
-        let solid_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3];
-        let solid_buffers = [Some(wgpu::VertexBufferLayout {
-            array_stride: size_of::<SolidVertex>() as u64,
-            step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &solid_attrs,
-        })];
-
-        let surface_module = Shader::Surface.module(device);
-        let ground_module = Shader::Ground.module(device);
-        let solid_module = Shader::Solid.module(device);
-        let depth = |write: bool, stencil: wgpu::StencilState| {
-            Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(write),
-                depth_compare: Some(wgpu::CompareFunction::LessEqual),
-                stencil,
-                bias: wgpu::DepthBiasState::default(),
-            })
-        };
-        let opaque = [Some(wgpu::ColorTargetState {
-            format,
-            blend: None,
-            write_mask: wgpu::ColorWrites::ALL,
-        })];
-        let blended = [Some(wgpu::ColorTargetState {
-            format,
-            blend: Some(wgpu::BlendState::ALPHA_BLENDING),
-            write_mask: wgpu::ColorWrites::ALL,
-        })];
-        // The shadow darkens a pixel only where the stencil is still 0, then marks it.
-        let once = wgpu::StencilFaceState {
-            compare: wgpu::CompareFunction::Equal,
-            fail_op: wgpu::StencilOperation::Keep,
-            depth_fail_op: wgpu::StencilOperation::Keep,
-            pass_op: wgpu::StencilOperation::IncrementClamp,
-        };
-        let shadow_stencil = wgpu::StencilState {
-            front: once,
-            back: once,
-            read_mask: 0xff,
-            write_mask: 0xff,
-        };
-        let pipeline = |label: &str,
-                        layout: &wgpu::PipelineLayout,
-                        module: &wgpu::ShaderModule,
-                        (vs, fs): (&str, &str),
-                        buffers: &[Option<wgpu::VertexBufferLayout>],
-                        cull: Option<wgpu::Face>,
-                        depth_stencil: Option<wgpu::DepthStencilState>,
-                        targets: &[Option<wgpu::ColorTargetState>]| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(layout),
-                vertex: wgpu::VertexState {
-                    module,
-                    entry_point: Some(vs),
-                    compilation_options: Default::default(),
-                    buffers,
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: cull,
-                    ..Default::default()
-                },
-                depth_stencil,
-                multisample: wgpu::MultisampleState::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module,
-                    entry_point: Some(fs),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let ground = pipeline(
-            "ground",
-            &layout_frame,
-            &ground_module,
-            ("vs_main", "fs_main"),
-            &[],
-            None,
-            depth(true, wgpu::StencilState::default()),
-            &opaque,
-        );
-        let shadow = pipeline(
-            "shadow",
-            &layout_frame,
-            &surface_module,
-            ("vs_shadow", "fs_shadow"),
-            &surface_buffers[..1],
-            None,
-            depth(false, shadow_stencil),
-            &blended,
-        );
-        // Both faces: a press can make the surface fold towards the camera at the rim.
-        let surface = pipeline(
-            "surface",
-            &layout_frame,
-            &surface_module,
-            ("vs_main", "fs_main"),
-            &surface_buffers,
-            None,
-            depth(true, wgpu::StencilState::default()),
-            &opaque,
-        );
-        let solid = pipeline(
-            "solid",
-            &layout_object,
-            &solid_module,
-            ("vs_main", "fs_main"),
-            &solid_buffers,
-            Some(wgpu::Face::Back),
-            depth(true, wgpu::StencilState::default()),
-            &blended,
-        );
-
-        let mut min = Vec3::splat(f32::INFINITY);
-        let mut max = Vec3::splat(f32::NEG_INFINITY);
-        for p in scene.vertices_mm() {
-            min = min.min(Vec3::from_array(*p));
-            max = max.max(Vec3::from_array(*p));
-        }
+        let (min, max) = crate::session::bounds(scene.vertices_mm());
         Renderer {
             deform,
             palpable,
