@@ -199,23 +199,17 @@ impl Session {
         }
     }
 
-    /// Deformed contact point for the current coefficients (nine rows).
+    /// Deformed contact point for the current coefficients and near field.
     fn contact_point(&self, p: &ProbePoint, n: usize) -> Vec3 {
         let (x, _) = self.scene.frame(p);
-        let vs = self.scene.probe_vertices(p);
-        let rows: [u32; 9] = std::array::from_fn(|i| 3 * vs[i / 3] + (i % 3) as u32);
-        let mut u = [0.0; 9];
-        self.scene
-            .model()
-            .reconstruct_rows(&rows, &self.coeffs[..n], &mut u);
-        let mut tip = x;
-        for i in 0..3 {
-            for c in 0..3 {
-                let near = self.near_rows[3 * vs[i] as usize + c];
-                tip[c] += p.bary[i] * (u[3 * i + c] + near);
-            }
-        }
-        Vec3::new(tip[0] as f32, tip[1] as f32, tip[2] as f32)
+        let u = self
+            .scene
+            .point_displacement(p, &self.coeffs[..n], Some(&self.near_rows));
+        Vec3::new(
+            (x[0] + u[0]) as f32,
+            (x[1] + u[1]) as f32,
+            (x[2] + u[2]) as f32,
+        )
     }
 
     /// Brings the CPU copy of the deformed surface up to date (for picking).

@@ -390,16 +390,7 @@ impl PalpationScene {
         let coeffs = &mut scratch.coeffs[..n];
         self.model
             .particularize(&[self.param(p, push_dir)], coeffs)?;
-        let vs = self.probe_vertices(p);
-        let rows: [u32; 9] = std::array::from_fn(|i| 3 * vs[i / 3] + (i % 3) as u32);
-        let mut out = [0.0; 9];
-        self.model.reconstruct_rows(&rows, coeffs, &mut out);
-        let mut w = [0.0; 3];
-        for i in 0..3 {
-            for c in 0..3 {
-                w[c] += p.bary[i] * out[3 * i + c];
-            }
-        }
+        let w = self.point_displacement(p, coeffs, None);
         let compliance = w[0] * push_dir[0] + w[1] * push_dir[1] + w[2] * push_dir[2];
         // NaN counts as non-positive.
         if compliance.is_nan() || compliance <= 0.0 {
@@ -414,6 +405,29 @@ impl PalpationScene {
             unit_displacement_mm_per_n: w,
             compliance_mm_per_n: compliance,
         })
+    }
+
+    /// Displacement (mm) of the surface point `p` for the coefficients `coeffs`: the
+    /// nine rows of its triangle's corners, interpolated, plus `near_rows` (per field
+    /// row, e.g. the near field a frame computed) when given. Allocation-free.
+    pub fn point_displacement(
+        &self,
+        p: &ProbePoint,
+        coeffs: &[f64],
+        near_rows: Option<&[f64]>,
+    ) -> [f64; 3] {
+        let vs = self.probe_vertices(p);
+        let rows: [u32; 9] = std::array::from_fn(|i| 3 * vs[i / 3] + (i % 3) as u32);
+        let mut out = [0.0; 9];
+        self.model.reconstruct_rows(&rows, coeffs, &mut out);
+        let mut w = [0.0; 3];
+        for i in 0..3 {
+            for c in 0..3 {
+                let near = near_rows.map_or(0.0, |r| r[rows[3 * i + c] as usize]);
+                w[c] += p.bary[i] * (out[3 * i + c] + near);
+            }
+        }
+        w
     }
 
     /// Displacement of every render vertex (3 per vertex, mm) for a force `force_n` at
