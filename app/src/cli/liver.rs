@@ -14,9 +14,9 @@ use palpa_core::file;
 use palpa_core::mesh::triangle_normal;
 use palpa_core::pgd::cluster::FarSettings;
 use palpa_core::pgd::journal::Journal;
-use palpa_core::pgd::linear::{Settings, update};
+use palpa_core::pgd::linear::Settings;
 use palpa_core::pgd::nodal::{self, NodalSettings};
-use palpa_core::pgd::palpation::{compute, describe, setup, to_model};
+use palpa_core::pgd::palpation::{compute, describe, journal_key, restore, setup, to_model};
 use palpa_core::{ParamValue, Precision, Scalar, SeparatedModel};
 use serde_json::json;
 
@@ -120,9 +120,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
         ..Settings::default()
     };
     let jpath = journal_path(&args.out);
-    // The journal key also names the block size: a resumed run must partition the
-    // terms into the same blocks to reproduce an uninterrupted one.
-    let journal_key = format!("{desc} block={}", settings.block);
+    let journal_key = journal_key(&desc, settings.block);
     let (mut journal, mut start) = if args.resume {
         Journal::resume(&jpath, &journal_key, settings.block)
             .with_context(|| format!("resuming from {}", jpath.display()))?
@@ -134,22 +132,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
         )
     };
     if !start.x.is_empty() {
-        // Rebuild what the journal does not store; the update recomputes every y.
-        let ops = s.ops();
-        start.kx = start
-            .x
-            .iter()
-            .map(|x| {
-                let mut y = vec![0.0; x.len()];
-                ops.k.mul(x, &mut y);
-                y
-            })
-            .collect();
-        start.ftx = start.x.iter().map(|x| ops.f.mul_t(x)).collect();
-        start.extend_gram();
-        if settings.update {
-            update(&ops, &mut start);
-        }
+        restore(&s, &mut start, settings.update);
         eprintln!(
             "palpa: resumed {} terms from {}",
             start.x.len(),

@@ -181,6 +181,37 @@ pub fn surface_mass(vertices: &[[f64; 3]], triangles: &[[u32; 3]]) -> SymCsc {
     }
 }
 
+/// Completes terms read back from a journal (which stores only `X` and `Y`): `K X`,
+/// `Fᵀ X` and the Gram rows, then, with `update`, the Galerkin update of every `Y`, so
+/// [`compute`] continues exactly where an uninterrupted run would be.
+pub fn restore(setup: &Setup, terms: &mut Terms, update: bool) {
+    if terms.x.is_empty() {
+        return;
+    }
+    let ops = setup.ops();
+    terms.kx = terms
+        .x
+        .iter()
+        .map(|x| {
+            let mut y = vec![0.0; x.len()];
+            ops.k.mul(x, &mut y);
+            y
+        })
+        .collect();
+    terms.ftx = terms.x.iter().map(|x| ops.f.mul_t(x)).collect();
+    terms.gram.clear();
+    terms.extend_gram();
+    if update {
+        super::linear::update(&ops, terms);
+    }
+}
+
+/// The journal's key: the vademecum's description and the block size (a resumed run
+/// must partition the terms into the same blocks to reproduce an uninterrupted one).
+pub fn journal_key(desc: &str, block: usize) -> String {
+    format!("{desc} block={block}")
+}
+
 /// Runs the PGD and returns the terms.
 pub fn compute(
     setup: &Setup,
