@@ -40,6 +40,7 @@ use super::cluster::{FarSettings, compress};
 use super::palpation::vademecum_meta;
 use crate::axis::{AxisError, Discretization, MAX_LOAD_NODES};
 use crate::disk::{lattice, tri_shape};
+use crate::farfield::FarBlocks;
 use crate::fe::elasticity::LinearProblem;
 use crate::fe::probe::organ_space;
 use crate::fe::space::Space;
@@ -354,6 +355,222 @@ fn solve_columns(s: &NodalSetup, near_radius: f64) -> (Mat<f64>, NearLists, usiz
     (gs, near, cols.len())
 }
 
+/// Packs the model: `X` on every node (fixed nodes zero) from the solved modes `x`,
+/// `Y` row-major, the near field, and the provenance with the singular values.
+fn pack(
+    s: &NodalSetup,
+    rhs: &Mat<f64>,
+    y: &Mat<f64>,
+    near: NearField,
+    report: &NodalReport,
+    mesh_desc: &str,
+) -> Result<SeparatedModel<f64>, NodalError> {
+    let (n, m) = (rhs.ncols(), s.load_nodes.len());
+    let nodes = s.space.nodes.len();
+    let mut x = vec![0.0; 3 * nodes * n];
+    for (v, &dof) in s.space.dof.iter().enumerate() {
+        if dof == u32::MAX {
+            continue;
+        }
+        for c in 0..3 {
+            for k in 0..n {
+                x[(3 * v + c) * n + k] = rhs[(dof as usize + c, k)];
+            }
+        }
+    }
+    let yv: Vec<f64> = (0..3 * m)
+        .flat_map(|p| (0..n).map(move |k| (p, k)))
+        .map(|(p, k)| y[(p, k)])
+        .collect();
+    let sigma0 = report.singular_values.first().copied().unwrap_or(1.0);
+    let meta = vademecum_meta(
+        "liver-palpation-nodal",
+        AxisInfo {
+            name: "nodal load (probe position × direction)".into(),
+            unit: "mm".into(),
+            discretization: s.axis.clone(),
+        },
+        Provenance::now(
+            "nodal loads: brute-force solves, randomized SVD of the surface map, near-field band and compliance table",
+            mesh_desc,
+            0.0,
+            report.singular_values.iter().map(|v| v / sigma0).collect(),
+        ),
+        &s.space,
+        &s.boundary,
+    );
+    SeparatedModel::new(meta, 3 * nodes, n, x, vec![yv])
+        .and_then(|m| m.with_near(near))
+        .map_err(NodalError::Pack)
+}
+
+/// The band in CSR form over load nodes.
+struct Band {
+    ptr: Vec<u32>,
+    nodes: Vec<u32>,
+    values: Vec<f32>,
+}
+
+/// Splits the column-scaled remainder `res` into the dense band and, with
+/// `settings.far`, the hierarchical far field (else the band is every surface node
+/// within `band_radius_mm`).
+fn remainder_parts(
+    s: &NodalSetup,
+    settings: &NodalSettings,
+    res: &Mat<f64>,
+    scale: &[f64],
+    report: &mut NodalReport,
+) -> (Band, Option<Box<FarBlocks>>) {
+    let m = s.load_nodes.len();
+    let positions = s.positions();
+    let surf_pos: Vec<[f64; 3]> = s
+        .surface_nodes
+        .iter()
+        .map(|&v| s.space.nodes[v as usize])
+        .collect();
+    let free: Vec<bool> = (0..m)
+        .map(|j| s.space.dof[s.load_nodes[j] as usize] != u32::MAX)
+        .collect();
+    // Per load node, the surface rows that get the exact remainder.
+    let (dense, far) = match settings.far {
+        Some(fs) => {
+            let c = compress(
+                res.as_ref(),
+                scale,
+                &surf_pos,
+                &s.surface_nodes,
+                positions,
+                &free,
+                fs,
+            );
+            report.far_blocks = c.far.blocks();
+            report.far_bytes = c.far.bytes();
+            (c.dense, Some(Box::new(c.far)))
+        }
+        None => {
+            let radius = settings.band_radius_mm;
+            let dense = (0..m)
+                .into_par_iter()
+                .map(|j| {
+                    if !free[j] {
+                        return Vec::new();
+                    }
+                    (0..surf_pos.len())
+                        .filter(|&i| norm(sub(surf_pos[i], positions[j])) <= radius)
+                        .collect()
+                })
+                .collect();
+            (dense, None)
+        }
+    };
+    let band: Vec<Vec<(u32, [f32; 9])>> = dense
+        .par_iter()
+        .enumerate()
+        .map(|(j, rows)| {
+            rows.iter()
+                .map(|&i| {
+                    let blk = std::array::from_fn(|e| {
+                        let (d, c) = (e / 3, e % 3);
+                        (res[(3 * i + d, 3 * j + c)] * scale[3 * j + c]) as f32
+                    });
+                    (s.surface_nodes[i], blk)
+                })
+                .collect()
+        })
+        .collect();
+    let mut band_ptr = vec![0u32];
+    let mut band_nodes = Vec::new();
+    let mut band_values = Vec::new();
+    for list in &band {
+        for (x, blk) in list {
+            band_nodes.push(*x);
+            band_values.extend_from_slice(blk);
+        }
+        band_ptr.push(band_nodes.len() as u32);
+    }
+    (
+        Band {
+            ptr: band_ptr,
+            nodes: band_nodes,
+            values: band_values,
+        },
+        far,
+    )
+}
+
+/// The compliance tensor at the degree-`q` lattice points of every palpable face,
+/// exact from `G` between nearby load nodes: per face its block index (`u32::MAX`
+/// for none) and the blocks' values.
+fn compliance_table(
+    s: &NodalSetup,
+    near_g: &NearLists,
+    q: usize,
+    near_radius: f64,
+) -> Result<(Vec<u32>, Vec<f32>), NodalError> {
+    let lat = lattice(q);
+    let faces = s.faces();
+    let palpable = match &s.axis {
+        Discretization::SurfaceLoad { palpable, .. } => palpable,
+        _ => unreachable!("load axis"),
+    };
+    let p2 = s.space.element == Element::P2;
+    let npf = s.space.element.nodes_per_face();
+    let table: Vec<Option<Vec<f32>>> = (0..faces.len())
+        .into_par_iter()
+        .map(|f| {
+            if !palpable[f] {
+                return Ok(None);
+            }
+            let mut shares = vec![(0u32, 0.0f64); MAX_LOAD_NODES];
+            let mut vals = Vec::with_capacity(9 * lat.len());
+            let mut nvals = [0.0; 6];
+            for b in &lat {
+                let (len, _) = s
+                    .axis
+                    .load_shares(f as u32, *b, &mut shares)
+                    .map_err(|error| NodalError::Shares { face: f, error })?;
+                tri_shape(p2, *b, &mut nvals);
+                let mut cten = [0.0f64; 9];
+                for &(j, w) in &shares[..len] {
+                    let list = &near_g[j as usize];
+                    for a in 0..npf {
+                        let node = faces[f][a];
+                        let blk = match list.binary_search_by_key(&node, |e| e.0) {
+                            Ok(i) => &list[i].1,
+                            Err(_) => {
+                                return Err(NodalError::NearRadius {
+                                    a: node,
+                                    b: j,
+                                    radius_mm: near_radius,
+                                });
+                            }
+                        };
+                        for e in 0..9 {
+                            cten[e] += nvals[a] * w * blk[e];
+                        }
+                    }
+                }
+                vals.extend(cten.iter().map(|&v| v as f32));
+            }
+            Ok(Some(vals))
+        })
+        .collect::<Result<_, NodalError>>()?;
+    let mut table_block = Vec::with_capacity(faces.len());
+    let mut table_values = Vec::new();
+    let mut blocks = 0u32;
+    for t in table {
+        match t {
+            Some(v) => {
+                table_block.push(blocks);
+                table_values.extend(v);
+                blocks += 1;
+            }
+            None => table_block.push(u32::MAX),
+        }
+    }
+    Ok((table_block, table_values))
+}
+
 /// The compliance table's default degree: the compliance varies on the scale of the
 /// tool, so a face `h_mm` across needs more lattice points the smaller the tool.
 /// Measured on coarse P2: degree 5 holds the force law within 0.7 % for a
@@ -466,74 +683,9 @@ pub fn build(
         -1.0,
         faer::Par::rayon(0),
     );
-    let positions = s.positions();
-    let surf_pos: Vec<[f64; 3]> = s
-        .surface_nodes
-        .iter()
-        .map(|&v| s.space.nodes[v as usize])
-        .collect();
-    let free: Vec<bool> = (0..m)
-        .map(|j| s.space.dof[s.load_nodes[j] as usize] != u32::MAX)
-        .collect();
-    // Per load node, the surface rows that get the exact remainder.
-    let (dense, far) = match settings.far {
-        Some(fs) => {
-            let c = compress(
-                res.as_ref(),
-                &scale,
-                &surf_pos,
-                &s.surface_nodes,
-                positions,
-                &free,
-                fs,
-            );
-            report.far_blocks = c.far.blocks();
-            report.far_bytes = c.far.bytes();
-            (c.dense, Some(Box::new(c.far)))
-        }
-        None => {
-            let radius = settings.band_radius_mm;
-            let dense = (0..m)
-                .into_par_iter()
-                .map(|j| {
-                    if !free[j] {
-                        return Vec::new();
-                    }
-                    (0..surf_pos.len())
-                        .filter(|&i| norm(sub(surf_pos[i], positions[j])) <= radius)
-                        .collect()
-                })
-                .collect();
-            (dense, None)
-        }
-    };
-    let band: Vec<Vec<(u32, [f32; 9])>> = dense
-        .par_iter()
-        .enumerate()
-        .map(|(j, rows)| {
-            rows.iter()
-                .map(|&i| {
-                    let blk = std::array::from_fn(|e| {
-                        let (d, c) = (e / 3, e % 3);
-                        (res[(3 * i + d, 3 * j + c)] * scale[3 * j + c]) as f32
-                    });
-                    (s.surface_nodes[i], blk)
-                })
-                .collect()
-        })
-        .collect();
+    let (band, far) = remainder_parts(s, settings, &res, &scale, &mut report);
     drop(res);
-    let mut band_ptr = vec![0u32];
-    let mut band_nodes = Vec::new();
-    let mut band_values = Vec::new();
-    for list in &band {
-        for (x, blk) in list {
-            band_nodes.push(*x);
-            band_values.extend_from_slice(blk);
-        }
-        band_ptr.push(band_nodes.len() as u32);
-    }
-    report.band_entries = band_nodes.len();
+    report.band_entries = band.nodes.len();
     report.band_s = t.elapsed().as_secs_f64();
 
     progress("compliance table");
@@ -542,75 +694,15 @@ pub fn build(
         .table_degree
         .unwrap_or_else(|| table_degree_for(s.h_mean(), s.radius_mm))
         .clamp(1, 8);
-    let lat = lattice(q);
-    let faces = s.faces();
-    let palpable = match &s.axis {
-        Discretization::SurfaceLoad { palpable, .. } => palpable,
-        _ => unreachable!("load axis"),
-    };
-    let p2 = s.space.element == Element::P2;
-    let npf = s.space.element.nodes_per_face();
-    let table: Vec<Option<Vec<f32>>> = (0..faces.len())
-        .into_par_iter()
-        .map(|f| {
-            if !palpable[f] {
-                return Ok(None);
-            }
-            let mut shares = vec![(0u32, 0.0f64); MAX_LOAD_NODES];
-            let mut vals = Vec::with_capacity(9 * lat.len());
-            let mut nvals = [0.0; 6];
-            for b in &lat {
-                let (len, _) = s
-                    .axis
-                    .load_shares(f as u32, *b, &mut shares)
-                    .map_err(|error| NodalError::Shares { face: f, error })?;
-                tri_shape(p2, *b, &mut nvals);
-                let mut cten = [0.0f64; 9];
-                for &(j, w) in &shares[..len] {
-                    let list = &near_g[j as usize];
-                    for a in 0..npf {
-                        let node = faces[f][a];
-                        let blk = match list.binary_search_by_key(&node, |e| e.0) {
-                            Ok(i) => &list[i].1,
-                            Err(_) => {
-                                return Err(NodalError::NearRadius {
-                                    a: node,
-                                    b: j,
-                                    radius_mm: near_radius,
-                                });
-                            }
-                        };
-                        for e in 0..9 {
-                            cten[e] += nvals[a] * w * blk[e];
-                        }
-                    }
-                }
-                vals.extend(cten.iter().map(|&v| v as f32));
-            }
-            Ok(Some(vals))
-        })
-        .collect::<Result<_, NodalError>>()?;
-    let mut table_block = Vec::with_capacity(faces.len());
-    let mut table_values = Vec::new();
-    let mut blocks = 0u32;
-    for t in table {
-        match t {
-            Some(v) => {
-                table_block.push(blocks);
-                table_values.extend(v);
-                blocks += 1;
-            }
-            None => table_block.push(u32::MAX),
-        }
-    }
+    let (table_block, table_values) = compliance_table(s, &near_g, q, near_radius)?;
     report.table_s = t.elapsed().as_secs_f64();
     report.table_degree = q;
     let near = NearField {
         band_radius_mm: settings.band_radius_mm,
         band_modes: n as u32,
-        band_ptr,
-        band_nodes,
-        band_values,
+        band_ptr: band.ptr,
+        band_nodes: band.nodes,
+        band_values: band.values,
         table_degree: q as u32,
         table_block,
         table_values,
@@ -619,42 +711,6 @@ pub fn build(
     };
     report.near_bytes = near.bytes();
 
-    // Pack: X on every node (fixed nodes zero), Y row-major.
-    let nodes = s.space.nodes.len();
-    let mut x = vec![0.0; 3 * nodes * n];
-    for (v, &dof) in s.space.dof.iter().enumerate() {
-        if dof == u32::MAX {
-            continue;
-        }
-        for c in 0..3 {
-            for k in 0..n {
-                x[(3 * v + c) * n + k] = rhs[(dof as usize + c, k)];
-            }
-        }
-    }
-    let yv: Vec<f64> = (0..3 * m)
-        .flat_map(|p| (0..n).map(move |k| (p, k)))
-        .map(|(p, k)| y[(p, k)])
-        .collect();
-    let sigma0 = report.singular_values.first().copied().unwrap_or(1.0);
-    let meta = vademecum_meta(
-        "liver-palpation-nodal",
-        AxisInfo {
-            name: "nodal load (probe position × direction)".into(),
-            unit: "mm".into(),
-            discretization: s.axis.clone(),
-        },
-        Provenance::now(
-            "nodal loads: brute-force solves, randomized SVD of the surface map, near-field band and compliance table",
-            mesh_desc,
-            0.0,
-            report.singular_values.iter().map(|v| v / sigma0).collect(),
-        ),
-        &s.space,
-        &s.boundary,
-    );
-    let model = SeparatedModel::new(meta, 3 * nodes, n, x, vec![yv])
-        .and_then(|m| m.with_near(near))
-        .map_err(NodalError::Pack)?;
+    let model = pack(s, &rhs, &y, near, &report, mesh_desc)?;
     Ok((model, report))
 }
