@@ -10,6 +10,7 @@ const FLOORS: &[(&str, u32)] = &[
     ("rng", 0),
     ("fsutil", 0),
     ("mesh", 0),
+    ("timing", 0),
     ("tensor", 1),
     ("disk", 1),
     ("axis", 1),

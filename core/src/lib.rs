@@ -52,6 +52,7 @@ pub mod separated;
 pub mod surface_import;
 pub mod synthetic;
 pub mod tensor;
+pub mod timing;
 
 pub use axis::{AxisError, Discretization, ParamValue, Stencil};
 pub use file::{AnyModel, FileError};

@@ -63,17 +63,8 @@ pub fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
 }
 
 /// Mean time of `f` over `reps` calls, in nanoseconds (stops at the first error).
-pub fn mean_ns(reps: u32, mut f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<f64> {
-    let t = std::time::Instant::now();
-    for _ in 0..reps {
-        f()?;
-    }
-    Ok(t.elapsed().as_nanos() as f64 / f64::from(reps.max(1)))
-}
-
-/// Every row (`3·node + c`) of the given nodes, in order.
-pub fn rows_of(nodes: &[u32]) -> Vec<u32> {
-    palpa_core::separated::node_rows(nodes)
+pub fn mean_ns(reps: u32, f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<f64> {
+    palpa_core::timing::mean_ns(reps, f)
 }
 
 /// Prints a command's JSON report: one line with `--json`, indented otherwise.

@@ -1,4 +1,6 @@
-//! The speed/accuracy table of a nodal-load vademecum, measured where the user is.
+//! The speed/accuracy tables of the liver vademecums, measured where the user is
+//! ([`nodal_table`] for the default nodal-load model, [`pgd_table`] for the earlier
+//! vertex-load PGD).
 //!
 //! For n = 1 … N global modes (log steps) and, at all modes, for the far field's
 //! tolerance knob (the stored tolerance times 1, 2, 5, 10, 30, and no far field):
@@ -13,12 +15,19 @@ use std::time::Instant;
 use thiserror::Error;
 
 use super::heldout::{self, Case, Errors};
+use super::linear::map_error;
+use super::palpation::{optimal_errors_on, setup, svd_error, terms_from_model};
+use crate::axis::Discretization;
 use crate::axis::ParamValue;
 use crate::fe::elasticity::LinearProblem;
+use crate::fe::load::{SurfacePoint, probe_load};
 use crate::fe::probe::organ_space;
 use crate::fe::{Element, FeError, Material};
+use crate::mesh::triangle_normal;
 use crate::organ::OrganMesh;
-use crate::separated::{EvalError, SeparatedModel, node_rows};
+use crate::rng::Rng;
+use crate::separated::{EvalError, SeparatedModel, TradeoffRow, node_rows};
+use crate::timing::mean_ns;
 
 /// Why a table could not be measured.
 #[derive(Debug, Error)]
@@ -29,6 +38,8 @@ pub enum TradeoffError {
     Eval(#[from] EvalError),
     #[error("a nodal model without its near field (or with a compliance table on no face)")]
     NoNearField,
+    #[error("not a palpation vademecum (no surface-vector axis on boundary faces)")]
+    NotPgd,
 }
 
 /// One mode count.
@@ -177,4 +188,222 @@ fn contact_ns(near: &crate::nearfield::NearField, face: u32) -> f64 {
     }
     std::hint::black_box(acc);
     t.elapsed().as_nanos() as f64 / f64::from(reps)
+}
+
+/// The table of a PGD (vertex-load) vademecum.
+#[derive(Debug, Clone)]
+pub struct PgdTable {
+    pub rows: Vec<TradeoffRow>,
+    /// The optimal rank-n error in the surface norm, per row (when computed).
+    pub surface_optimum: Vec<Option<f64>>,
+    /// `(surface, probe)` errors of the FE responses at the vertices, interpolated:
+    /// the floor this representation converges to.
+    pub floor: (f64, f64),
+    pub brute_force_solve_s: Option<f64>,
+}
+
+/// Measures a PGD vademecum: `random` held-out points against full FE solves, with
+/// `optimal` the optimal rank-n errors (one FE solve per palpable node and direction).
+pub fn pgd_table(
+    model: &SeparatedModel<f64>,
+    organ: &OrganMesh,
+    element: Element,
+    material: Material,
+    radius_mm: f64,
+    random: usize,
+    optimal: bool,
+) -> Result<PgdTable, TradeoffError> {
+    let s = setup(organ, element, material, radius_mm)?;
+    let terms = terms_from_model(&s, model);
+    let n_max = model.modes();
+    let triangles: Vec<[u32; 3]> = match &model.axes()[0].info.discretization {
+        Discretization::SurfaceVector { triangles, .. } => triangles.clone(),
+        _ => return Err(TradeoffError::NotPgd),
+    };
+
+    // Held-out references.
+    let mut rng = Rng::seed(0x7e57);
+    let mut cases = Vec::new();
+    let mut floors: Vec<Vec<f64>> = Vec::new();
+    for _ in 0..random {
+        let t = rng.below(triangles.len());
+        let (a, b) = (rng.range(0.1, 0.8), rng.uniform());
+        let bary = [a, (1.0 - a) * b, (1.0 - a) * (1.0 - b)];
+        let tri = s.axis_triangles[t];
+        // The axis triangle is a boundary face; find it among the space's faces.
+        let face = organ
+            .boundary
+            .iter()
+            .position(|f| {
+                f.iter()
+                    .zip(&tri)
+                    .all(|(&fv, &av)| fv == s.axis_nodes[av as usize])
+            })
+            .ok_or(TradeoffError::NotPgd)?;
+        let point = [0, 1, 2].map(|d| {
+            (0..3)
+                .map(|i| bary[i] * s.axis_vertices[tri[i] as usize][d])
+                .sum::<f64>()
+        });
+        let [p, q, r] = tri.map(|i| s.axis_vertices[i as usize]);
+        let normal = triangle_normal(p, q, r);
+        let dir = normal.map(|v| -v);
+        let sp = SurfacePoint {
+            face,
+            bary,
+            point,
+            normal,
+            distance_mm: 0.0,
+        };
+        let load = probe_load(&s.space, &sp, dir, 1.0, radius_mm)?;
+        let u = s.problem.solve(&s.space, &load);
+        // The s-axis floor: FE responses to the tool centred at the triangle's
+        // vertices, interpolated barycentrically (what the PGD converges to as N grows).
+        let mut interp = vec![0.0; u.len()];
+        for (i, &av) in tri.iter().enumerate() {
+            let mut b = [0.0; 3];
+            b[i] = 1.0;
+            let at_vertex = SurfacePoint {
+                bary: b,
+                point: s.axis_vertices[av as usize],
+                ..sp
+            };
+            let lv = probe_load(&s.space, &at_vertex, dir, 1.0, radius_mm)?;
+            let uv = s.problem.solve(&s.space, &lv);
+            for (a, v) in interp.iter_mut().zip(uv) {
+                *a += bary[i] * v;
+            }
+        }
+        floors.push(interp);
+        cases.push((t as u32, bary, dir, u));
+    }
+    let surface_rows = node_rows(&organ.surface_nodes());
+
+    let svd = if optimal {
+        // Surface rows as free dofs (fixed nodes carry no unknown).
+        let surface_dofs: Vec<u32> = surface_rows
+            .iter()
+            .filter_map(|&r| {
+                let d = s.space.dof[(r / 3) as usize];
+                if d == u32::MAX { None } else { Some(d + r % 3) }
+            })
+            .collect();
+        Some(optimal_errors_on(&s, &surface_dofs))
+    } else {
+        None
+    };
+    let mut ns: Vec<usize> = [1, 2, 5, 10, 20, 50, 100, 167, 200, 300, 400]
+        .into_iter()
+        .filter(|&n| n < n_max)
+        .collect();
+    ns.push(n_max);
+    let mut rows = Vec::new();
+    let mut surface_optimum = Vec::new();
+    for &n in &ns {
+        let mut coeffs = vec![0.0; n];
+        let mut out = vec![0.0; surface_rows.len()];
+        let (mut surf_err, mut probe_err) = (0.0f64, 0.0f64);
+        for (t, bary, dir, u_fe) in &cases {
+            let v = [ParamValue::SurfaceMix {
+                triangle: *t,
+                bary: *bary,
+                mix: *dir,
+            }];
+            model.particularize(&v, &mut coeffs)?;
+            model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
+            let (mut e2, mut n2) = (0.0, 0.0);
+            for (i, &r) in surface_rows.iter().enumerate() {
+                e2 += (out[i] - u_fe[r as usize]).powi(2);
+                n2 += u_fe[r as usize].powi(2);
+            }
+            surf_err = surf_err.max((e2 / n2).sqrt());
+            // Probe displacement along the load at the point.
+            let tri = triangles[*t as usize];
+            let along = |u: &dyn Fn(usize) -> f64| -> f64 {
+                (0..3)
+                    .map(|i| {
+                        bary[i]
+                            * (0..3)
+                                .map(|d| u(3 * s.axis_nodes[tri[i] as usize] as usize + d) * dir[d])
+                                .sum::<f64>()
+                    })
+                    .sum()
+            };
+            let full_pgd = {
+                let mut all = vec![0.0; model.rows()];
+                model.reconstruct(&coeffs, &mut all);
+                all
+            };
+            let d_fe = along(&|i| u_fe[i]);
+            let d_pgd = along(&|i| full_pgd[i]);
+            probe_err = probe_err.max((d_pgd - d_fe).abs() / d_fe.abs());
+        }
+        // Timings at n modes.
+        let v = [ParamValue::SurfaceMix {
+            triangle: cases[0].0,
+            bary: cases[0].1,
+            mix: cases[0].2,
+        }];
+        let surface_eval_us = 1e-3
+            * mean_ns(50, || {
+                model.particularize(&v, &mut coeffs)?;
+                model.reconstruct_rows(&surface_rows, &coeffs, &mut out);
+                Ok::<(), EvalError>(())
+            })?;
+        let contact_rows: Vec<u32> = surface_rows[..9].to_vec();
+        let mut c9 = [0.0; 9];
+        let contact_eval_ns = mean_ns(5000, || {
+            model.particularize(std::hint::black_box(&v), &mut coeffs)?;
+            model.reconstruct_rows(&contact_rows, &coeffs, &mut c9);
+            Ok::<(), EvalError>(())
+        })?;
+        let (map, opt) = match &svd {
+            Some(o) => (
+                Some(map_error(&s.ops(), &terms, n, o.g2)),
+                Some(svd_error(&o.ev, n)),
+            ),
+            None => (None, None),
+        };
+        surface_optimum.push(svd.as_ref().map(|o| svd_error(&o.surface_ev, n)));
+        let bytes = ((surface_rows.len() + model.axes()[0].values().len() / n_max) * n * 4) as u64;
+        rows.push(TradeoffRow {
+            modes: n as u32,
+            surface_rel_error: surf_err,
+            probe_rel_error: probe_err,
+            map_rel_error: map,
+            svd_rel_error: opt,
+            surface_eval_us,
+            contact_eval_ns,
+            bytes,
+            compliance_rel_error: None,
+            surface_max_nodal_error_mm: None,
+        });
+    }
+    let (mut floor_surf, mut floor_probe) = (0.0f64, 0.0f64);
+    for ((t, bary, dir, u_fe), interp) in cases.iter().zip(&floors) {
+        let (mut e2, mut n2) = (0.0, 0.0);
+        for &r in &surface_rows {
+            e2 += (interp[r as usize] - u_fe[r as usize]).powi(2);
+            n2 += u_fe[r as usize].powi(2);
+        }
+        floor_surf = floor_surf.max((e2 / n2).sqrt());
+        let tri = triangles[*t as usize];
+        let along = |u: &[f64]| -> f64 {
+            (0..3)
+                .map(|i| {
+                    bary[i]
+                        * (0..3)
+                            .map(|d| u[3 * s.axis_nodes[tri[i] as usize] as usize + d] * dir[d])
+                            .sum::<f64>()
+                })
+                .sum()
+        };
+        floor_probe = floor_probe.max((along(interp) - along(u_fe)).abs() / along(u_fe).abs());
+    }
+    Ok(PgdTable {
+        rows,
+        surface_optimum,
+        floor: (floor_surf, floor_probe),
+        brute_force_solve_s: svd.as_ref().map(|s| s.solve_s),
+    })
 }
