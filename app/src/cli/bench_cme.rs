@@ -68,7 +68,7 @@ pub fn run(args: &CmeBenchArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let built = args.pgd.build(&network, t_last)?;
     let offline_s = t0.elapsed().as_secs_f64();
-    let model = built.model;
+    let model = built.built.model;
     let set = model_coordinates(&model, &network, &p);
     let mut pgd_moments = Vec::new();
     for &t in &args.t {

@@ -7,8 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::cme::model::{self, CmeModel};
-use palpa_core::cme::{Moments, Network, fsp, greedy, ssa, ttsolve};
-use palpa_core::file;
+use palpa_core::cme::{Moments, Network, build, fsp, greedy, ssa, ttsolve};
 use serde::Serialize;
 
 #[derive(Debug, Subcommand)]
@@ -74,28 +73,17 @@ pub struct PgdArgs {
     step_tol: f64,
 }
 
-/// A built meta-model, what to save, and the solver's figures.
+/// A built meta-model and the solver's figures.
 pub struct Built {
-    pub model: CmeModel,
-    pub save: Saved,
+    pub built: build::Built,
     pub report: serde_json::Value,
-}
-
-pub enum Saved {
-    Separated(Box<palpa_core::separated::SeparatedModel<f64>>),
-    Train(
-        Box<palpa_core::cme::history::History>,
-        palpa_core::separated::Provenance,
-    ),
 }
 
 impl Built {
     pub fn save(&self, network: &Network, out: &Path) -> anyhow::Result<()> {
-        match &self.save {
-            Saved::Separated(m) => file::save(m, out),
-            Saved::Train(h, prov) => model::save_train(network, h, prov.clone(), out),
-        }
-        .with_context(|| format!("writing {}", out.display()))
+        self.built
+            .save(network, out)
+            .with_context(|| format!("writing {}", out.display()))
     }
 }
 
@@ -144,25 +132,8 @@ impl PgdArgs {
         times: Option<&[f64]>,
     ) -> anyhow::Result<Built> {
         let start = Instant::now();
-        match self.solver {
-            Solver::Greedy => {
-                let (m, r) = run_pgd(network, &self.options(t_default))?;
-                let report = serde_json::json!({
-                    "solver": "greedy",
-                    "terms": m.modes(),
-                    "compress_error": m.provenance().residual_per_mode.last().copied(),
-                    "steps": r.steps,
-                    "max_step_rank": r.max_step_rank,
-                    "worst_step_residual": r.worst_step_residual,
-                    "history_terms": r.history_terms,
-                    "seconds": start.elapsed().as_secs_f64(),
-                });
-                Ok(Built {
-                    model: CmeModel::new(m.clone())?,
-                    save: Saved::Separated(Box::new(m)),
-                    report,
-                })
-            }
+        let built = match self.solver {
+            Solver::Greedy => run_pgd(network, &self.options(t_default))?,
             Solver::Tt => {
                 let o = self.tt_options(t_default);
                 let mut shown = Instant::now();
@@ -178,37 +149,47 @@ impl PgdArgs {
                     );
                     let _ = std::io::stderr().flush();
                 };
-                let (h, r) = match times {
-                    Some(times) => ttsolve::solve_at(network, &o, times, &mut progress)?,
-                    None => ttsolve::solve(network, &o, &mut progress)?,
-                };
+                let b = build::train(network, &o, times, &mut progress)?;
                 eprintln!();
-                let seconds = start.elapsed().as_secs_f64();
-                let prov = model::train_provenance(network, &h, r.steps, &o);
-                let report = serde_json::json!({
-                    "solver": "tt",
-                    "steps": r.steps,
-                    "stored_times": r.stored,
-                    "max_step_rank": r.max_rank,
-                    "history_ranks": r.history_ranks,
-                    "worst_local_residual": r.worst_local_residual,
-                    "worst_mass_correction": r.worst_mass_correction,
-                    "sweeps": r.sweeps,
-                    "gmres_iterations": r.gmres_iterations,
-                    "solve_seconds": r.solve_seconds,
-                    "compress_seconds": r.compress_seconds,
-                    "stored_values": h.tt.len(),
-                    "seconds": seconds,
-                });
-                let meta = model::train_meta(network, &h, prov.clone());
-                let model = CmeModel::from_train(meta, h.tt.cores.clone())?;
-                Ok(Built {
-                    model,
-                    save: Saved::Train(Box::new(h), prov),
-                    report,
-                })
+                b
             }
-        }
+        };
+        let seconds = start.elapsed().as_secs_f64();
+        let report = match &built.form {
+            build::Form::Separated {
+                model: m,
+                report: r,
+            } => serde_json::json!({
+                "solver": "greedy",
+                "terms": m.modes(),
+                "compress_error": m.provenance().residual_per_mode.last().copied(),
+                "steps": r.steps,
+                "max_step_rank": r.max_step_rank,
+                "worst_step_residual": r.worst_step_residual,
+                "history_terms": r.history_terms,
+                "seconds": seconds,
+            }),
+            build::Form::Train {
+                history: h,
+                report: r,
+                ..
+            } => serde_json::json!({
+                "solver": "tt",
+                "steps": r.steps,
+                "stored_times": r.stored,
+                "max_step_rank": r.max_rank,
+                "history_ranks": r.history_ranks,
+                "worst_local_residual": r.worst_local_residual,
+                "worst_mass_correction": r.worst_mass_correction,
+                "sweeps": r.sweeps,
+                "gmres_iterations": r.gmres_iterations,
+                "solve_seconds": r.solve_seconds,
+                "compress_seconds": r.compress_seconds,
+                "stored_values": h.tt.len(),
+                "seconds": seconds,
+            }),
+        };
+        Ok(Built { built, report })
     }
 }
 
@@ -395,7 +376,11 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         }
         Method::Pgd => {
             let t_end = args.t.last().copied().unwrap_or(1.0).max(1e-3);
-            let model = args.pgd.build_for(&network, t_end, Some(&args.t))?.model;
+            let model = args
+                .pgd
+                .build_for(&network, t_end, Some(&args.t))?
+                .built
+                .model;
             let set = model_coordinates(&model, &network, &p);
             let mut out = Vec::new();
             for &t in &args.t {
@@ -484,14 +469,11 @@ pub fn model_coordinates(model: &CmeModel, network: &Network, p: &[f64]) -> Vec<
         .collect()
 }
 
-/// Runs the PGD solver with a progress line on stderr.
-pub fn run_pgd(
-    network: &Network,
-    options: &greedy::Options,
-) -> anyhow::Result<(palpa_core::separated::SeparatedModel<f64>, greedy::Report)> {
+/// Runs the greedy PGD with a progress line on stderr.
+fn run_pgd(network: &Network, options: &greedy::Options) -> anyhow::Result<build::Built> {
     let start = Instant::now();
     let max = options.max_modes;
-    let out = greedy::solve(network, options, &mut |p| {
+    let out = build::greedy(network, options, &mut |p| {
         match p {
             greedy::Progress::Step {
                 k,
@@ -524,7 +506,7 @@ fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     let mut report = built.report;
     report["out"] = serde_json::json!(args.out);
     report["model"] = serde_json::json!(network.name);
-    report["representation"] = serde_json::json!(built.model.describe());
+    report["representation"] = serde_json::json!(built.built.model.describe());
     report["bytes"] = serde_json::json!(std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0));
     println!("{report}");
     Ok(())

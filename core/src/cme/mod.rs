@@ -23,6 +23,7 @@
 //! [`Moments`] holds what every solver reports at each output time: the marginals,
 //! means, variances and the covariance of the first two species.
 
+pub mod build;
 pub mod cp;
 pub mod fsp;
 pub mod greedy;
