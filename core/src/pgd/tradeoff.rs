@@ -221,62 +221,7 @@ pub fn pgd_table(
         _ => return Err(TradeoffError::NotPgd),
     };
 
-    // Held-out references.
-    let mut rng = Rng::seed(0x7e57);
-    let mut cases = Vec::new();
-    let mut floors: Vec<Vec<f64>> = Vec::new();
-    for _ in 0..random {
-        let t = rng.below(triangles.len());
-        let (a, b) = (rng.range(0.1, 0.8), rng.uniform());
-        let bary = [a, (1.0 - a) * b, (1.0 - a) * (1.0 - b)];
-        let tri = s.axis_triangles[t];
-        // The axis triangle is a boundary face; find it among the space's faces.
-        let face = organ
-            .boundary
-            .iter()
-            .position(|f| {
-                f.iter()
-                    .zip(&tri)
-                    .all(|(&fv, &av)| fv == s.axis_nodes[av as usize])
-            })
-            .ok_or(TradeoffError::NotPgd)?;
-        let point = [0, 1, 2].map(|d| {
-            (0..3)
-                .map(|i| bary[i] * s.axis_vertices[tri[i] as usize][d])
-                .sum::<f64>()
-        });
-        let [p, q, r] = tri.map(|i| s.axis_vertices[i as usize]);
-        let normal = triangle_normal(p, q, r);
-        let dir = normal.map(|v| -v);
-        let sp = SurfacePoint {
-            face,
-            bary,
-            point,
-            normal,
-            distance_mm: 0.0,
-        };
-        let load = probe_load(&s.space, &sp, dir, 1.0, radius_mm)?;
-        let u = s.problem.solve(&s.space, &load);
-        // The s-axis floor: FE responses to the tool centred at the triangle's
-        // vertices, interpolated barycentrically (what the PGD converges to as N grows).
-        let mut interp = vec![0.0; u.len()];
-        for (i, &av) in tri.iter().enumerate() {
-            let mut b = [0.0; 3];
-            b[i] = 1.0;
-            let at_vertex = SurfacePoint {
-                bary: b,
-                point: s.axis_vertices[av as usize],
-                ..sp
-            };
-            let lv = probe_load(&s.space, &at_vertex, dir, 1.0, radius_mm)?;
-            let uv = s.problem.solve(&s.space, &lv);
-            for (a, v) in interp.iter_mut().zip(uv) {
-                *a += bary[i] * v;
-            }
-        }
-        floors.push(interp);
-        cases.push((t as u32, bary, dir, u));
-    }
+    let (cases, floors) = pgd_cases(&s, organ, &triangles, radius_mm, random)?;
     let surface_rows = node_rows(&organ.surface_nodes());
 
     let svd = if optimal {
@@ -406,4 +351,76 @@ pub fn pgd_table(
         floor: (floor_surf, floor_probe),
         brute_force_solve_s: svd.as_ref().map(|s| s.solve_s),
     })
+}
+
+/// A held-out press of the PGD table: axis triangle, barycentric point, push
+/// direction, and the FE answer on every node.
+type PgdCase = (u32, [f64; 3], [f64; 3], Vec<f64>);
+
+/// `random` seeded held-out presses on the axis triangles, each with its FE answer and
+/// the FE responses at the triangle's vertices interpolated to it (the floor of a
+/// vertex-load vademecum).
+fn pgd_cases(
+    s: &super::palpation::Setup,
+    organ: &OrganMesh,
+    triangles: &[[u32; 3]],
+    radius_mm: f64,
+    random: usize,
+) -> Result<(Vec<PgdCase>, Vec<Vec<f64>>), TradeoffError> {
+    let mut rng = Rng::seed(HELD_OUT_SEED);
+    let mut cases = Vec::new();
+    let mut floors: Vec<Vec<f64>> = Vec::new();
+    for _ in 0..random {
+        let t = rng.below(triangles.len());
+        let (a, b) = (rng.range(0.1, 0.8), rng.uniform());
+        let bary = [a, (1.0 - a) * b, (1.0 - a) * (1.0 - b)];
+        let tri = s.axis_triangles[t];
+        // The axis triangle is a boundary face; find it among the space's faces.
+        let face = organ
+            .boundary
+            .iter()
+            .position(|f| {
+                f.iter()
+                    .zip(&tri)
+                    .all(|(&fv, &av)| fv == s.axis_nodes[av as usize])
+            })
+            .ok_or(TradeoffError::NotPgd)?;
+        let point = [0, 1, 2].map(|d| {
+            (0..3)
+                .map(|i| bary[i] * s.axis_vertices[tri[i] as usize][d])
+                .sum::<f64>()
+        });
+        let [p, q, r] = tri.map(|i| s.axis_vertices[i as usize]);
+        let normal = triangle_normal(p, q, r);
+        let dir = normal.map(|v| -v);
+        let sp = SurfacePoint {
+            face,
+            bary,
+            point,
+            normal,
+            distance_mm: 0.0,
+        };
+        let load = probe_load(&s.space, &sp, dir, 1.0, radius_mm)?;
+        let u = s.problem.solve(&s.space, &load);
+        // The s-axis floor: FE responses to the tool centred at the triangle's
+        // vertices, interpolated barycentrically (what the PGD converges to as N grows).
+        let mut interp = vec![0.0; u.len()];
+        for (i, &av) in tri.iter().enumerate() {
+            let mut b = [0.0; 3];
+            b[i] = 1.0;
+            let at_vertex = SurfacePoint {
+                bary: b,
+                point: s.axis_vertices[av as usize],
+                ..sp
+            };
+            let lv = probe_load(&s.space, &at_vertex, dir, 1.0, radius_mm)?;
+            let uv = s.problem.solve(&s.space, &lv);
+            for (a, v) in interp.iter_mut().zip(uv) {
+                *a += bary[i] * v;
+            }
+        }
+        floors.push(interp);
+        cases.push((t as u32, bary, dir, u));
+    }
+    Ok((cases, floors))
 }
