@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use palpa_core::scene::{PalpationScene, ProbePoint};
+use palpa_core::scene::PalpationScene;
 
 use crate::camera::OrbitCamera;
 use crate::force::{ForceLoop, ForceSample, HapticDevice, LoopTiming, SampleStatus};
@@ -19,6 +19,9 @@ use crate::input::{Controls, InputEvent};
 use crate::pick::ScenePicker;
 use crate::render::{FrameInput, ProbeVisual};
 use crate::stats::Ring;
+
+mod deformation;
+use deformation::Deformation;
 
 /// Radius of the probe tool, mm (the load radius the vademecum was computed with).
 pub const TOOL_RADIUS_MM: f32 = 5.0;
@@ -40,14 +43,7 @@ pub struct Session {
     /// Where the mouse last was (mouse button events carry no position).
     pub last_pointer_px: Vec2,
     started: Instant,
-    coeffs: Vec<f64>,
-    deformed_mm: Vec<[f32; 3]>,
-    displacement: Vec<f64>,
-    /// The near field of the current frame (rows of the scene; zero without one) and
-    /// the same per render vertex for the GPU.
-    near_rows: Vec<f64>,
-    near_gpu: Vec<[f32; 4]>,
-    deformed_valid: bool,
+    deformation: Deformation,
 }
 
 /// Pairs (x, y) in a ring (the force plot).
@@ -71,9 +67,7 @@ impl Session {
             .closest_palpable(front.as_dvec3().to_array())
             .map(|(p, _)| p);
         let force = ForceLoop::spawn(Arc::clone(&scene), haptic, LoopTiming::default())?;
-        let n = scene.modes();
-        let rows = scene.model().rows();
-        let vertices = scene.vertices_mm().to_vec();
+        let deformation = Deformation::new(&scene);
         Ok(Session {
             scene,
             controls,
@@ -87,12 +81,7 @@ impl Session {
             },
             last_pointer_px: Vec2::ZERO,
             started: Instant::now(),
-            coeffs: vec![0.0; n],
-            deformed_mm: vertices,
-            displacement: vec![0.0; rows],
-            near_rows: vec![0.0; rows],
-            near_gpu: vec![[0.0; 4]; rows / 3],
-            deformed_valid: true,
+            deformation,
         })
     }
 
@@ -110,15 +99,19 @@ impl Session {
             ev,
             InputEvent::PointerDown { .. } | InputEvent::Gamepad { .. }
         );
-        if needs_pick {
-            self.update_deformed();
-        }
+        // Only a new press picks against the current shape; other events read the
+        // last surface computed (no reconstruction per pointer move).
+        let deformed_mm = if needs_pick {
+            self.deformation.deformed_mm(&self.scene)
+        } else {
+            self.deformation.last_deformed_mm()
+        };
         let camera = self.controls.camera;
         let picker = ScenePicker {
             scene: &self.scene,
             camera: &camera,
             viewport_px,
-            deformed_mm: &self.deformed_mm,
+            deformed_mm,
         };
         self.controls.handle(ev, &picker, viewport_px);
     }
@@ -139,17 +132,10 @@ impl Session {
         } else {
             (probe, [0.0; 3])
         };
-        if let Some(p) = point {
-            match self
-                .scene
-                .model()
-                .particularize(&[self.scene.param(&p, force)], &mut self.coeffs[..n])
-            {
-                Ok(_) => {}
-                Err(_) => self.coeffs[..n].fill(0.0),
-            }
-            self.update_near(Some((&p, force)));
-            let tip = self.contact_point(&p, n);
+        let tip = self
+            .deformation
+            .evaluate(&self.scene, point.as_ref().map(|p| (p, force)), n);
+        if let (Some(p), Some(tip)) = (point, tip) {
             let (_, normal) = self.scene.frame(&p);
             visual = Some(ProbeVisual {
                 tip_mm: tip,
@@ -158,9 +144,6 @@ impl Session {
                 radius_mm: TOOL_RADIUS_MM,
                 valid: self.controls.feedback.is_none(),
             });
-        } else {
-            self.coeffs[..n].fill(0.0);
-            self.update_near(None);
         }
         self.render_eval_us.push(t0.elapsed().as_secs_f64() * 1e6);
         self.force_history
@@ -169,76 +152,18 @@ impl Session {
         self.force_history
             .y
             .push(if ok { f64::from(s.magnitude_n) } else { 0.0 });
-        self.deformed_valid = false;
         FrameInput {
             camera: &self.controls.camera,
-            coeffs: &self.coeffs[..n],
-            near_mm: &self.near_gpu,
+            coeffs: self.deformation.coeffs(),
+            near_mm: self.deformation.near_gpu(),
             colormap_mm: self.colormap_mm,
             probe: visual,
         }
     }
 
-    /// The exact near field under the tool for this frame (zero with no probe or no
-    /// near field in the scene).
-    fn update_near(&mut self, probe: Option<(&ProbePoint, [f64; 3])>) {
-        if self.scene.near().is_none() {
-            return;
-        }
-        self.near_rows.fill(0.0);
-        if let Some((p, force)) = probe
-            && self
-                .scene
-                .add_near_displacement(p, force, &mut self.near_rows)
-                .is_err()
-        {
-            self.near_rows.fill(0.0);
-        }
-        for (g, r) in self.near_gpu.iter_mut().zip(self.near_rows.chunks_exact(3)) {
-            *g = [r[0] as f32, r[1] as f32, r[2] as f32, 0.0];
-        }
-    }
-
-    /// Deformed contact point for the current coefficients and near field.
-    fn contact_point(&self, p: &ProbePoint, n: usize) -> Vec3 {
-        let (x, _) = self.scene.frame(p);
-        let u = self
-            .scene
-            .point_displacement(p, &self.coeffs[..n], Some(&self.near_rows));
-        Vec3::new(
-            (x[0] + u[0]) as f32,
-            (x[1] + u[1]) as f32,
-            (x[2] + u[2]) as f32,
-        )
-    }
-
-    /// Brings the CPU copy of the deformed surface up to date (for picking).
-    fn update_deformed(&mut self) {
-        if self.deformed_valid {
-            return;
-        }
-        let n = (self.controls.modes as usize).clamp(1, self.scene.modes());
-        self.scene
-            .model()
-            .reconstruct(&self.coeffs[..n], &mut self.displacement);
-        for (i, (d, r)) in self
-            .deformed_mm
-            .iter_mut()
-            .zip(self.scene.vertices_mm())
-            .enumerate()
-        {
-            for c in 0..3 {
-                let u = self.displacement[3 * i + c] + self.near_rows[3 * i + c];
-                d[c] = r[c] + u as f32;
-            }
-        }
-        self.deformed_valid = true;
-    }
-
     /// The CPU-deformed surface for the current frame (the GPU path's reference).
     pub fn deformed_mm(&mut self) -> &[[f32; 3]] {
-        self.update_deformed();
-        &self.deformed_mm
+        self.deformation.deformed_mm(&self.scene)
     }
 }
 

@@ -1,0 +1,124 @@
+//! What a palpation frame evaluates on the CPU: the mode coefficients at the probe,
+//! the near field under the tool (for the GPU and the picture), the drawn tip, and on
+//! demand the whole deformed surface (for picking). Reused buffers: nothing is
+//! allocated per frame.
+
+use glam::Vec3;
+use palpa_core::scene::{PalpationScene, ProbePoint};
+
+#[derive(Debug)]
+pub struct Deformation {
+    coeffs: Vec<f64>,
+    /// Modes of the last evaluation.
+    n: usize,
+    deformed_mm: Vec<[f32; 3]>,
+    displacement: Vec<f64>,
+    /// The near field of the current frame (rows of the scene; zero without one) and
+    /// the same per render vertex for the GPU.
+    near_rows: Vec<f64>,
+    near_gpu: Vec<[f32; 4]>,
+    deformed_valid: bool,
+}
+
+impl Deformation {
+    pub fn new(scene: &PalpationScene) -> Self {
+        let rows = scene.model().rows();
+        Deformation {
+            coeffs: vec![0.0; scene.modes()],
+            n: 1,
+            deformed_mm: scene.vertices_mm().to_vec(),
+            displacement: vec![0.0; rows],
+            near_rows: vec![0.0; rows],
+            near_gpu: vec![[0.0; 4]; rows / 3],
+            deformed_valid: true,
+        }
+    }
+
+    /// Evaluates the first `n` modes and the near field for a probe at `p` pushing with
+    /// `force` (N), or the rest shape with no probe; returns the drawn tip (mm).
+    pub fn evaluate(
+        &mut self,
+        scene: &PalpationScene,
+        probe: Option<(&ProbePoint, [f64; 3])>,
+        n: usize,
+    ) -> Option<Vec3> {
+        self.deformed_valid = false;
+        self.n = n;
+        let Some((p, force)) = probe else {
+            self.coeffs[..n].fill(0.0);
+            self.update_near(scene, None);
+            return None;
+        };
+        if scene
+            .model()
+            .particularize(&[scene.param(p, force)], &mut self.coeffs[..n])
+            .is_err()
+        {
+            self.coeffs[..n].fill(0.0);
+        }
+        self.update_near(scene, Some((p, force)));
+        let (x, _) = scene.frame(p);
+        let u = scene.point_displacement(p, &self.coeffs[..n], Some(&self.near_rows));
+        Some(Vec3::new(
+            (x[0] + u[0]) as f32,
+            (x[1] + u[1]) as f32,
+            (x[2] + u[2]) as f32,
+        ))
+    }
+
+    /// The coefficients of the last evaluation.
+    pub fn coeffs(&self) -> &[f64] {
+        &self.coeffs[..self.n]
+    }
+
+    /// The near field per render vertex, for the GPU.
+    pub fn near_gpu(&self) -> &[[f32; 4]] {
+        &self.near_gpu
+    }
+
+    /// The exact near field under the tool (zero with no probe or no near field).
+    fn update_near(&mut self, scene: &PalpationScene, probe: Option<(&ProbePoint, [f64; 3])>) {
+        if scene.near().is_none() {
+            return;
+        }
+        self.near_rows.fill(0.0);
+        if let Some((p, force)) = probe
+            && scene
+                .add_near_displacement(p, force, &mut self.near_rows)
+                .is_err()
+        {
+            self.near_rows.fill(0.0);
+        }
+        for (g, r) in self.near_gpu.iter_mut().zip(self.near_rows.chunks_exact(3)) {
+            *g = [r[0] as f32, r[1] as f32, r[2] as f32, 0.0];
+        }
+    }
+
+    /// The CPU-deformed surface as last computed (may lag the last evaluation).
+    pub fn last_deformed_mm(&self) -> &[[f32; 3]] {
+        &self.deformed_mm
+    }
+
+    /// The CPU-deformed surface for the last evaluation (the GPU path's reference, and
+    /// what picking hits).
+    pub fn deformed_mm(&mut self, scene: &PalpationScene) -> &[[f32; 3]] {
+        if !self.deformed_valid {
+            scene
+                .model()
+                .reconstruct(&self.coeffs[..self.n], &mut self.displacement);
+            for (i, (d, r)) in self
+                .deformed_mm
+                .iter_mut()
+                .zip(scene.vertices_mm())
+                .enumerate()
+            {
+                for c in 0..3 {
+                    let u = self.displacement[3 * i + c] + self.near_rows[3 * i + c];
+                    d[c] = r[c] + u as f32;
+                }
+            }
+            self.deformed_valid = true;
+        }
+        &self.deformed_mm
+    }
+}
