@@ -5,6 +5,14 @@ cd "$(dirname "$0")/.."
 scripts/test.sh
 cargo fmt --all --check
 cargo clippy --locked --workspace --all-targets -- -D warnings
+# Licences, duplicate versions and sources (deny.toml); advisories need the RustSec
+# database from GitHub, so they are checked only with PALPA_ADVISORIES=1.
+if cargo deny --version >/dev/null 2>&1; then
+  cargo deny check licenses bans sources
+  if [ "${PALPA_ADVISORIES:-0}" = 1 ]; then cargo deny check advisories; fi
+else
+  echo "check.sh: skipping cargo deny (not installed; 'cargo install cargo-deny --locked')"
+fi
 # Mobile targets: type-check only, and only where the target is installed (never in CI).
 for t in aarch64-linux-android aarch64-apple-ios; do
   if rustup target list --installed 2>/dev/null | grep -qx "$t"; then
