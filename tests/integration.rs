@@ -1,0 +1,16 @@
+//! The workspace-level integration tests, one module per subject (see
+//! ARCHITECTURE.md's test table), linked into one binary.
+
+mod architecture;
+mod assets;
+mod cme;
+mod cme_greedy;
+mod cme_tt;
+mod evaluation;
+mod fe_convergence;
+mod fe_liver;
+mod meta_model_file;
+mod nodal_liver;
+mod pgd_liver;
+mod scene;
+mod surface_import;
