@@ -96,10 +96,10 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     assert!(with.surface_rel_error < 0.02, "{with:?}");
     assert!(with.surface_max_nodal_rel_error < 0.03, "{with:?}");
     let band_only = small.clone().with_far_tolerance(None);
-    let band_only = nodal_errors(&band_only, &s.space, &cases, &surface, 30).expect("evaluates");
+    let e_band = nodal_errors(&band_only, &s.space, &cases, &surface, 30).expect("evaluates");
     assert!(
-        band_only.surface_rel_error > 2.0 * with.surface_rel_error,
-        "band only {band_only:?}, with far field {with:?}"
+        e_band.surface_rel_error > 2.0 * with.surface_rel_error,
+        "band only {e_band:?}, with far field {with:?}"
     );
 
     // The file keeps the near field; the surface-only f32 scene evaluates the same.
@@ -108,6 +108,19 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     file::save(&small, &path).expect("save");
     let back: SeparatedModel<f64> = file::load(&path).expect("load");
     assert_eq!(back.near(), small.near());
+    let version = |p: &std::path::Path| {
+        let b = std::fs::read(p).expect("read");
+        u32::from_le_bytes(b[8..12].try_into().expect("4 bytes"))
+    };
+    assert_eq!(version(&path), 4, "a far field is format version 4");
+    // Without the far field the model is written as version 3 (what older builds
+    // read) and opens with its band only.
+    let band_path = dir.path().join("band.palpa");
+    file::save(&band_only, &band_path).expect("save");
+    assert_eq!(version(&band_path), 3);
+    let back: SeparatedModel<f64> = file::load(&band_path).expect("load");
+    assert!(back.near().is_some_and(|n| n.far.is_none()));
+    assert_eq!(back.near(), band_only.near());
     let f32_scene = small
         .select_nodes(&surface)
         .expect("surface")
