@@ -87,6 +87,24 @@ pub struct OfflineArgs {
     resume: bool,
 }
 
+/// The vademecum's description of an `offline` run (mesh, level, element, material,
+/// tool, update): what its provenance records and a later `tradeoff` checks.
+fn describe_run(
+    organ: &palpa_core::organ::OrganMesh,
+    args: &OfflineArgs,
+    material: Material,
+    update: bool,
+) -> String {
+    describe(
+        organ,
+        &format!("{:?}", args.level).to_lowercase(),
+        args.element,
+        material,
+        args.radius_mm,
+        update,
+    )
+}
+
 fn journal_path(out: &Path) -> PathBuf {
     let mut p = out.as_os_str().to_owned();
     p.push(".journal");
@@ -102,14 +120,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     let organ = mesh_organ(args.organ, args.level, None)?;
     let s = setup(&organ, args.element, material, args.radius_mm)
         .context("building the FE operators")?;
-    let desc = describe(
-        &organ,
-        &format!("{:?}", args.level).to_lowercase(),
-        args.element,
-        material,
-        args.radius_mm,
-        !args.no_update,
-    );
+    let desc = describe_run(&organ, args, material, !args.no_update);
     let settings = Settings {
         max_modes: args.modes.unwrap_or(100),
         tol: args.tol,
@@ -218,14 +229,7 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
     let organ = mesh_organ(args.organ, args.level, None)?;
     let s = nodal::setup(&organ, args.element, material, args.radius_mm)
         .context("building the FE operators and the load axis")?;
-    let desc = describe(
-        &organ,
-        &format!("{:?}", args.level).to_lowercase(),
-        args.element,
-        material,
-        args.radius_mm,
-        false,
-    );
+    let desc = describe_run(&organ, args, material, false);
     let settings = NodalSettings {
         modes,
         band_radius_mm: args.band_radius_mm,
