@@ -4,6 +4,7 @@
 //! and close between them, a truncated model keeps the near field exact under the tool,
 //! and the file round trip keeps the near field.
 
+use palpa_core::farfield::{FarBlocks, FarField, NestedFar};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::heldout::{self, nodal_errors};
 use palpa_core::pgd::nodal::{NodalSettings, build, setup};
@@ -18,6 +19,75 @@ fn press(
     kind: &'static str,
 ) -> heldout::Case {
     heldout::press(&s.space, &s.problem, face, bary, s.radius_mm, kind).expect("FE solve")
+}
+
+/// The flat (version-4) form of a nested far field: each block's `V` rows written out
+/// per load node (`V_γ B_bᵀ`, with `V_γ` lifted from the leaf through the transfers).
+fn flat_of(n: &NestedFar) -> FarBlocks {
+    let mut f = FarBlocks {
+        tolerance: n.tolerance,
+        eta: n.eta,
+        row_ptr: n.row_ptr.clone(),
+        rows: n.rows.clone(),
+        rank: n.rank.clone(),
+        u_ptr: n.a_ptr.clone(),
+        u: n.a.clone(),
+        col_ptr: vec![0],
+        ..FarBlocks::default()
+    };
+    for j in 0..n.leaf_of.len() {
+        let mut g = n.leaf_of[j];
+        if g != u32::MAX {
+            let k = n.basis_rank[g as usize] as usize;
+            let at = n.basis_ptr[g as usize] as usize + 3 * n.leaf_slot[j] as usize * k;
+            // v[c][kk]: the load node's row of V_g.
+            let mut v: Vec<Vec<f64>> = (0..3)
+                .map(|c| {
+                    (0..k)
+                        .map(|kk| f64::from(n.basis[at + c * k + kk]))
+                        .collect()
+                })
+                .collect();
+            loop {
+                let gi = g as usize;
+                let kg = n.basis_rank[gi] as usize;
+                for b in n.block_ptr[gi] as usize..n.block_ptr[gi + 1] as usize {
+                    let r = n.rank[b] as usize;
+                    let bm = &n.b[n.b_ptr[b] as usize..n.b_ptr[b + 1] as usize];
+                    f.col_block.push(b as u32);
+                    f.v_off.push(f.v.len() as u32);
+                    for vc in &v {
+                        for rr in 0..r {
+                            let x: f64 =
+                                (0..kg).map(|kk| vc[kk] * f64::from(bm[rr * kg + kk])).sum();
+                            f.v.push(x as f32);
+                        }
+                    }
+                }
+                let p = n.parent[gi];
+                if p == u32::MAX || n.basis_rank[p as usize] == 0 {
+                    break;
+                }
+                let (kp, off) = (n.basis_rank[p as usize] as usize, n.kid_offset[gi] as usize);
+                let e = &n.basis[n.basis_ptr[p as usize] as usize..];
+                v = v
+                    .iter()
+                    .map(|vc| {
+                        (0..kp)
+                            .map(|kk| {
+                                (0..kg)
+                                    .map(|i| vc[i] * f64::from(e[(off + i) * kp + kk]))
+                                    .sum()
+                            })
+                            .collect()
+                    })
+                    .collect();
+                g = p;
+            }
+        }
+        f.col_ptr.push(f.col_block.len() as u32);
+    }
+    f
 }
 
 #[test]
@@ -112,7 +182,43 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
         let b = std::fs::read(p).expect("read");
         u32::from_le_bytes(b[8..12].try_into().expect("4 bytes"))
     };
-    assert_eq!(version(&path), 4, "a far field is format version 4");
+    assert_eq!(version(&path), 5, "a nested far field is format version 5");
+    // The same far field in the flat form of version 4 acts the same and still opens.
+    let Some(FarField::Nested(nested)) = small.near().and_then(|n| n.far.as_deref()) else {
+        panic!("the builder writes the nested form");
+    };
+    let flat = flat_of(nested);
+    flat.validate(nested.leaf_of.len(), small.rows() / 3)
+        .expect("valid flat form");
+    let mut rng = palpa_core::rng::Rng::seed(5);
+    for _ in 0..20 {
+        let shares: Vec<(u32, f64)> = (0..6)
+            .map(|_| (rng.below(nested.leaf_of.len()) as u32, rng.range(0.0, 1.0)))
+            .collect();
+        let mix = [
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        ];
+        let (mut a, mut b) = (vec![0.0; small.rows()], vec![0.0; small.rows()]);
+        nested.add(&shares, mix, &mut a);
+        flat.add(&shares, mix, &mut b);
+        let scale = a.iter().fold(1e-12f64, |m, v| m.max(v.abs()));
+        assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= 1e-5 * scale));
+    }
+    let mut old = small.clone().without_near();
+    let mut old_near = small.near().expect("near").clone();
+    old_near.far = Some(Box::new(FarField::Flat(flat)));
+    old = old.with_near(old_near).expect("consistent");
+    let old_path = dir.path().join("v4.palpa");
+    file::save(&old, &old_path).expect("save");
+    assert_eq!(
+        version(&old_path),
+        4,
+        "a flat far field is format version 4"
+    );
+    let back_old: SeparatedModel<f64> = file::load(&old_path).expect("load v4");
+    assert_eq!(back_old.near(), old.near());
     // Without the far field the model is written as version 3 (what older builds
     // read) and opens with its band only.
     let band_path = dir.path().join("band.palpa");
@@ -131,7 +237,9 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
             .iter()
             .all(|&x| (x as usize) < surface.len())
     );
-    let far = near.far.as_ref().expect("far field kept");
+    let Some(FarField::Nested(far)) = near.far.as_deref() else {
+        panic!("far field kept");
+    };
     assert!(far.rows.iter().all(|&x| (x as usize) < surface.len()));
     // The scene's near and far field give the full model's values on its rows.
     let probe = [palpa_core::axis::ParamValue::SurfaceMix {

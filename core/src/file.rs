@@ -18,7 +18,9 @@
 //!               nodes × r_k, f64. Version 3 adds the separated layout with a near
 //!               field (band and compliance table, f32, carried in the header; see
 //!               `nearfield`), and is the version of every model with a nodal-load
-//!               axis, which older builds cannot decode
+//!               axis, which older builds cannot decode. Version 4 adds the far
+//!               field's flat low-rank blocks, version 5 its nested-basis form (both
+//!               in the header, f32)
 //! P + len       end of file (trailing bytes are an error)
 //! ```
 //!
@@ -42,7 +44,7 @@ use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
 use crate::axis::Discretization;
-use crate::farfield::FarBlocks;
+use crate::farfield::{FarBlocks, FarField, NestedFar};
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
 use crate::scalar::{Precision, Scalar};
@@ -55,8 +57,10 @@ pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
 /// builds keep reading them. Version 3: nodal-load axes and the near field
 /// ([`Layout::SeparatedNear`]); only models that use them are written as version 3.
 /// Version 4: the near field with its hierarchical far field
-/// ([`Layout::SeparatedNearFar`]), written only for models that have one.
-pub const FORMAT_VERSION: u32 = 4;
+/// ([`Layout::SeparatedNearFar`]). Version 5: the far field with nested column bases
+/// ([`Layout::SeparatedNearNested`]), what the builder writes now; each is written only
+/// for models that have it.
+pub const FORMAT_VERSION: u32 = 5;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
@@ -91,6 +95,11 @@ pub enum Layout {
         near: Box<NearField>,
         far: Box<FarBlocks>,
     },
+    /// As `SeparatedNear`, plus the far field with nested column bases (version 5).
+    SeparatedNearNested {
+        near: Box<NearField>,
+        far: Box<NestedFar>,
+    },
 }
 
 impl Layout {
@@ -98,7 +107,10 @@ impl Layout {
     pub fn is_separated(&self) -> bool {
         matches!(
             self,
-            Layout::Separated | Layout::SeparatedNear { .. } | Layout::SeparatedNearFar { .. }
+            Layout::Separated
+                | Layout::SeparatedNear { .. }
+                | Layout::SeparatedNearFar { .. }
+                | Layout::SeparatedNearNested { .. }
         )
     }
 }
@@ -283,8 +295,15 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
                         ]
                     })
                     .collect();
-                match near.far.take() {
-                    Some(far) => Layout::SeparatedNearFar { near, far },
+                match near.far.take().map(|f| *f) {
+                    Some(FarField::Flat(far)) => Layout::SeparatedNearFar {
+                        near,
+                        far: Box::new(far),
+                    },
+                    Some(FarField::Nested(far)) => Layout::SeparatedNearNested {
+                        near,
+                        far: Box::new(far),
+                    },
                     None => Layout::SeparatedNear { near },
                 }
             }
@@ -305,6 +324,7 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
     }
     let version = match header.layout {
         Layout::SeparatedNearFar { .. } => 4,
+        Layout::SeparatedNearNested { .. } => 5,
         _ => 3,
     };
     write_file(path, version, &header, &blocks)
@@ -622,7 +642,12 @@ fn load_payload<T: Scalar, R: Read>(
         Layout::SeparatedNear { near } => Some(near.as_ref().clone()),
         Layout::SeparatedNearFar { near, far } => {
             let mut near = near.as_ref().clone();
-            near.far = Some(far.clone());
+            near.far = Some(Box::new(FarField::Flat(far.as_ref().clone())));
+            Some(near)
+        }
+        Layout::SeparatedNearNested { near, far } => {
+            let mut near = near.as_ref().clone();
+            near.far = Some(Box::new(FarField::Nested(far.as_ref().clone())));
             Some(near)
         }
         _ => None,

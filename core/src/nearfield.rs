@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::disk::lagrange_tri;
-use crate::farfield::{FarBlocks, FarFieldError};
+use crate::farfield::{FarField, FarFieldError};
 
 /// Why a near-field part is inconsistent with its model.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -74,7 +74,7 @@ pub struct NearField {
     /// The hierarchical far field, if the model has one (stored in its own layout
     /// part, so files without it keep their encoding).
     #[serde(skip)]
-    pub far: Option<Box<FarBlocks>>,
+    pub far: Option<Box<FarField>>,
 }
 
 impl NearField {

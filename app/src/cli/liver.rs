@@ -48,8 +48,10 @@ pub struct OfflineArgs {
     table_degree: Option<usize>,
     /// Nodal method: tolerance of the hierarchical far field (singular values of the
     /// remainder's well-separated blocks, per unit load response, below it are
-    /// dropped); `none` keeps only the band within `--band-radius-mm`.
-    #[arg(long, default_value = "0.01")]
+    /// dropped); `none` keeps only the band within `--band-radius-mm`. Default: 0.01
+    /// for tools of 5 mm and more, down to 0.006 for smaller ones (a 2 mm tool's
+    /// surface error needs it).
+    #[arg(long, default_value = "auto")]
     far_tolerance: FarTolerance,
     #[arg(value_enum, default_value = "liver")]
     organ: OrganName,
@@ -58,7 +60,7 @@ pub struct OfflineArgs {
     #[arg(long, default_value = "p2")]
     element: Element,
     /// Number of separated terms: for `pgd` the most it computes (default 100); for
-    /// `nodal` the global modes beside the far field (default 20: the far field's
+    /// `nodal` the global modes beside the far field (default 5: the far field's
     /// blocks compress the remainder of few modes better than of many).
     #[arg(long)]
     modes: Option<usize>,
@@ -234,10 +236,14 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
         modes,
         band_radius_mm: args.band_radius_mm,
         table_degree: args.table_degree,
-        far: args.far_tolerance.0.map(|tolerance| FarSettings {
-            tolerance,
-            ..FarSettings::default()
-        }),
+        far: match args.far_tolerance {
+            FarTolerance::Auto => Some(FarSettings::for_tool(args.radius_mm)),
+            FarTolerance::Fixed(tolerance) => Some(FarSettings {
+                tolerance,
+                ..FarSettings::default()
+            }),
+            FarTolerance::Off => None,
+        },
         ..NodalSettings::default()
     };
     let (mut model, report) = nodal::build(&s, &settings, &desc, |stage| {
@@ -665,20 +671,26 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--far-tolerance`: a positive number or `none`.
+/// `--far-tolerance`: `auto`, a positive number or `none`.
 #[derive(Debug, Clone, Copy)]
-struct FarTolerance(Option<f64>);
+enum FarTolerance {
+    Auto,
+    Fixed(f64),
+    Off,
+}
 
 impl std::str::FromStr for FarTolerance {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        if s == "none" {
-            return Ok(FarTolerance(None));
+        match s {
+            "auto" => return Ok(FarTolerance::Auto),
+            "none" => return Ok(FarTolerance::Off),
+            _ => {}
         }
         match s.parse::<f64>() {
-            Ok(t) if t.is_finite() && t > 0.0 => Ok(FarTolerance(Some(t))),
+            Ok(t) if t.is_finite() && t > 0.0 => Ok(FarTolerance::Fixed(t)),
             _ => Err(format!(
-                "expected a positive tolerance or `none`, got `{s}`"
+                "expected `auto`, a positive tolerance or `none`, got `{s}`"
             )),
         }
     }

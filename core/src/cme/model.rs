@@ -563,9 +563,7 @@ pub fn load(path: &std::path::Path) -> Result<CmeModel, CmeLoadError> {
             let (meta, cores) = file::load_train(path)?;
             CmeModel::from_train(meta, cores)
         }
-        Layout::Separated | Layout::SeparatedNear { .. } | Layout::SeparatedNearFar { .. } => {
-            CmeModel::new(file::load_any(path)?.into_f64())
-        }
+        _ => CmeModel::new(file::load_any(path)?.into_f64()),
     };
     model.map_err(|source| CmeLoadError::Model {
         path: path.to_path_buf(),

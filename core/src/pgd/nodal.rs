@@ -40,7 +40,7 @@ use super::cluster::{FarSettings, compress};
 use super::palpation::vademecum_meta;
 use crate::axis::{AxisError, Discretization, MAX_LOAD_NODES};
 use crate::disk::{lattice, tri_shape};
-use crate::farfield::FarBlocks;
+use crate::farfield::FarField;
 use crate::fe::elasticity::LinearProblem;
 use crate::fe::probe::organ_space;
 use crate::fe::space::Space;
@@ -105,7 +105,7 @@ pub struct NodalSettings {
 impl Default for NodalSettings {
     fn default() -> Self {
         NodalSettings {
-            modes: 20,
+            modes: 5,
             band_radius_mm: 20.0,
             table_degree: None,
             power_iterations: 2,
@@ -420,7 +420,7 @@ fn remainder_parts(
     res: &Mat<f64>,
     scale: &[f64],
     report: &mut NodalReport,
-) -> (Band, Option<Box<FarBlocks>>) {
+) -> (Band, Option<Box<FarField>>) {
     let m = s.load_nodes.len();
     let positions = s.positions();
     let surf_pos: Vec<[f64; 3]> = s
@@ -445,7 +445,7 @@ fn remainder_parts(
             );
             report.far_blocks = c.far.blocks();
             report.far_bytes = c.far.bytes();
-            (c.dense, Some(Box::new(c.far)))
+            (c.dense, Some(Box::new(FarField::Nested(c.far))))
         }
         None => {
             let radius = settings.band_radius_mm;

@@ -1,50 +1,13 @@
-//! The far field of a nodal-load vademecum: hierarchical low-rank blocks of what the
-//! separated modes leave.
+//! The far field as independent low-rank blocks (file format version 4).
 //!
-//! The surface response map `G_S` of an elastic body is the discrete form of an
-//! operator of order −1 on a 2-D surface: its singular values decay only like
-//! `k^{-1/2}`, so a global rank-N sum carries a truncation error that falls slowly with
-//! N, spread over the whole surface (it is not only under the tool). The same map is
-//! nevertheless *locally* low rank: the block coupling a patch of load nodes with a
-//! patch of surface nodes far from it (relative to the patches' sizes) is the restriction
-//! of a smooth kernel and is compressed to a few terms (the hierarchical-matrix
-//! argument). So the remainder `R = G_S − X_S Yᵀ` is stored as
-//!
-//! - dense 3×3 blocks where the patches are close (the near field's band), and
-//! - for each well-separated pair of patches `(ρ, γ)`, `R[ρ, γ] ≈ U Vᵀ` with rank `k`
-//!   chosen per block from a tolerance,
-//!
-//! over cluster trees of the surface nodes and of the load nodes. A probe touches the
-//! few load nodes under its disk; for each of them the blocks whose column patch holds
-//! it add `U (Vᵀ (w t))` to the rows of their row patch. The work per frame is about
-//! `rows × k`, and nothing is allocated.
+//! Each admissible pair of patches `(ρ, γ)` stores its own `R[ρ, γ] ≈ U Vᵀ`; the rows
+//! of `V` of a load node are repeated in every block on its path through the tree. The
+//! nested form ([`super::nested`]) shares them; this one is kept so that version-4
+//! files open and evaluate as they were built.
 
 use serde::{Deserialize, Serialize};
-use thiserror::Error;
 
-/// Why stored far-field blocks are inconsistent with their model.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum FarFieldError {
-    #[error("far field: {what} has {found} entries, expected {expected}")]
-    Length {
-        what: &'static str,
-        found: usize,
-        expected: usize,
-    },
-    #[error("far field: row {entry} names field node {node}, the model has {nodes}")]
-    NoSuchNode {
-        entry: usize,
-        node: u32,
-        nodes: usize,
-    },
-    #[error("far field: {what} pointers must rise from 0 (at {at})")]
-    Pointers { what: &'static str, at: usize },
-    #[error("far field: a stored factor holds a non-finite value")]
-    NotFinite,
-}
-
-/// Largest rank of one block (the on-line accumulator's width).
-pub const MAX_RANK: usize = 32;
+use super::{FarFieldError, MAX_RANK};
 
 /// The low-rank blocks (f32: a correction to the modes' answer).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]

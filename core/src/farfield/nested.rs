@@ -1,0 +1,533 @@
+//! The far field with nested column bases (file format version 5).
+//!
+//! Every column patch (cluster of load nodes) `γ` that takes part in a low-rank block
+//! carries a basis `V_γ` (3·|γ| × k_γ, f32) of the load side of all its far blocks,
+//! and of those of its ancestors:
+//!
+//! - a leaf stores `V_γ` itself, row `3·slot + c` for its load node `slot` and load
+//!   direction `c` (the map's column scaling folded in);
+//! - an inner patch with children `a`, `b` stores only a transfer `E_γ`
+//!   ((k_a + k_b) × k_γ), meaning `V_γ = diag(V_a, V_b) E_γ`.
+//!
+//! A block `(ρ, γ)` stores `R[ρ, γ] ≈ A B V_γᵀ` with `A` (3·|ρ| × r, carrying the
+//! singular values, columns in decreasing order) and `B` (r × k_γ). On-line, a probe
+//! with nodal shares `w_j` along `t` gathers the leaf coefficients
+//! `c_λ = Σ_j w_j V_λ[3 slot_j + ·, ·]ᵀ t`, lifts them up the tree
+//! (`c_γ += E_γ[rows of child]ᵀ c_child`, children before parents: clusters are
+//! numbered so that a parent comes first), and adds `A (B c_γ)` for every block of
+//! every patch reached. A load node's `V` rows are stored once, not once per block on
+//! its path as in the flat form; the on-line work stays about `rows × r` per block.
+
+use serde::{Deserialize, Serialize};
+
+use super::FarFieldError;
+
+/// Largest rank of a patch's basis (the on-line coefficient width).
+pub const MAX_BASIS: usize = 64;
+
+/// Patches gathered before they are lifted and applied (a probe reaches a few leaves
+/// and their ancestors, a few dozen in all).
+const ACC: usize = 96;
+
+/// Nested-basis far field (f32: a correction to the modes' answer).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct NestedFar {
+    /// Truncation tolerance of the bases and blocks (relative to a unit column).
+    pub tolerance: f64,
+    /// Admissibility: a block is low rank where `max(diam) ≤ eta · distance`.
+    pub eta: f64,
+    /// Per column patch: its parent (`u32::MAX` for the root); always `< ` itself.
+    pub parent: Vec<u32>,
+    /// Per patch: rank `k_γ` of its basis.
+    pub basis_rank: Vec<u32>,
+    /// Per patch: rows of its stored basis (a leaf: 3 × its nodes; an inner patch: the
+    /// sum of its children's ranks).
+    pub basis_rows: Vec<u32>,
+    /// Per patch: the first row of its coefficients in its parent's transfer.
+    pub kid_offset: Vec<u32>,
+    /// Per patch: its basis or transfer at `basis[basis_ptr[γ]..]`, row-major.
+    pub basis_ptr: Vec<u32>,
+    pub basis: Vec<f32>,
+    /// Per load node: its leaf patch (`u32::MAX`: in no far block) and its slot there.
+    pub leaf_of: Vec<u32>,
+    pub leaf_slot: Vec<u32>,
+    /// Blocks grouped by column patch: patch `γ`'s are `block_ptr[γ]..block_ptr[γ + 1]`.
+    pub block_ptr: Vec<u32>,
+    /// Per block `b`: its field nodes `rows[row_ptr[b]..row_ptr[b + 1]]`.
+    pub row_ptr: Vec<u32>,
+    pub rows: Vec<u32>,
+    /// Per block: its rank `r_b`.
+    pub rank: Vec<u32>,
+    /// Per block: `A` at `a[a_ptr[b]..]`, row-major `(3·local row + d, r)`.
+    pub a_ptr: Vec<u32>,
+    pub a: Vec<f32>,
+    /// Per block: `B` at `b[b_ptr[b]..]`, row-major `(r, k_γ)`.
+    pub b_ptr: Vec<u32>,
+    pub b: Vec<f32>,
+}
+
+impl NestedFar {
+    pub fn blocks(&self) -> usize {
+        self.rank.len()
+    }
+
+    pub fn patches(&self) -> usize {
+        self.parent.len()
+    }
+
+    /// Stored bytes.
+    pub fn bytes(&self) -> usize {
+        4 * [
+            self.parent.len(),
+            self.basis_rank.len(),
+            self.basis_rows.len(),
+            self.kid_offset.len(),
+            self.basis_ptr.len(),
+            self.basis.len(),
+            self.leaf_of.len(),
+            self.leaf_slot.len(),
+            self.block_ptr.len(),
+            self.row_ptr.len(),
+            self.rows.len(),
+            self.rank.len(),
+            self.a_ptr.len(),
+            self.a.len(),
+            self.b_ptr.len(),
+            self.b.len(),
+        ]
+        .iter()
+        .sum::<usize>()
+    }
+
+    /// Checks every length, index and the parent order against `load_nodes` and
+    /// `field_nodes`, so that [`Self::add`] never reads out of bounds or loops.
+    pub fn validate(&self, load_nodes: usize, field_nodes: usize) -> Result<(), FarFieldError> {
+        let len = |what, found: usize, expected: usize| {
+            if found == expected {
+                Ok(())
+            } else {
+                Err(FarFieldError::Length {
+                    what,
+                    found,
+                    expected,
+                })
+            }
+        };
+        let np = self.parent.len();
+        let nb = self.rank.len();
+        len("far-field basis ranks", self.basis_rank.len(), np)?;
+        len("far-field basis rows", self.basis_rows.len(), np)?;
+        len("far-field child offsets", self.kid_offset.len(), np)?;
+        len("far-field basis pointers", self.basis_ptr.len(), np + 1)?;
+        len(
+            "far-field leaf of each load node",
+            self.leaf_of.len(),
+            load_nodes,
+        )?;
+        len("far-field leaf slots", self.leaf_slot.len(), load_nodes)?;
+        len("far-field block pointers", self.block_ptr.len(), np + 1)?;
+        len("far-field row pointers", self.row_ptr.len(), nb + 1)?;
+        len("far-field A pointers", self.a_ptr.len(), nb + 1)?;
+        len("far-field B pointers", self.b_ptr.len(), nb + 1)?;
+        for (what, ptr) in [
+            ("basis", &self.basis_ptr),
+            ("block", &self.block_ptr),
+            ("row", &self.row_ptr),
+            ("A", &self.a_ptr),
+            ("B", &self.b_ptr),
+        ] {
+            if ptr.first() != Some(&0) {
+                return Err(FarFieldError::Pointers { what, at: 0 });
+            }
+            if let Some(at) = ptr.windows(2).position(|w| w[0] > w[1]) {
+                return Err(FarFieldError::Pointers { what, at });
+            }
+        }
+        len("far-field blocks", self.block_ptr[np] as usize, nb)?;
+        len(
+            "far-field basis",
+            self.basis.len(),
+            self.basis_ptr[np] as usize,
+        )?;
+        len("far-field rows", self.rows.len(), self.row_ptr[nb] as usize)?;
+        len("far-field A", self.a.len(), self.a_ptr[nb] as usize)?;
+        len("far-field B", self.b.len(), self.b_ptr[nb] as usize)?;
+        for g in 0..np {
+            let (k, rows) = (self.basis_rank[g] as usize, self.basis_rows[g] as usize);
+            if k > MAX_BASIS {
+                return Err(FarFieldError::Length {
+                    what: "far-field basis rank",
+                    found: k,
+                    expected: MAX_BASIS,
+                });
+            }
+            len(
+                "far-field basis of a patch",
+                (self.basis_ptr[g + 1] - self.basis_ptr[g]) as usize,
+                rows * k,
+            )?;
+            let p = self.parent[g];
+            if p != u32::MAX {
+                if p as usize >= g {
+                    return Err(FarFieldError::Parent {
+                        cluster: g,
+                        parent: p,
+                    });
+                }
+                let end = self.kid_offset[g] as usize + k;
+                if k > 0 && end > self.basis_rows[p as usize] as usize {
+                    return Err(FarFieldError::Length {
+                        what: "far-field transfer rows",
+                        found: self.basis_rows[p as usize] as usize,
+                        expected: end,
+                    });
+                }
+            }
+            for b in self.block_ptr[g] as usize..self.block_ptr[g + 1] as usize {
+                let r = self.rank[b] as usize;
+                let n = (self.row_ptr[b + 1] - self.row_ptr[b]) as usize;
+                len(
+                    "far-field A block",
+                    (self.a_ptr[b + 1] - self.a_ptr[b]) as usize,
+                    3 * n * r,
+                )?;
+                len(
+                    "far-field B block",
+                    (self.b_ptr[b + 1] - self.b_ptr[b]) as usize,
+                    r * k,
+                )?;
+            }
+        }
+        for j in 0..load_nodes {
+            let leaf = self.leaf_of[j];
+            if leaf == u32::MAX {
+                continue;
+            }
+            let Some(&rows) = self.basis_rows.get(leaf as usize) else {
+                return Err(FarFieldError::Length {
+                    what: "far-field leaf index",
+                    found: leaf as usize,
+                    expected: np,
+                });
+            };
+            if 3 * self.leaf_slot[j] as usize + 3 > rows as usize {
+                return Err(FarFieldError::Length {
+                    what: "far-field leaf basis rows",
+                    found: rows as usize,
+                    expected: 3 * self.leaf_slot[j] as usize + 3,
+                });
+            }
+        }
+        if let Some(entry) = self.rows.iter().position(|&x| x as usize >= field_nodes) {
+            return Err(FarFieldError::NoSuchNode {
+                entry,
+                node: self.rows[entry],
+                nodes: field_nodes,
+            });
+        }
+        if self
+            .basis
+            .iter()
+            .chain(&self.a)
+            .chain(&self.b)
+            .any(|v| !v.is_finite())
+        {
+            return Err(FarFieldError::NotFinite);
+        }
+        Ok(())
+    }
+
+    /// The patch `g` and its ancestors, nearest first.
+    fn chain(&self, g: u32) -> impl Iterator<Item = u32> + '_ {
+        std::iter::successors(Some(g), move |&c| {
+            let p = self.parent[c as usize];
+            (p != u32::MAX).then_some(p)
+        })
+    }
+
+    /// Adds `Σ_j w_j R[·, j] t` to `out` (rows `3x + d` of the model's field nodes).
+    /// Allocation-free: the coefficients of up to 96 patches live on the stack; a probe
+    /// reaching more is split into groups (the map is linear).
+    pub fn add(&self, shares: &[(u32, f64)], mix: [f64; 3], out: &mut [f64]) {
+        let mut ids = [u32::MAX; ACC];
+        let mut coef = [[0.0f64; MAX_BASIS]; ACC];
+        let mut used = 0;
+        for &(j, w) in shares {
+            let Some(&leaf) = self.leaf_of.get(j as usize) else {
+                continue;
+            };
+            if leaf == u32::MAX || self.basis_rank[leaf as usize] == 0 {
+                continue;
+            }
+            let missing = self
+                .chain(leaf)
+                .filter(|g| !ids[..used].contains(g))
+                .count();
+            if used + missing > ACC {
+                self.flush(&mut ids[..used], &mut coef[..used], out);
+                used = 0;
+            }
+            for g in self.chain(leaf) {
+                if !ids[..used].contains(&g) {
+                    ids[used] = g;
+                    coef[used] = [0.0; MAX_BASIS];
+                    used += 1;
+                }
+            }
+            let Some(slot) = ids[..used].iter().position(|&g| g == leaf) else {
+                continue;
+            };
+            let k = self.basis_rank[leaf as usize] as usize;
+            let base = self.basis_ptr[leaf as usize] as usize
+                + 3 * self.leaf_slot[j as usize] as usize * k;
+            let v = &self.basis[base..base + 3 * k];
+            for (kk, c) in coef[slot][..k].iter_mut().enumerate() {
+                *c += w
+                    * (f64::from(v[kk]) * mix[0]
+                        + f64::from(v[k + kk]) * mix[1]
+                        + f64::from(v[2 * k + kk]) * mix[2]);
+            }
+        }
+        self.flush(&mut ids[..used], &mut coef[..used], out);
+    }
+
+    /// Lifts the gathered coefficients to the parents (children first: they have the
+    /// larger numbers), then applies every block of every gathered patch.
+    fn flush(&self, ids: &mut [u32], coef: &mut [[f64; MAX_BASIS]], out: &mut [f64]) {
+        let n = ids.len();
+        let mut order = [0u8; ACC];
+        for (i, o) in order[..n].iter_mut().enumerate() {
+            *o = i as u8;
+        }
+        order[..n].sort_unstable_by(|&a, &b| ids[b as usize].cmp(&ids[a as usize]));
+        for &s in &order[..n] {
+            let s = s as usize;
+            let g = ids[s] as usize;
+            let p = self.parent[g];
+            let kg = self.basis_rank[g] as usize;
+            if p == u32::MAX || kg == 0 {
+                continue;
+            }
+            let kp = self.basis_rank[p as usize] as usize;
+            let Some(ps) = ids.iter().position(|&x| x == p) else {
+                continue;
+            };
+            if kp == 0 {
+                continue;
+            }
+            let mine = coef[s];
+            let e = &self.basis[self.basis_ptr[p as usize] as usize..];
+            let off = self.kid_offset[g] as usize;
+            for (i, &ci) in mine[..kg].iter().enumerate() {
+                if ci == 0.0 {
+                    continue;
+                }
+                let row = &e[(off + i) * kp..(off + i + 1) * kp];
+                for (c, &x) in coef[ps][..kp].iter_mut().zip(row) {
+                    *c += f64::from(x) * ci;
+                }
+            }
+        }
+        for (s, &g) in ids.iter().enumerate() {
+            let g = g as usize;
+            let k = self.basis_rank[g] as usize;
+            for b in self.block_ptr[g] as usize..self.block_ptr[g + 1] as usize {
+                self.apply(b, &coef[s][..k], out);
+            }
+        }
+    }
+
+    /// `out[rows of b] += A_b (B_b c)`.
+    fn apply(&self, b: usize, c: &[f64], out: &mut [f64]) {
+        let (r, k) = (self.rank[b] as usize, c.len());
+        let bm = &self.b[self.b_ptr[b] as usize..self.b_ptr[b + 1] as usize];
+        let mut t = [0.0f64; MAX_BASIS];
+        for (rr, tv) in t[..r].iter_mut().enumerate() {
+            *tv = bm[rr * k..(rr + 1) * k]
+                .iter()
+                .zip(c)
+                .map(|(&x, &y)| f64::from(x) * y)
+                .sum();
+        }
+        let rows = &self.rows[self.row_ptr[b] as usize..self.row_ptr[b + 1] as usize];
+        let a = &self.a[self.a_ptr[b] as usize..self.a_ptr[b + 1] as usize];
+        for (i, &x) in rows.iter().enumerate() {
+            for d in 0..3 {
+                let arow = &a[(3 * i + d) * r..(3 * i + d + 1) * r];
+                let s: f64 = arow
+                    .iter()
+                    .zip(&t[..r])
+                    .map(|(&u, &v)| f64::from(u) * v)
+                    .sum();
+                if let Some(o) = out.get_mut(3 * x as usize + d) {
+                    *o += s;
+                }
+            }
+        }
+    }
+
+    /// The blocks with every term whose singular value (the norm of its column of `A`,
+    /// unit-column scale) is at or below `tolerance` dropped; the bases are kept.
+    pub fn truncated(&self, tolerance: f64) -> NestedFar {
+        let mut out = NestedFar {
+            tolerance: tolerance.max(self.tolerance),
+            a_ptr: vec![0],
+            b_ptr: vec![0],
+            a: Vec::new(),
+            b: Vec::new(),
+            rank: Vec::with_capacity(self.rank.len()),
+            ..self.clone()
+        };
+        for g in 0..self.patches() {
+            let k = self.basis_rank[g] as usize;
+            for b in self.block_ptr[g] as usize..self.block_ptr[g + 1] as usize {
+                let r = self.rank[b] as usize;
+                let a = &self.a[self.a_ptr[b] as usize..self.a_ptr[b + 1] as usize];
+                let n = a.len() / r.max(1);
+                let kept = (0..r)
+                    .take_while(|&rr| {
+                        let s2: f64 = (0..n).map(|i| f64::from(a[i * r + rr]).powi(2)).sum();
+                        s2.sqrt() > tolerance
+                    })
+                    .count();
+                for row in a.chunks_exact(r.max(1)) {
+                    out.a.extend_from_slice(&row[..kept]);
+                }
+                let bm = &self.b[self.b_ptr[b] as usize..self.b_ptr[b + 1] as usize];
+                out.b.extend_from_slice(&bm[..kept * k]);
+                out.rank.push(kept as u32);
+                out.a_ptr.push(out.a.len() as u32);
+                out.b_ptr.push(out.b.len() as u32);
+            }
+        }
+        out
+    }
+
+    /// Renumbers the field nodes (`new_index[old]`, `u32::MAX` = dropped); dropped
+    /// rows leave their blocks.
+    pub fn remap_nodes(&mut self, new_index: &[u32]) {
+        let mut row_ptr = vec![0u32];
+        let mut rows = Vec::new();
+        let mut a_ptr = vec![0u32];
+        let mut a = Vec::new();
+        for b in 0..self.rank.len() {
+            let r = self.rank[b] as usize;
+            let ab = &self.a[self.a_ptr[b] as usize..self.a_ptr[b + 1] as usize];
+            let rb = &self.rows[self.row_ptr[b] as usize..self.row_ptr[b + 1] as usize];
+            for (i, &x) in rb.iter().enumerate() {
+                let to = new_index.get(x as usize).copied().unwrap_or(u32::MAX);
+                if to != u32::MAX {
+                    rows.push(to);
+                    a.extend_from_slice(&ab[3 * i * r..3 * (i + 1) * r]);
+                }
+            }
+            row_ptr.push(rows.len() as u32);
+            a_ptr.push(a.len() as u32);
+        }
+        self.row_ptr = row_ptr;
+        self.rows = rows;
+        self.a_ptr = a_ptr;
+        self.a = a;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Root patch 0 (inner, rank 1) with leaves 1 (load node 0) and 2 (load node 1),
+    /// rank 1 each; one block on the root over field node 1, one on leaf 2 over field
+    /// node 0.
+    fn two_level() -> NestedFar {
+        NestedFar {
+            tolerance: 0.1,
+            eta: 1.0,
+            parent: vec![u32::MAX, 0, 0],
+            basis_rank: vec![1, 1, 1],
+            basis_rows: vec![2, 3, 3],
+            kid_offset: vec![0, 0, 1],
+            basis_ptr: vec![0, 2, 5, 8],
+            // Root transfer E = [2, 3]ᵀ; leaf 1: V = [1, 0, 0]ᵀ; leaf 2: V = [0, 0, 1]ᵀ.
+            basis: vec![2.0, 3.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            leaf_of: vec![1, 2],
+            leaf_slot: vec![0, 0],
+            block_ptr: vec![0, 1, 1, 2],
+            row_ptr: vec![0, 1, 2],
+            rows: vec![1, 0],
+            rank: vec![1, 1],
+            a_ptr: vec![0, 3, 6],
+            // Root block: A = [1, 0, 2]ᵀ (norm √5); leaf-2 block: A = [0, 0.05, 0]ᵀ.
+            a: vec![1.0, 0.0, 2.0, 0.0, 0.05, 0.0],
+            b_ptr: vec![0, 1, 2],
+            b: vec![0.5, 4.0],
+        }
+    }
+
+    #[test]
+    fn coefficients_climb_through_the_transfers_to_the_blocks() {
+        let f = two_level();
+        f.validate(2, 2).expect("valid");
+        let mut out = vec![0.0; 6];
+        // Load node 0 along x (w 2), load node 1 along z (w 1).
+        f.add(&[(0, 2.0)], [1.0, 0.0, 0.0], &mut out);
+        f.add(&[(1, 1.0)], [0.0, 0.0, 1.0], &mut out);
+        // Node 0: leaf coef 2 → root 2·2 = 4 → root block 0.5·4 = 2 → rows of node 1.
+        // Node 1: leaf coef 1 → root 3 → 1.5 on node 1; leaf block 4·1 → node 0.
+        let root = 2.0 + 1.5;
+        let expect = [0.0, 0.2, 0.0, root, 0.0, 2.0 * root];
+        for (o, e) in out.iter().zip(expect) {
+            assert!((o - e).abs() < 1e-6, "{out:?}");
+        }
+        // Both at once: the same (linear, one pass).
+        let mut both = vec![0.0; 6];
+        f.add(&[(0, 2.0), (1, 1.0)], [1.0, 0.0, 1.0], &mut both);
+        let mut apart = vec![0.0; 6];
+        f.add(&[(0, 2.0)], [1.0, 0.0, 1.0], &mut apart);
+        f.add(&[(1, 1.0)], [1.0, 0.0, 1.0], &mut apart);
+        for (a, b) in both.iter().zip(&apart) {
+            assert!((a - b).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn truncation_drops_small_block_terms_and_keeps_the_bases() {
+        let f = two_level().truncated(0.1);
+        f.validate(2, 2).expect("valid");
+        assert_eq!(f.rank, vec![1, 0]);
+        assert_eq!(f.basis, two_level().basis);
+        let mut out = vec![0.0; 6];
+        f.add(&[(1, 1.0)], [0.0, 0.0, 1.0], &mut out);
+        assert!(out[..3].iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
+    fn remapping_drops_rows_and_keeps_the_rest() {
+        let mut f = two_level();
+        f.remap_nodes(&[u32::MAX, 0]);
+        f.validate(2, 1).expect("valid");
+        assert_eq!(f.rows, vec![0]);
+        assert_eq!(f.a, vec![1.0, 0.0, 2.0]);
+    }
+
+    #[test]
+    fn bad_parents_and_indices_are_named() {
+        let mut f = two_level();
+        f.parent[0] = 2;
+        assert!(matches!(
+            f.validate(2, 2),
+            Err(FarFieldError::Parent { cluster: 0, .. })
+        ));
+        let mut f = two_level();
+        f.leaf_slot[1] = 4;
+        assert!(f.validate(2, 2).is_err());
+        let mut f = two_level();
+        f.rows[0] = 7;
+        assert!(matches!(
+            f.validate(2, 2),
+            Err(FarFieldError::NoSuchNode { node: 7, .. })
+        ));
+        let mut f = two_level();
+        f.b[0] = f32::INFINITY;
+        assert!(matches!(f.validate(2, 2), Err(FarFieldError::NotFinite)));
+    }
+}
