@@ -256,28 +256,14 @@ impl FarBlocks {
     /// Renumbers the field nodes (`new_index[old]`, `u32::MAX` = dropped); dropped
     /// rows leave their blocks.
     pub fn remap_nodes(&mut self, new_index: &[u32]) {
-        let mut row_ptr = vec![0u32];
-        let mut rows = Vec::new();
-        let mut u_ptr = vec![0u32];
-        let mut u = Vec::new();
-        for b in 0..self.rank.len() {
-            let k = self.rank[b] as usize;
-            let ub = &self.u[self.u_ptr[b] as usize..self.u_ptr[b + 1] as usize];
-            let rb = &self.rows[self.row_ptr[b] as usize..self.row_ptr[b + 1] as usize];
-            for (r, &x) in rb.iter().enumerate() {
-                let to = new_index.get(x as usize).copied().unwrap_or(u32::MAX);
-                if to != u32::MAX {
-                    rows.push(to);
-                    u.extend_from_slice(&ub[3 * r * k..3 * (r + 1) * k]);
-                }
-            }
-            row_ptr.push(rows.len() as u32);
-            u_ptr.push(u.len() as u32);
-        }
-        self.row_ptr = row_ptr;
-        self.rows = rows;
-        self.u_ptr = u_ptr;
-        self.u = u;
+        super::remap_block_rows(
+            new_index,
+            &self.rank,
+            &mut self.row_ptr,
+            &mut self.rows,
+            &mut self.u_ptr,
+            &mut self.u,
+        );
     }
 }
 

@@ -122,3 +122,38 @@ impl FarField {
         }
     }
 }
+
+/// Renumbers the field nodes of low-rank blocks whose row factor (3 rows per field
+/// node, `rank[b]` columns, row-major) sits at `factor[factor_ptr[b]..]`; rows whose
+/// `new_index` is `u32::MAX` leave their blocks. Shared by both forms.
+fn remap_block_rows(
+    new_index: &[u32],
+    rank: &[u32],
+    row_ptr: &mut Vec<u32>,
+    rows: &mut Vec<u32>,
+    factor_ptr: &mut Vec<u32>,
+    factor: &mut Vec<f32>,
+) {
+    let mut new_row_ptr = vec![0u32];
+    let mut new_rows = Vec::new();
+    let mut new_ptr = vec![0u32];
+    let mut new_factor = Vec::new();
+    for (b, &k) in rank.iter().enumerate() {
+        let k = k as usize;
+        let fb = &factor[factor_ptr[b] as usize..factor_ptr[b + 1] as usize];
+        let rb = &rows[row_ptr[b] as usize..row_ptr[b + 1] as usize];
+        for (i, &x) in rb.iter().enumerate() {
+            let to = new_index.get(x as usize).copied().unwrap_or(u32::MAX);
+            if to != u32::MAX {
+                new_rows.push(to);
+                new_factor.extend_from_slice(&fb[3 * i * k..3 * (i + 1) * k]);
+            }
+        }
+        new_row_ptr.push(new_rows.len() as u32);
+        new_ptr.push(new_factor.len() as u32);
+    }
+    *row_ptr = new_row_ptr;
+    *rows = new_rows;
+    *factor_ptr = new_ptr;
+    *factor = new_factor;
+}

@@ -406,28 +406,14 @@ impl NestedFar {
     /// Renumbers the field nodes (`new_index[old]`, `u32::MAX` = dropped); dropped
     /// rows leave their blocks.
     pub fn remap_nodes(&mut self, new_index: &[u32]) {
-        let mut row_ptr = vec![0u32];
-        let mut rows = Vec::new();
-        let mut a_ptr = vec![0u32];
-        let mut a = Vec::new();
-        for b in 0..self.rank.len() {
-            let r = self.rank[b] as usize;
-            let ab = &self.a[self.a_ptr[b] as usize..self.a_ptr[b + 1] as usize];
-            let rb = &self.rows[self.row_ptr[b] as usize..self.row_ptr[b + 1] as usize];
-            for (i, &x) in rb.iter().enumerate() {
-                let to = new_index.get(x as usize).copied().unwrap_or(u32::MAX);
-                if to != u32::MAX {
-                    rows.push(to);
-                    a.extend_from_slice(&ab[3 * i * r..3 * (i + 1) * r]);
-                }
-            }
-            row_ptr.push(rows.len() as u32);
-            a_ptr.push(a.len() as u32);
-        }
-        self.row_ptr = row_ptr;
-        self.rows = rows;
-        self.a_ptr = a_ptr;
-        self.a = a;
+        super::remap_block_rows(
+            new_index,
+            &self.rank,
+            &mut self.row_ptr,
+            &mut self.rows,
+            &mut self.a_ptr,
+            &mut self.a,
+        );
     }
 }
 
