@@ -27,14 +27,18 @@ fn flat_of(n: &NestedFar) -> FarBlocks {
     let mut f = FarBlocks {
         tolerance: n.tolerance,
         eta: n.eta,
-        row_ptr: n.row_ptr.clone(),
-        rows: n.rows.clone(),
+        row_ptr: vec![0],
         rank: n.rank.clone(),
-        u_ptr: n.a_ptr.clone(),
-        u: n.a.clone(),
+        u_ptr: vec![0],
         col_ptr: vec![0],
         ..FarBlocks::default()
     };
+    for b in 0..n.blocks() {
+        f.rows.extend_from_slice(n.block_rows(b));
+        f.row_ptr.push(f.rows.len() as u32);
+        f.u.extend(n.explicit_a(b));
+        f.u_ptr.push(f.u.len() as u32);
+    }
     for j in 0..n.leaf_of.len() {
         let mut g = n.leaf_of[j];
         if g != u32::MAX {
@@ -182,11 +186,29 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
         let b = std::fs::read(p).expect("read");
         u32::from_le_bytes(b[8..12].try_into().expect("4 bytes"))
     };
-    assert_eq!(version(&path), 5, "a nested far field is format version 5");
+    assert_eq!(
+        version(&path),
+        6,
+        "a far field with shared row bases is format version 6"
+    );
     // The same far field in the flat form of version 4 acts the same and still opens.
     let Some(FarField::Nested(nested)) = small.near().and_then(|n| n.far.as_deref()) else {
         panic!("the builder writes the nested form");
     };
+    assert!(
+        nested.group_rank.iter().any(|&k| k > 0),
+        "some row groups share a basis"
+    );
+    // Written for builds that read up to version 5 (every block's rows written out),
+    // it opens and acts the same.
+    let v5_path = dir.path().join("v5.palpa");
+    file::save_v5(&small, &v5_path).expect("save v5");
+    assert_eq!(version(&v5_path), 5);
+    let back_v5: SeparatedModel<f64> = file::load(&v5_path).expect("load v5");
+    let Some(FarField::Nested(from_v5)) = back_v5.near().and_then(|n| n.far.as_deref()) else {
+        panic!("a version-5 far field opens in the nested form");
+    };
+    assert!(from_v5.group_rank.iter().all(|&k| k == 0));
     let flat = flat_of(nested);
     flat.validate(nested.leaf_of.len(), small.rows() / 3)
         .expect("valid flat form");
@@ -203,8 +225,11 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
         let (mut a, mut b) = (vec![0.0; small.rows()], vec![0.0; small.rows()]);
         nested.add(&shares, mix, &mut a);
         flat.add(&shares, mix, &mut b);
+        let mut c = vec![0.0; small.rows()];
+        from_v5.add(&shares, mix, &mut c);
         let scale = a.iter().fold(1e-12f64, |m, v| m.max(v.abs()));
         assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= 1e-5 * scale));
+        assert!(a.iter().zip(&c).all(|(x, y)| (x - y).abs() <= 1e-5 * scale));
     }
     let mut old = small.clone().without_near();
     let mut old_near = small.near().expect("near").clone();
@@ -240,7 +265,7 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     let Some(FarField::Nested(far)) = near.far.as_deref() else {
         panic!("far field kept");
     };
-    assert!(far.rows.iter().all(|&x| (x as usize) < surface.len()));
+    assert!(far.group_rows.iter().all(|&x| (x as usize) < surface.len()));
     // The scene's near and far field give the full model's values on its rows.
     let probe = [palpa_core::axis::ParamValue::SurfaceMix {
         triangle: 0,

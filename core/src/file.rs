@@ -19,8 +19,8 @@
 //!               field (band and compliance table, f32, carried in the header; see
 //!               `nearfield`), and is the version of every model with a nodal-load
 //!               axis, which older builds cannot decode. Version 4 adds the far
-//!               field's flat low-rank blocks, version 5 its nested-basis form (both
-//!               in the header, f32)
+//!               field's flat low-rank blocks, version 5 its nested-basis form,
+//!               version 6 that form with shared row bases (all in the header, f32)
 //! P + len       end of file (trailing bytes are an error)
 //! ```
 //!
@@ -44,7 +44,7 @@ use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
 use crate::axis::Discretization;
-use crate::farfield::{FarBlocks, FarField, NestedFar};
+use crate::farfield::{FarBlocks, FarField, NestedFar, NestedFarV5};
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
 use crate::scalar::{Precision, Scalar};
@@ -58,9 +58,10 @@ pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
 /// ([`Layout::SeparatedNear`]); only models that use them are written as version 3.
 /// Version 4: the near field with its hierarchical far field
 /// ([`Layout::SeparatedNearFar`]). Version 5: the far field with nested column bases
-/// ([`Layout::SeparatedNearNested`]), what the builder writes now; each is written only
+/// ([`Layout::SeparatedNearNested`]). Version 6: those plus shared row bases
+/// ([`Layout::SeparatedNearShared`]), what the builder writes now; each is written only
 /// for models that have it.
-pub const FORMAT_VERSION: u32 = 5;
+pub const FORMAT_VERSION: u32 = 6;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
@@ -98,6 +99,12 @@ pub enum Layout {
     /// As `SeparatedNear`, plus the far field with nested column bases (version 5).
     SeparatedNearNested {
         near: Box<NearField>,
+        far: Box<NestedFarV5>,
+    },
+    /// As `SeparatedNear`, plus the far field with nested column bases and shared row
+    /// bases (version 6).
+    SeparatedNearShared {
+        near: Box<NearField>,
         far: Box<NestedFar>,
     },
 }
@@ -111,6 +118,7 @@ impl Layout {
                 | Layout::SeparatedNear { .. }
                 | Layout::SeparatedNearFar { .. }
                 | Layout::SeparatedNearNested { .. }
+                | Layout::SeparatedNearShared { .. }
         )
     }
 }
@@ -263,6 +271,17 @@ const ZEROS: [u8; ALIGN as usize] = [0; ALIGN as usize];
 
 /// Writes `model` to `path` atomically (temp file, fsync, rename).
 pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
+    save_as(model, path, false)
+}
+
+/// As [`save`], but a far field with shared row bases is written out per block as
+/// format version 5, for builds that read only up to version 5 (a larger file that
+/// evaluates the same).
+pub fn save_v5<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
+    save_as(model, path, true)
+}
+
+fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, v5: bool) -> Result<(), FileError> {
     let (x, axes) = model.arrays();
     let blocks: Vec<&[u8]> = std::iter::once(x)
         .chain(axes)
@@ -300,7 +319,11 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
                         near,
                         far: Box::new(far),
                     },
-                    Some(FarField::Nested(far)) => Layout::SeparatedNearNested {
+                    Some(FarField::Nested(far)) if v5 => Layout::SeparatedNearNested {
+                        near,
+                        far: Box::new(NestedFarV5::from(&far)),
+                    },
+                    Some(FarField::Nested(far)) => Layout::SeparatedNearShared {
                         near,
                         far: Box::new(far),
                     },
@@ -325,6 +348,7 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
     let version = match header.layout {
         Layout::SeparatedNearFar { .. } => 4,
         Layout::SeparatedNearNested { .. } => 5,
+        Layout::SeparatedNearShared { .. } => 6,
         _ => 3,
     };
     write_file(path, version, &header, &blocks)
@@ -646,6 +670,11 @@ fn load_payload<T: Scalar, R: Read>(
             Some(near)
         }
         Layout::SeparatedNearNested { near, far } => {
+            let mut near = near.as_ref().clone();
+            near.far = Some(Box::new(FarField::Nested(far.as_ref().clone().into())));
+            Some(near)
+        }
+        Layout::SeparatedNearShared { near, far } => {
             let mut near = near.as_ref().clone();
             near.far = Some(Box::new(FarField::Nested(far.as_ref().clone())));
             Some(near)

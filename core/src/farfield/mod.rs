@@ -16,21 +16,25 @@
 //! over cluster trees of the surface nodes and of the load nodes. Two forms exist:
 //!
 //! - [`FarBlocks`] (format version 4): every block stores its own `R[ρ, γ] ≈ U Vᵀ`;
-//! - [`NestedFar`] (version 5, what the builder writes): the load side of every block
+//! - [`NestedFar`] (version 6, what the builder writes): the load side of every block
 //!   is expressed in a basis of its column patch, and a patch's basis is its children's
 //!   bases times a small transfer matrix, so a load node's coefficients are stored once
-//!   instead of once per block on its path.
+//!   instead of once per block on its path; the blocks of one row patch share a basis
+//!   of their row side where that saves numbers. Version 5 ([`NestedFarV5`]) had the
+//!   column bases only and opens as a `NestedFar` without shared row bases.
 //!
 //! A probe touches the few load nodes under its disk; both forms add the blocks of the
 //! patches holding them to the rows of their row patches, allocation-free.
 
 mod flat;
 mod nested;
+mod nested_v5;
 
 use thiserror::Error;
 
 pub use flat::FarBlocks;
 pub use nested::{MAX_BASIS, NestedFar};
+pub use nested_v5::NestedFarV5;
 
 /// Why stored far-field blocks are inconsistent with their model.
 #[derive(Debug, Clone, PartialEq, Error)]

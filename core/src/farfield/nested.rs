@@ -1,4 +1,4 @@
-//! The far field with nested column bases (file format version 5).
+//! The far field with nested column bases and shared row bases (file format version 6).
 //!
 //! Every column patch (cluster of load nodes) `γ` that takes part in a low-rank block
 //! carries a basis `V_γ` (3·|γ| × k_γ, f32) of the load side of all its far blocks,
@@ -17,6 +17,13 @@
 //! numbered so that a parent comes first), and adds `A (B c_γ)` for every block of
 //! every patch reached. A load node's `V` rows are stored once, not once per block on
 //! its path as in the flat form; the on-line work stays about `rows × r` per block.
+//!
+//! The row side is shared too. The blocks of one row patch `ρ` (one per column patch
+//! it is admissible against, five or so) form a *row group*. Where it saves numbers, the
+//! group stores an orthonormal basis `U_ρ` (3·|ρ| × k_ρ) of the span of its blocks'
+//! `A`s, and each block stores only `Ã = U_ρᵀ A` (k_ρ × r), so `A ≈ U_ρ Ã`; a group
+//! whose blocks are too few or too different keeps its `A`s explicit (`k_ρ = 0`).
+//! The group also lists the field nodes once for all its blocks.
 
 use serde::{Deserialize, Serialize};
 
@@ -53,12 +60,21 @@ pub struct NestedFar {
     pub leaf_slot: Vec<u32>,
     /// Blocks grouped by column patch: patch `γ`'s are `block_ptr[γ]..block_ptr[γ + 1]`.
     pub block_ptr: Vec<u32>,
-    /// Per block `b`: its field nodes `rows[row_ptr[b]..row_ptr[b + 1]]`.
-    pub row_ptr: Vec<u32>,
-    pub rows: Vec<u32>,
+    /// Per block: its row group.
+    pub block_group: Vec<u32>,
+    /// Per row group `ρ`: its field nodes `group_rows[group_ptr[ρ]..group_ptr[ρ + 1]]`.
+    pub group_ptr: Vec<u32>,
+    pub group_rows: Vec<u32>,
+    /// Per row group: the rank `k_ρ` of its shared basis (0: its blocks store `A`).
+    pub group_rank: Vec<u32>,
+    /// Per row group: `U_ρ` at `group_basis[group_basis_ptr[ρ]..]`, row-major
+    /// `(3·local row + d, k_ρ)`, orthonormal columns.
+    pub group_basis_ptr: Vec<u32>,
+    pub group_basis: Vec<f32>,
     /// Per block: its rank `r_b`.
     pub rank: Vec<u32>,
-    /// Per block: `A` at `a[a_ptr[b]..]`, row-major `(3·local row + d, r)`.
+    /// Per block: `A` at `a[a_ptr[b]..]`, row-major `(3·local row + d, r)`, or `Ã`
+    /// (`(k_ρ, r)`) where its group shares a basis.
     pub a_ptr: Vec<u32>,
     pub a: Vec<f32>,
     /// Per block: `B` at `b[b_ptr[b]..]`, row-major `(r, k_γ)`.
@@ -75,6 +91,49 @@ impl NestedFar {
         self.parent.len()
     }
 
+    /// The field nodes of row group `q`.
+    pub fn group_nodes(&self, q: usize) -> &[u32] {
+        &self.group_rows[self.group_ptr[q] as usize..self.group_ptr[q + 1] as usize]
+    }
+
+    /// The field nodes of block `b`'s rows.
+    pub fn block_rows(&self, b: usize) -> &[u32] {
+        self.group_nodes(self.block_group[b] as usize)
+    }
+
+    /// Rows of block `b`'s stored row factor: `k_ρ` if its group shares a basis, else
+    /// three per field node.
+    fn a_rows(&self, b: usize) -> usize {
+        let q = self.block_group[b] as usize;
+        match self.group_rank[q] as usize {
+            0 => 3 * self.group_nodes(q).len(),
+            k => k,
+        }
+    }
+
+    /// Block `b`'s row factor `A` written out (`U_ρ Ã` where its group shares a
+    /// basis), row-major `(3·local row + d, r)`.
+    pub fn explicit_a(&self, b: usize) -> Vec<f32> {
+        let q = self.block_group[b] as usize;
+        let (k, r) = (self.group_rank[q] as usize, self.rank[b] as usize);
+        let a = &self.a[self.a_ptr[b] as usize..self.a_ptr[b + 1] as usize];
+        if k == 0 {
+            return a.to_vec();
+        }
+        let u = &self.group_basis
+            [self.group_basis_ptr[q] as usize..self.group_basis_ptr[q + 1] as usize];
+        u.chunks_exact(k)
+            .flat_map(|urow| {
+                (0..r).map(move |rr| {
+                    urow.iter()
+                        .enumerate()
+                        .map(|(kk, &x)| f64::from(x) * f64::from(a[kk * r + rr]))
+                        .sum::<f64>() as f32
+                })
+            })
+            .collect()
+    }
+
     /// Stored bytes.
     pub fn bytes(&self) -> usize {
         4 * [
@@ -87,8 +146,12 @@ impl NestedFar {
             self.leaf_of.len(),
             self.leaf_slot.len(),
             self.block_ptr.len(),
-            self.row_ptr.len(),
-            self.rows.len(),
+            self.block_group.len(),
+            self.group_ptr.len(),
+            self.group_rows.len(),
+            self.group_rank.len(),
+            self.group_basis_ptr.len(),
+            self.group_basis.len(),
             self.rank.len(),
             self.a_ptr.len(),
             self.a.len(),
@@ -126,13 +189,25 @@ impl NestedFar {
         )?;
         len("far-field leaf slots", self.leaf_slot.len(), load_nodes)?;
         len("far-field block pointers", self.block_ptr.len(), np + 1)?;
-        len("far-field row pointers", self.row_ptr.len(), nb + 1)?;
+        let ng = self.group_rank.len();
+        len(
+            "far-field row group of each block",
+            self.block_group.len(),
+            nb,
+        )?;
+        len("far-field row group pointers", self.group_ptr.len(), ng + 1)?;
+        len(
+            "far-field row group basis pointers",
+            self.group_basis_ptr.len(),
+            ng + 1,
+        )?;
         len("far-field A pointers", self.a_ptr.len(), nb + 1)?;
         len("far-field B pointers", self.b_ptr.len(), nb + 1)?;
         for (what, ptr) in [
             ("basis", &self.basis_ptr),
             ("block", &self.block_ptr),
-            ("row", &self.row_ptr),
+            ("row group", &self.group_ptr),
+            ("row group basis", &self.group_basis_ptr),
             ("A", &self.a_ptr),
             ("B", &self.b_ptr),
         ] {
@@ -149,7 +224,38 @@ impl NestedFar {
             self.basis.len(),
             self.basis_ptr[np] as usize,
         )?;
-        len("far-field rows", self.rows.len(), self.row_ptr[nb] as usize)?;
+        len(
+            "far-field rows",
+            self.group_rows.len(),
+            self.group_ptr[ng] as usize,
+        )?;
+        len(
+            "far-field row bases",
+            self.group_basis.len(),
+            self.group_basis_ptr[ng] as usize,
+        )?;
+        for q in 0..ng {
+            let (n, k) = (self.group_nodes(q).len(), self.group_rank[q] as usize);
+            if k > MAX_BASIS {
+                return Err(FarFieldError::Length {
+                    what: "far-field row basis rank",
+                    found: k,
+                    expected: MAX_BASIS,
+                });
+            }
+            len(
+                "far-field row basis of a group",
+                (self.group_basis_ptr[q + 1] - self.group_basis_ptr[q]) as usize,
+                3 * n * k,
+            )?;
+        }
+        if let Some(b) = self.block_group.iter().position(|&q| q as usize >= ng) {
+            return Err(FarFieldError::Length {
+                what: "far-field row group index",
+                found: self.block_group[b] as usize,
+                expected: ng,
+            });
+        }
         len("far-field A", self.a.len(), self.a_ptr[nb] as usize)?;
         len("far-field B", self.b.len(), self.b_ptr[nb] as usize)?;
         for g in 0..np {
@@ -185,11 +291,10 @@ impl NestedFar {
             }
             for b in self.block_ptr[g] as usize..self.block_ptr[g + 1] as usize {
                 let r = self.rank[b] as usize;
-                let n = (self.row_ptr[b + 1] - self.row_ptr[b]) as usize;
                 len(
                     "far-field A block",
                     (self.a_ptr[b + 1] - self.a_ptr[b]) as usize,
-                    3 * n * r,
+                    self.a_rows(b) * r,
                 )?;
                 len(
                     "far-field B block",
@@ -218,10 +323,14 @@ impl NestedFar {
                 });
             }
         }
-        if let Some(entry) = self.rows.iter().position(|&x| x as usize >= field_nodes) {
+        if let Some(entry) = self
+            .group_rows
+            .iter()
+            .position(|&x| x as usize >= field_nodes)
+        {
             return Err(FarFieldError::NoSuchNode {
                 entry,
-                node: self.rows[entry],
+                node: self.group_rows[entry],
                 nodes: field_nodes,
             });
         }
@@ -230,6 +339,7 @@ impl NestedFar {
             .iter()
             .chain(&self.a)
             .chain(&self.b)
+            .chain(&self.group_basis)
             .any(|v| !v.is_finite())
         {
             return Err(FarFieldError::NotFinite);
@@ -337,9 +447,13 @@ impl NestedFar {
         }
     }
 
-    /// `out[rows of b] += A_b (B_b c)`.
+    /// `out[rows of b] += A_b (B_b c)`, with `A_b = U_ρ Ã_b` where its group shares a
+    /// basis.
     fn apply(&self, b: usize, c: &[f64], out: &mut [f64]) {
         let (r, k) = (self.rank[b] as usize, c.len());
+        if r == 0 {
+            return;
+        }
         let bm = &self.b[self.b_ptr[b] as usize..self.b_ptr[b + 1] as usize];
         let mut t = [0.0f64; MAX_BASIS];
         for (rr, tv) in t[..r].iter_mut().enumerate() {
@@ -349,21 +463,24 @@ impl NestedFar {
                 .map(|(&x, &y)| f64::from(x) * y)
                 .sum();
         }
-        let rows = &self.rows[self.row_ptr[b] as usize..self.row_ptr[b + 1] as usize];
+        let q = self.block_group[b] as usize;
         let a = &self.a[self.a_ptr[b] as usize..self.a_ptr[b + 1] as usize];
-        for (i, &x) in rows.iter().enumerate() {
-            for d in 0..3 {
-                let arow = &a[(3 * i + d) * r..(3 * i + d + 1) * r];
-                let s: f64 = arow
-                    .iter()
-                    .zip(&t[..r])
-                    .map(|(&u, &v)| f64::from(u) * v)
-                    .sum();
-                if let Some(o) = out.get_mut(3 * x as usize + d) {
-                    *o += s;
-                }
-            }
+        let kq = self.group_rank[q] as usize;
+        if kq == 0 {
+            add_rows(self.group_nodes(q), a, &t[..r], out);
+            return;
         }
+        let mut y = [0.0f64; MAX_BASIS];
+        for (yv, arow) in y[..kq].iter_mut().zip(a.chunks_exact(r)) {
+            *yv = arow
+                .iter()
+                .zip(&t[..r])
+                .map(|(&u, &v)| f64::from(u) * v)
+                .sum();
+        }
+        let u = &self.group_basis
+            [self.group_basis_ptr[q] as usize..self.group_basis_ptr[q + 1] as usize];
+        add_rows(self.group_nodes(q), u, &y[..kq], out);
     }
 
     /// The blocks with every term whose singular value (the norm of its column of `A`,
@@ -404,16 +521,65 @@ impl NestedFar {
     }
 
     /// Renumbers the field nodes (`new_index[old]`, `u32::MAX` = dropped); dropped
-    /// rows leave their blocks.
+    /// rows leave their groups (and the rows of the bases or `A`s that hold them).
     pub fn remap_nodes(&mut self, new_index: &[u32]) {
-        super::remap_block_rows(
-            new_index,
-            &self.rank,
-            &mut self.row_ptr,
-            &mut self.rows,
-            &mut self.a_ptr,
-            &mut self.a,
-        );
+        let to = |x: u32| new_index.get(x as usize).copied().unwrap_or(u32::MAX);
+        // Per group: the local rows it keeps.
+        let kept: Vec<Vec<usize>> = (0..self.group_rank.len())
+            .map(|q| {
+                let nodes = self.group_nodes(q);
+                (0..nodes.len())
+                    .filter(|&i| to(nodes[i]) != u32::MAX)
+                    .collect()
+            })
+            .collect();
+        let keep_rows = |m: &[f32], width: usize, rows: &[usize], into: &mut Vec<f32>| {
+            for &i in rows {
+                into.extend_from_slice(&m[3 * i * width..3 * (i + 1) * width]);
+            }
+        };
+        let (mut ptr, mut rows, mut bptr, mut basis) =
+            (vec![0u32], Vec::new(), vec![0u32], Vec::new());
+        for (q, keep) in kept.iter().enumerate() {
+            let nodes = self.group_nodes(q);
+            rows.extend(keep.iter().map(|&i| to(nodes[i])));
+            ptr.push(rows.len() as u32);
+            let u = &self.group_basis
+                [self.group_basis_ptr[q] as usize..self.group_basis_ptr[q + 1] as usize];
+            keep_rows(u, self.group_rank[q] as usize, keep, &mut basis);
+            bptr.push(basis.len() as u32);
+        }
+        let (mut aptr, mut a) = (vec![0u32], Vec::new());
+        for b in 0..self.rank.len() {
+            let q = self.block_group[b] as usize;
+            let ab = &self.a[self.a_ptr[b] as usize..self.a_ptr[b + 1] as usize];
+            if self.group_rank[q] == 0 {
+                keep_rows(ab, self.rank[b] as usize, &kept[q], &mut a);
+            } else {
+                a.extend_from_slice(ab);
+            }
+            aptr.push(a.len() as u32);
+        }
+        self.group_ptr = ptr;
+        self.group_rows = rows;
+        self.group_basis_ptr = bptr;
+        self.group_basis = basis;
+        self.a_ptr = aptr;
+        self.a = a;
+    }
+}
+
+/// `out[3x + d] += M[3i + d, ·] · v` for the `i`-th field node `x` of `nodes`.
+fn add_rows(nodes: &[u32], m: &[f32], v: &[f64], out: &mut [f64]) {
+    let w = v.len();
+    for (i, &x) in nodes.iter().enumerate() {
+        for d in 0..3 {
+            let row = &m[(3 * i + d) * w..(3 * i + d + 1) * w];
+            let s: f64 = row.iter().zip(v).map(|(&u, &y)| f64::from(u) * y).sum();
+            if let Some(o) = out.get_mut(3 * x as usize + d) {
+                *o += s;
+            }
+        }
     }
 }
 
@@ -438,8 +604,12 @@ mod tests {
             leaf_of: vec![1, 2],
             leaf_slot: vec![0, 0],
             block_ptr: vec![0, 1, 1, 2],
-            row_ptr: vec![0, 1, 2],
-            rows: vec![1, 0],
+            block_group: vec![0, 1],
+            group_ptr: vec![0, 1, 2],
+            group_rows: vec![1, 0],
+            group_rank: vec![0, 0],
+            group_basis_ptr: vec![0, 0, 0],
+            group_basis: Vec::new(),
             rank: vec![1, 1],
             a_ptr: vec![0, 3, 6],
             // Root block: A = [1, 0, 2]ᵀ (norm √5); leaf-2 block: A = [0, 0.05, 0]ᵀ.
@@ -475,6 +645,52 @@ mod tests {
         }
     }
 
+    /// The root block's `A = [1, 0, 2]ᵀ` as `U Ã` with `U = A/√5`, `Ã = √5`.
+    fn shared() -> NestedFar {
+        let mut f = two_level();
+        let n = 5.0f32.sqrt();
+        f.group_rank[0] = 1;
+        f.group_basis_ptr = vec![0, 3, 3];
+        f.group_basis = vec![1.0 / n, 0.0, 2.0 / n];
+        f.a_ptr = vec![0, 1, 4];
+        f.a = vec![n, 0.0, 0.05, 0.0];
+        f
+    }
+
+    #[test]
+    fn a_shared_row_basis_acts_as_the_explicit_factor() {
+        let (f, g) = (two_level(), shared());
+        g.validate(2, 2).expect("valid");
+        assert!(g.bytes() < f.bytes() + 16);
+        for (j, mix) in [(0u32, [1.0, 0.0, 0.0]), (1, [0.3, -1.0, 2.0])] {
+            let (mut a, mut b) = (vec![0.0; 6], vec![0.0; 6]);
+            f.add(&[(j, 1.5)], mix, &mut a);
+            g.add(&[(j, 1.5)], mix, &mut b);
+            for (x, y) in a.iter().zip(&b) {
+                assert!((x - y).abs() < 1e-6, "{a:?} vs {b:?}");
+            }
+        }
+        let ex = g.explicit_a(0);
+        for (x, y) in ex.iter().zip([1.0, 0.0, 2.0]) {
+            assert!((x - y).abs() < 1e-6);
+        }
+        // Dropping the group's only node empties its basis and keeps the blocks whole.
+        let mut h = shared();
+        h.remap_nodes(&[0, u32::MAX]);
+        h.validate(2, 1).expect("valid");
+        assert!(h.group_basis.is_empty());
+        assert_eq!(h.a.len(), 4);
+        // A basis of the wrong size is named.
+        let mut bad = shared();
+        bad.group_basis.pop();
+        bad.group_basis_ptr[1] = 2;
+        bad.group_basis_ptr[2] = 2;
+        assert!(matches!(
+            bad.validate(2, 2),
+            Err(FarFieldError::Length { .. })
+        ));
+    }
+
     #[test]
     fn truncation_drops_small_block_terms_and_keeps_the_bases() {
         let f = two_level().truncated(0.1);
@@ -484,6 +700,13 @@ mod tests {
         let mut out = vec![0.0; 6];
         f.add(&[(1, 1.0)], [0.0, 0.0, 1.0], &mut out);
         assert!(out[..3].iter().all(|&v| v == 0.0));
+        // The same with a shared row basis: a block truncated to rank 0 adds nothing.
+        let g = shared().truncated(10.0);
+        g.validate(2, 2).expect("valid");
+        assert_eq!(g.rank, vec![0, 0]);
+        let mut out = vec![0.0; 6];
+        g.add(&[(0, 1.0), (1, 1.0)], [1.0, 1.0, 1.0], &mut out);
+        assert!(out.iter().all(|&v| v == 0.0));
     }
 
     #[test]
@@ -491,7 +714,7 @@ mod tests {
         let mut f = two_level();
         f.remap_nodes(&[u32::MAX, 0]);
         f.validate(2, 1).expect("valid");
-        assert_eq!(f.rows, vec![0]);
+        assert_eq!(f.group_rows, vec![0]);
         assert_eq!(f.a, vec![1.0, 0.0, 2.0]);
     }
 
@@ -507,7 +730,7 @@ mod tests {
         f.leaf_slot[1] = 4;
         assert!(f.validate(2, 2).is_err());
         let mut f = two_level();
-        f.rows[0] = 7;
+        f.group_rows[0] = 7;
         assert!(matches!(
             f.validate(2, 2),
             Err(FarFieldError::NoSuchNode { node: 7, .. })
