@@ -149,15 +149,22 @@ fn bad_requests_get_clear_errors() {
     assert!(e.to_string().contains("Poisson"), "{e}");
 }
 
-mod svk {
+mod hyperelastic {
     use super::*;
-    use palpa_core::fe::probe::solve_svk;
-    use palpa_core::fe::svk::NewtonSettings;
+    use palpa_core::fe::hyper::Law;
+    use palpa_core::fe::newton::NewtonSettings;
+    use palpa_core::fe::probe::{solve_hyperelastic, solve_linear_depth};
 
     /// At small loads the nonlinear model reduces to the linear one: the difference is
     /// second order in the load (relative difference ∝ F).
     #[test]
-    fn svk_agrees_with_linear_at_small_loads() {
+    fn both_laws_agree_with_linear_at_small_loads() {
+        for law in [Law::Svk, Law::NeoHookean] {
+            agrees_with_linear_at_small_loads(law);
+        }
+    }
+
+    fn agrees_with_linear_at_small_loads(law: Law) {
         let organ = coarse_liver();
         let mut rel = Vec::new();
         for force_n in [0.01, 0.02] {
@@ -168,20 +175,22 @@ mod svk {
                 radius_mm: 5.0,
             };
             let lin = solve_linear(&organ, Element::P1, Material::default(), &req).expect("linear");
-            let (nl, _) = solve_svk(
+            let (nl, _) = solve_hyperelastic(
                 &organ,
                 Element::P1,
                 Material::default(),
+                law,
                 &req,
+                None,
                 NewtonSettings::default(),
             )
-            .expect("svk");
+            .expect("converges");
             rel.push(
                 (nl.probe_displacement_mm - lin.probe_displacement_mm).abs()
                     / lin.probe_displacement_mm,
             );
         }
-        eprintln!("relative SVK − linear differences at 0.01 and 0.02 N: {rel:?}");
+        eprintln!("{law:?}: relative differences to linear at 0.01 and 0.02 N: {rel:?}");
         assert!(rel[0] < 1e-2, "{rel:?}");
         // Doubling the load doubles the relative difference (first-order term of the
         // nonlinearity), to within 20%.
@@ -194,11 +203,13 @@ mod svk {
     fn newton_converges_quadratically() {
         let organ = coarse_liver();
         let req = press(POINTS[0], 0.5);
-        let (_, rep) = solve_svk(
+        let (_, rep) = solve_hyperelastic(
             &organ,
             Element::P1,
             Material::default(),
+            Law::Svk,
             &req,
+            None,
             NewtonSettings::default(),
         )
         .expect("svk");
@@ -228,9 +239,104 @@ mod svk {
             min_step: 1.0 / 64.0,
             ..NewtonSettings::default()
         };
-        let e = solve_svk(&organ, Element::P1, Material::default(), &req, settings)
-            .expect_err("must not converge");
+        let e = solve_hyperelastic(
+            &organ,
+            Element::P1,
+            Material::default(),
+            Law::Svk,
+            &req,
+            None,
+            settings,
+        )
+        .expect_err("must not converge");
         assert!(e.to_string().contains("% of the load"), "{e}");
+    }
+
+    /// Depth control and force control describe the same equilibrium: pushed to a
+    /// depth, the reported force, applied as a force, moves the probe point by that
+    /// depth; a zero depth is the rest state exactly; linear depth control is the
+    /// unit response scaled.
+    #[test]
+    fn depth_and_force_control_agree_and_zero_depth_is_rest() {
+        let organ = coarse_liver();
+        let settings = NewtonSettings::default();
+        let req = press(POINTS[0], f64::NAN);
+        for law in [Law::Svk, Law::NeoHookean] {
+            let (by_depth, _) = solve_hyperelastic(
+                &organ,
+                Element::P1,
+                Material::default(),
+                law,
+                &req,
+                Some(4.0),
+                settings,
+            )
+            .expect("depth control");
+            assert!((by_depth.probe_displacement_mm - 4.0).abs() < 1e-8);
+            assert!(by_depth.force_n > 0.0);
+            let (by_force, _) = solve_hyperelastic(
+                &organ,
+                Element::P1,
+                Material::default(),
+                law,
+                &press(POINTS[0], by_depth.force_n),
+                None,
+                settings,
+            )
+            .expect("force control");
+            eprintln!(
+                "{law:?}: 4 mm needs {:.4} N; that force gives {:.6} mm",
+                by_depth.force_n, by_force.probe_displacement_mm
+            );
+            assert!((by_force.probe_displacement_mm - 4.0).abs() < 1e-6);
+            let worst = by_depth
+                .u
+                .iter()
+                .zip(&by_force.u)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(worst < 1e-6, "{worst}");
+            let (rest, _) = solve_hyperelastic(
+                &organ,
+                Element::P1,
+                Material::default(),
+                law,
+                &req,
+                Some(0.0),
+                settings,
+            )
+            .expect("zero depth");
+            assert_eq!(rest.force_n, 0.0);
+            assert!(rest.u.iter().all(|&v| v == 0.0));
+        }
+        let lin = solve_linear_depth(&organ, Element::P1, Material::default(), &req, 4.0)
+            .expect("linear depth");
+        assert!((lin.probe_displacement_mm - 4.0).abs() < 1e-9);
+        let unit = solve_linear(
+            &organ,
+            Element::P1,
+            Material::default(),
+            &press(POINTS[0], 1.0),
+        )
+        .expect("linear");
+        assert!((lin.force_n * unit.probe_displacement_mm - 4.0).abs() < 1e-9);
+    }
+
+    /// A depth that is not finite is named, not solved.
+    #[test]
+    fn a_non_finite_depth_is_refused() {
+        let organ = coarse_liver();
+        let req = press(POINTS[0], 1.0);
+        let e = solve_hyperelastic(
+            &organ,
+            Element::P1,
+            Material::default(),
+            Law::NeoHookean,
+            &req,
+            Some(f64::INFINITY),
+            NewtonSettings::default(),
+        )
+        .expect_err("refused");
+        assert!(e.to_string().contains("depth"), "{e}");
     }
 }
 

@@ -37,9 +37,16 @@ pub struct ProbeArgs {
         required = true
     )]
     pub at: Vec<f64>,
-    /// Total probe force (N).
+    /// Total probe force (N): force control.
+    #[arg(
+        long,
+        required_unless_present = "depth_mm",
+        conflicts_with = "depth_mm"
+    )]
+    pub force_n: Option<f64>,
+    /// Tool depth (mm): depth control, the force is the result (`fe solve` only).
     #[arg(long)]
-    pub force_n: f64,
+    pub depth_mm: Option<f64>,
     /// Load direction NX,NY,NZ (default: the inward surface normal at the probe).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub dir: Option<Vec<f64>>,
@@ -48,6 +55,16 @@ pub struct ProbeArgs {
 impl ProbeArgs {
     pub fn at(&self) -> anyhow::Result<[f64; 3]> {
         to3(&self.at, "--at")
+    }
+    /// The force, for commands that press under force control only.
+    pub fn force_n(&self) -> anyhow::Result<f64> {
+        match (self.force_n, self.depth_mm) {
+            (Some(f), _) => Ok(f),
+            (None, Some(_)) => {
+                bail!("--depth-mm is supported by `palpa fe solve` only for now; give --force-n")
+            }
+            (None, None) => bail!("give --force-n (N)"),
+        }
     }
     pub fn dir(&self) -> anyhow::Result<Option<[f64; 3]>> {
         self.dir.as_deref().map(|d| to3(d, "--dir")).transpose()

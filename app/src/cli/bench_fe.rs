@@ -6,13 +6,17 @@
 //! - `svk`: Newton iterations, load steps and seconds for F = 1, 5, 10 N, or the load
 //!   fraction reached when it does not converge;
 //! - `positions`: linear P2 probe displacement at named positions (anterior, left
-//!   lobe, the sharp inferior border, next to the fixed region).
+//!   lobe, the sharp inferior border, next to the fixed region);
+//! - `depth`: each hyperelastic law pushed to `--depth-mm` (15) under depth control at
+//!   ten spread positions on coarse P2: the force, Newton work and seconds, or the
+//!   depth and force where it stopped and why.
 
 use std::time::Instant;
 
 use clap::Args;
-use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_linear, solve_svk};
-use palpa_core::fe::svk::NewtonSettings;
+use palpa_core::fe::hyper::Law;
+use palpa_core::fe::newton::NewtonSettings;
+use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic, solve_linear};
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
@@ -27,9 +31,12 @@ pub struct FeBenchArgs {
     /// Skip the (slow) SVK tables.
     #[arg(long)]
     no_svk: bool,
-    /// Run only these tables (cost, poisson, positions, svk, svk_limit).
+    /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
+    /// Depth of the `depth` table (mm).
+    #[arg(long, default_value_t = 15.0)]
+    depth_mm: f64,
 }
 
 impl FeBenchArgs {
@@ -46,6 +53,20 @@ pub const POSITIONS: [(&str, [f64; 3]); 5] = [
     ("sharp inferior border", [-30.0, 80.0, 0.0]),
     ("inferior surface", [-20.0, 45.0, -45.0]),
     ("next to the fixed region", [-60.0, -40.0, -20.0]),
+];
+
+/// Ten spread positions for the depth table (each projected to the palpable surface).
+const DEPTH_POSITIONS: [(&str, [f64; 3]); 10] = [
+    POSITIONS[0],
+    POSITIONS[1],
+    POSITIONS[2],
+    POSITIONS[3],
+    POSITIONS[4],
+    ("right lobe, lateral", [-90.0, 30.0, 10.0]),
+    ("dome", [-20.0, 20.0, 60.0]),
+    ("left lobe tip", [90.0, 40.0, 10.0]),
+    ("middle anterior", [10.0, 80.0, 20.0]),
+    ("inferior right", [-70.0, 50.0, -30.0]),
 ];
 
 pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
@@ -129,11 +150,13 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
                     continue;
                 }
                 let converges = |f: f64| {
-                    solve_svk(
+                    solve_hyperelastic(
                         &coarse,
                         element,
                         Material::default(),
+                        Law::Svk,
                         &req(at, f),
+                        None,
                         NewtonSettings::default(),
                     )
                     .is_ok()
@@ -156,11 +179,13 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
                         }
                     }
                 }
-                let beyond = solve_svk(
+                let beyond = solve_hyperelastic(
                     &coarse,
                     element,
                     Material::default(),
+                    Law::Svk,
                     &req(at, bad),
+                    None,
                     NewtonSettings::default(),
                 )
                 .err()
@@ -173,15 +198,52 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
             }
         }
     }
+    if args.wants("depth") {
+        for law in [Law::NeoHookean, Law::Svk] {
+            for (name, at) in DEPTH_POSITIONS {
+                let t = Instant::now();
+                let out = solve_hyperelastic(
+                    &coarse,
+                    Element::P2,
+                    Material::default(),
+                    law,
+                    &req(at, f64::NAN),
+                    Some(args.depth_mm),
+                    NewtonSettings::default(),
+                );
+                let mut row = json!({"table": "depth", "level": "coarse", "element": "p2",
+                    "law": law.name(), "position": name, "depth_mm": args.depth_mm,
+                    "seconds": t.elapsed().as_secs_f64()});
+                match out {
+                    Ok((sol, rep)) => {
+                        row["converged"] = json!(true);
+                        row["force_n"] = json!(sol.force_n);
+                        row["max_displacement_mm"] = json!(sol.max_displacement_mm);
+                        row["newton_iterations"] = json!(rep.iterations);
+                        row["steps"] = json!(rep.load_steps);
+                        row["step_cuts"] = json!(rep.step_cuts);
+                        row["probe_point"] = json!(sol.probe.point);
+                    }
+                    Err(e) => {
+                        row["converged"] = json!(false);
+                        row["error"] = json!(e.to_string());
+                    }
+                }
+                println!("{row}");
+            }
+        }
+    }
     if args.wants("svk") {
         for element in [Element::P1, Element::P2] {
             for force_n in [1.0, 5.0, 10.0] {
                 let t = Instant::now();
-                let out = solve_svk(
+                let out = solve_hyperelastic(
                     &coarse,
                     element,
                     Material::default(),
+                    Law::Svk,
                     &req(ANTERIOR, force_n),
+                    None,
                     NewtonSettings::default(),
                 );
                 let row = match out {

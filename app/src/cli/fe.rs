@@ -6,8 +6,11 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::export::{FieldValue, PointField, write_by_extension};
-use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_linear, solve_svk};
-use palpa_core::fe::svk::NewtonSettings;
+use palpa_core::fe::hyper::Law;
+use palpa_core::fe::newton::NewtonSettings;
+use palpa_core::fe::probe::{
+    ProbeRequest, organ_space, solve_hyperelastic, solve_linear, solve_linear_depth,
+};
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
@@ -24,6 +27,18 @@ pub enum Model {
     Linear,
     /// Saint Venant–Kirchhoff (geometrically and materially nonlinear), Newton.
     Svk,
+    /// Compressible neo-Hookean (stable in strong compression), Newton.
+    NeoHookean,
+}
+
+impl Model {
+    fn law(self) -> Option<Law> {
+        match self {
+            Model::Linear => None,
+            Model::Svk => Some(Law::Svk),
+            Model::NeoHookean => Some(Law::NeoHookean),
+        }
+    }
 }
 
 #[derive(Debug, Args)]
@@ -67,25 +82,34 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
     let organ = args.organ.mesh()?;
     let req = ProbeRequest {
         at,
-        force_n: args.probe.force_n,
+        force_n: args.probe.force_n.unwrap_or(f64::NAN),
         dir,
         radius_mm: args.radius_mm,
     };
-    let (sol, newton_iterations, load_steps) = match args.model {
-        Model::Linear => (
+    let depth = args.probe.depth_mm;
+    let (sol, newton_iterations, load_steps) = match (args.model.law(), depth) {
+        (None, None) => (
             solve_linear(&organ, args.element, material, &req).context("solving")?,
             0,
             1,
         ),
-        Model::Svk => {
-            let (sol, rep) = solve_svk(
+        (None, Some(d)) => (
+            solve_linear_depth(&organ, args.element, material, &req, d)
+                .context("solving (depth control)")?,
+            0,
+            1,
+        ),
+        (Some(law), _) => {
+            let (sol, rep) = solve_hyperelastic(
                 &organ,
                 args.element,
                 material,
+                law,
                 &req,
+                depth,
                 NewtonSettings::default(),
             )
-            .context("solving (Saint Venant–Kirchhoff)")?;
+            .with_context(|| format!("solving ({})", law.name()))?;
             (sol, rep.iterations, rep.load_steps)
         }
     };
@@ -94,12 +118,13 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         "young_kpa": material.young_kpa,
         "poisson": material.poisson,
         "element": args.element.name(),
-        "model": format!("{:?}", args.model).to_lowercase(),
+        "model": args.model.law().map_or("linear", Law::name),
+        "control": if depth.is_some() { "depth" } else { "force" },
         "level": format!("{:?}", args.organ.level).to_lowercase(),
         "probe_point": sol.probe.point,
         "probe_projection_distance_mm": sol.probe.distance_mm,
         "direction": sol.dir,
-        "force_n": args.probe.force_n,
+        "force_n": sol.force_n,
         "radius_mm": args.radius_mm,
         "probe_displacement_mm": sol.probe_displacement_mm,
         "max_displacement_mm": sol.max_displacement_mm,

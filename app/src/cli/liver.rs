@@ -374,7 +374,7 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
     let t = Instant::now();
     m.reconstruct(&coeffs, &mut full);
     let full_us = t.elapsed().as_secs_f64() * 1e6;
-    let f = args.probe.force_n;
+    let f = args.probe.force_n()?;
     let probe_displacement_mm = if contact.is_empty() {
         None
     } else {
@@ -434,7 +434,7 @@ fn eval_nodal<T: Scalar>(
     let available = m.modes();
     let used = ModesUsed::of(args.modes, available)?;
     let modes = used.used;
-    let f = args.probe.force_n;
+    let f = args.probe.force_n()?;
     let value = [ParamValue::SurfaceMix {
         triangle: face,
         bary: hit.bary,
@@ -557,7 +557,7 @@ fn report_eval<T: Scalar>(
     e: &Evaluated<'_>,
     extra: serde_json::Value,
 ) -> anyhow::Result<()> {
-    let f = args.probe.force_n;
+    let f = args.probe.force_n()?;
     let mut report = json!({
         "probe_point": e.hit.point,
         "probe_projection_distance_mm": e.hit.distance,

@@ -129,6 +129,20 @@ pub fn probe_weights(
     }
 }
 
+/// The all-node vector `n̂` with `n̂·u = value_at(u, s)·dir`: the probe point's
+/// displacement along `dir` as a linear functional.
+pub fn probe_functional(space: &Space, s: &SurfacePoint, dir: [f64; 3]) -> Vec<f64> {
+    let mut nvals = [0.0; 6];
+    tri_values(space.element == super::Element::P2, s.bary, &mut nvals);
+    let mut out = vec![0.0; 3 * space.nodes.len()];
+    for (a, &node) in space.face(s.face).iter().enumerate() {
+        for d in 0..3 {
+            out[3 * node as usize + d] += nvals[a] * dir[d];
+        }
+    }
+    out
+}
+
 /// Interpolates a nodal field (`3 × nodes`) at a surface point.
 pub fn value_at(space: &Space, u: &[f64], s: &SurfacePoint) -> [f64; 3] {
     let mut nvals = [0.0; 6];

@@ -6,7 +6,8 @@
 //!
 //! ```text
 //! linear:  ∫_Ω σ(u) : ε(v) dV = ∫_Γ q·v dA,   σ = λ tr(ε) I + 2μ ε,  ε = ½(∇u + ∇uᵀ)
-//! SVK:     ∫_Ω S(u) : δE(u; v) dV = ∫_Γ q·v dA,  S = λ tr(E) I + 2μ E,  E = ½(FᵀF − I)
+//! hyperelastic: ∫_Ω S(u) : δE(u; v) dV = ∫_Γ q·v dA,  E = ½(FᵀF − I),
+//!          S from Saint Venant–Kirchhoff or compressible neo-Hookean (`hyper`)
 //! ```
 //!
 //! with `λ = Eν/((1+ν)(1−2ν))`, `μ = E/(2(1+ν))`; E in kPa is converted to N/mm²
@@ -24,12 +25,13 @@
 //! AMD ordering).
 
 pub mod elasticity;
+pub mod hyper;
 pub mod load;
+pub mod newton;
 pub mod probe;
 pub mod shape;
 pub mod space;
 pub mod sparse;
-pub mod svk;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -137,6 +139,8 @@ pub enum FeError {
     PointNotFinite { point: [f64; 3] },
     #[error("invalid load: tool radius {radius_mm} mm must be finite and positive")]
     ToolRadius { radius_mm: f64 },
+    #[error("invalid press: depth {depth_mm} mm is not finite")]
+    DepthNotFinite { depth_mm: f64 },
     #[error("Newton did not converge: {0}")]
     NoConvergence(String),
     #[error(

@@ -5,9 +5,11 @@
 use std::time::Instant;
 
 use super::elasticity::LinearProblem;
+use super::hyper::Law;
+use super::load::probe_functional;
 use super::load::{SurfacePoint, probe_load, project, value_at};
+use super::newton::{self, Control, NewtonReport, NewtonSettings};
 use super::space::Space;
-use super::svk::{self, NewtonReport, NewtonSettings};
 use super::{Element, FeError, Material};
 use crate::mesh::dot;
 use crate::organ::OrganMesh;
@@ -35,6 +37,9 @@ pub struct ProbeSolution {
     pub u: Vec<f64>,
     /// Displacement at the probe point along the load direction (mm).
     pub probe_displacement_mm: f64,
+    /// The tool's force (N): as requested under force control, the reaction under
+    /// depth control.
+    pub force_n: f64,
     pub max_displacement_mm: f64,
     pub assembly_s: f64,
     pub factor_s: f64,
@@ -83,7 +88,7 @@ pub fn solve_linear(
     let t = Instant::now();
     let u = problem.solve(&space, &load);
     let solve_s = t.elapsed().as_secs_f64();
-    Ok(summarize(
+    let mut sol = summarize(
         &space,
         probe,
         dir,
@@ -92,23 +97,87 @@ pub fn solve_linear(
         problem.assembly_s,
         problem.factor_s,
         solve_s,
-    ))
+    );
+    sol.force_n = req.force_n;
+    Ok(sol)
 }
 
-/// Saint Venant–Kirchhoff solve of one probe request (dead load).
-pub fn solve_svk(
+/// Linear solve pushed to a depth: the response to 1 N scaled so that the probe point
+/// moves `depth_mm` along the tool axis (exact: the problem is linear).
+pub fn solve_linear_depth(
     organ: &OrganMesh,
     element: Element,
     material: Material,
     req: &ProbeRequest,
+    depth_mm: f64,
+) -> Result<ProbeSolution, FeError> {
+    if !depth_mm.is_finite() {
+        return Err(FeError::DepthNotFinite { depth_mm });
+    }
+    let unit = solve_linear(
+        organ,
+        element,
+        material,
+        &ProbeRequest {
+            force_n: 1.0,
+            ..*req
+        },
+    )?;
+    let c = unit.probe_displacement_mm;
+    if !(c.is_finite() && c.abs() > 0.0) {
+        return Err(FeError::NoConvergence(
+            "the load does not move the probe point along the tool axis".into(),
+        ));
+    }
+    let k = depth_mm / c;
+    let mut sol = unit;
+    sol.u.iter_mut().for_each(|v| *v *= k);
+    sol.load.iter_mut().for_each(|v| *v *= k);
+    sol.probe_displacement_mm *= k;
+    sol.max_displacement_mm *= k.abs();
+    sol.force_n = k;
+    Ok(sol)
+}
+
+/// Hyperelastic solve of one probe request: under force control (`depth_mm` `None`) a
+/// dead load of `req.force_n`; under depth control the tool pushed until the probe
+/// point has moved `depth_mm` along its axis (`req.force_n` is not used; the force is
+/// the result). See [`newton`].
+pub fn solve_hyperelastic(
+    organ: &OrganMesh,
+    element: Element,
+    material: Material,
+    law: Law,
+    req: &ProbeRequest,
+    depth_mm: Option<f64>,
     settings: NewtonSettings,
 ) -> Result<(ProbeSolution, NewtonReport), FeError> {
     let space = organ_space(organ, element);
     let (probe, dir) = locate(&space, organ, req)?;
-    let load = probe_load(&space, &probe, dir, req.force_n, req.radius_mm)?;
-    let (u, report) = svk::solve(&space, material, &load, settings)?;
-    let s = report.seconds;
-    Ok((summarize(&space, probe, dir, load, u, 0.0, 0.0, s), report))
+    let control = match depth_mm {
+        None => Control::Force(probe_load(&space, &probe, dir, req.force_n, req.radius_mm)?),
+        Some(d) => {
+            if !d.is_finite() {
+                return Err(FeError::DepthNotFinite { depth_mm: d });
+            }
+            Control::Depth {
+                shape: probe_load(&space, &probe, dir, 1.0, req.radius_mm)?,
+                probe: probe_functional(&space, &probe, dir),
+                depth_mm: d,
+            }
+        }
+    };
+    let sol = newton::solve(&space, law, material, &control, settings)?;
+    let (load, force_n) = match control {
+        Control::Force(load) => (load, req.force_n),
+        Control::Depth { shape, .. } => {
+            (shape.iter().map(|v| v * sol.force_n).collect(), sol.force_n)
+        }
+    };
+    let s = sol.report.seconds;
+    let mut out = summarize(&space, probe, dir, load, sol.u, 0.0, 0.0, s);
+    out.force_n = force_n;
+    Ok((out, sol.report))
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -132,6 +201,7 @@ pub(crate) fn summarize(
         dir,
         load,
         probe_displacement_mm: dot(us, dir),
+        force_n: f64::NAN,
         max_displacement_mm: max,
         u,
         assembly_s,
