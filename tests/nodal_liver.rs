@@ -233,7 +233,7 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     }
     let mut old = small.clone().without_near();
     let mut old_near = small.near().expect("near").clone();
-    old_near.far = Some(Box::new(FarField::Flat(flat)));
+    old_near.far = Some(Box::new(FarField::Flat(Box::new(flat))));
     old = old.with_near(old_near).expect("consistent");
     let old_path = dir.path().join("v4.palpa");
     file::save(&old, &old_path).expect("save");

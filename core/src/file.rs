@@ -315,18 +315,12 @@ fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, v5: bool) -> Resul
                     })
                     .collect();
                 match near.far.take().map(|f| *f) {
-                    Some(FarField::Flat(far)) => Layout::SeparatedNearFar {
-                        near,
-                        far: Box::new(far),
-                    },
+                    Some(FarField::Flat(far)) => Layout::SeparatedNearFar { near, far },
                     Some(FarField::Nested(far)) if v5 => Layout::SeparatedNearNested {
                         near,
-                        far: Box::new(NestedFarV5::from(&far)),
+                        far: Box::new(NestedFarV5::from(&*far)),
                     },
-                    Some(FarField::Nested(far)) => Layout::SeparatedNearShared {
-                        near,
-                        far: Box::new(far),
-                    },
+                    Some(FarField::Nested(far)) => Layout::SeparatedNearShared { near, far },
                     None => Layout::SeparatedNear { near },
                 }
             }
@@ -666,17 +660,19 @@ fn load_payload<T: Scalar, R: Read>(
         Layout::SeparatedNear { near } => Some(near.as_ref().clone()),
         Layout::SeparatedNearFar { near, far } => {
             let mut near = near.as_ref().clone();
-            near.far = Some(Box::new(FarField::Flat(far.as_ref().clone())));
+            near.far = Some(Box::new(FarField::Flat(far.clone())));
             Some(near)
         }
         Layout::SeparatedNearNested { near, far } => {
             let mut near = near.as_ref().clone();
-            near.far = Some(Box::new(FarField::Nested(far.as_ref().clone().into())));
+            near.far = Some(Box::new(FarField::Nested(Box::new(
+                far.as_ref().clone().into(),
+            ))));
             Some(near)
         }
         Layout::SeparatedNearShared { near, far } => {
             let mut near = near.as_ref().clone();
-            near.far = Some(Box::new(FarField::Nested(far.as_ref().clone())));
+            near.far = Some(Box::new(FarField::Nested(far.clone())));
             Some(near)
         }
         _ => None,

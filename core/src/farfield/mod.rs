@@ -65,8 +65,8 @@ pub const MAX_RANK: usize = 32;
 /// A stored far field in either form.
 #[derive(Debug, Clone, PartialEq)]
 pub enum FarField {
-    Flat(FarBlocks),
-    Nested(NestedFar),
+    Flat(Box<FarBlocks>),
+    Nested(Box<NestedFar>),
 }
 
 impl FarField {
@@ -113,8 +113,8 @@ impl FarField {
     /// The blocks without their terms at or below `tolerance` (the accuracy knob).
     pub fn truncated(&self, tolerance: f64) -> FarField {
         match self {
-            FarField::Flat(f) => FarField::Flat(f.truncated(tolerance)),
-            FarField::Nested(f) => FarField::Nested(f.truncated(tolerance)),
+            FarField::Flat(f) => FarField::Flat(Box::new(f.truncated(tolerance))),
+            FarField::Nested(f) => FarField::Nested(Box::new(f.truncated(tolerance))),
         }
     }
 

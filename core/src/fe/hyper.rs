@@ -120,7 +120,7 @@ impl Law {
             }
             Law::NeoHookean => {
                 let j = det(f);
-                if !(j > 0.0) {
+                if j.is_nan() || j <= 0.0 {
                     return PointState {
                         s: [[f64::NAN; 3]; 3],
                         c_inv: [[f64::NAN; 3]; 3],

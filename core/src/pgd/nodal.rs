@@ -445,7 +445,7 @@ fn remainder_parts(
             );
             report.far_blocks = c.far.blocks();
             report.far_bytes = c.far.bytes();
-            (c.dense, Some(Box::new(FarField::Nested(c.far))))
+            (c.dense, Some(Box::new(FarField::Nested(Box::new(c.far)))))
         }
         None => {
             let radius = settings.band_radius_mm;
