@@ -334,6 +334,59 @@ fn eval_on_the_default_scene() {
     assert!(text.starts_with("<?xml") && text.contains("Name=\"displacement\""));
 }
 
+/// Depth control: `eval --depth-mm` on the default scene and `fe solve --depth-mm`
+/// (linear, and the neo-Hookean law on coarse P1) move the probe point by the depth and
+/// report the force it takes under the same keys; the linear force matches the full FE
+/// one within the scene's compliance accuracy; both flags at once are refused.
+#[test]
+fn depth_control_in_eval_and_fe_solve() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
+    let at = "--at=-30,90,25";
+    let eval = common::json_ok(&palpa(&["eval", scene, at, "--depth-mm", "5", "--json"]));
+    assert_eq!(eval["control"], "depth");
+    assert!((eval["probe_displacement_mm"].as_f64().expect("number") - 5.0).abs() < 1e-9);
+    let lin = common::json_ok(&palpa(&[
+        "fe",
+        "solve",
+        "--level",
+        "coarse",
+        at,
+        "--depth-mm",
+        "5",
+        "--json",
+    ]));
+    assert_eq!(lin["control"], "depth");
+    assert!((lin["probe_displacement_mm"].as_f64().expect("number") - 5.0).abs() < 1e-9);
+    let (fe, fs) = (
+        eval["force_n"].as_f64().expect("force"),
+        lin["force_n"].as_f64().expect("force"),
+    );
+    assert!((fe - fs).abs() < 0.02 * fs, "scene {fe} N, full FE {fs} N");
+    let nh = common::json_ok(&palpa(&[
+        "fe",
+        "solve",
+        "--level",
+        "coarse",
+        "--element",
+        "p1",
+        "--model",
+        "neo-hookean",
+        at,
+        "--depth-mm",
+        "5",
+        "--json",
+    ]));
+    assert_eq!(nh["model"], "neo-hookean");
+    assert!((nh["probe_displacement_mm"].as_f64().expect("number") - 5.0).abs() < 1e-6);
+    assert!(nh["force_n"].as_f64().expect("force") > 0.0);
+    assert!(nh["newton_iterations"].as_u64().expect("iterations") > 0);
+    let both = palpa(&["eval", scene, at, "--depth-mm", "5", "--force-n", "1"]);
+    assert!(!both.status.success());
+    assert!(String::from_utf8_lossy(&both.stderr).contains("cannot be used with"));
+    let neither = palpa(&["fe", "solve", "--level", "coarse", at]);
+    assert!(!neither.status.success());
+}
+
 #[test]
 fn cme_solve_prints_the_documented_json_for_fsp_and_ssa() {
     for method in ["fsp", "ssa"] {

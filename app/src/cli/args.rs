@@ -44,7 +44,7 @@ pub struct ProbeArgs {
         conflicts_with = "depth_mm"
     )]
     pub force_n: Option<f64>,
-    /// Tool depth (mm): depth control, the force is the result (`fe solve` only).
+    /// Tool depth (mm): depth control, the force is the result.
     #[arg(long)]
     pub depth_mm: Option<f64>,
     /// Load direction NX,NY,NZ (default: the inward surface normal at the probe).
@@ -55,16 +55,6 @@ pub struct ProbeArgs {
 impl ProbeArgs {
     pub fn at(&self) -> anyhow::Result<[f64; 3]> {
         to3(&self.at, "--at")
-    }
-    /// The force, for commands that press under force control only.
-    pub fn force_n(&self) -> anyhow::Result<f64> {
-        match (self.force_n, self.depth_mm) {
-            (Some(f), _) => Ok(f),
-            (None, Some(_)) => {
-                bail!("--depth-mm is supported by `palpa fe solve` only for now; give --force-n")
-            }
-            (None, None) => bail!("give --force-n (N)"),
-        }
     }
     pub fn dir(&self) -> anyhow::Result<Option<[f64; 3]>> {
         self.dir.as_deref().map(|d| to3(d, "--dir")).transpose()

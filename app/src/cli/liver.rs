@@ -374,20 +374,19 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
     let t = Instant::now();
     m.reconstruct(&coeffs, &mut full);
     let full_us = t.elapsed().as_secs_f64() * 1e6;
-    let f = args.probe.force_n()?;
-    let probe_displacement_mm = if contact.is_empty() {
+    let probe_unit = if contact.is_empty() {
         None
     } else {
         let u: [f64; 3] = [0, 1, 2].map(|d| {
             (0..3)
                 .map(|i| hit.bary[i] * contact[3 * i + d])
                 .sum::<f64>()
-                * f
         });
         Some(u[0] * dir[0] + u[1] * dir[1] + u[2] * dir[2])
     };
+    let f = press_force(&args.probe, probe_unit)?;
     let times_us = [contact_eval_ns / 1e3, full_us];
-    let facts = Evaluated::new(&hit, dir, probe_displacement_mm, used, times_us);
+    let facts = Evaluated::new(&hit, dir, probe_unit.map(|c| f * c), f, used, times_us);
     report_eval(m, args, &full, &facts, json!({}))
 }
 
@@ -434,7 +433,6 @@ fn eval_nodal<T: Scalar>(
     let available = m.modes();
     let used = ModesUsed::of(args.modes, available)?;
     let modes = used.used;
-    let f = args.probe.force_n()?;
     let value = [ParamValue::SurfaceMix {
         triangle: face,
         bary: hit.bary,
@@ -484,12 +482,33 @@ fn eval_nodal<T: Scalar>(
             }
         }
     };
-    let probe_displacement_mm =
-        probe_unit.map(|w| f * (w[0] * dir[0] + w[1] * dir[1] + w[2] * dir[2]));
+    let compliance = probe_unit.map(|w| w[0] * dir[0] + w[1] * dir[1] + w[2] * dir[2]);
+    let f = press_force(&args.probe, compliance)?;
     let times_us = [particularize_us, full_us];
-    let facts = Evaluated::new(&hit, dir, probe_displacement_mm, used, times_us);
+    let facts = Evaluated::new(&hit, dir, compliance.map(|c| f * c), f, used, times_us);
     let extra = json!({"probe_displacement_source": source, "near_field": m.near().is_some()});
     report_eval(m, args, &full, &facts, extra)
+}
+
+/// The force of a press: `--force-n` as given, or under `--depth-mm` the force that
+/// moves the probe point that far, `d / c` (the model is linear; `c` the probe
+/// displacement per newton).
+fn press_force(probe: &ProbeArgs, compliance_mm_per_n: Option<f64>) -> anyhow::Result<f64> {
+    match (probe.force_n, probe.depth_mm) {
+        (Some(f), _) => Ok(f),
+        (None, Some(d)) => {
+            if !d.is_finite() {
+                bail!("--depth-mm {d} is not finite");
+            }
+            match compliance_mm_per_n {
+                Some(c) if c.is_finite() && c.abs() > 0.0 => Ok(d / c),
+                _ => bail!(
+                    "--depth-mm needs the probe displacement at this point, which this model does not give; use --force-n"
+                ),
+            }
+        }
+        (None, None) => bail!("give --force-n (N) or --depth-mm (mm)"),
+    }
 }
 
 /// The modes `palpa eval` uses: all by default, clamped (with a notice) to what the
@@ -525,6 +544,8 @@ struct Evaluated<'a> {
     hit: &'a palpa_core::axis::SurfaceHit,
     dir: [f64; 3],
     probe_displacement_mm: Option<f64>,
+    /// The press's force (given, or the one a given depth needs).
+    force_n: f64,
     modes: ModesUsed,
     /// Evaluation (particularization, contact) and full reconstruction, µs.
     times_us: [f64; 2],
@@ -535,6 +556,7 @@ impl<'a> Evaluated<'a> {
         hit: &'a palpa_core::axis::SurfaceHit,
         dir: [f64; 3],
         probe_displacement_mm: Option<f64>,
+        force_n: f64,
         modes: ModesUsed,
         times_us: [f64; 2],
     ) -> Self {
@@ -542,6 +564,7 @@ impl<'a> Evaluated<'a> {
             hit,
             dir,
             probe_displacement_mm,
+            force_n,
             modes,
             times_us,
         }
@@ -557,12 +580,13 @@ fn report_eval<T: Scalar>(
     e: &Evaluated<'_>,
     extra: serde_json::Value,
 ) -> anyhow::Result<()> {
-    let f = args.probe.force_n()?;
+    let f = e.force_n;
     let mut report = json!({
         "probe_point": e.hit.point,
         "probe_projection_distance_mm": e.hit.distance,
         "direction": e.dir,
         "force_n": f,
+        "control": if args.probe.force_n.is_some() { "force" } else { "depth" },
         "probe_displacement_mm": e.probe_displacement_mm,
         "modes_used": e.modes.used,
         "modes_available": e.modes.available,
