@@ -1,5 +1,7 @@
 //! Where scenes come from: the built-in default (the shipped liver vademecum, compiled
-//! into the binary so the app opens anywhere, phones included) or a `.palpa` file.
+//! into the binary so the app opens anywhere, phones included) or a `.palpa` file,
+//! whose kind says which room opens it: a palpation vademecum or a gene-network
+//! (CME) meta-model.
 
 use std::path::Path;
 
@@ -32,6 +34,47 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
     })
 }
 
+/// A scene of either kind, ready for its room.
+#[derive(Debug)]
+pub enum Opened {
+    Palpation(Box<LoadedScene>),
+    Network {
+        room: Box<crate::network::NetworkRoom>,
+        source: String,
+    },
+}
+
+/// Whether the file at `spec` holds a gene-network meta-model (by its header's kind).
+pub fn is_network(spec: &str) -> bool {
+    spec != "liver"
+        && palpa_core::file::read_header(Path::new(spec))
+            .is_ok_and(|h| h.meta.kind.starts_with("cme-"))
+}
+
+/// Opens `spec` in the room its kind needs.
+pub fn open(spec: &str) -> anyhow::Result<Opened> {
+    if is_network(spec) {
+        let path = Path::new(spec);
+        return Ok(Opened::Network {
+            room: Box::new(crate::network::open(path)?),
+            source: path.display().to_string(),
+        });
+    }
+    load(spec).map(|s| Opened::Palpation(Box::new(s)))
+}
+
+/// Opens `spec`; on failure, the built-in scene and the message saying why (the app
+/// opens anyway and shows it).
+pub fn open_or_default(spec: &str) -> anyhow::Result<(Opened, Option<String>)> {
+    match open(spec) {
+        Ok(s) => Ok((s, None)),
+        Err(e) => Ok((
+            Opened::Palpation(Box::new(built_in()?)),
+            Some(format!("{e:#}; showing the built-in liver instead")),
+        )),
+    }
+}
+
 pub fn built_in() -> anyhow::Result<LoadedScene> {
     let model = palpa_core::file::load_any_from_bytes(BUILT_IN_LIVER)
         .context("the built-in liver scene")?;
@@ -39,16 +82,4 @@ pub fn built_in() -> anyhow::Result<LoadedScene> {
         scene: PalpationScene::new(model).context("the built-in liver scene")?,
         source: "built-in liver (assets/liver-coarse.palpa)".into(),
     })
-}
-
-/// Loads `spec`; on failure, the built-in scene and the message saying why (the app
-/// opens anyway and shows it).
-pub fn load_or_default(spec: &str) -> anyhow::Result<(LoadedScene, Option<String>)> {
-    match load(spec) {
-        Ok(s) => Ok((s, None)),
-        Err(e) => Ok((
-            built_in()?,
-            Some(format!("{e:#}; showing the built-in liver instead")),
-        )),
-    }
 }

@@ -29,10 +29,12 @@ use winit::window::{Window, WindowId};
 use crate::force::AtomicHaptics;
 use crate::gamepad::Gamepads;
 use crate::input::{Button, InputEvent, PointerId};
+use crate::network::NetworkRoom;
 use crate::overlay::Overlay;
 use crate::render::Renderer;
 use crate::render::gpu::Gpu;
 use crate::render::offscreen::{FORMAT, Offscreen, UI_FORMAT};
+use crate::scenes::Opened;
 use crate::session::Session;
 use crate::swapchain::SurfaceHost;
 use crate::ui::Hud;
@@ -40,14 +42,22 @@ use crate::ui::Hud;
 /// GPU state, created at the first resume (it needs a surface to pick an adapter).
 struct Graphics {
     gpu: Gpu,
-    renderer: Renderer,
+    /// The palpation scene's renderer (a network scene draws with egui only).
+    renderer: Option<Renderer>,
     overlay: Overlay,
     egui: egui_winit::State,
 }
 
+/// The room the app shows: each kind of scene keeps to its own.
+#[derive(Debug)]
+enum Room {
+    Palpation(Box<Session>),
+    Network(Box<NetworkRoom>),
+}
+
 /// The app: everything that outlives a surface.
 pub struct App {
-    session: Session,
+    room: Room,
     hud: Hud,
     haptics: AtomicHaptics,
     gamepads: Gamepads,
@@ -57,12 +67,15 @@ pub struct App {
     /// A failure that ends the app (reported by [`run`] after the loop).
     fatal: Option<anyhow::Error>,
     started: Instant,
+    last_frame: Instant,
+    /// Where the mouse last was (mouse button events carry no position).
+    last_pointer_px: Vec2,
 }
 
 impl std::fmt::Debug for App {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("App")
-            .field("session", &self.session)
+            .field("room", &self.room)
             .finish_non_exhaustive()
     }
 }
@@ -71,14 +84,22 @@ impl App {
     /// Opens `scene` (`liver` or a file); if it cannot be opened, the built-in scene is
     /// shown with a notice saying why.
     pub fn new(scene: &str) -> anyhow::Result<Self> {
-        let (loaded, message) = crate::scenes::load_or_default(scene)?;
+        let (opened, message) = crate::scenes::open_or_default(scene)?;
         let haptics = AtomicHaptics::default();
-        let session = Session::new(loaded.scene, Box::new(haptics.clone()))
-            .context("starting the force thread")?;
-        let mut hud = Hud::new(loaded.source);
+        let (room, source) = match opened {
+            Opened::Palpation(loaded) => (
+                Room::Palpation(Box::new(
+                    Session::new(loaded.scene, Box::new(haptics.clone()))
+                        .context("starting the force thread")?,
+                )),
+                loaded.source,
+            ),
+            Opened::Network { room, source } => (Room::Network(room), source),
+        };
+        let mut hud = Hud::new(source);
         hud.message = message;
         Ok(App {
-            session,
+            room,
             hud,
             haptics,
             gamepads: Gamepads::new(),
@@ -87,7 +108,59 @@ impl App {
             graphics: None,
             fatal: None,
             started: Instant::now(),
+            last_frame: Instant::now(),
+            last_pointer_px: Vec2::ZERO,
         })
+    }
+
+    /// Builds the room's renderer (palpation only).
+    fn renderer_for(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> Option<Renderer> {
+        match &self.room {
+            Room::Palpation(s) => Some(Renderer::new(device, format, &s.scene)),
+            Room::Network(_) => None,
+        }
+    }
+
+    /// The room's frame: the scene pass (palpation) or a cleared target (network), then
+    /// its interface painted over it.
+    #[allow(clippy::too_many_arguments)]
+    fn encode(
+        room: &mut Room,
+        hud: &mut Hud,
+        gpu: &Gpu,
+        renderer: Option<&mut Renderer>,
+        overlay: &mut Overlay,
+        view: &wgpu::TextureView,
+        ui_view: &wgpu::TextureView,
+        size: (u32, u32),
+        scale: f32,
+        raw: egui::RawInput,
+        dt_s: f64,
+    ) -> (wgpu::CommandEncoder, egui::PlatformOutput) {
+        let mut encoder = match (&mut *room, renderer) {
+            (Room::Palpation(session), Some(r)) => {
+                let input = session.frame();
+                r.encode_frame(gpu, view, size, &input)
+            }
+            _ => crate::render::clear_frame(&gpu.device, view),
+        };
+        if let Room::Network(n) = room {
+            n.frame(dt_s);
+        }
+        let output = overlay.paint(
+            &gpu.device,
+            &gpu.queue,
+            &mut encoder,
+            ui_view,
+            size,
+            scale,
+            raw,
+            |ctx| match room {
+                Room::Palpation(session) => crate::ui::show(ctx, session, hud),
+                Room::Network(n) => crate::network::show(ctx, n, hud),
+            },
+        );
+        (encoder, output)
     }
 
     fn viewport(&self) -> Vec2 {
@@ -120,7 +193,7 @@ impl App {
             self.surface.create(&instance, Arc::clone(&window))?;
             let gpu = Gpu::with_instance(instance, self.surface.surface())?;
             let formats = self.surface.configure(&gpu)?;
-            let renderer = Renderer::new(&gpu.device, formats.scene, &self.session.scene);
+            let renderer = self.renderer_for(&gpu.device, formats.scene);
             let overlay = Overlay::new(&gpu.device, formats.surface);
             let egui = egui_winit::State::new(
                 overlay.ctx.clone(),
@@ -148,8 +221,8 @@ impl App {
     fn redraw(&mut self) {
         let frame_start = Instant::now();
         let viewport = self.viewport();
-        if let Some(ev) = self.gamepads.poll() {
-            self.session.handle(ev, viewport);
+        if let (Some(ev), Room::Palpation(session)) = (self.gamepads.poll(), &mut self.room) {
+            session.handle(ev, viewport);
         }
         self.gamepads.rumble(&self.haptics);
         self.hud.gamepad = self.gamepads.name();
@@ -163,19 +236,21 @@ impl App {
             frame.texture.texture.width(),
             frame.texture.texture.height(),
         );
-        let input = self.session.frame();
-        let mut encoder = g.renderer.encode_frame(&g.gpu, &frame.view, size, &input);
         let raw = g.egui.take_egui_input(&window);
-        let (session, hud) = (&mut self.session, &mut self.hud);
-        let output = g.overlay.paint(
-            &g.gpu.device,
-            &g.gpu.queue,
-            &mut encoder,
+        let dt_s = self.last_frame.elapsed().as_secs_f64();
+        self.last_frame = Instant::now();
+        let (encoder, output) = Self::encode(
+            &mut self.room,
+            &mut self.hud,
+            &g.gpu,
+            g.renderer.as_mut(),
+            &mut g.overlay,
+            &frame.view,
             &frame.ui_view,
             size,
             window.scale_factor() as f32,
             raw,
-            |ctx| crate::ui::show(ctx, session, hud),
+            dt_s,
         );
         g.egui.handle_platform_output(&window, output);
         g.gpu.queue.submit([encoder.finish()]);
@@ -198,21 +273,24 @@ impl App {
     fn screenshot(&mut self, size: (u32, u32)) -> anyhow::Result<String> {
         let g = self.graphics.as_mut().context("no GPU yet")?;
         let target = Offscreen::new(&g.gpu.device, size);
-        let mut renderer = Renderer::new(&g.gpu.device, FORMAT, &self.session.scene);
         let mut overlay = Overlay::new(&g.gpu.device, UI_FORMAT);
-        let input = self.session.frame();
-        let mut encoder = renderer.encode_frame(&g.gpu, &target.view, size, &input);
-        let (session, hud) = (&mut self.session, &mut self.hud);
         let raw = crate::overlay::headless_input(size, 1.0, self.started.elapsed().as_secs_f64());
-        overlay.paint(
-            &g.gpu.device,
-            &g.gpu.queue,
-            &mut encoder,
+        let mut renderer = match &self.room {
+            Room::Palpation(s) => Some(Renderer::new(&g.gpu.device, FORMAT, &s.scene)),
+            Room::Network(_) => None,
+        };
+        let (mut encoder, _) = Self::encode(
+            &mut self.room,
+            &mut self.hud,
+            &g.gpu,
+            renderer.as_mut(),
+            &mut overlay,
+            &target.view,
             &target.ui_view,
             size,
             1.0,
             raw,
-            |ctx| crate::ui::show(ctx, session, hud),
+            0.0,
         );
         target.encode_copy(&mut encoder);
         g.gpu.queue.submit([encoder.finish()]);
@@ -225,9 +303,20 @@ impl App {
         Ok(path)
     }
 
+    /// Hands an input event to the room (the network room is steered by its panel).
     fn pointer(&mut self, ev: InputEvent) {
+        if let InputEvent::PointerMove {
+            id: PointerId::Mouse,
+            pos_px,
+            ..
+        } = ev
+        {
+            self.last_pointer_px = pos_px;
+        }
         let viewport = self.viewport();
-        self.session.handle(ev, viewport);
+        if let Room::Palpation(session) = &mut self.room {
+            session.handle(ev, viewport);
+        }
     }
 }
 
@@ -318,10 +407,12 @@ impl ApplicationHandler for App {
                         self.hud.show_help = !self.hud.show_help;
                     }
                     Key::Character(c) if c.eq_ignore_ascii_case("c") => {
-                        self.session.colormap_mm = match self.session.colormap_mm {
-                            Some(_) => None,
-                            None => Some(10.0),
-                        };
+                        if let Room::Palpation(session) = &mut self.room {
+                            session.colormap_mm = match session.colormap_mm {
+                                Some(_) => None,
+                                None => Some(10.0),
+                            };
+                        }
                     }
                     _ => {}
                 }
@@ -347,7 +438,7 @@ impl ApplicationHandler for App {
 impl App {
     /// The last known cursor position (egui-winit tracks it; we keep our own copy).
     fn cursor(&self) -> Vec2 {
-        self.session.last_pointer_px
+        self.last_pointer_px
     }
 }
 

@@ -640,3 +640,59 @@ fn nodal_offline_then_tradeoff_meets_the_held_out_goals_for_small_and_large_tool
         assert!(f(none, "bytes") < f(first, "bytes"));
     }
 }
+
+/// The network scene, headless: time swept to the model's end over the frames, the
+/// frame's means equal to `palpa cme eval`'s at that time (the same model, the same
+/// coordinates), the joint shown for two species, a PNG written; `--frames 0` refused.
+#[test]
+fn headless_network_scene_matches_cme_eval() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dir.path().join("toggle.palpa");
+    let f = model.to_str().expect("utf-8");
+    common::json_ok(&palpa(&[
+        "cme",
+        "offline",
+        "toggle",
+        "--t-end",
+        "2",
+        "--max-step",
+        "0.1",
+        "--out",
+        f,
+    ]));
+    let png = dir.path().join("net.png");
+    let v = common::json_ok(&palpa(&[
+        "headless",
+        "--scene",
+        f,
+        "--frames",
+        "4",
+        "--size",
+        "640x400",
+        "--out",
+        png.to_str().expect("utf-8"),
+        "--json",
+    ]));
+    assert_eq!(v["kind"], "network");
+    assert_eq!(v["species"].as_array().map(Vec::len), Some(2));
+    let last = &v["last_coordinates"][0];
+    assert_eq!(last["name"], "t");
+    assert_eq!(last["value"].as_f64(), Some(2.0));
+    assert!(v["eval_us_p50"].as_f64().expect("eval time") > 0.0);
+    assert!(v["joint_us_p50"].as_f64().expect("joint time") > 0.0);
+    assert!((v["last_mass"].as_f64().expect("mass") - 1.0).abs() < 1e-3);
+    let e = common::json_ok(&palpa(&["cme", "eval", f, "--t", "2", "--json"]));
+    let (scene_means, eval_means) = (&v["last_mean"], &e["mean"][0]);
+    for i in 0..2 {
+        assert_eq!(
+            scene_means[i].as_f64(),
+            eval_means[i].as_f64(),
+            "species {i}"
+        );
+    }
+    let bytes = std::fs::read(&png).expect("png written");
+    assert!(bytes.starts_with(b"\x89PNG"));
+    let none = palpa(&["headless", "--scene", f, "--frames", "0"]);
+    assert!(!none.status.success());
+    assert!(String::from_utf8_lossy(&none.stderr).contains("--frames 0"));
+}

@@ -62,6 +62,9 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
             args.fps
         );
     }
+    if palpa_app::scenes::is_network(&args.scene) {
+        return run_network(args, size);
+    }
     let (report, _) = run(&opts)?;
     if args.json {
         println!(
@@ -87,6 +90,40 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
             report.force_period_us_p99,
             report.missed_deadlines,
             report.eval_us_p50
+        );
+        if let Some(out) = &report.out {
+            println!("last frame: {out}");
+        }
+    }
+    Ok(())
+}
+
+/// A network scene: time swept over the frames (the probe options do not apply).
+fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
+    use palpa_app::network::offscreen::{NetworkHeadless, run};
+    let opts = NetworkHeadless {
+        scene: PathBuf::from(&args.scene),
+        frames: args.frames,
+        size,
+        out: args.out.clone(),
+    };
+    let (report, _) = run(&opts)?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).context("encoding the report")?
+        );
+    } else {
+        println!(
+            "{} frames at {}x{} on {}: frame p50 {:.2} ms, p95 {:.2} ms; evaluation p50 {:.1} µs, joint {:.1} µs",
+            report.frames,
+            size.0,
+            size.1,
+            report.adapter.name,
+            report.frame_ms_p50,
+            report.frame_ms_p95,
+            report.eval_us_p50,
+            report.joint_us_p50
         );
         if let Some(out) = &report.out {
             println!("last frame: {out}");

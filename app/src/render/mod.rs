@@ -426,3 +426,28 @@ fn object(world_from_model: Mat4, color: [f32; 4]) -> ObjectUniform {
         _pad: [0.0; 28],
     }
 }
+
+/// An encoder whose first pass clears `target` to the background (for scenes drawn by
+/// the interface alone, such as the network scene).
+pub fn clear_frame(device: &wgpu::Device, target: &wgpu::TextureView) -> wgpu::CommandEncoder {
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+        label: Some("clear frame"),
+    });
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("clear"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(BACKGROUND),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    encoder
+}

@@ -1,0 +1,147 @@
+//! Headless frames of a network scene: time swept from 0 to the model's end over the
+//! frames (parameters at the middle of their trained ranges), each frame evaluated and
+//! drawn offscreen with its interface, timings reported.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::bail;
+use serde::Serialize;
+
+use super::NetworkRoom;
+use crate::overlay::{Overlay, headless_input};
+use crate::render::gpu::{AdapterReport, Gpu};
+use crate::render::offscreen::{Image, Offscreen, UI_FORMAT};
+use crate::stats::percentile;
+use crate::ui::Hud;
+
+/// What to render.
+#[derive(Debug, Clone)]
+pub struct NetworkHeadless {
+    pub scene: PathBuf,
+    pub frames: u32,
+    pub size: (u32, u32),
+    pub out: Option<PathBuf>,
+}
+
+/// The coordinates of a frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CoordinateValue {
+    pub name: String,
+    pub value: f64,
+}
+
+/// What a headless network run measured.
+#[derive(Debug, Clone, Serialize)]
+pub struct NetworkReport {
+    pub scene: String,
+    pub kind: &'static str,
+    pub frames: u32,
+    pub size: [u32; 2],
+    pub species: Vec<String>,
+    pub frame_ms_p50: f64,
+    pub frame_ms_p95: f64,
+    pub frame_ms_max: f64,
+    /// Marginals and moments per coordinate change, µs.
+    pub eval_us_p50: f64,
+    /// The two-species joint per coordinate change, µs (NaN when not shown).
+    pub joint_us_p50: f64,
+    /// Time and parameters of the last frame.
+    pub last_coordinates: Vec<CoordinateValue>,
+    pub last_mass: f64,
+    pub last_mean: Vec<f64>,
+    pub adapter: AdapterReport,
+    pub out: Option<String>,
+}
+
+/// Renders the frames; returns the report and the last image.
+pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
+    let (w, h) = opts.size;
+    if w == 0 || h == 0 || w > 8192 || h > 8192 {
+        bail!("--size {w}x{h}: expected width and height in 1..=8192");
+    }
+    if opts.frames == 0 {
+        bail!("--frames 0: expected at least one frame");
+    }
+    let mut room = super::open(&opts.scene)?;
+    let gpu = Gpu::headless()?;
+    let target = Offscreen::new(&gpu.device, opts.size);
+    let mut overlay = Overlay::new(&gpu.device, UI_FORMAT);
+    let mut hud = Hud::new(opts.scene.display().to_string());
+    let mut frame_ms = Vec::with_capacity(opts.frames as usize);
+    for i in 0..opts.frames {
+        room.time.value = sweep(&room, i, opts.frames);
+        let t0 = Instant::now();
+        room.frame(0.0);
+        let mut encoder = crate::render::clear_frame(&gpu.device, &target.view);
+        let raw = headless_input(opts.size, 1.0, f64::from(i) / 25.0);
+        overlay.paint(
+            &gpu.device,
+            &gpu.queue,
+            &mut encoder,
+            &target.ui_view,
+            opts.size,
+            1.0,
+            raw,
+            |ctx| super::show(ctx, &mut room, &mut hud),
+        );
+        let last = i + 1 == opts.frames;
+        if last {
+            target.encode_copy(&mut encoder);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| anyhow::anyhow!("waiting for the GPU: {e}"))?;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        hud.frame_ms.push(ms);
+        frame_ms.push(ms);
+    }
+    if let Some(e) = &room.error {
+        bail!("evaluating {}: {e}", opts.scene.display());
+    }
+    let image = target.read(&gpu.device)?;
+    if let Some(out) = &opts.out {
+        image.save_png(out)?;
+    }
+    let last_coordinates = std::iter::once(&room.time)
+        .chain(&room.params)
+        .map(|c| CoordinateValue {
+            name: c.name.clone(),
+            value: c.value,
+        })
+        .collect();
+    let moments = room.eval.as_ref().map(|e| &e.moments);
+    let joint_us = if room.joint.is_some() {
+        room.joint_us.quantile(0.5)
+    } else {
+        f64::NAN
+    };
+    let report = NetworkReport {
+        scene: opts.scene.display().to_string(),
+        kind: "network",
+        frames: opts.frames,
+        size: [w, h],
+        species: room.species.clone(),
+        frame_ms_p50: percentile(frame_ms.clone(), 0.5),
+        frame_ms_p95: percentile(frame_ms.clone(), 0.95),
+        frame_ms_max: percentile(frame_ms, 1.0),
+        eval_us_p50: room.eval_us.quantile(0.5),
+        joint_us_p50: joint_us,
+        last_coordinates,
+        last_mass: moments.map_or(f64::NAN, |m| m.mass),
+        last_mean: moments.map_or_else(Vec::new, |m| m.mean.clone()),
+        adapter: gpu.report(),
+        out: opts.out.as_ref().map(|p| p.display().to_string()),
+    };
+    Ok((report, image))
+}
+
+/// Frame `i` of `n`: time from 0 to the end of the trained range.
+fn sweep(room: &NetworkRoom, i: u32, n: u32) -> f64 {
+    if n <= 1 {
+        room.time.hi
+    } else {
+        room.time.hi * f64::from(i) / f64::from(n - 1)
+    }
+}

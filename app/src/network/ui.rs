@@ -1,0 +1,205 @@
+//! The network scene's interface: a slider for time and every parameter (each over its
+//! trained range), play/pause of time, the joint of a two-species model as a heat map,
+//! every species' marginal as a bar chart with mean ± standard deviation, the mass and
+//! the clamp/negativity flags, and the evaluation times.
+
+use egui::{Color32, RichText};
+
+use super::{Joint, NetworkRoom};
+use crate::ui::{Hud, ramp};
+
+/// Draws the whole network interface.
+pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
+    egui::Window::new("gene network")
+        .default_pos([12.0, 12.0])
+        .default_width(300.0)
+        .resizable(false)
+        .show(ctx, |ui| controls(ui, room, hud));
+    let screen = ctx.content_rect();
+    egui::Window::new("distribution")
+        .default_pos([340.0, 12.0])
+        .default_size([
+            (screen.width() - 360.0).max(240.0),
+            (screen.height() - 30.0).max(240.0),
+        ])
+        .show(ctx, |ui| views(ui, room));
+}
+
+fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
+    ui.label(RichText::new(&hud.scene_source).small());
+    if let Some(m) = &hud.message {
+        ui.colored_label(Color32::from_rgb(230, 160, 60), m);
+    }
+    ui.separator();
+    let t = &mut room.time;
+    ui.add(egui::Slider::new(&mut t.value, t.lo..=t.hi).text("t"));
+    ui.horizontal(|ui| {
+        let label = if room.playing { "pause" } else { "play" };
+        if ui.button(label).clicked() {
+            room.playing = !room.playing;
+        }
+        let top = (room.time.hi / 2.0).max(1e-9);
+        ui.add(
+            egui::Slider::new(&mut room.speed, 0.0..=top)
+                .logarithmic(true)
+                .text("t per s"),
+        );
+    });
+    for c in &mut room.params {
+        ui.add(egui::Slider::new(&mut c.value, c.lo..=c.hi).text(&c.name));
+    }
+    ui.separator();
+    if let Some(e) = &room.error {
+        ui.colored_label(Color32::from_rgb(230, 90, 80), e);
+    }
+    if let Some(e) = &room.eval {
+        ui.label(format!("probability mass {:.6}", e.moments.mass));
+        // Round-off below 1e-9 is not worth a warning.
+        if e.most_negative < -1e-9 {
+            ui.colored_label(
+                Color32::from_rgb(230, 160, 60),
+                format!("most negative probability {:.2e}", e.most_negative),
+            );
+        }
+        if !e.clamped.is_empty() {
+            ui.colored_label(
+                Color32::from_rgb(230, 160, 60),
+                format!("clamped to the trained range: {}", e.clamped.join(", ")),
+            );
+        }
+        egui::Grid::new("moments").striped(true).show(ui, |ui| {
+            ui.label("species");
+            ui.label("mean");
+            ui.label("sd");
+            ui.end_row();
+            for (i, name) in room.species.iter().enumerate() {
+                ui.label(name);
+                ui.label(format!("{:.3}", e.moments.mean[i]));
+                ui.label(format!("{:.3}", e.moments.var[i].max(0.0).sqrt()));
+                ui.end_row();
+            }
+        });
+    }
+    ui.separator();
+    let us = |r: &crate::stats::Ring| r.quantile(0.5);
+    ui.label(format!(
+        "evaluation {:.1} µs (median), joint {:.1} µs",
+        us(&room.eval_us),
+        us(&room.joint_us)
+    ));
+    ui.label(format!(
+        "frame {:.2} ms (median)",
+        hud.frame_ms.quantile(0.5)
+    ));
+}
+
+fn views(ui: &mut egui::Ui, room: &NetworkRoom) {
+    match &room.joint {
+        Some(j) if room.species.len() == 2 => {
+            ui.label(format!(
+                "joint P({}, {}) at t = {:.3}",
+                room.species[0], room.species[1], room.time.value
+            ));
+            heat_map(ui, j);
+        }
+        _ => {
+            ui.label(format!(
+                "{} species: the joint of two is shown for two-species models only; the marginals follow",
+                room.species.len()
+            ));
+        }
+    }
+    let Some(e) = &room.eval else { return };
+    let cols = room.species.len().clamp(1, 4);
+    egui::Grid::new("marginals").show(ui, |ui| {
+        for (i, (name, m)) in room.species.iter().zip(&e.moments.marginals).enumerate() {
+            ui.vertical(|ui| {
+                ui.label(format!(
+                    "{name}: mean {:.2} ± {:.2}",
+                    e.moments.mean[i],
+                    e.moments.var[i].max(0.0).sqrt()
+                ));
+                let bars: Vec<egui_plot::Bar> = m
+                    .iter()
+                    .enumerate()
+                    .map(|(z, &p)| egui_plot::Bar::new(z as f64, p).width(1.0))
+                    .collect();
+                egui_plot::Plot::new(format!("marginal-{i}"))
+                    .width(220.0)
+                    .height(110.0)
+                    .include_y(0.0)
+                    .allow_zoom(false)
+                    .allow_drag(false)
+                    .allow_scroll(false)
+                    .show(ui, |plot| {
+                        plot.bar_chart(egui_plot::BarChart::new(name.clone(), bars));
+                    });
+            });
+            if (i + 1) % cols == 0 {
+                ui.end_row();
+            }
+        }
+    });
+}
+
+/// The joint as coloured cells (first species along x, second up), scaled to its
+/// largest probability and cropped to where it is at least 1e-6 of that (the box is
+/// sized for every time and parameter, the distribution at one of them is smaller); at
+/// most 160 cells a side (larger windows are binned by summing).
+fn heat_map(ui: &mut egui::Ui, j: &Joint) {
+    const MAX_CELLS: usize = 160;
+    let top = j.p.iter().copied().fold(0.0f64, f64::max);
+    let (mut a0, mut a1, mut b0, mut b1) = (j.na, 0, j.nb, 0);
+    for b in 0..j.nb {
+        for a in 0..j.na {
+            if j.p[b * j.na + a] >= 1e-6 * top {
+                (a0, a1, b0, b1) = (a0.min(a), a1.max(a + 1), b0.min(b), b1.max(b + 1));
+            }
+        }
+    }
+    if top <= 0.0 || a0 >= a1 || b0 >= b1 {
+        ui.label("the joint is zero at these coordinates");
+        return;
+    }
+    // A square window with a margin, inside the box.
+    let side_n = (a1 - a0).max(b1 - b0) + 4;
+    let (a0, b0) = (
+        a0.saturating_sub(2).min(j.na.saturating_sub(side_n)),
+        b0.saturating_sub(2).min(j.nb.saturating_sub(side_n)),
+    );
+    let (wa, wb) = (side_n.min(j.na - a0), side_n.min(j.nb - b0));
+    let bin = wa.max(wb).div_ceil(MAX_CELLS);
+    let (nx, ny) = (wa.div_ceil(bin), wb.div_ceil(bin));
+    let mut cells = vec![0.0f64; nx * ny];
+    for b in 0..wb {
+        for a in 0..wa {
+            cells[(b / bin) * nx + a / bin] += j.p[(b0 + b) * j.na + a0 + a];
+        }
+    }
+    let peak = cells.iter().copied().fold(0.0f64, f64::max);
+    let side = ui
+        .available_width()
+        .min(ui.available_height() - 170.0)
+        .max(120.0);
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(side, side), egui::Sense::hover());
+    let (w, h) = (rect.width() / nx as f32, rect.height() / ny as f32);
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 0.0, ramp(0.0));
+    for y in 0..ny {
+        for x in 0..nx {
+            let v = cells[y * nx + x];
+            if v <= 0.0 {
+                continue;
+            }
+            let x0 = rect.left() + x as f32 * w;
+            let y0 = rect.bottom() - (y + 1) as f32 * h;
+            let r = egui::Rect::from_min_size(egui::pos2(x0, y0), egui::vec2(w + 0.5, h + 0.5));
+            painter.rect_filled(r, 0.0, ramp((v / peak) as f32));
+        }
+    }
+    ui.label(format!(
+        "x: copies {a0}..{} · y: copies {b0}..{} · colour: probability up to {peak:.3e}",
+        a0 + wa - 1,
+        b0 + wb - 1
+    ));
+}
