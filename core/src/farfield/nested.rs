@@ -485,7 +485,14 @@ impl NestedFar {
 
     /// The blocks with every term whose singular value (the norm of its column of `A`,
     /// unit-column scale) is at or below `tolerance` dropped; the bases are kept.
+    ///
+    /// At or below the build tolerance this is the far field as built: the build kept
+    /// exactly the terms above it (a shared row basis can shrink a kept term's stored
+    /// norm slightly below it, which must not drop the term).
     pub fn truncated(&self, tolerance: f64) -> NestedFar {
+        if tolerance <= self.tolerance {
+            return self.clone();
+        }
         let mut out = NestedFar {
             tolerance: tolerance.max(self.tolerance),
             a_ptr: vec![0],
@@ -693,7 +700,12 @@ mod tests {
 
     #[test]
     fn truncation_drops_small_block_terms_and_keeps_the_bases() {
-        let f = two_level().truncated(0.1);
+        assert_eq!(
+            two_level().truncated(0.1),
+            two_level(),
+            "the build tolerance keeps all"
+        );
+        let f = two_level().truncated(0.2);
         f.validate(2, 2).expect("valid");
         assert_eq!(f.rank, vec![1, 0]);
         assert_eq!(f.basis, two_level().basis);

@@ -96,16 +96,14 @@ impl Material {
     /// Checks 0 < E and −1 < ν < 0.5.
     pub fn validate(&self) -> Result<(), FeError> {
         if !(self.young_kpa.is_finite() && self.young_kpa > 0.0) {
-            return Err(FeError::Material(format!(
-                "Young's modulus {} kPa must be positive and finite",
-                self.young_kpa
-            )));
+            return Err(FeError::YoungModulus {
+                young_kpa: self.young_kpa,
+            });
         }
         if !(self.poisson > -1.0 && self.poisson < 0.5) {
-            return Err(FeError::Material(format!(
-                "Poisson's ratio {} must lie in (−1, 0.5)",
-                self.poisson
-            )));
+            return Err(FeError::PoissonRatio {
+                poisson: self.poisson,
+            });
         }
         Ok(())
     }
@@ -120,11 +118,24 @@ impl Material {
     }
 }
 
+/// Why one Newton step (from the last converged state to the next target) failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum StepFailure {
+    #[error("tangent not positive definite: {0}")]
+    Tangent(String),
+    #[error("line search failed at residual {residual_n:.3e} N")]
+    LineSearch { residual_n: f64 },
+    #[error("no convergence in {iterations} iterations (residual {residual_n:.3e} N)")]
+    Iterations { iterations: usize, residual_n: f64 },
+}
+
 /// Why a finite-element computation failed.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum FeError {
-    #[error("invalid material: {0}")]
-    Material(String),
+    #[error("invalid material: Young's modulus {young_kpa} kPa must be positive and finite")]
+    YoungModulus { young_kpa: f64 },
+    #[error("invalid material: Poisson's ratio {poisson} must lie in (−1, 0.5)")]
+    PoissonRatio { poisson: f64 },
     #[error(
         "the stiffness is not positive definite (is the body fixed anywhere? {fixed_nodes} fixed nodes): {detail}"
     )]
@@ -141,8 +152,31 @@ pub enum FeError {
     ToolRadius { radius_mm: f64 },
     #[error("invalid press: depth {depth_mm} mm is not finite")]
     DepthNotFinite { depth_mm: f64 },
-    #[error("Newton did not converge: {0}")]
-    NoConvergence(String),
+    #[error("invalid press: the load does not move the probe point along the tool axis")]
+    ProbeNotMoved,
+    #[error(
+        "Newton did not converge: {law} reached {:.1}% of the load ({why}); the step fell below {min_step} of it. {advice}",
+        100.0 * reached_share
+    )]
+    NoConvergence {
+        law: &'static str,
+        reached_share: f64,
+        why: StepFailure,
+        min_step: f64,
+        advice: &'static str,
+    },
+    #[error(
+        "Newton did not converge: {law} reached a depth of {reached_mm:.2} of {target_mm:.2} mm at {force_n:.3} N ({why}); the step fell below {min_step} of it. {advice}"
+    )]
+    NoConvergenceDepth {
+        law: &'static str,
+        reached_mm: f64,
+        target_mm: f64,
+        force_n: f64,
+        why: StepFailure,
+        min_step: f64,
+        advice: &'static str,
+    },
     #[error(
         "the factorization of {dofs} unknowns needs about {need_gb:.1} GB, {budget_gb:.1} GB are available: use a coarser level or P1 elements"
     )]

@@ -34,7 +34,7 @@ use super::elasticity::{assemble, cell_dofs};
 use super::hyper::{Law, element};
 use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
-use super::{FeError, Material};
+use super::{FeError, Material, StepFailure};
 
 /// Global internal force on the free dofs at the all-node displacement `u`.
 pub fn internal_force(space: &Space, law: Law, u: &[f64], lambda: f64, mu: f64) -> Vec<f64> {
@@ -189,9 +189,9 @@ pub fn solve(
             depth_mm,
         } => {
             if !depth_mm.is_finite() {
-                return Err(FeError::NoConvergence(format!(
-                    "the depth {depth_mm} mm is not finite"
-                )));
+                return Err(FeError::DepthNotFinite {
+                    depth_mm: *depth_mm,
+                });
             }
             (
                 space.restrict(shape),
@@ -250,9 +250,7 @@ pub fn solve(
         let x = chol.solve(&pb.shape);
         let c0: f64 = n.iter().zip(&x).map(|(a, b)| a * b).sum();
         if !(c0.is_finite() && c0.abs() > 0.0) {
-            return Err(FeError::NoConvergence(
-                "the load does not move the probe point along the tool axis".into(),
-            ));
+            return Err(FeError::ProbeNotMoved);
         }
         pb.depth_weight = pb.shape_norm / c0.abs();
     }
@@ -274,10 +272,6 @@ pub fn solve(
                 report.step_cuts += 1;
                 step *= 0.5;
                 if step < settings.min_step {
-                    let (what, unit, reached) = match pb.probe {
-                        None => ("load", "N", done),
-                        Some(_) => ("depth", "mm", done * target),
-                    };
                     let advice = match law {
                         Law::Svk => {
                             "Saint Venant–Kirchhoff loses stability under large compression: \
@@ -285,21 +279,24 @@ pub fn solve(
                         }
                         Law::NeoHookean => "the mesh may be too coarse for this deformation",
                     };
-                    return Err(FeError::NoConvergence(match pb.probe {
-                        None => format!(
-                            "{} reached {:.1}% of the {what} ({why}); the step fell below {} of it. {advice}",
-                            law.name(),
-                            100.0 * reached,
-                            settings.min_step
-                        ),
-                        Some(_) => format!(
-                            "{} reached a depth of {reached:.2} of {target:.2} {unit} at {:.3} N ({why}); \
-                             the step fell below {} of it. {advice}",
-                            law.name(),
-                            state.force,
-                            settings.min_step
-                        ),
-                    }));
+                    return Err(match pb.probe {
+                        None => FeError::NoConvergence {
+                            law: law.name(),
+                            reached_share: done,
+                            why,
+                            min_step: settings.min_step,
+                            advice,
+                        },
+                        Some(_) => FeError::NoConvergenceDepth {
+                            law: law.name(),
+                            reached_mm: done * target,
+                            target_mm: target,
+                            force_n: state.force,
+                            why,
+                            min_step: settings.min_step,
+                            advice,
+                        },
+                    });
                 }
             }
         }
@@ -344,7 +341,7 @@ impl Problem<'_> {
         target: f64,
         start: &State,
         report: &mut NewtonReport,
-    ) -> Result<(State, Vec<f64>), String> {
+    ) -> Result<(State, Vec<f64>), StepFailure> {
         let settings = self.settings;
         let mut st = start.clone();
         let (mut r, mut g) = self.residual(&st, target);
@@ -372,7 +369,7 @@ impl Problem<'_> {
                 self.mu,
             );
             let chol = Cholesky::factor(&k, self.space.fixed_count())
-                .map_err(|e| format!("tangent not positive definite: {e}"))?;
+                .map_err(|e| StepFailure::Tangent(e.to_string()))?;
             let x1 = chol.solve(&r);
             let (du, df) = match &self.probe {
                 None => (x1.iter().map(|v| -v).collect::<Vec<_>>(), 0.0),
@@ -407,7 +404,7 @@ impl Problem<'_> {
                     if rn <= ROUNDOFF_REL * scale {
                         return Ok((st, history));
                     }
-                    return Err(format!("line search failed at residual {rn:.3e} N"));
+                    return Err(StepFailure::LineSearch { residual_n: rn });
                 }
             }
             let previous = history[history.len() - 1];
@@ -420,10 +417,10 @@ impl Problem<'_> {
         if rn <= tol {
             Ok((st, history))
         } else {
-            Err(format!(
-                "no convergence in {} iterations (residual {rn:.3e} N)",
-                settings.max_iterations_per_step
-            ))
+            Err(StepFailure::Iterations {
+                iterations: settings.max_iterations_per_step,
+                residual_n: rn,
+            })
         }
     }
 }

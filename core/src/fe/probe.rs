@@ -125,9 +125,7 @@ pub fn solve_linear_depth(
     )?;
     let c = unit.probe_displacement_mm;
     if !(c.is_finite() && c.abs() > 0.0) {
-        return Err(FeError::NoConvergence(
-            "the load does not move the probe point along the tool axis".into(),
-        ));
+        return Err(FeError::ProbeNotMoved);
     }
     let k = depth_mm / c;
     let mut sol = unit;
