@@ -176,8 +176,6 @@ pub fn solve(
         .iter()
         .map(|s| s.max.ok_or_else(|| CmePgdError::AutoBox(s.name.clone())))
         .collect::<Result<_, _>>()?;
-    let fixed_t = options.time_nodes()?;
-    let adaptive = options.step_error_tol > 0.0;
     let d = sizes.len();
     // Range parameters become axes after the species; fixed ones fold into coefficients.
     let coords: Vec<(usize, Vec<f64>)> = network
@@ -189,44 +187,99 @@ pub fn solve(
     if d + 1 + coords.len() > 62 {
         return Err(CmePgdError::TooManyAxes(d + coords.len()));
     }
-    // Step operator terms: [identity, generator terms…]; coefficients set per step.
-    let terms = generator_terms(network, &sizes);
-    let fixed = |params: &[usize]| -> f64 {
-        params
-            .iter()
-            .filter(|q| !coords.iter().any(|(c, _)| c == *q))
-            .map(|&q| network.parameters[q].value)
-            .product()
-    };
-    let mut ops = vec![OpTerm {
-        coef: 1.0,
-        factors: sizes
-            .iter()
-            .map(|&m| Sparse1d::identity(m))
-            .chain(coords.iter().map(|(_, g)| Sparse1d::identity(g.len())))
-            .collect(),
-    }];
-    let mut rates = Vec::new();
-    for term in &terms {
-        let coef = term.coef * fixed(&term.params);
-        if coef == 0.0 {
-            continue;
+    let mut step = StepOperator::new(network, &sizes, &coords);
+    let p0 = initial_state(network, &sizes, &coords);
+    let mut report = Report::default();
+    let (t, history) = march(&mut step, p0, options, &mut report, progress)?;
+    report.steps = t.len() - 1;
+    let kept = stored_nodes(&t, options);
+    let stored_t: Vec<f64> = kept.iter().map(|&k| t[k]).collect();
+    let compressed = compress_history(
+        &history,
+        &kept,
+        &sizes,
+        &coords,
+        options,
+        &mut report,
+        progress,
+    );
+    let model = model_of(
+        network,
+        &sizes,
+        &coords,
+        stored_t,
+        &compressed,
+        options,
+        t.len() - 1,
+    )?;
+    Ok((model, report))
+}
+
+/// The BDF2 step operator `c₀ I − h A(p)` as separated terms: the identity, then one
+/// term per generator term (fixed parameters folded into its coefficient, range
+/// parameters as diagonal factors on their axes); coefficients are set per step.
+struct StepOperator {
+    ops: Vec<OpTerm>,
+    rates: Vec<f64>,
+}
+
+impl StepOperator {
+    fn new(network: &Network, sizes: &[usize], coords: &[(usize, Vec<f64>)]) -> Self {
+        let terms = generator_terms(network, sizes);
+        let fixed = |params: &[usize]| -> f64 {
+            params
+                .iter()
+                .filter(|q| !coords.iter().any(|(c, _)| c == *q))
+                .map(|&q| network.parameters[q].value)
+                .product()
+        };
+        let mut ops = vec![OpTerm {
+            coef: 1.0,
+            factors: sizes
+                .iter()
+                .map(|&m| Sparse1d::identity(m))
+                .chain(coords.iter().map(|(_, g)| Sparse1d::identity(g.len())))
+                .collect(),
+        }];
+        let mut rates = Vec::new();
+        for term in &terms {
+            let coef = term.coef * fixed(&term.params);
+            if coef == 0.0 {
+                continue;
+            }
+            let mut factors: Vec<Sparse1d> = term.factors.iter().map(sparse_of).collect();
+            for (q, grid) in coords {
+                let power = term.params.iter().filter(|&&x| x == *q).count() as i32;
+                let v: Vec<f64> = grid.iter().map(|g| g.powi(power)).collect();
+                factors.push(Sparse1d::diagonal(&v));
+            }
+            rates.push(coef);
+            ops.push(OpTerm { coef, factors });
         }
-        let mut factors: Vec<Sparse1d> = term.factors.iter().map(sparse_of).collect();
-        for (q, grid) in &coords {
-            let power = term.params.iter().filter(|&&x| x == *q).count() as i32;
-            let v: Vec<f64> = grid.iter().map(|g| g.powi(power)).collect();
-            factors.push(Sparse1d::diagonal(&v));
-        }
-        rates.push(coef);
-        ops.push(OpTerm { coef, factors });
+        StepOperator { ops, rates }
     }
-    let p0 = RankOne {
-        scale: 1.0,
+
+    /// Sets the coefficients for a step of size `h` with leading BDF coefficient `c0`.
+    fn set(&mut self, c0: f64, h: f64) {
+        self.ops[0].coef = c0;
+        for (op, &rate) in self.ops[1..].iter_mut().zip(&self.rates) {
+            op.coef = -h * rate;
+        }
+    }
+}
+
+/// The initial state: each species at its initial copy number, uniform (unit norm
+/// per axis, scaled back) over the parameter grids.
+fn initial_state(network: &Network, sizes: &[usize], coords: &[(usize, Vec<f64>)]) -> RankOne {
+    RankOne {
+        scale: coords
+            .iter()
+            .map(|(_, g)| (g.len() as f64).sqrt())
+            .product(),
         factors: network
             .species
             .iter()
-            .zip(&sizes)
+            .zip(sizes)
             .map(|(s, &m)| {
                 let mut v = vec![0.0; m];
                 v[s.initial.min(m - 1)] = 1.0;
@@ -237,20 +290,26 @@ pub fn solve(
                 vec![1.0 / n; g.len()]
             }))
             .collect(),
-    };
-    let p0 = RankOne {
-        scale: coords
-            .iter()
-            .map(|(_, g)| (g.len() as f64).sqrt())
-            .product(),
-        ..p0
-    };
+    }
+}
+
+/// BDF2 steps from `p0` to `t_end`, each solved in separated form by the greedy
+/// minimal-residual PGD, with the adaptive step rule when asked. Returns the times and
+/// the state at each.
+fn march(
+    step: &mut StepOperator,
+    p0: RankOne,
+    options: &Options,
+    report: &mut Report,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<(Vec<f64>, Vec<Vec<RankOne>>), CmePgdError> {
+    let fixed_t = options.time_nodes()?;
+    let adaptive = options.step_error_tol > 0.0;
     let step_settings = cp::Settings {
         max_modes: options.step_modes,
         tol: options.step_tol,
         ..cp::Settings::default()
     };
-    let mut report = Report::default();
     let mut history: Vec<Vec<RankOne>> = vec![vec![p0]];
     let mut t = vec![0.0];
     let mut h: Vec<f64> = Vec::new();
@@ -287,13 +346,10 @@ pub fn solve(
             }));
             ((1.0 + 2.0 * w) / (1.0 + w), rhs)
         };
-        ops[0].coef = c0;
-        for (op, &rate) in ops[1..].iter_mut().zip(&rates) {
-            op.coef = -hk * rate;
-        }
+        step.set(c0, hk);
         let guesses: Vec<Vec<Vec<f64>>> =
             history[k - 1].iter().map(|r| r.factors.clone()).collect();
-        let sol = cp::solve_from(&ops, &rhs, &step_settings, &guesses, &mut |_, _| {});
+        let sol = cp::solve_from(&step.ops, &rhs, &step_settings, &guesses, &mut |_, _| {});
         let residual = sol.residual_per_mode.last().copied().unwrap_or(0.0);
         report.max_step_rank = report.max_step_rank.max(sol.terms.len());
         report.worst_step_residual = report.worst_step_residual.max(residual);
@@ -337,10 +393,12 @@ pub fn solve(
             ));
         }
     }
-    report.steps = t.len() - 1;
+    Ok((t, history))
+}
 
-    // The stored nodes: every step early, then spaced by store_rel·t up to store_max
-    // (linear interpolation in between), always the last.
+/// The stored time nodes: every step early, then spaced by `store_rel·t` up to
+/// `store_max` (linear interpolation in between), always the last.
+fn stored_nodes(t: &[f64], options: &Options) -> Vec<usize> {
     let mut kept = vec![0usize];
     for k in 1..t.len() {
         let last = t[*kept.last().expect("t_0")];
@@ -349,8 +407,22 @@ pub fn solve(
             kept.push(k);
         }
     }
-    let stored_t: Vec<f64> = kept.iter().map(|&k| t[k]).collect();
-    // Compress the history Σ_k e_k ⊗ P_k into smooth time functions.
+    kept
+}
+
+/// Compresses the history `Σ_k e_k ⊗ P_k` at the stored nodes into smooth time
+/// functions (a greedy fit of the identity system, all time functions re-fitted
+/// together every 20 terms).
+fn compress_history(
+    history: &[Vec<RankOne>],
+    kept: &[usize],
+    sizes: &[usize],
+    coords: &[(usize, Vec<f64>)],
+    options: &Options,
+    report: &mut Report,
+    progress: &mut dyn FnMut(Progress),
+) -> cp::Solution {
+    let d = sizes.len();
     let nt = kept.len();
     let mut stacked = Vec::new();
     for (node, &k) in kept.iter().enumerate() {
@@ -389,6 +461,22 @@ pub fn solve(
         &mut |terms, residual| progress(Progress::Compress { terms, residual }),
     );
     report.compress_residual = compressed.residual_per_mode.last().copied().unwrap_or(0.0);
+    compressed
+}
+
+/// The meta-model file's form: term weights as the one field row, species as discrete
+/// axes, then `t` at the stored nodes, then the range parameters; with provenance.
+fn model_of(
+    network: &Network,
+    sizes: &[usize],
+    coords: &[(usize, Vec<f64>)],
+    stored_t: Vec<f64>,
+    compressed: &cp::Solution,
+    options: &Options,
+    steps: usize,
+) -> Result<SeparatedModel<f64>, CmePgdError> {
+    let d = sizes.len();
+    let nt = stored_t.len();
     let n_modes = compressed.terms.len();
     let x: Vec<f64> = compressed.terms.iter().map(|r| r.scale).collect();
     let mut axis_values: Vec<Vec<f64>> = Vec::new();
@@ -405,7 +493,7 @@ pub fn solve(
     let mut axes: Vec<AxisInfo> = network
         .species
         .iter()
-        .zip(&sizes)
+        .zip(sizes)
         .map(|(s, &m)| AxisInfo {
             name: s.name.clone(),
             unit: "copies".into(),
@@ -419,7 +507,7 @@ pub fn solve(
         unit: "time".into(),
         discretization: Discretization::Grid { nodes: stored_t },
     });
-    for (q, g) in &coords {
+    for (q, g) in coords {
         axes.push(AxisInfo {
             name: network.parameters[*q].name.clone(),
             unit: String::new(),
@@ -428,13 +516,7 @@ pub fn solve(
     }
     let mut description = format!(
         "network {}; box {:?}; {} BDF2 steps to t = {} (steps {}..{}), {} stored; fixed parameters",
-        network.name,
-        sizes,
-        t.len() - 1,
-        options.t_end,
-        options.h_first,
-        options.h_max,
-        nt
+        network.name, sizes, steps, options.t_end, options.h_first, options.h_max, nt
     );
     for p in network.parameters.iter().filter(|p| p.range.is_none()) {
         let _ = write!(description, " {}={}", p.name, p.value);
@@ -462,7 +544,6 @@ pub fn solve(
         tradeoff: Vec::new(),
         geometry: Default::default(),
     };
-    let model = SeparatedModel::new(meta, 1, n_modes, x, axis_values)
-        .map_err(|e| CmePgdError::Model(e.to_string()))?;
-    Ok((model, report))
+    SeparatedModel::new(meta, 1, n_modes, x, axis_values)
+        .map_err(|e| CmePgdError::Model(e.to_string()))
 }
