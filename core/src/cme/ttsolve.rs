@@ -183,70 +183,16 @@ fn run(
         .iter()
         .map(|s| s.max.ok_or_else(|| CmePgdError::AutoBox(s.name.clone())))
         .collect::<Result<_, _>>()?;
-    let ok = options.t_end.is_finite()
-        && options.t_end > 0.0
-        && options.h_first > 0.0
-        && options.h_max >= options.h_first
-        && (1.0..=1.5).contains(&options.growth)
-        && options.eps >= 0.0
-        && options.compress_eps >= 0.0
-        && options.weight_floor > 0.0
-        && options.weight_floor.is_finite()
-        && options.max_rank >= 1;
-    if !ok {
-        return Err(CmePgdError::TimeGrid(format!(
-            "t_end {}, first step {}, largest step {}, growth {}, eps {}, compress eps {}, \
-             weight floor {}, max rank {}: expected t_end > 0, 0 < first ≤ largest, growth \
-             in [1, 1.5], eps ≥ 0, compress eps ≥ 0, 0 < floor < ∞, rank ≥ 1",
-            options.t_end,
-            options.h_first,
-            options.h_max,
-            options.growth,
-            options.eps,
-            options.compress_eps,
-            options.weight_floor,
-            options.max_rank
-        )));
-    }
+    check(options)?;
     let started = std::time::Instant::now();
-    let (terms, coords) = generator(network, &sizes);
-    let order = slot_order(sizes.len(), coords.len());
-    let natural = |slot: Slot| match slot {
-        Slot::Species(i) => i,
-        Slot::Param(q) => sizes.len() + q,
-    };
-    let terms: Vec<LocalTerm> = terms
-        .into_iter()
-        .map(|t| LocalTerm {
-            coef: t.coef,
-            factors: order
-                .iter()
-                .map(|&o| t.factors[natural(o)].clone())
-                .collect(),
-        })
-        .collect();
-    let axis_sizes: Vec<usize> = order
-        .iter()
-        .map(|&o| match o {
-            Slot::Species(i) => sizes[i],
-            Slot::Param(q) => coords[q].1.len(),
-        })
-        .collect();
-    let generator_op = Mpo::from_terms(&axis_sizes, &terms);
-    let p0 = Tt::rank_one(
-        &order
-            .iter()
-            .map(|&o| match o {
-                Slot::Species(i) => {
-                    let m = sizes[i];
-                    let mut v = vec![0.0; m];
-                    v[network.species[i].initial.min(m - 1)] = 1.0;
-                    v
-                }
-                Slot::Param(q) => vec![1.0; coords[q].1.len()],
-            })
-            .collect::<Vec<_>>(),
-    );
+    let Setup {
+        terms,
+        coords,
+        order,
+        axis_sizes,
+        generator_op,
+        p0,
+    } = setup(network, &sizes);
     let settings = amen::Settings {
         // Truncating to eps leaves local residuals of that order: asking the sweeps for
         // less only burns them.
@@ -311,25 +257,7 @@ fn run(
         // step conserves it: c0⟨1, P_k⟩ − h⟨1, A P_k⟩ = ⟨1, rhs⟩ (⟨1, A P⟩ is minus the
         // FSP leak rate). Rescale to that balance, per parameter value where there is one
         // parameter axis.
-        let (mass_rhs, mass_x, leak) = (
-            masses(&rhs, &order),
-            masses(&x, &order),
-            masses(&generator_op.apply(&x), &order),
-        );
-        let ratio: Vec<f64> = (0..mass_x.len())
-            .map(|i| {
-                let target = (mass_rhs[i] + hk * leak[i]) / c0;
-                if mass_x[i].abs() > 1e-300 {
-                    target / mass_x[i]
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        for &q in &ratio {
-            report.worst_mass_correction = report.worst_mass_correction.max((q - 1.0).abs());
-        }
-        scale_by_parameter(&mut x, &order, &ratio);
+        balance_mass(&mut x, &rhs, &generator_op, &order, c0, hk, &mut report);
         report.max_rank = report.max_rank.max(r.max_rank);
         report.worst_local_residual = report.worst_local_residual.max(r.local_residual);
         report.sweeps += r.sweeps;
@@ -342,19 +270,9 @@ fn run(
         }
         next_h = (hk * options.growth).min(options.h_max);
         if k >= 3 {
-            let l = extrapolation_weights(&t[k - 3..=k]);
-            let n = recent.len();
-            let diff = Tt::sum(&[
-                (1.0, &recent[n - 1]),
-                (-l[0], &recent[n - 4]),
-                (-l[1], &recent[n - 3]),
-                (-l[2], &recent[n - 2]),
-            ]);
-            let state = recent[n - 1].norm().max(1e-300);
-            let est = 2.0 / 9.0 * diff.norm() / state;
             next_h = next_step(
                 hk,
-                est,
+                local_error(&t[k - 3..=k], &recent),
                 options.step_error_tol,
                 options.growth,
                 options.h_first,
@@ -392,12 +310,7 @@ fn run(
     }
     report.steps = k;
     let (history, stored_t) = if outputs.is_some() {
-        let mut it = shown.into_iter().map(|(t, x)| (t, time_node(&x)));
-        let (t0, first) = it.next().expect("the last output lands");
-        it.fold((first, vec![t0]), |(acc, mut ts), (t, x)| {
-            ts.push(t);
-            (stack_in_time(&acc, &x), ts)
-        })
+        stack_outputs(shown)
     } else {
         store.finish()
     };
@@ -415,6 +328,158 @@ fn run(
         },
         report,
     ))
+}
+
+/// Checks the solver options; the error names every value and what is expected.
+fn check(options: &Options) -> Result<(), CmePgdError> {
+    let ok = options.t_end.is_finite()
+        && options.t_end > 0.0
+        && options.h_first > 0.0
+        && options.h_max >= options.h_first
+        && (1.0..=1.5).contains(&options.growth)
+        && options.eps >= 0.0
+        && options.compress_eps >= 0.0
+        && options.weight_floor > 0.0
+        && options.weight_floor.is_finite()
+        && options.max_rank >= 1;
+    if !ok {
+        return Err(CmePgdError::TimeGrid(format!(
+            "t_end {}, first step {}, largest step {}, growth {}, eps {}, compress eps {}, \
+             weight floor {}, max rank {}: expected t_end > 0, 0 < first ≤ largest, growth \
+             in [1, 1.5], eps ≥ 0, compress eps ≥ 0, 0 < floor < ∞, rank ≥ 1",
+            options.t_end,
+            options.h_first,
+            options.h_max,
+            options.growth,
+            options.eps,
+            options.compress_eps,
+            options.weight_floor,
+            options.max_rank
+        )));
+    }
+    Ok(())
+}
+
+/// The generator in the solver's axis order, as local terms and as an operator, and
+/// the initial state.
+struct Setup {
+    terms: Vec<LocalTerm>,
+    coords: Vec<(usize, Vec<f64>)>,
+    order: Vec<Slot>,
+    axis_sizes: Vec<usize>,
+    generator_op: Mpo,
+    p0: Tt,
+}
+
+fn setup(network: &Network, sizes: &[usize]) -> Setup {
+    let (terms, coords) = generator(network, sizes);
+    let order = slot_order(sizes.len(), coords.len());
+    let natural = |slot: Slot| match slot {
+        Slot::Species(i) => i,
+        Slot::Param(q) => sizes.len() + q,
+    };
+    let terms: Vec<LocalTerm> = terms
+        .into_iter()
+        .map(|t| LocalTerm {
+            coef: t.coef,
+            factors: order
+                .iter()
+                .map(|&o| t.factors[natural(o)].clone())
+                .collect(),
+        })
+        .collect();
+    let axis_sizes: Vec<usize> = order
+        .iter()
+        .map(|&o| match o {
+            Slot::Species(i) => sizes[i],
+            Slot::Param(q) => coords[q].1.len(),
+        })
+        .collect();
+    let generator_op = Mpo::from_terms(&axis_sizes, &terms);
+    let p0 = Tt::rank_one(
+        &order
+            .iter()
+            .map(|&o| match o {
+                Slot::Species(i) => {
+                    let m = sizes[i];
+                    let mut v = vec![0.0; m];
+                    v[network.species[i].initial.min(m - 1)] = 1.0;
+                    v
+                }
+                Slot::Param(q) => vec![1.0; coords[q].1.len()],
+            })
+            .collect::<Vec<_>>(),
+    );
+    Setup {
+        terms,
+        coords,
+        order,
+        axis_sizes,
+        generator_op,
+        p0,
+    }
+}
+
+/// Rank truncation does not conserve probability, and in d dimensions a small L2 error
+/// can carry a large L1 mass (the all-ones tensor has norm Π√m_i). The exact step
+/// conserves it: `c0⟨1, P_k⟩ − h⟨1, A P_k⟩ = ⟨1, rhs⟩` (`⟨1, A P⟩` is minus the FSP
+/// leak rate). Rescales `x` to that balance, per parameter value where there is one
+/// parameter axis.
+#[allow(clippy::too_many_arguments)]
+fn balance_mass(
+    x: &mut Tt,
+    rhs: &Tt,
+    generator_op: &Mpo,
+    order: &[Slot],
+    c0: f64,
+    hk: f64,
+    report: &mut Report,
+) {
+    let (mass_rhs, mass_x, leak) = (
+        masses(rhs, order),
+        masses(x, order),
+        masses(&generator_op.apply(x), order),
+    );
+    let ratio: Vec<f64> = (0..mass_x.len())
+        .map(|i| {
+            let target = (mass_rhs[i] + hk * leak[i]) / c0;
+            if mass_x[i].abs() > 1e-300 {
+                target / mass_x[i]
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    for &q in &ratio {
+        report.worst_mass_correction = report.worst_mass_correction.max((q - 1.0).abs());
+    }
+    scale_by_parameter(x, order, &ratio);
+}
+
+/// BDF2's local error estimate: about 2/9 of the distance between the newest state and
+/// the quadratic extrapolation of the three before it (both O(h³)), relative to the
+/// state; `t` holds the four times of `recent`'s last four states.
+fn local_error(t: &[f64], recent: &[Tt]) -> f64 {
+    let l = extrapolation_weights(t);
+    let n = recent.len();
+    let diff = Tt::sum(&[
+        (1.0, &recent[n - 1]),
+        (-l[0], &recent[n - 4]),
+        (-l[1], &recent[n - 3]),
+        (-l[2], &recent[n - 2]),
+    ]);
+    let state = recent[n - 1].norm().max(1e-300);
+    2.0 / 9.0 * diff.norm() / state
+}
+
+/// The states at the requested output times stacked into one train over time.
+fn stack_outputs(shown: Vec<(f64, Tt)>) -> (Tt, Vec<f64>) {
+    let mut it = shown.into_iter().map(|(t, x)| (t, time_node(&x)));
+    let (t0, first) = it.next().expect("the last output lands");
+    it.fold((first, vec![t0]), |(acc, mut ts), (t, x)| {
+        ts.push(t);
+        (stack_in_time(&acc, &x), ts)
+    })
 }
 
 /// Total probability: one value, or one per grid value when there is exactly one
