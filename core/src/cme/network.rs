@@ -307,6 +307,10 @@ struct RawFactor {
     n: Option<f64>,
 }
 
+/// Builds a checked part from its raw TOML form; `bad` turns a message into the
+/// error naming the network's source.
+type Bad<'a> = &'a dyn Fn(String) -> NetworkError;
+
 impl RawNetwork {
     fn build(self, src: &str) -> Result<Network, NetworkError> {
         let bad = |what: String| NetworkError::Invalid {
@@ -316,211 +320,24 @@ impl RawNetwork {
         if self.species.is_empty() {
             return Err(bad("a network needs at least one species".into()));
         }
-        let mut species = Vec::new();
+        let mut species: Vec<Species> = Vec::new();
         for s in &self.species {
-            let max = match &s.max {
-                toml::Value::Integer(m) if *m >= 2 && *m <= 1 << 20 => Some(*m as usize),
-                toml::Value::String(a) if a == "auto" => None,
-                other => {
-                    return Err(bad(format!(
-                        "species {}: max = {other}: expected an integer in 2..=1048576 or \"auto\"",
-                        s.name
-                    )));
-                }
-            };
-            if max.is_some_and(|m| s.initial >= m) {
-                return Err(bad(format!(
-                    "species {}: initial {} is outside its box 0..{}",
-                    s.name,
-                    s.initial,
-                    max.unwrap_or(0)
-                )));
-            }
-            if species.iter().any(|x: &Species| x.name == s.name) {
+            if species.iter().any(|x| x.name == s.name) {
                 return Err(bad(format!("species {} is declared twice", s.name)));
             }
-            species.push(Species {
-                name: s.name.clone(),
-                max,
-                initial: s.initial,
-            });
+            species.push(s.build(&bad)?);
         }
-        let mut parameters = Vec::new();
-        for p in &self.parameters {
-            let range = match (p.range, p.grid) {
-                (Some([lo, hi]), g) => {
-                    if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi) {
-                        return Err(bad(format!(
-                            "parameter {}: range [{lo}, {hi}]: expected 0 ≤ lo < hi",
-                            p.name
-                        )));
-                    }
-                    let g = g.unwrap_or(17);
-                    if g < 2 {
-                        return Err(bad(format!(
-                            "parameter {}: grid = {g}: expected at least 2 points",
-                            p.name
-                        )));
-                    }
-                    Some((lo, hi, g))
-                }
-                (None, Some(_)) => {
-                    return Err(bad(format!("parameter {}: a grid needs a range", p.name)));
-                }
-                (None, None) => None,
-            };
-            let value = match (p.value, range) {
-                (Some(v), _) if v.is_finite() && v >= 0.0 => v,
-                (Some(v), _) => {
-                    return Err(bad(format!(
-                        "parameter {}: value {v}: expected a finite value ≥ 0",
-                        p.name
-                    )));
-                }
-                (None, Some((lo, hi, _))) => 0.5 * (lo + hi),
-                (None, None) => {
-                    return Err(bad(format!(
-                        "parameter {} needs a value or a range",
-                        p.name
-                    )));
-                }
-            };
-            let spacing = match p.spacing.as_deref() {
-                None | Some("linear") => Spacing::Linear,
-                Some("log" | "reciprocal" | "reciprocal-sqrt")
-                    if range.is_some_and(|r| r.0 <= 0.0) =>
-                {
-                    return Err(bad(format!(
-                        "parameter {}: {} spacing needs a range above 0",
-                        p.name,
-                        p.spacing.as_deref().unwrap_or_default()
-                    )));
-                }
-                Some("log") => Spacing::Log,
-                Some("reciprocal") => Spacing::Reciprocal,
-                Some("reciprocal-sqrt") => Spacing::ReciprocalSqrt,
-                Some(other) => {
-                    return Err(bad(format!(
-                        "parameter {}: spacing {other:?}: expected linear, log, reciprocal or reciprocal-sqrt",
-                        p.name
-                    )));
-                }
-            };
-            parameters.push(Parameter {
-                name: p.name.clone(),
-                value,
-                range,
-                spacing,
-            });
-        }
-        let species_index = |name: &str| species.iter().position(|s| s.name == name);
-        let mut reactions = Vec::new();
-        for (k, r) in self.reactions.iter().enumerate() {
-            let rname = r
-                .name
-                .clone()
-                .unwrap_or_else(|| format!("reaction {}", k + 1));
-            let mut change = vec![0; species.len()];
-            for (name, &c) in &r.change {
-                let i = species_index(name)
-                    .ok_or_else(|| bad(format!("{rname}: change of unknown species {name:?}")))?;
-                change[i] = c;
-            }
-            let mut constant = 1.0;
-            let mut params = Vec::new();
-            for v in &r.rate {
-                match v {
-                    toml::Value::Float(x) => constant *= x,
-                    toml::Value::Integer(x) => constant *= *x as f64,
-                    toml::Value::String(name) => {
-                        let q = parameters
-                            .iter()
-                            .position(|p: &Parameter| &p.name == name)
-                            .ok_or_else(|| {
-                                bad(format!("{rname}: rate uses unknown parameter {name:?}"))
-                            })?;
-                        params.push(q);
-                    }
-                    other => {
-                        return Err(bad(format!(
-                            "{rname}: rate entry {other}: expected a number or a parameter name"
-                        )));
-                    }
-                }
-            }
-            if !(constant.is_finite() && constant >= 0.0) {
-                return Err(bad(format!(
-                    "{rname}: rate constant {constant}: expected a finite value ≥ 0"
-                )));
-            }
-            let mut factors: Vec<(usize, Factor)> = Vec::new();
-            for f in &r.factors {
-                let name = match &f.species {
-                    toml::Value::String(s) => s.clone(),
-                    toml::Value::Array(list) => {
-                        return Err(bad(format!(
-                            "{rname}: a propensity factor of several species ({}) is not separable; \
-                             write the propensity as a product of one-species factors",
-                            list.iter()
-                                .map(|v| v.to_string())
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        )));
-                    }
-                    other => {
-                        return Err(bad(format!(
-                            "{rname}: factor species {other}: expected a species name"
-                        )));
-                    }
-                };
-                let i = species_index(&name)
-                    .ok_or_else(|| bad(format!("{rname}: factor of unknown species {name:?}")))?;
-                if factors.iter().any(|(j, _)| *j == i) {
-                    return Err(bad(format!(
-                        "{rname}: two factors of species {name}: merge them into one"
-                    )));
-                }
-                let need = |v: Option<f64>, what: &str| -> Result<f64, NetworkError> {
-                    match v {
-                        Some(x) if x.is_finite() && x > 0.0 => Ok(x),
-                        Some(x) => Err(bad(format!(
-                            "{rname}: {what} = {x}: expected a finite value > 0"
-                        ))),
-                        None => Err(bad(format!("{rname}: factor {} needs {what}", f.kind))),
-                    }
-                };
-                let factor = match f.kind.as_str() {
-                    "linear" => Factor::Linear,
-                    "hill_repression" => Factor::HillRepression {
-                        beta: need(f.beta, "beta")?,
-                        gamma: need(f.gamma, "gamma")?,
-                        n: f.n.map_or(Ok(1.0), |n| need(Some(n), "n"))?,
-                    },
-                    "saturation" => Factor::Saturation {
-                        beta: need(f.beta, "beta")?,
-                        gamma: need(f.gamma, "gamma")?,
-                    },
-                    "hill_activation" => Factor::HillActivation {
-                        beta: need(f.beta, "beta")?,
-                        gamma: need(f.gamma, "gamma")?,
-                        n: f.n.map_or(Ok(1.0), |n| need(Some(n), "n"))?,
-                    },
-                    other => {
-                        return Err(bad(format!(
-                            "{rname}: factor kind {other:?}: expected linear, hill_repression, saturation or hill_activation"
-                        )));
-                    }
-                };
-                factors.push((i, factor));
-            }
-            reactions.push(Reaction {
-                name: rname,
-                change,
-                constant,
-                params,
-                factors,
-            });
-        }
+        let parameters = self
+            .parameters
+            .iter()
+            .map(|p| p.build(&bad))
+            .collect::<Result<Vec<_>, _>>()?;
+        let reactions = self
+            .reactions
+            .iter()
+            .enumerate()
+            .map(|(k, r)| r.build(k, &species, &parameters, &bad))
+            .collect::<Result<Vec<_>, _>>()?;
         if reactions.is_empty() {
             return Err(bad("a network needs at least one reaction".into()));
         }
@@ -530,6 +347,236 @@ impl RawNetwork {
             parameters,
             reactions,
         })
+    }
+}
+
+impl RawSpecies {
+    fn build(&self, bad: Bad<'_>) -> Result<Species, NetworkError> {
+        let s = self;
+        let max = match &s.max {
+            toml::Value::Integer(m) if *m >= 2 && *m <= 1 << 20 => Some(*m as usize),
+            toml::Value::String(a) if a == "auto" => None,
+            other => {
+                return Err(bad(format!(
+                    "species {}: max = {other}: expected an integer in 2..=1048576 or \"auto\"",
+                    s.name
+                )));
+            }
+        };
+        if max.is_some_and(|m| s.initial >= m) {
+            return Err(bad(format!(
+                "species {}: initial {} is outside its box 0..{}",
+                s.name,
+                s.initial,
+                max.unwrap_or(0)
+            )));
+        }
+        Ok(Species {
+            name: s.name.clone(),
+            max,
+            initial: s.initial,
+        })
+    }
+}
+
+impl RawParameter {
+    fn build(&self, bad: Bad<'_>) -> Result<Parameter, NetworkError> {
+        let p = self;
+        let range = match (p.range, p.grid) {
+            (Some([lo, hi]), g) => {
+                if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi) {
+                    return Err(bad(format!(
+                        "parameter {}: range [{lo}, {hi}]: expected 0 ≤ lo < hi",
+                        p.name
+                    )));
+                }
+                let g = g.unwrap_or(17);
+                if g < 2 {
+                    return Err(bad(format!(
+                        "parameter {}: grid = {g}: expected at least 2 points",
+                        p.name
+                    )));
+                }
+                Some((lo, hi, g))
+            }
+            (None, Some(_)) => {
+                return Err(bad(format!("parameter {}: a grid needs a range", p.name)));
+            }
+            (None, None) => None,
+        };
+        let value = match (p.value, range) {
+            (Some(v), _) if v.is_finite() && v >= 0.0 => v,
+            (Some(v), _) => {
+                return Err(bad(format!(
+                    "parameter {}: value {v}: expected a finite value ≥ 0",
+                    p.name
+                )));
+            }
+            (None, Some((lo, hi, _))) => 0.5 * (lo + hi),
+            (None, None) => {
+                return Err(bad(format!(
+                    "parameter {} needs a value or a range",
+                    p.name
+                )));
+            }
+        };
+        let spacing = match p.spacing.as_deref() {
+            None | Some("linear") => Spacing::Linear,
+            Some("log" | "reciprocal" | "reciprocal-sqrt") if range.is_some_and(|r| r.0 <= 0.0) => {
+                return Err(bad(format!(
+                    "parameter {}: {} spacing needs a range above 0",
+                    p.name,
+                    p.spacing.as_deref().unwrap_or_default()
+                )));
+            }
+            Some("log") => Spacing::Log,
+            Some("reciprocal") => Spacing::Reciprocal,
+            Some("reciprocal-sqrt") => Spacing::ReciprocalSqrt,
+            Some(other) => {
+                return Err(bad(format!(
+                    "parameter {}: spacing {other:?}: expected linear, log, reciprocal or reciprocal-sqrt",
+                    p.name
+                )));
+            }
+        };
+        Ok(Parameter {
+            name: p.name.clone(),
+            value,
+            range,
+            spacing,
+        })
+    }
+}
+
+impl RawReaction {
+    fn build(
+        &self,
+        k: usize,
+        species: &[Species],
+        parameters: &[Parameter],
+        bad: Bad<'_>,
+    ) -> Result<Reaction, NetworkError> {
+        let r = self;
+        let species_index = |name: &str| species.iter().position(|s| s.name == name);
+        let rname = r
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("reaction {}", k + 1));
+        let mut change = vec![0; species.len()];
+        for (name, &c) in &r.change {
+            let i = species_index(name)
+                .ok_or_else(|| bad(format!("{rname}: change of unknown species {name:?}")))?;
+            change[i] = c;
+        }
+        let mut constant = 1.0;
+        let mut params = Vec::new();
+        for v in &r.rate {
+            match v {
+                toml::Value::Float(x) => constant *= x,
+                toml::Value::Integer(x) => constant *= *x as f64,
+                toml::Value::String(name) => {
+                    let q = parameters
+                        .iter()
+                        .position(|p: &Parameter| &p.name == name)
+                        .ok_or_else(|| {
+                            bad(format!("{rname}: rate uses unknown parameter {name:?}"))
+                        })?;
+                    params.push(q);
+                }
+                other => {
+                    return Err(bad(format!(
+                        "{rname}: rate entry {other}: expected a number or a parameter name"
+                    )));
+                }
+            }
+        }
+        if !(constant.is_finite() && constant >= 0.0) {
+            return Err(bad(format!(
+                "{rname}: rate constant {constant}: expected a finite value ≥ 0"
+            )));
+        }
+        let mut factors: Vec<(usize, Factor)> = Vec::new();
+        for f in &r.factors {
+            let (i, factor) = f.build(&rname, &species_index, bad)?;
+            if factors.iter().any(|(j, _)| *j == i) {
+                return Err(bad(format!(
+                    "{rname}: two factors of species {}: merge them into one",
+                    species[i].name
+                )));
+            }
+            factors.push((i, factor));
+        }
+        Ok(Reaction {
+            name: rname,
+            change,
+            constant,
+            params,
+            factors,
+        })
+    }
+}
+
+impl RawFactor {
+    /// The factor and the index of its species (by `species_index`).
+    fn build(
+        &self,
+        rname: &str,
+        species_index: &dyn Fn(&str) -> Option<usize>,
+        bad: Bad<'_>,
+    ) -> Result<(usize, Factor), NetworkError> {
+        let f = self;
+        let name = match &f.species {
+            toml::Value::String(s) => s.clone(),
+            toml::Value::Array(list) => {
+                return Err(bad(format!(
+                    "{rname}: a propensity factor of several species ({}) is not separable; \
+                     write the propensity as a product of one-species factors",
+                    list.iter()
+                        .map(|v| v.to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )));
+            }
+            other => {
+                return Err(bad(format!(
+                    "{rname}: factor species {other}: expected a species name"
+                )));
+            }
+        };
+        let i = species_index(&name)
+            .ok_or_else(|| bad(format!("{rname}: factor of unknown species {name:?}")))?;
+        let need = |v: Option<f64>, what: &str| -> Result<f64, NetworkError> {
+            match v {
+                Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+                Some(x) => Err(bad(format!(
+                    "{rname}: {what} = {x}: expected a finite value > 0"
+                ))),
+                None => Err(bad(format!("{rname}: factor {} needs {what}", f.kind))),
+            }
+        };
+        let factor = match f.kind.as_str() {
+            "linear" => Factor::Linear,
+            "hill_repression" => Factor::HillRepression {
+                beta: need(f.beta, "beta")?,
+                gamma: need(f.gamma, "gamma")?,
+                n: f.n.map_or(Ok(1.0), |n| need(Some(n), "n"))?,
+            },
+            "saturation" => Factor::Saturation {
+                beta: need(f.beta, "beta")?,
+                gamma: need(f.gamma, "gamma")?,
+            },
+            "hill_activation" => Factor::HillActivation {
+                beta: need(f.beta, "beta")?,
+                gamma: need(f.gamma, "gamma")?,
+                n: f.n.map_or(Ok(1.0), |n| need(Some(n), "n"))?,
+            },
+            other => {
+                return Err(bad(format!(
+                    "{rname}: factor kind {other:?}: expected linear, hill_repression, saturation or hill_activation"
+                )));
+            }
+        };
+        Ok((i, factor))
     }
 }
 
