@@ -110,6 +110,8 @@ pub enum AxisError {
     MixTooWide { len: usize },
     #[error("invalid discretization: {0}")]
     Invalid(String),
+    #[error("the tool covers more than {capacity} load nodes (a stencil holds at most that many)")]
+    StencilFull { capacity: usize },
 }
 
 /// Most entries a stencil has: a surface point mixing three load directions
@@ -438,10 +440,9 @@ impl Discretization {
                     Some(e) => e.1 += acc[a],
                     None => {
                         if len == out.len() {
-                            return Err(AxisError::Invalid(format!(
-                                "the tool covers more than {} load nodes",
-                                out.len()
-                            )));
+                            return Err(AxisError::StencilFull {
+                                capacity: out.len(),
+                            });
                         }
                         out[len] = (f[a], acc[a]);
                         len += 1;

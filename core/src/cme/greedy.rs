@@ -57,7 +57,7 @@ pub enum CmePgdError {
     #[error("the network has {0} species and range parameters; a model holds at most 62")]
     TooManyAxes(usize),
     #[error("building the model: {0}")]
-    Model(String),
+    Model(#[from] crate::separated::ModelError),
 }
 
 /// Time grid and solver settings.
@@ -545,5 +545,5 @@ fn model_of(
         geometry: Default::default(),
     };
     SeparatedModel::new(meta, 1, n_modes, x, axis_values)
-        .map_err(|e| CmePgdError::Model(e.to_string()))
+        .map_err(CmePgdError::from)
 }
