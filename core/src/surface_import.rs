@@ -27,6 +27,9 @@ pub struct TriSurface {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// Largest coordinate magnitude a surface may have (1 km, in mm).
+pub const MAX_COORD_MM: f64 = 1e6;
+
 /// Why a surface cannot be used.
 #[derive(Debug, Error)]
 pub enum SurfaceError {
@@ -45,6 +48,14 @@ pub enum SurfaceError {
     Format { path: PathBuf },
     #[error("the surface has no triangles")]
     Empty,
+    #[error(
+        "vertex {vertex} at {at:?} is out of range: coordinates must be finite and within ±{limit_mm} mm (organs are measured in mm)"
+    )]
+    Coordinate {
+        vertex: usize,
+        at: [f64; 3],
+        limit_mm: f64,
+    },
     #[error("triangle {triangle} is degenerate (zero area or a repeated vertex) at {at:?}")]
     Degenerate { triangle: usize, at: [f64; 3] },
     #[error(
@@ -102,10 +113,25 @@ impl TriSurface {
             .sum()
     }
 
-    /// Checks closedness, manifoldness and orientation; flips to outward orientation.
+    /// Checks that the surface is usable as an organ: coordinates in range, no
+    /// degenerate triangle, closed, manifold, consistently oriented (then orients it
+    /// outward).
     pub fn validate(&mut self) -> Result<(), SurfaceError> {
         if self.triangles.is_empty() {
             return Err(SurfaceError::Empty);
+        }
+        // Far larger than any organ, far below where products of coordinates overflow.
+        if let Some((vertex, &at)) = self
+            .vertices
+            .iter()
+            .enumerate()
+            .find(|(_, v)| v.iter().any(|c| !c.is_finite() || c.abs() > MAX_COORD_MM))
+        {
+            return Err(SurfaceError::Coordinate {
+                vertex,
+                at,
+                limit_mm: MAX_COORD_MM,
+            });
         }
         let p = |i: u32| self.vertices[i as usize];
         for (t, tri) in self.triangles.iter().enumerate() {
@@ -565,6 +591,19 @@ mod tests {
             "edge region"
         );
         assert!(solid.value([0.5, 0.5, 0.5]) < 0.0);
+    }
+
+    /// A vertex at 1e308 (finite, but its products overflow) is named, not meshed
+    /// (it used to panic in the closest-point query).
+    #[test]
+    fn a_huge_coordinate_is_rejected_naming_the_vertex() {
+        let text = cube_obj().replacen("v 10 10 10", "v 1e308 10 10", 1);
+        assert_ne!(text, cube_obj());
+        let mut s = read_str("huge.obj", &text).expect("parses");
+        match s.validate() {
+            Err(SurfaceError::Coordinate { vertex: 7, .. }) => {}
+            other => panic!("expected the coordinate error, got {other:?}"),
+        }
     }
 
     #[test]

@@ -544,6 +544,5 @@ fn model_of(
         tradeoff: Vec::new(),
         geometry: Default::default(),
     };
-    SeparatedModel::new(meta, 1, n_modes, x, axis_values)
-        .map_err(CmePgdError::from)
+    SeparatedModel::new(meta, 1, n_modes, x, axis_values).map_err(CmePgdError::from)
 }
