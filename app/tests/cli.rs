@@ -671,9 +671,13 @@ fn headless_network_scene_matches_cme_eval() {
         "640x400",
         "--out",
         png.to_str().expect("utf-8"),
+        "--exact-check",
         "--json",
     ]));
     assert_eq!(v["kind"], "network");
+    // The exact check at the last frame: the meta-model within 1e-2 in L1.
+    let exact_l1 = v["exact_l1"].as_f64().expect("exact check ran");
+    assert!(exact_l1 < 1e-2, "L1 to exact {exact_l1}");
     assert_eq!(v["species"].as_array().map(Vec::len), Some(2));
     let last = &v["last_coordinates"][0];
     assert_eq!(last["name"], "t");

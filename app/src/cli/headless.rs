@@ -38,6 +38,10 @@ pub struct HeadlessArgs {
     /// Leave out the egui interface (the scene only).
     #[arg(long)]
     no_ui: bool,
+    /// Network scenes: run the exact (FSP) check at the last frame's coordinates and
+    /// report its L1 distance to the meta-model.
+    #[arg(long)]
+    exact_check: bool,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
@@ -106,6 +110,7 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
         frames: args.frames,
         size,
         out: args.out.clone(),
+        exact_check: args.exact_check,
     };
     let (report, _) = run(&opts)?;
     if args.json {

@@ -6,6 +6,7 @@
 //! Nothing here is palpation's: the window and headless mode pick this room or the
 //! palpation [`crate::session::Session`] by the scene file's kind.
 
+pub mod check;
 pub mod offscreen;
 mod ui;
 
@@ -13,8 +14,11 @@ use std::time::Instant;
 
 use anyhow::Context;
 use palpa_core::cme::model::{CmeModel, Evaluation};
+use palpa_core::cme::moments::{Moments, l1};
+use palpa_core::cme::network::Network;
 
 use crate::stats::Ring;
+use check::{CheckState, ExactCheck};
 
 pub use ui::show;
 
@@ -34,6 +38,19 @@ pub struct Joint {
     pub na: usize,
     pub nb: usize,
     pub p: Vec<f64>,
+}
+
+/// The exact check's verdict at the coordinates it ran at.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckResult {
+    pub coordinates: Vec<f64>,
+    /// L1 distance between the meta-model's and the exact joint.
+    pub l1: f64,
+    /// The exact solve's time, s, and the meta-model's joint evaluation there, µs.
+    pub exact_s: f64,
+    pub model_us: f64,
+    /// The exact marginals (overlaid on the model's).
+    pub exact: Moments,
 }
 
 /// A network scene being explored.
@@ -56,6 +73,11 @@ pub struct NetworkRoom {
     /// Joint evaluation time, µs, recent changes.
     pub joint_us: Ring,
     evaluated_at: Option<Vec<f64>>,
+    /// The network the model was built from, when it is known (a built-in): what the
+    /// exact check solves.
+    pub network: Option<Network>,
+    pub check: Option<ExactCheck>,
+    pub check_result: Option<CheckResult>,
 }
 
 impl NetworkRoom {
@@ -88,7 +110,62 @@ impl NetworkRoom {
             eval_us: Ring::new(240),
             joint_us: Ring::new(240),
             evaluated_at: None,
+            network: network_of(&model),
+            check: None,
+            check_result: None,
             model,
+        }
+    }
+
+    /// Starts the exact (FSP) check at the current coordinates, replacing a running one.
+    pub fn start_check(&mut self) -> anyhow::Result<()> {
+        let network = self
+            .network
+            .as_ref()
+            .context("the exact check needs the network the model was built from")?;
+        let (p, _) = network.parameter_values(&self.settings())?;
+        if let Some(old) = self.check.as_mut() {
+            old.cancel();
+        }
+        self.check = Some(ExactCheck::start(
+            network,
+            &p,
+            &self.model.box_sizes(),
+            self.time.value,
+            self.coordinates(),
+        )?);
+        Ok(())
+    }
+
+    /// Takes a finished check's joint and compares it with the meta-model's there.
+    fn poll_check(&mut self) {
+        let Some(check) = self.check.as_mut() else {
+            return;
+        };
+        let CheckState::Done(exact) = check.poll().clone() else {
+            return;
+        };
+        self.check = None;
+        let t = exact.coordinates[0];
+        let set: Vec<(String, f64)> = self
+            .params
+            .iter()
+            .zip(&exact.coordinates[1..])
+            .map(|(c, &v)| (c.name.clone(), v))
+            .collect();
+        let t0 = Instant::now();
+        match self.model.joint(t, &set, usize::MAX) {
+            Ok(joint) => {
+                let model_us = t0.elapsed().as_secs_f64() * 1e6;
+                self.check_result = Some(CheckResult {
+                    l1: l1(&joint, &exact.joint),
+                    exact: Moments::from_joint(t, &self.model.box_sizes(), &exact.joint),
+                    coordinates: exact.coordinates,
+                    exact_s: exact.seconds,
+                    model_us,
+                });
+            }
+            Err(e) => self.error = Some(e.to_string()),
         }
     }
 
@@ -118,6 +195,7 @@ impl NetworkRoom {
             let t = self.time.value + self.speed * dt_s;
             self.time.value = if t > self.time.hi { 0.0 } else { t };
         }
+        self.poll_check();
         let now = self.coordinates();
         if self.evaluated_at.as_ref() != Some(&now) {
             self.evaluate();
@@ -154,6 +232,25 @@ impl NetworkRoom {
             }
         }
     }
+}
+
+/// The built-in network a model names in its provenance (`network NAME; …`), if its
+/// species and boxes are the model's.
+fn network_of(model: &CmeModel) -> Option<Network> {
+    let meta = model.meta();
+    let name = meta
+        .provenance
+        .mesh
+        .strip_prefix("network ")?
+        .split(';')
+        .next()?
+        .trim()
+        .to_string();
+    let network = Network::built_in(&name).ok()?;
+    let names: Vec<String> = network.species.iter().map(|s| s.name.clone()).collect();
+    let boxes: Vec<Option<usize>> = network.species.iter().map(|s| s.max).collect();
+    let model_boxes: Vec<Option<usize>> = model.box_sizes().into_iter().map(Some).collect();
+    (names == model.species_names() && boxes == model_boxes).then_some(network)
 }
 
 /// Opens a CME meta-model file as a network room.

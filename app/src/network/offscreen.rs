@@ -22,6 +22,8 @@ pub struct NetworkHeadless {
     pub frames: u32,
     pub size: (u32, u32),
     pub out: Option<PathBuf>,
+    /// Run the exact (FSP) check at the last frame's coordinates and show it.
+    pub exact_check: bool,
 }
 
 /// The coordinates of a frame.
@@ -50,6 +52,9 @@ pub struct NetworkReport {
     pub last_coordinates: Vec<CoordinateValue>,
     pub last_mass: f64,
     pub last_mean: Vec<f64>,
+    /// The exact check at the last frame: L1 distance of the joints, FSP seconds.
+    pub exact_l1: Option<f64>,
+    pub exact_s: Option<f64>,
     pub adapter: AdapterReport,
     pub out: Option<String>,
 }
@@ -71,6 +76,23 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
     for i in 0..opts.frames {
         room.time.value = sweep(&room, i, opts.frames);
+        let last = i + 1 == opts.frames;
+        if last && opts.exact_check {
+            room.start_check()?;
+            let waited = Instant::now();
+            while room.check.is_some() && waited.elapsed().as_secs() < 600 {
+                room.frame(0.0);
+                if let Some(c) = &room.check
+                    && let super::check::CheckState::Failed(why) = &c.state
+                {
+                    bail!("the exact check failed: {why}");
+                }
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+            if room.check_result.is_none() {
+                bail!("the exact check did not finish in 600 s");
+            }
+        }
         let t0 = Instant::now();
         room.frame(0.0);
         let mut encoder = crate::render::clear_frame(&gpu.device, &target.view);
@@ -85,7 +107,6 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
             raw,
             |ctx| super::show(ctx, &mut room, &mut hud),
         );
-        let last = i + 1 == opts.frames;
         if last {
             target.encode_copy(&mut encoder);
         }
@@ -131,6 +152,8 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         last_coordinates,
         last_mass: moments.map_or(f64::NAN, |m| m.mass),
         last_mean: moments.map_or_else(Vec::new, |m| m.mean.clone()),
+        exact_l1: room.check_result.as_ref().map(|r| r.l1),
+        exact_s: room.check_result.as_ref().map(|r| r.exact_s),
         adapter: gpu.report(),
         out: opts.out.as_ref().map(|p| p.display().to_string()),
     };

@@ -5,6 +5,7 @@
 
 use egui::{Color32, RichText};
 
+use super::check::CheckState;
 use super::{Joint, NetworkRoom};
 use crate::ui::{Hud, ramp};
 
@@ -81,6 +82,8 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
         });
     }
     ui.separator();
+    exact_check(ui, room);
+    ui.separator();
     let us = |r: &crate::stats::Ring| r.quantile(0.5);
     ui.label(format!(
         "evaluation {:.1} µs (median), joint {:.1} µs",
@@ -91,6 +94,60 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
         "frame {:.2} ms (median)",
         hud.frame_ms.quantile(0.5)
     ));
+}
+
+/// The exact (FSP) check: start, progress and cancel, and its verdict.
+fn exact_check(ui: &mut egui::Ui, room: &mut NetworkRoom) {
+    let mut start = false;
+    let mut cancel = false;
+    match room.check.as_ref().map(|c| &c.state) {
+        Some(CheckState::Running { progress }) => {
+            ui.horizontal(|ui| {
+                ui.add(egui::ProgressBar::new(*progress as f32).text("exact (FSP)…"));
+                cancel = ui.button("cancel").clicked();
+            });
+        }
+        state => {
+            let enabled = room.network.is_some();
+            let button = ui
+                .add_enabled(enabled, egui::Button::new("exact check (FSP) here"))
+                .on_disabled_hover_text(
+                    "the exact check needs the network the model was built from (a built-in)",
+                );
+            start = button.clicked();
+            match state {
+                Some(CheckState::Failed(why)) => {
+                    ui.colored_label(Color32::from_rgb(230, 90, 80), why);
+                }
+                Some(CheckState::Cancelled) => {
+                    ui.label("exact check cancelled");
+                }
+                _ => {}
+            }
+        }
+    }
+    if let Some(r) = &room.check_result {
+        let stale = r.coordinates != room.coordinates();
+        ui.label(format!(
+            "L1 to exact {:.2e} · FSP {:.2} s · meta-model joint {:.0} µs",
+            r.l1, r.exact_s, r.model_us
+        ));
+        if stale {
+            ui.label(
+                RichText::new(format!(
+                    "(at t = {:.3}; coordinates moved since)",
+                    r.coordinates[0]
+                ))
+                .small(),
+            );
+        }
+    }
+    if cancel && let Some(c) = room.check.as_mut() {
+        c.cancel();
+    }
+    if start && let Err(e) = room.start_check() {
+        room.error = Some(format!("{e:#}"));
+    }
 }
 
 fn views(ui: &mut egui::Ui, room: &NetworkRoom) {
@@ -124,6 +181,13 @@ fn views(ui: &mut egui::Ui, room: &NetworkRoom) {
                     .enumerate()
                     .map(|(z, &p)| egui_plot::Bar::new(z as f64, p).width(1.0))
                     .collect();
+                let exact: Option<Vec<[f64; 2]>> = room.check_result.as_ref().map(|r| {
+                    r.exact.marginals[i]
+                        .iter()
+                        .enumerate()
+                        .map(|(z, &p)| [z as f64, p])
+                        .collect()
+                });
                 egui_plot::Plot::new(format!("marginal-{i}"))
                     .width(220.0)
                     .height(110.0)
@@ -133,6 +197,12 @@ fn views(ui: &mut egui::Ui, room: &NetworkRoom) {
                     .allow_scroll(false)
                     .show(ui, |plot| {
                         plot.bar_chart(egui_plot::BarChart::new(name.clone(), bars));
+                        if let Some(points) = exact {
+                            plot.line(
+                                egui_plot::Line::new("exact", points)
+                                    .color(Color32::from_rgb(240, 240, 240)),
+                            );
+                        }
                     });
             });
             if (i + 1) % cols == 0 {
