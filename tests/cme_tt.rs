@@ -173,3 +173,15 @@ fn a_tensor_train_model_survives_the_file_and_corruption_is_named() {
     let err = model::load(&bad).expect_err("corrupt");
     assert!(err.to_string().contains("payload corrupted"), "{err}");
 }
+
+/// A build told to stop before it starts stops at its first step with `Cancelled`.
+#[test]
+fn a_cancelled_solve_says_so() {
+    let net = palpa_core::cme::network::Network::built_in("toggle").expect("built in");
+    let cancel = std::sync::atomic::AtomicBool::new(true);
+    let r = ttsolve::solve_cancellable(&net, &ttsolve::Options::default(), &cancel, &mut |_| {});
+    assert!(matches!(
+        r,
+        Err(palpa_core::cme::greedy::CmePgdError::Cancelled)
+    ));
+}

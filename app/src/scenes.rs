@@ -42,17 +42,54 @@ pub enum Opened {
         room: Box<crate::network::NetworkRoom>,
         source: String,
     },
+    /// A network given by its definition (a built-in name or a TOML file): its
+    /// meta-model comes from the cache or is built first.
+    NetworkSource {
+        network: Box<palpa_core::cme::network::Network>,
+        toml: Option<std::path::PathBuf>,
+        source: String,
+    },
 }
 
-/// Whether the file at `spec` holds a gene-network meta-model (by its header's kind).
+/// The network `spec` names: a TOML file (`….toml`) or a built-in name (`toggle`,
+/// `cascade`, `signaling-cascade-D`); `None` for anything else.
+pub fn network_source(
+    spec: &str,
+) -> anyhow::Result<
+    Option<(
+        palpa_core::cme::network::Network,
+        Option<std::path::PathBuf>,
+    )>,
+> {
+    use palpa_core::cme::network::Network;
+    if spec.ends_with(".toml") {
+        let text =
+            std::fs::read_to_string(spec).with_context(|| format!("reading the network {spec}"))?;
+        let network = Network::from_toml(&text, spec)?;
+        return Ok(Some((network, Some(Path::new(spec).to_path_buf()))));
+    }
+    Ok(Network::built_in(spec).ok().map(|n| (n, None)))
+}
+
+/// Whether `spec` is a gene network: a meta-model file (by its header's kind), a
+/// network TOML file or a built-in network's name.
 pub fn is_network(spec: &str) -> bool {
     spec != "liver"
-        && palpa_core::file::read_header(Path::new(spec))
-            .is_ok_and(|h| h.meta.kind.starts_with("cme-"))
+        && (spec.ends_with(".toml")
+            || palpa_core::cme::network::Network::built_in(spec).is_ok()
+            || palpa_core::file::read_header(Path::new(spec))
+                .is_ok_and(|h| h.meta.kind.starts_with("cme-")))
 }
 
 /// Opens `spec` in the room its kind needs.
 pub fn open(spec: &str) -> anyhow::Result<Opened> {
+    if let Some((network, toml)) = network_source(spec)? {
+        return Ok(Opened::NetworkSource {
+            network: Box::new(network),
+            toml,
+            source: spec.to_string(),
+        });
+    }
     if is_network(spec) {
         let path = Path::new(spec);
         return Ok(Opened::Network {

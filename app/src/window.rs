@@ -29,7 +29,8 @@ use winit::window::{Window, WindowId};
 use crate::force::AtomicHaptics;
 use crate::gamepad::Gamepads;
 use crate::input::{Button, InputEvent, PointerId};
-use crate::network::NetworkRoom;
+use crate::network::build::{BuildState, NetworkBuild};
+use crate::network::{NetworkRoom, Prepared};
 use crate::overlay::Overlay;
 use crate::render::Renderer;
 use crate::render::gpu::Gpu;
@@ -53,6 +54,25 @@ struct Graphics {
 enum Room {
     Palpation(Box<Session>),
     Network(Box<NetworkRoom>),
+    /// A network whose meta-model is being built; it becomes `Network` when done.
+    Building(Box<NetworkBuild>),
+}
+
+impl Room {
+    /// Moves a finished build into its network room.
+    fn advance(&mut self, hud: &mut Hud) {
+        let Room::Building(b) = self else { return };
+        if let BuildState::Done(path) = b.poll().clone() {
+            match crate::network::open(&path) {
+                Ok(mut room) => {
+                    room.network = Some(b.network.clone());
+                    hud.scene_source = path.display().to_string();
+                    *self = Room::Network(Box::new(room));
+                }
+                Err(e) => hud.message = Some(format!("{e:#}")),
+            }
+        }
+    }
 }
 
 /// The app: everything that outlives a surface.
@@ -95,6 +115,14 @@ impl App {
                 loaded.source,
             ),
             Opened::Network { room, source } => (Room::Network(room), source),
+            Opened::NetworkSource {
+                network,
+                toml,
+                source,
+            } => match crate::network::prepare(*network, toml.as_deref())? {
+                Prepared::Ready(room) => (Room::Network(room), source),
+                Prepared::Building(b) => (Room::Building(b), source),
+            },
         };
         let mut hud = Hud::new(source);
         hud.message = message;
@@ -117,7 +145,7 @@ impl App {
     fn renderer_for(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> Option<Renderer> {
         match &self.room {
             Room::Palpation(s) => Some(Renderer::new(device, format, &s.scene)),
-            Room::Network(_) => None,
+            Room::Network(_) | Room::Building(_) => None,
         }
     }
 
@@ -144,6 +172,7 @@ impl App {
             }
             _ => crate::render::clear_frame(&gpu.device, view),
         };
+        room.advance(hud);
         if let Room::Network(n) = room {
             n.frame(dt_s);
         }
@@ -158,6 +187,11 @@ impl App {
             |ctx| match room {
                 Room::Palpation(session) => crate::ui::show(ctx, session, hud),
                 Room::Network(n) => crate::network::show(ctx, n, hud),
+                Room::Building(b) => {
+                    if crate::network::build::show(ctx, b) {
+                        b.cancel();
+                    }
+                }
             },
         );
         (encoder, output)
@@ -277,7 +311,7 @@ impl App {
         let raw = crate::overlay::headless_input(size, 1.0, self.started.elapsed().as_secs_f64());
         let mut renderer = match &self.room {
             Room::Palpation(s) => Some(Renderer::new(&g.gpu.device, FORMAT, &s.scene)),
-            Room::Network(_) => None,
+            Room::Network(_) | Room::Building(_) => None,
         };
         let (mut encoder, _) = Self::encode(
             &mut self.room,

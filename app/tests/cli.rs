@@ -700,3 +700,57 @@ fn headless_network_scene_matches_cme_eval() {
     assert!(!none.status.success());
     assert!(String::from_utf8_lossy(&none.stderr).contains("--frames 0"));
 }
+
+/// A network given by name or TOML file opens through its meta-model: built on first
+/// open (progress on stderr) into a cache keyed by the network and the solver options
+/// (the user's cache folder for a built-in, next to a TOML file), then reused.
+#[test]
+fn a_network_by_name_or_toml_is_built_once_then_cached() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |scene: &str| {
+        Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args([
+                "headless", "--scene", scene, "--frames", "2", "--size", "320x240", "--json",
+            ])
+            .env("XDG_CACHE_HOME", dir.path())
+            .output()
+            .expect("palpa runs")
+    };
+    let first = run("toggle");
+    let v = common::json_ok(&first);
+    assert_eq!(v["kind"], "network");
+    assert!(String::from_utf8_lossy(&first.stderr).contains("building the meta-model"));
+    let cached: Vec<_> = std::fs::read_dir(dir.path().join("palpa"))
+        .expect("cache folder")
+        .collect();
+    assert_eq!(cached.len(), 1, "one cached model");
+    let again = run("toggle");
+    common::json_ok(&again);
+    assert!(!String::from_utf8_lossy(&again.stderr).contains("building"));
+    // A TOML network: cached next to it.
+    let toml = dir.path().join("my-toggle.toml");
+    std::fs::copy(
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../assets/networks/toggle.toml"
+        ),
+        &toml,
+    )
+    .expect("copy");
+    common::json_ok(&run(toml.to_str().expect("utf-8")));
+    let beside = std::fs::read_dir(dir.path())
+        .expect("dir")
+        .filter_map(Result::ok)
+        .filter(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n.starts_with("my-toggle.") && n.ends_with(".palpa")
+        })
+        .count();
+    assert_eq!(beside, 1, "the TOML network's model is cached beside it");
+    // A broken TOML file is named, not built.
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "name = 3").expect("write");
+    let out = run(bad.to_str().expect("utf-8"));
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.toml"));
+}

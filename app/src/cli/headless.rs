@@ -106,7 +106,7 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
 fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
     use palpa_app::network::offscreen::{NetworkHeadless, run};
     let opts = NetworkHeadless {
-        scene: PathBuf::from(&args.scene),
+        scene: args.scene.clone(),
         frames: args.frames,
         size,
         out: args.out.clone(),

@@ -16,13 +16,9 @@ use palpa_core::cme::network::Network;
 /// Slices the time interval is advanced in (progress and cancel granularity).
 const SLICES: usize = 40;
 
-/// What the check thread sends.
-#[derive(Debug)]
-enum Message {
-    Progress(f64),
-    Done { joint: Vec<f64>, seconds: f64 },
-    Failed(String),
-}
+/// The check's end: one message on its own channel of one slot, so sending it never
+/// blocks (progress goes on a bounded channel by `try_send` and may be dropped).
+type Outcome = Result<(Vec<f64>, f64), String>;
 
 /// The exact joint at some coordinates.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,7 +43,8 @@ pub enum CheckState {
 #[derive(Debug)]
 pub struct ExactCheck {
     cancel: Arc<AtomicBool>,
-    rx: Receiver<Message>,
+    progress: Receiver<f64>,
+    outcome: Receiver<Outcome>,
     handle: Option<JoinHandle<()>>,
     coordinates: Vec<f64>,
     pub state: CheckState,
@@ -71,7 +68,8 @@ impl ExactCheck {
             stride *= m;
         }
         let cancel = Arc::new(AtomicBool::new(false));
-        let (tx, rx) = sync_channel(8);
+        let (tx, progress) = sync_channel(8);
+        let (done_tx, outcome) = sync_channel(1);
         let flag = Arc::clone(&cancel);
         let handle = std::thread::Builder::new()
             .name("palpa-exact-check".into())
@@ -88,21 +86,19 @@ impl ExactCheck {
                         generator.advance(&mut prob, dt);
                     }
                     // A full channel only drops a progress report.
-                    let _ = tx.try_send(Message::Progress((k + 1) as f64 / SLICES as f64));
+                    let _ = tx.try_send((k + 1) as f64 / SLICES as f64);
                 }
-                if prob.iter().any(|v| !v.is_finite()) {
-                    let _ = tx.send(Message::Failed("the exact solve diverged".into()));
-                    return;
-                }
-                let _ = tx.send(Message::Done {
-                    joint: prob,
-                    seconds: t0.elapsed().as_secs_f64(),
+                let _ = done_tx.send(if prob.iter().any(|v| !v.is_finite()) {
+                    Err("the exact solve diverged".into())
+                } else {
+                    Ok((prob, t0.elapsed().as_secs_f64()))
                 });
             })
             .context("starting the exact-check thread")?;
         Ok(ExactCheck {
             cancel,
-            rx,
+            progress,
+            outcome,
             handle: Some(handle),
             coordinates,
             state: CheckState::Running { progress: 0.0 },
@@ -114,33 +110,24 @@ impl ExactCheck {
         if !matches!(self.state, CheckState::Running { .. }) {
             return &self.state;
         }
-        loop {
-            match self.rx.try_recv() {
-                Ok(Message::Progress(p)) => self.state = CheckState::Running { progress: p },
-                Ok(Message::Done { joint, seconds }) => {
-                    self.state = CheckState::Done(Exact {
-                        coordinates: self.coordinates.clone(),
-                        joint,
-                        seconds,
-                    });
-                    self.join();
-                    break;
-                }
-                Ok(Message::Failed(why)) => {
-                    self.state = CheckState::Failed(why);
-                    self.join();
-                    break;
-                }
-                Err(TryRecvError::Empty) => break,
-                Err(TryRecvError::Disconnected) => {
-                    if matches!(self.state, CheckState::Running { .. }) {
-                        self.state = CheckState::Failed("the exact-check thread stopped".into());
-                    }
-                    self.join();
-                    break;
-                }
+        while let Ok(p) = self.progress.try_recv() {
+            self.state = CheckState::Running { progress: p };
+        }
+        match self.outcome.try_recv() {
+            Ok(Ok((joint, seconds))) => {
+                self.state = CheckState::Done(Exact {
+                    coordinates: self.coordinates.clone(),
+                    joint,
+                    seconds,
+                });
+            }
+            Ok(Err(why)) => self.state = CheckState::Failed(why),
+            Err(TryRecvError::Empty) => return &self.state,
+            Err(TryRecvError::Disconnected) => {
+                self.state = CheckState::Failed("the exact-check thread stopped".into());
             }
         }
+        self.join();
         &self.state
     }
 

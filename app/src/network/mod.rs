@@ -6,6 +6,7 @@
 //! Nothing here is palpation's: the window and headless mode pick this room or the
 //! palpation [`crate::session::Session`] by the scene file's kind.
 
+pub mod build;
 pub mod check;
 pub mod offscreen;
 mod ui;
@@ -251,6 +252,29 @@ fn network_of(model: &CmeModel) -> Option<Network> {
     let boxes: Vec<Option<usize>> = network.species.iter().map(|s| s.max).collect();
     let model_boxes: Vec<Option<usize>> = model.box_sizes().into_iter().map(Some).collect();
     (names == model.species_names() && boxes == model_boxes).then_some(network)
+}
+
+/// A network scene ready to show, or its meta-model still being built.
+#[derive(Debug)]
+pub enum Prepared {
+    Ready(Box<NetworkRoom>),
+    Building(Box<build::NetworkBuild>),
+}
+
+/// The room of `network` (from a TOML file `toml`, or built in): its cached meta-model
+/// if there is one that opens, else a background build of it.
+pub fn prepare(network: Network, toml: Option<&std::path::Path>) -> anyhow::Result<Prepared> {
+    let options = palpa_core::cme::ttsolve::Options::default();
+    let cache = build::cache_path(&network, &options, toml);
+    if cache.exists()
+        && let Ok(mut room) = open(&cache)
+    {
+        room.network = Some(network);
+        return Ok(Prepared::Ready(Box::new(room)));
+    }
+    Ok(Prepared::Building(Box::new(build::NetworkBuild::start(
+        network, options, cache,
+    )?)))
 }
 
 /// Opens a CME meta-model file as a network room.

@@ -9,6 +9,7 @@ use anyhow::bail;
 use serde::Serialize;
 
 use super::NetworkRoom;
+use super::build::BuildState;
 use crate::overlay::{Overlay, headless_input};
 use crate::render::gpu::{AdapterReport, Gpu};
 use crate::render::offscreen::{Image, Offscreen, UI_FORMAT};
@@ -18,7 +19,9 @@ use crate::ui::Hud;
 /// What to render.
 #[derive(Debug, Clone)]
 pub struct NetworkHeadless {
-    pub scene: PathBuf,
+    /// A meta-model file, a network TOML file or a built-in network's name (the last
+    /// two are built first if their cache is empty).
+    pub scene: String,
     pub frames: u32,
     pub size: (u32, u32),
     pub out: Option<PathBuf>,
@@ -68,11 +71,11 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
     if opts.frames == 0 {
         bail!("--frames 0: expected at least one frame");
     }
-    let mut room = super::open(&opts.scene)?;
+    let mut room = open_blocking(&opts.scene)?;
     let gpu = Gpu::headless()?;
     let target = Offscreen::new(&gpu.device, opts.size);
     let mut overlay = Overlay::new(&gpu.device, UI_FORMAT);
-    let mut hud = Hud::new(opts.scene.display().to_string());
+    let mut hud = Hud::new(opts.scene.clone());
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
     for i in 0..opts.frames {
         room.time.value = sweep(&room, i, opts.frames);
@@ -119,7 +122,7 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         frame_ms.push(ms);
     }
     if let Some(e) = &room.error {
-        bail!("evaluating {}: {e}", opts.scene.display());
+        bail!("evaluating {}: {e}", opts.scene);
     }
     let image = target.read(&gpu.device)?;
     if let Some(out) = &opts.out {
@@ -139,7 +142,7 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         f64::NAN
     };
     let report = NetworkReport {
-        scene: opts.scene.display().to_string(),
+        scene: opts.scene.clone(),
         kind: "network",
         frames: opts.frames,
         size: [w, h],
@@ -158,6 +161,48 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         out: opts.out.as_ref().map(|p| p.display().to_string()),
     };
     Ok((report, image))
+}
+
+/// The room of `spec`; a network given by name or TOML without a cached meta-model is
+/// built first (progress on stderr).
+fn open_blocking(spec: &str) -> anyhow::Result<NetworkRoom> {
+    let Some((network, toml)) = crate::scenes::network_source(spec)? else {
+        return super::open(std::path::Path::new(spec));
+    };
+    match super::prepare(network, toml.as_deref())? {
+        super::Prepared::Ready(room) => Ok(*room),
+        super::Prepared::Building(mut b) => {
+            eprintln!(
+                "palpa: building the meta-model of {} into {}",
+                spec,
+                b.out.display()
+            );
+            let mut shown = 0.0;
+            loop {
+                match b.poll().clone() {
+                    BuildState::Running { progress } => {
+                        if progress >= shown + 0.1 {
+                            shown = progress;
+                            eprintln!(
+                                "palpa: t reached {:.0} % of the time axis",
+                                100.0 * progress
+                            );
+                        }
+                        std::thread::sleep(std::time::Duration::from_millis(20));
+                    }
+                    BuildState::Done(path) => {
+                        let mut room = super::open(&path)?;
+                        room.network = Some(b.network.clone());
+                        return Ok(room);
+                    }
+                    BuildState::Failed(why) => bail!("building the meta-model of {spec}: {why}"),
+                    BuildState::Cancelled => {
+                        bail!("building the meta-model of {spec} was cancelled")
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Frame `i` of `n`: time from 0 to the end of the trained range.

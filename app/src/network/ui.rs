@@ -213,7 +213,7 @@ fn views(ui: &mut egui::Ui, room: &NetworkRoom) {
 }
 
 /// The joint as coloured cells (first species along x, second up), scaled to its
-/// largest probability and cropped to where it is at least 1e-6 of that (the box is
+/// largest probability and cropped to where it is at least 1e-4 of that (the box is
 /// sized for every time and parameter, the distribution at one of them is smaller); at
 /// most 160 cells a side (larger windows are binned by summing).
 fn heat_map(ui: &mut egui::Ui, j: &Joint) {
@@ -222,7 +222,7 @@ fn heat_map(ui: &mut egui::Ui, j: &Joint) {
     let (mut a0, mut a1, mut b0, mut b1) = (j.na, 0, j.nb, 0);
     for b in 0..j.nb {
         for a in 0..j.na {
-            if j.p[b * j.na + a] >= 1e-6 * top {
+            if j.p[b * j.na + a] >= 1e-4 * top {
                 (a0, a1, b0, b1) = (a0.min(a), a1.max(a + 1), b0.min(b), b1.max(b + 1));
             }
         }

@@ -75,6 +75,18 @@ pub fn greedy(
     })
 }
 
+/// Builds the whole meta-model by BDF2 on tensor trains, stopping with
+/// `Cancelled` once `cancel` is set (between steps).
+pub fn train_cancellable(
+    network: &Network,
+    options: &ttsolve::Options,
+    cancel: &std::sync::atomic::AtomicBool,
+    progress: &mut dyn FnMut(ttsolve::Step),
+) -> Result<Built, BuildError> {
+    let (h, report) = ttsolve::solve_cancellable(network, options, cancel, progress)?;
+    train_built(network, options, h, report)
+}
+
 /// Builds by BDF2 on tensor trains; with `times`, only the states at those times are
 /// kept (no history to compress).
 pub fn train(
@@ -87,6 +99,16 @@ pub fn train(
         Some(times) => ttsolve::solve_at(network, options, times, progress)?,
         None => ttsolve::solve(network, options, progress)?,
     };
+    train_built(network, options, h, report)
+}
+
+/// The meta-model and file form of a solved history.
+fn train_built(
+    network: &Network,
+    options: &ttsolve::Options,
+    h: History,
+    report: ttsolve::Report,
+) -> Result<Built, BuildError> {
     let provenance = model::train_provenance(network, &h, report.steps, options);
     let meta = model::train_meta(network, &h, provenance.clone());
     let model = CmeModel::from_train(meta, h.tt.cores.clone())?;

@@ -58,6 +58,8 @@ pub enum CmePgdError {
     TooManyAxes(usize),
     #[error("building the model: {0}")]
     Model(#[from] crate::separated::ModelError),
+    #[error("the build was cancelled")]
+    Cancelled,
 }
 
 /// Time grid and solver settings.

@@ -28,6 +28,7 @@ use super::step::{extrapolation_weights, next_step};
 use crate::tensor::Sparse1d;
 use crate::tensor::amen::{self, LocalTerm, Mpo};
 use crate::tensor::tt::{Core, Tt};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Options {
@@ -143,7 +144,18 @@ pub fn solve(
     options: &Options,
     progress: &mut dyn FnMut(Step),
 ) -> Result<(History, Report), CmePgdError> {
-    run(network, options, None, progress)
+    run(network, options, None, None, progress)
+}
+
+/// As [`solve`], stopping with [`CmePgdError::Cancelled`] at the first step after
+/// `cancel` is set (an app's background build).
+pub fn solve_cancellable(
+    network: &Network,
+    options: &Options,
+    cancel: &AtomicBool,
+    progress: &mut dyn FnMut(Step),
+) -> Result<(History, Report), CmePgdError> {
+    run(network, options, None, Some(cancel), progress)
 }
 
 /// The states at `times` only (increasing, ≥ 0): steps land on each time and nothing
@@ -169,13 +181,14 @@ pub fn solve_at(
         t_end: last,
         ..*options
     };
-    run(network, &options, Some(times), progress)
+    run(network, &options, Some(times), None, progress)
 }
 
 fn run(
     network: &Network,
     options: &Options,
     outputs: Option<&[f64]>,
+    cancel: Option<&AtomicBool>,
     progress: &mut dyn FnMut(Step),
 ) -> Result<(History, Report), CmePgdError> {
     let sizes: Vec<usize> = network
@@ -218,6 +231,9 @@ fn run(
         pending.remove(0);
     }
     while *t.last().expect("t_0") < options.t_end * (1.0 - 1e-12) {
+        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(CmePgdError::Cancelled);
+        }
         k += 1;
         let now = *t.last().expect("t_0");
         let rest = options.t_end - now;

@@ -1,0 +1,240 @@
+//! Opening a network that has no meta-model yet: the off-line build (the tensor-train
+//! solver with its defaults, as `palpa cme offline`) in a named background thread with
+//! progress and cancel, saved atomically to a cache keyed by the network's content and
+//! the solver options, so the next open is immediate.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, TryRecvError, sync_channel};
+use std::thread::JoinHandle;
+
+use anyhow::Context;
+use palpa_core::cme::build;
+use palpa_core::cme::network::Network;
+use palpa_core::cme::ttsolve;
+
+/// Where a network's meta-model is cached: next to its TOML file, or for a built-in
+/// network in the user's cache folder (`$XDG_CACHE_HOME/palpa`, `~/.cache/palpa`, else
+/// the temporary folder). The name carries a hash of the network and the options.
+pub fn cache_path(network: &Network, options: &ttsolve::Options, toml: Option<&Path>) -> PathBuf {
+    let hash = xxhash_rust::xxh3::xxh3_64(format!("{network:?}{options:?}").as_bytes());
+    match toml {
+        Some(p) => {
+            let stem = p.file_stem().map_or_else(
+                || "network".to_string(),
+                |s| s.to_string_lossy().into_owned(),
+            );
+            p.with_file_name(format!("{stem}.{hash:016x}.palpa"))
+        }
+        None => {
+            let base = std::env::var_os("XDG_CACHE_HOME")
+                .map(PathBuf::from)
+                .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
+                .unwrap_or_else(std::env::temp_dir);
+            base.join("palpa")
+                .join(format!("{}.{hash:016x}.palpa", network.name))
+        }
+    }
+}
+
+/// Where a build stands.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BuildState {
+    /// Model time reached over the end of the time axis.
+    Running {
+        progress: f64,
+    },
+    Done(PathBuf),
+    Failed(String),
+    Cancelled,
+}
+
+/// The build's end: one message on its own channel of one slot, so sending it never
+/// blocks (progress goes on a bounded channel by `try_send` and may be dropped).
+type Outcome = Result<PathBuf, String>;
+
+/// A network's off-line build running in the background.
+#[derive(Debug)]
+pub struct NetworkBuild {
+    pub network: Network,
+    pub out: PathBuf,
+    cancel: Arc<AtomicBool>,
+    progress: Receiver<f64>,
+    outcome: Receiver<Outcome>,
+    handle: Option<JoinHandle<()>>,
+    pub state: BuildState,
+}
+
+impl NetworkBuild {
+    /// Starts building `network`'s meta-model into `out`.
+    pub fn start(
+        network: Network,
+        options: ttsolve::Options,
+        out: PathBuf,
+    ) -> anyhow::Result<Self> {
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (tx, progress_rx) = sync_channel(16);
+        let (done_tx, outcome) = sync_channel(1);
+        let (flag, net, path) = (Arc::clone(&cancel), network.clone(), out.clone());
+        let handle = std::thread::Builder::new()
+            .name("palpa-network-build".into())
+            .spawn(move || {
+                let t_end = options.t_end;
+                let mut progress = |s: ttsolve::Step| {
+                    // A full channel only drops a progress report.
+                    let _ = tx.try_send(s.t / t_end);
+                };
+                let result = build::train_cancellable(&net, &options, &flag, &mut progress)
+                    .map_err(|e| e.to_string())
+                    .and_then(|built| {
+                        if let Some(dir) = path.parent() {
+                            std::fs::create_dir_all(dir)
+                                .map_err(|e| format!("creating {}: {e}", dir.display()))?;
+                        }
+                        built
+                            .save(&net, &path)
+                            .map_err(|e| format!("saving {}: {e}", path.display()))
+                    });
+                let _ = done_tx.send(result.map(|()| path));
+            })
+            .context("starting the network build thread")?;
+        Ok(NetworkBuild {
+            network,
+            out,
+            cancel,
+            progress: progress_rx,
+            outcome,
+            handle: Some(handle),
+            state: BuildState::Running { progress: 0.0 },
+        })
+    }
+
+    /// Takes what the thread sent since the last call (call once per frame).
+    pub fn poll(&mut self) -> &BuildState {
+        if !matches!(self.state, BuildState::Running { .. }) {
+            return &self.state;
+        }
+        while let Ok(p) = self.progress.try_recv() {
+            self.state = BuildState::Running { progress: p };
+        }
+        match self.outcome.try_recv() {
+            Ok(Ok(path)) => self.state = BuildState::Done(path),
+            Ok(Err(why)) => {
+                self.state = if self.cancel.load(Ordering::Relaxed) {
+                    BuildState::Cancelled
+                } else {
+                    BuildState::Failed(why)
+                };
+            }
+            Err(TryRecvError::Empty) => return &self.state,
+            Err(TryRecvError::Disconnected) => {
+                self.state = BuildState::Failed("the build thread stopped".into());
+            }
+        }
+        if let Some(h) = self.handle.take()
+            && h.join().is_err()
+        {
+            self.state = BuildState::Failed("the build thread panicked".into());
+        }
+        &self.state
+    }
+
+    /// Tells the build to stop at its next step (it is not waited for).
+    pub fn cancel(&mut self) {
+        self.cancel.store(true, Ordering::Relaxed);
+        self.handle.take();
+        if matches!(self.state, BuildState::Running { .. }) {
+            self.state = BuildState::Cancelled;
+        }
+    }
+}
+
+impl Drop for NetworkBuild {
+    fn drop(&mut self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+}
+
+/// Shows a build in progress: its network, a progress bar, cancel. Returns whether
+/// cancel was pressed.
+pub fn show(ctx: &egui::Context, b: &NetworkBuild) -> bool {
+    let mut cancel = false;
+    egui::Window::new("building the network's meta-model")
+        .default_pos([12.0, 12.0])
+        .resizable(false)
+        .show(ctx, |ui| {
+            ui.label(format!(
+                "{}: {} species, {} parameters",
+                b.network.name,
+                b.network.species.len(),
+                b.network.parameters.len()
+            ));
+            ui.label(egui::RichText::new(format!("into {}", b.out.display())).small());
+            match &b.state {
+                BuildState::Running { progress } => {
+                    ui.add(
+                        egui::ProgressBar::new(*progress as f32)
+                            .show_percentage()
+                            .text("off-line solve (tensor train, BDF2)"),
+                    );
+                    cancel = ui.button("cancel").clicked();
+                }
+                BuildState::Done(p) => {
+                    ui.label(format!("built: {}", p.display()));
+                }
+                BuildState::Failed(why) => {
+                    ui.colored_label(egui::Color32::from_rgb(230, 90, 80), why);
+                }
+                BuildState::Cancelled => {
+                    ui.label("cancelled: nothing was saved");
+                }
+            }
+        });
+    cancel
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::{Duration, Instant};
+
+    #[test]
+    fn the_cache_is_keyed_by_network_and_options() {
+        let n = Network::built_in("toggle").expect("built in");
+        let o = ttsolve::Options::default();
+        let toml = Path::new("/some/where/my.toml");
+        let p = cache_path(&n, &o, Some(toml));
+        assert_eq!(p.parent(), Some(Path::new("/some/where")));
+        assert!(
+            p.file_name()
+                .is_some_and(|f| f.to_string_lossy().starts_with("my."))
+        );
+        let other = ttsolve::Options {
+            eps: o.eps / 10.0,
+            ..o
+        };
+        assert_ne!(cache_path(&n, &other, Some(toml)), p);
+        let c = Network::built_in("cascade").expect("built in");
+        assert_ne!(cache_path(&c, &o, Some(toml)), p);
+    }
+
+    /// A cancelled build stops at its next step and saves nothing.
+    #[test]
+    fn a_cancelled_build_saves_nothing() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let out = dir.path().join("cascade.palpa");
+        let n = Network::built_in("cascade").expect("built in");
+        let mut b =
+            NetworkBuild::start(n, ttsolve::Options::default(), out.clone()).expect("starts");
+        std::thread::sleep(Duration::from_millis(50));
+        b.cancel();
+        assert_eq!(*b.poll(), BuildState::Cancelled);
+        let t0 = Instant::now();
+        while Arc::strong_count(&b.cancel) > 1 && t0.elapsed() < Duration::from_secs(60) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert_eq!(Arc::strong_count(&b.cancel), 1, "the build thread ended");
+        assert!(!out.exists(), "nothing saved");
+    }
+}
