@@ -177,7 +177,7 @@ fn a_tensor_train_model_survives_the_file_and_corruption_is_named() {
 /// A build told to stop before it starts stops at its first step with `Cancelled`.
 #[test]
 fn a_cancelled_solve_says_so() {
-    let net = palpa_core::cme::network::Network::built_in("toggle").expect("built in");
+    let net = Network::built_in("toggle").expect("built in");
     let cancel = std::sync::atomic::AtomicBool::new(true);
     let r = ttsolve::solve_cancellable(&net, &ttsolve::Options::default(), &cancel, &mut |_| {});
     assert!(matches!(
