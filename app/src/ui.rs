@@ -27,6 +27,10 @@ pub struct Hud {
     pub show_help: bool,
     pub screenshot_requested: bool,
     pub last_screenshot: Option<String>,
+    /// A scene the user asked to switch to (the window opens it after the frame).
+    pub switch_to: Option<String>,
+    /// The scene path being typed.
+    pub scene_field: String,
 }
 
 impl Hud {
@@ -39,6 +43,8 @@ impl Hud {
             show_help: false,
             screenshot_requested: false,
             last_screenshot: None,
+            switch_to: None,
+            scene_field: String::new(),
         }
     }
 }
@@ -192,6 +198,7 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     ui.separator();
 
     ui.collapsing("Scene", |ui| {
+        scene_switcher(ui, hud);
         let m = session.scene.model();
         ui.label(&hud.scene_source);
         ui.label(format!(
@@ -243,6 +250,30 @@ fn force_plot(ui: &mut egui::Ui, session: &Session) {
         .show(ui, |plot| {
             plot.line(egui_plot::Line::new("|F| (N) over the last 10 s", points));
         });
+}
+
+/// Buttons for the built-in scenes and a field for a file (a palpation or network
+/// `.palpa`, a network `.toml`): the window switches after the frame.
+pub fn scene_switcher(ui: &mut egui::Ui, hud: &mut Hud) {
+    ui.horizontal(|ui| {
+        ui.label("open");
+        for name in ["liver", "toggle", "cascade"] {
+            if ui.small_button(name).clicked() {
+                hud.switch_to = Some(name.into());
+            }
+        }
+    });
+    ui.horizontal(|ui| {
+        let field = ui.add(
+            egui::TextEdit::singleline(&mut hud.scene_field)
+                .hint_text("file.palpa or network.toml")
+                .desired_width(190.0),
+        );
+        let enter = field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+        if (ui.small_button("open").clicked() || enter) && !hud.scene_field.trim().is_empty() {
+            hud.switch_to = Some(hud.scene_field.trim().to_string());
+        }
+    });
 }
 
 /// The colormap's legend: the ramp of `surface.wgsl` with its end values.

@@ -45,6 +45,8 @@ struct Graphics {
     gpu: Gpu,
     /// The palpation scene's renderer (a network scene draws with egui only).
     renderer: Option<Renderer>,
+    /// The colour format the renderer draws in (for a renderer of a new scene).
+    scene_format: wgpu::TextureFormat,
     overlay: Overlay,
     egui: egui_winit::State,
 }
@@ -106,24 +108,7 @@ impl App {
     pub fn new(scene: &str) -> anyhow::Result<Self> {
         let (opened, message) = crate::scenes::open_or_default(scene)?;
         let haptics = AtomicHaptics::default();
-        let (room, source) = match opened {
-            Opened::Palpation(loaded) => (
-                Room::Palpation(Box::new(
-                    Session::new(loaded.scene, Box::new(haptics.clone()))
-                        .context("starting the force thread")?,
-                )),
-                loaded.source,
-            ),
-            Opened::Network { room, source } => (Room::Network(room), source),
-            Opened::NetworkSource {
-                network,
-                toml,
-                source,
-            } => match crate::network::prepare(*network, toml.as_deref())? {
-                Prepared::Ready(room) => (Room::Network(room), source),
-                Prepared::Building(b) => (Room::Building(b), source),
-            },
-        };
+        let (room, source) = room_of(opened, &haptics)?;
         let mut hud = Hud::new(source);
         hud.message = message;
         Ok(App {
@@ -188,7 +173,7 @@ impl App {
                 Room::Palpation(session) => crate::ui::show(ctx, session, hud),
                 Room::Network(n) => crate::network::show(ctx, n, hud),
                 Room::Building(b) => {
-                    if crate::network::build::show(ctx, b) {
+                    if crate::network::build::show(ctx, b, hud) {
                         b.cancel();
                     }
                 }
@@ -241,6 +226,7 @@ impl App {
             self.graphics = Some(Graphics {
                 gpu,
                 renderer,
+                scene_format: formats.scene,
                 overlay,
                 egui,
             });
@@ -300,6 +286,9 @@ impl App {
         self.hud
             .frame_ms
             .push(frame_start.elapsed().as_secs_f64() * 1e3);
+        if let Some(spec) = self.hud.switch_to.take() {
+            self.switch(&spec);
+        }
     }
 
     /// Renders the current frame offscreen (with the interface) and saves it as PNG in
@@ -335,6 +324,28 @@ impl App {
         let path = format!("palpa-screenshot-{secs}.png");
         image.save_png(std::path::Path::new(&path))?;
         Ok(path)
+    }
+
+    /// Replaces the room by the scene `spec` (the old one's threads are told to stop);
+    /// on failure the current scene stays and the panel says why.
+    fn switch(&mut self, spec: &str) {
+        let opened = crate::scenes::open(spec).and_then(|o| room_of(o, &self.haptics));
+        match opened {
+            Ok((room, source)) => {
+                self.room = room;
+                self.hud.scene_source = source;
+                self.hud.message = None;
+                if let Some(g) = self.graphics.as_mut() {
+                    g.renderer = match &self.room {
+                        Room::Palpation(s) => {
+                            Some(Renderer::new(&g.gpu.device, g.scene_format, &s.scene))
+                        }
+                        Room::Network(_) | Room::Building(_) => None,
+                    };
+                }
+            }
+            Err(e) => self.hud.message = Some(format!("cannot open {spec}: {e:#}")),
+        }
     }
 
     /// Hands an input event to the room (the network room is steered by its panel).
@@ -476,6 +487,29 @@ impl App {
     }
 }
 
+/// The room for an opened scene (a palpation scene starts its force thread; a network
+/// without a meta-model starts its build).
+fn room_of(opened: Opened, haptics: &AtomicHaptics) -> anyhow::Result<(Room, String)> {
+    Ok(match opened {
+        Opened::Palpation(loaded) => (
+            Room::Palpation(Box::new(
+                Session::new(loaded.scene, Box::new(haptics.clone()))
+                    .context("starting the force thread")?,
+            )),
+            loaded.source,
+        ),
+        Opened::Network { room, source } => (Room::Network(room), source),
+        Opened::NetworkSource {
+            network,
+            toml,
+            source,
+        } => match crate::network::prepare(*network, toml.as_deref())? {
+            Prepared::Ready(room) => (Room::Network(room), source),
+            Prepared::Building(b) => (Room::Building(b), source),
+        },
+    })
+}
+
 /// Runs the app on `event_loop` until the window closes.
 pub fn run_on(event_loop: EventLoop<()>, scene: &str) -> anyhow::Result<()> {
     let mut app = App::new(scene)?;
@@ -497,4 +531,44 @@ pub fn run(scene: &str) -> anyhow::Result<()> {
         )
     })?;
     run_on(event_loop, scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Switching scenes replaces the room (a build in flight is told to stop), and a
+    /// scene that cannot be opened leaves the current one with a message.
+    #[test]
+    fn switching_scenes_replaces_the_room_or_says_why_not() {
+        let mut app = App::new("liver").expect("the built-in liver");
+        assert!(matches!(app.room, Room::Palpation(_)));
+        let dir = tempfile::tempdir().expect("tempdir");
+        let toml = dir.path().join("net.toml");
+        std::fs::copy(
+            concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../assets/networks/cascade.toml"
+            ),
+            &toml,
+        )
+        .expect("copy");
+        app.switch(toml.to_str().expect("utf-8"));
+        assert!(
+            matches!(app.room, Room::Building(_)),
+            "{:?}",
+            app.hud.message
+        );
+        app.switch(&dir.path().join("nothing.palpa").display().to_string());
+        assert!(matches!(app.room, Room::Building(_)), "the room stays");
+        assert!(
+            app.hud
+                .message
+                .as_deref()
+                .is_some_and(|m| m.contains("nothing.palpa"))
+        );
+        app.switch("liver");
+        assert!(matches!(app.room, Room::Palpation(_)));
+        assert!(app.hud.message.is_none());
+    }
 }

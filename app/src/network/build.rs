@@ -158,7 +158,7 @@ impl Drop for NetworkBuild {
 
 /// Shows a build in progress: its network, a progress bar, cancel. Returns whether
 /// cancel was pressed.
-pub fn show(ctx: &egui::Context, b: &NetworkBuild) -> bool {
+pub fn show(ctx: &egui::Context, b: &NetworkBuild, hud: &mut crate::ui::Hud) -> bool {
     let mut cancel = false;
     egui::Window::new("building the network's meta-model")
         .default_pos([12.0, 12.0])
@@ -190,6 +190,11 @@ pub fn show(ctx: &egui::Context, b: &NetworkBuild) -> bool {
                     ui.label("cancelled: nothing was saved");
                 }
             }
+            if let Some(m) = &hud.message {
+                ui.colored_label(egui::Color32::from_rgb(230, 160, 60), m);
+            }
+            ui.separator();
+            crate::ui::scene_switcher(ui, hud);
         });
     cancel
 }

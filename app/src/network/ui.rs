@@ -28,6 +28,7 @@ pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
 
 fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
     ui.label(RichText::new(&hud.scene_source).small());
+    crate::ui::scene_switcher(ui, hud);
     if let Some(m) = &hud.message {
         ui.colored_label(Color32::from_rgb(230, 160, 60), m);
     }
