@@ -241,8 +241,18 @@ impl App {
     fn redraw(&mut self) {
         let frame_start = Instant::now();
         let viewport = self.viewport();
-        if let (Some(ev), Room::Palpation(session)) = (self.gamepads.poll(), &mut self.room) {
-            session.handle(ev, viewport);
+        match (self.gamepads.poll(), &mut self.room) {
+            (Some(ev), Room::Palpation(session)) => session.handle(ev, viewport),
+            (
+                Some(InputEvent::Gamepad {
+                    left,
+                    right,
+                    trigger,
+                    dt_s,
+                }),
+                Room::Network(n),
+            ) => n.steer(left.into(), right.x, trigger, dt_s),
+            _ => {}
         }
         self.gamepads.rumble(&self.haptics);
         self.hud.gamepad = self.gamepads.name();
