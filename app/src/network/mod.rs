@@ -54,6 +54,20 @@ pub struct CheckResult {
     pub exact: Moments,
 }
 
+/// The heat map's texture and the coordinates it shows.
+pub struct HeatTexture {
+    pub key: Vec<f64>,
+    pub handle: egui::TextureHandle,
+}
+
+impl std::fmt::Debug for HeatTexture {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HeatTexture")
+            .field("key", &self.key)
+            .finish_non_exhaustive()
+    }
+}
+
 /// A network scene being explored.
 #[derive(Debug)]
 pub struct NetworkRoom {
@@ -79,6 +93,8 @@ pub struct NetworkRoom {
     pub network: Option<Network>,
     pub check: Option<ExactCheck>,
     pub check_result: Option<CheckResult>,
+    /// The joint's heat-map texture (the interface's, kept across frames).
+    pub heat: Option<HeatTexture>,
 }
 
 impl NetworkRoom {
@@ -114,6 +130,7 @@ impl NetworkRoom {
             network: network_of(&model),
             check: None,
             check_result: None,
+            heat: None,
             model,
         }
     }

@@ -151,14 +151,15 @@ fn exact_check(ui: &mut egui::Ui, room: &mut NetworkRoom) {
     }
 }
 
-fn views(ui: &mut egui::Ui, room: &NetworkRoom) {
+fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
     match &room.joint {
         Some(j) if room.species.len() == 2 => {
             ui.label(format!(
                 "joint P({}, {}) at t = {:.3}",
                 room.species[0], room.species[1], room.time.value
             ));
-            heat_map(ui, j);
+            let key = room.coordinates();
+            heat_map(ui, j, &key, &mut room.heat);
         }
         _ => {
             ui.label(format!(
@@ -217,7 +218,7 @@ fn views(ui: &mut egui::Ui, room: &NetworkRoom) {
 /// largest probability and cropped to where it is at least 1e-4 of that (the box is
 /// sized for every time and parameter, the distribution at one of them is smaller); at
 /// most 160 cells a side (larger windows are binned by summing).
-fn heat_map(ui: &mut egui::Ui, j: &Joint) {
+fn heat_map(ui: &mut egui::Ui, j: &Joint, key: &[f64], heat: &mut Option<super::HeatTexture>) {
     const MAX_CELLS: usize = 160;
     let top = j.p.iter().copied().fold(0.0f64, f64::max);
     let (mut a0, mut a1, mut b0, mut b1) = (j.na, 0, j.nb, 0);
@@ -253,20 +254,41 @@ fn heat_map(ui: &mut egui::Ui, j: &Joint) {
         .min(ui.available_height() - 170.0)
         .max(120.0);
     let (rect, _) = ui.allocate_exact_size(egui::vec2(side, side), egui::Sense::hover());
-    let (w, h) = (rect.width() / nx as f32, rect.height() / ny as f32);
-    let painter = ui.painter_at(rect);
-    painter.rect_filled(rect, 0.0, ramp(0.0));
-    for y in 0..ny {
-        for x in 0..nx {
-            let v = cells[y * nx + x];
-            if v <= 0.0 {
-                continue;
+    // One texture, refreshed only when the coordinates change (thousands of quads
+    // would cost a software rasterizer tens of milliseconds a frame).
+    let fresh = heat.as_ref().is_none_or(|h| h.key != key);
+    if fresh {
+        let pixels: Vec<Color32> = (0..ny)
+            .rev()
+            .flat_map(|y| (0..nx).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                let v = cells[y * nx + x];
+                ramp(if v > 0.0 { (v / peak) as f32 } else { 0.0 })
+            })
+            .collect();
+        let image = egui::ColorImage::new([nx, ny], pixels);
+        match heat.as_mut() {
+            Some(h) => {
+                h.handle.set(image, egui::TextureOptions::NEAREST);
+                h.key = key.to_vec();
             }
-            let x0 = rect.left() + x as f32 * w;
-            let y0 = rect.bottom() - (y + 1) as f32 * h;
-            let r = egui::Rect::from_min_size(egui::pos2(x0, y0), egui::vec2(w + 0.5, h + 0.5));
-            painter.rect_filled(r, 0.0, ramp((v / peak) as f32));
+            None => {
+                *heat = Some(super::HeatTexture {
+                    key: key.to_vec(),
+                    handle: ui
+                        .ctx()
+                        .load_texture("joint", image, egui::TextureOptions::NEAREST),
+                });
+            }
         }
+    }
+    if let Some(h) = heat.as_ref() {
+        ui.painter_at(rect).image(
+            h.handle.id(),
+            rect,
+            egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+            Color32::WHITE,
+        );
     }
     ui.label(format!(
         "x: copies {a0}..{} · y: copies {b0}..{} · colour: probability up to {peak:.3e}",

@@ -378,21 +378,21 @@ impl Tt {
     /// The full tensor, first index fastest (for checks on small boxes).
     pub fn full(&self) -> Vec<f64> {
         // Right to left: t[(i_k…i_d), a_{k−1}] built as rows over the trailing indices.
+        // Each step is one matrix product, `M = T · C_(r0·n, r1)ᵀ` (count × r0·n, column
+        // `(a, i)`), then `next[(rest, i), a] = M[rest, (a, i)]`.
         let d = self.cores.len();
         let mut t: Vec<f64> = vec![1.0];
         let mut count = 1usize;
         for k in (0..d).rev() {
             let c = &self.cores[k];
-            // new[(i_k, rest), a] = Σ_b c[a, i_k, b] t[rest, b]; stored with i_k fastest.
+            let tm = MatRef::from_row_major_slice(&t, count, c.r1);
+            let cm = MatRef::from_row_major_slice(&c.v, c.r0 * c.n, c.r1);
+            let m = tm * cm.transpose();
             let mut next = vec![0.0; c.n * count * c.r0];
             for rest in 0..count {
-                for i in 0..c.n {
-                    for a in 0..c.r0 {
-                        let mut s = 0.0;
-                        for b in 0..c.r1 {
-                            s += c.at(a, i, b) * t[rest * c.r1 + b];
-                        }
-                        next[(rest * c.n + i) * c.r0 + a] = s;
+                for a in 0..c.r0 {
+                    for i in 0..c.n {
+                        next[(rest * c.n + i) * c.r0 + a] = m[(rest, a * c.n + i)];
                     }
                 }
             }
