@@ -167,3 +167,77 @@ fn default_scene_matches_the_reference_image() {
         "only {organ_like} organ-coloured pixels"
     );
 }
+
+/// The network scene's distribution window (the joint heat map, its axes and the
+/// marginals; the panel with its timings is left out: it changes run to run) against a
+/// reference image, for a toggle switch built here on [0, 2].
+#[test]
+fn the_network_scene_matches_the_reference_image() {
+    use palpa_app::network::offscreen::{NetworkHeadless, run};
+    use palpa_core::cme::network::Network;
+    use palpa_core::cme::{build, ttsolve};
+    let net = Network::built_in("toggle").expect("built in");
+    let options = ttsolve::Options {
+        t_end: 2.0,
+        h_max: 0.1,
+        ..ttsolve::Options::default()
+    };
+    let built = build::train(&net, &options, None, &mut |_| {}).expect("builds");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = dir.path().join("toggle.palpa");
+    built.save(&net, &file).expect("save");
+    let (_, actual) = run(&NetworkHeadless {
+        scene: file.display().to_string(),
+        // egui lays windows out unseen on their first frame.
+        frames: 3,
+        size: (900, 480),
+        out: None,
+        exact_check: false,
+    })
+    .expect("renders");
+    // The distribution window starts at x = 340.
+    let (x0, w, h) = (345usize, 900usize, 480usize);
+    let mut crop = Image {
+        width: (w - x0) as u32,
+        height: h as u32,
+        rgba: Vec::with_capacity((w - x0) * h * 4),
+    };
+    for y in 0..h {
+        crop.rgba
+            .extend_from_slice(&actual.rgba[4 * (y * w + x0)..4 * (y * w + w)]);
+    }
+    let reference_path = reference_dir().join("network-toggle.png");
+    if std::env::var_os("PALPA_UPDATE_REFERENCE").is_some() {
+        crop.save_png(&reference_path).expect("write reference");
+    }
+    let reference = Image::load_png(&reference_path)
+        .expect("reference image (PALPA_UPDATE_REFERENCE=1 writes it)");
+    assert_eq!(
+        (reference.width, reference.height),
+        (crop.width, crop.height)
+    );
+    let different = crop
+        .rgba
+        .chunks(4)
+        .zip(reference.rgba.chunks(4))
+        .filter(|(a, r)| (0..3).any(|c| a[c].abs_diff(r[c]) > PIXEL_TOLERANCE))
+        .count();
+    let fraction = different as f64 / (crop.width * crop.height) as f64;
+    if fraction > MAX_DIFFERENT_FRACTION {
+        let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("network-toggle-actual.png");
+        crop.save_png(&out).expect("write actual");
+        panic!(
+            "{:.3}% of pixels differ (allowed {:.3}%); see {}",
+            100.0 * fraction,
+            100.0 * MAX_DIFFERENT_FRACTION,
+            out.display()
+        );
+    }
+    // The heat map is there: pixels of the ramp's hot end.
+    let hot = crop
+        .rgba
+        .chunks(4)
+        .filter(|p| p[0] > 180 && p[2] < 80)
+        .count();
+    assert!(hot > 20, "only {hot} hot pixels");
+}
