@@ -4,15 +4,12 @@
 //! the solver options, so the next open is immediate.
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, TryRecvError, sync_channel};
-use std::thread::JoinHandle;
 
-use anyhow::Context;
 use palpa_core::cme::build;
 use palpa_core::cme::network::Network;
 use palpa_core::cme::ttsolve;
+
+use super::job::{Job, JobState};
 
 /// Where a network's meta-model is cached: next to its TOML file, or for a built-in
 /// network in the user's cache folder (`$XDG_CACHE_HOME/palpa`, `~/.cache/palpa`, else
@@ -38,32 +35,15 @@ pub fn cache_path(network: &Network, options: &ttsolve::Options, toml: Option<&P
     }
 }
 
-/// Where a build stands.
-#[derive(Debug, Clone, PartialEq)]
-pub enum BuildState {
-    /// Model time reached over the end of the time axis.
-    Running {
-        progress: f64,
-    },
-    Done(PathBuf),
-    Failed(String),
-    Cancelled,
-}
-
-/// The build's end: one message on its own channel of one slot, so sending it never
-/// blocks (progress goes on a bounded channel by `try_send` and may be dropped).
-type Outcome = Result<PathBuf, String>;
+/// Where a build stands (done: the saved file).
+pub type BuildState = JobState<PathBuf>;
 
 /// A network's off-line build running in the background.
 #[derive(Debug)]
 pub struct NetworkBuild {
     pub network: Network,
     pub out: PathBuf,
-    cancel: Arc<AtomicBool>,
-    progress: Receiver<f64>,
-    outcome: Receiver<Outcome>,
-    handle: Option<JoinHandle<()>>,
-    pub state: BuildState,
+    pub job: Job<PathBuf>,
 }
 
 impl NetworkBuild {
@@ -73,86 +53,32 @@ impl NetworkBuild {
         options: ttsolve::Options,
         out: PathBuf,
     ) -> anyhow::Result<Self> {
-        let cancel = Arc::new(AtomicBool::new(false));
-        let (tx, progress_rx) = sync_channel(16);
-        let (done_tx, outcome) = sync_channel(1);
-        let (flag, net, path) = (Arc::clone(&cancel), network.clone(), out.clone());
-        let handle = std::thread::Builder::new()
-            .name("palpa-network-build".into())
-            .spawn(move || {
-                let t_end = options.t_end;
-                let mut progress = |s: ttsolve::Step| {
-                    // A full channel only drops a progress report.
-                    let _ = tx.try_send(s.t / t_end);
-                };
-                let result = build::train_cancellable(&net, &options, &flag, &mut progress)
-                    .map_err(|e| e.to_string())
-                    .and_then(|built| {
-                        if let Some(dir) = path.parent() {
-                            std::fs::create_dir_all(dir)
-                                .map_err(|e| format!("creating {}: {e}", dir.display()))?;
-                        }
-                        built
-                            .save(&net, &path)
-                            .map_err(|e| format!("saving {}: {e}", path.display()))
-                    });
-                let _ = done_tx.send(result.map(|()| path));
-            })
-            .context("starting the network build thread")?;
-        Ok(NetworkBuild {
-            network,
-            out,
-            cancel,
-            progress: progress_rx,
-            outcome,
-            handle: Some(handle),
-            state: BuildState::Running { progress: 0.0 },
-        })
+        let (net, path) = (network.clone(), out.clone());
+        let job = Job::start("palpa-network-build", move |ctx| {
+            let t_end = options.t_end;
+            let mut progress = |s: ttsolve::Step| ctx.progress(s.t / t_end);
+            let built = build::train_cancellable(&net, &options, ctx.flag(), &mut progress)
+                .map_err(|e| e.to_string())?;
+            if let Some(dir) = path.parent() {
+                std::fs::create_dir_all(dir)
+                    .map_err(|e| format!("creating {}: {e}", dir.display()))?;
+            }
+            built
+                .save(&net, &path)
+                .map_err(|e| format!("saving {}: {e}", path.display()))?;
+            Ok(path)
+        })?;
+        Ok(NetworkBuild { network, out, job })
     }
 
     /// Takes what the thread sent since the last call (call once per frame).
     pub fn poll(&mut self) -> &BuildState {
-        if !matches!(self.state, BuildState::Running { .. }) {
-            return &self.state;
-        }
-        while let Ok(p) = self.progress.try_recv() {
-            self.state = BuildState::Running { progress: p };
-        }
-        match self.outcome.try_recv() {
-            Ok(Ok(path)) => self.state = BuildState::Done(path),
-            Ok(Err(why)) => {
-                self.state = if self.cancel.load(Ordering::Relaxed) {
-                    BuildState::Cancelled
-                } else {
-                    BuildState::Failed(why)
-                };
-            }
-            Err(TryRecvError::Empty) => return &self.state,
-            Err(TryRecvError::Disconnected) => {
-                self.state = BuildState::Failed("the build thread stopped".into());
-            }
-        }
-        if let Some(h) = self.handle.take()
-            && h.join().is_err()
-        {
-            self.state = BuildState::Failed("the build thread panicked".into());
-        }
-        &self.state
+        self.job.poll()
     }
 
     /// Tells the build to stop at its next step (it is not waited for).
     pub fn cancel(&mut self) {
-        self.cancel.store(true, Ordering::Relaxed);
-        self.handle.take();
-        if matches!(self.state, BuildState::Running { .. }) {
-            self.state = BuildState::Cancelled;
-        }
-    }
-}
-
-impl Drop for NetworkBuild {
-    fn drop(&mut self) {
-        self.cancel.store(true, Ordering::Relaxed);
+        self.job.cancel();
     }
 }
 
@@ -171,7 +97,7 @@ pub fn show(ctx: &egui::Context, b: &NetworkBuild, hud: &mut crate::ui::Hud) -> 
                 b.network.parameters.len()
             ));
             ui.label(egui::RichText::new(format!("into {}", b.out.display())).small());
-            match &b.state {
+            match &b.job.state {
                 BuildState::Running { progress } => {
                     ui.add(
                         egui::ProgressBar::new(*progress as f32)
@@ -236,10 +162,10 @@ mod tests {
         b.cancel();
         assert_eq!(*b.poll(), BuildState::Cancelled);
         let t0 = Instant::now();
-        while Arc::strong_count(&b.cancel) > 1 && t0.elapsed() < Duration::from_secs(60) {
+        while b.job.thread_alive() && t0.elapsed() < Duration::from_secs(60) {
             std::thread::sleep(Duration::from_millis(5));
         }
-        assert_eq!(Arc::strong_count(&b.cancel), 1, "the build thread ended");
+        assert!(!b.job.thread_alive(), "the build thread ended");
         assert!(!out.exists(), "nothing saved");
     }
 }

@@ -1,24 +1,24 @@
-//! The exact check beside the meta-model: FSP at the room's current coordinates, in a
-//! named background thread that never blocks a frame. The solve advances in slices of
-//! time (uniformization is exact slice by slice), so it reports progress and stops
-//! within one slice of a cancel.
+//! The checks beside the meta-model, at the room's current coordinates, as background
+//! [`Job`]s that never block a frame:
+//!
+//! - **exact**: FSP on the model's box, advanced in 40 slices of time (uniformization is
+//!   exact slice by slice), so it reports progress and stops within a slice of a cancel;
+//! - **sampled**: K SSA trajectories in 20 seeded batches, each batch's histograms
+//!   merged (equal batches: their average), cancelled between batches.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, TryRecvError, sync_channel};
-use std::thread::JoinHandle;
 use std::time::Instant;
 
 use anyhow::Context;
 use palpa_core::cme::fsp::Generator;
 use palpa_core::cme::network::Network;
+use palpa_core::cme::ssa;
+
+use super::job::Job;
 
 /// Slices the time interval is advanced in (progress and cancel granularity).
 const SLICES: usize = 40;
-
-/// The check's end: one message on its own channel of one slot, so sending it never
-/// blocks (progress goes on a bounded channel by `try_send` and may be dropped).
-type Outcome = Result<(Vec<f64>, f64), String>;
+/// Batches of SSA trajectories.
+const BATCHES: usize = 20;
 
 /// The exact joint at some coordinates.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,141 +30,109 @@ pub struct Exact {
     pub seconds: f64,
 }
 
-/// Where a check stands.
+/// Sampled marginals at some coordinates.
 #[derive(Debug, Clone, PartialEq)]
-pub enum CheckState {
-    Running { progress: f64 },
-    Done(Exact),
-    Failed(String),
-    Cancelled,
+pub struct Sampled {
+    pub coordinates: Vec<f64>,
+    /// Per species, the histogram over copy numbers (as probabilities).
+    pub marginals: Vec<Vec<f64>>,
+    pub trajectories: usize,
+    pub seconds: f64,
 }
 
-/// A running (or finished) exact check.
-#[derive(Debug)]
-pub struct ExactCheck {
-    cancel: Arc<AtomicBool>,
-    progress: Receiver<f64>,
-    outcome: Receiver<Outcome>,
-    handle: Option<JoinHandle<()>>,
+/// Starts FSP of `network` with parameter values `p` on the box `sizes`, to time `t`;
+/// `coordinates` label the result.
+pub fn start_exact(
+    network: &Network,
+    p: &[f64],
+    sizes: &[usize],
+    t: f64,
     coordinates: Vec<f64>,
-    pub state: CheckState,
-}
-
-impl ExactCheck {
-    /// Starts FSP of `network` with parameter values `p` on the box `sizes`, to time
-    /// `t`; `coordinates` label the result.
-    pub fn start(
-        network: &Network,
-        p: &[f64],
-        sizes: &[usize],
-        t: f64,
-        coordinates: Vec<f64>,
-    ) -> anyhow::Result<ExactCheck> {
-        let generator = Generator::new(network, p, sizes).context("the exact check")?;
-        let mut start = 0usize;
-        let mut stride = 1usize;
-        for (s, &m) in network.species.iter().zip(sizes) {
-            start += s.initial.min(m - 1) * stride;
-            stride *= m;
+) -> anyhow::Result<Job<Exact>> {
+    let generator = Generator::new(network, p, sizes).context("the exact check")?;
+    let mut start = 0usize;
+    let mut stride = 1usize;
+    for (s, &m) in network.species.iter().zip(sizes) {
+        start += s.initial.min(m - 1) * stride;
+        stride *= m;
+    }
+    Job::start("palpa-exact-check", move |ctx| {
+        let t0 = Instant::now();
+        let mut prob = vec![0.0; generator.states()];
+        prob[start] = 1.0;
+        let dt = t.max(0.0) / SLICES as f64;
+        for k in 0..SLICES {
+            if ctx.cancelled() {
+                return Err("cancelled".into());
+            }
+            if dt > 0.0 {
+                generator.advance(&mut prob, dt);
+            }
+            ctx.progress((k + 1) as f64 / SLICES as f64);
         }
-        let cancel = Arc::new(AtomicBool::new(false));
-        let (tx, progress) = sync_channel(8);
-        let (done_tx, outcome) = sync_channel(1);
-        let flag = Arc::clone(&cancel);
-        let handle = std::thread::Builder::new()
-            .name("palpa-exact-check".into())
-            .spawn(move || {
-                let t0 = Instant::now();
-                let mut prob = vec![0.0; generator.states()];
-                prob[start] = 1.0;
-                let dt = t.max(0.0) / SLICES as f64;
-                for k in 0..SLICES {
-                    if flag.load(Ordering::Relaxed) {
-                        return;
-                    }
-                    if dt > 0.0 {
-                        generator.advance(&mut prob, dt);
-                    }
-                    // A full channel only drops a progress report.
-                    let _ = tx.try_send((k + 1) as f64 / SLICES as f64);
-                }
-                let _ = done_tx.send(if prob.iter().any(|v| !v.is_finite()) {
-                    Err("the exact solve diverged".into())
-                } else {
-                    Ok((prob, t0.elapsed().as_secs_f64()))
-                });
-            })
-            .context("starting the exact-check thread")?;
-        Ok(ExactCheck {
-            cancel,
-            progress,
-            outcome,
-            handle: Some(handle),
+        if prob.iter().any(|v| !v.is_finite()) {
+            return Err("the exact solve diverged".into());
+        }
+        Ok(Exact {
             coordinates,
-            state: CheckState::Running { progress: 0.0 },
+            joint: prob,
+            seconds: t0.elapsed().as_secs_f64(),
         })
-    }
-
-    /// Takes what the thread sent since the last call (call once per frame).
-    pub fn poll(&mut self) -> &CheckState {
-        if !matches!(self.state, CheckState::Running { .. }) {
-            return &self.state;
-        }
-        while let Ok(p) = self.progress.try_recv() {
-            self.state = CheckState::Running { progress: p };
-        }
-        match self.outcome.try_recv() {
-            Ok(Ok((joint, seconds))) => {
-                self.state = CheckState::Done(Exact {
-                    coordinates: self.coordinates.clone(),
-                    joint,
-                    seconds,
-                });
-            }
-            Ok(Err(why)) => self.state = CheckState::Failed(why),
-            Err(TryRecvError::Empty) => return &self.state,
-            Err(TryRecvError::Disconnected) => {
-                self.state = CheckState::Failed("the exact-check thread stopped".into());
-            }
-        }
-        self.join();
-        &self.state
-    }
-
-    /// Tells the thread to stop (it ends within one slice, detached: a frame never
-    /// waits for it) and marks the check cancelled.
-    pub fn cancel(&mut self) {
-        self.cancel.store(true, Ordering::Relaxed);
-        self.handle.take();
-        if matches!(self.state, CheckState::Running { .. }) {
-            self.state = CheckState::Cancelled;
-        }
-    }
-
-    /// Whether the thread has ended (or was let go).
-    pub fn finished(&self) -> bool {
-        self.handle.as_ref().is_none_or(|h| h.is_finished())
-    }
-
-    /// Waits for the thread until it has ended; reports a panic as a failure.
-    fn join(&mut self) {
-        if let Some(h) = self.handle.take()
-            && h.join().is_err()
-        {
-            self.state = CheckState::Failed("the exact-check thread panicked".into());
-        }
-    }
+    })
 }
 
-impl Drop for ExactCheck {
-    /// A dropped check stops its thread without waiting for it.
-    fn drop(&mut self) {
-        self.cancel.store(true, Ordering::Relaxed);
-    }
+/// Starts `trajectories` SSA paths (seeded) of `network` with parameter values `p` to
+/// time `t`, histogrammed on boxes of `sizes` (copy numbers beyond a box go to its last
+/// bin, as the model's box would hold them).
+pub fn start_sampled(
+    network: &Network,
+    p: &[f64],
+    sizes: &[usize],
+    t: f64,
+    coordinates: Vec<f64>,
+    trajectories: usize,
+    seed: u64,
+) -> anyhow::Result<Job<Sampled>> {
+    let (network, p, sizes) = (network.clone(), p.to_vec(), sizes.to_vec());
+    Job::start("palpa-ssa-check", move |ctx| {
+        let t0 = Instant::now();
+        let per = trajectories.div_ceil(BATCHES).max(1);
+        let mut sums: Vec<Vec<f64>> = sizes.iter().map(|&m| vec![0.0; m]).collect();
+        let mut done = 0usize;
+        for b in 0..BATCHES {
+            if ctx.cancelled() {
+                return Err("cancelled".into());
+            }
+            let n = per.min(trajectories - done);
+            if n == 0 {
+                break;
+            }
+            let sol = ssa::simulate(&network, &p, &[t.max(0.0)], n, seed ^ (b as u64 + 1));
+            let m = &sol.moments[0];
+            for (sum, (marginal, &size)) in sums.iter_mut().zip(m.marginals.iter().zip(&sizes)) {
+                for (z, &q) in marginal.iter().enumerate() {
+                    sum[z.min(size - 1)] += q * n as f64;
+                }
+            }
+            done += n;
+            ctx.progress(done as f64 / trajectories as f64);
+        }
+        let marginals = sums
+            .into_iter()
+            .map(|s| s.into_iter().map(|v| v / done.max(1) as f64).collect())
+            .collect();
+        Ok(Sampled {
+            coordinates,
+            marginals,
+            trajectories: done,
+            seconds: t0.elapsed().as_secs_f64(),
+        })
+    })
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::job::JobState;
     use super::*;
     use std::time::Duration;
 
@@ -179,23 +147,23 @@ mod tests {
         (n, p, sizes)
     }
 
-    fn wait(check: &mut ExactCheck) -> CheckState {
+    fn wait<T: Clone + Send + 'static>(job: &mut Job<T>) -> JobState<T> {
         let t0 = Instant::now();
-        while matches!(check.poll(), CheckState::Running { .. })
+        while matches!(job.poll(), JobState::Running { .. })
             && t0.elapsed() < Duration::from_secs(60)
         {
             std::thread::sleep(Duration::from_millis(2));
         }
-        check.state.clone()
+        job.state.clone()
     }
 
     /// A check runs to the end off the caller's thread and returns a probability
     /// distribution labelled with its coordinates.
     #[test]
-    fn a_check_finishes_with_a_distribution() {
+    fn an_exact_check_finishes_with_a_distribution() {
         let (n, p, sizes) = toggle();
-        let mut c = ExactCheck::start(&n, &p, &sizes, 1.0, vec![1.0]).expect("starts");
-        let CheckState::Done(exact) = wait(&mut c) else {
+        let mut c = start_exact(&n, &p, &sizes, 1.0, vec![1.0]).expect("starts");
+        let JobState::Done(exact) = wait(&mut c) else {
             panic!("finished: {:?}", c.state);
         };
         assert_eq!(exact.coordinates, vec![1.0]);
@@ -204,22 +172,48 @@ mod tests {
         assert!(c.finished());
     }
 
+    /// Sampled marginals are distributions, close to the exact ones at the sampling
+    /// noise, and the same for the same seed.
+    #[test]
+    fn a_sampled_check_approaches_the_exact_marginals() {
+        let (n, p, sizes) = toggle();
+        let mut e = start_exact(&n, &p, &sizes, 2.0, vec![2.0]).expect("starts");
+        let JobState::Done(exact) = wait(&mut e) else {
+            panic!("exact: {:?}", e.state);
+        };
+        let marg0: Vec<f64> = (0..sizes[0])
+            .map(|a| (0..sizes[1]).map(|b| exact.joint[b * sizes[0] + a]).sum())
+            .collect();
+        let run = || {
+            let mut s = start_sampled(&n, &p, &sizes, 2.0, vec![2.0], 4000, 7).expect("starts");
+            let JobState::Done(sampled) = wait(&mut s) else {
+                panic!("sampled: {:?}", s.state);
+            };
+            sampled
+        };
+        let (a, b) = (run(), run());
+        assert_eq!(a.marginals, b.marginals, "seeded");
+        assert_eq!(a.trajectories, 4000);
+        let total: f64 = a.marginals[0].iter().sum();
+        assert!((total - 1.0).abs() < 1e-9);
+        let l1 = palpa_core::cme::moments::l1(&a.marginals[0], &marg0);
+        // Sampling noise: about √(bins / K) ≈ 0.1 for a dozen occupied bins.
+        assert!(l1 < 0.15, "L1 {l1}");
+    }
+
     /// Cancelling marks the check at once and its thread ends within a slice.
     #[test]
     fn a_cancelled_check_stops() {
         let (n, p, sizes) = toggle();
-        let mut c = ExactCheck::start(&n, &p, &sizes, 1e5, vec![1e5]).expect("starts");
+        let mut c = start_exact(&n, &p, &sizes, 1e5, vec![1e5]).expect("starts");
         c.cancel();
-        assert_eq!(c.state, CheckState::Cancelled);
-        assert_eq!(*c.poll(), CheckState::Cancelled);
+        assert_eq!(c.state, JobState::Cancelled);
+        assert_eq!(*c.poll(), JobState::Cancelled);
         assert!(c.finished(), "the thread is let go");
-        // The thread drops its handle on the flag when it ends: within one slice of a
-        // solve that would otherwise take minutes.
         let t0 = Instant::now();
-        while Arc::strong_count(&c.cancel) > 1 && t0.elapsed() < Duration::from_secs(30) {
+        while c.thread_alive() && t0.elapsed() < Duration::from_secs(30) {
             std::thread::sleep(Duration::from_millis(2));
         }
-        assert_eq!(Arc::strong_count(&c.cancel), 1, "the thread ended");
-        assert!(t0.elapsed() < Duration::from_secs(30));
+        assert!(!c.thread_alive(), "the thread ended");
     }
 }

@@ -8,6 +8,7 @@
 
 pub mod build;
 pub mod check;
+pub mod job;
 pub mod offscreen;
 mod ui;
 
@@ -19,7 +20,8 @@ use palpa_core::cme::moments::{Moments, l1};
 use palpa_core::cme::network::Network;
 
 use crate::stats::Ring;
-use check::{CheckState, ExactCheck};
+use check::{Exact, Sampled};
+use job::{Job, JobState};
 
 pub use ui::show;
 
@@ -52,6 +54,15 @@ pub struct CheckResult {
     pub model_us: f64,
     /// The exact marginals (overlaid on the model's).
     pub exact: Moments,
+}
+
+/// The sampled check's verdict at the coordinates it ran at.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SsaResult {
+    pub sampled: Sampled,
+    /// Largest L1 distance, over the species, between the meta-model's marginal and
+    /// the histogram (it includes the sampling noise, about √(bins / K)).
+    pub l1: f64,
 }
 
 /// The heat map's texture and the coordinates it shows.
@@ -91,8 +102,11 @@ pub struct NetworkRoom {
     /// The network the model was built from, when it is known (a built-in): what the
     /// exact check solves.
     pub network: Option<Network>,
-    pub check: Option<ExactCheck>,
+    pub check: Option<Job<Exact>>,
     pub check_result: Option<CheckResult>,
+    /// The sampled (SSA) check and its verdict.
+    pub ssa: Option<Job<Sampled>>,
+    pub ssa_result: Option<SsaResult>,
     /// The joint's heat-map texture (the interface's, kept across frames).
     pub heat: Option<HeatTexture>,
 }
@@ -130,6 +144,8 @@ impl NetworkRoom {
             network: network_of(&model),
             check: None,
             check_result: None,
+            ssa: None,
+            ssa_result: None,
             heat: None,
             model,
         }
@@ -160,7 +176,7 @@ impl NetworkRoom {
         if let Some(old) = self.check.as_mut() {
             old.cancel();
         }
-        self.check = Some(ExactCheck::start(
+        self.check = Some(check::start_exact(
             network,
             &p,
             &self.model.box_sizes(),
@@ -170,22 +186,78 @@ impl NetworkRoom {
         Ok(())
     }
 
+    /// Starts the sampled (SSA, `trajectories` paths, seeded) check at the current
+    /// coordinates, replacing a running one.
+    pub fn start_ssa(&mut self, trajectories: usize) -> anyhow::Result<()> {
+        let network = self
+            .network
+            .as_ref()
+            .context("the SSA check needs the network the model was built from")?;
+        let (p, _) = network.parameter_values(&self.settings())?;
+        if let Some(old) = self.ssa.as_mut() {
+            old.cancel();
+        }
+        self.ssa = Some(check::start_sampled(
+            network,
+            &p,
+            &self.model.box_sizes(),
+            self.time.value,
+            self.coordinates(),
+            trajectories,
+            0x5eed,
+        )?);
+        Ok(())
+    }
+
+    /// Takes a finished SSA check and compares its histograms with the model's
+    /// marginals there.
+    fn poll_ssa(&mut self) {
+        let Some(job) = self.ssa.as_mut() else {
+            return;
+        };
+        let JobState::Done(sampled) = job.poll().clone() else {
+            return;
+        };
+        self.ssa = None;
+        let set = self.settings_at(&sampled.coordinates);
+        match self
+            .model
+            .evaluate(sampled.coordinates[0], &set, usize::MAX)
+        {
+            Ok(e) => {
+                let l1 = e
+                    .moments
+                    .marginals
+                    .iter()
+                    .zip(&sampled.marginals)
+                    .map(|(m, s)| l1(m, s))
+                    .fold(0.0, f64::max);
+                self.ssa_result = Some(SsaResult { sampled, l1 });
+            }
+            Err(e) => self.error = Some(e.to_string()),
+        }
+    }
+
+    /// The parameter settings at stored coordinates (time first).
+    fn settings_at(&self, coordinates: &[f64]) -> Vec<(String, f64)> {
+        self.params
+            .iter()
+            .zip(&coordinates[1..])
+            .map(|(c, &v)| (c.name.clone(), v))
+            .collect()
+    }
+
     /// Takes a finished check's joint and compares it with the meta-model's there.
     fn poll_check(&mut self) {
         let Some(check) = self.check.as_mut() else {
             return;
         };
-        let CheckState::Done(exact) = check.poll().clone() else {
+        let JobState::Done(exact) = check.poll().clone() else {
             return;
         };
         self.check = None;
         let t = exact.coordinates[0];
-        let set: Vec<(String, f64)> = self
-            .params
-            .iter()
-            .zip(&exact.coordinates[1..])
-            .map(|(c, &v)| (c.name.clone(), v))
-            .collect();
+        let set = self.settings_at(&exact.coordinates);
         let t0 = Instant::now();
         match self.model.joint(t, &set, usize::MAX) {
             Ok(joint) => {
@@ -229,6 +301,7 @@ impl NetworkRoom {
             self.time.value = if t > self.time.hi { 0.0 } else { t };
         }
         self.poll_check();
+        self.poll_ssa();
         let now = self.coordinates();
         if self.evaluated_at.as_ref() != Some(&now) {
             self.evaluate();

@@ -86,7 +86,7 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
             while room.check.is_some() && waited.elapsed().as_secs() < 600 {
                 room.frame(0.0);
                 if let Some(c) = &room.check
-                    && let super::check::CheckState::Failed(why) = &c.state
+                    && let super::job::JobState::Failed(why) = &c.state
                 {
                     bail!("the exact check failed: {why}");
                 }

@@ -5,7 +5,7 @@
 
 use egui::{Color32, RichText};
 
-use super::check::CheckState;
+use super::job::JobState;
 use super::{Joint, NetworkRoom};
 use crate::ui::{Hud, ramp};
 
@@ -97,43 +97,35 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
     ));
 }
 
-/// The exact (FSP) check: start, progress and cancel, and its verdict.
+/// Trajectories of the SSA check.
+const SSA_TRAJECTORIES: usize = 10_000;
+
+/// The checks: exact (FSP) and sampled (SSA), each with start, progress and cancel, and
+/// its verdict next to the meta-model's time.
 fn exact_check(ui: &mut egui::Ui, room: &mut NetworkRoom) {
-    let mut start = false;
-    let mut cancel = false;
-    match room.check.as_ref().map(|c| &c.state) {
-        Some(CheckState::Running { progress }) => {
-            ui.horizontal(|ui| {
-                ui.add(egui::ProgressBar::new(*progress as f32).text("exact (FSP)…"));
-                cancel = ui.button("cancel").clicked();
-            });
-        }
-        state => {
-            let enabled = room.network.is_some();
-            let button = ui
-                .add_enabled(enabled, egui::Button::new("exact check (FSP) here"))
-                .on_disabled_hover_text(
-                    "the exact check needs the network the model was built from (a built-in)",
-                );
-            start = button.clicked();
-            match state {
-                Some(CheckState::Failed(why)) => {
-                    ui.colored_label(Color32::from_rgb(230, 90, 80), why);
-                }
-                Some(CheckState::Cancelled) => {
-                    ui.label("exact check cancelled");
-                }
-                _ => {}
-            }
-        }
-    }
+    let enabled = room.network.is_some();
+    let why = "the checks need the network the model was built from (a built-in or a TOML file)";
+    let exact = job_row(
+        ui,
+        room.check.as_ref().map(|j| &j.state),
+        enabled,
+        why,
+        "exact check (FSP) here",
+    );
+    let ssa = job_row(
+        ui,
+        room.ssa.as_ref().map(|j| &j.state),
+        enabled,
+        why,
+        &format!("SSA check ({SSA_TRAJECTORIES} paths) here"),
+    );
+    let coordinates = room.coordinates();
     if let Some(r) = &room.check_result {
-        let stale = r.coordinates != room.coordinates();
         ui.label(format!(
-            "L1 to exact {:.2e} · FSP {:.2} s · meta-model joint {:.0} µs",
+            "exact: joint L1 {:.2e} · FSP {:.2} s · meta-model joint {:.0} µs",
             r.l1, r.exact_s, r.model_us
         ));
-        if stale {
+        if r.coordinates != coordinates {
             ui.label(
                 RichText::new(format!(
                     "(at t = {:.3}; coordinates moved since)",
@@ -143,12 +135,88 @@ fn exact_check(ui: &mut egui::Ui, room: &mut NetworkRoom) {
             );
         }
     }
-    if cancel && let Some(c) = room.check.as_mut() {
-        c.cancel();
+    if let Some(r) = &room.ssa_result {
+        ui.label(format!(
+            "SSA: marginal L1 ≤ {:.2e} (noise included) · {} paths in {:.2} s",
+            r.l1, r.sampled.trajectories, r.sampled.seconds
+        ));
+        if r.sampled.coordinates != coordinates {
+            ui.label(
+                RichText::new(format!(
+                    "(at t = {:.3}; coordinates moved since)",
+                    r.sampled.coordinates[0]
+                ))
+                .small(),
+            );
+        }
     }
-    if start && let Err(e) = room.start_check() {
-        room.error = Some(format!("{e:#}"));
+    match exact {
+        Some(true) => {
+            if let Err(e) = room.start_check() {
+                room.error = Some(format!("{e:#}"));
+            }
+        }
+        Some(false) => {
+            if let Some(j) = room.check.as_mut() {
+                j.cancel();
+            }
+        }
+        None => {}
     }
+    match ssa {
+        Some(true) => {
+            if let Err(e) = room.start_ssa(SSA_TRAJECTORIES) {
+                room.error = Some(format!("{e:#}"));
+            }
+        }
+        Some(false) => {
+            if let Some(j) = room.ssa.as_mut() {
+                j.cancel();
+            }
+        }
+        None => {}
+    }
+}
+
+/// One job's row: a progress bar and cancel while it runs, else its start button and
+/// how it ended. `Some(true)`: start pressed; `Some(false)`: cancel pressed.
+fn job_row<T>(
+    ui: &mut egui::Ui,
+    state: Option<&JobState<T>>,
+    enabled: bool,
+    why: &str,
+    label: &str,
+) -> Option<bool> {
+    let mut pressed = None;
+    match state {
+        Some(JobState::Running { progress }) => {
+            ui.horizontal(|ui| {
+                ui.add(egui::ProgressBar::new(*progress as f32).text(label));
+                if ui.button("cancel").clicked() {
+                    pressed = Some(false);
+                }
+            });
+        }
+        state => {
+            if ui
+                .add_enabled(enabled, egui::Button::new(label))
+                .on_disabled_hover_text(why)
+                .clicked()
+            {
+                pressed = Some(true);
+            }
+            match state {
+                Some(JobState::Failed(why)) => {
+                    ui.colored_label(Color32::from_rgb(230, 90, 80), why);
+                }
+                Some(JobState::Cancelled) => {
+                    ui.label("cancelled");
+                }
+                _ => {}
+            }
+        }
+    }
+    pressed
 }
 
 fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
@@ -190,6 +258,13 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
                         .map(|(z, &p)| [z as f64, p])
                         .collect()
                 });
+                let sampled: Option<Vec<[f64; 2]>> = room.ssa_result.as_ref().map(|r| {
+                    r.sampled.marginals[i]
+                        .iter()
+                        .enumerate()
+                        .map(|(z, &p)| [z as f64, p])
+                        .collect()
+                });
                 egui_plot::Plot::new(format!("marginal-{i}"))
                     .width(220.0)
                     .height(110.0)
@@ -203,6 +278,13 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
                             plot.line(
                                 egui_plot::Line::new("exact", points)
                                     .color(Color32::from_rgb(240, 240, 240)),
+                            );
+                        }
+                        if let Some(points) = sampled {
+                            plot.points(
+                                egui_plot::Points::new("SSA", points)
+                                    .radius(1.5)
+                                    .color(Color32::from_rgb(120, 220, 255)),
                             );
                         }
                     });
