@@ -21,6 +21,8 @@ use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
 use super::memory::{peak_bytes, reset_peak};
+use palpa_core::organ::OrganMesh;
+
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
 
 #[derive(Debug, Args)]
@@ -70,14 +72,41 @@ const DEPTH_POSITIONS: [(&str, [f64; 3]); 10] = [
 ];
 
 pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
-    let req = |at, force_n| ProbeRequest {
+    let levels = [LevelArg::Coarse, LevelArg::Medium, LevelArg::Fine];
+    if args.wants("cost") {
+        cost(args, &levels)?;
+    }
+    if args.wants("poisson") {
+        poisson()?;
+    }
+    let coarse = mesh_organ(OrganName::Liver, LevelArg::Coarse, None)?;
+    if args.wants("positions") {
+        positions(args, &levels)?;
+    }
+    if args.wants("svk_limit") {
+        svk_limit(&coarse);
+    }
+    if args.wants("depth") {
+        depth(args, &coarse);
+    }
+    if args.wants("svk") {
+        svk(&coarse);
+    }
+    Ok(())
+}
+
+fn req(at: [f64; 3], force_n: f64) -> ProbeRequest {
+    ProbeRequest {
         at,
         force_n,
         dir: None,
         radius_mm: 5.0,
-    };
-    let levels = [LevelArg::Coarse, LevelArg::Medium, LevelArg::Fine];
-    for level in levels.into_iter().filter(|_| args.wants("cost")) {
+    }
+}
+
+/// Assembly, factorization and solve seconds and peak memory per level and element.
+fn cost(args: &FeBenchArgs, levels: &[LevelArg]) -> anyhow::Result<()> {
+    for &level in levels {
         let organ = mesh_organ(OrganName::Liver, level, None)?;
         for element in [Element::P1, Element::P2] {
             if element == Element::P2 && level == LevelArg::Fine && !args.fine_p2 {
@@ -107,10 +136,12 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
             );
         }
     }
-    for level in [LevelArg::Coarse, LevelArg::Medium]
-        .into_iter()
-        .filter(|_| args.wants("poisson"))
-    {
+    Ok(())
+}
+
+/// The probe displacement as ν → 0.5, P1 against P2 (locking).
+fn poisson() -> anyhow::Result<()> {
+    for level in [LevelArg::Coarse, LevelArg::Medium] {
         let organ = mesh_organ(OrganName::Liver, level, None)?;
         for poisson in [0.45, 0.48, 0.49, 0.499] {
             let mut row = json!({"table": "poisson", "level": format!("{level:?}").to_lowercase(), "poisson": poisson});
@@ -125,8 +156,12 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
             println!("{row}");
         }
     }
-    let coarse = mesh_organ(OrganName::Liver, LevelArg::Coarse, None)?;
-    for level in levels.into_iter().filter(|_| args.wants("positions")) {
+    Ok(())
+}
+
+/// The linear probe displacement at named positions.
+fn positions(args: &FeBenchArgs, levels: &[LevelArg]) -> anyhow::Result<()> {
+    for &level in levels {
         let organ = mesh_organ(OrganName::Liver, level, None)?;
         for (name, at) in POSITIONS {
             let mut row = json!({"table": "positions", "level": format!("{level:?}").to_lowercase(), "position": name});
@@ -141,126 +176,132 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
             println!("{row}");
         }
     }
-    if args.wants("svk_limit") {
-        // Largest force SVK Newton still reaches, by bisection on F ∈ [1, 256] N
-        // (P1 everywhere; P2 at the anterior point, where it is slower).
-        for (name, at) in POSITIONS {
-            for element in [Element::P1, Element::P2] {
-                if element == Element::P2 && at != ANTERIOR {
-                    continue;
-                }
-                let converges = |f: f64| {
-                    solve_hyperelastic(
-                        &coarse,
-                        element,
-                        Material::default(),
-                        Law::Svk,
-                        &req(at, f),
-                        None,
-                        NewtonSettings::default(),
-                    )
-                    .is_ok()
-                };
-                let (mut ok, mut bad) = (0.0, 256.0);
-                if converges(bad) {
-                    ok = bad;
-                } else {
-                    let mut lo = 1.0;
-                    if converges(lo) {
-                        ok = lo;
-                        for _ in 0..6 {
-                            let mid = (lo * bad).sqrt();
-                            if converges(mid) {
-                                ok = mid;
-                                lo = mid;
-                            } else {
-                                bad = mid;
-                            }
-                        }
-                    }
-                }
-                let beyond = solve_hyperelastic(
-                    &coarse,
+    Ok(())
+}
+
+/// The largest force SVK Newton still reaches, by bisection.
+fn svk_limit(coarse: &OrganMesh) {
+    // Largest force SVK Newton still reaches, by bisection on F ∈ [1, 256] N
+    // (P1 everywhere; P2 at the anterior point, where it is slower).
+    for (name, at) in POSITIONS {
+        for element in [Element::P1, Element::P2] {
+            if element == Element::P2 && at != ANTERIOR {
+                continue;
+            }
+            let converges = |f: f64| {
+                solve_hyperelastic(
+                    coarse,
                     element,
                     Material::default(),
                     Law::Svk,
-                    &req(at, bad),
+                    &req(at, f),
                     None,
                     NewtonSettings::default(),
                 )
-                .err()
-                .map(|e| e.to_string());
-                println!(
-                    "{}",
-                    json!({"table": "svk_limit", "level": "coarse", "element": element.name(), "position": name,
-                           "max_converged_force_n": ok, "first_failing_force_n": bad, "beyond": beyond})
-                );
-            }
-        }
-    }
-    if args.wants("depth") {
-        for law in [Law::NeoHookean, Law::Svk] {
-            for (name, at) in DEPTH_POSITIONS {
-                let t = Instant::now();
-                let out = solve_hyperelastic(
-                    &coarse,
-                    Element::P2,
-                    Material::default(),
-                    law,
-                    &req(at, f64::NAN),
-                    Some(args.depth_mm),
-                    NewtonSettings::default(),
-                );
-                let mut row = json!({"table": "depth", "level": "coarse", "element": "p2",
-                    "law": law.name(), "position": name, "depth_mm": args.depth_mm,
-                    "seconds": t.elapsed().as_secs_f64()});
-                match out {
-                    Ok((sol, rep)) => {
-                        row["converged"] = json!(true);
-                        row["force_n"] = json!(sol.force_n);
-                        row["max_displacement_mm"] = json!(sol.max_displacement_mm);
-                        row["newton_iterations"] = json!(rep.iterations);
-                        row["steps"] = json!(rep.load_steps);
-                        row["step_cuts"] = json!(rep.step_cuts);
-                        row["probe_point"] = json!(sol.probe.point);
-                    }
-                    Err(e) => {
-                        row["converged"] = json!(false);
-                        row["error"] = json!(e.to_string());
+                .is_ok()
+            };
+            let (mut ok, mut bad) = (0.0, 256.0);
+            if converges(bad) {
+                ok = bad;
+            } else {
+                let mut lo = 1.0;
+                if converges(lo) {
+                    ok = lo;
+                    for _ in 0..6 {
+                        let mid = (lo * bad).sqrt();
+                        if converges(mid) {
+                            ok = mid;
+                            lo = mid;
+                        } else {
+                            bad = mid;
+                        }
                     }
                 }
-                println!("{row}");
             }
+            let beyond = solve_hyperelastic(
+                coarse,
+                element,
+                Material::default(),
+                Law::Svk,
+                &req(at, bad),
+                None,
+                NewtonSettings::default(),
+            )
+            .err()
+            .map(|e| e.to_string());
+            println!(
+                "{}",
+                json!({"table": "svk_limit", "level": "coarse", "element": element.name(), "position": name,
+                       "max_converged_force_n": ok, "first_failing_force_n": bad, "beyond": beyond})
+            );
         }
     }
-    if args.wants("svk") {
-        for element in [Element::P1, Element::P2] {
-            for force_n in [1.0, 5.0, 10.0] {
-                let t = Instant::now();
-                let out = solve_hyperelastic(
-                    &coarse,
-                    element,
-                    Material::default(),
-                    Law::Svk,
-                    &req(ANTERIOR, force_n),
-                    None,
-                    NewtonSettings::default(),
-                );
-                let row = match out {
-                    Ok((sol, rep)) => {
-                        json!({"table": "svk", "level": "coarse", "element": element.name(), "force_n": force_n,
-                        "converged": true, "newton_iterations": rep.iterations, "load_steps": rep.load_steps,
-                        "step_cuts": rep.step_cuts, "seconds": t.elapsed().as_secs_f64(),
-                        "probe_displacement_mm": sol.probe_displacement_mm})
-                    }
-                    Err(e) => {
-                        json!({"table": "svk", "level": "coarse", "element": element.name(), "force_n": force_n,
-                        "converged": false, "error": e.to_string(), "seconds": t.elapsed().as_secs_f64()})
-                    }
-                };
-                println!("{row}");
+}
+
+/// Both hyperelastic laws pushed to the depth at ten positions (coarse P2).
+fn depth(args: &FeBenchArgs, coarse: &OrganMesh) {
+    for law in [Law::NeoHookean, Law::Svk] {
+        for (name, at) in DEPTH_POSITIONS {
+            let t = Instant::now();
+            let out = solve_hyperelastic(
+                coarse,
+                Element::P2,
+                Material::default(),
+                law,
+                &req(at, f64::NAN),
+                Some(args.depth_mm),
+                NewtonSettings::default(),
+            );
+            let mut row = json!({"table": "depth", "level": "coarse", "element": "p2",
+                "law": law.name(), "position": name, "depth_mm": args.depth_mm,
+                "seconds": t.elapsed().as_secs_f64()});
+            match out {
+                Ok((sol, rep)) => {
+                    row["converged"] = json!(true);
+                    row["force_n"] = json!(sol.force_n);
+                    row["max_displacement_mm"] = json!(sol.max_displacement_mm);
+                    row["newton_iterations"] = json!(rep.iterations);
+                    row["steps"] = json!(rep.load_steps);
+                    row["step_cuts"] = json!(rep.step_cuts);
+                    row["probe_point"] = json!(sol.probe.point);
+                }
+                Err(e) => {
+                    row["converged"] = json!(false);
+                    row["error"] = json!(e.to_string());
+                }
             }
+            println!("{row}");
         }
     }
-    Ok(())
+}
+
+/// SVK Newton's work at 1, 5 and 10 N.
+fn svk(coarse: &OrganMesh) {
+    for element in [Element::P1, Element::P2] {
+        for force_n in [1.0, 5.0, 10.0] {
+            let t = Instant::now();
+            let out = solve_hyperelastic(
+                coarse,
+                element,
+                Material::default(),
+                Law::Svk,
+                &req(ANTERIOR, force_n),
+                None,
+                NewtonSettings::default(),
+            );
+            let row = match out {
+                Ok((sol, rep)) => {
+                    json!({"table": "svk", "level": "coarse", "element": element.name(), "force_n": force_n,
+                    "converged": true, "newton_iterations": rep.iterations, "load_steps": rep.load_steps,
+                    "step_cuts": rep.step_cuts, "seconds": t.elapsed().as_secs_f64(),
+                    "probe_displacement_mm": sol.probe_displacement_mm})
+                }
+                Err(e) => {
+                    json!({"table": "svk", "level": "coarse", "element": element.name(), "force_n": force_n,
+                    "converged": false, "error": e.to_string(), "seconds": t.elapsed().as_secs_f64()})
+                }
+            };
+            println!("{row}");
+        }
+    }
 }
