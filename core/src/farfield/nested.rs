@@ -29,6 +29,19 @@ use serde::{Deserialize, Serialize};
 
 use super::FarFieldError;
 
+/// `Ok` if `found == expected`, else the length error naming `what`.
+fn len(what: &'static str, found: usize, expected: usize) -> Result<(), FarFieldError> {
+    if found == expected {
+        Ok(())
+    } else {
+        Err(FarFieldError::Length {
+            what,
+            found,
+            expected,
+        })
+    }
+}
+
 /// Largest rank of a patch's basis (the on-line coefficient width).
 pub const MAX_BASIS: usize = 64;
 
@@ -165,17 +178,36 @@ impl NestedFar {
     /// Checks every length, index and the parent order against `load_nodes` and
     /// `field_nodes`, so that [`Self::add`] never reads out of bounds or loops.
     pub fn validate(&self, load_nodes: usize, field_nodes: usize) -> Result<(), FarFieldError> {
-        let len = |what, found: usize, expected: usize| {
-            if found == expected {
-                Ok(())
-            } else {
-                Err(FarFieldError::Length {
-                    what,
-                    found,
-                    expected,
-                })
-            }
-        };
+        self.validate_shapes(load_nodes)?;
+        self.validate_groups()?;
+        self.validate_patches()?;
+        self.validate_leaves(load_nodes)?;
+        if let Some(entry) = self
+            .group_rows
+            .iter()
+            .position(|&x| x as usize >= field_nodes)
+        {
+            return Err(FarFieldError::NoSuchNode {
+                entry,
+                node: self.group_rows[entry],
+                nodes: field_nodes,
+            });
+        }
+        if self
+            .basis
+            .iter()
+            .chain(&self.a)
+            .chain(&self.b)
+            .chain(&self.group_basis)
+            .any(|v| !v.is_finite())
+        {
+            return Err(FarFieldError::NotFinite);
+        }
+        Ok(())
+    }
+
+    /// Array lengths and pointer sequences.
+    fn validate_shapes(&self, load_nodes: usize) -> Result<(), FarFieldError> {
         let np = self.parent.len();
         let nb = self.rank.len();
         len("far-field basis ranks", self.basis_rank.len(), np)?;
@@ -234,6 +266,14 @@ impl NestedFar {
             self.group_basis.len(),
             self.group_basis_ptr[ng] as usize,
         )?;
+        len("far-field A", self.a.len(), self.a_ptr[nb] as usize)?;
+        len("far-field B", self.b.len(), self.b_ptr[nb] as usize)?;
+        Ok(())
+    }
+
+    /// Each row group's basis size, and every block's group index.
+    fn validate_groups(&self) -> Result<(), FarFieldError> {
+        let ng = self.group_rank.len();
         for q in 0..ng {
             let (n, k) = (self.group_nodes(q).len(), self.group_rank[q] as usize);
             if k > MAX_BASIS {
@@ -256,8 +296,12 @@ impl NestedFar {
                 expected: ng,
             });
         }
-        len("far-field A", self.a.len(), self.a_ptr[nb] as usize)?;
-        len("far-field B", self.b.len(), self.b_ptr[nb] as usize)?;
+        Ok(())
+    }
+
+    /// Each patch's basis, its place in its parent's transfer, and its blocks' factors.
+    fn validate_patches(&self) -> Result<(), FarFieldError> {
+        let np = self.parent.len();
         for g in 0..np {
             let (k, rows) = (self.basis_rank[g] as usize, self.basis_rows[g] as usize);
             if k > MAX_BASIS {
@@ -303,6 +347,12 @@ impl NestedFar {
                 )?;
             }
         }
+        Ok(())
+    }
+
+    /// Each load node's leaf and slot.
+    fn validate_leaves(&self, load_nodes: usize) -> Result<(), FarFieldError> {
+        let np = self.parent.len();
         for j in 0..load_nodes {
             let leaf = self.leaf_of[j];
             if leaf == u32::MAX {
@@ -322,27 +372,6 @@ impl NestedFar {
                     expected: 3 * self.leaf_slot[j] as usize + 3,
                 });
             }
-        }
-        if let Some(entry) = self
-            .group_rows
-            .iter()
-            .position(|&x| x as usize >= field_nodes)
-        {
-            return Err(FarFieldError::NoSuchNode {
-                entry,
-                node: self.group_rows[entry],
-                nodes: field_nodes,
-            });
-        }
-        if self
-            .basis
-            .iter()
-            .chain(&self.a)
-            .chain(&self.b)
-            .chain(&self.group_basis)
-            .any(|v| !v.is_finite())
-        {
-            return Err(FarFieldError::NotFinite);
         }
         Ok(())
     }
