@@ -34,6 +34,7 @@ use crate::network::{NetworkRoom, Prepared};
 use crate::overlay::Overlay;
 use crate::render::Renderer;
 use crate::render::gpu::Gpu;
+use crate::render::landscape::Landscape;
 use crate::render::offscreen::{FORMAT, Offscreen, UI_FORMAT};
 use crate::scenes::Opened;
 use crate::session::Session;
@@ -47,6 +48,8 @@ struct Graphics {
     renderer: Option<Renderer>,
     /// The colour format the renderer draws in (for a renderer of a new scene).
     scene_format: wgpu::TextureFormat,
+    /// The network scene's 3-D view (made on its first frame).
+    landscape: Option<Landscape>,
     overlay: Overlay,
     egui: egui_winit::State,
 }
@@ -92,6 +95,8 @@ pub struct App {
     last_frame: Instant,
     /// Where the mouse last was (mouse button events carry no position).
     last_pointer_px: Vec2,
+    /// Where a drag on the network scene's landscape last was.
+    drag_px: Option<Vec2>,
 }
 
 impl std::fmt::Debug for App {
@@ -123,6 +128,7 @@ impl App {
             started: Instant::now(),
             last_frame: Instant::now(),
             last_pointer_px: Vec2::ZERO,
+            drag_px: None,
         })
     }
 
@@ -142,6 +148,8 @@ impl App {
         hud: &mut Hud,
         gpu: &Gpu,
         renderer: Option<&mut Renderer>,
+        landscape: &mut Option<Landscape>,
+        format: wgpu::TextureFormat,
         overlay: &mut Overlay,
         view: &wgpu::TextureView,
         ui_view: &wgpu::TextureView,
@@ -150,17 +158,20 @@ impl App {
         raw: egui::RawInput,
         dt_s: f64,
     ) -> (wgpu::CommandEncoder, egui::PlatformOutput) {
+        room.advance(hud);
         let mut encoder = match (&mut *room, renderer) {
             (Room::Palpation(session), Some(r)) => {
                 let input = session.frame();
                 r.encode_frame(gpu, view, size, &input)
             }
+            (Room::Network(n), _) => {
+                n.frame(dt_s);
+                let l = landscape.get_or_insert_with(|| Landscape::new(&gpu.device, format));
+                l.set(&gpu.device, n.window.as_ref());
+                l.encode(&gpu.device, &gpu.queue, view, size, &n.camera)
+            }
             _ => crate::render::clear_frame(&gpu.device, view),
         };
-        room.advance(hud);
-        if let Room::Network(n) = room {
-            n.frame(dt_s);
-        }
         let output = overlay.paint(
             &gpu.device,
             &gpu.queue,
@@ -227,6 +238,7 @@ impl App {
                 gpu,
                 renderer,
                 scene_format: formats.scene,
+                landscape: None,
                 overlay,
                 egui,
             });
@@ -274,6 +286,8 @@ impl App {
             &mut self.hud,
             &g.gpu,
             g.renderer.as_mut(),
+            &mut g.landscape,
+            g.scene_format,
             &mut g.overlay,
             &frame.view,
             &frame.ui_view,
@@ -317,6 +331,8 @@ impl App {
             &mut self.hud,
             &g.gpu,
             renderer.as_mut(),
+            &mut None,
+            FORMAT,
             &mut overlay,
             &target.view,
             &target.ui_view,
@@ -369,8 +385,21 @@ impl App {
             self.last_pointer_px = pos_px;
         }
         let viewport = self.viewport();
-        if let Room::Palpation(session) = &mut self.room {
-            session.handle(ev, viewport);
+        match &mut self.room {
+            Room::Palpation(session) => session.handle(ev, viewport),
+            Room::Network(n) => match ev {
+                InputEvent::PointerDown { pos_px, .. } => self.drag_px = Some(pos_px),
+                InputEvent::PointerMove { pos_px, .. } => {
+                    if let Some(from) = self.drag_px.replace(pos_px) {
+                        let d = pos_px - from;
+                        n.camera.orbit(-0.008 * d.x, 0.008 * d.y);
+                    }
+                }
+                InputEvent::PointerUp { .. } => self.drag_px = None,
+                InputEvent::Wheel { lines } => n.camera.zoom(0.9f32.powf(lines)),
+                _ => {}
+            },
+            Room::Building(_) => {}
         }
     }
 }

@@ -79,6 +79,72 @@ impl std::fmt::Debug for HeatTexture {
     }
 }
 
+/// The part of a joint worth showing, binned to at most `MAX_CELLS` a side: copy
+/// numbers `a0..a0 + wa` of the first species and `b0..b0 + wb` of the second, `cells`
+/// (`nx × ny`, first species fastest) summed over `bin × bin` states, `peak` their
+/// largest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointWindow {
+    pub a0: usize,
+    pub b0: usize,
+    pub wa: usize,
+    pub wb: usize,
+    pub nx: usize,
+    pub ny: usize,
+    pub cells: Vec<f64>,
+    pub peak: f64,
+}
+
+/// The landscape's base side and peak height (scene units).
+pub const LANDSCAPE_SIDE: f32 = 100.0;
+pub const LANDSCAPE_HEIGHT: f32 = 45.0;
+
+/// Most cells a side of a [`JointWindow`].
+pub const MAX_CELLS: usize = 160;
+
+impl Joint {
+    /// The square window (with a margin) around where the joint is at least 1e-4 of
+    /// its largest value: the box is sized for every time and parameter, the
+    /// distribution at one of them is smaller. `None` where it is zero.
+    pub fn window(&self) -> Option<JointWindow> {
+        let top = self.p.iter().copied().fold(0.0f64, f64::max);
+        let (mut a0, mut a1, mut b0, mut b1) = (self.na, 0, self.nb, 0);
+        for b in 0..self.nb {
+            for a in 0..self.na {
+                if self.p[b * self.na + a] >= 1e-4 * top {
+                    (a0, a1, b0, b1) = (a0.min(a), a1.max(a + 1), b0.min(b), b1.max(b + 1));
+                }
+            }
+        }
+        if top <= 0.0 || a0 >= a1 || b0 >= b1 {
+            return None;
+        }
+        let side = (a1 - a0).max(b1 - b0) + 4;
+        let a0 = a0.saturating_sub(2).min(self.na.saturating_sub(side));
+        let b0 = b0.saturating_sub(2).min(self.nb.saturating_sub(side));
+        let (wa, wb) = (side.min(self.na - a0), side.min(self.nb - b0));
+        let bin = wa.max(wb).div_ceil(MAX_CELLS);
+        let (nx, ny) = (wa.div_ceil(bin), wb.div_ceil(bin));
+        let mut cells = vec![0.0f64; nx * ny];
+        for b in 0..wb {
+            for a in 0..wa {
+                cells[(b / bin) * nx + a / bin] += self.p[(b0 + b) * self.na + a0 + a];
+            }
+        }
+        let peak = cells.iter().copied().fold(0.0f64, f64::max);
+        Some(JointWindow {
+            a0,
+            b0,
+            wa,
+            wb,
+            nx,
+            ny,
+            cells,
+            peak,
+        })
+    }
+}
+
 /// A network scene being explored.
 #[derive(Debug)]
 pub struct NetworkRoom {
@@ -109,6 +175,10 @@ pub struct NetworkRoom {
     pub ssa_result: Option<SsaResult>,
     /// The joint's heat-map texture (the interface's, kept across frames).
     pub heat: Option<HeatTexture>,
+    /// The window of the joint at the current coordinates (heat map and landscape).
+    pub window: Option<JointWindow>,
+    /// The landscape's camera (orbit by dragging the background, zoom by the wheel).
+    pub camera: crate::camera::OrbitCamera,
 }
 
 impl NetworkRoom {
@@ -147,6 +217,11 @@ impl NetworkRoom {
             ssa: None,
             ssa_result: None,
             heat: None,
+            window: None,
+            camera: crate::camera::OrbitCamera::framing(
+                glam::Vec3::ZERO,
+                glam::Vec3::new(LANDSCAPE_SIDE, LANDSCAPE_SIDE, LANDSCAPE_HEIGHT),
+            ),
             model,
         }
     }
@@ -332,7 +407,9 @@ impl NetworkRoom {
             match self.model.joint(t, &set, usize::MAX) {
                 Ok(p) => {
                     self.joint_us.push(t0.elapsed().as_secs_f64() * 1e6);
-                    self.joint = Some(Joint { na, nb, p });
+                    let joint = Joint { na, nb, p };
+                    self.window = joint.window();
+                    self.joint = Some(joint);
                 }
                 Err(e) => self.error = Some(e.to_string()),
             }

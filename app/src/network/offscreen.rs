@@ -12,7 +12,8 @@ use super::NetworkRoom;
 use super::build::BuildState;
 use crate::overlay::{Overlay, headless_input};
 use crate::render::gpu::{AdapterReport, Gpu};
-use crate::render::offscreen::{Image, Offscreen, UI_FORMAT};
+use crate::render::landscape::Landscape;
+use crate::render::offscreen::{FORMAT, Image, Offscreen, UI_FORMAT};
 use crate::stats::percentile;
 use crate::ui::Hud;
 
@@ -75,6 +76,7 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
     let gpu = Gpu::headless()?;
     let target = Offscreen::new(&gpu.device, opts.size);
     let mut overlay = Overlay::new(&gpu.device, UI_FORMAT);
+    let mut landscape = Landscape::new(&gpu.device, FORMAT);
     let mut hud = Hud::new(opts.scene.clone());
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
     for i in 0..opts.frames {
@@ -98,7 +100,14 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         }
         let t0 = Instant::now();
         room.frame(0.0);
-        let mut encoder = crate::render::clear_frame(&gpu.device, &target.view);
+        landscape.set(&gpu.device, room.window.as_ref());
+        let mut encoder = landscape.encode(
+            &gpu.device,
+            &gpu.queue,
+            &target.view,
+            opts.size,
+            &room.camera,
+        );
         let raw = headless_input(opts.size, 1.0, f64::from(i) / 25.0);
         overlay.paint(
             &gpu.device,

@@ -5,8 +5,8 @@
 
 use egui::{Color32, RichText};
 
+use super::NetworkRoom;
 use super::job::JobState;
-use super::{Joint, NetworkRoom};
 use crate::ui::{Hud, ramp};
 
 /// Draws the whole network interface.
@@ -16,13 +16,13 @@ pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
         .default_width(300.0)
         .resizable(false)
         .show(ctx, |ui| controls(ui, room, hud));
+    // The distribution on the right; the landscape fills the middle behind the panels.
     let screen = ctx.content_rect();
+    let width = (0.32 * screen.width()).clamp(260.0, 420.0);
     egui::Window::new("distribution")
-        .default_pos([340.0, 12.0])
-        .default_size([
-            (screen.width() - 360.0).max(240.0),
-            (screen.height() - 30.0).max(240.0),
-        ])
+        .default_pos([screen.width() - width - 14.0, 12.0])
+        .default_width(width)
+        .resizable(false)
         .show(ctx, |ui| views(ui, room));
 }
 
@@ -221,13 +221,18 @@ fn job_row<T>(
 
 fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
     match &room.joint {
-        Some(j) if room.species.len() == 2 => {
+        Some(_) if room.species.len() == 2 => {
             ui.label(format!(
                 "joint P({}, {}) at t = {:.3}",
                 room.species[0], room.species[1], room.time.value
             ));
             let key = room.coordinates();
-            heat_map(ui, j, &key, &mut room.heat);
+            match room.window.as_ref() {
+                Some(w) => heat_map(ui, w, &key, &mut room.heat),
+                None => {
+                    ui.label("the joint is zero at these coordinates");
+                }
+            }
         }
         _ => {
             ui.label(format!(
@@ -237,7 +242,7 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
         }
     }
     let Some(e) = &room.eval else { return };
-    let cols = room.species.len().clamp(1, 4);
+    let cols = room.species.len().clamp(1, 2);
     egui::Grid::new("marginals").show(ui, |ui| {
         for (i, (name, m)) in room.species.iter().zip(&e.moments.marginals).enumerate() {
             ui.vertical(|ui| {
@@ -266,8 +271,8 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
                         .collect()
                 });
                 egui_plot::Plot::new(format!("marginal-{i}"))
-                    .width(220.0)
-                    .height(110.0)
+                    .width(0.46 * ui.available_width().max(200.0))
+                    .height(90.0)
                     .include_y(0.0)
                     .allow_zoom(false)
                     .allow_drag(false)
@@ -296,45 +301,25 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
     });
 }
 
-/// The joint as coloured cells (first species along x, second up), scaled to its
-/// largest probability and cropped to where it is at least 1e-4 of that (the box is
-/// sized for every time and parameter, the distribution at one of them is smaller); at
-/// most 160 cells a side (larger windows are binned by summing).
-fn heat_map(ui: &mut egui::Ui, j: &Joint, key: &[f64], heat: &mut Option<super::HeatTexture>) {
-    const MAX_CELLS: usize = 160;
-    let top = j.p.iter().copied().fold(0.0f64, f64::max);
-    let (mut a0, mut a1, mut b0, mut b1) = (j.na, 0, j.nb, 0);
-    for b in 0..j.nb {
-        for a in 0..j.na {
-            if j.p[b * j.na + a] >= 1e-4 * top {
-                (a0, a1, b0, b1) = (a0.min(a), a1.max(a + 1), b0.min(b), b1.max(b + 1));
-            }
-        }
-    }
-    if top <= 0.0 || a0 >= a1 || b0 >= b1 {
-        ui.label("the joint is zero at these coordinates");
-        return;
-    }
-    // A square window with a margin, inside the box.
-    let side_n = (a1 - a0).max(b1 - b0) + 4;
-    let (a0, b0) = (
-        a0.saturating_sub(2).min(j.na.saturating_sub(side_n)),
-        b0.saturating_sub(2).min(j.nb.saturating_sub(side_n)),
-    );
-    let (wa, wb) = (side_n.min(j.na - a0), side_n.min(j.nb - b0));
-    let bin = wa.max(wb).div_ceil(MAX_CELLS);
-    let (nx, ny) = (wa.div_ceil(bin), wb.div_ceil(bin));
-    let mut cells = vec![0.0f64; nx * ny];
-    for b in 0..wb {
-        for a in 0..wa {
-            cells[(b / bin) * nx + a / bin] += j.p[(b0 + b) * j.na + a0 + a];
-        }
-    }
-    let peak = cells.iter().copied().fold(0.0f64, f64::max);
-    let side = ui
-        .available_width()
-        .min(ui.available_height() - 170.0)
-        .max(120.0);
+/// The joint's window as one texture (first species along x, second up), coloured by
+/// the ramp up to its peak, with the copy-number ranges under it.
+fn heat_map(
+    ui: &mut egui::Ui,
+    w: &super::JointWindow,
+    key: &[f64],
+    heat: &mut Option<super::HeatTexture>,
+) {
+    let super::JointWindow {
+        a0,
+        b0,
+        wa,
+        wb,
+        nx,
+        ny,
+        ref cells,
+        peak,
+    } = *w;
+    let side = ui.available_width().clamp(120.0, 260.0);
     let (rect, _) = ui.allocate_exact_size(egui::vec2(side, side), egui::Sense::hover());
     // One texture, refreshed only when the coordinates change (thousands of quads
     // would cost a software rasterizer tens of milliseconds a frame).

@@ -10,14 +10,16 @@ pub enum Shader {
     Surface,
     Ground,
     Solid,
+    Landscape,
 }
 
 impl Shader {
-    pub const ALL: [Shader; 4] = [
+    pub const ALL: [Shader; 5] = [
         Shader::Deform,
         Shader::Surface,
         Shader::Ground,
         Shader::Solid,
+        Shader::Landscape,
     ];
 
     pub fn name(self) -> &'static str {
@@ -26,6 +28,7 @@ impl Shader {
             Shader::Surface => "surface.wgsl",
             Shader::Ground => "ground.wgsl",
             Shader::Solid => "solid.wgsl",
+            Shader::Landscape => "landscape.wgsl",
         }
     }
 
@@ -38,6 +41,7 @@ impl Shader {
             }
             Shader::Ground => format!("{FRAME}\n{}", include_str!("../../../shaders/ground.wgsl")),
             Shader::Solid => format!("{FRAME}\n{}", include_str!("../../../shaders/solid.wgsl")),
+            Shader::Landscape => include_str!("../../../shaders/landscape.wgsl").to_string(),
         }
     }
 

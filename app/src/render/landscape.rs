@@ -1,0 +1,293 @@
+//! The network scene's 3-D view: the joint of two species as a lit height field over a
+//! square base ([`LANDSCAPE_SIDE`] wide, [`LANDSCAPE_HEIGHT`] at the peak), coloured by
+//! the same ramp as the heat map, seen by the room's orbit camera. The mesh is rebuilt
+//! only when the window of the joint changes.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+use super::shaders::Shader;
+use super::{BACKGROUND, DEPTH_FORMAT, texture_2d};
+use crate::camera::OrbitCamera;
+use crate::network::{JointWindow, LANDSCAPE_HEIGHT, LANDSCAPE_SIDE};
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    value: f32,
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct ViewUniform {
+    clip_from_world: [[f32; 4]; 4],
+    eye: [f32; 4],
+    light_dir: [f32; 4],
+}
+
+/// The mesh of one window: vertices at the cells, two triangles per quad.
+fn mesh(w: &JointWindow) -> (Vec<Vertex>, Vec<u32>) {
+    let (nx, ny) = (w.nx.max(2), w.ny.max(2));
+    let value = |x: usize, y: usize| -> f32 {
+        let (x, y) = (x.min(w.nx - 1), y.min(w.ny - 1));
+        if w.peak > 0.0 {
+            (w.cells[y * w.nx + x] / w.peak) as f32
+        } else {
+            0.0
+        }
+    };
+    let (dx, dy) = (
+        LANDSCAPE_SIDE / (nx - 1) as f32,
+        LANDSCAPE_SIDE / (ny - 1) as f32,
+    );
+    let mut vertices = Vec::with_capacity(nx * ny);
+    for y in 0..ny {
+        for x in 0..nx {
+            let h = |x: usize, y: usize| LANDSCAPE_HEIGHT * value(x, y);
+            // Central differences of the height (one-sided at the edges).
+            let (xl, xr) = (x.saturating_sub(1), (x + 1).min(nx - 1));
+            let (yl, yr) = (y.saturating_sub(1), (y + 1).min(ny - 1));
+            let gx = (h(xr, y) - h(xl, y)) / (dx * (xr - xl).max(1) as f32);
+            let gy = (h(x, yr) - h(x, yl)) / (dy * (yr - yl).max(1) as f32);
+            let n = Vec3::new(-gx, -gy, 1.0).normalize();
+            vertices.push(Vertex {
+                position: [x as f32 * dx, y as f32 * dy, h(x, y)],
+                normal: n.to_array(),
+                value: value(x, y),
+            });
+        }
+    }
+    let mut indices = Vec::with_capacity(6 * (nx - 1) * (ny - 1));
+    for y in 0..ny - 1 {
+        for x in 0..nx - 1 {
+            let i = (y * nx + x) as u32;
+            let j = i + nx as u32;
+            indices.extend_from_slice(&[i, i + 1, j + 1, i, j + 1, j]);
+        }
+    }
+    (vertices, indices)
+}
+
+/// The landscape's pipeline and its current mesh.
+#[derive(Debug)]
+pub struct Landscape {
+    pipeline: wgpu::RenderPipeline,
+    uniform: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    mesh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+    shown: Option<JointWindow>,
+    depth: Option<((u32, u32), wgpu::TextureView)>,
+}
+
+impl Landscape {
+    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> Self {
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("landscape view"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("landscape view"),
+            size: size_of::<ViewUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("landscape view"),
+            layout: &layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniform.as_entire_binding(),
+            }],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("landscape"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = Shader::Landscape.module(device);
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32];
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("landscape"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: wgpu::StencilState::default(),
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(format.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        Landscape {
+            pipeline,
+            uniform,
+            bind,
+            mesh: None,
+            shown: None,
+            depth: None,
+        }
+    }
+
+    /// Shows `window` (rebuilding the mesh only if it changed); `None` clears it.
+    pub fn set(&mut self, device: &wgpu::Device, window: Option<&JointWindow>) {
+        if self.shown.as_ref() == window {
+            return;
+        }
+        self.shown = window.cloned();
+        self.mesh = window.map(|w| {
+            let (vertices, indices) = mesh(w);
+            let vb = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("landscape vertices"),
+                contents: bytemuck::cast_slice(&vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
+            let ib = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("landscape indices"),
+                contents: bytemuck::cast_slice(&indices),
+                usage: wgpu::BufferUsages::INDEX,
+            });
+            (vb, ib, indices.len() as u32)
+        });
+    }
+
+    /// An encoder whose first pass clears `target` and draws the landscape from
+    /// `camera`.
+    pub fn encode(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target: &wgpu::TextureView,
+        size: (u32, u32),
+        camera: &OrbitCamera,
+    ) -> wgpu::CommandEncoder {
+        let size = (size.0.max(1), size.1.max(1));
+        if self.depth.as_ref().is_none_or(|(s, _)| *s != size) {
+            let tex = texture_2d(
+                device,
+                "landscape depth",
+                size,
+                DEPTH_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT,
+                &[],
+            );
+            self.depth = Some((size, tex.create_view(&Default::default())));
+        }
+        let aspect = size.0 as f32 / size.1 as f32;
+        let eye = camera.eye();
+        let light = (eye - camera.target_mm + Vec3::new(0.0, 0.0, 150.0)).normalize_or(Vec3::Z);
+        let view = ViewUniform {
+            clip_from_world: camera.clip_from_world(aspect).to_cols_array_2d(),
+            eye: eye.extend(1.0).to_array(),
+            light_dir: light.extend(0.0).to_array(),
+        };
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("landscape frame"),
+        });
+        let depth = &self.depth.as_ref().expect("created above").1;
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("landscape"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(BACKGROUND),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if let Some((vb, ib, count)) = &self.mesh {
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &self.bind, &[]);
+                pass.set_vertex_buffer(0, vb.slice(..));
+                pass.set_index_buffer(ib.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..*count, 0, 0..1);
+            }
+        }
+        encoder
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A single peak: the mesh covers the base, its top is the peak's cell at full
+    /// height, normals point up on a flat rim, and every triangle indexes the grid.
+    #[test]
+    fn the_mesh_puts_the_peak_on_top() {
+        let (nx, ny) = (5, 4);
+        let mut cells = vec![0.0; nx * ny];
+        cells[2 * nx + 3] = 0.2;
+        let w = JointWindow {
+            a0: 0,
+            b0: 0,
+            wa: nx,
+            wb: ny,
+            nx,
+            ny,
+            cells,
+            peak: 0.2,
+        };
+        let (v, i) = mesh(&w);
+        assert_eq!(v.len(), nx * ny);
+        assert_eq!(i.len(), 6 * (nx - 1) * (ny - 1));
+        assert!(i.iter().all(|&k| (k as usize) < v.len()));
+        let top = v
+            .iter()
+            .max_by(|a, b| a.position[2].total_cmp(&b.position[2]))
+            .expect("vertices");
+        assert_eq!(top.position[2], LANDSCAPE_HEIGHT);
+        assert_eq!(top.value, 1.0);
+        assert!((top.position[0] - 3.0 * LANDSCAPE_SIDE / 4.0).abs() < 1e-4);
+        assert_eq!(v[0].normal, [0.0, 0.0, 1.0]);
+        assert!(
+            v.iter()
+                .all(|p| (0.0..=LANDSCAPE_SIDE).contains(&p.position[1]))
+        );
+    }
+}
