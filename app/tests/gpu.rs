@@ -193,6 +193,7 @@ fn the_network_scene_matches_the_reference_image() {
         size: (900, 480),
         out: None,
         exact_check: false,
+        ui: true,
     })
     .expect("renders");
     // The panel ends at x = 312.

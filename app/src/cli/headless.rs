@@ -111,6 +111,7 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
         size,
         out: args.out.clone(),
         exact_check: args.exact_check,
+        ui: !args.no_ui,
     };
     let (report, _) = run(&opts)?;
     if args.json {

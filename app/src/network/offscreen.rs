@@ -28,6 +28,9 @@ pub struct NetworkHeadless {
     pub out: Option<PathBuf>,
     /// Run the exact (FSP) check at the last frame's coordinates and show it.
     pub exact_check: bool,
+    /// Draw the interface (off: the landscape alone, what the display-rate goal is
+    /// about).
+    pub ui: bool,
 }
 
 /// The coordinates of a frame.
@@ -108,17 +111,19 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
             opts.size,
             &room.camera,
         );
-        let raw = headless_input(opts.size, 1.0, f64::from(i) / 25.0);
-        overlay.paint(
-            &gpu.device,
-            &gpu.queue,
-            &mut encoder,
-            &target.ui_view,
-            opts.size,
-            1.0,
-            raw,
-            |ctx| super::show(ctx, &mut room, &mut hud),
-        );
+        if opts.ui {
+            let raw = headless_input(opts.size, 1.0, f64::from(i) / 25.0);
+            overlay.paint(
+                &gpu.device,
+                &gpu.queue,
+                &mut encoder,
+                &target.ui_view,
+                opts.size,
+                1.0,
+                raw,
+                |ctx| super::show(ctx, &mut room, &mut hud),
+            );
+        }
         if last {
             target.encode_copy(&mut encoder);
         }
