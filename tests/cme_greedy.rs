@@ -93,6 +93,25 @@ fn a_rate_as_a_coordinate_matches_the_closed_form_on_and_between_grid_points() {
 fn the_toggle_switch_by_pgd_matches_exact_fsp() {
     let net = Network::built_in("toggle").expect("built in");
     let (model, _) = greedy::solve(&net, &options(20.0), &mut |_| {}).expect("solves");
+    {
+        // The pair joint of a separated model: the whole joint for two species, and
+        // its transpose in the other order.
+        let cme = CmeModel::new(model.clone()).expect("a CME model");
+        let (whole, pair) = (
+            cme.joint(5.0, &[], usize::MAX).expect("joint"),
+            cme.pair_joint(5.0, &[], 0, 1).expect("pair"),
+        );
+        let scale = whole.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(
+            whole
+                .iter()
+                .zip(&pair)
+                .all(|(x, y)| (x - y).abs() <= 1e-12 * scale)
+        );
+        let sizes = cme.box_sizes();
+        let swapped = cme.pair_joint(5.0, &[], 1, 0).expect("pair");
+        assert_eq!(swapped[sizes[1] + 2], pair[2 * sizes[0] + 1]);
+    }
     let cme = CmeModel::new(model).expect("a CME model");
     let (p, _) = net.parameter_values(&[]).expect("defaults");
     let times = [2.0, 20.0];

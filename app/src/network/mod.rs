@@ -179,6 +179,8 @@ pub struct NetworkRoom {
     pub window: Option<JointWindow>,
     /// The landscape's camera (orbit by dragging the background, zoom by the wheel).
     pub camera: crate::camera::OrbitCamera,
+    /// The two species whose joint is shown (the others summed out in the model).
+    pub pair: (usize, usize),
 }
 
 impl NetworkRoom {
@@ -218,6 +220,7 @@ impl NetworkRoom {
             ssa_result: None,
             heat: None,
             window: None,
+            pair: (0, 1),
             camera: crate::camera::OrbitCamera::framing(
                 glam::Vec3::ZERO,
                 glam::Vec3::new(LANDSCAPE_SIDE, LANDSCAPE_SIDE, LANDSCAPE_HEIGHT),
@@ -353,11 +356,18 @@ impl NetworkRoom {
         &self.model
     }
 
-    /// The current coordinates: time, then the parameters in the model's order.
+    /// The current coordinates: time, then the parameters in the model's order (and,
+    /// last, the shown pair, so a new pair is evaluated like a moved coordinate).
     pub fn coordinates(&self) -> Vec<f64> {
         std::iter::once(self.time.value)
             .chain(self.params.iter().map(|c| c.value))
             .collect()
+    }
+
+    fn evaluation_key(&self) -> Vec<f64> {
+        let mut k = self.coordinates();
+        k.extend([self.pair.0 as f64, self.pair.1 as f64]);
+        k
     }
 
     /// The parameter settings as the model takes them.
@@ -377,7 +387,7 @@ impl NetworkRoom {
         }
         self.poll_check();
         self.poll_ssa();
-        let now = self.coordinates();
+        let now = self.evaluation_key();
         if self.evaluated_at.as_ref() != Some(&now) {
             self.evaluate();
             self.evaluated_at = Some(now);
@@ -402,9 +412,11 @@ impl NetworkRoom {
             }
         }
         let sizes = self.model.box_sizes();
-        if let [na, nb] = sizes[..] {
+        let (a, b) = self.pair;
+        if a != b && a < sizes.len() && b < sizes.len() {
+            let (na, nb) = (sizes[a], sizes[b]);
             let t0 = Instant::now();
-            match self.model.joint(t, &set, usize::MAX) {
+            match self.model.pair_joint(t, &set, a, b) {
                 Ok(p) => {
                     self.joint_us.push(t0.elapsed().as_secs_f64() * 1e6);
                     let joint = Joint { na, nb, p };
@@ -516,6 +528,13 @@ mod tests {
         assert_eq!(room.time.value, room.time.hi);
         room.frame(0.0);
         assert_eq!(room.eval_us.len(), n + 1, "moved, evaluated once");
+        // Another pair is evaluated like a moved coordinate: here the transpose.
+        let before = room.joint.clone().expect("joint");
+        room.pair = (1, 0);
+        room.frame(0.0);
+        let after = room.joint.clone().expect("joint");
+        assert_eq!((after.na, after.nb), (before.nb, before.na));
+        assert_eq!(after.p[after.na + 3], before.p[3 * before.na + 1]);
         // Playing wraps to 0 past the end.
         room.playing = true;
         room.frame(1.0);

@@ -220,11 +220,37 @@ fn job_row<T>(
 }
 
 fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
+    if room.species.len() > 2 {
+        ui.horizontal(|ui| {
+            ui.label("joint of");
+            for (id, slot) in [("pair-a", 0), ("pair-b", 1)] {
+                let current = if slot == 0 { room.pair.0 } else { room.pair.1 };
+                egui::ComboBox::from_id_salt(id)
+                    .selected_text(room.species[current].as_str())
+                    .show_ui(ui, |ui| {
+                        for (i, name) in room.species.iter().enumerate() {
+                            let mut pick = current;
+                            if ui.selectable_value(&mut pick, i, name).clicked() && pick != current
+                            {
+                                let other = if slot == 0 { room.pair.1 } else { room.pair.0 };
+                                if pick != other {
+                                    if slot == 0 {
+                                        room.pair.0 = pick;
+                                    } else {
+                                        room.pair.1 = pick;
+                                    }
+                                }
+                            }
+                        }
+                    });
+            }
+        });
+    }
     match &room.joint {
-        Some(_) if room.species.len() == 2 => {
+        Some(_) if room.species.len() >= 2 => {
             ui.label(format!(
                 "joint P({}, {}) at t = {:.3}",
-                room.species[0], room.species[1], room.time.value
+                room.species[room.pair.0], room.species[room.pair.1], room.time.value
             ));
             let key = room.coordinates();
             match room.window.as_ref() {
@@ -235,10 +261,7 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
             }
         }
         _ => {
-            ui.label(format!(
-                "{} species: the joint of two is shown for two-species models only; the marginals follow",
-                room.species.len()
-            ));
+            ui.label("one species: its marginal follows");
         }
     }
     let Some(e) = &room.eval else { return };

@@ -114,6 +114,8 @@ pub enum CmeModelError {
     TrainAxis(String),
     #[error("a tensor-train model needs CmeModel::from_train")]
     NeedsTrain,
+    #[error("species pair ({a}, {b}): expected two different species of the {species}")]
+    Pair { a: usize, b: usize, species: usize },
     #[error("evaluating parameter {name}: {error}")]
     Axis {
         name: String,
@@ -496,6 +498,68 @@ impl CmeModel {
             most_negative,
             clamped,
         })
+    }
+
+    /// The joint distribution of species `a` and `b` at `(t, p)` on their boxes (`a`
+    /// fastest), every other species summed out in the meta-model (never a dense array
+    /// over all species).
+    pub fn pair_joint(
+        &self,
+        t: f64,
+        set: &[(String, f64)],
+        a: usize,
+        b: usize,
+    ) -> Result<Vec<f64>, CmeModelError> {
+        let sizes = self.box_sizes();
+        if a == b || a >= sizes.len() || b >= sizes.len() {
+            return Err(CmeModelError::Pair {
+                a,
+                b,
+                species: sizes.len(),
+            });
+        }
+        let (lo, hi) = (a.min(b), a.max(b));
+        let joint = match &self.repr {
+            Repr::Train(tr) => {
+                let (p, _) = self.train_point(tr, t, set)?;
+                tr.history.particularize(t, &p).keep_pair(lo, hi).full()
+            }
+            Repr::Separated(sep) => {
+                let (c, _) = self.coefficients(sep, t, set, usize::MAX)?;
+                let modes = sep.model.modes();
+                let axes = sep.model.axes();
+                let (vl, vh) = (axes[lo].values(), axes[hi].values());
+                let w: Vec<f64> = (0..c.len())
+                    .map(|j| {
+                        c[j] * (0..sizes.len())
+                            .filter(|&k| k != lo && k != hi)
+                            .map(|k| sep.sums[k][j])
+                            .product::<f64>()
+                    })
+                    .collect();
+                let mut out = vec![0.0; sizes[lo] * sizes[hi]];
+                for zh in 0..sizes[hi] {
+                    for zl in 0..sizes[lo] {
+                        out[zh * sizes[lo] + zl] = (0..c.len())
+                            .map(|j| w[j] * vl[zl * modes + j] * vh[zh * modes + j])
+                            .sum();
+                    }
+                }
+                out
+            }
+        };
+        if a < b {
+            return Ok(joint);
+        }
+        // Asked with the higher species first: transpose to make `a` fastest.
+        let (nl, nh) = (sizes[lo], sizes[hi]);
+        let mut out = vec![0.0; nl * nh];
+        for zh in 0..nh {
+            for zl in 0..nl {
+                out[zl * nh + zh] = joint[zh * nl + zl];
+            }
+        }
+        Ok(out)
     }
 
     /// The joint distribution at `(t, p)` on the whole box (species 0 fastest), for

@@ -376,6 +376,47 @@ impl Tt {
     }
 
     /// The full tensor, first index fastest (for checks on small boxes).
+    /// The train of cores `a < b` alone, every other core summed over its index
+    /// (contracted with ones): the joint of two coordinates, the rest summed out
+    /// without forming the whole tensor.
+    pub fn keep_pair(&self, a: usize, b: usize) -> Tt {
+        debug_assert!(a < b && b < self.cores.len());
+        let mut kept: Vec<Core> = Vec::with_capacity(2);
+        // `pending`: a matrix (rows × r) to multiply into the next kept core.
+        let mut pending: Option<(usize, Vec<f64>)> = None;
+        for (k, c) in self.cores.iter().enumerate() {
+            if k == a || k == b {
+                let core = match pending.take() {
+                    Some((rows, l)) => times_left(MatRef::from_row_major_slice(&l, rows, c.r0), c),
+                    None => c.clone(),
+                };
+                kept.push(core);
+            } else {
+                let m = c.contract(&vec![1.0; c.n]);
+                pending = Some(match pending.take() {
+                    Some((rows, l)) => {
+                        let lm = MatRef::from_row_major_slice(&l, rows, c.r0)
+                            * MatRef::from_row_major_slice(&m, c.r0, c.r1);
+                        (
+                            rows,
+                            (0..rows)
+                                .flat_map(|i| (0..c.r1).map(move |j| (i, j)))
+                                .map(|(i, j)| lm[(i, j)])
+                                .collect(),
+                        )
+                    }
+                    None => (c.r0, m),
+                });
+            }
+        }
+        if let Some((rows, l)) = pending {
+            let last = kept.len() - 1;
+            let cols = l.len() / rows;
+            kept[last] = times_right(&kept[last], MatRef::from_row_major_slice(&l, rows, cols));
+        }
+        Tt { cores: kept }
+    }
+
     pub fn full(&self) -> Vec<f64> {
         // Right to left: t[(i_k…i_d), a_{k−1}] built as rows over the trailing indices.
         // Each step is one matrix product, `M = T · C_(r0·n, r1)ᵀ` (count × r0·n, column
