@@ -754,3 +754,73 @@ fn a_network_by_name_or_toml_is_built_once_then_cached() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("bad.toml"));
 }
+
+/// A coordinate path drives the network scene headless: interpolated keyframes, a rate
+/// beyond its trained range kept and flagged as clamped, an unknown name refused.
+#[test]
+fn a_coordinate_path_drives_the_network_scene() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dir.path().join("cascade.palpa");
+    let f = model.to_str().expect("utf-8");
+    common::json_ok(&palpa(&[
+        "cme",
+        "offline",
+        "cascade",
+        "--t-end",
+        "2",
+        "--max-step",
+        "0.1",
+        "--out",
+        f,
+    ]));
+    let path = dir.path().join("path.json");
+    std::fs::write(
+        &path,
+        r#"{"keyframes": [{"t_s": 0, "coordinates": {"t": 0, "delta": 0.01}},
+                          {"t_s": 2, "coordinates": {"t": 2, "delta": 0.2}}]}"#,
+    )
+    .expect("write");
+    let p = path.to_str().expect("utf-8");
+    // Frame 25 is at 1 s: halfway.
+    let v = common::json_ok(&palpa(&[
+        "headless",
+        "--scene",
+        f,
+        "--frames",
+        "26",
+        "--size",
+        "320x240",
+        "--coordinate-path",
+        p,
+        "--json",
+    ]));
+    let coord = |name: &str| {
+        v["last_coordinates"]
+            .as_array()
+            .expect("coordinates")
+            .iter()
+            .find(|c| c["name"] == name)
+            .and_then(|c| c["value"].as_f64())
+            .expect("named")
+    };
+    assert!((coord("t") - 1.0).abs() < 1e-12);
+    assert!((coord("delta") - 0.105).abs() < 1e-12);
+    assert_eq!(v["last_clamped"], serde_json::json!(["delta"]));
+    let bad = dir.path().join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"keyframes": [{"t_s": 0, "coordinates": {"gamma": 1}}]}"#,
+    )
+    .expect("write");
+    let out = palpa(&[
+        "headless",
+        "--scene",
+        f,
+        "--frames",
+        "2",
+        "--coordinate-path",
+        bad.to_str().expect("utf-8"),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("\"gamma\""));
+}

@@ -194,6 +194,7 @@ fn the_network_scene_matches_the_reference_image() {
         out: None,
         exact_check: false,
         ui: true,
+        path: None,
     })
     .expect("renders");
     // The panel ends at x = 312.

@@ -38,6 +38,10 @@ pub struct HeadlessArgs {
     /// Leave out the egui interface (the scene only).
     #[arg(long)]
     no_ui: bool,
+    /// Network scenes: a coordinate path (JSON keyframes `{"t_s": .., "coordinates":
+    /// {"t": .., "delta": ..}}`, 25 frames per second) instead of the time sweep.
+    #[arg(long)]
+    coordinate_path: Option<PathBuf>,
     /// Network scenes: run the exact (FSP) check at the last frame's coordinates and
     /// report its L1 distance to the meta-model.
     #[arg(long)]
@@ -112,6 +116,7 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
         out: args.out.clone(),
         exact_check: args.exact_check,
         ui: !args.no_ui,
+        path: args.coordinate_path.clone(),
     };
     let (report, _) = run(&opts)?;
     if args.json {

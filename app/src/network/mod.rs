@@ -10,6 +10,7 @@ pub mod build;
 pub mod check;
 pub mod job;
 pub mod offscreen;
+pub mod path;
 mod ui;
 
 use std::time::Instant;

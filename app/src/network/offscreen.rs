@@ -31,6 +31,9 @@ pub struct NetworkHeadless {
     /// Draw the interface (off: the landscape alone, what the display-rate goal is
     /// about).
     pub ui: bool,
+    /// Coordinates over the frames (at 25 frames per clock second); `None`: time swept
+    /// from 0 to its end, parameters at the middle of their ranges.
+    pub path: Option<PathBuf>,
 }
 
 /// The coordinates of a frame.
@@ -59,6 +62,8 @@ pub struct NetworkReport {
     pub last_coordinates: Vec<CoordinateValue>,
     pub last_mass: f64,
     pub last_mean: Vec<f64>,
+    /// Coordinates the last frame's evaluation clamped to the trained range.
+    pub last_clamped: Vec<String>,
     /// The exact check at the last frame: L1 distance of the joints, FSP seconds.
     pub exact_l1: Option<f64>,
     pub exact_s: Option<f64>,
@@ -76,6 +81,14 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         bail!("--frames 0: expected at least one frame");
     }
     let mut room = open_blocking(&opts.scene)?;
+    let path = match &opts.path {
+        Some(p) => {
+            let path = super::path::CoordinatePath::load(p)?;
+            path.check_names(&room)?;
+            Some(path)
+        }
+        None => None,
+    };
     let gpu = Gpu::headless()?;
     let target = Offscreen::new(&gpu.device, opts.size);
     let mut overlay = Overlay::new(&gpu.device, UI_FORMAT);
@@ -83,7 +96,10 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
     let mut hud = Hud::new(opts.scene.clone());
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
     for i in 0..opts.frames {
-        room.time.value = sweep(&room, i, opts.frames);
+        match &path {
+            Some(p) => p.apply(f64::from(i) / 25.0, &mut room),
+            None => room.time.value = sweep(&room, i, opts.frames),
+        }
         let last = i + 1 == opts.frames;
         if last && opts.exact_check {
             room.start_check()?;
@@ -169,6 +185,10 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         last_coordinates,
         last_mass: moments.map_or(f64::NAN, |m| m.mass),
         last_mean: moments.map_or_else(Vec::new, |m| m.mean.clone()),
+        last_clamped: room
+            .eval
+            .as_ref()
+            .map_or_else(Vec::new, |e| e.clamped.clone()),
         exact_l1: room.check_result.as_ref().map(|r| r.l1),
         exact_s: room.check_result.as_ref().map(|r| r.exact_s),
         adapter: gpu.report(),

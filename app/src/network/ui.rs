@@ -34,7 +34,13 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
     }
     ui.separator();
     let t = &mut room.time;
-    ui.add(egui::Slider::new(&mut t.value, t.lo..=t.hi).text("t"));
+    // A value set beyond the trained range (a path, the gamepad) stays as it is: the
+    // evaluation clamps it and the panel flags it.
+    ui.add(
+        egui::Slider::new(&mut t.value, t.lo..=t.hi)
+            .clamping(egui::SliderClamping::Never)
+            .text("t"),
+    );
     ui.horizontal(|ui| {
         let label = if room.playing { "pause" } else { "play" };
         if ui.button(label).clicked() {
@@ -48,7 +54,11 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
         );
     });
     for c in &mut room.params {
-        ui.add(egui::Slider::new(&mut c.value, c.lo..=c.hi).text(&c.name));
+        ui.add(
+            egui::Slider::new(&mut c.value, c.lo..=c.hi)
+                .clamping(egui::SliderClamping::Never)
+                .text(&c.name),
+        );
     }
     ui.separator();
     if let Some(e) = &room.error {
