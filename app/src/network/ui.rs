@@ -11,16 +11,31 @@ use crate::ui::{Hud, ramp};
 
 /// Draws the whole network interface.
 pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
+    let screen = ctx.content_rect();
+    // A phone held upright: the panels stack, full width, the controls on top (they
+    // fold), the distribution at the bottom, the landscape between.
+    let portrait = screen.height() > screen.width() && screen.width() < 700.0;
+    let (controls_pos, controls_width) = if portrait {
+        ([6.0, 6.0], screen.width() - 12.0)
+    } else {
+        ([12.0, 12.0], 300.0)
+    };
     egui::Window::new("gene network")
-        .default_pos([12.0, 12.0])
-        .default_width(300.0)
+        .default_pos(controls_pos)
+        .default_width(controls_width)
+        .default_open(!portrait)
         .resizable(false)
         .show(ctx, |ui| controls(ui, room, hud));
-    // The distribution on the right; the landscape fills the middle behind the panels.
-    let screen = ctx.content_rect();
-    let width = (0.32 * screen.width()).clamp(260.0, 420.0);
+    // The distribution on the right (landscape) or at the bottom (portrait); the
+    // landscape fills the rest behind the panels.
+    let (pos, width) = if portrait {
+        ([6.0, 0.5 * screen.height()], screen.width() - 12.0)
+    } else {
+        let width = (0.32 * screen.width()).clamp(260.0, 420.0);
+        ([screen.width() - width - 14.0, 12.0], width)
+    };
     egui::Window::new("distribution")
-        .default_pos([screen.width() - width - 14.0, 12.0])
+        .default_pos(pos)
         .default_width(width)
         .resizable(false)
         .show(ctx, |ui| views(ui, room));
@@ -352,7 +367,10 @@ fn heat_map(
         ref cells,
         peak,
     } = *w;
-    let side = ui.available_width().clamp(120.0, 260.0);
+    // At most a quarter of the screen's height (a phone held upright keeps the
+    // landscape in view).
+    let cap = (0.25 * ui.ctx().content_rect().height()).max(120.0);
+    let side = ui.available_width().clamp(120.0, 260.0).min(cap);
     let (rect, _) = ui.allocate_exact_size(egui::vec2(side, side), egui::Sense::hover());
     // One texture, refreshed only when the coordinates change (thousands of quads
     // would cost a software rasterizer tens of milliseconds a frame).
