@@ -163,6 +163,10 @@ pub struct HeadlessReport {
     pub force_priority: &'static str,
     pub final_force_n: f32,
     pub final_depth_mm: f32,
+    /// Resident memory after the warm-up (a tenth of the frames, at least 5) and at
+    /// the end, MB (Linux; absent elsewhere): a long run should stay flat.
+    pub rss_mb_after_warmup: Option<f64>,
+    pub rss_mb_end: Option<f64>,
     pub adapter: AdapterReport,
     pub out: Option<String>,
 }
@@ -203,6 +207,8 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
 
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
     let warmup = opts.frames.min(5);
+    let memory_warmup = (opts.frames / 10).max(5).min(opts.frames - 1);
+    let mut rss_after_warmup = None;
     let pace = (opts.fps > 0.0).then(|| Duration::from_secs_f64(1.0 / opts.fps));
     let start = Instant::now();
     for i in 0..opts.frames {
@@ -226,6 +232,9 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         }
         if i == warmup {
             session.force.reset_stats();
+        }
+        if i == memory_warmup {
+            rss_after_warmup = crate::stats::resident_bytes();
         }
         let t0 = Instant::now();
         let input = session.frame();
@@ -281,6 +290,8 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         force_priority: stats.priority().name(),
         final_force_n: session.sample.magnitude_n,
         final_depth_mm: session.sample.depth_mm,
+        rss_mb_after_warmup: rss_after_warmup.map(|b| b as f64 / 1e6),
+        rss_mb_end: crate::stats::resident_bytes().map(|b| b as f64 / 1e6),
         adapter: gpu.report(),
         out: opts.out.as_ref().map(|p| p.display().to_string()),
     };

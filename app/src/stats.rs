@@ -61,6 +61,14 @@ pub fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
     v[rank - 1]
 }
 
+/// Resident memory of this process (Linux: VmRSS), in bytes; `None` elsewhere.
+pub fn resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
