@@ -68,9 +68,8 @@ impl Room {
     fn advance(&mut self, hud: &mut Hud) {
         let Room::Building(b) = self else { return };
         if let BuildState::Done(path) = b.poll().clone() {
-            match crate::network::open(&path) {
-                Ok(mut room) => {
-                    room.network = Some(b.network.clone());
+            match b.room(&path) {
+                Ok(room) => {
                     hud.scene_source = path.display().to_string();
                     *self = Room::Network(Box::new(room));
                 }
@@ -167,7 +166,7 @@ impl App {
             (Room::Network(n), _) => {
                 n.frame(dt_s);
                 let l = landscape.get_or_insert_with(|| Landscape::new(&gpu.device, format));
-                l.set(&gpu.device, n.window.as_ref());
+                l.set(&gpu.device, n.window.as_ref(), n.window_generation);
                 l.encode(&gpu.device, &gpu.queue, view, size, &n.camera)
             }
             _ => crate::render::clear_frame(&gpu.device, view),

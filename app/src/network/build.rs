@@ -76,6 +76,13 @@ impl NetworkBuild {
         self.job.poll()
     }
 
+    /// The room of the built model at `path` (the network kept for the checks).
+    pub fn room(&self, path: &Path) -> anyhow::Result<super::NetworkRoom> {
+        let mut room = super::open(path)?;
+        room.network = Some(self.network.clone());
+        Ok(room)
+    }
+
     /// Tells the build to stop at its next step (it is not waited for).
     pub fn cancel(&mut self) {
         self.job.cancel();

@@ -176,8 +176,10 @@ pub struct NetworkRoom {
     pub ssa_result: Option<SsaResult>,
     /// The joint's heat-map texture (the interface's, kept across frames).
     pub heat: Option<HeatTexture>,
-    /// The window of the joint at the current coordinates (heat map and landscape).
+    /// The window of the joint at the current coordinates (heat map and landscape),
+    /// and a count of its changes (what a view compares to know it must redraw).
     pub window: Option<JointWindow>,
+    pub window_generation: u64,
     /// The landscape's camera (orbit by dragging the background, zoom by the wheel).
     pub camera: crate::camera::OrbitCamera,
     /// The two species whose joint is shown (the others summed out in the model).
@@ -221,6 +223,7 @@ impl NetworkRoom {
             ssa_result: None,
             heat: None,
             window: None,
+            window_generation: 0,
             pair: (0, 1),
             camera: crate::camera::OrbitCamera::framing(
                 glam::Vec3::ZERO,
@@ -422,6 +425,7 @@ impl NetworkRoom {
                     self.joint_us.push(t0.elapsed().as_secs_f64() * 1e6);
                     let joint = Joint { na, nb, p };
                     self.window = joint.window();
+                    self.window_generation += 1;
                     self.joint = Some(joint);
                 }
                 Err(e) => self.error = Some(e.to_string()),

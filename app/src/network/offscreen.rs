@@ -119,7 +119,7 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         }
         let t0 = Instant::now();
         room.frame(0.0);
-        landscape.set(&gpu.device, room.window.as_ref());
+        landscape.set(&gpu.device, room.window.as_ref(), room.window_generation);
         let mut encoder = landscape.encode(
             &gpu.device,
             &gpu.queue,
@@ -224,11 +224,7 @@ fn open_blocking(spec: &str) -> anyhow::Result<NetworkRoom> {
                         }
                         std::thread::sleep(std::time::Duration::from_millis(20));
                     }
-                    BuildState::Done(path) => {
-                        let mut room = super::open(&path)?;
-                        room.network = Some(b.network.clone());
-                        return Ok(room);
-                    }
+                    BuildState::Done(path) => return b.room(&path),
                     BuildState::Failed(why) => bail!("building the meta-model of {spec}: {why}"),
                     BuildState::Cancelled => {
                         bail!("building the meta-model of {spec} was cancelled")

@@ -78,7 +78,8 @@ pub struct Landscape {
     uniform: wgpu::Buffer,
     bind: wgpu::BindGroup,
     mesh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
-    shown: Option<JointWindow>,
+    /// The generation of the window shown (see `NetworkRoom::window_generation`).
+    shown: Option<u64>,
     depth: Option<((u32, u32), wgpu::TextureView)>,
 }
 
@@ -159,12 +160,13 @@ impl Landscape {
         }
     }
 
-    /// Shows `window` (rebuilding the mesh only if it changed); `None` clears it.
-    pub fn set(&mut self, device: &wgpu::Device, window: Option<&JointWindow>) {
-        if self.shown.as_ref() == window {
+    /// Shows `window`, whose change count is `generation` (the mesh is rebuilt only
+    /// when it differs from the one shown); `None` clears it.
+    pub fn set(&mut self, device: &wgpu::Device, window: Option<&JointWindow>, generation: u64) {
+        if self.shown == Some(generation) {
             return;
         }
-        self.shown = window.cloned();
+        self.shown = Some(generation);
         self.mesh = window.map(|w| {
             let (vertices, indices) = mesh(w);
             let vb = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
