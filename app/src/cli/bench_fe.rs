@@ -9,7 +9,9 @@
 //!   lobe, the sharp inferior border, next to the fixed region);
 //! - `depth`: each hyperelastic law pushed to `--depth-mm` (15) under depth control at
 //!   ten spread positions on coarse P2: the force, Newton work and seconds, or the
-//!   depth and force where it stopped and why.
+//!   depth and force where it stopped and why;
+//! - `depth_poisson`: the neo-Hookean press at the anterior point for ν = 0.48, 0.49,
+//!   0.499.
 
 use std::time::Instant;
 
@@ -33,7 +35,8 @@ pub struct FeBenchArgs {
     /// Skip the (slow) SVK tables.
     #[arg(long)]
     no_svk: bool,
-    /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth).
+    /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
+    /// depth_poisson).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
@@ -88,6 +91,9 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     }
     if args.wants("depth") {
         depth(args, &coarse);
+    }
+    if args.wants("depth_poisson") {
+        depth_poisson(args, &coarse);
     }
     if args.wants("svk") {
         svk(&coarse);
@@ -242,37 +248,60 @@ fn svk_limit(coarse: &OrganMesh) {
 fn depth(args: &FeBenchArgs, coarse: &OrganMesh) {
     for law in [Law::NeoHookean, Law::Svk] {
         for (name, at) in DEPTH_POSITIONS {
-            let t = Instant::now();
-            let out = solve_hyperelastic(
-                coarse,
-                Element::P2,
-                Material::default(),
-                law,
-                &req(at, f64::NAN),
-                Some(args.depth_mm),
-                NewtonSettings::default(),
-            );
-            let mut row = json!({"table": "depth", "level": "coarse", "element": "p2",
-                "law": law.name(), "position": name, "depth_mm": args.depth_mm,
-                "seconds": t.elapsed().as_secs_f64()});
-            match out {
-                Ok((sol, rep)) => {
-                    row["converged"] = json!(true);
-                    row["force_n"] = json!(sol.force_n);
-                    row["max_displacement_mm"] = json!(sol.max_displacement_mm);
-                    row["newton_iterations"] = json!(rep.iterations);
-                    row["steps"] = json!(rep.load_steps);
-                    row["step_cuts"] = json!(rep.step_cuts);
-                    row["probe_point"] = json!(sol.probe.point);
-                }
-                Err(e) => {
-                    row["converged"] = json!(false);
-                    row["error"] = json!(e.to_string());
-                }
-            }
-            println!("{row}");
+            depth_row(args, coarse, law, Material::default(), name, at);
         }
     }
+}
+
+/// The neo-Hookean press at the anterior point as ν → 0.5 (P2).
+fn depth_poisson(args: &FeBenchArgs, coarse: &OrganMesh) {
+    for poisson in [0.48, 0.49, 0.499] {
+        let m = Material {
+            poisson,
+            ..Material::default()
+        };
+        depth_row(args, coarse, Law::NeoHookean, m, POSITIONS[0].0, ANTERIOR);
+    }
+}
+
+/// One depth-controlled press on coarse P2, printed as a JSON row.
+fn depth_row(
+    args: &FeBenchArgs,
+    coarse: &OrganMesh,
+    law: Law,
+    material: Material,
+    name: &str,
+    at: [f64; 3],
+) {
+    let t = Instant::now();
+    let out = solve_hyperelastic(
+        coarse,
+        Element::P2,
+        material,
+        law,
+        &req(at, f64::NAN),
+        Some(args.depth_mm),
+        NewtonSettings::default(),
+    );
+    let mut row = json!({"table": "depth", "level": "coarse", "element": "p2",
+        "law": law.name(), "poisson": material.poisson, "position": name,
+        "depth_mm": args.depth_mm, "seconds": t.elapsed().as_secs_f64()});
+    match out {
+        Ok((sol, rep)) => {
+            row["converged"] = json!(true);
+            row["force_n"] = json!(sol.force_n);
+            row["max_displacement_mm"] = json!(sol.max_displacement_mm);
+            row["newton_iterations"] = json!(rep.iterations);
+            row["steps"] = json!(rep.load_steps);
+            row["step_cuts"] = json!(rep.step_cuts);
+            row["probe_point"] = json!(sol.probe.point);
+        }
+        Err(e) => {
+            row["converged"] = json!(false);
+            row["error"] = json!(e.to_string());
+        }
+    }
+    println!("{row}");
 }
 
 /// SVK Newton's work at 1, 5 and 10 N.
