@@ -31,15 +31,6 @@ fn vs_main(
     return out;
 }
 
-// The interface's ramp: blue → cyan → green → yellow → red.
-fn ramp(t: f32) -> vec3<f32> {
-    let x = clamp(t, 0.0, 1.0);
-    let r = clamp(1.5 - abs(4.0 * x - 3.0), 0.0, 1.0);
-    let g = clamp(1.5 - abs(4.0 * x - 2.0), 0.0, 1.0);
-    let b = clamp(1.5 - abs(4.0 * x - 1.0), 0.0, 1.0);
-    return vec3<f32>(r, g, b);
-}
-
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     var n = normalize(in.normal);

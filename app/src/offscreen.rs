@@ -171,15 +171,22 @@ pub struct HeadlessReport {
     pub out: Option<String>,
 }
 
-/// Renders the frames and returns the report and the last image.
-pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
-    let (w, h) = opts.size;
+/// Checks a headless run's frame size and count (either scene).
+pub fn check_frames(size: (u32, u32), frames: u32) -> anyhow::Result<()> {
+    let (w, h) = size;
     if w == 0 || h == 0 || w > 8192 || h > 8192 {
         bail!("--size {w}x{h}: expected width and height in 1..=8192");
     }
-    if opts.frames == 0 {
+    if frames == 0 {
         bail!("--frames 0: expected at least one frame");
     }
+    Ok(())
+}
+
+/// Renders the frames and returns the report and the last image.
+pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
+    check_frames(opts.size, opts.frames)?;
+    let (w, h) = opts.size;
     let loaded = crate::scenes::load(&opts.scene)?;
     let loaded_source = loaded.source.clone();
     let gpu = Gpu::headless()?;

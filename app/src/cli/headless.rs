@@ -74,12 +74,7 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
         return run_network(args, size);
     }
     let (report, _) = run(&opts)?;
-    if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).context("encoding the report")?
-        );
-    } else {
+    if !print_json(args.json, &report)? {
         println!(
             "{} frames at {}x{} on {} ({}, {}): frame p50 {:.2} ms, p95 {:.2} ms",
             report.frames,
@@ -119,12 +114,7 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
         path: args.coordinate_path.clone(),
     };
     let (report, _) = run(&opts)?;
-    if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).context("encoding the report")?
-        );
-    } else {
+    if !print_json(args.json, &report)? {
         println!(
             "{} frames at {}x{} on {}: frame p50 {:.2} ms, p95 {:.2} ms; evaluation p50 {:.1} µs, joint {:.1} µs",
             report.frames,
@@ -141,6 +131,17 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Prints `report` as pretty JSON when `json` is set; returns whether it did.
+fn print_json(json: bool, report: &impl serde::Serialize) -> anyhow::Result<bool> {
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(report).context("encoding the report")?
+        );
+    }
+    Ok(json)
 }
 
 /// `WIDTHxHEIGHT`.

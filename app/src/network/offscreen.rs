@@ -73,13 +73,8 @@ pub struct NetworkReport {
 
 /// Renders the frames; returns the report and the last image.
 pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
+    crate::offscreen::check_frames(opts.size, opts.frames)?;
     let (w, h) = opts.size;
-    if w == 0 || h == 0 || w > 8192 || h > 8192 {
-        bail!("--size {w}x{h}: expected width and height in 1..=8192");
-    }
-    if opts.frames == 0 {
-        bail!("--frames 0: expected at least one frame");
-    }
     let mut room = open_blocking(&opts.scene)?;
     let path = match &opts.path {
         Some(p) => {

@@ -1,7 +1,8 @@
-//! The WGSL sources, assembled (the shared `frame.wgsl` prepended where used), and their
-//! validation by naga in `cargo test`.
+//! The WGSL sources, assembled (the shared `frame.wgsl` and `ramp.wgsl` prepended where
+//! used), and their validation by naga in `cargo test`.
 
 const FRAME: &str = include_str!("../../../shaders/frame.wgsl");
+const RAMP: &str = include_str!("../../../shaders/ramp.wgsl");
 
 /// A shader of `shaders/`, by file stem.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -36,12 +37,18 @@ impl Shader {
     pub fn source(self) -> String {
         match self {
             Shader::Deform => include_str!("../../../shaders/deform.wgsl").to_string(),
-            Shader::Surface => {
-                format!("{FRAME}\n{}", include_str!("../../../shaders/surface.wgsl"))
-            }
+            Shader::Surface => format!(
+                "{FRAME}\n{RAMP}\n{}",
+                include_str!("../../../shaders/surface.wgsl")
+            ),
             Shader::Ground => format!("{FRAME}\n{}", include_str!("../../../shaders/ground.wgsl")),
             Shader::Solid => format!("{FRAME}\n{}", include_str!("../../../shaders/solid.wgsl")),
-            Shader::Landscape => include_str!("../../../shaders/landscape.wgsl").to_string(),
+            Shader::Landscape => {
+                format!(
+                    "{RAMP}\n{}",
+                    include_str!("../../../shaders/landscape.wgsl")
+                )
+            }
         }
     }
 
@@ -64,7 +71,7 @@ mod tests {
         let mut on_disk: Vec<String> = std::fs::read_dir(&dir)
             .expect("shaders/ exists")
             .filter_map(|e| e.ok()?.file_name().into_string().ok())
-            .filter(|n| n.ends_with(".wgsl") && n != "frame.wgsl")
+            .filter(|n| n.ends_with(".wgsl") && n != "frame.wgsl" && n != "ramp.wgsl")
             .collect();
         on_disk.sort();
         let mut known: Vec<String> = Shader::ALL.iter().map(|s| s.name().to_string()).collect();
