@@ -81,6 +81,10 @@ pub enum SurfaceError {
         "inconsistent orientation: the two triangles at edge {a}–{b} (at {pa:?}) traverse it the same way"
     )]
     Orientation { a: u32, b: u32, pa: [f64; 3] },
+    #[error(
+        "the surface intersects itself: triangles {a} and {b} cross near {at:?} (a solid needs a surface that does not pass through itself)"
+    )]
+    SelfIntersecting { a: usize, b: usize, at: [f64; 3] },
 }
 
 impl TriSurface {
@@ -199,6 +203,9 @@ impl TriSurface {
                 });
             }
         }
+        if let Some((a, b, at)) = self.first_crossing() {
+            return Err(SurfaceError::SelfIntersecting { a, b, at });
+        }
         if self.volume() < 0.0 {
             for t in &mut self.triangles {
                 t.swap(1, 2);
@@ -206,6 +213,78 @@ impl TriSurface {
         }
         Ok(())
     }
+}
+
+impl TriSurface {
+    /// Two triangles that share no vertex and cross (an edge of one passes through
+    /// the other), with a crossing point. Broad phase: a uniform grid of about four
+    /// triangles per cell over the bounding boxes. Coplanar overlaps are not looked
+    /// for (a closed manifold that only touches itself in a plane is rare; it meshes).
+    fn first_crossing(&self) -> Option<(usize, usize, [f64; 3])> {
+        let tri = |t: usize| self.triangles[t].map(|v| self.vertices[v as usize]);
+        let (lo, hi) = crate::mesh::bounds_of(&self.vertices);
+        let n = self.triangles.len();
+        let cells_per_side = ((n as f64 / 4.0).cbrt().ceil() as usize).clamp(1, 128);
+        let size = [0, 1, 2].map(|d| ((hi[d] - lo[d]) / cells_per_side as f64).max(1e-12));
+        let cell = |p: [f64; 3], d: usize| {
+            (((p[d] - lo[d]) / size[d]).floor().max(0.0) as usize).min(cells_per_side - 1)
+        };
+        let mut grid: HashMap<[usize; 3], Vec<usize>> = HashMap::new();
+        for t in 0..n {
+            let (a, b) = crate::mesh::bounds_of(&tri(t));
+            let (c0, c1) = ([0, 1, 2].map(|d| cell(a, d)), [0, 1, 2].map(|d| cell(b, d)));
+            for i in c0[0]..=c1[0] {
+                for j in c0[1]..=c1[1] {
+                    for k in c0[2]..=c1[2] {
+                        grid.entry([i, j, k]).or_default().push(t);
+                    }
+                }
+            }
+        }
+        let mut seen = std::collections::HashSet::new();
+        for members in grid.values() {
+            for (x, &t) in members.iter().enumerate() {
+                for &u in &members[x + 1..] {
+                    let (p, q) = (self.triangles[t], self.triangles[u]);
+                    if p.iter().any(|v| q.contains(v)) || !seen.insert((t.min(u), t.max(u))) {
+                        continue;
+                    }
+                    let (tp, tq) = (tri(t), tri(u));
+                    if let Some(at) = edges_cross(&tp, &tq).or_else(|| edges_cross(&tq, &tp)) {
+                        return Some((t.min(u), t.max(u), at));
+                    }
+                }
+            }
+        }
+        None
+    }
+}
+
+/// Where an edge of `a` passes through triangle `b` (Möller–Trumbore, parameters
+/// strictly inside), if one does.
+fn edges_cross(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> Option<[f64; 3]> {
+    let (e1, e2) = (sub(b[1], b[0]), sub(b[2], b[0]));
+    let scale = norm(e1).max(norm(e2));
+    for k in 0..3 {
+        let (o, end) = (a[k], a[(k + 1) % 3]);
+        let dir = sub(end, o);
+        let h = cross(dir, e2);
+        let det = dot(e1, h);
+        if det.abs() <= 1e-12 * scale * scale * norm(dir) {
+            continue;
+        }
+        let f = 1.0 / det;
+        let s0 = sub(o, b[0]);
+        let u = f * dot(s0, h);
+        let qv = cross(s0, e1);
+        let v = f * dot(dir, qv);
+        let t = f * dot(e2, qv);
+        let eps = 1e-9;
+        if u > eps && v > eps && u + v < 1.0 - eps && t > eps && t < 1.0 - eps {
+            return Some([0, 1, 2].map(|d| o[d] + t * dir[d]));
+        }
+    }
+    None
 }
 
 /// Number of edge-connected groups among the triangles around vertex v.
@@ -591,6 +670,46 @@ mod tests {
             "edge region"
         );
         assert!(solid.value([0.5, 0.5, 0.5]) < 0.0);
+    }
+
+    /// Two closed cubes pushed into each other: each is a closed manifold, together
+    /// they cross, which is named (it used to mesh for minutes with no message).
+    #[test]
+    fn a_self_intersecting_surface_is_refused() {
+        let mut text = cube_obj();
+        for z in [0.0, 1.0] {
+            for y in [0.0, 1.0] {
+                for x in [0.0, 1.0] {
+                    text += &format!(
+                        "v {} {} {}\n",
+                        5.0 + 10.0 * x,
+                        4.0 + 10.0 * y,
+                        3.0 + 10.0 * z
+                    );
+                }
+            }
+        }
+        for f in [
+            "1 3 4 2", "5 6 8 7", "1 2 6 5", "3 7 8 4", "1 5 7 3", "2 4 8 6",
+        ] {
+            let shifted: Vec<String> = f
+                .split(' ')
+                .map(|i| (i.parse::<u32>().expect("index") + 8).to_string())
+                .collect();
+            text += &format!("f {}\n", shifted.join(" "));
+        }
+        let mut s = read_str("two.obj", &text).expect("parses");
+        match s.validate() {
+            Err(SurfaceError::SelfIntersecting { at, .. }) => {
+                assert!(at.iter().all(|c| (0.0..=15.0).contains(c)), "{at:?}");
+            }
+            other => panic!("expected the crossing, got {other:?}"),
+        }
+        // One cube alone does not cross itself.
+        read_str("cube.obj", &cube_obj())
+            .expect("parses")
+            .validate()
+            .expect("valid");
     }
 
     /// A vertex at 1e308 (finite, but its products overflow) is named, not meshed
