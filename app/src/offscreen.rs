@@ -262,10 +262,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         if last {
             target.encode_copy(&mut encoder);
         }
-        gpu.queue.submit([encoder.finish()]);
-        gpu.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| anyhow::anyhow!("waiting for the GPU: {e}"))?;
+        gpu.submit_and_wait(encoder)?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         hud.frame_ms.push(ms);
         if i >= warmup || opts.frames <= warmup {

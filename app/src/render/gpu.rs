@@ -26,6 +26,16 @@ pub const NO_ADAPTER_HELP: &str = "no GPU adapter found. palpa renders on any Vu
      and try again, or select a backend with WGPU_BACKEND=vulkan|gl";
 
 impl Gpu {
+    /// Submits `encoder` and waits until the GPU has finished it (headless frames are
+    /// timed to completion).
+    pub fn submit_and_wait(&self, encoder: wgpu::CommandEncoder) -> anyhow::Result<()> {
+        self.queue.submit([encoder.finish()]);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| anyhow::anyhow!("waiting for the GPU: {e}"))?;
+        Ok(())
+    }
+
     /// A context without a window (tests, `palpa headless`). Honours `WGPU_BACKEND`,
     /// `WGPU_ADAPTER_NAME` and `WGPU_POWER_PREF`.
     pub fn headless() -> anyhow::Result<Self> {

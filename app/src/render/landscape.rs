@@ -8,7 +8,7 @@ use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 use super::shaders::Shader;
-use super::{BACKGROUND, DEPTH_FORMAT, texture_2d};
+use super::{DEPTH_FORMAT, background_attachment, texture_2d};
 use crate::camera::OrbitCamera;
 use crate::network::{JointWindow, LANDSCAPE_HEIGHT, LANDSCAPE_SIDE};
 
@@ -221,15 +221,7 @@ impl Landscape {
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("landscape"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(BACKGROUND),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
+                color_attachments: &[Some(background_attachment(target))],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: depth,
                     depth_ops: Some(wgpu::Operations {

@@ -247,15 +247,7 @@ impl Renderer {
         let depth_view = self.depth_view(device, (w, h)).clone();
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("scene"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(BACKGROUND),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
+            color_attachments: &[Some(background_attachment(target))],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &depth_view,
                 depth_ops: Some(wgpu::Operations {
@@ -428,6 +420,19 @@ fn object(world_from_model: Mat4, color: [f32; 4]) -> ObjectUniform {
     }
 }
 
+/// A colour attachment that clears `target` to the background and keeps what is drawn.
+pub fn background_attachment(target: &wgpu::TextureView) -> wgpu::RenderPassColorAttachment<'_> {
+    wgpu::RenderPassColorAttachment {
+        view: target,
+        depth_slice: None,
+        resolve_target: None,
+        ops: wgpu::Operations {
+            load: wgpu::LoadOp::Clear(BACKGROUND),
+            store: wgpu::StoreOp::Store,
+        },
+    }
+}
+
 /// An encoder whose first pass clears `target` to the background (for scenes drawn by
 /// the interface alone, such as the network scene).
 pub fn clear_frame(device: &wgpu::Device, target: &wgpu::TextureView) -> wgpu::CommandEncoder {
@@ -436,15 +441,7 @@ pub fn clear_frame(device: &wgpu::Device, target: &wgpu::TextureView) -> wgpu::C
     });
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("clear"),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: target,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(BACKGROUND),
-                store: wgpu::StoreOp::Store,
-            },
-        })],
+        color_attachments: &[Some(background_attachment(target))],
         depth_stencil_attachment: None,
         timestamp_writes: None,
         occlusion_query_set: None,
