@@ -6,6 +6,7 @@ mod assets;
 mod cme;
 mod cme_greedy;
 mod cme_tt;
+mod cme_views;
 mod evaluation;
 mod fe_convergence;
 mod fe_liver;

@@ -44,6 +44,7 @@ use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
 use crate::axis::Discretization;
+use crate::cme::views::{View, Views};
 use crate::farfield::{FarBlocks, FarField, NestedFar, NestedFarV5};
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
@@ -59,9 +60,9 @@ pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
 /// Version 4: the near field with its hierarchical far field
 /// ([`Layout::SeparatedNearFar`]). Version 5: the far field with nested column bases
 /// ([`Layout::SeparatedNearNested`]). Version 6: those plus shared row bases
-/// ([`Layout::SeparatedNearShared`]), what the builder writes now; each is written only
-/// for models that have it.
-pub const FORMAT_VERSION: u32 = 6;
+/// ([`Layout::SeparatedNearShared`]), what the builder writes now. Version 7: a gene
+/// network's views ([`Layout::Views`]). Each is written only for models that have it.
+pub const FORMAT_VERSION: u32 = 7;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
@@ -107,9 +108,28 @@ pub enum Layout {
         near: Box<NearField>,
         far: Box<NestedFar>,
     },
+    /// A gene network's views over time (version 7, [`crate::cme::views`]): per view,
+    /// its time factor (`nodes × rank`) then its values (`rank × m`), f64.
+    Views { views: Vec<ViewShape> },
+}
+
+/// One stored view's species (network indices) and rank.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ViewShape {
+    pub species: Vec<u32>,
+    pub rank: u64,
 }
 
 impl Layout {
+    /// What the layout holds, in words (for errors).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Layout::TensorTrain { .. } => "tensor-train",
+            Layout::Views { .. } => "views",
+            _ => "separated",
+        }
+    }
+
     /// Whether the payload is `X` then the axes (separated, with or without near field).
     pub fn is_separated(&self) -> bool {
         matches!(
@@ -235,6 +255,21 @@ fn bincode_config() -> impl bincode::config::Config {
 /// `None` if a product overflows (only possible for a crafted header).
 fn block_lens(h: &Header) -> Option<Vec<u64>> {
     let bytes = h.precision.bytes() as u64;
+    if let Layout::Views { views } = &h.layout {
+        let axes = &h.meta.axes;
+        let nodes = axes.first()?.discretization.node_count() as u64;
+        let mut out = Vec::with_capacity(2 * views.len());
+        for v in views {
+            let mut m = 1u64;
+            for &i in &v.species {
+                let axis = axes.get(1 + i as usize)?;
+                m = m.checked_mul(axis.discretization.node_count() as u64)?;
+            }
+            out.push(nodes.checked_mul(v.rank)?.checked_mul(bytes)?);
+            out.push(m.checked_mul(v.rank)?.checked_mul(bytes)?);
+        }
+        return Some(out);
+    }
     if let Layout::TensorTrain { ranks } = &h.layout {
         if ranks.len() != h.meta.axes.len() + 1 {
             return None;
@@ -393,6 +428,102 @@ pub fn save_train(meta: &ModelMeta, cores: &[Core], path: &Path) -> Result<(), F
         layout: Layout::TensorTrain { ranks },
     };
     write_file(path, 2, &header, &blocks)
+}
+
+/// Writes a views model (f64; `meta` has the time axis, then one axis per species)
+/// atomically.
+pub fn save_views(meta: &ModelMeta, views: &Views, path: &Path) -> Result<(), FileError> {
+    views.check().map_err(|reason| FileError::Inconsistent {
+        path: path.to_path_buf(),
+        reason,
+    })?;
+    if meta.axes.len() != views.sizes.len() + 1 {
+        return Err(FileError::Inconsistent {
+            path: path.to_path_buf(),
+            reason: format!(
+                "{} axes for {} species and time",
+                meta.axes.len(),
+                views.sizes.len()
+            ),
+        });
+    }
+    let blocks: Vec<&[u8]> = views
+        .views
+        .iter()
+        .flat_map(|v| [&v.time[..], &v.values[..]])
+        .map(bytemuck::cast_slice::<f64, u8>)
+        .collect();
+    let (payload_len, payload_xxh3) = payload_sum(&blocks);
+    let header = Header {
+        meta: meta.clone(),
+        precision: Precision::F64,
+        rows: 0,
+        modes: 0,
+        payload_len,
+        payload_xxh3,
+        layout: Layout::Views {
+            views: views
+                .views
+                .iter()
+                .map(|v| ViewShape {
+                    species: v.species.iter().map(|&i| i as u32).collect(),
+                    rank: v.rank as u64,
+                })
+                .collect(),
+        },
+    };
+    write_file(path, 7, &header, &blocks)
+}
+
+/// Loads a views model: its metadata and views (shapes checked).
+pub fn load_views(path: &Path) -> Result<(ModelMeta, Views), FileError> {
+    let mut f = open(path)?;
+    let located = read_header_from(path, &mut f)?;
+    let p = || path.to_path_buf();
+    let Layout::Views { views: shapes } = located.header.layout.clone() else {
+        return Err(FileError::WrongLayout {
+            path: p(),
+            expected: "views",
+            found: located.header.layout.name(),
+        });
+    };
+    if located.header.precision != Precision::F64 {
+        return Err(FileError::WrongPrecision {
+            path: p(),
+            expected: Precision::F64,
+            found: located.header.precision,
+        });
+    }
+    let (header, arrays) = read_arrays::<f64, File>(path, &mut f, located)?;
+    let axes = &header.meta.axes;
+    let t = match &axes[0].discretization {
+        Discretization::Grid { nodes } => nodes.clone(),
+        _ => {
+            return Err(FileError::Inconsistent {
+                path: p(),
+                reason: "the first axis of a views model must be the time grid".into(),
+            });
+        }
+    };
+    let sizes = axes[1..]
+        .iter()
+        .map(|a| a.discretization.node_count())
+        .collect();
+    let mut arrays = arrays.into_iter();
+    let views = shapes
+        .into_iter()
+        .map(|s| View {
+            species: s.species.iter().map(|&i| i as usize).collect(),
+            rank: s.rank as usize,
+            time: arrays.next().unwrap_or_default(),
+            values: arrays.next().unwrap_or_default(),
+        })
+        .collect();
+    let views = Views { t, sizes, views };
+    views
+        .check()
+        .map_err(|reason| FileError::Inconsistent { path: p(), reason })?;
+    Ok((header.meta, views))
 }
 
 fn payload_sum(blocks: &[&[u8]]) -> (u64, u64) {
@@ -653,7 +784,7 @@ fn load_payload<T: Scalar, R: Read>(
         return Err(FileError::WrongLayout {
             path: p(),
             expected: "separated",
-            found: "tensor-train",
+            found: located.header.layout.name(),
         });
     }
     let near = match &located.header.layout {
@@ -717,7 +848,7 @@ pub fn load_train(path: &Path) -> Result<(ModelMeta, Vec<Core>), FileError> {
         return Err(FileError::WrongLayout {
             path: p(),
             expected: "tensor-train",
-            found: "separated",
+            found: located.header.layout.name(),
         });
     };
     if located.header.precision != Precision::F64 {

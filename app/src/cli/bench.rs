@@ -32,6 +32,9 @@ pub enum BenchCommand {
     /// Gene-network meta-model: off-line and evaluation time, accuracy against FSP,
     /// and the SSA cost of the same marginal accuracy.
     Cme(super::bench_cme::CmeBenchArgs),
+    /// The signaling cascade's views model over all t: build time, file size, the
+    /// leading marginals against their exact closed chain at every t, evaluation time.
+    Views(super::bench_views::ViewsBenchArgs),
 }
 
 #[derive(Debug, Args)]
@@ -74,6 +77,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Fe(args) => super::bench_fe::run(args),
         BenchCommand::Offline(args) => super::bench_pgd::run(args),
         BenchCommand::Cme(args) => super::bench_cme::run(args),
+        BenchCommand::Views(args) => super::bench_views::run(args),
     }
 }
 

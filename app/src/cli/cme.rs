@@ -29,6 +29,13 @@ pub enum Solver {
     Greedy,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Keep {
+    Auto,
+    History,
+    Views,
+}
+
 /// Time grid and solver settings shared by `offline`, `solve --method pgd` and
 /// `bench cme`.
 #[derive(Debug, Args)]
@@ -48,9 +55,22 @@ pub struct PgdArgs {
     /// only: 0 = fixed geometric steps].
     #[arg(long)]
     step_error: Option<f64>,
-    /// tt: relative SVD truncation of each step's state.
-    #[arg(long, default_value_t = ttsolve::Options::default().eps)]
-    eps: f64,
+    /// tt: relative SVD truncation of each step's state [history: 1e-8, views: 3e-6].
+    #[arg(long)]
+    eps: Option<f64>,
+    /// tt: what the model keeps: the whole history over (t, species, parameters), or
+    /// views (every marginal and chosen pairwise joints over t, what a scene shows)
+    /// [auto: views for 5 or more species and no range parameters].
+    #[arg(long, value_enum, default_value = "auto")]
+    keep: Keep,
+    /// views: the joints kept, "neighbours" (each species with the next), "none", or
+    /// pairs of species names A:B, comma-separated (the first two species' joint is
+    /// always kept: it gives their covariance).
+    #[arg(long, default_value = "neighbours")]
+    pairs: String,
+    /// views: root-mean-square relative error of a stored time row.
+    #[arg(long, default_value_t = build::VIEWS_EPS)]
+    views_eps: f64,
     /// tt: relative truncation of each stored state in the history.
     #[arg(long, default_value_t = ttsolve::Options::default().compress_eps)]
     compress_eps: f64,
@@ -103,19 +123,44 @@ impl PgdArgs {
         }
     }
 
-    pub fn tt_options(&self, t_default: f64) -> ttsolve::Options {
-        let d = ttsolve::Options::default();
-        ttsolve::Options {
-            t_end: self.t_end.unwrap_or(t_default),
+    /// The tensor-train build: the recipe's defaults for `network` (see
+    /// [`build::Recipe::default_for`]), `--keep` and the flags given over them.
+    pub fn recipe(&self, network: &Network, t_default: f64) -> anyhow::Result<build::Recipe> {
+        let t_end = self.t_end.unwrap_or(t_default);
+        let auto = build::Recipe::default_for(network, t_end);
+        let views = match self.keep {
+            Keep::Auto => auto.views.is_some(),
+            Keep::History => false,
+            Keep::Views => true,
+        };
+        let d = if views {
+            build::Recipe::views_options(t_end)
+        } else {
+            ttsolve::Options {
+                t_end,
+                ..ttsolve::Options::default()
+            }
+        };
+        let options = ttsolve::Options {
+            t_end,
             h_first: self.first_step.unwrap_or(d.h_first),
             h_max: self.max_step.unwrap_or(d.h_max),
             step_error_tol: self.step_error.unwrap_or(d.step_error_tol),
-            eps: self.eps,
+            eps: self.eps.unwrap_or(d.eps),
             compress_eps: self.compress_eps,
             weight_floor: self.weight_floor,
             max_rank: self.max_rank,
             ..d
-        }
+        };
+        let views = if views {
+            Some(build::ViewOptions {
+                pairs: parse_pairs(&self.pairs, network)?,
+                eps: self.views_eps,
+            })
+        } else {
+            None
+        };
+        Ok(build::Recipe { options, views })
     }
 
     /// Builds the meta-model of `network` on [0, t_end] (default `t_default`).
@@ -135,7 +180,8 @@ impl PgdArgs {
         let built = match self.solver {
             Solver::Greedy => run_pgd(network, &self.options(t_default))?,
             Solver::Tt => {
-                let o = self.tt_options(t_default);
+                let recipe = self.recipe(network, t_default)?;
+                let o = recipe.options;
                 let mut shown = Instant::now();
                 let mut progress = |s: ttsolve::Step| {
                     // A progress line at most 4 times a second.
@@ -149,7 +195,10 @@ impl PgdArgs {
                     );
                     let _ = std::io::stderr().flush();
                 };
-                let b = build::train(network, &o, times, &mut progress)?;
+                let b = match times {
+                    Some(times) => build::train(network, &o, Some(times), &mut progress)?,
+                    None => recipe.build(network, None, &mut progress)?,
+                };
                 eprintln!();
                 b
             }
@@ -186,6 +235,26 @@ impl PgdArgs {
                 "solve_seconds": r.solve_seconds,
                 "compress_seconds": r.compress_seconds,
                 "stored_values": h.tt.len(),
+                "seconds": seconds,
+            }),
+            build::Form::Views {
+                views: v,
+                report: r,
+                ..
+            } => serde_json::json!({
+                "solver": "tt",
+                "keep": "views",
+                "steps": r.steps,
+                "stored_times": r.stored,
+                "max_step_rank": r.max_rank,
+                "view_ranks": r.history_ranks,
+                "pairs": v.pairs(),
+                "worst_local_residual": r.worst_local_residual,
+                "worst_mass_correction": r.worst_mass_correction,
+                "sweeps": r.sweeps,
+                "solve_seconds": r.solve_seconds,
+                "compress_seconds": r.compress_seconds,
+                "stored_values": v.stored_values(),
                 "seconds": seconds,
             }),
         };
@@ -305,6 +374,52 @@ pub fn load_network(model: &str) -> anyhow::Result<Network> {
     } else {
         Ok(Network::built_in(model)?)
     }
+}
+
+/// `--pairs`: "neighbours", "none" or `A:B,…` by species name, as network index pairs
+/// `a < b`, always with the first two species' pair.
+fn parse_pairs(list: &str, network: &Network) -> anyhow::Result<Vec<(usize, usize)>> {
+    let d = network.species.len();
+    let mut pairs: Vec<(usize, usize)> = match list.trim() {
+        "neighbours" | "neighbors" => (1..d).map(|i| (i - 1, i)).collect(),
+        "none" | "" => Vec::new(),
+        list => list
+            .split(',')
+            .map(|pair| {
+                let index = |name: &str| {
+                    network
+                        .species
+                        .iter()
+                        .position(|s| s.name == name.trim())
+                        .with_context(|| {
+                            format!(
+                                "--pairs {pair:?}: no species {name:?}; the species are {}",
+                                network
+                                    .species
+                                    .iter()
+                                    .map(|s| s.name.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            )
+                        })
+                };
+                let (a, b) = pair.split_once(':').with_context(|| {
+                    format!("--pairs {pair:?}: expected two species names as A:B")
+                })?;
+                let (a, b) = (index(a)?, index(b)?);
+                if a == b {
+                    bail!("--pairs {pair:?}: expected two different species");
+                }
+                Ok((a.min(b), a.max(b)))
+            })
+            .collect::<anyhow::Result<_>>()?,
+    };
+    if d >= 2 {
+        pairs.push((0, 1));
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    Ok(pairs)
 }
 
 pub fn parse_params(list: &[String]) -> anyhow::Result<Vec<(String, f64)>> {

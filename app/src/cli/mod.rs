@@ -5,6 +5,7 @@ mod bench;
 mod bench_cme;
 mod bench_fe;
 mod bench_pgd;
+mod bench_views;
 mod cme;
 mod fe;
 mod headless;

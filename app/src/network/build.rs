@@ -14,8 +14,8 @@ use super::job::{Job, JobState};
 /// Where a network's meta-model is cached: next to its TOML file, or for a built-in
 /// network in the user's cache folder (`$XDG_CACHE_HOME/palpa`, `~/.cache/palpa`, else
 /// the temporary folder). The name carries a hash of the network and the options.
-pub fn cache_path(network: &Network, options: &ttsolve::Options, toml: Option<&Path>) -> PathBuf {
-    let hash = xxhash_rust::xxh3::xxh3_64(format!("{network:?}{options:?}").as_bytes());
+pub fn cache_path(network: &Network, recipe: &build::Recipe, toml: Option<&Path>) -> PathBuf {
+    let hash = recipe.hash(network);
     match toml {
         Some(p) => {
             let stem = p.file_stem().map_or_else(
@@ -48,16 +48,13 @@ pub struct NetworkBuild {
 
 impl NetworkBuild {
     /// Starts building `network`'s meta-model into `out`.
-    pub fn start(
-        network: Network,
-        options: ttsolve::Options,
-        out: PathBuf,
-    ) -> anyhow::Result<Self> {
+    pub fn start(network: Network, recipe: build::Recipe, out: PathBuf) -> anyhow::Result<Self> {
         let (net, path) = (network.clone(), out.clone());
         let job = Job::start("palpa-network-build", move |ctx| {
-            let t_end = options.t_end;
+            let t_end = recipe.options.t_end;
             let mut progress = |s: ttsolve::Step| ctx.progress(s.t / t_end);
-            let built = build::train_cancellable(&net, &options, ctx.flag(), &mut progress)
+            let built = recipe
+                .build(&net, Some(ctx.flag()), &mut progress)
                 .map_err(|e| e.to_string())?;
             if let Some(dir) = path.parent() {
                 std::fs::create_dir_all(dir)
@@ -140,7 +137,7 @@ mod tests {
     #[test]
     fn the_cache_is_keyed_by_network_and_options() {
         let n = Network::built_in("toggle").expect("built in");
-        let o = ttsolve::Options::default();
+        let o = build::Recipe::default_for(&n, 300.0);
         let toml = Path::new("/some/where/my.toml");
         let p = cache_path(&n, &o, Some(toml));
         assert_eq!(p.parent(), Some(Path::new("/some/where")));
@@ -148,9 +145,12 @@ mod tests {
             p.file_name()
                 .is_some_and(|f| f.to_string_lossy().starts_with("my."))
         );
-        let other = ttsolve::Options {
-            eps: o.eps / 10.0,
-            ..o
+        let other = build::Recipe {
+            options: ttsolve::Options {
+                eps: o.options.eps / 10.0,
+                ..o.options
+            },
+            views: None,
         };
         assert_ne!(cache_path(&n, &other, Some(toml)), p);
         let c = Network::built_in("cascade").expect("built in");
@@ -163,8 +163,8 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let out = dir.path().join("cascade.palpa");
         let n = Network::built_in("cascade").expect("built in");
-        let mut b =
-            NetworkBuild::start(n, ttsolve::Options::default(), out.clone()).expect("starts");
+        let recipe = build::Recipe::default_for(&n, 300.0);
+        let mut b = NetworkBuild::start(n, recipe, out.clone()).expect("starts");
         std::thread::sleep(Duration::from_millis(50));
         b.cancel();
         assert_eq!(*b.poll(), BuildState::Cancelled);

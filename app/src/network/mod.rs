@@ -48,8 +48,11 @@ pub struct Joint {
 #[derive(Debug, Clone, PartialEq)]
 pub struct CheckResult {
     pub coordinates: Vec<f64>,
-    /// L1 distance between the meta-model's and the exact joint.
+    /// L1 distance between the meta-model's and the exact joint, or for a views
+    /// model (which keeps no whole joint) the largest over its marginals.
     pub l1: f64,
+    /// Whether `l1` compares whole joints (else marginals).
+    pub joint: bool,
     /// The exact solve's time, s, and the meta-model's joint evaluation there, µs.
     pub exact_s: f64,
     pub model_us: f64,
@@ -176,6 +179,8 @@ pub struct NetworkRoom {
     pub ssa_result: Option<SsaResult>,
     /// The joint's heat-map texture (the interface's, kept across frames).
     pub heat: Option<HeatTexture>,
+    /// The species × copy-number strip's texture (many species).
+    pub strip: Option<HeatTexture>,
     /// The window of the joint at the current coordinates (heat map and landscape),
     /// and a count of its changes (what a view compares to know it must redraw).
     pub window: Option<JointWindow>,
@@ -222,9 +227,13 @@ impl NetworkRoom {
             ssa: None,
             ssa_result: None,
             heat: None,
+            strip: None,
             window: None,
             window_generation: 0,
-            pair: (0, 1),
+            pair: model
+                .pairs()
+                .and_then(|p| p.first().copied())
+                .unwrap_or((0, 1)),
             camera: crate::camera::OrbitCamera::framing(
                 glam::Vec3::ZERO,
                 glam::Vec3::new(LANDSCAPE_SIDE, LANDSCAPE_SIDE, LANDSCAPE_HEIGHT),
@@ -340,13 +349,33 @@ impl NetworkRoom {
         self.check = None;
         let t = exact.coordinates[0];
         let set = self.settings_at(&exact.coordinates);
+        let exact_moments = Moments::from_joint(t, &self.model.box_sizes(), &exact.joint);
         let t0 = Instant::now();
-        match self.model.joint(t, &set, usize::MAX) {
-            Ok(joint) => {
+        // A views model keeps marginals and a few joints, not the whole one: its
+        // marginals are what it is checked on.
+        let compared = if self.model.pairs().is_some() {
+            self.model.evaluate(t, &set, usize::MAX).map(|e| {
+                let l1 = e
+                    .moments
+                    .marginals
+                    .iter()
+                    .zip(&exact_moments.marginals)
+                    .map(|(m, x)| l1(m, x))
+                    .fold(0.0, f64::max);
+                (l1, false)
+            })
+        } else {
+            self.model
+                .joint(t, &set, usize::MAX)
+                .map(|joint| (l1(&joint, &exact.joint), true))
+        };
+        match compared {
+            Ok((l1, joint)) => {
                 let model_us = t0.elapsed().as_secs_f64() * 1e6;
                 self.check_result = Some(CheckResult {
-                    l1: l1(&joint, &exact.joint),
-                    exact: Moments::from_joint(t, &self.model.box_sizes(), &exact.joint),
+                    l1,
+                    joint,
+                    exact: exact_moments,
                     coordinates: exact.coordinates,
                     exact_s: exact.seconds,
                     model_us,
@@ -463,8 +492,8 @@ pub enum Prepared {
 /// The room of `network` (from a TOML file `toml`, or built in): its cached meta-model
 /// if there is one that opens, else a background build of it.
 pub fn prepare(network: Network, toml: Option<&std::path::Path>) -> anyhow::Result<Prepared> {
-    let options = palpa_core::cme::ttsolve::Options::default();
-    let cache = build::cache_path(&network, &options, toml);
+    let recipe = palpa_core::cme::build::Recipe::default_for(&network, 300.0);
+    let cache = build::cache_path(&network, &recipe, toml);
     if cache.exists()
         && let Ok(mut room) = open(&cache)
     {
@@ -472,7 +501,7 @@ pub fn prepare(network: Network, toml: Option<&std::path::Path>) -> anyhow::Resu
         return Ok(Prepared::Ready(Box::new(room)));
     }
     Ok(Prepared::Building(Box::new(build::NetworkBuild::start(
-        network, options, cache,
+        network, recipe, cache,
     )?)))
 }
 

@@ -94,7 +94,12 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
                 format!("clamped to the trained range: {}", e.clamped.join(", ")),
             );
         }
+        // Many species: the strip beside the distribution gives each mean ± sd.
+        let grid = room.species.len() <= STRIP_FROM_SPECIES;
         egui::Grid::new("moments").striped(true).show(ui, |ui| {
+            if !grid {
+                return;
+            }
             ui.label("species");
             ui.label("mean");
             ui.label("sd");
@@ -146,8 +151,13 @@ fn exact_check(ui: &mut egui::Ui, room: &mut NetworkRoom) {
     );
     let coordinates = room.coordinates();
     if let Some(r) = &room.check_result {
+        let (what, of) = if r.joint {
+            ("joint L1", "joint")
+        } else {
+            ("largest marginal L1", "marginals")
+        };
         ui.label(format!(
-            "exact: joint L1 {:.2e} · FSP {:.2} s · meta-model joint {:.0} µs",
+            "exact: {what} {:.2e} · FSP {:.2} s · meta-model {of} {:.0} µs",
             r.l1, r.exact_s, r.model_us
         ));
         if r.coordinates != coordinates {
@@ -245,7 +255,25 @@ fn job_row<T>(
 }
 
 fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
-    if room.species.len() > 2 {
+    if let Some(pairs) = room.model().pairs() {
+        // A views model offers the joints it stored, and only those.
+        let name = |(a, b): (usize, usize)| format!("{} × {}", room.species[a], room.species[b]);
+        ui.horizontal(|ui| {
+            ui.label("joint of");
+            let mut pick = room.pair;
+            egui::ComboBox::from_id_salt("stored-pair")
+                .selected_text(name(room.pair))
+                .show_ui(ui, |ui| {
+                    for &p in &pairs {
+                        ui.selectable_value(&mut pick, p, name(p));
+                    }
+                });
+            room.pair = pick;
+        });
+        if pairs.is_empty() {
+            ui.label("this model stores no joint: marginals only");
+        }
+    } else if room.species.len() > 2 {
         ui.horizontal(|ui| {
             ui.label("joint of");
             for (id, slot) in [("pair-a", 0), ("pair-b", 1)] {
@@ -290,6 +318,11 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
         }
     }
     let Some(e) = &room.eval else { return };
+    if room.species.len() > STRIP_FROM_SPECIES {
+        let key = room.coordinates();
+        strip(ui, &room.species, &e.moments, &key, &mut room.strip);
+        return;
+    }
     let cols = room.species.len().clamp(1, 2);
     egui::Grid::new("marginals").show(ui, |ui| {
         for (i, (name, m)) in room.species.iter().zip(&e.moments.marginals).enumerate() {
@@ -347,6 +380,101 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
             }
         }
     });
+}
+
+/// Above this many species the marginals are one species × copy-number strip, not a
+/// bar chart each (twenty plots would not fit, nor draw in a frame on a software
+/// rasterizer).
+const STRIP_FROM_SPECIES: usize = 6;
+
+/// Every marginal as one row of a texture: copy number along x, each row coloured by
+/// the ramp up to its own peak (a wide distribution stays as visible as a sharp one),
+/// with each species' mean ± sd beside it.
+fn strip(
+    ui: &mut egui::Ui,
+    species: &[String],
+    moments: &palpa_core::cme::Moments,
+    key: &[f64],
+    tex: &mut Option<super::HeatTexture>,
+) {
+    let nx = moments
+        .marginals
+        .iter()
+        .map(Vec::len)
+        .max()
+        .unwrap_or(1)
+        .max(1);
+    let ny = moments.marginals.len().max(1);
+    ui.label(format!(
+        "marginals at t = {:.3}: species down, copies 0..{} across, each row up to its peak",
+        moments.t,
+        nx - 1
+    ));
+    let fresh = tex.as_ref().is_none_or(|h| h.key != key);
+    if fresh {
+        let pixels: Vec<Color32> = moments
+            .marginals
+            .iter()
+            .flat_map(|m| {
+                let peak = m.iter().copied().fold(0.0f64, f64::max);
+                (0..nx).map(move |z| {
+                    let v = m.get(z).copied().unwrap_or(0.0);
+                    ramp(if peak > 0.0 && v > 0.0 {
+                        (v / peak) as f32
+                    } else {
+                        0.0
+                    })
+                })
+            })
+            .collect();
+        let image = egui::ColorImage::new([nx, ny], pixels);
+        match tex.as_mut() {
+            Some(h) => {
+                h.handle.set(image, egui::TextureOptions::NEAREST);
+                h.key = key.to_vec();
+            }
+            None => {
+                *tex = Some(super::HeatTexture {
+                    key: key.to_vec(),
+                    handle: ui
+                        .ctx()
+                        .load_texture("strip", image, egui::TextureOptions::NEAREST),
+                });
+            }
+        }
+    }
+    let row_h = 11.0;
+    let label_w = 140.0;
+    let width = (ui.available_width() - label_w).max(80.0);
+    let (rect, _) = ui.allocate_exact_size(
+        egui::vec2(width + label_w, row_h * ny as f32),
+        egui::Sense::hover(),
+    );
+    let image_rect = egui::Rect::from_min_size(rect.min, egui::vec2(width, rect.height()));
+    let painter = ui.painter_at(rect);
+    if let Some(h) = tex.as_ref() {
+        painter.image(
+            h.handle.id(),
+            image_rect,
+            egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+            Color32::WHITE,
+        );
+    }
+    let font = egui::FontId::proportional(9.5);
+    for (i, name) in species.iter().enumerate() {
+        let y = rect.min.y + (i as f32 + 0.5) * row_h;
+        painter.text(
+            egui::pos2(image_rect.max.x + 4.0, y),
+            egui::Align2::LEFT_CENTER,
+            format!(
+                "{name} {:.1} ± {:.1}",
+                moments.mean[i],
+                moments.var[i].max(0.0).sqrt()
+            ),
+            font.clone(),
+            Color32::from_gray(220),
+        );
+    }
 }
 
 /// The joint's window as one texture (first species along x, second up), coloured by

@@ -10,6 +10,7 @@ use super::history::History;
 use super::model::{self, CmeModel, CmeModelError};
 use super::network::Network;
 use super::ttsolve;
+use super::views::Views;
 use crate::file::{self, FileError};
 use crate::separated::{Provenance, SeparatedModel};
 
@@ -43,6 +44,32 @@ pub enum Form {
         provenance: Provenance,
         report: ttsolve::Report,
     },
+    /// BDF2 on tensor trains, keeping only the marginals and chosen joints.
+    Views {
+        views: Box<Views>,
+        provenance: Provenance,
+        report: ttsolve::Report,
+    },
+}
+
+/// What a views build keeps besides every marginal, and how finely.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewOptions {
+    /// Species pairs `(a, b)`, `a < b` (network indices) whose joints are stored.
+    pub pairs: Vec<(usize, usize)>,
+    /// RMS relative error of a stored time row (see [`super::views`]).
+    pub eps: f64,
+}
+
+impl ViewOptions {
+    /// Every neighbouring pair `(i, i + 1)`: a chain's couplings, and with them the
+    /// covariance of the first two species.
+    pub fn neighbours(species: usize, eps: f64) -> Self {
+        ViewOptions {
+            pairs: (1..species).map(|i| (i - 1, i)).collect(),
+            eps,
+        }
+    }
 }
 
 impl Built {
@@ -55,6 +82,13 @@ impl Built {
                 provenance,
                 ..
             } => model::save_train(network, history, provenance.clone(), out),
+            Form::Views {
+                views, provenance, ..
+            } => file::save_views(
+                &model::views_meta(network, views, provenance.clone()),
+                views,
+                out,
+            ),
         }
     }
 }
@@ -102,6 +136,43 @@ pub fn train(
     train_built(network, options, h, report)
 }
 
+/// Builds the views of `network` (marginals and `view.pairs`' joints over time) by
+/// BDF2 on tensor trains; `cancel` stops it between steps.
+pub fn views(
+    network: &Network,
+    options: &ttsolve::Options,
+    view: &ViewOptions,
+    cancel: Option<&std::sync::atomic::AtomicBool>,
+    progress: &mut dyn FnMut(ttsolve::Step),
+) -> Result<Built, BuildError> {
+    let (v, report) =
+        ttsolve::solve_views(network, options, &view.pairs, view.eps, cancel, progress)?;
+    let mut provenance = Provenance::now(
+        "cme views: BDF2 steps by ALS with enrichment, mass balanced; marginals and chosen \
+         joints per step, SVD-compressed in time",
+        &format!(
+            "network {}; box {:?}; {} steps to t = {}; {options:?}; {view:?}",
+            network.name, v.sizes, report.steps, options.t_end
+        ),
+        view.eps,
+        Vec::new(),
+    );
+    provenance.input_hash = format!(
+        "{:016x}",
+        xxhash_rust::xxh3::xxh3_64(format!("{network:?}{options:?}{view:?}").as_bytes())
+    );
+    let meta = model::views_meta(network, &v, provenance.clone());
+    let model = CmeModel::from_views(meta, v.clone())?;
+    Ok(Built {
+        model,
+        form: Form::Views {
+            views: Box::new(v),
+            provenance,
+            report,
+        },
+    })
+}
+
 /// The meta-model and file form of a solved history.
 fn train_built(
     network: &Network,
@@ -120,4 +191,77 @@ fn train_built(
             report,
         },
     })
+}
+
+/// What an off-line tensor-train build keeps, with the solver options it runs under:
+/// one value the command line, the app's first-open build and the cache key share.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recipe {
+    pub options: ttsolve::Options,
+    /// `Some`: keep the views only; `None`: the whole history.
+    pub views: Option<ViewOptions>,
+}
+
+/// Species from which a network without range parameters is kept as views by default.
+/// Below it the whole history is small (the cascade's is 3 MB); above it the history's
+/// ranks and size grow with every species while the scene still shows only marginals
+/// and one pair.
+pub const VIEWS_FROM_SPECIES: usize = 5;
+
+/// The views' default row tolerance: 1e-5 of a row's L2 norm, far below the 1e-2 L1
+/// the solver's step error allows.
+pub const VIEWS_EPS: f64 = 1e-5;
+
+impl Recipe {
+    /// The default build of `network` up to `t_end`: views of the neighbouring pairs
+    /// for a large network with no range parameters (with the looser step options such
+    /// a network needs to build in minutes), else the whole history.
+    pub fn default_for(network: &Network, t_end: f64) -> Self {
+        let views = network.species.len() >= VIEWS_FROM_SPECIES
+            && network.parameters.iter().all(|p| p.grid().is_none());
+        if views {
+            Recipe {
+                options: Self::views_options(t_end),
+                views: Some(ViewOptions::neighbours(network.species.len(), VIEWS_EPS)),
+            }
+        } else {
+            Recipe {
+                options: ttsolve::Options {
+                    t_end,
+                    ..ttsolve::Options::default()
+                },
+                views: None,
+            }
+        }
+    }
+
+    /// The solver options of a views build.
+    pub fn views_options(t_end: f64) -> ttsolve::Options {
+        ttsolve::Options {
+            t_end,
+            eps: 3e-6,
+            step_error_tol: 1e-4,
+            h_max: 2.0,
+            ..ttsolve::Options::default()
+        }
+    }
+
+    /// Runs the build; `cancel` stops it between steps.
+    pub fn build(
+        &self,
+        network: &Network,
+        cancel: Option<&std::sync::atomic::AtomicBool>,
+        progress: &mut dyn FnMut(ttsolve::Step),
+    ) -> Result<Built, BuildError> {
+        match (&self.views, cancel) {
+            (Some(v), _) => views(network, &self.options, v, cancel, progress),
+            (None, Some(c)) => train_cancellable(network, &self.options, c, progress),
+            (None, None) => train(network, &self.options, None, progress),
+        }
+    }
+
+    /// A key that changes when the network or anything in the recipe does.
+    pub fn hash(&self, network: &Network) -> u64 {
+        xxhash_rust::xxh3::xxh3_64(format!("{network:?}{self:?}").as_bytes())
+    }
 }

@@ -28,10 +28,10 @@ pub const MAX_STATES: usize = 10_000_000;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum FspError {
     #[error(
-        "the box has {states} states (> {MAX_STATES}): FSP is for up to about three species; \
-         use the PGD solver or a sub-network"
+        "the box has {states:.4e} states (> {MAX_STATES}): FSP is for up to about three \
+         species; use the PGD solver or a sub-network"
     )]
-    TooLarge { states: usize },
+    TooLarge { states: f64 },
     #[error("species {0} has an automatic box; FSP needs sizes (use solve_auto)")]
     AutoBox(String),
     #[error("output times must be finite, ≥ 0 and increasing; got {0:?}")]
@@ -59,10 +59,15 @@ impl Generator {
                 species: network.species.len(),
             });
         }
-        let n: usize = sizes.iter().product();
-        if n > MAX_STATES || sizes.contains(&0) {
-            return Err(FspError::TooLarge { states: n });
-        }
+        // Twenty species of 64 states overflow 64 bits: count in f64 for the message.
+        let n = match sizes.iter().try_fold(1usize, |a, &m| a.checked_mul(m)) {
+            Some(n) if n <= MAX_STATES && !sizes.contains(&0) => n,
+            _ => {
+                return Err(FspError::TooLarge {
+                    states: sizes.iter().map(|&m| m as f64).product(),
+                });
+            }
+        };
         let d = sizes.len();
         let mut strides = vec![1usize; d];
         for i in 1..d {
@@ -260,7 +265,11 @@ pub fn solve_auto(
             return Ok((sol, true));
         }
         let grown: Vec<usize> = sizes.iter().map(|&m| m * 2).collect();
-        if grown.iter().product::<usize>() > MAX_STATES {
+        if grown
+            .iter()
+            .try_fold(1usize, |a, &m| a.checked_mul(m))
+            .is_none_or(|n| n > MAX_STATES)
+        {
             return Ok((sol, false));
         }
         sizes = grown;

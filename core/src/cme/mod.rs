@@ -36,6 +36,7 @@ pub mod ssa;
 pub mod step;
 pub mod tteval;
 pub mod ttsolve;
+pub mod views;
 
 pub use moments::Moments;
 pub use network::{Network, NetworkError};

@@ -15,12 +15,15 @@ use super::greedy::KIND;
 use super::history::{History, Slot};
 use super::moments::Moments;
 use super::tteval::TrainEvaluator;
+use super::views::Views;
 use crate::axis::{Discretization, ParamValue};
 use crate::separated::{AxisInfo, FieldInfo, ModelMeta, Provenance, SeparatedModel};
 use crate::tensor::tt::{Core, Tt};
 
 /// The kind string of a tensor-train CME meta-model file.
 pub const TRAIN_KIND: &str = "cme-tensor-train";
+/// The kind string of a views model (marginals and chosen joints over time).
+pub const VIEWS_KIND: &str = "cme-views";
 
 /// The provenance of a tensor-train meta-model: method, network, box, steps and the
 /// options, hashed so a later run can tell whether its inputs changed.
@@ -114,6 +117,14 @@ pub enum CmeModelError {
     TrainAxis(String),
     #[error("a tensor-train model needs CmeModel::from_train")]
     NeedsTrain,
+    #[error("views model: {0}")]
+    BadViews(String),
+    #[error(
+        "the joint of species {a} and {b} is not stored in this views model; it holds {stored}"
+    )]
+    PairNotStored { a: usize, b: usize, stored: String },
+    #[error("a views model keeps marginals and chosen joints, not the joint over every species")]
+    NoJoint,
     #[error("species pair ({a}, {b}): expected two different species of the {species}")]
     Pair { a: usize, b: usize, species: usize },
     #[error("evaluating parameter {name}: {error}")]
@@ -134,6 +145,17 @@ pub struct CmeModel {
 enum Repr {
     Separated(Separated),
     Train(Train),
+    Views(ViewsModel),
+}
+
+#[derive(Debug, Clone)]
+struct ViewsModel {
+    meta: ModelMeta,
+    views: Views,
+    species: Vec<String>,
+    /// `Σ z_0 z_1 Vᵀ[k, ·]` of the (0, 1) joint's rows: `E[z_0 z_1]` is its product
+    /// with the time coefficients.
+    e01_rows: Vec<f64>,
 }
 
 #[derive(Debug, Clone)]
@@ -219,11 +241,63 @@ impl CmeModel {
         })
     }
 
+    /// A views model (see [`super::views`]), described by `meta` (see [`views_meta`]).
+    pub fn from_views(meta: ModelMeta, views: Views) -> Result<Self, CmeModelError> {
+        if meta.kind != VIEWS_KIND {
+            return Err(CmeModelError::WrongKind(meta.kind.clone()));
+        }
+        views.check().map_err(CmeModelError::BadViews)?;
+        let species: Vec<String> = meta.axes.iter().skip(1).map(|a| a.name.clone()).collect();
+        if meta.axes.first().map(|a| a.name.as_str()) != Some("t") {
+            return Err(CmeModelError::NoTime);
+        }
+        if species.len() != views.sizes.len() {
+            return Err(CmeModelError::BadViews(format!(
+                "{} species axes for {} species in the views",
+                species.len(),
+                views.sizes.len()
+            )));
+        }
+        let e01_rows = match views.pair_view(0, 1) {
+            Some(v) => {
+                let (n0, m) = (views.sizes[0], v.len());
+                v.values
+                    .chunks_exact(m)
+                    .map(|row| {
+                        row.iter()
+                            .enumerate()
+                            .map(|(z, x)| ((z % n0) * (z / n0)) as f64 * x)
+                            .sum()
+                    })
+                    .collect()
+            }
+            None => Vec::new(),
+        };
+        Ok(CmeModel {
+            repr: Repr::Views(ViewsModel {
+                meta,
+                views,
+                species,
+                e01_rows,
+            }),
+        })
+    }
+
+    /// The species pairs whose joint the model can give: `None` for any pair (a
+    /// separated sum or a train), the stored ones for a views model.
+    pub fn pairs(&self) -> Option<Vec<(usize, usize)>> {
+        match &self.repr {
+            Repr::Views(v) => Some(v.views.pairs()),
+            _ => None,
+        }
+    }
+
     /// The numbers stored (terms × axis sizes, or the train's cores).
     pub fn stored_values(&self) -> usize {
         match &self.repr {
             Repr::Separated(s) => s.model.array_bytes() / 8,
             Repr::Train(t) => t.history.tt.len(),
+            Repr::Views(v) => v.views.stored_values(),
         }
     }
 
@@ -232,6 +306,13 @@ impl CmeModel {
         match &self.repr {
             Repr::Separated(s) => format!("separated, {} terms", s.model.modes()),
             Repr::Train(t) => format!("tensor train, ranks {:?}", t.history.tt.ranks()),
+            Repr::Views(v) => format!(
+                "views over {} times: {} marginals, {} joints, ranks ≤ {}",
+                v.views.t.len(),
+                v.views.sizes.len(),
+                v.views.pairs().len(),
+                v.views.max_rank()
+            ),
         }
     }
 
@@ -278,6 +359,7 @@ impl CmeModel {
         match &self.repr {
             Repr::Separated(s) => s.model.meta(),
             Repr::Train(t) => t.meta.clone(),
+            Repr::Views(v) => v.meta.clone(),
         }
     }
 
@@ -288,6 +370,7 @@ impl CmeModel {
                 .map(|a| a.info.name.clone())
                 .collect(),
             Repr::Train(t) => t.species.clone(),
+            Repr::Views(v) => v.species.clone(),
         }
     }
 
@@ -299,6 +382,7 @@ impl CmeModel {
                 .map(|a| a.info.discretization.node_count())
                 .collect(),
             Repr::Train(t) => t.history.sizes.clone(),
+            Repr::Views(v) => v.views.sizes.clone(),
         }
     }
 
@@ -322,6 +406,7 @@ impl CmeModel {
                 .zip(&t.history.params)
                 .map(|(name, (_, g))| (name.clone(), g[0], g[g.len() - 1]))
                 .collect(),
+            Repr::Views(_) => Vec::new(),
         }
     }
 
@@ -333,6 +418,7 @@ impl CmeModel {
                 _ => f64::NAN,
             },
             Repr::Train(t) => t.history.t[t.history.t.len() - 1],
+            Repr::Views(v) => v.views.t[v.views.t.len() - 1],
         }
     }
 
@@ -444,6 +530,7 @@ impl CmeModel {
     ) -> Result<Evaluation, CmeModelError> {
         let sep = match &self.repr {
             Repr::Separated(s) => s,
+            Repr::Views(v) => return self.evaluate_views(v, t, set),
             Repr::Train(tr) => {
                 let (p, clamped) = self.train_point(tr, t, set)?;
                 let v = tr.tables.evaluate(&tr.history, t, &p);
@@ -500,6 +587,47 @@ impl CmeModel {
         })
     }
 
+    fn evaluate_views(
+        &self,
+        v: &ViewsModel,
+        t: f64,
+        set: &[(String, f64)],
+    ) -> Result<Evaluation, CmeModelError> {
+        self.resolve(t, set)?;
+        let (w, beyond) = v.views.time_weights(t);
+        let mut coef = vec![0.0; v.views.max_rank()];
+        let marginals: Vec<Vec<f64>> = v.views.views[..v.views.sizes.len()]
+            .iter()
+            .map(|view| {
+                let mut out = vec![0.0; view.len()];
+                view.eval_into(&w, &mut coef, &mut out);
+                out
+            })
+            .collect();
+        let e01 = match v.views.pair_view(0, 1) {
+            Some(view) => {
+                view.coefficients(&w, &mut coef);
+                coef[..view.rank]
+                    .iter()
+                    .zip(&v.e01_rows)
+                    .map(|(c, e)| c * e)
+                    .sum()
+            }
+            None => 0.0,
+        };
+        let mass: f64 = marginals.first().map_or(0.0, |m| m.iter().sum());
+        let most_negative = marginals.iter().flatten().copied().fold(0.0, f64::min);
+        Ok(Evaluation {
+            moments: Moments::from_marginals(t, marginals, e01, mass),
+            most_negative,
+            clamped: if beyond {
+                vec!["t".to_string()]
+            } else {
+                Vec::new()
+            },
+        })
+    }
+
     /// The joint distribution of species `a` and `b` at `(t, p)` on their boxes (`a`
     /// fastest), every other species summed out in the meta-model (never a dense array
     /// over all species).
@@ -520,6 +648,28 @@ impl CmeModel {
         }
         let (lo, hi) = (a.min(b), a.max(b));
         let joint = match &self.repr {
+            Repr::Views(v) => {
+                self.resolve(t, set)?;
+                let view =
+                    v.views
+                        .pair_view(lo, hi)
+                        .ok_or_else(|| CmeModelError::PairNotStored {
+                            a,
+                            b,
+                            stored: v
+                                .views
+                                .pairs()
+                                .iter()
+                                .map(|&(x, y)| format!("{}–{}", v.species[x], v.species[y]))
+                                .collect::<Vec<_>>()
+                                .join(", "),
+                        })?;
+                let (w, _) = v.views.time_weights(t);
+                let mut coef = vec![0.0; view.rank];
+                let mut out = vec![0.0; view.len()];
+                view.eval_into(&w, &mut coef, &mut out);
+                out
+            }
             Repr::Train(tr) => {
                 let (p, _) = self.train_point(tr, t, set)?;
                 tr.history.particularize(t, &p).keep_pair(lo, hi).full()
@@ -576,6 +726,7 @@ impl CmeModel {
                 let (p, _) = self.train_point(tr, t, set)?;
                 return Ok(tr.history.particularize(t, &p).full());
             }
+            Repr::Views(_) => return Err(CmeModelError::NoJoint),
         };
         let (c, _) = self.coefficients(sep, t, set, n)?;
         let modes = sep.model.modes();
@@ -627,6 +778,10 @@ pub fn load(path: &std::path::Path) -> Result<CmeModel, CmeLoadError> {
             let (meta, cores) = file::load_train(path)?;
             CmeModel::from_train(meta, cores)
         }
+        Layout::Views { .. } => {
+            let (meta, views) = file::load_views(path)?;
+            CmeModel::from_views(meta, views)
+        }
         _ => CmeModel::new(file::load_any(path)?.into_f64()),
     };
     model.map_err(|source| CmeLoadError::Model {
@@ -647,4 +802,38 @@ pub fn save_train(
         &history.tt.cores,
         path,
     )
+}
+
+/// The file description of a views model: the time grid, then each species as a
+/// discrete axis (network order).
+pub fn views_meta(network: &super::Network, views: &Views, provenance: Provenance) -> ModelMeta {
+    let mut axes = vec![AxisInfo {
+        name: "t".into(),
+        unit: "time".into(),
+        discretization: Discretization::Grid {
+            nodes: views.t.clone(),
+        },
+    }];
+    for (s, &m) in network.species.iter().zip(&views.sizes) {
+        axes.push(AxisInfo {
+            name: s.name.clone(),
+            unit: "copies".into(),
+            discretization: Discretization::Discrete {
+                labels: (0..m).map(|z| z.to_string()).collect(),
+            },
+        });
+    }
+    ModelMeta {
+        kind: VIEWS_KIND.into(),
+        field: FieldInfo {
+            name: "probability".into(),
+            unit: "1".into(),
+            components: 1,
+            node_ids: Vec::new(),
+        },
+        axes,
+        provenance,
+        tradeoff: Vec::new(),
+        geometry: Default::default(),
+    }
 }

@@ -25,6 +25,7 @@ use super::history::{History, Slot, lagrange_weights, slot_order};
 use super::kron::{Factor1d, generator_terms, sparse_of};
 use super::network::Network;
 use super::step::{extrapolation_weights, next_step};
+use super::views::{Samples, Views};
 use crate::tensor::Sparse1d;
 use crate::tensor::amen::{self, LocalTerm, Mpo};
 use crate::tensor::tt::{Core, Tt};
@@ -144,7 +145,8 @@ pub fn solve(
     options: &Options,
     progress: &mut dyn FnMut(Step),
 ) -> Result<(History, Report), CmePgdError> {
-    run(network, options, None, None, progress)
+    let (kept, report) = run(network, options, &Keep::History, None, progress)?;
+    Ok((kept.into_history(), report))
 }
 
 /// As [`solve`], stopping with [`CmePgdError::Cancelled`] at the first step after
@@ -155,7 +157,8 @@ pub fn solve_cancellable(
     cancel: &AtomicBool,
     progress: &mut dyn FnMut(Step),
 ) -> Result<(History, Report), CmePgdError> {
-    run(network, options, None, Some(cancel), progress)
+    let (kept, report) = run(network, options, &Keep::History, Some(cancel), progress)?;
+    Ok((kept.into_history(), report))
 }
 
 /// The states at `times` only (increasing, ≥ 0): steps land on each time and nothing
@@ -181,16 +184,96 @@ pub fn solve_at(
         t_end: last,
         ..*options
     };
-    run(network, &options, Some(times), None, progress)
+    let (kept, report) = run(network, &options, &Keep::Outputs(times), None, progress)?;
+    Ok((kept.into_history(), report))
+}
+
+/// Solves to `options.t_end` and keeps only the views a scene shows (see
+/// [`super::views`]): every species' marginal and the joints of `pairs` (network
+/// indices), read from every step's state and compressed to `views_eps`. The network
+/// must have no range parameters (a view is a function of time alone).
+pub fn solve_views(
+    network: &Network,
+    options: &Options,
+    pairs: &[(usize, usize)],
+    views_eps: f64,
+    cancel: Option<&AtomicBool>,
+    progress: &mut dyn FnMut(Step),
+) -> Result<(Views, Report), CmePgdError> {
+    let ranged: Vec<&str> = network
+        .parameters
+        .iter()
+        .filter(|p| p.grid().is_some())
+        .map(|p| p.name.as_str())
+        .collect();
+    if !ranged.is_empty() {
+        return Err(CmePgdError::TimeGrid(format!(
+            "a views model is a function of time only, but {} has range parameters {}: \
+             build the full tensor train instead",
+            network.name,
+            ranged.join(", ")
+        )));
+    }
+    let d = network.species.len();
+    if let Some(&(a, b)) = pairs.iter().find(|(a, b)| a >= b || *b >= d) {
+        return Err(CmePgdError::TimeGrid(format!(
+            "pair ({a}, {b}): expected two species indices a < b < {d}"
+        )));
+    }
+    let (kept, report) = run(
+        network,
+        options,
+        &Keep::Views {
+            pairs: pairs.to_vec(),
+            eps: views_eps,
+        },
+        cancel,
+        progress,
+    )?;
+    match kept {
+        Kept::Views(v) => Ok((v, report)),
+        Kept::History(_) => unreachable!("views asked for"),
+    }
+}
+
+/// What a run keeps of the states it steps through.
+enum Keep<'a> {
+    /// The whole history, rounded (the meta-model over all t).
+    History,
+    /// The states at these times only.
+    Outputs(&'a [f64]),
+    /// Marginals and these joints at every step.
+    Views {
+        pairs: Vec<(usize, usize)>,
+        eps: f64,
+    },
+}
+
+enum Kept {
+    History(History),
+    Views(Views),
+}
+
+impl Kept {
+    fn into_history(self) -> History {
+        match self {
+            Kept::History(h) => h,
+            Kept::Views(_) => unreachable!("a history was asked for"),
+        }
+    }
 }
 
 fn run(
     network: &Network,
     options: &Options,
-    outputs: Option<&[f64]>,
+    keep: &Keep<'_>,
     cancel: Option<&AtomicBool>,
     progress: &mut dyn FnMut(Step),
-) -> Result<(History, Report), CmePgdError> {
+) -> Result<(Kept, Report), CmePgdError> {
+    let outputs = match keep {
+        Keep::Outputs(times) => Some(times),
+        _ => None,
+    };
     let sizes: Vec<usize> = network
         .species
         .iter()
@@ -220,7 +303,31 @@ fn run(
     let mut h: Vec<f64> = Vec::new();
     // The last four states (BDF2 needs two, the error estimate four).
     let mut recent: Vec<Tt> = vec![p0.clone()];
-    let mut store = Stored::new(options.compress_eps, options.weight_floor, &order, &p0);
+    let (mut store, mut samples) = match keep {
+        Keep::History => (
+            Some(Stored::new(
+                options.compress_eps,
+                options.weight_floor,
+                &order,
+                &p0,
+            )),
+            None,
+        ),
+        Keep::Outputs(_) => (None, None),
+        Keep::Views { pairs, .. } => {
+            let core_of = (0..sizes.len())
+                .map(|i| {
+                    order
+                        .iter()
+                        .position(|o| *o == Slot::Species(i))
+                        .expect("every species has a core")
+                })
+                .collect();
+            let mut s = Samples::new(core_of, sizes.clone(), pairs.clone());
+            s.push(0.0, &p0);
+            (None, Some(s))
+        }
+    };
     let mut next_h = options.h_first;
     let mut k = 0;
     // Output mode: the states at the requested times, in order.
@@ -302,14 +409,19 @@ fn run(
             shown.push((t[k], recent[n - 1].clone()));
             pending.remove(0);
         }
-        if outputs.is_none() && k >= 2 {
-            let spacing = (options.store_rel * t[k]).min(options.store_max);
-            if t[k] - store.last_t > spacing * (1.0 + 1e-9) {
-                store.push(t[k - 1], &recent[n - 2]);
+        if let Some(store) = &mut store {
+            if k >= 2 {
+                let spacing = (options.store_rel * t[k]).min(options.store_max);
+                if t[k] - store.last_t > spacing * (1.0 + 1e-9) {
+                    store.push(t[k - 1], &recent[n - 2]);
+                }
+            }
+            if t[k] >= options.t_end * (1.0 - 1e-12) {
+                store.push(t[k], &recent[n - 1]);
             }
         }
-        if outputs.is_none() && t[k] >= options.t_end * (1.0 - 1e-12) {
-            store.push(t[k], &recent[n - 1]);
+        if let Some(samples) = &mut samples {
+            samples.push(t[k], &recent[n - 1]);
         }
         compress_s += tc.elapsed().as_secs_f64();
         progress(Step {
@@ -318,30 +430,39 @@ fn run(
             h: hk,
             rank: recent[n - 1].max_rank(),
             sweeps: r.sweeps,
-            history_rank: store.max_rank(),
+            history_rank: store.as_ref().map_or(0, |s| s.max_rank()),
         });
         if k > 200_000 {
             return Err(CmePgdError::TimeGrid("more than 200 000 time steps".into()));
         }
     }
     report.steps = k;
-    let (history, stored_t) = if outputs.is_some() {
-        stack_outputs(shown)
-    } else {
-        store.finish()
+    if let (Keep::Views { eps, .. }, Some(samples)) = (keep, samples) {
+        let tc = std::time::Instant::now();
+        report.stored = samples.nodes();
+        let views = samples.finish(*eps);
+        report.history_ranks = views.views.iter().map(|v| v.rank).collect();
+        compress_s += tc.elapsed().as_secs_f64();
+        report.compress_seconds = compress_s;
+        report.solve_seconds = started.elapsed().as_secs_f64() - compress_s;
+        return Ok((Kept::Views(views), report));
+    }
+    let (history, stored_t) = match store {
+        Some(store) => store.finish(),
+        None => stack_outputs(shown),
     };
     report.stored = stored_t.len();
     report.history_ranks = history.ranks();
     report.compress_seconds = compress_s;
     report.solve_seconds = started.elapsed().as_secs_f64() - compress_s;
     Ok((
-        History {
+        Kept::History(History {
             sizes,
             t: stored_t,
             params: coords,
             order,
             tt: history,
-        },
+        }),
         report,
     ))
 }
