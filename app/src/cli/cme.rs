@@ -55,7 +55,7 @@ pub struct PgdArgs {
     /// only: 0 = fixed geometric steps].
     #[arg(long)]
     step_error: Option<f64>,
-    /// tt: relative SVD truncation of each step's state [history: 1e-8, views: 3e-6].
+    /// tt: relative SVD truncation of each step's state [history: 1e-8, views: 1e-6].
     #[arg(long)]
     eps: Option<f64>,
     /// tt: what the model keeps: the whole history over (t, species, parameters), or

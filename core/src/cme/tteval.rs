@@ -12,6 +12,18 @@
 //! combinations whose cubic Lagrange weights are nonzero:
 //! `π_k(z) = Σ_c w_c · l_k H_c[·, z]`, 4 × 46 × 220 for z1. Cores whose combinations
 //! would exceed the memory budget fall back to the direct contraction.
+//!
+//! The left vectors are tabled the same way from the other end: `l_k` depends only on
+//! the time and parameter cores before `k`, linearly in each weight vector, so with the
+//! budget left the load stores `l_k(c)` for every node combination `c` of those cores,
+//! and a call sums the active ones instead of crossing each parameter core (on the
+//! cascade: 16 vectors of 34 in place of 4 × 203 × 34, which halves the call).
+//!
+//! The species tables `H_c` are stored in f32 (sums in f64). A scene evaluates right
+//! after drawing a frame, which on a software rasterizer has pushed them out of cache,
+//! so their bytes set the cost: measured in the cascade scene at 1280×720, the median
+//! evaluation went from 44–48 µs to 37–42 µs, and the marginals moved by at most
+//! 1.4·10⁻⁸ (the model's own error is 10⁻⁴).
 
 use super::history::{History, Slot, lagrange_weights};
 use crate::tensor::tt::Core;
@@ -24,8 +36,56 @@ const BUDGET_VALUES: usize = 4 << 20;
 struct Fixed {
     /// Parameter cores right of this one: (core index, nodes, combination stride).
     params: Vec<(usize, usize, usize)>,
-    /// `h[c]`: an `r0 × n` block per node combination `c = Σ j_q·stride_q`.
-    h: Vec<f64>,
+    /// `h[c]`: an `r0 × n` block per node combination `c = Σ j_q·stride_q`, in f32
+    /// (see the module doc).
+    h: Vec<f32>,
+}
+
+/// The left vectors entering one core (and the `E[z_0 z_1]` chain beside them) for
+/// every node combination of the time and parameter cores before it.
+#[derive(Debug, Clone)]
+struct Prefix {
+    /// Time and parameter cores left of this one: (core index, nodes, stride).
+    params: Vec<(usize, usize, usize)>,
+    /// Length of each vector.
+    r: usize,
+    left: Vec<f64>,
+    cross: Vec<f64>,
+}
+
+/// `Σ_c w_c · table[c]` over the active node combinations `c = Σ j_q·stride_q` of
+/// `params` (each a core index, its node count and stride), blocks of `r` values.
+fn combine(
+    params: &[(usize, usize, usize)],
+    weights: &[Vec<(usize, f64)>],
+    table: &[f64],
+    r: usize,
+) -> Vec<f64> {
+    let mut out = vec![0.0; r];
+    let mut idx = vec![0usize; params.len()];
+    loop {
+        let (mut combo, mut w) = (0, 1.0);
+        for (q, &(core, _, stride)) in params.iter().enumerate() {
+            let (j, wj) = weights[core][idx[q]];
+            combo += j * stride;
+            w *= wj;
+        }
+        for (o, y) in out.iter_mut().zip(&table[combo * r..(combo + 1) * r]) {
+            *o += w * y;
+        }
+        let mut q = 0;
+        while q < idx.len() {
+            idx[q] += 1;
+            if idx[q] < weights[params[q].0].len() {
+                break;
+            }
+            idx[q] = 0;
+            q += 1;
+        }
+        if q == idx.len() {
+            return out;
+        }
+    }
 }
 
 /// A history with its evaluation tables.
@@ -36,6 +96,8 @@ pub struct TrainEvaluator {
     /// `Σ_z z·G_k[z]` of each species core.
     firsts: Vec<Vec<f64>>,
     fixed: Vec<Option<Fixed>>,
+    /// `prefix[k]`: the vectors entering core `k` (`k = d`: the whole contraction).
+    prefix: Vec<Option<Prefix>>,
 }
 
 /// Marginals (network species order), `E[z_0 z_1]` and the total mass.
@@ -144,7 +206,7 @@ impl TrainEvaluator {
                         budget -= size;
                         let mut hv = Vec::with_capacity(size);
                         for r in &right {
-                            hv.extend(c.contract_right(r));
+                            hv.extend(c.contract_right(r).into_iter().map(|x| x as f32));
                         }
                         fixed[k] = Some(Fixed {
                             params: params.clone(),
@@ -173,10 +235,12 @@ impl TrainEvaluator {
                 }
             }
         }
+        let prefix = prefixes(cores, &sums, &firsts, budget);
         TrainEvaluator {
             sums,
             firsts,
             fixed,
+            prefix,
         }
     }
 
@@ -186,6 +250,12 @@ impl TrainEvaluator {
             .iter()
             .flatten()
             .map(|f| f.h.len())
+            .chain(
+                self.prefix
+                    .iter()
+                    .flatten()
+                    .map(|p| p.left.len() + p.cross.len()),
+            )
             .chain(self.sums.iter().chain(&self.firsts).map(Vec::len))
             .sum()
     }
@@ -209,6 +279,13 @@ impl TrainEvaluator {
         let mut species_seen = 0;
         for k in 0..d {
             let c = &cores[k];
+            if let Some(pre) = &self.prefix[k + 1] {
+                // Precomputed for every combination of the nodes to the left.
+                species_seen += usize::from(!self.sums[k].is_empty());
+                left.push(combine(&pre.params, &weights, &pre.left, pre.r));
+                cross = combine(&pre.params, &weights, &pre.cross, pre.r);
+                continue;
+            }
             let (l, x) = if self.sums[k].is_empty() {
                 (
                     vec_core(&left[k], c, &weights[k]),
@@ -271,8 +348,8 @@ impl TrainEvaluator {
                             if s == 0.0 {
                                 continue;
                             }
-                            for (o, y) in m.iter_mut().zip(&block[a * c.n..(a + 1) * c.n]) {
-                                *o += s * y;
+                            for (o, &y) in m.iter_mut().zip(&block[a * c.n..(a + 1) * c.n]) {
+                                *o += s * f64::from(y);
                             }
                         }
                         let mut q = 0;
@@ -303,6 +380,68 @@ impl TrainEvaluator {
             mass,
         }
     }
+}
+
+/// The left tables from core 0 rightwards while they fit in `budget` values: at a
+/// time or parameter core the combinations multiply by its nodes, at a species core
+/// each vector is multiplied by the core's sum (the chain by its first moments for the
+/// first two species). The cascade (ranks 45, 203, 34) keeps 2.3·10⁶ values, and an
+/// evaluation then adds 16 vectors of 34 instead of crossing the 203 × 64 × 34
+/// parameter core.
+fn prefixes(
+    cores: &[Core],
+    sums: &[Vec<f64>],
+    firsts: &[Vec<f64>],
+    mut budget: usize,
+) -> Vec<Option<Prefix>> {
+    let d = cores.len();
+    let mut out = vec![None; d + 1];
+    let (mut lefts, mut crosses) = (vec![vec![1.0]], vec![vec![1.0]]);
+    let mut params: Vec<(usize, usize, usize)> = Vec::new();
+    let mut species_seen = 0;
+    for k in 0..d {
+        let c = &cores[k];
+        let combos = if sums[k].is_empty() {
+            lefts.len() * c.n
+        } else {
+            lefts.len()
+        };
+        let size = 2 * combos * c.r1;
+        if size > budget {
+            break;
+        }
+        budget -= size;
+        if sums[k].is_empty() {
+            let stride = lefts.len();
+            let step = |vs: &[Vec<f64>]| -> Vec<Vec<f64>> {
+                (0..c.n)
+                    .flat_map(|j| vs.iter().map(move |v| vec_core(v, c, &[(j, 1.0)])))
+                    .collect()
+            };
+            lefts = step(&lefts);
+            crosses = step(&crosses);
+            params.push((k, c.n, stride));
+        } else {
+            let m = if species_seen < 2 {
+                &firsts[k]
+            } else {
+                &sums[k]
+            };
+            species_seen += 1;
+            lefts = lefts
+                .iter()
+                .map(|v| vec_mat(v, &sums[k], c.r0, c.r1))
+                .collect();
+            crosses = crosses.iter().map(|v| vec_mat(v, m, c.r0, c.r1)).collect();
+        }
+        out[k + 1] = Some(Prefix {
+            params: params.clone(),
+            r: c.r1,
+            left: lefts.concat(),
+            cross: crosses.concat(),
+        });
+    }
+    out
 }
 
 #[cfg(test)]
@@ -376,16 +515,19 @@ mod tests {
         }
     }
 
+    /// `E[z_0 z_1]` to round-off (f64 sums); marginals and the mass (the first
+    /// marginal's sum) to the f32 tables' precision, a few units of 2⁻²⁴ of the
+    /// largest value.
     fn close(a: &TrainValues, b: &TrainValues) -> bool {
         let scale = b.mass.abs().max(1.0);
         let near = |x: f64, y: f64| (x - y).abs() <= 1e-11 * scale.max(y.abs());
         a.marginals.len() == b.marginals.len()
-            && a.marginals
-                .iter()
-                .zip(&b.marginals)
-                .all(|(x, y)| x.len() == y.len() && x.iter().zip(y).all(|(p, q)| near(*p, *q)))
+            && a.marginals.iter().zip(&b.marginals).all(|(x, y)| {
+                let peak = y.iter().fold(scale, |m, v| m.max(v.abs()));
+                x.len() == y.len() && x.iter().zip(y).all(|(p, q)| (p - q).abs() <= 1e-6 * peak)
+            })
             && near(a.e01, b.e01)
-            && near(a.mass, b.mass)
+            && (a.mass - b.mass).abs() <= 1e-6 * scale
     }
 
     #[test]
