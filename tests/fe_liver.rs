@@ -321,6 +321,60 @@ mod hyperelastic {
         assert!((lin.force_n * unit.probe_displacement_mm - 4.0).abs() < 1e-9);
     }
 
+    /// The depth series (in its Padé form) is the Newton press: the probe moves by
+    /// the depth exactly, and force and displacement agree with Newton at depths
+    /// inside and (neo-Hookean) past the series' radius; depth 0 is the rest state
+    /// exactly. SVK is compared below its loss of stability (Newton's tangent stops
+    /// being positive definite at 4.06 mm here).
+    #[test]
+    fn the_depth_series_matches_newton() {
+        use palpa_core::fe::probe::solve_series;
+        let organ = coarse_liver();
+        let req = press(POINTS[0], f64::NAN);
+        for law in [Law::NeoHookean, Law::Svk] {
+            let (at_8, series) =
+                solve_series(&organ, Element::P1, Material::default(), law, &req, 8.0, 13)
+                    .expect("expands");
+            assert!((at_8.probe_displacement_mm - 8.0).abs() < 1e-6);
+            let depths = match law {
+                Law::NeoHookean => [2.5, 8.0],
+                Law::Svk => [2.5, 3.5],
+            };
+            for depth in depths {
+                let rational = series.rational(depth);
+                let (force, u) = series.evaluate(&rational, depth);
+                let (newton, _) = solve_hyperelastic(
+                    &organ,
+                    Element::P1,
+                    Material::default(),
+                    law,
+                    &req,
+                    Some(depth),
+                    NewtonSettings::default(),
+                )
+                .expect("newton");
+                let worst = u
+                    .iter()
+                    .zip(&newton.u)
+                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                let rel = (force - newton.force_n) / newton.force_n;
+                eprintln!(
+                    "{law:?} {depth} mm: series {force:.5} N, Newton {:.5} N ({rel:.1e}), \
+                     worst nodal {worst:.2e} mm, radius {:.1} mm, [{}/{}]",
+                    newton.force_n,
+                    series.radius_mm(),
+                    rational.degree,
+                    rational.q.len() - 1
+                );
+                assert!(rel.abs() < 1e-3, "{law:?} {depth} mm: force {rel:e}");
+                assert!(worst < 0.02, "{law:?} {depth} mm: nodal {worst} mm");
+            }
+            let (f0, u0) = series.evaluate(&series.rational(8.0), 0.0);
+            assert_eq!(f0, 0.0);
+            assert!(u0.iter().all(|&v| v == 0.0));
+        }
+    }
+
     /// A depth that is not finite is named, not solved.
     #[test]
     fn a_non_finite_depth_is_refused() {

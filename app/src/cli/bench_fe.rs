@@ -18,7 +18,9 @@ use std::time::Instant;
 use clap::Args;
 use palpa_core::fe::hyper::Law;
 use palpa_core::fe::newton::NewtonSettings;
-use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic, solve_linear};
+use palpa_core::fe::probe::{
+    ProbeRequest, organ_space, solve_hyperelastic, solve_linear, solve_series,
+};
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
@@ -36,12 +38,21 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson).
+    /// depth_poisson, series).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
     #[arg(long, default_value_t = 15.0)]
     depth_mm: f64,
+    /// `series` table: orders of the depth series.
+    #[arg(long, default_value_t = 15)]
+    series_orders: usize,
+    /// `series` table: depths compared with Newton (mm), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [3.5, 8.5, 15.0])]
+    series_depths: Vec<f64>,
+    /// `series` table: laws (svk, neo-hookean), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values = ["neo-hookean", "svk"])]
+    series_laws: Vec<Law>,
 }
 
 impl FeBenchArgs {
@@ -94,6 +105,9 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     }
     if args.wants("depth_poisson") {
         depth_poisson(args, &coarse);
+    }
+    if args.wants("series") {
+        series(args, &coarse)?;
     }
     if args.wants("svk") {
         svk(&coarse);
@@ -251,6 +265,78 @@ fn depth(args: &FeBenchArgs, coarse: &OrganMesh) {
             depth_row(args, coarse, law, Material::default(), name, at);
         }
     }
+}
+
+/// The depth series (with its Padé form) against Newton at the ten positions and a
+/// few depths, coarse P2: force, largest nodal displacement error, and the time of
+/// each (one series serves every depth at a position; Newton solves each depth).
+fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
+    for &law in &args.series_laws {
+        for (name, at) in DEPTH_POSITIONS {
+            let deepest = args.series_depths.iter().copied().fold(0.0, f64::max);
+            let t = Instant::now();
+            let expanded = solve_series(
+                coarse,
+                Element::P2,
+                Material::default(),
+                law,
+                &req(at, f64::NAN),
+                deepest,
+                args.series_orders,
+            );
+            let series_s = t.elapsed().as_secs_f64();
+            let series = match expanded {
+                Ok((_, s)) => s,
+                Err(e) => {
+                    println!(
+                        "{}",
+                        json!({"table": "series", "law": law.name(), "position": name, "error": e.to_string()})
+                    );
+                    continue;
+                }
+            };
+            for &depth in &args.series_depths {
+                let rational = series.rational(depth);
+                let (force, u) = series.evaluate(&rational, depth);
+                let mut row = json!({"table": "series", "level": "coarse", "element": "p2",
+                    "law": law.name(), "position": name, "depth_mm": depth,
+                    "orders": series.force.len(), "pade": format!("[{}/{}]", rational.degree, rational.q.len() - 1),
+                    "pade_change": rational.change, "series_radius_mm": series.radius_mm(),
+                    "series_force_n": force, "series_s": series_s});
+                let t = Instant::now();
+                match solve_hyperelastic(
+                    coarse,
+                    Element::P2,
+                    Material::default(),
+                    law,
+                    &req(at, f64::NAN),
+                    Some(depth),
+                    NewtonSettings::default(),
+                ) {
+                    Ok((sol, _)) => {
+                        let worst = u
+                            .chunks_exact(3)
+                            .zip(sol.u.chunks_exact(3))
+                            .map(|(a, b)| {
+                                ((a[0] - b[0]).powi(2)
+                                    + (a[1] - b[1]).powi(2)
+                                    + (a[2] - b[2]).powi(2))
+                                .sqrt()
+                            })
+                            .fold(0.0, f64::max);
+                        row["newton_force_n"] = json!(sol.force_n);
+                        row["force_rel_error"] = json!((force - sol.force_n) / sol.force_n);
+                        row["max_nodal_error_mm"] = json!(worst);
+                        row["newton_max_displacement_mm"] = json!(sol.max_displacement_mm);
+                    }
+                    Err(e) => row["newton_error"] = json!(e.to_string()),
+                }
+                row["newton_s"] = json!(t.elapsed().as_secs_f64());
+                println!("{row}");
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The neo-Hookean press at the anterior point as ν → 0.5 (P2).

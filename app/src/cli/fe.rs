@@ -9,7 +9,7 @@ use palpa_core::export::{FieldValue, PointField, write_by_extension};
 use palpa_core::fe::hyper::Law;
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{
-    ProbeRequest, organ_space, solve_hyperelastic, solve_linear, solve_linear_depth,
+    ProbeRequest, organ_space, solve_hyperelastic, solve_linear, solve_linear_depth, solve_series,
 };
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
@@ -20,6 +20,12 @@ use super::args::{OrganArgs, ProbeArgs};
 pub enum FeCommand {
     /// Solve the probe problem on the full FE model.
     Solve(SolveArgs),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    Newton,
+    Series,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -52,6 +58,13 @@ pub struct SolveArgs {
     radius_mm: f64,
     #[arg(long, value_enum, default_value = "linear")]
     model: Model,
+    /// Hyperelastic depth control: Newton steps to the depth, or the depth's power
+    /// series (one linear solve per order with the rest stiffness).
+    #[arg(long, value_enum, default_value = "newton")]
+    method: Method,
+    /// Series: orders kept.
+    #[arg(long, default_value_t = 12)]
+    orders: usize,
     #[arg(long, default_value = "p2")]
     element: Element,
     #[arg(long, default_value_t = 160.0)]
@@ -87,7 +100,29 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         radius_mm: args.radius_mm,
     };
     let depth = args.probe.depth_mm;
+    let mut series_report = serde_json::Value::Null;
+    if args.method == Method::Series && (args.model.law().is_none() || depth.is_none()) {
+        anyhow::bail!(
+            "--method series expands a hyperelastic press in its depth: it needs --model \
+             svk|neo-hookean and --depth-mm"
+        );
+    }
     let (sol, newton_iterations, load_steps) = match (args.model.law(), depth) {
+        (Some(law), Some(d)) if args.method == Method::Series => {
+            let (sol, series) =
+                solve_series(&organ, args.element, material, law, &req, d, args.orders)
+                    .with_context(|| format!("expanding the press ({})", law.name()))?;
+            let r = series.rational(d);
+            let pade = json!({"numerator_degree": r.degree, "denominator": r.q, "scale_mm": r.scale_mm, "relative_change": r.change});
+            series_report = json!({
+                "orders": series.force.len(),
+                "force_coefficients": series.force,
+                "radius_mm": series.radius_mm(),
+                "force_by_orders": (1..=series.force.len()).map(|n| series.force_n(d, n)).collect::<Vec<_>>(),
+                "pade": pade,
+            });
+            (sol, 0, 0)
+        }
         (None, None) => (
             solve_linear(&organ, args.element, material, &req).context("solving")?,
             0,
@@ -135,6 +170,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         "factor_s": sol.factor_s,
         "solve_s": sol.solve_s,
         "seconds": seconds,
+        "series": series_report,
     });
     if let Some(out) = &args.out {
         let space = organ_space(&organ, args.element);

@@ -29,6 +29,7 @@ pub mod hyper;
 pub mod load;
 pub mod newton;
 pub mod probe;
+pub mod series;
 pub mod shape;
 pub mod space;
 pub mod sparse;

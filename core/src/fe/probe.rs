@@ -207,3 +207,42 @@ pub(crate) fn summarize(
         solve_s,
     }
 }
+
+/// Hyperelastic depth-controlled press by its power series in the depth
+/// ([`super::series`]): `orders` linear solves with the rest stiffness, then the
+/// solution at `depth_mm` from the series' highest pole-free Padé form (which carries
+/// it past the series' radius of convergence).
+pub fn solve_series(
+    organ: &OrganMesh,
+    element: Element,
+    material: Material,
+    law: Law,
+    req: &ProbeRequest,
+    depth_mm: f64,
+    orders: usize,
+) -> Result<(ProbeSolution, super::series::DepthSeries), FeError> {
+    if !depth_mm.is_finite() {
+        return Err(FeError::DepthNotFinite { depth_mm });
+    }
+    let space = organ_space(organ, element);
+    let (probe, dir) = locate(&space, organ, req)?;
+    let shape = probe_load(&space, &probe, dir, 1.0, req.radius_mm)?;
+    let functional = probe_functional(&space, &probe, dir);
+    let series =
+        super::series::depth_series(&space, law, material, &shape, &functional, orders.max(1))?;
+    let rational = series.rational(depth_mm);
+    let (force_n, u) = series.evaluate(&rational, depth_mm);
+    let load = shape.iter().map(|v| v * force_n).collect();
+    let mut out = summarize(
+        &space,
+        probe,
+        dir,
+        load,
+        u,
+        0.0,
+        series.factor_s,
+        series.seconds - series.factor_s,
+    );
+    out.force_n = force_n;
+    Ok((out, series))
+}

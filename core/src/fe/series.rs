@@ -1,0 +1,595 @@
+//! A press as a power series in its depth: the asymptotic-numerical expansion of the
+//! hyperelastic depth-controlled problem ([`super::newton`]) about the rest state.
+//!
+//! Under depth control the displacement and the tool's force are analytic in the depth
+//! `d` near `d = 0`, so
+//!
+//! ```text
+//! u(d) = Σ_{p≥1} d^p u_p,    F(d) = Σ_{p≥1} d^p F_p.
+//! ```
+//!
+//! Put into `f_int(u) = F f̂` and `n̂·u = d` and collect the powers of `d`: since the
+//! rest state is unstressed, the part of `f_int`'s `d^p` coefficient that contains
+//! `u_p` is `K u_p` with `K` the *linear* stiffness, and the rest, `N_p`, depends on
+//! `u_1 … u_{p−1}` only. Each order is one linear solve with the same factorization:
+//!
+//! ```text
+//! K u_p = F_p f̂ − N_p,    n̂·u_p = δ_{p1}
+//! x = K⁻¹ N_p,  y = K⁻¹ f̂  (once),  F_p = (δ_{p1} + n̂·x) / (n̂·y),  u_p = F_p y − x
+//! ```
+//!
+//! `N_p` is the `d^p` coefficient of `f_int(Σ_{i<p} d^i u_i)`, computed exactly at
+//! each quadrature point by truncated power-series arithmetic on the law's formulas:
+//! `F = I + Σ d^i H_i`, `C = FᵀF` (Cauchy products), then for Saint Venant–Kirchhoff
+//! `S = λ tr E I + 2μ E`, `E = ½(C − I)` (a polynomial: the series ends), and for the
+//! neo-Hookean law `S = μ(I − C⁻¹) + λ ln J C⁻¹` with the series of `C⁻¹`
+//! (`Y_k = −Σ_{i=1..k} C_i Y_{k−i}`, since `C_0 = I`), of `J = det F` (a cubic in the
+//! entries) and of `ln J` (`L_k = J_k − (1/k) Σ_{m=1..k−1} m L_m J_{k−m}`, since
+//! `J_0 = 1`); finally `P = F S` and `N_p[a, i] = ∫ P_p[i, K] ∂_K N_a dV`.
+//!
+//! This is the route of the paper's authors for real-time hyperelastic palpation
+//! (each term a linear problem with the one stiffness): a press at any depth inside
+//! the series' radius of convergence is a few vectors summed, and the force law
+//! `F(d)` is a polynomial. Its limit is the radius: the nearest singularity of the
+//! depth–force path in the complex plane (for SVK, its loss of stability in
+//! compression). [`DepthSeries::radius_mm`] estimates it from the coefficients.
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::elasticity::cell_dofs;
+use super::hyper::Law;
+use super::shape::{TET_DEGREE1, TET_DEGREE4, barycentric_gradients, tet_gradients};
+use super::space::Space;
+use super::sparse::{Cholesky, SymCsc};
+use super::{Element, FeError, Material};
+
+type M3 = [[f64; 3]; 3];
+
+const ID: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+const ZERO: M3 = [[0.0; 3]; 3];
+
+fn mul(a: &M3, b: &M3) -> M3 {
+    let mut c = ZERO;
+    for i in 0..3 {
+        for j in 0..3 {
+            c[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
+        }
+    }
+    c
+}
+
+fn mul_tn(a: &M3, b: &M3) -> M3 {
+    let mut c = ZERO;
+    for i in 0..3 {
+        for j in 0..3 {
+            c[i][j] = a[0][i] * b[0][j] + a[1][i] * b[1][j] + a[2][i] * b[2][j];
+        }
+    }
+    c
+}
+
+fn add_scaled(acc: &mut M3, s: f64, a: &M3) {
+    for i in 0..3 {
+        for j in 0..3 {
+            acc[i][j] += s * a[i][j];
+        }
+    }
+}
+
+/// Permutations of (0, 1, 2) with their signs (the determinant's six terms).
+const PERMS: [([usize; 3], f64); 6] = [
+    ([0, 1, 2], 1.0),
+    ([1, 2, 0], 1.0),
+    ([2, 0, 1], 1.0),
+    ([0, 2, 1], -1.0),
+    ([2, 1, 0], -1.0),
+    ([1, 0, 2], -1.0),
+];
+
+/// The coefficients `0..=p` of the second Piola–Kirchhoff stress for the deformation
+/// gradient series `f[0..=p]` (`f[0] = I`).
+fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
+    let p = f.len() - 1;
+    let c: Vec<M3> = (0..=p)
+        .map(|k| {
+            let mut ck = ZERO;
+            for i in 0..=k {
+                add_scaled(&mut ck, 1.0, &mul_tn(&f[i], &f[k - i]));
+            }
+            ck
+        })
+        .collect();
+    match law {
+        Law::Svk => c
+            .iter()
+            .enumerate()
+            .map(|(k, ck)| {
+                if k == 0 {
+                    return ZERO;
+                }
+                let tr = 0.5 * (ck[0][0] + ck[1][1] + ck[2][2]);
+                let mut s = ZERO;
+                for i in 0..3 {
+                    for j in 0..3 {
+                        s[i][j] = mu * ck[i][j] + if i == j { lambda * tr } else { 0.0 };
+                    }
+                }
+                s
+            })
+            .collect(),
+        Law::NeoHookean => {
+            // J = det F: each permutation's product of three entry series.
+            let mut jac = vec![0.0; p + 1];
+            for (perm, sign) in PERMS {
+                for (k, jk) in jac.iter_mut().enumerate() {
+                    let mut sum = 0.0;
+                    for a in 0..=k {
+                        for b in 0..=k - a {
+                            sum += f[a][0][perm[0]] * f[b][1][perm[1]] * f[k - a - b][2][perm[2]];
+                        }
+                    }
+                    *jk += sign * sum;
+                }
+            }
+            let mut ln_j = vec![0.0; p + 1];
+            for k in 1..=p {
+                let s: f64 = (1..k).map(|m| m as f64 * ln_j[m] * jac[k - m]).sum();
+                ln_j[k] = jac[k] - s / k as f64;
+            }
+            let mut y = vec![ID];
+            for k in 1..=p {
+                let mut yk = ZERO;
+                for i in 1..=k {
+                    add_scaled(&mut yk, -1.0, &mul(&c[i], &y[k - i]));
+                }
+                y.push(yk);
+            }
+            (0..=p)
+                .map(|k| {
+                    if k == 0 {
+                        return ZERO;
+                    }
+                    let mut s = ZERO;
+                    add_scaled(&mut s, -mu, &y[k]);
+                    for m in 1..=k {
+                        add_scaled(&mut s, lambda * ln_j[m], &y[k - m]);
+                    }
+                    s
+                })
+                .collect()
+        }
+    }
+}
+
+/// The `d^p` coefficient of cell `c`'s internal force at `u(d) = Σ_{i<p} d^i u_i`
+/// (`lower[i − 1]` = all-node `u_i`), into `fe` (3·nodes per cell).
+#[allow(clippy::too_many_arguments)]
+pub fn element_coefficient(
+    space: &Space,
+    law: Law,
+    c: usize,
+    lower: &[Vec<f64>],
+    p: usize,
+    lambda: f64,
+    mu: f64,
+    fe: &mut [f64],
+) {
+    let p2 = space.element == Element::P2;
+    let npc = space.element.nodes_per_cell();
+    fe[..3 * npc].fill(0.0);
+    let cell = space.cell(c);
+    let (gl, vol) =
+        barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
+    let rule = if p2 { &TET_DEGREE4 } else { &TET_DEGREE1 };
+    let mut g = [[0.0; 3]; 10];
+    let mut f = vec![ZERO; p + 1];
+    for (l, w) in rule.points.iter().zip(rule.weights) {
+        tet_gradients(p2, *l, &gl, &mut g);
+        f[0] = ID;
+        for k in 1..=p {
+            let mut h = ZERO;
+            if k < p {
+                let u = &lower[k - 1];
+                for a in 0..npc {
+                    let n = cell[a] as usize;
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            h[i][j] += u[3 * n + i] * g[a][j];
+                        }
+                    }
+                }
+            }
+            f[k] = h;
+        }
+        let s = stress_series(law, &f, lambda, mu);
+        let mut pp = ZERO;
+        for i in 0..=p {
+            add_scaled(&mut pp, 1.0, &mul(&f[i], &s[p - i]));
+        }
+        let wv = w * vol;
+        for a in 0..npc {
+            for i in 0..3 {
+                fe[3 * a + i] +=
+                    wv * (pp[i][0] * g[a][0] + pp[i][1] * g[a][1] + pp[i][2] * g[a][2]);
+            }
+        }
+    }
+}
+
+/// `N_p` on the free dofs (see the module doc).
+fn coefficient(
+    space: &Space,
+    law: Law,
+    lower: &[Vec<f64>],
+    p: usize,
+    lambda: f64,
+    mu: f64,
+) -> Vec<f64> {
+    let m = 3 * space.element.nodes_per_cell();
+    let parts: Vec<(Vec<usize>, Vec<f64>)> = (0..space.cell_count())
+        .into_par_iter()
+        .map(|c| {
+            let mut fe = vec![0.0; m];
+            element_coefficient(space, law, c, lower, p, lambda, mu, &mut fe);
+            let mut dofs = Vec::with_capacity(m);
+            cell_dofs(space, c, &mut dofs);
+            (dofs, fe)
+        })
+        .collect();
+    let mut out = vec![0.0; space.free_dofs];
+    for (dofs, fe) in parts {
+        for (d, v) in dofs.iter().zip(fe) {
+            if *d != usize::MAX {
+                out[*d] += v;
+            }
+        }
+    }
+    out
+}
+
+/// A press expanded in its depth.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthSeries {
+    /// `F_p` (N/mmᵖ), `force[p − 1]`.
+    pub force: Vec<f64>,
+    /// `u_p` all-node (mm/mmᵖ), `u[p − 1]`.
+    pub u: Vec<Vec<f64>>,
+    pub factor_s: f64,
+    pub seconds: f64,
+}
+
+impl DepthSeries {
+    /// `F(d) = Σ F_p d^p` with the first `orders` terms (all if more).
+    pub fn force_n(&self, depth_mm: f64, orders: usize) -> f64 {
+        let n = orders.min(self.force.len());
+        // Horner from the highest kept order.
+        self.force[..n]
+            .iter()
+            .rev()
+            .fold(0.0, |acc, f| (acc + f) * depth_mm)
+    }
+
+    /// `u(d) = Σ u_p d^p` (all-node) with the first `orders` terms.
+    pub fn displacement(&self, depth_mm: f64, orders: usize) -> Vec<f64> {
+        let n = orders.min(self.u.len());
+        let mut out = vec![0.0; self.u.first().map_or(0, Vec::len)];
+        let mut dp = 1.0;
+        for up in &self.u[..n] {
+            dp *= depth_mm;
+            for (o, v) in out.iter_mut().zip(up) {
+                *o += dp * v;
+            }
+        }
+        out
+    }
+
+    /// The radius of convergence estimated from the last coefficients of the force
+    /// and displacement series (root test, `|a_p|^{−1/p}`, over the upper half of the
+    /// orders), mm.
+    pub fn radius_mm(&self) -> f64 {
+        let n = self.u.len();
+        let norms: Vec<f64> = self
+            .u
+            .iter()
+            .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .collect();
+        (n / 2..n)
+            .filter(|&k| norms[k] > 0.0)
+            .map(|k| norms[k].powf(-1.0 / (k + 1) as f64))
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// A rational (Padé) form of a [`DepthSeries`]: `[M+1/M]` in the scaled depth
+/// `t = d/ρ`, with one denominator `Q(t) = Σ_j q_j t^j` (`q_0 = 1`) for the force and
+/// the displacement alike.
+///
+/// The power series stops converging at its radius, the distance to the nearest
+/// singularity of the depth–force path *in the complex plane*. For the liver's
+/// neo-Hookean press that singularity lies off the real axis (the coefficients
+/// alternate in pairs): the path itself is smooth well past the radius, and a rational
+/// function, whose poles stand in for the singularities, continues it. Measured at the
+/// anterior point on coarse P2: the series' radius is about 10 mm, its 20-term sum at
+/// 15 mm is 60 % off, and `[7/6]` is 0.15 % off the Newton force.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rational {
+    /// `ρ` (mm): the depth scale that keeps the scaled coefficients near 1.
+    pub scale_mm: f64,
+    /// `q_0 … q_M`.
+    pub q: Vec<f64>,
+    /// `L = M + 1`, the numerator's degree.
+    pub degree: usize,
+    /// Relative change of the force at the largest depth from `[M−1/M−2]`, the
+    /// error indicator (`NaN` for the lowest form).
+    pub change: f64,
+}
+
+impl Rational {
+    /// `(w_1 … w_L)` with `u(d) = Σ_i w_i(d) u_i` and `F(d) = Σ_i w_i(d) F_i`:
+    /// `w_i = ρ^i Σ_{k=i..min(L, i+M)} q_{k−i} t^k / Q(t)`.
+    pub fn weights(&self, depth_mm: f64) -> Vec<f64> {
+        let t = depth_mm / self.scale_mm;
+        let m = self.q.len() - 1;
+        let den: f64 = self.q.iter().rev().fold(0.0, |acc, q| acc * t + q);
+        (1..=self.degree)
+            .map(|i| {
+                let num: f64 = (i..=self.degree.min(i + m))
+                    .map(|k| self.q[k - i] * t.powi(k as i32))
+                    .sum();
+                self.scale_mm.powi(i as i32) * num / den
+            })
+            .collect()
+    }
+
+    /// Whether `Q` stays positive on `[0, depth_mm]` (no pole where it is used).
+    fn pole_free(&self, depth_mm: f64) -> bool {
+        (0..=400).all(|j| {
+            let t = depth_mm / self.scale_mm * f64::from(j) / 400.0;
+            self.q.iter().rev().fold(0.0, |acc, q| acc * t + q) > 1e-3
+        })
+    }
+}
+
+/// Solves the small dense system `a x = b` (row-major `n × n`) by Gaussian elimination
+/// with partial pivoting; `None` if singular.
+fn solve_dense(mut a: Vec<f64>, mut b: Vec<f64>) -> Option<Vec<f64>> {
+    let n = b.len();
+    for col in 0..n {
+        let piv =
+            (col..n).max_by(|&i, &j| a[i * n + col].abs().total_cmp(&a[j * n + col].abs()))?;
+        if a[piv * n + col].abs() < 1e-300 {
+            return None;
+        }
+        for k in 0..n {
+            a.swap(col * n + k, piv * n + k);
+        }
+        b.swap(col, piv);
+        for row in col + 1..n {
+            let f = a[row * n + col] / a[col * n + col];
+            for k in col..n {
+                a[row * n + k] -= f * a[col * n + k];
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut x = vec![0.0; n];
+    for row in (0..n).rev() {
+        let s: f64 = (row + 1..n).map(|k| a[row * n + k] * x[k]).sum();
+        x[row] = (b[row] - s) / a[row * n + row];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+impl DepthSeries {
+    /// The `[M+1/M]` Padé form of the force series (`M` even, `2M + 1` coefficients),
+    /// scaled by `scale_mm`; `None` if its system is singular.
+    pub fn pade(&self, m: usize, scale_mm: f64) -> Option<Rational> {
+        let l = m + 1;
+        if l + m > self.force.len() {
+            return None;
+        }
+        // c'_k = F_k ρ^k, c'_0 = 0.
+        let c = |k: usize| -> f64 {
+            if k == 0 {
+                0.0
+            } else {
+                self.force[k - 1] * scale_mm.powi(k as i32)
+            }
+        };
+        let a: Vec<f64> = (l + 1..=l + m)
+            .flat_map(|k| (1..=m).map(move |j| if k >= j { c(k - j) } else { 0.0 }))
+            .collect();
+        let b: Vec<f64> = (l + 1..=l + m).map(|k| -c(k)).collect();
+        let q = if m == 0 {
+            Vec::new()
+        } else {
+            solve_dense(a, b)?
+        };
+        Some(Rational {
+            scale_mm,
+            q: std::iter::once(1.0).chain(q).collect(),
+            degree: l,
+            change: f64::NAN,
+        })
+    }
+
+    /// The highest-order `[M+1/M]` form (`M` even) with no pole on `[0, depth_max_mm]`,
+    /// with its change from the next lower valid one at `depth_max_mm`.
+    pub fn rational(&self, depth_max_mm: f64) -> Rational {
+        let scale = depth_max_mm.abs().max(1e-9);
+        let mut best: Option<Rational> = None;
+        let mut m = 0;
+        while 2 * m < self.force.len() {
+            if let Some(mut r) = self.pade(m, scale).filter(|r| r.pole_free(depth_max_mm)) {
+                if let Some(prev) = &best {
+                    let f = |x: &Rational| -> f64 {
+                        x.weights(depth_max_mm)
+                            .iter()
+                            .zip(&self.force)
+                            .map(|(w, f)| w * f)
+                            .sum()
+                    };
+                    let (now, before) = (f(&r), f(prev));
+                    r.change = ((now - before) / now).abs();
+                }
+                best = Some(r);
+            }
+            m += 2;
+        }
+        best.expect("[1/0] is the linear term: always valid")
+    }
+
+    /// Force and displacement at `depth_mm` from a rational form.
+    pub fn evaluate(&self, r: &Rational, depth_mm: f64) -> (f64, Vec<f64>) {
+        let w = r.weights(depth_mm);
+        let force = w.iter().zip(&self.force).map(|(w, f)| w * f).sum();
+        let mut u = vec![0.0; self.u.first().map_or(0, Vec::len)];
+        for (wi, ui) in w.iter().zip(&self.u) {
+            for (o, v) in u.iter_mut().zip(ui) {
+                *o += wi * v;
+            }
+        }
+        (force, u)
+    }
+}
+
+/// Expands the press with load shape `shape` (all-node, unit force) and probe
+/// functional `probe` (all-node: `probe·u` is the depth) to `orders` terms.
+pub fn depth_series(
+    space: &Space,
+    law: Law,
+    material: Material,
+    shape: &[f64],
+    probe: &[f64],
+    orders: usize,
+) -> Result<DepthSeries, FeError> {
+    material.validate()?;
+    let t0 = Instant::now();
+    let (lambda, mu) = material.lame_n_per_mm2();
+    let pattern = SymCsc::pattern(space);
+    let k0 = super::newton::tangent(
+        space,
+        law,
+        &pattern,
+        &vec![0.0; 3 * space.nodes.len()],
+        lambda,
+        mu,
+    );
+    let chol =
+        Cholesky::factor(&k0, space.fixed_count()).map_err(|e| FeError::NotPositiveDefinite {
+            fixed_nodes: space.fixed_count(),
+            detail: e.to_string(),
+        })?;
+    let factor_s = t0.elapsed().as_secs_f64();
+    let shape = space.restrict(shape);
+    let probe = space.restrict(probe);
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let y = chol.solve(&shape);
+    let compliance = dot(&probe, &y);
+    if !(compliance.is_finite() && compliance.abs() > 0.0) {
+        return Err(FeError::ProbeNotMoved);
+    }
+    let mut force = Vec::with_capacity(orders);
+    let mut lower: Vec<Vec<f64>> = Vec::with_capacity(orders);
+    for p in 1..=orders {
+        let (fp, up) = if p == 1 {
+            (
+                1.0 / compliance,
+                y.iter().map(|v| v / compliance).collect::<Vec<_>>(),
+            )
+        } else {
+            let n = coefficient(space, law, &lower, p, lambda, mu);
+            let x = chol.solve(&n);
+            let fp = dot(&probe, &x) / compliance;
+            (fp, y.iter().zip(&x).map(|(a, b)| fp * a - b).collect())
+        };
+        force.push(fp);
+        lower.push(space.expand(&up));
+    }
+    Ok(DepthSeries {
+        force,
+        u: lower,
+        factor_s,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fe::hyper::element;
+    use crate::mesh::TetMesh;
+    use crate::rng::Rng;
+
+    fn one_tet_space(element: Element) -> Space {
+        let mesh = TetMesh {
+            vertices: vec![
+                [0.0, 0.0, 0.0],
+                [10.0, 1.0, 0.5],
+                [1.0, 9.0, 0.0],
+                [0.5, 1.0, 11.0],
+            ],
+            tets: vec![[0, 1, 2, 3]],
+        };
+        Space::new(&mesh, &[], &[false; 4], element)
+    }
+
+    /// The series coefficients of the internal force along `d ↦ Σ d^i u_i` against
+    /// the force itself: summed to the order of the path's truncation they reproduce
+    /// `f_int(u(d))` to O(d^{p+1}) — here p = 6 at d = 0.05, far below round-off
+    /// relative to the linear term — for both laws and both elements.
+    #[test]
+    fn coefficients_sum_to_the_internal_force_along_the_path() {
+        let (lambda, mu) = Material::default().lame_n_per_mm2();
+        for law in [Law::Svk, Law::NeoHookean] {
+            for kind in [Element::P1, Element::P2] {
+                let space = one_tet_space(kind);
+                let m = 3 * kind.nodes_per_cell();
+                let mut rng = Rng::seed(9);
+                let orders = 6;
+                let path: Vec<Vec<f64>> = (0..orders)
+                    .map(|_| (0..m).map(|_| rng.range(-0.6, 0.6)).collect())
+                    .collect();
+                // N_p with all of u_1..u_{p−1}, plus K u_p (the tangent at rest).
+                let mut k0 = vec![0.0; m * m];
+                let mut scratch = vec![0.0; m];
+                element(
+                    &space,
+                    law,
+                    0,
+                    &vec![0.0; m],
+                    lambda,
+                    mu,
+                    &mut scratch,
+                    Some(&mut k0),
+                );
+                let mut coef = vec![vec![0.0; m]; orders + 1];
+                for p in 1..=orders {
+                    let mut fe = vec![0.0; m];
+                    element_coefficient(&space, law, 0, &path[..p - 1], p, lambda, mu, &mut fe);
+                    for r in 0..m {
+                        let ku: f64 = (0..m).map(|c| k0[r * m + c] * path[p - 1][c]).sum();
+                        coef[p][r] = fe[r] + ku;
+                    }
+                }
+                let d: f64 = 0.05;
+                let u: Vec<f64> = (0..m)
+                    .map(|r| (0..orders).map(|i| d.powi(i as i32 + 1) * path[i][r]).sum())
+                    .collect();
+                let mut want = vec![0.0; m];
+                element(&space, law, 0, &u, lambda, mu, &mut want, None);
+                let scale = want.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+                for r in 0..m {
+                    let got: f64 = (1..=orders).map(|p| d.powi(p as i32) * coef[p][r]).sum();
+                    assert!(
+                        (got - want[r]).abs() < 1e-7 * scale,
+                        "{law:?} {kind:?} row {r}: {got} against {}",
+                        want[r]
+                    );
+                }
+            }
+        }
+    }
+}
