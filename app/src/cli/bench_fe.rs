@@ -38,7 +38,7 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson, series).
+    /// depth_poisson, series, depth_law).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
@@ -50,6 +50,15 @@ pub struct FeBenchArgs {
     /// `series` table: depths compared with Newton (mm), comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = [3.5, 8.5, 15.0])]
     series_depths: Vec<f64>,
+    /// `series` table: the first N of the ten positions.
+    #[arg(long, default_value_t = 10)]
+    series_positions: usize,
+    /// `depth_law` table: sample positions of the force law.
+    #[arg(long, default_value_t = 48)]
+    law_samples: usize,
+    /// `depth_law` table: held-out presses compared with Newton.
+    #[arg(long, default_value_t = 8)]
+    law_heldout: usize,
     /// `series` table: laws (svk, neo-hookean), comma-separated.
     #[arg(long, value_delimiter = ',', default_values = ["neo-hookean", "svk"])]
     series_laws: Vec<Law>,
@@ -108,6 +117,9 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     }
     if args.wants("series") {
         series(args, &coarse)?;
+    }
+    if args.wants("depth_law") {
+        depth_law(args, &coarse)?;
     }
     if args.wants("svk") {
         svk(&coarse);
@@ -272,7 +284,7 @@ fn depth(args: &FeBenchArgs, coarse: &OrganMesh) {
 /// each (one series serves every depth at a position; Newton solves each depth).
 fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
     for &law in &args.series_laws {
-        for (name, at) in DEPTH_POSITIONS {
+        for (name, at) in DEPTH_POSITIONS.into_iter().take(args.series_positions) {
             let deepest = args.series_depths.iter().copied().fold(0.0, f64::max);
             let t = Instant::now();
             let expanded = solve_series(
@@ -324,6 +336,22 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
                                 .sqrt()
                             })
                             .fold(0.0, f64::max);
+                        for m in [6, 8, 10] {
+                            if let Some(r) = series.pade_vector(m, depth) {
+                                let (f, v) = series.evaluate(&r, depth);
+                                let w = v
+                                    .chunks_exact(3)
+                                    .zip(sol.u.chunks_exact(3))
+                                    .map(|(a, b)| {
+                                        ((a[0] - b[0]).powi(2)
+                                            + (a[1] - b[1]).powi(2)
+                                            + (a[2] - b[2]).powi(2))
+                                        .sqrt()
+                                    })
+                                    .fold(0.0, f64::max);
+                                row[format!("vector_pade_{m}")] = json!({"force_rel_error": (f - sol.force_n) / sol.force_n, "max_nodal_error_mm": w});
+                            }
+                        }
                         row["newton_force_n"] = json!(sol.force_n);
                         row["force_rel_error"] = json!((force - sol.force_n) / sol.force_n);
                         row["max_nodal_error_mm"] = json!(worst);
@@ -336,6 +364,100 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
             }
         }
     }
+    Ok(())
+}
+
+/// The force law `F(s, d)` (neo-Hookean, coarse P2) built from sampled depth series,
+/// against Newton at held-out random surface points and depths in [2, 15] mm; with
+/// the time of a forward (depth in, force out) and an inverse evaluation.
+fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
+    use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
+    use palpa_core::rng::Rng;
+    let options = DepthLawOptions {
+        samples: args.law_samples,
+        ..DepthLawOptions::default()
+    };
+    let law = DepthLaw::build(coarse, options, &mut |k, n| {
+        eprint!("\rdepth law: sample {k}/{n}   ");
+    })?;
+    eprintln!();
+    println!(
+        "{}",
+        json!({"table": "depth_law", "level": "coarse", "element": "p2", "law": options.law.name(),
+            "samples": law.samples.len(), "orders": options.orders, "sigma_mm": law.sigma_mm,
+            "build_s": law.build_s,
+            "worst_pade_change": law.pade_change.iter().copied().filter(|c| c.is_finite()).fold(0.0, f64::max)})
+    );
+    // Held-out points: random palpable triangles, random barycentric points, random
+    // depths; the FE linear compliance there isolates the nonlinear law's error.
+    let faces: Vec<usize> = (0..coarse.palpable.len())
+        .filter(|&f| coarse.palpable[f])
+        .collect();
+    let mut rng = Rng::seed(77);
+    let mut worst = 0.0f64;
+    for _ in 0..args.law_heldout {
+        let f = faces[rng.below(faces.len())];
+        let tri = coarse.boundary[f];
+        let (a, b) = (rng.uniform(), rng.uniform());
+        let (a, b) = if a + b > 1.0 {
+            (1.0 - a, 1.0 - b)
+        } else {
+            (a, b)
+        };
+        let p = [0, 1, 2].map(|k| {
+            let v = |i: usize| coarse.mesh.vertices[tri[i] as usize][k];
+            (1.0 - a - b) * v(0) + a * v(1) + b * v(2)
+        });
+        let depth = rng.range(2.0, 15.0);
+        let unit = solve_linear(coarse, Element::P2, Material::default(), &req(p, 1.0))?;
+        let compliance = unit.probe_displacement_mm;
+        let t = Instant::now();
+        let reps = 20_000;
+        let mut acc = 0.0;
+        for k in 0..reps {
+            acc += law
+                .force_n(p, depth + 1e-9 * f64::from(k % 7), compliance)
+                .0;
+        }
+        let forward_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
+        let (force, _) = law.force_n(p, depth, compliance);
+        let t = Instant::now();
+        for k in 0..reps {
+            acc += law
+                .depth_mm(p, force + 1e-9 * f64::from(k % 7), compliance)
+                .0;
+        }
+        let inverse_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
+        std::hint::black_box(acc);
+        let t = Instant::now();
+        let mut row = json!({"table": "depth_law", "position": p, "depth_mm": depth,
+            "law_force_n": force, "linear_force_n": depth / compliance,
+            "forward_us": forward_us, "inverse_us": inverse_us});
+        match solve_hyperelastic(
+            coarse,
+            Element::P2,
+            Material::default(),
+            options.law,
+            &req(p, f64::NAN),
+            Some(depth),
+            NewtonSettings::default(),
+        ) {
+            Ok((sol, _)) => {
+                let rel = (force - sol.force_n) / sol.force_n;
+                worst = worst.max(rel.abs());
+                row["newton_force_n"] = json!(sol.force_n);
+                row["force_rel_error"] = json!(rel);
+                row["linear_rel_error"] = json!((depth / compliance - sol.force_n) / sol.force_n);
+            }
+            Err(e) => row["newton_error"] = json!(e.to_string()),
+        }
+        row["newton_s"] = json!(t.elapsed().as_secs_f64());
+        println!("{row}");
+    }
+    println!(
+        "{}",
+        json!({"table": "depth_law", "summary": true, "worst_force_rel_error": worst, "goal_5_percent": worst <= 0.05})
+    );
     Ok(())
 }
 

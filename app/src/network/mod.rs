@@ -574,4 +574,34 @@ mod tests {
         room.frame(1.0);
         assert_eq!(room.time.value, 0.0);
     }
+
+    /// A views model (many species) opens as a room that offers its stored joints
+    /// only, evaluates every marginal, and refuses the exact check by the box's size
+    /// with a message instead of trying.
+    #[test]
+    fn a_views_room_shows_its_stored_pairs_and_refuses_an_impossible_check() {
+        use palpa_core::cme::build::Recipe;
+        let net = Network::built_in("signaling-cascade-8").expect("built in");
+        let recipe = Recipe::default_for(&net, 3.0);
+        assert!(recipe.views.is_some(), "eight species: views");
+        let built = recipe.build(&net, None, &mut |_| {}).expect("builds");
+        let mut room = NetworkRoom::new(built.model);
+        room.network = Some(net);
+        assert_eq!(room.pair, (0, 1));
+        assert_eq!(room.model().pairs().map(|p| p.len()), Some(7));
+        room.frame(0.0);
+        let e = room.eval.clone().expect("evaluated");
+        assert_eq!(e.moments.marginals.len(), 8);
+        assert!((e.moments.mass - 1.0).abs() < 1e-3, "{}", e.moments.mass);
+        let joint = room.joint.clone().expect("the stored first pair");
+        assert_eq!((joint.na, joint.nb), (64, 64));
+        // A pair that is not stored: the room says so, it does not panic.
+        room.pair = (0, 5);
+        room.frame(0.0);
+        let why = room.error.clone().expect("not stored");
+        assert!(why.contains("not stored"), "{why}");
+        // 64⁸ states: FSP refuses by size.
+        let err = format!("{:#}", room.start_check().expect_err("too large"));
+        assert!(err.contains("states"), "{err}");
+    }
 }

@@ -415,6 +415,63 @@ impl DepthSeries {
         })
     }
 
+    /// The `[M+1/M]` form whose denominator makes the *displacement* series' next `M`
+    /// coefficients vanish in the least-squares sense (a vector Padé form):
+    /// `min_q Σ_{k=L+1..L+M} ‖Σ_{j=0..M} q_j U_{k−j}‖²`, `q_0 = 1`, `U_k = ρ^k u_k`,
+    /// through the Gram matrix of the scaled coefficients. The force shares it.
+    pub fn pade_vector(&self, m: usize, scale_mm: f64) -> Option<Rational> {
+        let l = m + 1;
+        let n = l + m;
+        if n > self.u.len() {
+            return None;
+        }
+        // gram[i][j] = ⟨U_i, U_j⟩ for i, j in 0..=n (U_0 = 0).
+        let scaled = |k: usize| scale_mm.powi(k as i32);
+        let mut gram = vec![vec![0.0; n + 1]; n + 1];
+        for i in 1..=n {
+            for j in i..=n {
+                let g: f64 = self.u[i - 1]
+                    .iter()
+                    .zip(&self.u[j - 1])
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>()
+                    * scaled(i)
+                    * scaled(j);
+                gram[i][j] = g;
+                gram[j][i] = g;
+            }
+        }
+        // Normal equations: Σ_k Σ_j q_j ⟨U_{k−a}, U_{k−j}⟩ = −Σ_k ⟨U_{k−a}, U_k⟩, a = 1..M.
+        let at = |i: isize, j: isize| -> f64 {
+            if i <= 0 || j <= 0 {
+                0.0
+            } else {
+                gram[i as usize][j as usize]
+            }
+        };
+        let (mut a, mut b) = (vec![0.0; m * m], vec![0.0; m]);
+        for k in l + 1..=n {
+            let k = k as isize;
+            for r in 1..=m {
+                for c in 1..=m {
+                    a[(r - 1) * m + c - 1] += at(k - r as isize, k - c as isize);
+                }
+                b[r - 1] -= at(k - r as isize, k);
+            }
+        }
+        let q = if m == 0 {
+            Vec::new()
+        } else {
+            solve_dense(a, b)?
+        };
+        Some(Rational {
+            scale_mm,
+            q: std::iter::once(1.0).chain(q).collect(),
+            degree: l,
+            change: f64::NAN,
+        })
+    }
+
     /// The highest-order `[M+1/M]` form (`M` even) with no pole on `[0, depth_max_mm]`,
     /// with its change from the next lower valid one at `depth_max_mm`.
     pub fn rational(&self, depth_max_mm: f64) -> Rational {
@@ -455,8 +512,103 @@ impl DepthSeries {
     }
 }
 
-/// Expands the press with load shape `shape` (all-node, unit force) and probe
-/// functional `probe` (all-node: `probe·u` is the depth) to `orders` terms.
+impl std::fmt::Debug for Expander<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Expander")
+            .field("law", &self.law)
+            .field("dofs", &self.space.free_dofs)
+            .field("factor_s", &self.factor_s)
+            .finish()
+    }
+}
+
+/// The rest stiffness, factored once, and what every expansion on one mesh shares:
+/// expanding presses at many positions costs one factorization in all.
+pub struct Expander<'a> {
+    space: &'a Space,
+    law: Law,
+    lambda: f64,
+    mu: f64,
+    chol: Cholesky,
+    pub factor_s: f64,
+}
+
+impl<'a> Expander<'a> {
+    pub fn new(space: &'a Space, law: Law, material: Material) -> Result<Self, FeError> {
+        material.validate()?;
+        let t0 = Instant::now();
+        let (lambda, mu) = material.lame_n_per_mm2();
+        let pattern = SymCsc::pattern(space);
+        let k0 = super::newton::tangent(
+            space,
+            law,
+            &pattern,
+            &vec![0.0; 3 * space.nodes.len()],
+            lambda,
+            mu,
+        );
+        let chol = Cholesky::factor(&k0, space.fixed_count()).map_err(|e| {
+            FeError::NotPositiveDefinite {
+                fixed_nodes: space.fixed_count(),
+                detail: e.to_string(),
+            }
+        })?;
+        Ok(Expander {
+            space,
+            law,
+            lambda,
+            mu,
+            chol,
+            factor_s: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Expands the press with load shape `shape` (all-node, unit force) and probe
+    /// functional `probe` (all-node: `probe·u` is the depth) to `orders` terms.
+    pub fn expand(
+        &self,
+        shape: &[f64],
+        probe: &[f64],
+        orders: usize,
+    ) -> Result<DepthSeries, FeError> {
+        let t0 = Instant::now();
+        let space = self.space;
+        let shape = space.restrict(shape);
+        let probe = space.restrict(probe);
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let y = self.chol.solve(&shape);
+        let compliance = dot(&probe, &y);
+        if !(compliance.is_finite() && compliance.abs() > 0.0) {
+            return Err(FeError::ProbeNotMoved);
+        }
+        let mut force = Vec::with_capacity(orders);
+        let mut lower: Vec<Vec<f64>> = Vec::with_capacity(orders);
+        for p in 1..=orders.max(1) {
+            let (fp, up) = if p == 1 {
+                (
+                    1.0 / compliance,
+                    y.iter().map(|v| v / compliance).collect::<Vec<_>>(),
+                )
+            } else {
+                let n = coefficient(space, self.law, &lower, p, self.lambda, self.mu);
+                let x = self.chol.solve(&n);
+                let fp = dot(&probe, &x) / compliance;
+                (fp, y.iter().zip(&x).map(|(a, b)| fp * a - b).collect())
+            };
+            force.push(fp);
+            lower.push(space.expand(&up));
+        }
+        Ok(DepthSeries {
+            force,
+            u: lower,
+            factor_s: self.factor_s,
+            seconds: self.factor_s + t0.elapsed().as_secs_f64(),
+        })
+    }
+}
+
+/// Expands one press (factoring the stiffness for it alone; see [`Expander`] for
+/// many).
 pub fn depth_series(
     space: &Space,
     law: Law,
@@ -465,55 +617,7 @@ pub fn depth_series(
     probe: &[f64],
     orders: usize,
 ) -> Result<DepthSeries, FeError> {
-    material.validate()?;
-    let t0 = Instant::now();
-    let (lambda, mu) = material.lame_n_per_mm2();
-    let pattern = SymCsc::pattern(space);
-    let k0 = super::newton::tangent(
-        space,
-        law,
-        &pattern,
-        &vec![0.0; 3 * space.nodes.len()],
-        lambda,
-        mu,
-    );
-    let chol =
-        Cholesky::factor(&k0, space.fixed_count()).map_err(|e| FeError::NotPositiveDefinite {
-            fixed_nodes: space.fixed_count(),
-            detail: e.to_string(),
-        })?;
-    let factor_s = t0.elapsed().as_secs_f64();
-    let shape = space.restrict(shape);
-    let probe = space.restrict(probe);
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let y = chol.solve(&shape);
-    let compliance = dot(&probe, &y);
-    if !(compliance.is_finite() && compliance.abs() > 0.0) {
-        return Err(FeError::ProbeNotMoved);
-    }
-    let mut force = Vec::with_capacity(orders);
-    let mut lower: Vec<Vec<f64>> = Vec::with_capacity(orders);
-    for p in 1..=orders {
-        let (fp, up) = if p == 1 {
-            (
-                1.0 / compliance,
-                y.iter().map(|v| v / compliance).collect::<Vec<_>>(),
-            )
-        } else {
-            let n = coefficient(space, law, &lower, p, lambda, mu);
-            let x = chol.solve(&n);
-            let fp = dot(&probe, &x) / compliance;
-            (fp, y.iter().zip(&x).map(|(a, b)| fp * a - b).collect())
-        };
-        force.push(fp);
-        lower.push(space.expand(&up));
-    }
-    Ok(DepthSeries {
-        force,
-        u: lower,
-        factor_s,
-        seconds: t0.elapsed().as_secs_f64(),
-    })
+    Expander::new(space, law, material)?.expand(shape, probe, orders)
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@
 
 pub mod block;
 pub mod cluster;
+pub mod depthlaw;
 pub mod heldout;
 pub mod journal;
 pub mod linear;

@@ -1,0 +1,314 @@
+//! The hyperelastic force law of a palpation scene, `F(s, d)`: the tool's force at
+//! probe position `s` and depth `d`, for a haptic loop (depth in, force out) and its
+//! inverse (force in, depth out).
+//!
+//! The linear vademecum already gives the exact linear compliance `c(s)` at any `s`;
+//! the tissue's nonlinearity is a correction of that law,
+//!
+//! ```text
+//! F(s, d) = d / c(s) · g(s, d),    g(s, 0) = 1,
+//! ```
+//!
+//! and `g` varies slowly over the surface: it depends on how thick and how curved the
+//! organ is under the tool on the scale of centimetres, while `c(s)` varies on the
+//! scale of the tool. Off-line, `g` is computed at `N` sample positions spread over
+//! the palpable surface (farthest-point sampling of its vertices) from each press's
+//! depth series ([`crate::fe::series`]: one factorization for all, a linear solve per
+//! order, the Padé form past the radius) on a depth grid; on-line it is the
+//! Gaussian-weighted (Shepard) mean of the samples' curves at `s`, interpolated
+//! linearly in `d`. Nothing is allocated per call.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use crate::fe::hyper::Law;
+use crate::fe::load::{probe_functional, probe_load};
+use crate::fe::probe::{ProbeRequest, locate, organ_space};
+use crate::fe::series::Expander;
+use crate::fe::{Element, FeError, Material};
+use crate::organ::OrganMesh;
+
+/// Most depth-grid points (the inverse keeps one curve on the stack).
+pub const MAX_DEPTHS: usize = 256;
+
+/// How the law is built.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DepthLawOptions {
+    pub law: Law,
+    pub material: Material,
+    pub element: Element,
+    pub samples: usize,
+    pub depth_max_mm: f64,
+    pub depth_step_mm: f64,
+    pub orders: usize,
+    pub tool_radius_mm: f64,
+}
+
+impl Default for DepthLawOptions {
+    fn default() -> Self {
+        DepthLawOptions {
+            law: Law::NeoHookean,
+            material: Material::default(),
+            element: Element::P2,
+            samples: 48,
+            depth_max_mm: 15.0,
+            depth_step_mm: 0.25,
+            orders: 15,
+            tool_radius_mm: 5.0,
+        }
+    }
+}
+
+/// The built law.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DepthLaw {
+    pub options: DepthLawOptions,
+    /// Sample positions on the palpable surface (mm).
+    pub samples: Vec<[f64; 3]>,
+    /// Gaussian width (mm): the median distance from a sample to its nearest other.
+    pub sigma_mm: f64,
+    /// `g` at each sample (rows) and grid depth `j·step` (columns).
+    pub ratio: Vec<f64>,
+    /// Per sample, the Padé form's relative change at the largest depth (its error
+    /// indicator).
+    pub pade_change: Vec<f64>,
+    pub build_s: f64,
+}
+
+/// Picks `n` vertices of the palpable surface, each the farthest from those picked.
+fn spread_samples(organ: &OrganMesh, n: usize) -> Vec<[f64; 3]> {
+    let mut verts: Vec<u32> = organ
+        .boundary
+        .iter()
+        .zip(&organ.palpable)
+        .filter(|(_, p)| **p)
+        .flat_map(|(t, _)| *t)
+        .collect();
+    verts.sort_unstable();
+    verts.dedup();
+    let pts: Vec<[f64; 3]> = verts
+        .iter()
+        .map(|&v| organ.mesh.vertices[v as usize])
+        .collect();
+    if pts.is_empty() {
+        return Vec::new();
+    }
+    let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+    let mut out = vec![pts[0]];
+    let mut nearest: Vec<f64> = pts.iter().map(|&p| d2(p, pts[0])).collect();
+    while out.len() < n.min(pts.len()) {
+        let (far, _) = nearest
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .expect("points");
+        out.push(pts[far]);
+        for (m, &p) in nearest.iter_mut().zip(&pts) {
+            *m = m.min(d2(p, pts[far]));
+        }
+    }
+    out
+}
+
+impl DepthLaw {
+    /// Builds the law on `organ`; `progress(done, total)` after each sample.
+    pub fn build(
+        organ: &OrganMesh,
+        options: DepthLawOptions,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<DepthLaw, FeError> {
+        let o = options;
+        let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
+        if !(o.depth_max_mm > 0.0 && o.depth_step_mm > 0.0 && steps <= MAX_DEPTHS && o.samples > 0)
+        {
+            return Err(FeError::DepthNotFinite {
+                depth_mm: o.depth_max_mm,
+            });
+        }
+        let t0 = Instant::now();
+        let space = organ_space(organ, o.element);
+        let expander = Expander::new(&space, o.law, o.material)?;
+        let samples = spread_samples(organ, o.samples);
+        if samples.is_empty() {
+            return Err(FeError::NoPalpableSurface);
+        }
+        let mut ratio = Vec::with_capacity(samples.len() * steps);
+        let mut pade_change = Vec::with_capacity(samples.len());
+        for (k, &at) in samples.iter().enumerate() {
+            let req = ProbeRequest {
+                at,
+                force_n: 1.0,
+                dir: None,
+                radius_mm: o.tool_radius_mm,
+            };
+            let (probe, dir) = locate(&space, organ, &req)?;
+            let shape = probe_load(&space, &probe, dir, 1.0, o.tool_radius_mm)?;
+            let functional = probe_functional(&space, &probe, dir);
+            let series = expander.expand(&shape, &functional, o.orders)?;
+            let rational = series.rational(o.depth_max_mm);
+            let f1 = series.force[0];
+            for j in 0..steps {
+                let d = j as f64 * o.depth_step_mm;
+                ratio.push(if j == 0 {
+                    1.0
+                } else {
+                    let w = rational.weights(d);
+                    let f: f64 = w.iter().zip(&series.force).map(|(w, f)| w * f).sum();
+                    f / (f1 * d)
+                });
+            }
+            pade_change.push(rational.change);
+            progress(k + 1, samples.len());
+        }
+        let d =
+            |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
+        let mut spacing: Vec<f64> = samples
+            .iter()
+            .enumerate()
+            .map(|(i, &a)| {
+                samples
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != i)
+                    .map(|(_, &b)| d(a, b))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        spacing.sort_by(f64::total_cmp);
+        let sigma_mm = spacing
+            .get(spacing.len() / 2)
+            .copied()
+            .filter(|s| s.is_finite())
+            .unwrap_or(10.0);
+        Ok(DepthLaw {
+            options,
+            samples,
+            sigma_mm,
+            ratio,
+            pade_change,
+            build_s: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    fn steps(&self) -> usize {
+        self.ratio.len() / self.samples.len().max(1)
+    }
+
+    /// The samples' Gaussian weights at `at`, normalized, handed to `each(sample, w)`.
+    fn for_weights(&self, at: [f64; 3], mut each: impl FnMut(usize, f64)) {
+        let inv = 1.0 / (2.0 * self.sigma_mm * self.sigma_mm);
+        let mut total = 0.0;
+        // The largest log-weight first, so that a point far from every sample still
+        // has weights that do not all underflow.
+        let mut best = f64::INFINITY;
+        for s in &self.samples {
+            let d2: f64 = (0..3).map(|k| (at[k] - s[k]).powi(2)).sum();
+            best = best.min(d2);
+        }
+        for s in &self.samples {
+            let d2: f64 = (0..3).map(|k| (at[k] - s[k]).powi(2)).sum();
+            total += (-(d2 - best) * inv).exp();
+        }
+        for (i, s) in self.samples.iter().enumerate() {
+            let d2: f64 = (0..3).map(|k| (at[k] - s[k]).powi(2)).sum();
+            each(i, (-(d2 - best) * inv).exp() / total);
+        }
+    }
+
+    /// `g(s, d)` and whether `d` lay beyond the built range (then `g` at its end).
+    pub fn ratio(&self, at: [f64; 3], depth_mm: f64) -> (f64, bool) {
+        let steps = self.steps();
+        let beyond = depth_mm > self.options.depth_max_mm || depth_mm < 0.0;
+        let x = (depth_mm.clamp(0.0, self.options.depth_max_mm) / self.options.depth_step_mm)
+            .min((steps - 1) as f64);
+        let j = (x.floor() as usize).min(steps.saturating_sub(2));
+        let f = x - j as f64;
+        let mut g = 0.0;
+        self.for_weights(at, |i, w| {
+            let row = &self.ratio[i * steps..(i + 1) * steps];
+            g += w * (row[j] * (1.0 - f) + row[(j + 1).min(steps - 1)] * f);
+        });
+        (g, beyond)
+    }
+
+    /// The force (N) at depth `depth_mm` for the linear compliance `compliance_mm_per_n`
+    /// at `at`, and whether the depth was clamped to the built range.
+    pub fn force_n(&self, at: [f64; 3], depth_mm: f64, compliance_mm_per_n: f64) -> (f64, bool) {
+        let (g, beyond) = self.ratio(at, depth_mm);
+        let d = depth_mm.clamp(0.0, self.options.depth_max_mm);
+        (d / compliance_mm_per_n * g, beyond)
+    }
+
+    /// The depth (mm) at which the force is `force_n` (the inverse: a gamepad trigger's
+    /// force in, depth out), and whether it lay beyond the built range (then its end).
+    pub fn depth_mm(&self, at: [f64; 3], force_n: f64, compliance_mm_per_n: f64) -> (f64, bool) {
+        let steps = self.steps();
+        let mut curve = [0.0f64; MAX_DEPTHS];
+        self.for_weights(at, |i, w| {
+            for (c, r) in curve
+                .iter_mut()
+                .zip(&self.ratio[i * steps..(i + 1) * steps])
+            {
+                *c += w * r;
+            }
+        });
+        let h = self.options.depth_step_mm;
+        let force = |j: usize| j as f64 * h / compliance_mm_per_n * curve[j];
+        if force_n <= 0.0 || force_n.is_nan() {
+            return (0.0, force_n < 0.0);
+        }
+        for j in 1..steps {
+            let (lo, hi) = (force(j - 1), force(j));
+            if force_n <= hi && hi > lo {
+                // Inside the interval the forward law is d/c · (α + β d), g linear in
+                // d: solve β d² + α d = F c exactly (the stable root).
+                let beta = (curve[j] - curve[j - 1]) / h;
+                let alpha = curve[j - 1] - beta * (j - 1) as f64 * h;
+                let fc = force_n * compliance_mm_per_n;
+                let d = 2.0 * fc / (alpha + (alpha * alpha + 4.0 * beta * fc).max(0.0).sqrt());
+                return (d, false);
+            }
+        }
+        ((steps - 1) as f64 * h, true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A law whose samples all carry the same curve returns it anywhere, and the
+    /// inverse undoes the forward law; beyond the range it clamps and says so.
+    #[test]
+    fn forward_and_inverse_agree_and_clamp() {
+        let steps = 61;
+        let curve: Vec<f64> = (0..steps).map(|j| 1.0 - 0.004 * j as f64).collect();
+        let law = DepthLaw {
+            options: DepthLawOptions::default(),
+            samples: vec![[0.0, 0.0, 0.0], [50.0, 0.0, 0.0], [0.0, 40.0, 10.0]],
+            sigma_mm: 20.0,
+            ratio: [curve.clone(), curve.clone(), curve].concat(),
+            pade_change: vec![0.0; 3],
+            build_s: 0.0,
+        };
+        let at = [12.0, 7.0, 3.0];
+        let c = 0.8;
+        for d in [0.0, 0.3, 4.0, 9.87, 15.0] {
+            let (f, beyond) = law.force_n(at, d, c);
+            assert!(!beyond);
+            let want = d / c * (1.0 - 0.004 * d / 0.25);
+            assert!((f - want).abs() < 1e-12, "{d}: {f} vs {want}");
+            let (back, beyond) = law.depth_mm(at, f, c);
+            assert!(!beyond);
+            assert!((back - d).abs() < 1e-9, "{d}: back {back}");
+        }
+        let (_, beyond) = law.force_n(at, 16.0, c);
+        assert!(beyond);
+        let (d, beyond) = law.depth_mm(at, 1e3, c);
+        assert!(beyond && d == 15.0);
+        // Far from every sample the weights still sum to one (no underflow to NaN).
+        let (g, _) = law.ratio([1e5, 0.0, 0.0], 4.0);
+        assert!((g - (1.0 - 0.004 * 16.0)).abs() < 1e-12, "{g}");
+    }
+}
