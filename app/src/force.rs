@@ -5,6 +5,7 @@
 //! ───────────────────            ─────────────────────────────────────────
 //! commands.store(probe) ──────►  cmd = commands.load()
 //!                                contact law on 9 rows of X  (PalpationScene::contact)
+//!                                tissue law F(s, d)          (DepthLaw, if the scene has one)
 //!                                samples.store(force)  ──────►  render reads latest force
 //!                                haptic.apply(force)            (deforms the surface with it)
 //!                                every 50 ticks: stats.store(rate, p50/p99 period, misses)
@@ -23,6 +24,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
+use palpa_core::pgd::depthlaw::DepthLaw;
 use palpa_core::scene::{PalpationScene, ProbePoint};
 
 use crate::latest::Latest;
@@ -149,6 +151,14 @@ pub struct ForceSample {
     pub eval_ns: f32,
     /// [`SampleStatus`] on the wire: see [`ForceSample::status`].
     status: u32,
+    /// The linear tissue's force at the same depth, N (equal to `magnitude_n` without
+    /// a depth law): the surface drawn is the one at the sample's depth.
+    pub linear_n: f32,
+    /// 1 if the depth lay beyond the depth law's range (clamped to its end).
+    pub beyond_law: u32,
+    /// The contact point at rest, mm.
+    pub point_mm: [f32; 3],
+    _pad: u32,
     /// The command this sample answers.
     pub command: ProbeCommand,
 }
@@ -251,6 +261,7 @@ impl ForceLoop {
     /// Starts the thread `palpa-force`.
     pub fn spawn(
         scene: Arc<PalpationScene>,
+        law: Option<Arc<DepthLaw>>,
         haptic: Box<dyn HapticDevice>,
         timing: LoopTiming,
     ) -> std::io::Result<Self> {
@@ -261,6 +272,7 @@ impl ForceLoop {
         let reset = Arc::new(AtomicBool::new(false));
         let worker = Worker {
             scene,
+            law,
             haptic,
             timing,
             commands: Arc::clone(&commands),
@@ -309,6 +321,8 @@ impl Drop for ForceLoop {
 
 struct Worker {
     scene: Arc<PalpationScene>,
+    /// The tissue's nonlinear force law, if the scene has one (else linear).
+    law: Option<Arc<DepthLaw>>,
     haptic: Box<dyn HapticDevice>,
     timing: LoopTiming,
     commands: Arc<Latest<ProbeCommand>>,
@@ -464,11 +478,24 @@ impl Worker {
         match contact {
             Ok(c) => {
                 let target = f64::from(cmd.target);
-                let (force, depth) = if cmd.mode() == PressMode::Force {
-                    (target, target * c.compliance_mm_per_n)
-                } else {
-                    (target / c.compliance_mm_per_n, target)
+                let comp = c.compliance_mm_per_n;
+                let (force, depth, beyond) = match (&self.law, cmd.mode()) {
+                    (None, PressMode::Force) => (target, target * comp, false),
+                    (None, PressMode::Depth) => (target / comp, target, false),
+                    // Impedance rendering: depth in, the nonlinear force out.
+                    (Some(law), PressMode::Depth) => {
+                        let (f, beyond) = law.force_n(c.point_mm, target, comp);
+                        (f, target, beyond)
+                    }
+                    // The trigger's force in, the depth that needs it out.
+                    (Some(law), PressMode::Force) => {
+                        let (d, beyond) = law.depth_mm(c.point_mm, target, comp);
+                        (target, d, beyond)
+                    }
                 };
+                s.linear_n = (depth / comp) as f32;
+                s.point_mm = c.point_mm.map(|v| v as f32);
+                s.beyond_law = u32::from(beyond);
                 s.force_n = c.push_dir.map(|d| (d * force) as f32);
                 s.magnitude_n = force as f32;
                 s.depth_mm = depth as f32;

@@ -163,6 +163,11 @@ pub struct HeadlessReport {
     pub force_priority: &'static str,
     pub final_force_n: f32,
     pub final_depth_mm: f32,
+    /// The linear tissue's force at the final depth (equal to `final_force_n` without a
+    /// force law).
+    pub final_linear_force_n: f32,
+    /// `linear elastic`, or the force law's material.
+    pub tissue: String,
     /// Resident memory after the warm-up (a tenth of the frames, at least 5) and at
     /// the end, MB (Linux; absent elsewhere): a long run should stay flat.
     pub rss_mb_after_warmup: Option<f64>,
@@ -191,8 +196,8 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
     let loaded_source = loaded.source.clone();
     let gpu = Gpu::headless()?;
     let mut renderer = Renderer::new(&gpu.device, FORMAT, &loaded.scene);
-    let mut session =
-        Session::new(loaded.scene, Box::new(NoHaptics)).context("starting the force thread")?;
+    let mut session = Session::with_law(loaded.scene, loaded.law, Box::new(NoHaptics))
+        .context("starting the force thread")?;
     if let Some(n) = opts.modes {
         session.controls.modes = n.clamp(1, session.scene.modes() as u32);
     }
@@ -294,6 +299,11 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         force_priority: stats.priority().name(),
         final_force_n: session.sample.magnitude_n,
         final_depth_mm: session.sample.depth_mm,
+        final_linear_force_n: session.sample.linear_n,
+        tissue: session.law.as_ref().map_or_else(
+            || "linear elastic".to_string(),
+            |l| format!("{} force law", l.options.law.name()),
+        ),
         rss_mb_after_warmup: rss_after_warmup.map(|b| b as f64 / 1e6),
         rss_mb_end: crate::stats::resident_bytes().map(|b| b as f64 / 1e6),
         adapter: gpu.report(),

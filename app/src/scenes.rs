@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use anyhow::Context;
+use palpa_core::pgd::depthlaw::DepthLaw;
 use palpa_core::scene::PalpationScene;
 
 /// The shipped default scene, `assets/liver-coarse.palpa`.
@@ -16,6 +17,21 @@ pub const BUILT_IN_LIVER: &[u8] = include_bytes!("../../assets/liver-coarse.palp
 pub struct LoadedScene {
     pub scene: PalpationScene,
     pub source: String,
+    /// The tissue's nonlinear force law: the file `X.law` beside a scene `X.palpa`
+    /// (from `palpa depth-law build`), if there is one; else the tissue is linear.
+    pub law: Option<DepthLaw>,
+}
+
+/// The force law beside a scene file, if any; a law that is there but cannot be read
+/// is an error (never silently linear).
+fn sidecar_law(scene: &Path) -> anyhow::Result<Option<DepthLaw>> {
+    let path = scene.with_extension("law");
+    if !path.exists() {
+        return Ok(None);
+    }
+    DepthLaw::load(&path)
+        .map(Some)
+        .with_context(|| format!("the force law beside {}", scene.display()))
 }
 
 /// `"liver"` (the built-in default) or a path to a palpation `.palpa` file.
@@ -31,6 +47,7 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
     Ok(LoadedScene {
         scene,
         source: path.display().to_string(),
+        law: sidecar_law(path)?,
     })
 }
 
@@ -118,5 +135,6 @@ pub fn built_in() -> anyhow::Result<LoadedScene> {
     Ok(LoadedScene {
         scene: PalpationScene::new(model).context("the built-in liver scene")?,
         source: "built-in liver (assets/liver-coarse.palpa)".into(),
+        law: None,
     })
 }

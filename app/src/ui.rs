@@ -98,6 +98,52 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
     }
 }
 
+/// The force–depth curve at the probe: the tissue's law (solid) and the linear law
+/// (dashed), with the current press marked.
+fn depth_curve(
+    ui: &mut egui::Ui,
+    law: &palpa_core::pgd::depthlaw::DepthLaw,
+    s: &crate::force::ForceSample,
+) {
+    let c = f64::from(s.compliance_mm_per_n);
+    if c.is_nan() || c <= 0.0 {
+        return;
+    }
+    let at = s.point_mm.map(f64::from);
+    let top = law.options.depth_max_mm;
+    let n = 60;
+    let nonlinear: Vec<[f64; 2]> = (0..=n)
+        .map(|k| {
+            let d = top * f64::from(k) / f64::from(n);
+            [d, law.force_n(at, d, c).0]
+        })
+        .collect();
+    let linear: Vec<[f64; 2]> = vec![[0.0, 0.0], [top, top / c]];
+    egui_plot::Plot::new("force-depth")
+        .height(110.0)
+        .allow_zoom(false)
+        .allow_drag(false)
+        .allow_scroll(false)
+        .x_axis_label("depth, mm")
+        .y_axis_label("force, N")
+        .show(ui, |plot| {
+            plot.line(egui_plot::Line::new(law.options.law.name(), nonlinear));
+            plot.line(
+                egui_plot::Line::new("linear", linear)
+                    .style(egui_plot::LineStyle::dashed_loose())
+                    .color(Color32::from_gray(160)),
+            );
+            plot.points(
+                egui_plot::Points::new(
+                    "now",
+                    vec![[f64::from(s.depth_mm), f64::from(s.magnitude_n)]],
+                )
+                .radius(3.0)
+                .color(Color32::from_rgb(255, 200, 60)),
+            );
+        });
+}
+
 fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     let n_all = session.scene.modes() as u32;
     ui.heading("Accuracy");
@@ -132,6 +178,17 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     ui.separator();
 
     ui.heading("Probe");
+    match &session.law {
+        Some(law) => ui.label(format!(
+            "tissue: {} (E {:.0} kPa, ν {}), force law to {:.0} mm from {} samples",
+            law.options.law.name(),
+            law.options.material.young_kpa,
+            law.options.material.poisson,
+            law.options.depth_max_mm,
+            law.samples.len()
+        )),
+        None => ui.label("tissue: linear elastic (force proportional to depth)"),
+    };
     ui.horizontal(|ui| {
         ui.radio_value(&mut session.controls.mode, PressMode::Depth, "depth (drag)");
         ui.radio_value(&mut session.controls.mode, PressMode::Force, "force");
@@ -147,6 +204,15 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
             "force {:.2} N · depth {:.2} mm · compliance {:.3} mm/N",
             s.magnitude_n, s.depth_mm, s.compliance_mm_per_n
         ));
+        if s.beyond_law != 0 {
+            ui.colored_label(
+                Color32::from_rgb(230, 160, 60),
+                "deeper than the force law covers: held at its last depth",
+            );
+        }
+        if let Some(law) = &session.law {
+            depth_curve(ui, law, &s);
+        }
     } else if s.status() == crate::force::SampleStatus::Failed {
         ui.colored_label(
             Color32::from_rgb(255, 120, 90),

@@ -531,7 +531,7 @@ fn room_of(opened: Opened, haptics: &AtomicHaptics) -> anyhow::Result<(Room, Str
     Ok(match opened {
         Opened::Palpation(loaded) => (
             Room::Palpation(Box::new(
-                Session::new(loaded.scene, Box::new(haptics.clone()))
+                Session::with_law(loaded.scene, loaded.law, Box::new(haptics.clone()))
                     .context("starting the force thread")?,
             )),
             loaded.source,

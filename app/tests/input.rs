@@ -293,8 +293,8 @@ fn gamepad_slide_on_the_real_scene_stays_on_the_palpable_surface() {
 #[test]
 fn the_force_loop_keeps_its_schedule_under_load() {
     let s = std::sync::Arc::new(scene());
-    let fl =
-        ForceLoop::spawn(s.clone(), Box::new(NoHaptics), LoopTiming::default()).expect("spawn");
+    let fl = ForceLoop::spawn(s.clone(), None, Box::new(NoHaptics), LoopTiming::default())
+        .expect("spawn");
     let p = (0..s.triangles().len() as u32)
         .find_map(|t| s.palpable_point(t, [1.0 / 3.0; 3]))
         .expect("palpable");
@@ -357,4 +357,63 @@ fn the_force_loop_keeps_its_schedule_under_load() {
             st.rate_hz, st.missed_deadlines, st.period_us_p99
         );
     }
+}
+
+/// With a force law the loop answers a depth with the law's force and a force with
+/// the law's depth, publishes the linear force at that depth for the surface, and
+/// flags a depth past the law's range.
+#[test]
+fn the_force_loop_uses_the_tissue_law_both_ways() {
+    use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
+    let s = std::sync::Arc::new(scene());
+    // A law that softens by 0.4 % per 0.25 mm everywhere (a uniform curve).
+    let steps = 61;
+    let curve: Vec<f64> = (0..steps).map(|j| 1.0 - 0.004 * j as f64).collect();
+    let law = DepthLaw {
+        options: DepthLawOptions::default(),
+        samples: vec![[0.0, 0.0, 0.0], [60.0, 0.0, 0.0]],
+        sigma_mm: 30.0,
+        ratio: [curve.clone(), curve].concat(),
+        pade_change: vec![0.0; 2],
+        build_s: 0.0,
+    };
+    law.check().expect("consistent");
+    let fl = ForceLoop::spawn(
+        s.clone(),
+        Some(std::sync::Arc::new(law)),
+        Box::new(NoHaptics),
+        LoopTiming::default(),
+    )
+    .expect("spawn");
+    let p = (0..s.triangles().len() as u32)
+        .find_map(|t| s.palpable_point(t, [1.0 / 3.0; 3]))
+        .expect("palpable");
+    let mut c = Controls::new(camera(&s), s.modes() as u32);
+    c.probe = Some(p);
+    c.pressing = true;
+    c.depth_mm = 5.0;
+    fl.command(c.command());
+    std::thread::sleep(Duration::from_millis(100));
+    let d = fl.latest();
+    assert_eq!(d.status(), SampleStatus::Ok);
+    let g = 1.0 - 0.004 * 20.0;
+    assert!(
+        (d.magnitude_n - d.linear_n * g).abs() < 1e-4 * d.linear_n,
+        "{d:?}"
+    );
+    assert!((d.linear_n * d.compliance_mm_per_n - 5.0).abs() < 1e-4);
+    assert_eq!(d.beyond_law, 0);
+    // Force in: the depth that needs it.
+    c.mode = PressMode::Force;
+    c.force_n = d.magnitude_n;
+    fl.command(c.command());
+    std::thread::sleep(Duration::from_millis(100));
+    let f = fl.latest();
+    assert!((f.depth_mm - 5.0).abs() < 1e-3, "{f:?}");
+    // Past the range: held at its end, flagged.
+    c.mode = PressMode::Depth;
+    c.depth_mm = 20.0;
+    fl.command(c.command());
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(fl.latest().beyond_law, 1);
 }

@@ -352,6 +352,20 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
                                 row[format!("vector_pade_{m}")] = json!({"force_rel_error": (f - sol.force_n) / sol.force_n, "max_nodal_error_mm": w});
                             }
                         }
+                        // The linear press at the same depth is the series' first term.
+                        let linear_worst = series.u[0]
+                            .chunks_exact(3)
+                            .zip(sol.u.chunks_exact(3))
+                            .map(|(a, b)| {
+                                (0..3)
+                                    .map(|k| (depth * a[k] - b[k]).powi(2))
+                                    .sum::<f64>()
+                                    .sqrt()
+                            })
+                            .fold(0.0, f64::max);
+                        row["linear_max_nodal_error_mm"] = json!(linear_worst);
+                        row["linear_force_rel_error"] =
+                            json!((depth * series.force[0] - sol.force_n) / sol.force_n);
                         row["newton_force_n"] = json!(sol.force_n);
                         row["force_rel_error"] = json!((force - sol.force_n) / sol.force_n);
                         row["max_nodal_error_mm"] = json!(worst);

@@ -7,6 +7,7 @@ mod bench_fe;
 mod bench_pgd;
 mod bench_views;
 mod cme;
+mod depthlaw;
 mod fe;
 mod headless;
 mod info;
@@ -58,6 +59,9 @@ enum Command {
     /// Gene-network models: the chemical master equation.
     #[command(subcommand)]
     Cme(cme::CmeCommand),
+    /// The hyperelastic force law of a palpation scene (depth in, force out).
+    #[command(subcommand)]
+    DepthLaw(depthlaw::DepthLawCommand),
     /// Open the interactive app in a window (the default with no subcommand).
     Open(OpenArgs),
     /// Render frames offscreen with a scripted probe while the force thread runs; report timings.
@@ -100,6 +104,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Tradeoff(args)) => tradeoff::run(&args),
         Some(Command::Headless(args)) => headless::run_cmd(&args),
         Some(Command::Cme(cmd)) => cme::run(&cmd),
+        Some(Command::DepthLaw(cmd)) => depthlaw::run(&cmd),
         Some(Command::Open(args)) => palpa_app::window::run(&args.scene),
         None => default_job(),
     }

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
+use palpa_core::pgd::depthlaw::DepthLaw;
 use palpa_core::scene::PalpationScene;
 
 use crate::camera::OrbitCamera;
@@ -30,6 +31,8 @@ pub const TOOL_RADIUS_MM: f32 = 5.0;
 #[derive(Debug)]
 pub struct Session {
     pub scene: Arc<PalpationScene>,
+    /// The tissue's nonlinear force law (`None`: linear tissue).
+    pub law: Option<Arc<DepthLaw>>,
     pub controls: Controls,
     pub force: ForceLoop,
     /// Colour by displacement, with this value (mm) at the top of the scale.
@@ -57,7 +60,19 @@ impl Session {
     /// Starts the force loop on `scene`; the camera frames the organ and the probe rests
     /// on the palpable point nearest the front of the organ.
     pub fn new(scene: PalpationScene, haptic: Box<dyn HapticDevice>) -> std::io::Result<Self> {
+        Self::with_law(scene, None, haptic)
+    }
+
+    /// As [`Self::new`], with the tissue's nonlinear force law (see
+    /// `palpa_core::pgd::depthlaw`): the force loop answers depth with its force, and
+    /// force with its depth.
+    pub fn with_law(
+        scene: PalpationScene,
+        law: Option<DepthLaw>,
+        haptic: Box<dyn HapticDevice>,
+    ) -> std::io::Result<Self> {
         let scene = Arc::new(scene);
+        let law = law.map(Arc::new);
         let (min, max) = bounds(scene.vertices_mm());
         let camera = OrbitCamera::framing(min, max);
         let mut controls = Controls::new(camera, scene.modes() as u32);
@@ -66,10 +81,16 @@ impl Session {
         controls.probe = scene
             .closest_palpable(front.as_dvec3().to_array())
             .map(|(p, _)| p);
-        let force = ForceLoop::spawn(Arc::clone(&scene), haptic, LoopTiming::default())?;
+        let force = ForceLoop::spawn(
+            Arc::clone(&scene),
+            law.clone(),
+            haptic,
+            LoopTiming::default(),
+        )?;
         let deformation = Deformation::new(&scene);
         Ok(Session {
             scene,
+            law,
             controls,
             force,
             colormap_mm: None,
@@ -126,9 +147,18 @@ impl Session {
         let probe = self.controls.probe;
         let mut visual = None;
         let ok = s.status() == SampleStatus::Ok;
-        // Deform by the sample's force at the sample's point; no force: rest shape.
+        // Deform to the sample's depth at the sample's point (the linear field there:
+        // with a nonlinear force law the tool's force differs); no force: rest shape.
         let (point, force) = if ok {
-            (Some(s.command.point()), s.force_n.map(f64::from))
+            let scale = if s.magnitude_n > 0.0 {
+                f64::from(s.linear_n) / f64::from(s.magnitude_n)
+            } else {
+                0.0
+            };
+            (
+                Some(s.command.point()),
+                s.force_n.map(|f| f64::from(f) * scale),
+            )
         } else {
             (probe, [0.0; 3])
         };

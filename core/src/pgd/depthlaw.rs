@@ -29,6 +29,33 @@ use crate::fe::series::Expander;
 use crate::fe::{Element, FeError, Material};
 use crate::organ::OrganMesh;
 
+/// The first bytes of a depth-law file.
+pub const MAGIC: &[u8; 8] = b"PALPALAW";
+/// The file's format version.
+pub const VERSION: u32 = 1;
+
+/// Why a depth-law file could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum DepthLawFileError {
+    #[error("{path}: {source}")]
+    Io {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not a palpa depth-law file (expected the magic bytes \"PALPALAW\")")]
+    Foreign { path: std::path::PathBuf },
+    #[error("{path}: depth-law format version {found}, this palpa reads {VERSION}")]
+    Version {
+        path: std::path::PathBuf,
+        found: u32,
+    },
+    #[error("{path}: corrupt depth law: {why}")]
+    Corrupt {
+        path: std::path::PathBuf,
+        why: String,
+    },
+}
+
 /// Most depth-grid points (the inverse keeps one curve on the stack).
 pub const MAX_DEPTHS: usize = 256;
 
@@ -76,7 +103,8 @@ pub struct DepthLaw {
     pub build_s: f64,
 }
 
-/// Picks `n` vertices of the palpable surface, each the farthest from those picked.
+/// Picks `n` vertices of the palpable surface, each the farthest from those picked
+/// (never a fixed vertex: a tool there moves nothing).
 fn spread_samples(organ: &OrganMesh, n: usize) -> Vec<[f64; 3]> {
     let mut verts: Vec<u32> = organ
         .boundary
@@ -84,6 +112,7 @@ fn spread_samples(organ: &OrganMesh, n: usize) -> Vec<[f64; 3]> {
         .zip(&organ.palpable)
         .filter(|(_, p)| **p)
         .flat_map(|(t, _)| *t)
+        .filter(|&v| !organ.fixed[v as usize])
         .collect();
     verts.sort_unstable();
     verts.dedup();
@@ -135,6 +164,7 @@ impl DepthLaw {
         }
         let mut ratio = Vec::with_capacity(samples.len() * steps);
         let mut pade_change = Vec::with_capacity(samples.len());
+        let mut skipped = Vec::new();
         for (k, &at) in samples.iter().enumerate() {
             let req = ProbeRequest {
                 at,
@@ -145,7 +175,17 @@ impl DepthLaw {
             let (probe, dir) = locate(&space, organ, &req)?;
             let shape = probe_load(&space, &probe, dir, 1.0, o.tool_radius_mm)?;
             let functional = probe_functional(&space, &probe, dir);
-            let series = expander.expand(&shape, &functional, o.orders)?;
+            // A tool right at the fixed region's edge may not move its own centre
+            // along its axis: such a sample says nothing about the law; skip it.
+            let series = match expander.expand(&shape, &functional, o.orders) {
+                Ok(s) => s,
+                Err(FeError::ProbeNotMoved) => {
+                    skipped.push(k);
+                    progress(k + 1, samples.len());
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
             let rational = series.rational(o.depth_max_mm);
             let f1 = series.force[0];
             for j in 0..steps {
@@ -189,6 +229,113 @@ impl DepthLaw {
             pade_change,
             build_s: t0.elapsed().as_secs_f64(),
         })
+    }
+
+    /// Checks what a file or a caller gave: shapes, finite values, `g(0) = 1`.
+    pub fn check(&self) -> Result<(), String> {
+        let o = &self.options;
+        let steps = (o.depth_max_mm / o.depth_step_mm).round();
+        if !(o.depth_max_mm.is_finite()
+            && o.depth_step_mm > 0.0
+            && steps >= 1.0
+            && steps < MAX_DEPTHS as f64)
+        {
+            return Err(format!(
+                "depth range {} mm in steps of {} mm: expected a finite range of 2 to {MAX_DEPTHS} \
+                 grid points",
+                o.depth_max_mm, o.depth_step_mm
+            ));
+        }
+        let steps = steps as usize + 1;
+        if self.samples.is_empty() || self.ratio.len() != self.samples.len() * steps {
+            return Err(format!(
+                "{} ratio values for {} samples of {steps} depths",
+                self.ratio.len(),
+                self.samples.len()
+            ));
+        }
+        if self.samples.iter().flatten().any(|v| !v.is_finite())
+            || self.ratio.iter().any(|v| !(v.is_finite() && *v > 0.0))
+            || !(self.sigma_mm.is_finite() && self.sigma_mm > 0.0)
+        {
+            return Err("non-finite or non-positive values".into());
+        }
+        if self
+            .ratio
+            .chunks_exact(steps)
+            .any(|r| (r[0] - 1.0).abs() > 1e-12)
+        {
+            return Err("a sample's ratio at depth 0 is not 1".into());
+        }
+        Ok(())
+    }
+
+    /// Writes the law atomically (a temporary file renamed into place).
+    pub fn save(&self, path: &std::path::Path) -> Result<(), DepthLawFileError> {
+        let body =
+            bincode::serde::encode_to_vec(self, bincode::config::standard()).map_err(|e| {
+                DepthLawFileError::Corrupt {
+                    path: path.to_path_buf(),
+                    why: e.to_string(),
+                }
+            })?;
+        crate::fsutil::atomic_write(path, |w| {
+            use std::io::Write;
+            w.write_all(MAGIC)?;
+            w.write_all(&VERSION.to_le_bytes())?;
+            w.write_all(&xxhash_rust::xxh3::xxh3_64(&body).to_le_bytes())?;
+            w.write_all(&body)
+        })
+        .map_err(|source| DepthLawFileError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Reads and checks a law written by [`Self::save`].
+    pub fn load(path: &std::path::Path) -> Result<DepthLaw, DepthLawFileError> {
+        let bytes = std::fs::read(path).map_err(|source| DepthLawFileError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Reads a law from the bytes of a file (`path` names it in errors).
+    pub fn from_bytes(bytes: &[u8], path: &std::path::Path) -> Result<DepthLaw, DepthLawFileError> {
+        let p = || path.to_path_buf();
+        if bytes.len() < 20 || &bytes[..8] != MAGIC {
+            return Err(DepthLawFileError::Foreign { path: p() });
+        }
+        let found = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
+        if found != VERSION {
+            return Err(DepthLawFileError::Version { path: p(), found });
+        }
+        let sum = u64::from_le_bytes(bytes[12..20].try_into().expect("8 bytes"));
+        let body = &bytes[20..];
+        if xxhash_rust::xxh3::xxh3_64(body) != sum {
+            return Err(DepthLawFileError::Corrupt {
+                path: p(),
+                why: "checksum mismatch".into(),
+            });
+        }
+        let (law, used): (DepthLaw, usize) = bincode::serde::decode_from_slice(
+            body,
+            bincode::config::standard().with_limit::<{ 256 << 20 }>(),
+        )
+        .map_err(|e| DepthLawFileError::Corrupt {
+            path: p(),
+            why: e.to_string(),
+        })?;
+        if used != body.len() {
+            return Err(DepthLawFileError::Corrupt {
+                path: p(),
+                why: format!("{} bytes after the law", body.len() - used),
+            });
+        }
+        law.check()
+            .map_err(|why| DepthLawFileError::Corrupt { path: p(), why })?;
+        Ok(law)
     }
 
     fn steps(&self) -> usize {
@@ -307,6 +454,21 @@ mod tests {
         assert!(beyond);
         let (d, beyond) = law.depth_mm(at, 1e3, c);
         assert!(beyond && d == 15.0);
+        // Through a file, and a flipped byte is named.
+        law.check().expect("consistent");
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("law.bin");
+        law.save(&path).expect("saves");
+        assert_eq!(DepthLaw::load(&path).expect("loads"), law);
+        let mut bytes = std::fs::read(&path).expect("reads");
+        let n = bytes.len();
+        bytes[n - 3] ^= 1;
+        std::fs::write(&path, &bytes).expect("writes");
+        let e = DepthLaw::load(&path).expect_err("corrupt").to_string();
+        assert!(e.contains("checksum"), "{e}");
+        std::fs::write(&path, b"something else entirely").expect("writes");
+        let e = DepthLaw::load(&path).expect_err("foreign").to_string();
+        assert!(e.contains("not a palpa depth-law file"), "{e}");
         // Far from every sample the weights still sum to one (no underflow to NaN).
         let (g, _) = law.ratio([1e5, 0.0, 0.0], 4.0);
         assert!((g - (1.0 - 0.004 * 16.0)).abs() < 1e-12, "{g}");
