@@ -375,6 +375,7 @@ fn the_force_loop_uses_the_tissue_law_both_ways() {
         sigma_mm: 30.0,
         ratio: [curve.clone(), curve].concat(),
         pade_change: vec![0.0; 2],
+        stiffness_n_per_mm: vec![1.0; 2],
         build_s: 0.0,
     };
     law.check().expect("consistent");

@@ -52,6 +52,10 @@ pub struct BuildArgs {
     poisson: f64,
     #[arg(long)]
     out: PathBuf,
+    /// Also print each sample (position, stiffness, ratio at the deepest point, Padé
+    /// change), one JSON line each.
+    #[arg(long)]
+    samples_json: bool,
 }
 
 #[derive(Debug, Args)]
@@ -110,6 +114,16 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     .context("building the depth law")?;
     eprintln!();
     law.save(&args.out)?;
+    if args.samples_json {
+        let steps = law.ratio.len() / law.samples.len();
+        for (k, p) in law.samples.iter().enumerate() {
+            println!(
+                "{}",
+                json!({"sample": k, "at": p, "stiffness_n_per_mm": law.stiffness_n_per_mm[k],
+                    "ratio_at_max": law.ratio[(k + 1) * steps - 1], "pade_change": law.pade_change[k]})
+            );
+        }
+    }
     println!(
         "{}",
         json!({"out": args.out, "law": options.law.name(), "samples": law.samples.len(),

@@ -56,6 +56,10 @@ pub enum DepthLawFileError {
     },
 }
 
+/// The largest relative change of a sample's Padé force at the deepest point from the
+/// next lower form (its error indicator) for the sample to be kept.
+pub const PADE_CHANGE_MAX: f64 = 0.01;
+
 /// Most depth-grid points (the inverse keeps one curve on the stack).
 pub const MAX_DEPTHS: usize = 256;
 
@@ -100,6 +104,8 @@ pub struct DepthLaw {
     /// Per sample, the Padé form's relative change at the largest depth (its error
     /// indicator).
     pub pade_change: Vec<f64>,
+    /// Per sample, the linear stiffness `1/c` at its position (N/mm).
+    pub stiffness_n_per_mm: Vec<f64>,
     pub build_s: f64,
 }
 
@@ -165,6 +171,7 @@ impl DepthLaw {
         let mut ratio = Vec::with_capacity(samples.len() * steps);
         let mut pade_change = Vec::with_capacity(samples.len());
         let mut skipped = Vec::new();
+        let mut stiffness = Vec::with_capacity(samples.len());
         for (k, &at) in samples.iter().enumerate() {
             let req = ProbeRequest {
                 at,
@@ -187,6 +194,13 @@ impl DepthLaw {
                 Err(e) => return Err(e),
             };
             let rational = series.rational(o.depth_max_mm);
+            // A rational form that still moves at the deepest point is not trusted:
+            // its curve would pull its neighbours' with it.
+            if !(rational.change <= PADE_CHANGE_MAX) {
+                skipped.push(k);
+                progress(k + 1, samples.len());
+                continue;
+            }
             let f1 = series.force[0];
             for j in 0..steps {
                 let d = j as f64 * o.depth_step_mm;
@@ -199,6 +213,7 @@ impl DepthLaw {
                 });
             }
             pade_change.push(rational.change);
+            stiffness.push(f1);
             progress(k + 1, samples.len());
         }
         let d =
@@ -227,6 +242,7 @@ impl DepthLaw {
             sigma_mm,
             ratio,
             pade_change,
+            stiffness_n_per_mm: stiffness,
             build_s: t0.elapsed().as_secs_f64(),
         })
     }
@@ -437,6 +453,7 @@ mod tests {
             sigma_mm: 20.0,
             ratio: [curve.clone(), curve.clone(), curve].concat(),
             pade_change: vec![0.0; 3],
+            stiffness_n_per_mm: vec![1.0; 3],
             build_s: 0.0,
         };
         let at = [12.0, 7.0, 3.0];
