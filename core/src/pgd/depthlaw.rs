@@ -196,7 +196,7 @@ impl DepthLaw {
             let rational = series.rational(o.depth_max_mm);
             // A rational form that still moves at the deepest point is not trusted:
             // its curve would pull its neighbours' with it.
-            if !(rational.change <= PADE_CHANGE_MAX) {
+            if rational.change.is_nan() || rational.change > PADE_CHANGE_MAX {
                 skipped.push(k);
                 progress(k + 1, samples.len());
                 continue;
