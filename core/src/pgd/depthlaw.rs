@@ -58,7 +58,9 @@ pub enum DepthLawFileError {
 
 /// The largest relative change of a sample's Padé force at the deepest point from the
 /// next lower form (its error indicator) for the sample to be kept.
-pub const PADE_CHANGE_MAX: f64 = 0.01;
+/// (The indicator is pessimistic: at the ten bench positions changes up to 8.5 % went
+/// with force errors below 0.6 %.)
+pub const PADE_CHANGE_MAX: f64 = 0.1;
 
 /// Most depth-grid points (the inverse keeps one curve on the stack).
 pub const MAX_DEPTHS: usize = 256;
@@ -216,6 +218,15 @@ impl DepthLaw {
             stiffness.push(f1);
             progress(k + 1, samples.len());
         }
+        let samples: Vec<[f64; 3]> = samples
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| !skipped.contains(k))
+            .map(|(_, p)| p)
+            .collect();
+        if samples.is_empty() {
+            return Err(FeError::ProbeNotMoved);
+        }
         let d =
             |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
         let mut spacing: Vec<f64> = samples
@@ -236,7 +247,7 @@ impl DepthLaw {
             .copied()
             .filter(|s| s.is_finite())
             .unwrap_or(10.0);
-        Ok(DepthLaw {
+        let law = DepthLaw {
             options,
             samples,
             sigma_mm,
@@ -244,7 +255,11 @@ impl DepthLaw {
             pade_change,
             stiffness_n_per_mm: stiffness,
             build_s: t0.elapsed().as_secs_f64(),
-        })
+        };
+        // Every row belongs to its sample (a mismatch would put curves at the wrong
+        // places silently).
+        debug_assert_eq!(law.check(), Ok(()));
+        Ok(law)
     }
 
     /// Checks what a file or a caller gave: shapes, finite values, `g(0) = 1`.
@@ -263,7 +278,11 @@ impl DepthLaw {
             ));
         }
         let steps = steps as usize + 1;
-        if self.samples.is_empty() || self.ratio.len() != self.samples.len() * steps {
+        if self.samples.is_empty()
+            || self.ratio.len() != self.samples.len() * steps
+            || self.pade_change.len() != self.samples.len()
+            || self.stiffness_n_per_mm.len() != self.samples.len()
+        {
             return Err(format!(
                 "{} ratio values for {} samples of {steps} depths",
                 self.ratio.len(),
