@@ -44,7 +44,6 @@ use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
 use crate::axis::Discretization;
-use crate::cme::views::{View, Views};
 use crate::farfield::{FarBlocks, FarField, NestedFar, NestedFarV5};
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
@@ -430,53 +429,67 @@ pub fn save_train(meta: &ModelMeta, cores: &[Core], path: &Path) -> Result<(), F
     write_file(path, 2, &header, &blocks)
 }
 
-/// Writes a views model (f64; `meta` has the time axis, then one axis per species)
-/// atomically.
-pub fn save_views(meta: &ModelMeta, views: &Views, path: &Path) -> Result<(), FileError> {
-    views.check().map_err(|reason| FileError::Inconsistent {
-        path: path.to_path_buf(),
-        reason,
-    })?;
-    if meta.axes.len() != views.sizes.len() + 1 {
-        return Err(FileError::Inconsistent {
-            path: path.to_path_buf(),
-            reason: format!(
-                "{} axes for {} species and time",
-                meta.axes.len(),
-                views.sizes.len()
-            ),
-        });
-    }
-    let blocks: Vec<&[u8]> = views
-        .views
-        .iter()
-        .flat_map(|v| [&v.time[..], &v.values[..]])
-        .map(bytemuck::cast_slice::<f64, u8>)
-        .collect();
-    let (payload_len, payload_xxh3) = payload_sum(&blocks);
+/// Writes a gene network's views atomically: `meta` has the time axis, then one
+/// axis per species; each view is its shape and its two f64 blocks (time factor,
+/// values). The sizes are checked against the axes here; what the numbers mean is
+/// `cme::views`'s business.
+pub fn save_views(
+    meta: &ModelMeta,
+    views: &[(ViewShape, &[f64], &[f64])],
+    path: &Path,
+) -> Result<(), FileError> {
     let header = Header {
         meta: meta.clone(),
         precision: Precision::F64,
         rows: 0,
         modes: 0,
+        payload_len: 0,
+        payload_xxh3: 0,
+        layout: Layout::Views {
+            views: views.iter().map(|v| v.0.clone()).collect(),
+        },
+    };
+    let inconsistent = |reason: String| FileError::Inconsistent {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let lens = block_lens(&header)
+        .ok_or_else(|| inconsistent("a view names a species the axes do not have".into()))?;
+    let blocks: Vec<&[u8]> = views
+        .iter()
+        .flat_map(|v| [v.1, v.2])
+        .map(bytemuck::cast_slice::<f64, u8>)
+        .collect();
+    if let Some(k) = (0..blocks.len()).find(|&k| blocks[k].len() as u64 != lens[k]) {
+        return Err(inconsistent(format!(
+            "view {} block {} holds {} bytes, its shape needs {}",
+            k / 2,
+            k % 2,
+            blocks[k].len(),
+            lens[k]
+        )));
+    }
+    if views
+        .iter()
+        .any(|v| v.1.iter().chain(v.2).any(|x| !x.is_finite()))
+    {
+        return Err(inconsistent("a view holds a non-finite value".into()));
+    }
+    let (payload_len, payload_xxh3) = payload_sum(&blocks);
+    let header = Header {
         payload_len,
         payload_xxh3,
-        layout: Layout::Views {
-            views: views
-                .views
-                .iter()
-                .map(|v| ViewShape {
-                    species: v.species.iter().map(|&i| i as u32).collect(),
-                    rank: v.rank as u64,
-                })
-                .collect(),
-        },
+        ..header
     };
     write_file(path, 7, &header, &blocks)
 }
 
-/// Loads a views model: its metadata and views (shapes checked).
-pub fn load_views(path: &Path) -> Result<(ModelMeta, Views), FileError> {
+/// The contents of a views file: metadata, and per view its shape, time factor and
+/// values (sizes checked against the axes).
+pub type ViewsContents = (ModelMeta, Vec<(ViewShape, Vec<f64>, Vec<f64>)>);
+
+/// Loads a views file written by [`save_views`].
+pub fn load_views(path: &Path) -> Result<ViewsContents, FileError> {
     let mut f = open(path)?;
     let located = read_header_from(path, &mut f)?;
     let p = || path.to_path_buf();
@@ -495,34 +508,24 @@ pub fn load_views(path: &Path) -> Result<(ModelMeta, Views), FileError> {
         });
     }
     let (header, arrays) = read_arrays::<f64, File>(path, &mut f, located)?;
-    let axes = &header.meta.axes;
-    let t = match &axes[0].discretization {
-        Discretization::Grid { nodes } => nodes.clone(),
-        _ => {
-            return Err(FileError::Inconsistent {
-                path: p(),
-                reason: "the first axis of a views model must be the time grid".into(),
-            });
-        }
-    };
-    let sizes = axes[1..]
-        .iter()
-        .map(|a| a.discretization.node_count())
-        .collect();
+    if !matches!(
+        header.meta.axes.first().map(|a| &a.discretization),
+        Some(Discretization::Grid { .. })
+    ) {
+        return Err(FileError::Inconsistent {
+            path: p(),
+            reason: "the first axis of a views model must be the time grid".into(),
+        });
+    }
     let mut arrays = arrays.into_iter();
     let views = shapes
         .into_iter()
-        .map(|s| View {
-            species: s.species.iter().map(|&i| i as usize).collect(),
-            rank: s.rank as usize,
-            time: arrays.next().unwrap_or_default(),
-            values: arrays.next().unwrap_or_default(),
+        .map(|s| {
+            let time = arrays.next().unwrap_or_default();
+            let values = arrays.next().unwrap_or_default();
+            (s, time, values)
         })
         .collect();
-    let views = Views { t, sizes, views };
-    views
-        .check()
-        .map_err(|reason| FileError::Inconsistent { path: p(), reason })?;
     Ok((header.meta, views))
 }
 

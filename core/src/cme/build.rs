@@ -84,11 +84,17 @@ impl Built {
             } => model::save_train(network, history, provenance.clone(), out),
             Form::Views {
                 views, provenance, ..
-            } => file::save_views(
-                &model::views_meta(network, views, provenance.clone()),
-                views,
-                out,
-            ),
+            } => {
+                views.check().map_err(|reason| FileError::Inconsistent {
+                    path: out.to_path_buf(),
+                    reason,
+                })?;
+                file::save_views(
+                    &model::views_meta(network, views, provenance.clone()),
+                    &views.file_blocks(),
+                    out,
+                )
+            }
         }
     }
 }

@@ -780,7 +780,7 @@ pub fn load(path: &std::path::Path) -> Result<CmeModel, CmeLoadError> {
         }
         Layout::Views { .. } => {
             let (meta, views) = file::load_views(path)?;
-            CmeModel::from_views(meta, views)
+            Views::from_file(&meta, views).and_then(|v| CmeModel::from_views(meta, v))
         }
         _ => CmeModel::new(file::load_any(path)?.into_f64()),
     };
