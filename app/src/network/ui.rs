@@ -95,27 +95,15 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
             );
         }
         // Many species: the strip beside the distribution gives each mean ± sd.
-        let grid = room.species.len() <= STRIP_FROM_SPECIES;
-        egui::Grid::new("moments").striped(true).show(ui, |ui| {
-            if !grid {
-                return;
-            }
-            ui.label("species");
-            ui.label("mean");
-            ui.label("sd");
-            ui.end_row();
-            for (i, name) in room.species.iter().enumerate() {
-                ui.label(name);
-                ui.label(format!("{:.3}", e.moments.mean[i]));
-                ui.label(format!("{:.3}", e.moments.var[i].max(0.0).sqrt()));
-                ui.end_row();
-            }
-        });
+        if room.species.len() <= STRIP_FROM_SPECIES {
+            moments_grid(ui, &room.species, &e.moments);
+        }
     }
     ui.separator();
     exact_check(ui, room);
     ui.separator();
     let us = |r: &crate::stats::Ring| r.quantile(0.5);
+
     ui.label(format!(
         "evaluation {:.1} µs (median), joint {:.1} µs",
         us(&room.eval_us),
@@ -125,6 +113,22 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
         "frame {:.2} ms (median)",
         hud.frame_ms.quantile(0.5)
     ));
+}
+
+/// Each species' mean and standard deviation.
+fn moments_grid(ui: &mut egui::Ui, species: &[String], moments: &palpa_core::cme::Moments) {
+    egui::Grid::new("moments").striped(true).show(ui, |ui| {
+        ui.label("species");
+        ui.label("mean");
+        ui.label("sd");
+        ui.end_row();
+        for (i, name) in species.iter().enumerate() {
+            ui.label(name);
+            ui.label(format!("{:.3}", moments.mean[i]));
+            ui.label(format!("{:.3}", moments.var[i].max(0.0).sqrt()));
+            ui.end_row();
+        }
+    });
 }
 
 /// Trajectories of the SSA check.
