@@ -298,7 +298,7 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
             );
             let series_s = t.elapsed().as_secs_f64();
             let series = match expanded {
-                Ok((_, s)) => s,
+                Ok((_, s, _)) => s,
                 Err(e) => {
                     println!(
                         "{}",
@@ -307,6 +307,25 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
                     continue;
                 }
             };
+            // The continued expansion (about the state at 55 % of the deepest press).
+            let space = organ_space(coarse, Element::P2);
+            let t = Instant::now();
+            let continued = (|| -> anyhow::Result<_> {
+                let (probe, dir) =
+                    palpa_core::fe::probe::locate(&space, coarse, &req(at, f64::NAN))?;
+                let shape = palpa_core::fe::load::probe_load(&space, &probe, dir, 1.0, 5.0)?;
+                let functional = palpa_core::fe::load::probe_functional(&space, &probe, dir);
+                Ok(palpa_core::fe::series::continued_series(
+                    &space,
+                    law,
+                    Material::default(),
+                    &shape,
+                    &functional,
+                    0.55 * deepest,
+                    args.series_orders,
+                )?)
+            })();
+            let continued_s = t.elapsed().as_secs_f64();
             for &depth in &args.series_depths {
                 let rational = series.rational(depth);
                 let (force, u) = series.evaluate(&rational, depth);
@@ -366,6 +385,18 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
                         row["linear_max_nodal_error_mm"] = json!(linear_worst);
                         row["linear_force_rel_error"] =
                             json!((depth * series.force[0] - sol.force_n) / sol.force_n);
+                        if let Ok(c) = &continued {
+                            let (cf, cu) = c.evaluate(depth, deepest);
+                            let worst = cu
+                                .chunks_exact(3)
+                                .zip(sol.u.chunks_exact(3))
+                                .map(|(a, b)| {
+                                    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+                                })
+                                .fold(0.0, f64::max);
+                            row["continued"] = json!({"split_mm": c.split_mm, "seconds": continued_s,
+                                "force_rel_error": (cf - sol.force_n) / sol.force_n, "max_nodal_error_mm": worst});
+                        }
                         row["newton_force_n"] = json!(sol.force_n);
                         row["force_rel_error"] = json!((force - sol.force_n) / sol.force_n);
                         row["max_nodal_error_mm"] = json!(worst);

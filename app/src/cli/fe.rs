@@ -109,7 +109,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
     }
     let (sol, newton_iterations, load_steps) = match (args.model.law(), depth) {
         (Some(law), Some(d)) if args.method == Method::Series => {
-            let (sol, series) =
+            let (sol, series, continued_at) =
                 solve_series(&organ, args.element, material, law, &req, d, args.orders)
                     .with_context(|| format!("expanding the press ({})", law.name()))?;
             let r = series.rational(d);
@@ -120,6 +120,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
                 "radius_mm": series.radius_mm(),
                 "force_by_orders": (1..=series.force.len()).map(|n| series.force_n(d, n)).collect::<Vec<_>>(),
                 "pade": pade,
+                "continued_at_mm": continued_at,
             });
             (sol, 0, 0)
         }

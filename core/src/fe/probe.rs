@@ -208,10 +208,16 @@ pub(crate) fn summarize(
     }
 }
 
+/// Depth (mm) beyond which [`solve_series`] continues the expansion.
+pub const CONTINUE_BEYOND_MM: f64 = 6.0;
+
 /// Hyperelastic depth-controlled press by its power series in the depth
 /// ([`super::series`]): `orders` linear solves with the rest stiffness, then the
 /// solution at `depth_mm` from the series' highest pole-free Padé form (which carries
-/// it past the series' radius of convergence).
+/// it past the series' radius of convergence). Deeper than [`CONTINUE_BEYOND_MM`] the
+/// press is expanded again about its state at 55 % of the depth (the split is
+/// returned): at the anterior point on coarse P2 that took the largest nodal error at
+/// 15 mm from 1.04 to 0.034 mm.
 pub fn solve_series(
     organ: &OrganMesh,
     element: Element,
@@ -220,7 +226,7 @@ pub fn solve_series(
     req: &ProbeRequest,
     depth_mm: f64,
     orders: usize,
-) -> Result<(ProbeSolution, super::series::DepthSeries), FeError> {
+) -> Result<(ProbeSolution, super::series::DepthSeries, Option<f64>), FeError> {
     if !depth_mm.is_finite() {
         return Err(FeError::DepthNotFinite { depth_mm });
     }
@@ -228,10 +234,27 @@ pub fn solve_series(
     let (probe, dir) = locate(&space, organ, req)?;
     let shape = probe_load(&space, &probe, dir, 1.0, req.radius_mm)?;
     let functional = probe_functional(&space, &probe, dir);
-    let series =
-        super::series::depth_series(&space, law, material, &shape, &functional, orders.max(1))?;
-    let rational = series.rational(depth_mm);
-    let (force_n, u) = series.evaluate(&rational, depth_mm);
+    // Deep presses continue from the state at 55 % of the depth: one series alone
+    // keeps the force past its radius (through its Padé form) but not the surface.
+    let (series, force_n, u, continued_at) = if depth_mm > CONTINUE_BEYOND_MM {
+        let c = super::series::continued_series(
+            &space,
+            law,
+            material,
+            &shape,
+            &functional,
+            0.55 * depth_mm,
+            orders.max(1),
+        )?;
+        let (f, u) = c.evaluate(depth_mm, depth_mm);
+        (c.first, f, u, Some(c.split_mm))
+    } else {
+        let series =
+            super::series::depth_series(&space, law, material, &shape, &functional, orders.max(1))?;
+        let rational = series.rational(depth_mm);
+        let (f, u) = series.evaluate(&rational, depth_mm);
+        (series, f, u, None)
+    };
     let load = shape.iter().map(|v| v * force_n).collect();
     let mut out = summarize(
         &space,
@@ -244,5 +267,5 @@ pub fn solve_series(
         series.seconds - series.factor_s,
     );
     out.force_n = force_n;
-    Ok((out, series))
+    Ok((out, series, continued_at))
 }

@@ -89,7 +89,8 @@ const PERMS: [([usize; 3], f64); 6] = [
 ];
 
 /// The coefficients `0..=p` of the second Piola–Kirchhoff stress for the deformation
-/// gradient series `f[0..=p]` (`f[0] = I`).
+/// gradient series `f[0..=p]`. `f[0]` is `I` about the rest state, or `I + ∇u_0` about
+/// a deformed state `u_0` (then `C_0 ≠ I`, `J_0 ≠ 1` and `S_0 ≠ 0`).
 fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
     let p = f.len() - 1;
     let c: Vec<M3> = (0..=p)
@@ -106,14 +107,18 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
             .iter()
             .enumerate()
             .map(|(k, ck)| {
+                // E_0 = ½(C_0 − I), E_k = ½ C_k.
+                let mut e = *ck;
                 if k == 0 {
-                    return ZERO;
+                    for (i, row) in e.iter_mut().enumerate() {
+                        row[i] -= 1.0;
+                    }
                 }
-                let tr = 0.5 * (ck[0][0] + ck[1][1] + ck[2][2]);
+                let tr = 0.5 * (e[0][0] + e[1][1] + e[2][2]);
                 let mut s = ZERO;
                 for i in 0..3 {
                     for j in 0..3 {
-                        s[i][j] = mu * ck[i][j] + if i == j { lambda * tr } else { 0.0 };
+                        s[i][j] = mu * e[i][j] + if i == j { lambda * tr } else { 0.0 };
                     }
                 }
                 s
@@ -133,27 +138,37 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
                     *jk += sign * sum;
                 }
             }
-            let mut ln_j = vec![0.0; p + 1];
+            if !(jac[0] > 0.0) {
+                // An inverted expansion point: no series (the Newton reference rejects
+                // the same state).
+                return vec![[[f64::NAN; 3]; 3]; p + 1];
+            }
+            // (ln J)' = J'/J: k L_k J_0 = k J_k − Σ_{m=1..k−1} m L_m J_{k−m}.
+            let mut ln_j = vec![jac[0].ln(); p + 1];
             for k in 1..=p {
                 let s: f64 = (1..k).map(|m| m as f64 * ln_j[m] * jac[k - m]).sum();
-                ln_j[k] = jac[k] - s / k as f64;
+                ln_j[k] = (jac[k] - s / k as f64) / jac[0];
             }
-            let mut y = vec![ID];
+            // C Y = I: Y_0 = C_0⁻¹, Y_k = −Y_0 Σ_{i=1..k} C_i Y_{k−i}.
+            let y0 = inverse(&c[0]);
+            let mut y = vec![y0];
             for k in 1..=p {
-                let mut yk = ZERO;
+                let mut acc = ZERO;
                 for i in 1..=k {
-                    add_scaled(&mut yk, -1.0, &mul(&c[i], &y[k - i]));
+                    add_scaled(&mut acc, 1.0, &mul(&c[i], &y[k - i]));
                 }
+                let mut yk = mul(&y0, &acc);
+                yk.iter_mut().flatten().for_each(|v| *v = -*v);
                 y.push(yk);
             }
             (0..=p)
                 .map(|k| {
-                    if k == 0 {
-                        return ZERO;
-                    }
                     let mut s = ZERO;
                     add_scaled(&mut s, -mu, &y[k]);
-                    for m in 1..=k {
+                    if k == 0 {
+                        add_scaled(&mut s, mu, &ID);
+                    }
+                    for m in 0..=k {
                         add_scaled(&mut s, lambda * ln_j[m], &y[k - m]);
                     }
                     s
@@ -163,13 +178,31 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
     }
 }
 
-/// The `d^p` coefficient of cell `c`'s internal force at `u(d) = Σ_{i<p} d^i u_i`
-/// (`lower[i − 1]` = all-node `u_i`), into `fe` (3·nodes per cell).
+fn inverse(a: &M3) -> M3 {
+    let d = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    let mut inv = ZERO;
+    for i in 0..3 {
+        for j in 0..3 {
+            let (i1, i2) = ((j + 1) % 3, (j + 2) % 3);
+            let (j1, j2) = ((i + 1) % 3, (i + 2) % 3);
+            inv[i][j] = (a[i1][j1] * a[i2][j2] - a[i1][j2] * a[i2][j1]) / d;
+        }
+    }
+    inv
+}
+
+/// The `a^p` coefficient of cell `c`'s internal force at
+/// `u(a) = u_0 + Σ_{i<p} a^i u_i` (`base` = all-node `u_0`, `None` for the rest state;
+/// `lower[i − 1]` = all-node `u_i`), into `fe` (3·nodes per cell). The part linear in
+/// `u_p` is left out: it is the tangent at `u_0` times `u_p`.
 #[allow(clippy::too_many_arguments)]
 pub fn element_coefficient(
     space: &Space,
     law: Law,
     c: usize,
+    base: Option<&[f64]>,
     lower: &[Vec<f64>],
     p: usize,
     lambda: f64,
@@ -188,6 +221,16 @@ pub fn element_coefficient(
     for (l, w) in rule.points.iter().zip(rule.weights) {
         tet_gradients(p2, *l, &gl, &mut g);
         f[0] = ID;
+        if let Some(u) = base {
+            for a in 0..npc {
+                let n = cell[a] as usize;
+                for i in 0..3 {
+                    for j in 0..3 {
+                        f[0][i][j] += u[3 * n + i] * g[a][j];
+                    }
+                }
+            }
+        }
         for k in 1..=p {
             let mut h = ZERO;
             if k < p {
@@ -222,6 +265,7 @@ pub fn element_coefficient(
 fn coefficient(
     space: &Space,
     law: Law,
+    base: Option<&[f64]>,
     lower: &[Vec<f64>],
     p: usize,
     lambda: f64,
@@ -232,7 +276,7 @@ fn coefficient(
         .into_par_iter()
         .map(|c| {
             let mut fe = vec![0.0; m];
-            element_coefficient(space, law, c, lower, p, lambda, mu, &mut fe);
+            element_coefficient(space, law, c, base, lower, p, lambda, mu, &mut fe);
             let mut dofs = Vec::with_capacity(m);
             cell_dofs(space, c, &mut dofs);
             (dofs, fe)
@@ -572,39 +616,168 @@ impl<'a> Expander<'a> {
         orders: usize,
     ) -> Result<DepthSeries, FeError> {
         let t0 = Instant::now();
-        let space = self.space;
-        let shape = space.restrict(shape);
-        let probe = space.restrict(probe);
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-        let y = self.chol.solve(&shape);
-        let compliance = dot(&probe, &y);
-        if !(compliance.is_finite() && compliance.abs() > 0.0) {
+        let mut out = orders_about(
+            self.space,
+            self.law,
+            self.lambda,
+            self.mu,
+            &self.chol,
+            shape,
+            probe,
+            None,
+            orders,
+        )?;
+        out.factor_s = self.factor_s;
+        out.seconds = self.factor_s + t0.elapsed().as_secs_f64();
+        Ok(out)
+    }
+}
+
+/// The orders `1..=orders` about `base` (`None`: the rest state) with `chol` the
+/// factored tangent there (see the module doc).
+#[allow(clippy::too_many_arguments)]
+fn orders_about(
+    space: &Space,
+    law: Law,
+    lambda: f64,
+    mu: f64,
+    chol: &Cholesky,
+    shape: &[f64],
+    probe: &[f64],
+    base: Option<&[f64]>,
+    orders: usize,
+) -> Result<DepthSeries, FeError> {
+    let shape = space.restrict(shape);
+    let probe = space.restrict(probe);
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let y = chol.solve(&shape);
+    let compliance = dot(&probe, &y);
+    if !(compliance.is_finite() && compliance.abs() > 0.0) {
+        return Err(FeError::ProbeNotMoved);
+    }
+    let mut force = Vec::with_capacity(orders);
+    let mut lower: Vec<Vec<f64>> = Vec::with_capacity(orders);
+    for p in 1..=orders.max(1) {
+        let (fp, up) = if p == 1 {
+            (
+                1.0 / compliance,
+                y.iter().map(|v| v / compliance).collect::<Vec<_>>(),
+            )
+        } else {
+            let n = coefficient(space, law, base, &lower, p, lambda, mu);
+            let x = chol.solve(&n);
+            let fp = dot(&probe, &x) / compliance;
+            (fp, y.iter().zip(&x).map(|(a, b)| fp * a - b).collect())
+        };
+        if !fp.is_finite() {
             return Err(FeError::ProbeNotMoved);
         }
-        let mut force = Vec::with_capacity(orders);
-        let mut lower: Vec<Vec<f64>> = Vec::with_capacity(orders);
-        for p in 1..=orders.max(1) {
-            let (fp, up) = if p == 1 {
-                (
-                    1.0 / compliance,
-                    y.iter().map(|v| v / compliance).collect::<Vec<_>>(),
-                )
-            } else {
-                let n = coefficient(space, self.law, &lower, p, self.lambda, self.mu);
-                let x = self.chol.solve(&n);
-                let fp = dot(&probe, &x) / compliance;
-                (fp, y.iter().zip(&x).map(|(a, b)| fp * a - b).collect())
-            };
-            force.push(fp);
-            lower.push(space.expand(&up));
-        }
-        Ok(DepthSeries {
-            force,
-            u: lower,
-            factor_s: self.factor_s,
-            seconds: self.factor_s + t0.elapsed().as_secs_f64(),
-        })
+        force.push(fp);
+        lower.push(space.expand(&up));
     }
+    Ok(DepthSeries {
+        force,
+        u: lower,
+        factor_s: 0.0,
+        seconds: 0.0,
+    })
+}
+
+/// A press expanded twice: about the rest state up to `split_mm`, then about the
+/// state there (ANM continuation). The second expansion starts from the first one's
+/// Padé state at the split, made an exact equilibrium by one Newton correction with
+/// the tangent there, and uses the tangent at the corrected state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Continued {
+    pub first: DepthSeries,
+    pub split_mm: f64,
+    /// The corrected state at the split (all-node) and its force.
+    pub base_u: Vec<f64>,
+    pub base_force_n: f64,
+    /// The series in `a = d − split`.
+    pub second: DepthSeries,
+    pub seconds: f64,
+}
+
+impl Continued {
+    /// Force and displacement at `depth_mm` (≥ 0), from the segment that holds it,
+    /// each through its highest pole-free Padé form up to `depth_max_mm`.
+    pub fn evaluate(&self, depth_mm: f64, depth_max_mm: f64) -> (f64, Vec<f64>) {
+        if depth_mm <= self.split_mm {
+            let r = self.first.rational(self.split_mm);
+            return self.first.evaluate(&r, depth_mm);
+        }
+        let a = depth_mm - self.split_mm;
+        let r = self.second.rational((depth_max_mm - self.split_mm).max(a));
+        let (df, du) = self.second.evaluate(&r, a);
+        let u = self.base_u.iter().zip(&du).map(|(b, d)| b + d).collect();
+        (self.base_force_n + df, u)
+    }
+}
+
+/// Expands the press about the rest state, then again about its state at `split_mm`
+/// (see [`Continued`]): what carries the surface, not only the force, to deep presses.
+#[allow(clippy::too_many_arguments)]
+pub fn continued_series(
+    space: &Space,
+    law: Law,
+    material: Material,
+    shape: &[f64],
+    probe: &[f64],
+    split_mm: f64,
+    orders: usize,
+) -> Result<Continued, FeError> {
+    let t0 = Instant::now();
+    let first = depth_series(space, law, material, shape, probe, orders)?;
+    let (lambda, mu) = material.lame_n_per_mm2();
+    let (f0, u0) = first.evaluate(&first.rational(split_mm), split_mm);
+    let pattern = SymCsc::pattern(space);
+    let factor = |u: &[f64]| -> Result<Cholesky, FeError> {
+        let k = super::newton::tangent(space, law, &pattern, u, lambda, mu);
+        Cholesky::factor(&k, space.fixed_count()).map_err(|e| FeError::NotPositiveDefinite {
+            fixed_nodes: space.fixed_count(),
+            detail: e.to_string(),
+        })
+    };
+    // One Newton correction of the bordered system at the split.
+    let chol = factor(&u0)?;
+    let fi = super::newton::internal_force(space, law, &u0, lambda, mu);
+    let shape_free = space.restrict(shape);
+    let probe_free = space.restrict(probe);
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let r: Vec<f64> = fi
+        .iter()
+        .zip(&shape_free)
+        .map(|(a, b)| a - f0 * b)
+        .collect();
+    let g = dot(&probe_free, &space.restrict(&u0)) - split_mm;
+    let x1 = chol.solve(&r);
+    let x2 = chol.solve(&shape_free);
+    let df = (dot(&probe_free, &x1) - g) / dot(&probe_free, &x2);
+    let du: Vec<f64> = x2.iter().zip(&x1).map(|(a, b)| df * a - b).collect();
+    let du = space.expand(&du);
+    let base_u: Vec<f64> = u0.iter().zip(&du).map(|(a, b)| a + b).collect();
+    let base_force_n = f0 + df;
+    let chol = factor(&base_u)?;
+    let second = orders_about(
+        space,
+        law,
+        lambda,
+        mu,
+        &chol,
+        shape,
+        probe,
+        Some(&base_u),
+        orders,
+    )?;
+    Ok(Continued {
+        first,
+        split_mm,
+        base_u,
+        base_force_n,
+        second,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
 }
 
 /// Expands one press (factoring the stiffness for it alone; see [`Expander`] for
@@ -656,42 +829,60 @@ mod tests {
                 let path: Vec<Vec<f64>> = (0..orders)
                     .map(|_| (0..m).map(|_| rng.range(-0.6, 0.6)).collect())
                     .collect();
-                // N_p with all of u_1..u_{p−1}, plus K u_p (the tangent at rest).
-                let mut k0 = vec![0.0; m * m];
-                let mut scratch = vec![0.0; m];
-                element(
-                    &space,
-                    law,
-                    0,
-                    &vec![0.0; m],
-                    lambda,
-                    mu,
-                    &mut scratch,
-                    Some(&mut k0),
-                );
-                let mut coef = vec![vec![0.0; m]; orders + 1];
-                for p in 1..=orders {
-                    let mut fe = vec![0.0; m];
-                    element_coefficient(&space, law, 0, &path[..p - 1], p, lambda, mu, &mut fe);
-                    for r in 0..m {
-                        let ku: f64 = (0..m).map(|c| k0[r * m + c] * path[p - 1][c]).sum();
-                        coef[p][r] = fe[r] + ku;
+                // About the rest state, and about a deformed one.
+                let deformed: Vec<f64> = (0..m).map(|_| rng.range(-0.5, 0.5)).collect();
+                for base in [None, Some(&deformed[..])] {
+                    let u0 = base.map_or_else(|| vec![0.0; m], <[f64]>::to_vec);
+                    // N_p with all of u_1..u_{p−1}, plus K(u_0) u_p (the tangent there).
+                    let mut k0 = vec![0.0; m * m];
+                    let mut f0 = vec![0.0; m];
+                    element(&space, law, 0, &u0, lambda, mu, &mut f0, Some(&mut k0));
+                    let mut coef = vec![vec![0.0; m]; orders + 1];
+                    for p in 1..=orders {
+                        let mut fe = vec![0.0; m];
+                        element_coefficient(
+                            &space,
+                            law,
+                            0,
+                            base,
+                            &path[..p - 1],
+                            p,
+                            lambda,
+                            mu,
+                            &mut fe,
+                        );
+                        for r in 0..m {
+                            let ku: f64 = (0..m).map(|c| k0[r * m + c] * path[p - 1][c]).sum();
+                            coef[p][r] = fe[r] + ku;
+                        }
                     }
-                }
-                let d: f64 = 0.05;
-                let u: Vec<f64> = (0..m)
-                    .map(|r| (0..orders).map(|i| d.powi(i as i32 + 1) * path[i][r]).sum())
-                    .collect();
-                let mut want = vec![0.0; m];
-                element(&space, law, 0, &u, lambda, mu, &mut want, None);
-                let scale = want.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-                for r in 0..m {
-                    let got: f64 = (1..=orders).map(|p| d.powi(p as i32) * coef[p][r]).sum();
-                    assert!(
-                        (got - want[r]).abs() < 1e-7 * scale,
-                        "{law:?} {kind:?} row {r}: {got} against {}",
-                        want[r]
-                    );
+                    let d: f64 = 0.05;
+                    let u: Vec<f64> = (0..m)
+                        .map(|r| {
+                            u0[r]
+                                + (0..orders)
+                                    .map(|i| d.powi(i as i32 + 1) * path[i][r])
+                                    .sum::<f64>()
+                        })
+                        .collect();
+                    let mut want = vec![0.0; m];
+                    element(&space, law, 0, &u, lambda, mu, &mut want, None);
+                    let scale = want
+                        .iter()
+                        .zip(&f0)
+                        .fold(0.0f64, |a, (w, z)| a.max((w - z).abs()));
+                    for r in 0..m {
+                        let got: f64 = f0[r]
+                            + (1..=orders)
+                                .map(|p| d.powi(p as i32) * coef[p][r])
+                                .sum::<f64>();
+                        assert!(
+                            (got - want[r]).abs() < 1e-7 * scale,
+                            "{law:?} {kind:?} base {}: row {r}: {got} against {}",
+                            base.is_some(),
+                            want[r]
+                        );
+                    }
                 }
             }
         }
