@@ -138,7 +138,7 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
                     *jk += sign * sum;
                 }
             }
-            if !(jac[0] > 0.0) {
+            if jac[0].is_nan() || jac[0] <= 0.0 {
                 // An inverted expansion point: no series (the Newton reference rejects
                 // the same state).
                 return vec![[[f64::NAN; 3]; 3]; p + 1];
