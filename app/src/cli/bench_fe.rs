@@ -279,6 +279,19 @@ fn depth(args: &FeBenchArgs, coarse: &OrganMesh) {
     }
 }
 
+/// The largest nodal distance between `scale·a` and `b` (all-node vectors), mm.
+fn max_nodal_mm(a: &[f64], b: &[f64], scale: f64) -> f64 {
+    a.chunks_exact(3)
+        .zip(b.chunks_exact(3))
+        .map(|(a, b)| {
+            (0..3)
+                .map(|k| (scale * a[k] - b[k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max)
+}
+
 /// The depth series (with its Padé form) against Newton at the ten positions and a
 /// few depths, coarse P2: force, largest nodal displacement error, and the time of
 /// each (one series serves every depth at a position; Newton solves each depth).
@@ -345,55 +358,22 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
                     NewtonSettings::default(),
                 ) {
                     Ok((sol, _)) => {
-                        let worst = u
-                            .chunks_exact(3)
-                            .zip(sol.u.chunks_exact(3))
-                            .map(|(a, b)| {
-                                ((a[0] - b[0]).powi(2)
-                                    + (a[1] - b[1]).powi(2)
-                                    + (a[2] - b[2]).powi(2))
-                                .sqrt()
-                            })
-                            .fold(0.0, f64::max);
+                        let worst = max_nodal_mm(&u, &sol.u, 1.0);
                         for m in [6, 8, 10] {
                             if let Some(r) = series.pade_vector(m, depth) {
                                 let (f, v) = series.evaluate(&r, depth);
-                                let w = v
-                                    .chunks_exact(3)
-                                    .zip(sol.u.chunks_exact(3))
-                                    .map(|(a, b)| {
-                                        ((a[0] - b[0]).powi(2)
-                                            + (a[1] - b[1]).powi(2)
-                                            + (a[2] - b[2]).powi(2))
-                                        .sqrt()
-                                    })
-                                    .fold(0.0, f64::max);
+                                let w = max_nodal_mm(&v, &sol.u, 1.0);
                                 row[format!("vector_pade_{m}")] = json!({"force_rel_error": (f - sol.force_n) / sol.force_n, "max_nodal_error_mm": w});
                             }
                         }
                         // The linear press at the same depth is the series' first term.
-                        let linear_worst = series.u[0]
-                            .chunks_exact(3)
-                            .zip(sol.u.chunks_exact(3))
-                            .map(|(a, b)| {
-                                (0..3)
-                                    .map(|k| (depth * a[k] - b[k]).powi(2))
-                                    .sum::<f64>()
-                                    .sqrt()
-                            })
-                            .fold(0.0, f64::max);
+                        let linear_worst = max_nodal_mm(&series.u[0], &sol.u, depth);
                         row["linear_max_nodal_error_mm"] = json!(linear_worst);
                         row["linear_force_rel_error"] =
                             json!((depth * series.force[0] - sol.force_n) / sol.force_n);
                         if let Ok(c) = &continued {
                             let (cf, cu) = c.evaluate(depth, deepest);
-                            let worst = cu
-                                .chunks_exact(3)
-                                .zip(sol.u.chunks_exact(3))
-                                .map(|(a, b)| {
-                                    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
-                                })
-                                .fold(0.0, f64::max);
+                            let worst = max_nodal_mm(&cu, &sol.u, 1.0);
                             row["continued"] = json!({"split_mm": c.split_mm, "seconds": continued_s,
                                 "force_rel_error": (cf - sol.force_n) / sol.force_n, "max_nodal_error_mm": worst});
                         }

@@ -386,6 +386,31 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
     });
 }
 
+/// Puts `image` into the texture `tex` (made on first use), remembering the
+/// coordinates `key` it shows.
+fn upload(
+    ui: &egui::Ui,
+    tex: &mut Option<super::HeatTexture>,
+    name: &str,
+    image: egui::ColorImage,
+    key: &[f64],
+) {
+    match tex.as_mut() {
+        Some(h) => {
+            h.handle.set(image, egui::TextureOptions::NEAREST);
+            h.key = key.to_vec();
+        }
+        None => {
+            *tex = Some(super::HeatTexture {
+                key: key.to_vec(),
+                handle: ui
+                    .ctx()
+                    .load_texture(name, image, egui::TextureOptions::NEAREST),
+            });
+        }
+    }
+}
+
 /// Above this many species the marginals are one species × copy-number strip, not a
 /// bar chart each (twenty plots would not fit, nor draw in a frame on a software
 /// rasterizer).
@@ -431,21 +456,13 @@ fn strip(
                 })
             })
             .collect();
-        let image = egui::ColorImage::new([nx, ny], pixels);
-        match tex.as_mut() {
-            Some(h) => {
-                h.handle.set(image, egui::TextureOptions::NEAREST);
-                h.key = key.to_vec();
-            }
-            None => {
-                *tex = Some(super::HeatTexture {
-                    key: key.to_vec(),
-                    handle: ui
-                        .ctx()
-                        .load_texture("strip", image, egui::TextureOptions::NEAREST),
-                });
-            }
-        }
+        upload(
+            ui,
+            tex,
+            "strip",
+            egui::ColorImage::new([nx, ny], pixels),
+            key,
+        );
     }
     let row_h = 11.0;
     let label_w = 140.0;
@@ -516,21 +533,13 @@ fn heat_map(
                 ramp(if v > 0.0 { (v / peak) as f32 } else { 0.0 })
             })
             .collect();
-        let image = egui::ColorImage::new([nx, ny], pixels);
-        match heat.as_mut() {
-            Some(h) => {
-                h.handle.set(image, egui::TextureOptions::NEAREST);
-                h.key = key.to_vec();
-            }
-            None => {
-                *heat = Some(super::HeatTexture {
-                    key: key.to_vec(),
-                    handle: ui
-                        .ctx()
-                        .load_texture("joint", image, egui::TextureOptions::NEAREST),
-                });
-            }
-        }
+        upload(
+            ui,
+            heat,
+            "joint",
+            egui::ColorImage::new([nx, ny], pixels),
+            key,
+        );
     }
     if let Some(h) = heat.as_ref() {
         ui.painter_at(rect).image(

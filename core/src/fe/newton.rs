@@ -38,12 +38,23 @@ use super::{FeError, Material, StepFailure};
 
 /// Global internal force on the free dofs at the all-node displacement `u`.
 pub fn internal_force(space: &Space, law: Law, u: &[f64], lambda: f64, mu: f64) -> Vec<f64> {
+    assemble_vector(space, |c, fe| {
+        element(space, law, c, u, lambda, mu, fe, None);
+    })
+}
+
+/// A global vector on the free dofs from per-cell vectors (`element(c, fe)` fills the
+/// cell's `3·nodes` entries), cells in parallel.
+pub fn assemble_vector<F>(space: &Space, element: F) -> Vec<f64>
+where
+    F: Fn(usize, &mut [f64]) + Sync,
+{
     let m = 3 * space.element.nodes_per_cell();
     let parts: Vec<(Vec<usize>, Vec<f64>)> = (0..space.cell_count())
         .into_par_iter()
         .map(|c| {
             let mut fe = vec![0.0; m];
-            element(space, law, c, u, lambda, mu, &mut fe, None);
+            element(c, &mut fe);
             let mut dofs = Vec::with_capacity(m);
             cell_dofs(space, c, &mut dofs);
             (dofs, fe)

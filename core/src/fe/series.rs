@@ -36,9 +36,6 @@
 
 use std::time::Instant;
 
-use rayon::prelude::*;
-
-use super::elasticity::cell_dofs;
 use super::hyper::Law;
 use super::shape::{TET_DEGREE1, TET_DEGREE4, barycentric_gradients, tet_gradients};
 use super::space::Space;
@@ -271,26 +268,9 @@ fn coefficient(
     lambda: f64,
     mu: f64,
 ) -> Vec<f64> {
-    let m = 3 * space.element.nodes_per_cell();
-    let parts: Vec<(Vec<usize>, Vec<f64>)> = (0..space.cell_count())
-        .into_par_iter()
-        .map(|c| {
-            let mut fe = vec![0.0; m];
-            element_coefficient(space, law, c, base, lower, p, lambda, mu, &mut fe);
-            let mut dofs = Vec::with_capacity(m);
-            cell_dofs(space, c, &mut dofs);
-            (dofs, fe)
-        })
-        .collect();
-    let mut out = vec![0.0; space.free_dofs];
-    for (dofs, fe) in parts {
-        for (d, v) in dofs.iter().zip(fe) {
-            if *d != usize::MAX {
-                out[*d] += v;
-            }
-        }
-    }
-    out
+    super::newton::assemble_vector(space, |c, fe| {
+        element_coefficient(space, law, c, base, lower, p, lambda, mu, fe);
+    })
 }
 
 /// A press expanded in its depth.
