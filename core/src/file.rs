@@ -490,24 +490,11 @@ pub type ViewsContents = (ModelMeta, Vec<(ViewShape, Vec<f64>, Vec<f64>)>);
 
 /// Loads a views file written by [`save_views`].
 pub fn load_views(path: &Path) -> Result<ViewsContents, FileError> {
-    let mut f = open(path)?;
-    let located = read_header_from(path, &mut f)?;
     let p = || path.to_path_buf();
-    let Layout::Views { views: shapes } = located.header.layout.clone() else {
-        return Err(FileError::WrongLayout {
-            path: p(),
-            expected: "views",
-            found: located.header.layout.name(),
-        });
-    };
-    if located.header.precision != Precision::F64 {
-        return Err(FileError::WrongPrecision {
-            path: p(),
-            expected: Precision::F64,
-            found: located.header.precision,
-        });
-    }
-    let (header, arrays) = read_arrays::<f64, File>(path, &mut f, located)?;
+    let (shapes, header, arrays) = read_f64_layout(path, "views", |l| match l {
+        Layout::Views { views } => Some(views.clone()),
+        _ => None,
+    })?;
     if !matches!(
         header.meta.axes.first().map(|a| &a.discretization),
         Some(Discretization::Grid { .. })
@@ -844,24 +831,11 @@ fn load_payload<T: Scalar, R: Read>(
 
 /// Loads a tensor-train model: its metadata and one core per axis.
 pub fn load_train(path: &Path) -> Result<(ModelMeta, Vec<Core>), FileError> {
-    let mut f = open(path)?;
-    let located = read_header_from(path, &mut f)?;
     let p = || path.to_path_buf();
-    let Layout::TensorTrain { ranks } = located.header.layout.clone() else {
-        return Err(FileError::WrongLayout {
-            path: p(),
-            expected: "tensor-train",
-            found: located.header.layout.name(),
-        });
-    };
-    if located.header.precision != Precision::F64 {
-        return Err(FileError::WrongPrecision {
-            path: p(),
-            expected: Precision::F64,
-            found: located.header.precision,
-        });
-    }
-    let (header, arrays) = read_arrays::<f64, File>(path, &mut f, located)?;
+    let (ranks, header, arrays) = read_f64_layout(path, "tensor-train", |l| match l {
+        Layout::TensorTrain { ranks } => Some(ranks.clone()),
+        _ => None,
+    })?;
     let mut cores = Vec::with_capacity(arrays.len());
     for (k, v) in arrays.into_iter().enumerate() {
         if v.iter().any(|x| !x.is_finite()) {
@@ -884,6 +858,33 @@ pub fn load_train(path: &Path) -> Result<(ModelMeta, Vec<Core>), FileError> {
         });
     }
     Ok((header.meta, cores))
+}
+
+/// Opens an f64 file of the layout `pick` accepts (`expected` names it in the error),
+/// and reads its header and blocks.
+fn read_f64_layout<T>(
+    path: &Path,
+    expected: &'static str,
+    pick: impl Fn(&Layout) -> Option<T>,
+) -> Result<(T, Header, Vec<Vec<f64>>), FileError> {
+    let mut f = open(path)?;
+    let located = read_header_from(path, &mut f)?;
+    let Some(picked) = pick(&located.header.layout) else {
+        return Err(FileError::WrongLayout {
+            path: path.to_path_buf(),
+            expected,
+            found: located.header.layout.name(),
+        });
+    };
+    if located.header.precision != Precision::F64 {
+        return Err(FileError::WrongPrecision {
+            path: path.to_path_buf(),
+            expected: Precision::F64,
+            found: located.header.precision,
+        });
+    }
+    let (header, arrays) = read_arrays::<f64, File>(path, &mut f, located)?;
+    Ok((picked, header, arrays))
 }
 
 /// Checks the payload's size and checksum and reads its blocks.

@@ -56,13 +56,7 @@ pub fn train_meta(
     history: &History,
     provenance: Provenance,
 ) -> ModelMeta {
-    let mut axes = vec![AxisInfo {
-        name: "t".into(),
-        unit: "time".into(),
-        discretization: Discretization::Grid {
-            nodes: history.t.clone(),
-        },
-    }];
+    let mut axes = Vec::new();
     for slot in &history.order {
         axes.push(match *slot {
             Slot::Species(i) => AxisInfo {
@@ -84,15 +78,31 @@ pub fn train_meta(
             }
         });
     }
+    probability_meta(TRAIN_KIND, &history.t, axes, provenance)
+}
+
+/// A CME model's description: the probability field over the time grid `t` and
+/// `axes` after it.
+fn probability_meta(
+    kind: &str,
+    t: &[f64],
+    axes: Vec<AxisInfo>,
+    provenance: Provenance,
+) -> ModelMeta {
+    let time = AxisInfo {
+        name: "t".into(),
+        unit: "time".into(),
+        discretization: Discretization::Grid { nodes: t.to_vec() },
+    };
     ModelMeta {
-        kind: TRAIN_KIND.into(),
+        kind: kind.into(),
         field: FieldInfo {
             name: "probability".into(),
             unit: "1".into(),
             components: 1,
             node_ids: Vec::new(),
         },
-        axes,
+        axes: std::iter::once(time).chain(axes).collect(),
         provenance,
         tradeoff: Vec::new(),
         geometry: Default::default(),
@@ -807,13 +817,7 @@ pub fn save_train(
 /// The file description of a views model: the time grid, then each species as a
 /// discrete axis (network order).
 pub fn views_meta(network: &super::Network, views: &Views, provenance: Provenance) -> ModelMeta {
-    let mut axes = vec![AxisInfo {
-        name: "t".into(),
-        unit: "time".into(),
-        discretization: Discretization::Grid {
-            nodes: views.t.clone(),
-        },
-    }];
+    let mut axes = Vec::new();
     for (s, &m) in network.species.iter().zip(&views.sizes) {
         axes.push(AxisInfo {
             name: s.name.clone(),
@@ -823,17 +827,5 @@ pub fn views_meta(network: &super::Network, views: &Views, provenance: Provenanc
             },
         });
     }
-    ModelMeta {
-        kind: VIEWS_KIND.into(),
-        field: FieldInfo {
-            name: "probability".into(),
-            unit: "1".into(),
-            components: 1,
-            node_ids: Vec::new(),
-        },
-        axes,
-        provenance,
-        tradeoff: Vec::new(),
-        geometry: Default::default(),
-    }
+    probability_meta(VIEWS_KIND, &views.t, axes, provenance)
 }

@@ -260,13 +260,14 @@ pub fn element(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::fe::Material;
     use crate::mesh::TetMesh;
     use crate::rng::Rng;
 
-    fn one_tet_space(element: Element) -> Space {
+    /// One irregular tetrahedron, nothing fixed (element-level checks).
+    pub(crate) fn one_tet_space(element: Element) -> Space {
         let mesh = TetMesh {
             vertices: vec![
                 [0.0, 0.0, 0.0],

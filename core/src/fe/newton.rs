@@ -90,6 +90,24 @@ pub fn tangent(
     k
 }
 
+/// The tangent at the all-node displacement `u`, factored; a tangent that is not
+/// positive definite is named with the count of fixed nodes (the usual cause at rest:
+/// a body held nowhere).
+pub fn factor_tangent(
+    space: &Space,
+    law: Law,
+    pattern: &SymCsc,
+    u: &[f64],
+    lambda: f64,
+    mu: f64,
+) -> Result<Cholesky, FeError> {
+    let k = tangent(space, law, pattern, u, lambda, mu);
+    Cholesky::factor(&k, space.fixed_count()).map_err(|e| FeError::NotPositiveDefinite {
+        fixed_nodes: space.fixed_count(),
+        detail: e.to_string(),
+    })
+}
+
 /// Newton settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NewtonSettings {
@@ -244,20 +262,14 @@ pub fn solve(
     };
     if let Some(n) = &pb.probe {
         // Linear compliance at the probe: n̂·K₀⁻¹f̂ (mm per unit force).
-        let k0 = tangent(
+        let chol = factor_tangent(
             space,
             law,
             &pb.pattern,
             &vec![0.0; 3 * space.nodes.len()],
             lambda,
             mu,
-        );
-        let chol = Cholesky::factor(&k0, space.fixed_count()).map_err(|e| {
-            FeError::NotPositiveDefinite {
-                fixed_nodes: space.fixed_count(),
-                detail: e.to_string(),
-            }
-        })?;
+        )?;
         let x = chol.solve(&pb.shape);
         let c0: f64 = n.iter().zip(&x).map(|(a, b)| a * b).sum();
         if !(c0.is_finite() && c0.abs() > 0.0) {

@@ -562,21 +562,14 @@ impl<'a> Expander<'a> {
         material.validate()?;
         let t0 = Instant::now();
         let (lambda, mu) = material.lame_n_per_mm2();
-        let pattern = SymCsc::pattern(space);
-        let k0 = super::newton::tangent(
+        let chol = super::newton::factor_tangent(
             space,
             law,
-            &pattern,
+            &SymCsc::pattern(space),
             &vec![0.0; 3 * space.nodes.len()],
             lambda,
             mu,
-        );
-        let chol = Cholesky::factor(&k0, space.fixed_count()).map_err(|e| {
-            FeError::NotPositiveDefinite {
-                fixed_nodes: space.fixed_count(),
-                detail: e.to_string(),
-            }
-        })?;
+        )?;
         Ok(Expander {
             space,
             law,
@@ -712,13 +705,7 @@ pub fn continued_series(
     let (lambda, mu) = material.lame_n_per_mm2();
     let (f0, u0) = first.evaluate(&first.rational(split_mm), split_mm);
     let pattern = SymCsc::pattern(space);
-    let factor = |u: &[f64]| -> Result<Cholesky, FeError> {
-        let k = super::newton::tangent(space, law, &pattern, u, lambda, mu);
-        Cholesky::factor(&k, space.fixed_count()).map_err(|e| FeError::NotPositiveDefinite {
-            fixed_nodes: space.fixed_count(),
-            detail: e.to_string(),
-        })
-    };
+    let factor = |u: &[f64]| super::newton::factor_tangent(space, law, &pattern, u, lambda, mu);
     // One Newton correction of the bordered system at the split.
     let chol = factor(&u0)?;
     let fi = super::newton::internal_force(space, law, &u0, lambda, mu);
@@ -777,21 +764,8 @@ pub fn depth_series(
 mod tests {
     use super::*;
     use crate::fe::hyper::element;
-    use crate::mesh::TetMesh;
+    use crate::fe::hyper::tests::one_tet_space;
     use crate::rng::Rng;
-
-    fn one_tet_space(element: Element) -> Space {
-        let mesh = TetMesh {
-            vertices: vec![
-                [0.0, 0.0, 0.0],
-                [10.0, 1.0, 0.5],
-                [1.0, 9.0, 0.0],
-                [0.5, 1.0, 11.0],
-            ],
-            tets: vec![[0, 1, 2, 3]],
-        };
-        Space::new(&mesh, &[], &[false; 4], element)
-    }
 
     /// The series coefficients of the internal force along `d ↦ Σ d^i u_i` against
     /// the force itself: summed to the order of the path's truncation they reproduce
