@@ -68,7 +68,8 @@ pub enum Opened {
     },
 }
 
-/// The network `spec` names: a TOML file (`….toml`) or a built-in name (`toggle`,
+/// The network `spec` names: a TOML or SBML file (`….toml`, `….xml`, `….sbml`) or a
+/// built-in name (`toggle`,
 /// `cascade`, `signaling-cascade-D`); `None` for anything else.
 pub fn network_source(
     spec: &str,
@@ -79,20 +80,25 @@ pub fn network_source(
     )>,
 > {
     use palpa_core::cme::network::Network;
-    if spec.ends_with(".toml") {
+    if is_network_file(spec) {
         let text =
             std::fs::read_to_string(spec).with_context(|| format!("reading the network {spec}"))?;
-        let network = Network::from_toml(&text, spec)?;
+        let network = Network::from_text(&text, spec)?;
         return Ok(Some((network, Some(Path::new(spec).to_path_buf()))));
     }
     Ok(Network::built_in(spec).ok().map(|n| (n, None)))
+}
+
+/// A network file by its name: TOML or SBML.
+fn is_network_file(spec: &str) -> bool {
+    [".toml", ".xml", ".sbml"].iter().any(|e| spec.ends_with(e))
 }
 
 /// Whether `spec` is a gene network: a meta-model file (by its header's kind), a
 /// network TOML file or a built-in network's name.
 pub fn is_network(spec: &str) -> bool {
     spec != "liver"
-        && (spec.ends_with(".toml")
+        && (is_network_file(spec)
             || palpa_core::cme::network::Network::built_in(spec).is_ok()
             || palpa_core::file::read_header(Path::new(spec))
                 .is_ok_and(|h| h.meta.kind.starts_with("cme-")))

@@ -35,6 +35,9 @@ pub enum BenchCommand {
     /// The signaling cascade's views model over all t: build time, file size, the
     /// leading marginals against their exact closed chain at every t, evaluation time.
     Views(super::bench_views::ViewsBenchArgs),
+    /// The Discrete Stochastic Model Test Suite from its SBML files: FSP and PGD
+    /// against the published mean and sd, the SSA by the suite's own test, times.
+    Dsmts(super::bench_dsmts::DsmtsBenchArgs),
 }
 
 #[derive(Debug, Args)]
@@ -78,6 +81,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Offline(args) => super::bench_pgd::run(args),
         BenchCommand::Cme(args) => super::bench_cme::run(args),
         BenchCommand::Views(args) => super::bench_views::run(args),
+        BenchCommand::Dsmts(args) => super::bench_dsmts::run(args),
     }
 }
 

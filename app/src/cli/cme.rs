@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::cme::model::{self, CmeModel};
-use palpa_core::cme::{Moments, Network, build, fsp, greedy, ssa, ttsolve};
+use palpa_core::cme::{Moments, Network, build, fsp, greedy, sizing, ssa, ttsolve};
 use serde::Serialize;
 
 #[derive(Debug, Subcommand)]
@@ -18,6 +18,17 @@ pub enum CmeCommand {
     Offline(OfflineArgs),
     /// Evaluate a CME meta-model file at a time and parameter values (no solving).
     Eval(EvalArgs),
+    /// Read a network (SBML or TOML) and write it as palpa's TOML: what was understood.
+    Convert(ConvertArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct ConvertArgs {
+    /// An SBML (.xml, .sbml) or TOML network file.
+    file: PathBuf,
+    /// The TOML file to write (atomically); without it, the TOML goes to stdout.
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 /// Which off-line solver builds the meta-model.
@@ -45,7 +56,8 @@ pub struct PgdArgs {
     /// End of the time axis (the model is valid on [0, T]).
     #[arg(long = "t-end")]
     t_end: Option<f64>,
-    /// First time step [tt: 0.01, greedy: 0.02].
+    /// First time step [tt: 0.01, greedy: 0.02; cut to 0.1/a₀ where a₀ is the total
+    /// propensity at the initial state, so that fast rates start with small steps].
     #[arg(long)]
     first_step: Option<f64>,
     /// Largest time step [tt: 5, greedy: 1].
@@ -108,12 +120,14 @@ impl Built {
 }
 
 impl PgdArgs {
-    pub fn options(&self, t_default: f64) -> greedy::Options {
+    pub fn options(&self, network: &Network, t_default: f64) -> greedy::Options {
         // The solver's own defaults are the one source; flags only override them.
         let d = greedy::Options::default();
         greedy::Options {
             t_end: self.t_end.unwrap_or(t_default),
-            h_first: self.first_step.unwrap_or(d.h_first),
+            h_first: self
+                .first_step
+                .unwrap_or_else(|| sizing::first_step(network, d.h_first)),
             h_max: self.max_step.unwrap_or(d.h_max),
             max_modes: self.modes,
             compress_tol: self.tol,
@@ -143,7 +157,9 @@ impl PgdArgs {
         };
         let options = ttsolve::Options {
             t_end,
-            h_first: self.first_step.unwrap_or(d.h_first),
+            h_first: self
+                .first_step
+                .unwrap_or_else(|| sizing::first_step(network, d.h_first)),
             h_max: self.max_step.unwrap_or(d.h_max),
             step_error_tol: self.step_error.unwrap_or(d.step_error_tol),
             eps: self.eps.unwrap_or(d.eps),
@@ -177,8 +193,9 @@ impl PgdArgs {
         times: Option<&[f64]>,
     ) -> anyhow::Result<Built> {
         let start = Instant::now();
+        let network = &sized(network, self.t_end.unwrap_or(t_default))?;
         let built = match self.solver {
-            Solver::Greedy => run_pgd(network, &self.options(t_default))?,
+            Solver::Greedy => run_pgd(network, &self.options(network, t_default))?,
             Solver::Tt => {
                 let recipe = self.recipe(network, t_default)?;
                 let o = recipe.options;
@@ -365,15 +382,35 @@ struct Report {
     eval_us: Option<f64>,
 }
 
-/// A built-in name or a TOML file.
+/// A built-in name, or a network file: SBML or TOML, told apart by content.
 pub fn load_network(model: &str) -> anyhow::Result<Network> {
     let path = Path::new(model);
-    if model.ends_with(".toml") || path.exists() {
+    let is_file = [".toml", ".xml", ".sbml"]
+        .iter()
+        .any(|e| model.ends_with(e));
+    if is_file || path.exists() {
         let text = std::fs::read_to_string(path).with_context(|| format!("reading {model}"))?;
-        Ok(Network::from_toml(&text, model)?)
+        Ok(Network::from_text(&text, model)?)
     } else {
         Ok(Network::built_in(model)?)
     }
+}
+
+/// `network` with a box for every species (an FSP pre-pass sizes the automatic ones),
+/// saying on stderr how they were found.
+pub fn sized(network: &Network, t_end: f64) -> anyhow::Result<Network> {
+    let (sized, how) = sizing::with_boxes(network, t_end)?;
+    if how != sizing::Sized::Given {
+        eprintln!(
+            "automatic boxes {:?} ({how:?})",
+            sized
+                .species
+                .iter()
+                .map(|s| (s.name.as_str(), s.max.unwrap_or(0)))
+                .collect::<Vec<_>>()
+        );
+    }
+    Ok(sized)
 }
 
 /// `--pairs`: "neighbours", "none" or `A:B,…` by species name, as network index pairs
@@ -442,7 +479,21 @@ pub fn run(cmd: &CmeCommand) -> anyhow::Result<()> {
         CmeCommand::Solve(args) => solve(args),
         CmeCommand::Offline(args) => offline(args),
         CmeCommand::Eval(args) => eval(args),
+        CmeCommand::Convert(args) => convert(args),
     }
+}
+
+fn convert(args: &ConvertArgs) -> anyhow::Result<()> {
+    let name = args.file.display().to_string();
+    let text = std::fs::read_to_string(&args.file).with_context(|| format!("reading {name}"))?;
+    let network = Network::from_text(&text, &name)?;
+    let toml = format!("# converted by palpa from {name}\n{}", network.to_toml());
+    match &args.out {
+        Some(out) => palpa_core::fsutil::atomic_write(out, |w| w.write_all(toml.as_bytes()))
+            .with_context(|| format!("writing {}", out.display()))?,
+        None => print!("{toml}"),
+    }
+    Ok(())
 }
 
 fn solve(args: &SolveArgs) -> anyhow::Result<()> {
@@ -461,7 +512,8 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         .method
     {
         Method::Fsp => {
-            let (sol, met) = if args.auto_box {
+            let auto = network.species.iter().any(|s| s.max.is_none());
+            let (sol, met) = if args.auto_box || auto {
                 fsp::solve_auto(&network, &p, &args.t, args.max_leak)?
             } else {
                 (fsp::solve(&network, &p, &args.t)?, true)

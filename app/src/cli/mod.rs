@@ -3,6 +3,7 @@
 mod args;
 mod bench;
 mod bench_cme;
+mod bench_dsmts;
 mod bench_fe;
 mod bench_pgd;
 mod bench_views;

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use palpa_core::cme::build;
 use palpa_core::cme::network::Network;
-use palpa_core::cme::ttsolve;
+use palpa_core::cme::{sizing, ttsolve};
 
 use super::job::{Job, JobState};
 
@@ -52,6 +52,8 @@ impl NetworkBuild {
         let (net, path) = (network.clone(), out.clone());
         let job = Job::start("palpa-network-build", move |ctx| {
             let t_end = recipe.options.t_end;
+            // Automatic boxes (an SBML network's) are sized here, off the frame thread.
+            let (net, _) = sizing::with_boxes(&net, t_end).map_err(|e| e.to_string())?;
             let mut progress = |s: ttsolve::Step| ctx.progress(s.t / t_end);
             let built = recipe
                 .build(&net, Some(ctx.flag()), &mut progress)

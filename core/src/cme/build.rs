@@ -221,11 +221,12 @@ pub const VIEWS_EPS: f64 = 1e-5;
 impl Recipe {
     /// The default build of `network` up to `t_end`: views of the neighbouring pairs
     /// for a large network with no range parameters (with the looser step options such
-    /// a network needs to build in minutes), else the whole history.
+    /// a network needs to build in minutes), else the whole history; the first step
+    /// cut for fast rates ([`super::sizing::first_step`]).
     pub fn default_for(network: &Network, t_end: f64) -> Self {
         let views = network.species.len() >= VIEWS_FROM_SPECIES
             && network.parameters.iter().all(|p| p.grid().is_none());
-        if views {
+        let mut recipe = if views {
             Recipe {
                 options: Self::views_options(t_end),
                 views: Some(ViewOptions::neighbours(network.species.len(), VIEWS_EPS)),
@@ -238,7 +239,9 @@ impl Recipe {
                 },
                 views: None,
             }
-        }
+        };
+        recipe.options.h_first = super::sizing::first_step(network, recipe.options.h_first);
+        recipe
     }
 
     /// The solver options of a views build. Measured on signaling-cascade-20 (S1–S3

@@ -48,6 +48,9 @@ pub struct Generator {
     cols: Vec<u32>,
     vals: Vec<f64>,
     diag: Vec<f64>,
+    /// The box index of each state, when only the states reachable from a start are
+    /// kept ([`Generator::reachable`]); `None`: every state of the box, in box order.
+    index: Option<Vec<usize>>,
 }
 
 impl Generator {
@@ -115,7 +118,164 @@ impl Generator {
             cols,
             vals,
             diag,
+            index: None,
         })
+    }
+
+    /// `A` on the states of the box reachable from `start` (a breadth-first search
+    /// along reactions with a positive propensity), in box order. A network with a
+    /// conservation law (dimerisation: `P + 2 P₂` fixed) reaches a line of its box, not
+    /// the box: 501 states of 524 288 for 1000 monomers.
+    pub fn reachable(
+        network: &Network,
+        p: &[f64],
+        sizes: &[usize],
+        start: &[usize],
+    ) -> Result<Self, FspError> {
+        if sizes.len() != network.species.len() || start.len() != sizes.len() {
+            return Err(FspError::BoxShape {
+                got: sizes.len(),
+                species: network.species.len(),
+            });
+        }
+        let n = match sizes.iter().try_fold(1usize, |a, &m| a.checked_mul(m)) {
+            Some(n) if n <= MAX_STATES && !sizes.contains(&0) => n,
+            _ => {
+                return Err(FspError::TooLarge {
+                    states: sizes.iter().map(|&m| m as f64).product(),
+                });
+            }
+        };
+        let d = sizes.len();
+        let mut strides = vec![1usize; d];
+        for i in 1..d {
+            strides[i] = strides[i - 1] * sizes[i - 1];
+        }
+        let decode = |mut b: usize, z: &mut [i64]| {
+            for i in 0..d {
+                z[i] = (b % sizes[i]) as i64;
+                b /= sizes[i];
+            }
+        };
+        let first: usize = start
+            .iter()
+            .zip(&strides)
+            .zip(sizes)
+            .map(|((&s, &st), &m)| s.min(m - 1) * st)
+            .sum();
+        let mut seen = vec![false; n];
+        seen[first] = true;
+        let mut queue = vec![first];
+        let mut z = vec![0i64; d];
+        let mut head = 0;
+        while head < queue.len() {
+            decode(queue[head], &mut z);
+            head += 1;
+            for (r, re) in network.reactions.iter().enumerate() {
+                if network.propensity(r, &z, p) <= 0.0 {
+                    continue;
+                }
+                let mut to = 0usize;
+                let inside = (0..d).all(|i| {
+                    let y = z[i] + i64::from(re.change[i]);
+                    to += y.max(0) as usize * strides[i];
+                    (0..sizes[i] as i64).contains(&y)
+                });
+                if inside && !seen[to] {
+                    seen[to] = true;
+                    queue.push(to);
+                }
+            }
+        }
+        queue.sort_unstable();
+        let mut local = vec![u32::MAX; n];
+        for (k, &b) in queue.iter().enumerate() {
+            local[b] = k as u32;
+        }
+        // Rows are targets: gather each state's inflows.
+        let mut triplets: Vec<(u32, u32, f64)> = Vec::new();
+        let mut diag = vec![0.0; queue.len()];
+        for (k, &b) in queue.iter().enumerate() {
+            decode(b, &mut z);
+            for (r, re) in network.reactions.iter().enumerate() {
+                let a = network.propensity(r, &z, p);
+                diag[k] -= a;
+                if a == 0.0 || re.change.iter().all(|&c| c == 0) {
+                    continue;
+                }
+                let mut to = 0usize;
+                let inside = (0..d).all(|i| {
+                    let y = z[i] + i64::from(re.change[i]);
+                    to += y.max(0) as usize * strides[i];
+                    (0..sizes[i] as i64).contains(&y)
+                });
+                if inside {
+                    triplets.push((local[to], k as u32, a));
+                }
+            }
+        }
+        triplets.sort_unstable_by_key(|t| (t.0, t.1));
+        let mut row_start = Vec::with_capacity(queue.len() + 1);
+        row_start.push(0);
+        let mut e = 0;
+        for row in 0..queue.len() as u32 {
+            while e < triplets.len() && triplets[e].0 == row {
+                e += 1;
+            }
+            row_start.push(e);
+        }
+        Ok(Generator {
+            sizes: sizes.to_vec(),
+            row_start,
+            cols: triplets.iter().map(|t| t.1).collect(),
+            vals: triplets.iter().map(|t| t.2).collect(),
+            diag,
+            index: Some(queue),
+        })
+    }
+
+    /// The joint on the whole box (species 0 fastest) from a vector on this
+    /// generator's states.
+    pub fn to_box(&self, x: &[f64]) -> Vec<f64> {
+        match &self.index {
+            None => x.to_vec(),
+            Some(index) => {
+                let mut out = vec![0.0; self.sizes.iter().product()];
+                for (&b, &v) in index.iter().zip(x) {
+                    out[b] = v;
+                }
+                out
+            }
+        }
+    }
+
+    /// The moments of a vector on this generator's states.
+    pub fn moments(&self, t: f64, x: &[f64]) -> Moments {
+        match &self.index {
+            None => Moments::from_joint(t, &self.sizes, x),
+            Some(index) => {
+                let d = self.sizes.len();
+                let mut marginals: Vec<Vec<f64>> =
+                    self.sizes.iter().map(|&m| vec![0.0; m]).collect();
+                let mut e01 = 0.0;
+                for (&b, &v) in index.iter().zip(x) {
+                    let mut rem = b;
+                    let mut z01 = [0usize; 2];
+                    for (i, m) in marginals.iter_mut().enumerate() {
+                        let zi = rem % self.sizes[i];
+                        rem /= self.sizes[i];
+                        m[zi] += v;
+                        if i < 2 {
+                            z01[i] = zi;
+                        }
+                    }
+                    if d >= 2 {
+                        e01 += v * z01[0] as f64 * z01[1] as f64;
+                    }
+                }
+                Moments::from_marginals(t, marginals, e01, x.iter().sum())
+            }
+        }
     }
 
     pub fn states(&self) -> usize {
@@ -185,7 +345,8 @@ pub struct FspSolution {
     pub moments: Vec<Moments>,
     /// `1 − Σ P` at each output time.
     pub leak: Vec<f64>,
-    /// Joint distributions at each output time (species 0 fastest).
+    /// Joint distributions at each output time (species 0 fastest); empty from
+    /// [`solve_auto`] and [`solve_kept`] without joints.
     pub joint: Vec<Vec<f64>>,
 }
 
@@ -209,23 +370,45 @@ pub fn solve(network: &Network, p: &[f64], times: &[f64]) -> Result<FspSolution,
     solve_on(network, p, &sizes, times)
 }
 
-/// Solves on the box `sizes`.
+/// Solves on the box `sizes` (on the states reachable from the initial one).
 pub fn solve_on(
     network: &Network,
     p: &[f64],
     sizes: &[usize],
     times: &[f64],
 ) -> Result<FspSolution, FspError> {
+    solve_kept(network, p, sizes, times, true)
+}
+
+/// As [`solve_on`]; the joints are kept only with `keep_joint` (a box of 10⁷ states
+/// at 50 times is 4 GB).
+pub fn solve_kept(
+    network: &Network,
+    p: &[f64],
+    sizes: &[usize],
+    times: &[f64],
+    keep_joint: bool,
+) -> Result<FspSolution, FspError> {
     check_times(times)?;
-    let g = Generator::new(network, p, sizes)?;
+    let start: Vec<usize> = network.species.iter().map(|s| s.initial).collect();
+    let g = Generator::reachable(network, p, sizes, &start)?;
     let mut prob = vec![0.0; g.states()];
-    let mut idx = 0usize;
-    let mut stride = 1usize;
-    for (s, &m) in network.species.iter().zip(sizes) {
-        idx += s.initial.min(m - 1) * stride;
-        stride *= m;
-    }
-    prob[idx] = 1.0;
+    // The start is the first state the search found; in box order, find it again.
+    let first: usize = {
+        let mut b = 0usize;
+        let mut stride = 1usize;
+        for (&s, &m) in start.iter().zip(sizes) {
+            b += s.min(m - 1) * stride;
+            stride *= m;
+        }
+        b
+    };
+    let k = g
+        .index
+        .as_ref()
+        .and_then(|ix| ix.binary_search(&first).ok())
+        .unwrap_or(first);
+    prob[k] = 1.0;
     let mut now = 0.0;
     let mut out = FspSolution {
         sizes: sizes.to_vec(),
@@ -236,39 +419,84 @@ pub fn solve_on(
     for &t in times {
         g.advance(&mut prob, t - now);
         now = t;
-        let m = Moments::from_joint(t, sizes, &prob);
+        let m = g.moments(t, &prob);
         out.leak.push((1.0 - m.mass).max(0.0));
         out.moments.push(m);
-        out.joint.push(prob.clone());
+        if keep_joint {
+            out.joint.push(g.to_box(&prob));
+        }
     }
     Ok(out)
 }
 
-/// Solves with automatic boxes for species marked `auto` (and grows any box while the
-/// leak at the last time exceeds `max_leak`): sizes start at 32 and double, up to the
-/// state limit. Returns the solution and whether the leak target was met.
+/// Solves with automatic boxes for species marked `auto`, growing boxes while the leak
+/// at any output time exceeds `max_leak`, up to the state limit. Returns the solution
+/// and whether the leak target was met (moments and leak; no joints).
+///
+/// A species no reaction raises keeps `0..=initial` (it can only fall) and never grows;
+/// an automatic box starts at `max(32, initial + 1)` rounded up to a power of two. Only
+/// the species whose top band (the states that one reaction can carry out of the box)
+/// holds more than `max_leak / 100` of the probability at some output time are doubled;
+/// if none does, every species that can rise is.
 pub fn solve_auto(
     network: &Network,
     p: &[f64],
     times: &[f64],
     max_leak: f64,
 ) -> Result<(FspSolution, bool), FspError> {
+    let rises: Vec<usize> = (0..network.species.len())
+        .map(|i| network.largest_increase(i) as usize)
+        .collect();
     let mut sizes: Vec<usize> = network
         .species
         .iter()
-        .map(|s| s.max.unwrap_or((s.initial + 1).next_power_of_two().max(32)))
+        .zip(&rises)
+        .map(|(s, &up)| match s.max {
+            Some(m) => m,
+            None if up == 0 => s.initial + 1,
+            None => (s.initial + 1).next_power_of_two().max(32),
+        })
         .collect();
     loop {
-        let sol = solve_on(network, p, &sizes, times)?;
+        let sol = solve_kept(network, p, &sizes, times, false)?;
         let leak = sol.leak.iter().copied().fold(0.0, f64::max);
         if leak <= max_leak {
             return Ok((sol, true));
         }
-        let grown: Vec<usize> = sizes.iter().map(|&m| m * 2).collect();
-        if grown
+        let top_band = |i: usize| {
+            sol.moments
+                .iter()
+                .map(|m| {
+                    let marginal = &m.marginals[i];
+                    let from = marginal.len().saturating_sub(rises[i]);
+                    marginal[from..].iter().sum::<f64>()
+                })
+                .fold(0.0, f64::max)
+        };
+        // The leak is the flux out of the top bands integrated over time, so a band can
+        // leak more than it holds at the output times: grow the bands that hold the
+        // most, and every band that can rise if none holds anything.
+        let bands: Vec<f64> = (0..sizes.len())
+            .map(|i| if rises[i] > 0 { top_band(i) } else { 0.0 })
+            .collect();
+        let most = bands.iter().copied().fold(0.0, f64::max);
+        let mut grow: Vec<bool> = bands
             .iter()
-            .try_fold(1usize, |a, &m| a.checked_mul(m))
-            .is_none_or(|n| n > MAX_STATES)
+            .map(|&b| b > max_leak / 100.0 || (most > 0.0 && b >= 0.01 * most))
+            .collect();
+        if !grow.iter().any(|&g| g) {
+            grow = rises.iter().map(|&up| up > 0).collect();
+        }
+        let grown: Vec<usize> = sizes
+            .iter()
+            .zip(&grow)
+            .map(|(&m, &g)| if g { m * 2 } else { m })
+            .collect();
+        if grown == sizes
+            || grown
+                .iter()
+                .try_fold(1usize, |a, &m| a.checked_mul(m))
+                .is_none_or(|n| n > MAX_STATES)
         {
             return Ok((sol, false));
         }

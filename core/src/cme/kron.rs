@@ -5,8 +5,8 @@
 //!
 //! `A = Σ_r k_r Π_q p_q ( ⊗_i S_{ν_{r,i}} D_{r,i}  −  ⊗_i D_{r,i} )`,
 //!
-//! `D_{r,i} = diag(f_{r,i}(0..m_i−1))` (the identity where reaction r has no factor of
-//! species i) and `S_ν` the shift that moves probability from `z` to `z + ν`, dropping
+//! `D_{r,i} = diag(f_{r,i}(0..m_i−1))` (the product of reaction r's factors of species
+//! i; the identity where it has none) and `S_ν` the shift that moves probability from `z` to `z + ν`, dropping
 //! what would leave the box (the FSP leak). Each 1-D factor is an `m_i × m_i` matrix
 //! with at most one non-zero per column, stored as (row, value) per column.
 //!
@@ -50,12 +50,7 @@ pub fn generator_terms(network: &Network, sizes: &[usize]) -> Vec<KronTerm> {
     for re in &network.reactions {
         let diag = |i: usize| -> Vec<f64> {
             (0..sizes[i])
-                .map(|z| {
-                    re.factors
-                        .iter()
-                        .find(|(s, _)| *s == i)
-                        .map_or(1.0, |(_, f)| f.eval(z as f64))
-                })
+                .map(|z| re.species_factor(i, z as f64))
                 .collect()
         };
         let shifted: Vec<Factor1d> = (0..sizes.len())

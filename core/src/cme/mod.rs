@@ -25,6 +25,7 @@
 
 pub mod build;
 pub mod cp;
+pub mod dsmts;
 pub mod fsp;
 pub mod greedy;
 pub mod history;
@@ -32,6 +33,8 @@ pub mod kron;
 pub mod model;
 pub mod moments;
 pub mod network;
+pub mod sbml;
+pub mod sizing;
 pub mod ssa;
 pub mod step;
 pub mod tteval;

@@ -27,9 +27,19 @@
 //! factors = [{ species = "z1", kind = "linear" }]
 //! ```
 //!
-//! Factor kinds: `linear` (z), `hill_repression` (β/(β + γ zⁿ)), `saturation`
-//! (βz/(βz + γ)), `hill_activation` (βzⁿ/(βzⁿ + γ)); a reaction with no factor has a
-//! constant propensity.
+//! Factor kinds: `linear` (z), `binomial` (`z(z−1)···(z−k+1)/k!` with `k`: mass action
+//! of order k in one species, the CME's count of distinct k-tuples), `affine`
+//! (`max(0, offset + slope·z)`: a count that runs out, such as `100 − 2z`),
+//! `hill_repression` (β/(β + γ zⁿ)), `saturation` (βz/(βz + γ)), `hill_activation`
+//! (βzⁿ/(βzⁿ + γ)). A reaction may have several factors of one species: they multiply.
+//! A reaction with no factor has a constant propensity.
+//!
+//! **No count goes below zero.** A reaction that lowers species i by `c` must have a
+//! propensity that vanishes for `z_i < c` through its own factors of species i (`linear`
+//! for `c = 1`, `binomial` with `k ≥ c`, …); otherwise the network is refused naming the
+//! reaction. A constant-rate reaction that consumes a species is the classic mistake
+//! this catches: the SSA would drive the count negative and FSP would see a leak that no
+//! box can close.
 
 use std::collections::BTreeMap;
 
@@ -115,15 +125,43 @@ impl Parameter {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Factor {
     Linear,
-    HillRepression { beta: f64, gamma: f64, n: f64 },
-    Saturation { beta: f64, gamma: f64 },
-    HillActivation { beta: f64, gamma: f64, n: f64 },
+    /// `z(z−1)···(z−k+1)/k!`.
+    Binomial {
+        k: u32,
+    },
+    /// `max(0, offset + slope·z)`.
+    Affine {
+        offset: f64,
+        slope: f64,
+    },
+    HillRepression {
+        beta: f64,
+        gamma: f64,
+        n: f64,
+    },
+    Saturation {
+        beta: f64,
+        gamma: f64,
+    },
+    HillActivation {
+        beta: f64,
+        gamma: f64,
+        n: f64,
+    },
 }
 
 impl Factor {
     pub fn eval(&self, z: f64) -> f64 {
         match *self {
             Factor::Linear => z,
+            Factor::Binomial { k } => {
+                let mut v = 1.0;
+                for j in 0..k {
+                    v *= (z - f64::from(j)) / f64::from(j + 1);
+                }
+                v.max(0.0)
+            }
+            Factor::Affine { offset, slope } => (offset + slope * z).max(0.0),
             Factor::HillRepression { beta, gamma, n } => beta / (beta + gamma * z.powf(n)),
             Factor::Saturation { beta, gamma } => beta * z / (beta * z + gamma),
             Factor::HillActivation { beta, gamma, n } => {
@@ -148,8 +186,20 @@ pub struct Reaction {
     pub constant: f64,
     /// Parameters multiplying the rate (indices into [`Network::parameters`]).
     pub params: Vec<usize>,
-    /// `(species index, factor)`; at most one factor per species.
+    /// `(species index, factor)`; several factors of one species multiply.
     pub factors: Vec<(usize, Factor)>,
+}
+
+impl Reaction {
+    /// The product of this reaction's factors of species `i` at copy number `z`
+    /// (1 where it has none).
+    pub fn species_factor(&self, i: usize, z: f64) -> f64 {
+        self.factors
+            .iter()
+            .filter(|(s, _)| *s == i)
+            .map(|(_, f)| f.eval(z))
+            .product()
+    }
 }
 
 /// A reaction network with separable propensities.
@@ -159,6 +209,10 @@ pub struct Network {
     pub species: Vec<Species>,
     pub parameters: Vec<Parameter>,
     pub reactions: Vec<Reaction>,
+    /// Species held at a constant amount (an SBML model's boundary and constant
+    /// species, and those no reaction changes): constants of the laws, not coordinates
+    /// of the state; their distribution is a point mass at this amount.
+    pub fixed: Vec<(String, f64)>,
 }
 
 impl Network {
@@ -169,10 +223,31 @@ impl Network {
         for &q in &re.params {
             a *= p[q];
         }
-        for &(i, f) in &re.factors {
-            a *= f.eval(z[i] as f64);
+        for (i, f) in &re.factors {
+            a *= f.eval(z[*i] as f64);
         }
         a
+    }
+
+    /// Refuses a reaction that could take a species below zero: where it lowers
+    /// species i by `c`, its factors of i must vanish at every `z_i < c`.
+    fn check_no_negative_counts(&self) -> Result<(), NetworkError> {
+        for re in &self.reactions {
+            for (i, &c) in re.change.iter().enumerate() {
+                if c >= 0 {
+                    continue;
+                }
+                let need = c.unsigned_abs();
+                if let Some(z) = (0..need).find(|&z| re.species_factor(i, f64::from(z)) != 0.0) {
+                    let s = &self.species[i].name;
+                    return Err(self.invalid(format!(
+                        "{}: lowers {s} by {need} but its propensity does not vanish at {s} = {z},                          so {s} could go below zero; give it a factor of {s} that is zero there                          (linear for one copy, binomial with k = {need} for {need})",
+                        re.name
+                    )));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The parameters' values: the defaults, overridden by `set` (name, value).
@@ -213,10 +288,151 @@ impl Network {
         Ok((v, clamped))
     }
 
+    /// Whether some reaction raises species `i`, and by how much at most.
+    pub fn largest_increase(&self, i: usize) -> i32 {
+        self.reactions
+            .iter()
+            .map(|r| r.change[i])
+            .max()
+            .unwrap_or(0)
+            .max(0)
+    }
+
     fn invalid(&self, what: String) -> NetworkError {
         NetworkError::Invalid {
             source_name: self.name.clone(),
             what,
+        }
+    }
+
+    /// A network from its parts, checked as a TOML one is (names, boxes, no negative
+    /// counts); `source_name` names it in errors.
+    pub fn from_parts(
+        name: String,
+        species: Vec<Species>,
+        parameters: Vec<Parameter>,
+        reactions: Vec<Reaction>,
+        source_name: &str,
+    ) -> Result<Self, NetworkError> {
+        let bad = |what: String| NetworkError::Invalid {
+            source_name: source_name.to_string(),
+            what,
+        };
+        if species.is_empty() {
+            return Err(bad("a network needs at least one species".into()));
+        }
+        if reactions.is_empty() {
+            return Err(bad("a network needs at least one reaction".into()));
+        }
+        let network = Network {
+            name,
+            species,
+            parameters,
+            reactions,
+            fixed: Vec::new(),
+        };
+        network.check_no_negative_counts().map_err(|e| match e {
+            NetworkError::Invalid { what, .. } => bad(what),
+            other => other,
+        })?;
+        Ok(network)
+    }
+
+    /// The network as TOML that [`Network::from_toml`] reads back to the same network
+    /// (species held fixed are listed in a comment: they are constants of the laws).
+    pub fn to_toml(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = format!("name = {:?}\n", self.name);
+        for (name, amount) in &self.fixed {
+            let _ = writeln!(
+                s,
+                "# held fixed (a constant of the laws): {name} = {amount}"
+            );
+        }
+        for sp in &self.species {
+            let max = sp.max.map_or("\"auto\"".to_string(), |m| m.to_string());
+            let _ = write!(
+                s,
+                "\n[[species]]\nname = {:?}\nmax = {max}\ninitial = {}\n",
+                sp.name, sp.initial
+            );
+        }
+        for p in &self.parameters {
+            let _ = write!(
+                s,
+                "\n[[parameters]]\nname = {:?}\nvalue = {:?}\n",
+                p.name, p.value
+            );
+            if let Some((lo, hi, n)) = p.range {
+                let spacing = match p.spacing {
+                    Spacing::Linear => "linear",
+                    Spacing::Log => "log",
+                    Spacing::Reciprocal => "reciprocal",
+                    Spacing::ReciprocalSqrt => "reciprocal-sqrt",
+                };
+                let _ = write!(
+                    s,
+                    "range = [{lo:?}, {hi:?}]\ngrid = {n}\nspacing = {spacing:?}\n"
+                );
+            }
+        }
+        for r in &self.reactions {
+            let change: Vec<String> = r
+                .change
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c != 0)
+                .map(|(i, c)| format!("{:?} = {c}", self.species[i].name))
+                .collect();
+            let mut rate = vec![format!("{:?}", r.constant)];
+            rate.extend(
+                r.params
+                    .iter()
+                    .map(|&q| format!("{:?}", self.parameters[q].name)),
+            );
+            let factors: Vec<String> = r
+                .factors
+                .iter()
+                .map(|(i, f)| {
+                    let sp = format!("species = {:?}", self.species[*i].name);
+                    match *f {
+                        Factor::Linear => format!("{{ {sp}, kind = \"linear\" }}"),
+                        Factor::Binomial { k } => format!("{{ {sp}, kind = \"binomial\", k = {k} }}"),
+                        Factor::Affine { offset, slope } => format!(
+                            "{{ {sp}, kind = \"affine\", offset = {offset:?}, slope = {slope:?} }}"
+                        ),
+                        Factor::HillRepression { beta, gamma, n } => format!(
+                            "{{ {sp}, kind = \"hill_repression\", beta = {beta:?}, gamma = {gamma:?}, n = {n:?} }}"
+                        ),
+                        Factor::Saturation { beta, gamma } => format!(
+                            "{{ {sp}, kind = \"saturation\", beta = {beta:?}, gamma = {gamma:?} }}"
+                        ),
+                        Factor::HillActivation { beta, gamma, n } => format!(
+                            "{{ {sp}, kind = \"hill_activation\", beta = {beta:?}, gamma = {gamma:?}, n = {n:?} }}"
+                        ),
+                    }
+                })
+                .collect();
+            let _ = write!(
+                s,
+                "\n[[reactions]]\nname = {:?}\nchange = {{ {} }}\nrate = [{}]\n",
+                r.name,
+                change.join(", "),
+                rate.join(", ")
+            );
+            if !factors.is_empty() {
+                let _ = writeln!(s, "factors = [{}]", factors.join(", "));
+            }
+        }
+        s
+    }
+
+    /// A network file's text, SBML or TOML by its content.
+    pub fn from_text(text: &str, source_name: &str) -> Result<Self, NetworkError> {
+        if super::sbml::looks_like_sbml(text) {
+            super::sbml::from_sbml(text, source_name)
+        } else {
+            Self::from_toml(text, source_name)
         }
     }
 
@@ -305,6 +521,9 @@ struct RawFactor {
     beta: Option<f64>,
     gamma: Option<f64>,
     n: Option<f64>,
+    k: Option<i64>,
+    offset: Option<f64>,
+    slope: Option<f64>,
 }
 
 /// Builds a checked part from its raw TOML form; `bad` turns a message into the
@@ -338,15 +557,7 @@ impl RawNetwork {
             .enumerate()
             .map(|(k, r)| r.build(k, &species, &parameters, &bad))
             .collect::<Result<Vec<_>, _>>()?;
-        if reactions.is_empty() {
-            return Err(bad("a network needs at least one reaction".into()));
-        }
-        Ok(Network {
-            name: self.name,
-            species,
-            parameters,
-            reactions,
-        })
+        Network::from_parts(self.name, species, parameters, reactions, src)
     }
 }
 
@@ -497,14 +708,7 @@ impl RawReaction {
         }
         let mut factors: Vec<(usize, Factor)> = Vec::new();
         for f in &r.factors {
-            let (i, factor) = f.build(&rname, &species_index, bad)?;
-            if factors.iter().any(|(j, _)| *j == i) {
-                return Err(bad(format!(
-                    "{rname}: two factors of species {}: merge them into one",
-                    species[i].name
-                )));
-            }
-            factors.push((i, factor));
+            factors.push(f.build(&rname, &species_index, bad)?);
         }
         Ok(Reaction {
             name: rname,
@@ -556,6 +760,28 @@ impl RawFactor {
         };
         let factor = match f.kind.as_str() {
             "linear" => Factor::Linear,
+            "binomial" => match f.k {
+                Some(k) if (1..=64).contains(&k) => Factor::Binomial { k: k as u32 },
+                Some(k) => {
+                    return Err(bad(format!(
+                        "{rname}: binomial k = {k}: expected an order in 1..=64"
+                    )));
+                }
+                None => return Err(bad(format!("{rname}: factor binomial needs k"))),
+            },
+            "affine" => {
+                let finite = |v: Option<f64>, what: &str| match v {
+                    Some(x) if x.is_finite() => Ok(x),
+                    Some(x) => Err(bad(format!(
+                        "{rname}: {what} = {x}: expected a finite value"
+                    ))),
+                    None => Err(bad(format!("{rname}: factor affine needs {what}"))),
+                };
+                Factor::Affine {
+                    offset: finite(f.offset, "offset")?,
+                    slope: finite(f.slope, "slope")?,
+                }
+            }
             "hill_repression" => Factor::HillRepression {
                 beta: need(f.beta, "beta")?,
                 gamma: need(f.gamma, "gamma")?,
@@ -572,7 +798,7 @@ impl RawFactor {
             },
             other => {
                 return Err(bad(format!(
-                    "{rname}: factor kind {other:?}: expected linear, hill_repression, saturation or hill_activation"
+                    "{rname}: factor kind {other:?}: expected linear, binomial, affine, hill_repression, saturation or hill_activation"
                 )));
             }
         };

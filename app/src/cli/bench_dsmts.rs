@@ -1,0 +1,141 @@
+//! `palpa bench dsmts`: the Discrete Stochastic Model Test Suite, case by case, in one
+//! run: whether the SBML imports (or why not), exact FSP's and the default PGD's
+//! distance to the published mean and sd, the SSA's Z/Y statistics, and the times.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use clap::Args;
+use palpa_core::cme::dsmts::Case;
+use serde_json::json;
+
+#[derive(Debug, Args)]
+pub struct DsmtsBenchArgs {
+    /// The suite's folder (one sub-folder per case, as vendored in tests/data/dsmts).
+    #[arg(long, default_value = "tests/data/dsmts")]
+    suite: PathBuf,
+    /// Only these cases (folder names, comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    cases: Vec<String>,
+    /// SBML level and version of the file read.
+    #[arg(long, default_value = "l3v1")]
+    sbml: String,
+    /// SSA paths per case.
+    #[arg(long, default_value_t = 10_000)]
+    trajectories: usize,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// FSP's leak target at every output time.
+    #[arg(long, default_value_t = 1e-9)]
+    max_leak: f64,
+    /// Skip the PGD (the slowest column).
+    #[arg(long)]
+    no_pgd: bool,
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: &DsmtsBenchArgs) -> anyhow::Result<()> {
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(&args.suite)
+        .with_context(|| format!("reading the suite folder {}", args.suite.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir())
+        .filter(|p| {
+            args.cases.is_empty()
+                || p.file_name()
+                    .is_some_and(|n| args.cases.iter().any(|c| n.to_string_lossy() == *c))
+        })
+        .collect();
+    dirs.sort();
+    if dirs.is_empty() {
+        bail!("no case folders in {}", args.suite.display());
+    }
+    if args.trajectories < 2 {
+        bail!("--trajectories {}: expected at least 2", args.trajectories);
+    }
+    let mut rows = Vec::new();
+    if !args.json {
+        println!(
+            "{:<6} {:<9} {:>9} {:>9} {:>7}  {:>5} {:>5} {:<4} {:>6}  {:>9} {:>9} {:>7}  boxes",
+            "case",
+            "import",
+            "FSP mean",
+            "FSP sd",
+            "s",
+            "|Z|",
+            "|Y|",
+            "SSA",
+            "s",
+            "PGD mean",
+            "PGD sd",
+            "s"
+        );
+    }
+    for dir in &dirs {
+        let case = Case::load(dir)?;
+        let network = match case.network(&args.sbml) {
+            Ok(n) => n,
+            Err(e) => {
+                if !args.json {
+                    println!("{:<6} refused: {e}", case.id);
+                }
+                rows.push(json!({"case": case.id, "supported": false, "why": e.to_string()}));
+                continue;
+            }
+        };
+        let outputs = case
+            .outputs(&network)
+            .with_context(|| format!("case {}: an output variable is not a species", case.id))?;
+        let (fsp, boxes) = case.check_fsp(&network, &outputs, args.max_leak)?;
+        let ssa = case.check_ssa(&network, &outputs, args.trajectories, args.seed);
+        let pgd = if args.no_pgd {
+            None
+        } else {
+            Some(
+                case.check_pgd(&network, &outputs, Some(&boxes))
+                    .map_err(|e| anyhow::anyhow!("case {}: PGD: {e}", case.id))?,
+            )
+        };
+        if !args.json {
+            let (pm, ps, pt) = pgd.map_or(("-".into(), "-".into(), "-".into()), |d| {
+                (
+                    format!("{:.1e}", d.mean),
+                    format!("{:.1e}", d.sd),
+                    format!("{:.1}", d.seconds),
+                )
+            });
+            println!(
+                "{:<6} {:<9} {:>9.1e} {:>9.1e} {:>7.1}  {:>5.2} {:>5.2} {:<4} {:>6.1}  {:>9} {:>9} {:>7}  {:?}",
+                case.id,
+                "ok",
+                fsp.mean,
+                fsp.sd,
+                fsp.seconds,
+                ssa.z_max,
+                ssa.y_max,
+                if ssa.passed { "pass" } else { "FAIL" },
+                ssa.seconds,
+                pm,
+                ps,
+                pt,
+                boxes
+            );
+        }
+        rows.push(json!({
+            "case": case.id,
+            "supported": true,
+            "boxes": boxes,
+            "fsp": {"mean": fsp.mean, "sd": fsp.sd, "seconds": fsp.seconds},
+            "ssa": {"z_max": ssa.z_max, "y_max": ssa.y_max, "passed": ssa.passed,
+                    "trajectories": ssa.trajectories, "seed": ssa.seed, "seconds": ssa.seconds},
+            "pgd": pgd.map(|d| json!({"mean": d.mean, "sd": d.sd, "seconds": d.seconds})),
+        }));
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json!({ "cases": rows }))?
+        );
+    }
+    Ok(())
+}
