@@ -1,13 +1,16 @@
 #!/usr/bin/env bash
-# Fuzzes the meta-model loader for a while (default 60 s): scripts/fuzz.sh [SECONDS]
+# Fuzzes a reader for a while (default 60 s): scripts/fuzz.sh [SECONDS] [TARGET]
+# TARGET: load_model (the meta-model loader, default) or network_file (SBML and TOML).
 # Needs cargo-fuzz (installed here if missing). On a stable toolchain cargo-fuzz's
 # sanitizer flags need RUSTC_BOOTSTRAP=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs="${1:-60}"
+target="${2:-load_model}"
 command -v cargo-fuzz >/dev/null 2>&1 || cargo install --locked cargo-fuzz
-mkdir -p fuzz/corpus/load_model
+mkdir -p fuzz/corpus/load_model fuzz/corpus/network_file
+cp tests/data/dsmts/*/*-sbml-l3v1.xml assets/networks/*.toml fuzz/corpus/network_file/
 cargo run --release --locked -q -p palpa-app --bin palpa -- synth --rows 30 --modes 4 --out fuzz/corpus/load_model/seed-f64.palpa
 cargo run --release --locked -q -p palpa-app --bin palpa -- synth --rows 12 --modes 3 --precision f32 --out fuzz/corpus/load_model/seed-f32.palpa
 cd fuzz
-RUSTC_BOOTSTRAP=1 cargo fuzz run load_model -- -max_total_time="$secs" -rss_limit_mb=2048
+RUSTC_BOOTSTRAP=1 cargo fuzz run "$target" -- -max_total_time="$secs" -rss_limit_mb=2048

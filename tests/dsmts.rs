@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use palpa_core::cme::dsmts::Case;
+use palpa_core::cme::dsmts::{Case, SUITE_MEAN_FAILS, SUITE_SD_FAILS};
 use palpa_core::cme::network::Factor;
 
 /// Cases refused, and the feature the message must name.
@@ -134,14 +134,32 @@ fn fsp_and_the_default_pgd_match_the_published_moments() {
 
 #[test]
 fn the_ssa_passes_the_suites_test() {
+    // The suite's criterion for a correct simulator at n = 10⁴: a few failed points in
+    // total (see `dsmts`), and none far out.
+    let (mut mean_fails, mut sd_fails) = (Vec::new(), Vec::new());
     for case in supported() {
         let net = case.network("l3v1").expect("imports");
         let outputs = case.outputs(&net).expect("outputs");
         let check = case.check_ssa(&net, &outputs, TRAJECTORIES, SEED);
+        if check.mean_fails > 0 {
+            mean_fails.push((case.id.clone(), check.mean_fails, check.z_max));
+        }
+        if check.sd_fails > 0 {
+            sd_fails.push((case.id.clone(), check.sd_fails, check.y_max));
+        }
         assert!(
-            check.passed,
-            "{}: |Z| {:.2} (range {:?}), |Y| {:.2} (range {:?}) with {TRAJECTORIES} paths, seed {SEED}",
-            case.id, check.z_max, case.mean_range, check.y_max, case.sd_range
+            check.z_max < 6.0 && check.y_max < 10.0,
+            "{}: |Z| {:.2}, |Y| {:.2}: far outside the suite's ranges",
+            case.id,
+            check.z_max,
+            check.y_max
         );
     }
+    println!("failed points (case, count, largest): mean {mean_fails:?}, sd {sd_fails:?}");
+    let total = |v: &[(String, usize, f64)]| v.iter().map(|f| f.1).sum::<usize>();
+    assert!(
+        total(&mean_fails) <= SUITE_MEAN_FAILS && total(&sd_fails) <= SUITE_SD_FAILS,
+        "{TRAJECTORIES} paths, seed {SEED}: mean tests failed {mean_fails:?} (allowed \
+         {SUITE_MEAN_FAILS} in total), sd tests {sd_fails:?} (allowed {SUITE_SD_FAILS})"
+    );
 }

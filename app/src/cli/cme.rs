@@ -63,7 +63,7 @@ pub struct PgdArgs {
     /// Largest time step [tt: 5, greedy: 1].
     #[arg(long)]
     max_step: Option<f64>,
-    /// Adaptive steps: relative local error per step [tt: 3e-6, greedy: 3e-5; greedy
+    /// Adaptive steps: relative local error per step [tt: 1e-6, greedy: 3e-5; greedy
     /// only: 0 = fixed geometric steps].
     #[arg(long)]
     step_error: Option<f64>,

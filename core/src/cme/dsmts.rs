@@ -8,11 +8,20 @@
 //! time: `Z = √n (X̄ − μ)/σ` within `(−3, 3)` and `Y = √(n/2) (S²/σ² − 1)` within
 //! `(−5, 5)` (the settings' `meanRange` and `sdRange`), where `μ, σ` are the expected
 //! values and `X̄, S²` the sample mean and variance. Where `σ = 0` the sample must be
-//! exact.
+//! exact. The tests are statistical: the suite's guide expects a correct simulator with
+//! `n = 10⁴` to fail about 2–3 mean tests and 5–6 sd tests over the whole suite (all
+//! models, all times), more for the sd because its normal approximation ignores the
+//! kurtosis of bursty models. [`SUITE_MEAN_FAILS`] and [`SUITE_SD_FAILS`] are those
+//! allowances, for the suite's total.
 
 use std::path::{Path, PathBuf};
 
 use super::network::{Network, NetworkError};
+
+/// Mean tests a correct simulator may fail over the whole suite at `n = 10⁴`.
+pub const SUITE_MEAN_FAILS: usize = 3;
+/// Standard-deviation tests a correct simulator may fail over the whole suite.
+pub const SUITE_SD_FAILS: usize = 6;
 
 /// One DSMTS case.
 #[derive(Debug, Clone)]
@@ -216,6 +225,10 @@ pub struct Distance {
 pub struct SsaCheck {
     pub z_max: f64,
     pub y_max: f64,
+    /// Output points (variable, time) outside the mean and sd ranges.
+    pub mean_fails: usize,
+    pub sd_fails: usize,
+    /// No point outside either range.
     pub passed: bool,
     pub trajectories: usize,
     pub seed: u64,
@@ -273,21 +286,23 @@ impl Case {
         let p: Vec<f64> = network.parameters.iter().map(|q| q.value).collect();
         let sol = super::ssa::simulate(network, &p, &self.times, trajectories, seed);
         let (mut z_max, mut y_max) = (0.0f64, 0.0f64);
-        let mut passed = true;
+        let (mut mean_fails, mut sd_fails) = (0, 0);
         for (v, o) in outputs.iter().enumerate() {
             for (k, m) in sol.moments.iter().enumerate() {
                 let (mean, var) = o.moments(m);
                 let (z, y) = z_y(trajectories, mean, var, self.mean[v][k], self.sd[v][k]);
                 z_max = z_max.max(z.abs());
                 y_max = y_max.max(y.abs());
-                passed &= self.mean_range.0 < z && z < self.mean_range.1;
-                passed &= self.sd_range.0 < y && y < self.sd_range.1;
+                mean_fails += usize::from(!(self.mean_range.0 < z && z < self.mean_range.1));
+                sd_fails += usize::from(!(self.sd_range.0 < y && y < self.sd_range.1));
             }
         }
         SsaCheck {
             z_max,
             y_max,
-            passed,
+            mean_fails,
+            sd_fails,
+            passed: mean_fails + sd_fails == 0,
             trajectories,
             seed,
             seconds: start.elapsed().as_secs_f64(),

@@ -442,6 +442,10 @@ fn parse_math(n: Node) -> Result<Expr, String> {
     }
 }
 
+/// The largest whole power of one species' expression a law may use (a propensity of
+/// order 64 is already far beyond chemistry).
+const MAX_POWER: u32 = 64;
+
 /// `(a + b zⁿ)^e` of one species.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Atom {
@@ -451,6 +455,9 @@ struct Atom {
     n: f64,
     e: i32,
 }
+
+/// A law in the network's form: constant, named parameters, one-species factors.
+type Separable = (f64, Vec<usize>, Vec<(usize, Factor)>);
 
 /// `c · Π params^e · Π atoms`.
 #[derive(Debug, Clone, Default)]
@@ -477,16 +484,18 @@ impl Prod {
 
     fn pow(mut self, k: i32) -> Prod {
         self.c = self.c.powi(k);
-        self.params.iter_mut().for_each(|p| p.1 *= k);
-        self.atoms.iter_mut().for_each(|a| a.e *= k);
+        // Saturating: a tower of powers is refused by `into_factors`, not overflowed.
+        self.params
+            .iter_mut()
+            .for_each(|p| p.1 = p.1.saturating_mul(k));
+        self.atoms
+            .iter_mut()
+            .for_each(|a| a.e = a.e.saturating_mul(k));
         self
     }
 
     /// The network's form: constant, parameters to the first power, factors.
-    fn into_factors(
-        self,
-        globals: &[(String, f64)],
-    ) -> Result<(f64, Vec<usize>, Vec<(usize, Factor)>), String> {
+    fn into_factors(self, globals: &[(String, f64)]) -> Result<Separable, String> {
         let mut c = self.c;
         // Parameters: net exponent per parameter; a first power stays named.
         let mut net: BTreeMap<usize, i32> = BTreeMap::new();
@@ -507,6 +516,12 @@ impl Prod {
         for at in self.atoms {
             if at.e == 0 {
                 continue;
+            }
+            if at.e.unsigned_abs() > MAX_POWER {
+                return Err(format!(
+                    "a power {} of an expression in a species: at most {MAX_POWER}",
+                    at.e
+                ));
             }
             if at.a == 0.0 {
                 c *= at.b.powi(at.e);
@@ -550,6 +565,9 @@ impl Prod {
             }
         }
         for (i, m) in power {
+            if m > f64::from(MAX_POWER) {
+                return Err(format!("a power z^{m} of a species: at most z^{MAX_POWER}"));
+            }
             if m < 0.0 || m.fract() != 0.0 {
                 return Err(format!(
                     "a power z^{m} of a species: expected a whole power ≥ 0 (the law must stay \
