@@ -243,6 +243,10 @@ fn a_fast_immigration_starts_with_a_short_step_and_stays_non_negative() {
     );
     let sd = e.moments.var[0].sqrt();
     assert!((sd - mean.sqrt()).abs() < 1e-3 * mean.sqrt(), "sd {sd}");
+    // y, which no reaction changes, has the box 0..=1 and stays a point mass (to
+    // round-off: 1.5e-17 here).
+    assert_eq!(sized.species[1].max, Some(2));
+    assert!(e.moments.var[1].abs() < 1e-14, "{:e}", e.moments.var[1]);
 }
 
 /// Mutated network files (bytes flipped, cut, repeated; seeded) give a network or an
