@@ -297,3 +297,63 @@ fn mutated_network_files_never_panic() {
     // XML parser.
     assert!(accepted > 30, "{accepted} of 3000 mutated files read");
 }
+
+#[test]
+fn a_conserved_pair_is_solved_with_one_species_less_and_expanded_back() {
+    use palpa_core::cme::{conservation, dsmts};
+    // 2P ⇌ P2 from 6 monomers: P + 2 P2 = 6, four states on a line of the 7 × 4 box.
+    let text = DIMER
+        .replace("max = 3\ninitial = 2", "max = 7\ninitial = 6")
+        .replace("max = 2\ninitial = 0", "max = 4\ninitial = 0")
+        + r#"
+[[reactions]]
+name = "dissociation"
+change = { P = 2, P2 = -1 }
+rate = [0.3]
+factors = [{ species = "P2", kind = "linear" }]
+"#;
+    let net = Network::from_toml(&text, "dimer.toml").expect("parses");
+    let r = conservation::reduce(&net).expect("P + 2 P2 is conserved");
+    assert_eq!((r.eliminated, r.from, r.offset, r.slope), (0, 1, 6.0, -2.0));
+    assert_eq!(r.network.species.len(), 1);
+    // The reduced propensities are the original ones on the line.
+    for p2 in 0..=3i64 {
+        let p = 6 - 2 * p2;
+        for k in 0..2 {
+            let a = net.propensity(k, &[p, p2], &[]);
+            assert!((r.network.propensity(k, &[p2], &[]) - a).abs() < 1e-12);
+        }
+    }
+    let times = [0.5, 3.0];
+    let exact = fsp::solve(&net, &[], &times).expect("FSP");
+    let pgd = dsmts::solve_pgd(&net, &times, 3.0).expect("PGD");
+    // Within the PGD's own accuracy (the DSMTS goal: 1e-3 relative, or absolute below 1).
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-3 * a.abs().max(1.0);
+    for (e, m) in exact.moments.iter().zip(&pgd) {
+        for i in 0..2 {
+            assert!(
+                close(e.mean[i], m.mean[i]),
+                "{} vs {}",
+                e.mean[i],
+                m.mean[i]
+            );
+            assert!(
+                close(e.var[i], m.var[i]),
+                "var {} vs {}",
+                e.var[i],
+                m.var[i]
+            );
+        }
+        // The covariance of the pair is exactly −2 var(P2) on the line.
+        assert!(close(e.cov01, m.cov01), "{} vs {}", e.cov01, m.cov01);
+        assert!((m.cov01 + 2.0 * m.var[1]).abs() < 1e-9);
+    }
+    // A saturation factor of P is not affine on the line: P2 is eliminated instead.
+    let hill = text.replace(
+        r#"factors = [{ species = "P2", kind = "linear" }]"#,
+        r#"factors = [{ species = "P2", kind = "linear" }, { species = "P", kind = "saturation", beta = 1.0, gamma = 2.0 }]"#,
+    );
+    let hill = Network::from_toml(&hill, "hill.toml").expect("parses");
+    let r = conservation::reduce(&hill).expect("P2 can go");
+    assert_eq!((r.eliminated, r.from), (1, 0));
+}

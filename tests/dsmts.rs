@@ -1,8 +1,8 @@
 //! The Discrete Stochastic Model Test Suite (vendored under `tests/data/dsmts`): every
 //! case imports from its SBML (Level 3 and Level 2 give the same network) or is refused
 //! naming the feature; exact FSP matches the published mean and sd; the SSA passes the
-//! suite's own test; the default PGD matches within 1e-3 where its box is small enough
-//! for the test suite's time (the rest: `palpa bench dsmts`).
+//! suite's own test; the default PGD (a conserved pair reduced, as `cme solve` does)
+//! matches within 1e-3.
 
 use std::path::PathBuf;
 
@@ -26,9 +26,6 @@ const MAX_LEAK: f64 = 1e-9;
 /// The SSA's paths and seed (the suite suggests 10⁴ or more).
 const TRAJECTORIES: usize = 10_000;
 const SEED: u64 = 1;
-/// The PGD runs here on boxes up to this many states; larger boxes (cases 5, 7, 23,
-/// 25, 31: 10⁴–10⁶ states) take minutes each and are measured by `palpa bench dsmts`.
-const PGD_MAX_STATES: usize = 4096;
 
 fn cases() -> Vec<Case> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/dsmts");
@@ -103,7 +100,6 @@ fn every_case_imports_or_is_refused_naming_the_feature() {
 
 #[test]
 fn fsp_and_the_default_pgd_match_the_published_moments() {
-    let mut pgd_skipped = Vec::new();
     for case in supported() {
         let net = case.network("l3v1").expect("imports");
         let outputs = case.outputs(&net).expect("outputs");
@@ -115,10 +111,6 @@ fn fsp_and_the_default_pgd_match_the_published_moments() {
             fsp.mean,
             fsp.sd
         );
-        if boxes.iter().product::<usize>() > PGD_MAX_STATES {
-            pgd_skipped.push((case.id.clone(), boxes));
-            continue;
-        }
         let pgd = case.check_pgd(&net, &outputs, Some(&boxes)).expect("PGD");
         assert!(
             pgd.mean <= PGD_TOL && pgd.sd <= PGD_TOL,
@@ -128,8 +120,6 @@ fn fsp_and_the_default_pgd_match_the_published_moments() {
             pgd.sd
         );
     }
-    println!("PGD left to `palpa bench dsmts` (box too large here): {pgd_skipped:?}");
-    assert!(pgd_skipped.len() <= 6, "the PGD runs on most cases here");
 }
 
 #[test]

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::cme::model::{self, CmeModel};
-use palpa_core::cme::{Moments, Network, build, fsp, greedy, sizing, ssa, ttsolve};
+use palpa_core::cme::{Moments, Network, build, conservation, fsp, greedy, sizing, ssa, ttsolve};
 use serde::Serialize;
 
 #[derive(Debug, Subcommand)]
@@ -543,9 +543,21 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         }
         Method::Pgd => {
             let t_end = args.t.last().copied().unwrap_or(1.0).max(1e-3);
+            // A conserved pair is solved with one species less and expanded back.
+            let reduced = conservation::reduce(&network);
+            if let Some(r) = &reduced {
+                eprintln!(
+                    "{} = {} {:+} · {} (conserved): solved without it",
+                    network.species[r.eliminated].name,
+                    r.offset,
+                    r.slope,
+                    network.species[r.from].name
+                );
+            }
+            let solved = reduced.as_ref().map_or(&network, |r| &r.network);
             let model = args
                 .pgd
-                .build_for(&network, t_end, Some(&args.t))?
+                .build_for(solved, t_end, Some(&args.t))?
                 .built
                 .model;
             let set = model_coordinates(&model, &network, &p);
@@ -558,7 +570,10 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
                         e.most_negative
                     ));
                 }
-                out.push(e.moments);
+                out.push(match &reduced {
+                    Some(r) => r.expand(&e.moments),
+                    None => e.moments,
+                });
             }
             ("pgd", out, None, None, None)
         }

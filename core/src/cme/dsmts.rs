@@ -309,47 +309,56 @@ impl Case {
         }
     }
 
-    /// The default PGD (tensor-train BDF2 with the default options and first step) at
-    /// the case's times, on `boxes` (`None`: sized by [`super::sizing::with_boxes`],
-    /// the default; the FSP check's boxes come from the same rule, so passing them
-    /// saves a second pre-pass).
+    /// The default PGD at the case's times, as `palpa cme solve --method pgd` runs it:
+    /// a conserved pair reduced ([`super::conservation`]), tensor-train BDF2 with the
+    /// default options and first step, on `boxes` (`None`: sized by
+    /// [`super::sizing::with_boxes`], the default; the FSP check's boxes come from the
+    /// same rule, so passing them saves a second pre-pass).
     pub fn check_pgd(
         &self,
         network: &Network,
         outputs: &[Output],
         boxes: Option<&[usize]>,
     ) -> Result<Distance, String> {
-        use super::{build, sizing, ttsolve};
         let start = std::time::Instant::now();
         let t_end = self.times.last().copied().unwrap_or(1.0);
-        let sized = match boxes {
-            Some(b) => {
-                let mut n = network.clone();
-                for (s, &m) in n.species.iter_mut().zip(b) {
-                    s.max = Some(m);
-                }
-                n
+        let mut net = network.clone();
+        if let Some(b) = boxes {
+            for (s, &m) in net.species.iter_mut().zip(b) {
+                s.max = Some(m);
             }
-            None => {
-                sizing::with_boxes(network, t_end)
-                    .map_err(|e| e.to_string())?
-                    .0
-            }
-        };
-        let recipe = build::Recipe::default_for(&sized, t_end);
-        let built = build::train(
-            &sized,
-            &recipe.options,
-            Some(&self.times),
-            &mut |_: ttsolve::Step| {},
-        )
-        .map_err(|e| e.to_string())?;
-        let moments = self
-            .times
-            .iter()
-            .map(|&t| built.model.evaluate(t, &[], usize::MAX).map(|e| e.moments))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| e.to_string())?;
+        }
+        let moments = solve_pgd(&net, &self.times, t_end).map_err(|e| e.to_string())?;
         Ok(self.distance(outputs, &moments, start.elapsed().as_secs_f64()))
     }
+}
+
+/// The default PGD of `network` at `times` (see [`Case::check_pgd`]), the moments of
+/// the network's own species.
+pub fn solve_pgd(
+    network: &Network,
+    times: &[f64],
+    t_end: f64,
+) -> Result<Vec<super::Moments>, Box<dyn std::error::Error + Send + Sync>> {
+    use super::{build, conservation, sizing, ttsolve};
+    let reduced = conservation::reduce(network);
+    let solved = reduced.as_ref().map_or(network, |r| &r.network);
+    let (sized, _) = sizing::with_boxes(solved, t_end)?;
+    let recipe = build::Recipe::default_for(&sized, t_end);
+    let built = build::train(
+        &sized,
+        &recipe.options,
+        Some(times),
+        &mut |_: ttsolve::Step| {},
+    )?;
+    times
+        .iter()
+        .map(|&t| {
+            let m = built.model.evaluate(t, &[], usize::MAX)?.moments;
+            Ok(match &reduced {
+                Some(r) => r.expand(&m),
+                None => m,
+            })
+        })
+        .collect()
 }

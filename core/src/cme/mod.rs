@@ -24,6 +24,7 @@
 //! means, variances and the covariance of the first two species.
 
 pub mod build;
+pub mod conservation;
 pub mod cp;
 pub mod dsmts;
 pub mod fsp;
