@@ -40,6 +40,35 @@ pub enum FspError {
     BoxShape { got: usize, species: usize },
 }
 
+/// The number of states of the box `sizes` and its strides (species 0 fastest), or
+/// the refusal of a box over [`MAX_STATES`].
+fn box_layout(sizes: &[usize]) -> Result<(usize, Vec<usize>), FspError> {
+    // Twenty species of 64 states overflow 64 bits: count in f64 for the message.
+    let n = match sizes.iter().try_fold(1usize, |a, &m| a.checked_mul(m)) {
+        Some(n) if n <= MAX_STATES && !sizes.contains(&0) => n,
+        _ => {
+            return Err(FspError::TooLarge {
+                states: sizes.iter().map(|&m| m as f64).product(),
+            });
+        }
+    };
+    let mut strides = vec![1usize; sizes.len()];
+    for i in 1..sizes.len() {
+        strides[i] = strides[i - 1] * sizes[i - 1];
+    }
+    Ok((n, strides))
+}
+
+/// The box index of `z` (clamped into the box).
+fn box_index(sizes: &[usize], z: &[usize]) -> usize {
+    let (mut b, mut stride) = (0, 1);
+    for (&zi, &m) in z.iter().zip(sizes) {
+        b += zi.min(m - 1) * stride;
+        stride *= m;
+    }
+    b
+}
+
 /// The generator on a box, in CSR (rows: target states).
 #[derive(Debug, Clone)]
 pub struct Generator {
@@ -62,20 +91,8 @@ impl Generator {
                 species: network.species.len(),
             });
         }
-        // Twenty species of 64 states overflow 64 bits: count in f64 for the message.
-        let n = match sizes.iter().try_fold(1usize, |a, &m| a.checked_mul(m)) {
-            Some(n) if n <= MAX_STATES && !sizes.contains(&0) => n,
-            _ => {
-                return Err(FspError::TooLarge {
-                    states: sizes.iter().map(|&m| m as f64).product(),
-                });
-            }
-        };
+        let (n, strides) = box_layout(sizes)?;
         let d = sizes.len();
-        let mut strides = vec![1usize; d];
-        for i in 1..d {
-            strides[i] = strides[i - 1] * sizes[i - 1];
-        }
         let mut row_start = Vec::with_capacity(n + 1);
         let mut cols = Vec::with_capacity(n * network.reactions.len());
         let mut vals = Vec::with_capacity(n * network.reactions.len());
@@ -138,31 +155,27 @@ impl Generator {
                 species: network.species.len(),
             });
         }
-        let n = match sizes.iter().try_fold(1usize, |a, &m| a.checked_mul(m)) {
-            Some(n) if n <= MAX_STATES && !sizes.contains(&0) => n,
-            _ => {
-                return Err(FspError::TooLarge {
-                    states: sizes.iter().map(|&m| m as f64).product(),
-                });
-            }
-        };
+        let (n, strides) = box_layout(sizes)?;
         let d = sizes.len();
-        let mut strides = vec![1usize; d];
-        for i in 1..d {
-            strides[i] = strides[i - 1] * sizes[i - 1];
-        }
         let decode = |mut b: usize, z: &mut [i64]| {
             for i in 0..d {
                 z[i] = (b % sizes[i]) as i64;
                 b /= sizes[i];
             }
         };
-        let first: usize = start
-            .iter()
-            .zip(&strides)
-            .zip(sizes)
-            .map(|((&s, &st), &m)| s.min(m - 1) * st)
-            .sum();
+        // The box index after reaction `re` from `z`, if it stays in the box.
+        let target = |z: &[i64], re: &super::network::Reaction| {
+            let mut to = 0usize;
+            for i in 0..d {
+                let y = z[i] + i64::from(re.change[i]);
+                if !(0..sizes[i] as i64).contains(&y) {
+                    return None;
+                }
+                to += y as usize * strides[i];
+            }
+            Some(to)
+        };
+        let first = box_index(sizes, start);
         let mut seen = vec![false; n];
         seen[first] = true;
         let mut queue = vec![first];
@@ -175,13 +188,9 @@ impl Generator {
                 if network.propensity(r, &z, p) <= 0.0 {
                     continue;
                 }
-                let mut to = 0usize;
-                let inside = (0..d).all(|i| {
-                    let y = z[i] + i64::from(re.change[i]);
-                    to += y.max(0) as usize * strides[i];
-                    (0..sizes[i] as i64).contains(&y)
-                });
-                if inside && !seen[to] {
+                if let Some(to) = target(&z, re)
+                    && !seen[to]
+                {
                     seen[to] = true;
                     queue.push(to);
                 }
@@ -203,13 +212,7 @@ impl Generator {
                 if a == 0.0 || re.change.iter().all(|&c| c == 0) {
                     continue;
                 }
-                let mut to = 0usize;
-                let inside = (0..d).all(|i| {
-                    let y = z[i] + i64::from(re.change[i]);
-                    to += y.max(0) as usize * strides[i];
-                    (0..sizes[i] as i64).contains(&y)
-                });
-                if inside {
+                if let Some(to) = target(&z, re) {
                     triplets.push((local[to], k as u32, a));
                 }
             }
@@ -394,15 +397,7 @@ pub fn solve_kept(
     let g = Generator::reachable(network, p, sizes, &start)?;
     let mut prob = vec![0.0; g.states()];
     // The start is the first state the search found; in box order, find it again.
-    let first: usize = {
-        let mut b = 0usize;
-        let mut stride = 1usize;
-        for (&s, &m) in start.iter().zip(sizes) {
-            b += s.min(m - 1) * stride;
-            stride *= m;
-        }
-        b
-    };
+    let first = box_index(sizes, &start);
     let k = g
         .index
         .as_ref()
