@@ -35,7 +35,7 @@ use super::Element;
 use super::shape::{TET_DEGREE1, TET_DEGREE4, barycentric_gradients, tet_gradients};
 use super::space::Space;
 
-type M3 = [[f64; 3]; 3];
+pub(super) type M3 = [[f64; 3]; 3];
 
 /// A hyperelastic law (both take the Lamé parameters of [`super::Material`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -76,13 +76,14 @@ struct PointState {
     shear: f64,
 }
 
-fn det(a: &M3) -> f64 {
+pub(super) fn det(a: &M3) -> f64 {
     a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
         - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
         + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
 }
 
-fn inverse(a: &M3, d: f64) -> M3 {
+/// `a⁻¹` given `d = det a`.
+pub(super) fn inverse(a: &M3, d: f64) -> M3 {
     let mut inv = [[0.0; 3]; 3];
     for i in 0..3 {
         for j in 0..3 {

@@ -42,7 +42,7 @@ use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
 use super::{Element, FeError, Material};
 
-type M3 = [[f64; 3]; 3];
+use super::hyper::{M3, det, inverse};
 
 const ID: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 const ZERO: M3 = [[0.0; 3]; 3];
@@ -147,7 +147,7 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
                 ln_j[k] = (jac[k] - s / k as f64) / jac[0];
             }
             // C Y = I: Y_0 = C_0⁻¹, Y_k = −Y_0 Σ_{i=1..k} C_i Y_{k−i}.
-            let y0 = inverse(&c[0]);
+            let y0 = inverse(&c[0], det(&c[0]));
             let mut y = vec![y0];
             for k in 1..=p {
                 let mut acc = ZERO;
@@ -173,21 +173,6 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
                 .collect()
         }
     }
-}
-
-fn inverse(a: &M3) -> M3 {
-    let d = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-    let mut inv = ZERO;
-    for i in 0..3 {
-        for j in 0..3 {
-            let (i1, i2) = ((j + 1) % 3, (j + 2) % 3);
-            let (j1, j2) = ((i + 1) % 3, (i + 2) % 3);
-            inv[i][j] = (a[i1][j1] * a[i2][j2] - a[i1][j2] * a[i2][j1]) / d;
-        }
-    }
-    inv
 }
 
 /// The `a^p` coefficient of cell `c`'s internal force at
