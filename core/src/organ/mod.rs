@@ -7,6 +7,8 @@
 pub mod catalogue;
 pub mod liver;
 pub mod region;
+pub mod region_file;
+pub mod syntax;
 
 use serde::{Deserialize, Serialize};
 

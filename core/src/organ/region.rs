@@ -34,6 +34,17 @@ pub enum Selector {
         center: [f64; 3],
         radius_mm: f64,
     },
+    /// Points within `radius_mm` of the polyline through `points` (segments between
+    /// consecutive points).
+    NearPolyline {
+        points: Vec<[f64; 3]>,
+        radius_mm: f64,
+    },
+    /// Points within `radius_mm` of one of `points` (painted triangles' centroids).
+    NearPoints {
+        points: Vec<[f64; 3]>,
+        radius_mm: f64,
+    },
 }
 
 impl Selector {
@@ -75,8 +86,33 @@ impl Selector {
                 norm(perp) <= *radius_mm
             }
             Selector::Ball { center, radius_mm } => norm(sub(p, *center)) <= *radius_mm,
+            Selector::NearPolyline { points, radius_mm } => points
+                .windows(2)
+                .any(|w| segment_distance(p, w[0], w[1]) <= *radius_mm),
+            Selector::NearPoints { points, radius_mm } => {
+                let r2 = radius_mm * radius_mm;
+                points.iter().any(|q| {
+                    let d = sub(p, *q);
+                    dot(d, d) <= r2
+                })
+            }
         }
     }
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+fn segment_distance(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
+    let ab = sub(b, a);
+    let l2 = dot(ab, ab);
+    let t = if l2 > 0.0 {
+        (dot(sub(p, a), ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    norm(sub(
+        p,
+        [a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]],
+    ))
 }
 
 #[cfg(test)]

@@ -12,13 +12,20 @@
 //! taken from the angle-weighted pseudo-normal of the closest feature (face, edge or
 //! vertex), which is exact for closed manifolds (Bærentzen & Aanæs 2005).
 
+pub mod frame;
+mod ply;
+pub mod read;
+pub mod repair;
+mod solid;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use crate::mesh::stuffing::Implicit;
 use crate::mesh::{cross, dot, norm, sub};
+pub use read::{Format, ReadSurface};
+pub use solid::SurfaceSolid;
 
 /// A triangle surface (mm).
 #[derive(Debug, Clone, PartialEq)]
@@ -44,7 +51,9 @@ pub enum SurfaceError {
         line: usize,
         reason: String,
     },
-    #[error("{path}: unknown surface format (expected .obj or .stl)")]
+    #[error(
+        "{path}: not a surface file this reads (expected OBJ, STL in ASCII or binary, or PLY in ASCII or binary)"
+    )]
     Format { path: PathBuf },
     #[error("the surface has no triangles")]
     Empty,
@@ -59,7 +68,8 @@ pub enum SurfaceError {
     #[error("triangle {triangle} is degenerate (zero area or a repeated vertex) at {at:?}")]
     Degenerate { triangle: usize, at: [f64; 3] },
     #[error(
-        "not closed: edge {a}–{b} (from {pa:?} to {pb:?}) belongs to only one triangle (a hole)"
+        "not closed: edge {a}–{b} (from {pa:?} to {pb:?}) belongs to only one triangle (a hole; \
+         `--close-holes N` closes holes of up to N edges)"
     )]
     Open {
         a: u32,
@@ -78,6 +88,11 @@ pub enum SurfaceError {
     #[error("not manifold: vertex {v} at {at:?} joins {fans} separate fans of triangles")]
     NonManifoldVertex { v: u32, at: [f64; 3], fans: usize },
     #[error(
+        "the surface has {count} separate pieces of {sizes:?} triangles; an organ is one closed \
+         surface (`--largest-component` keeps the largest)"
+    )]
+    Components { count: usize, sizes: Vec<usize> },
+    #[error(
         "inconsistent orientation: the two triangles at edge {a}–{b} (at {pa:?}) traverse it the same way"
     )]
     Orientation { a: u32, b: u32, pa: [f64; 3] },
@@ -87,23 +102,19 @@ pub enum SurfaceError {
     SelfIntersecting { a: usize, b: usize, at: [f64; 3] },
 }
 
+/// What validation changed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Validation {
+    /// The surface was inside-out (consistently oriented, enclosing negative volume)
+    /// and was turned outward.
+    pub flipped: bool,
+}
+
 impl TriSurface {
-    /// Reads `.obj` or `.stl` (ASCII or binary) by extension.
+    /// Reads an OBJ, STL or PLY file (the format told by content), welding corners
+    /// that coincide (see [`read::read`] for what reading did).
     pub fn read(path: &Path) -> Result<TriSurface, SurfaceError> {
-        let bytes = std::fs::read(path).map_err(|source| SurfaceError::Io {
-            path: path.into(),
-            source,
-        })?;
-        match path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .as_deref()
-        {
-            Some("obj") => parse_obj(path, &bytes),
-            Some("stl") => parse_stl(path, &bytes),
-            _ => Err(SurfaceError::Format { path: path.into() }),
-        }
+        read::read(path).map(|r| r.surface)
     }
 
     /// Signed volume (positive when oriented outward).
@@ -119,8 +130,8 @@ impl TriSurface {
 
     /// Checks that the surface is usable as an organ: coordinates in range, no
     /// degenerate triangle, closed, manifold, consistently oriented (then orients it
-    /// outward).
-    pub fn validate(&mut self) -> Result<(), SurfaceError> {
+    /// outward), in one piece.
+    pub fn validate(&mut self) -> Result<Validation, SurfaceError> {
         if self.triangles.is_empty() {
             return Err(SurfaceError::Empty);
         }
@@ -206,12 +217,20 @@ impl TriSurface {
         if let Some((a, b, at)) = self.first_crossing() {
             return Err(SurfaceError::SelfIntersecting { a, b, at });
         }
-        if self.volume() < 0.0 {
+        let pieces = repair::components(self);
+        if pieces.len() > 1 {
+            return Err(SurfaceError::Components {
+                count: pieces.len(),
+                sizes: pieces.iter().map(Vec::len).collect(),
+            });
+        }
+        let flipped = self.volume() < 0.0;
+        if flipped {
             for t in &mut self.triangles {
                 t.swap(1, 2);
             }
         }
-        Ok(())
+        Ok(Validation { flipped })
     }
 }
 
@@ -317,320 +336,10 @@ fn count_fans(v: u32, tris: &[usize], all: &[[u32; 3]]) -> usize {
         .count()
 }
 
-fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriSurface, SurfaceError> {
-    let text = String::from_utf8_lossy(bytes);
-    let err = |line: usize, reason: String| SurfaceError::Parse {
-        path: path.into(),
-        line,
-        reason,
-    };
-    let mut vertices = Vec::new();
-    let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let ln = i + 1;
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let c: Vec<f64> = it
-                    .take(3)
-                    .map(|s| s.parse::<f64>())
-                    .collect::<Result<_, _>>()
-                    .map_err(|e| err(ln, format!("bad vertex coordinate: {e}")))?;
-                if c.len() != 3 || c.iter().any(|x| !x.is_finite()) {
-                    return Err(err(
-                        ln,
-                        format!("a vertex needs three finite coordinates, got {line:?}"),
-                    ));
-                }
-                vertices.push([c[0], c[1], c[2]]);
-            }
-            Some("f") => {
-                let idx: Vec<i64> = it
-                    .map(|tok| tok.split('/').next().unwrap_or("").parse::<i64>())
-                    .collect::<Result<_, _>>()
-                    .map_err(|e| err(ln, format!("bad face index: {e}")))?;
-                if idx.len() < 3 {
-                    return Err(err(
-                        ln,
-                        format!("a face needs at least 3 vertices, got {}", idx.len()),
-                    ));
-                }
-                faces.push((ln, idx));
-            }
-            _ => {}
-        }
-    }
-    let n = vertices.len() as i64;
-    let mut triangles = Vec::new();
-    for (ln, idx) in faces {
-        let resolved: Vec<u32> = idx
-            .iter()
-            .map(|&k| {
-                let r = if k > 0 { k - 1 } else { n + k };
-                if (0..n).contains(&r) {
-                    Ok(r as u32)
-                } else {
-                    Err(err(ln, format!("vertex index {k} out of range (1..={n})")))
-                }
-            })
-            .collect::<Result<_, _>>()?;
-        for k in 1..resolved.len() - 1 {
-            triangles.push([resolved[0], resolved[k], resolved[k + 1]]);
-        }
-    }
-    Ok(TriSurface {
-        vertices,
-        triangles,
-    })
-}
-
-fn parse_stl(path: &Path, bytes: &[u8]) -> Result<TriSurface, SurfaceError> {
-    let err = |line: usize, reason: String| SurfaceError::Parse {
-        path: path.into(),
-        line,
-        reason,
-    };
-    let mut corners: Vec<[f64; 3]> = Vec::new();
-    if bytes.len() >= 84 {
-        let n = u32::from_le_bytes(bytes[80..84].try_into().expect("4 bytes")) as usize;
-        if n.checked_mul(50).and_then(|x| x.checked_add(84)) == Some(bytes.len()) {
-            for t in 0..n {
-                let rec = &bytes[84 + 50 * t..84 + 50 * t + 50];
-                for v in 0..3 {
-                    let off = 12 + 12 * v;
-                    let c = [0, 1, 2].map(|d| {
-                        f64::from(f32::from_le_bytes(
-                            rec[off + 4 * d..off + 4 * d + 4]
-                                .try_into()
-                                .expect("4 bytes"),
-                        ))
-                    });
-                    if c.iter().any(|x| !x.is_finite()) {
-                        return Err(err(0, format!("binary facet {t} has a non-finite vertex")));
-                    }
-                    corners.push(c);
-                }
-            }
-            return Ok(merge(&corners));
-        }
-    }
-    let text = String::from_utf8_lossy(bytes);
-    if !text.trim_start().starts_with("solid") {
-        return Err(err(
-            1,
-            format!(
-                "neither binary STL ({} bytes does not match its facet count) nor ASCII STL (no 'solid')",
-                bytes.len()
-            ),
-        ));
-    }
-    for (i, line) in text.lines().enumerate() {
-        let mut it = line.split_whitespace();
-        if it.next() == Some("vertex") {
-            let c: Vec<f64> = it
-                .map(|s| s.parse::<f64>())
-                .collect::<Result<_, _>>()
-                .map_err(|e| err(i + 1, format!("bad vertex: {e}")))?;
-            if c.len() != 3 || c.iter().any(|x| !x.is_finite()) {
-                return Err(err(
-                    i + 1,
-                    format!("a vertex needs three finite coordinates, got {line:?}"),
-                ));
-            }
-            corners.push([c[0], c[1], c[2]]);
-        }
-    }
-    if !corners.len().is_multiple_of(3) {
-        return Err(err(
-            0,
-            format!("{} vertices do not make whole triangles", corners.len()),
-        ));
-    }
-    Ok(merge(&corners))
-}
-
-/// STL stores each facet's corners separately: merge identical positions.
-fn merge(corners: &[[f64; 3]]) -> TriSurface {
-    let mut ids: HashMap<[u64; 3], u32> = HashMap::new();
-    let mut vertices = Vec::new();
-    let idx: Vec<u32> = corners
-        .iter()
-        .map(|c| {
-            *ids.entry(c.map(f64::to_bits)).or_insert_with(|| {
-                vertices.push(*c);
-                (vertices.len() - 1) as u32
-            })
-        })
-        .collect();
-    TriSurface {
-        vertices,
-        triangles: idx.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
-    }
-}
-
-/// A validated closed surface as an implicit solid (signed distance).
-#[derive(Debug)]
-pub struct SurfaceSolid {
-    s: TriSurface,
-    lo: [f64; 3],
-    hi: [f64; 3],
-    cell: f64,
-    dims: [usize; 3],
-    buckets: Vec<Vec<u32>>,
-    face_n: Vec<[f64; 3]>,
-    edge_n: HashMap<(u32, u32), [f64; 3]>,
-    vert_n: Vec<[f64; 3]>,
-}
-
-impl SurfaceSolid {
-    /// Builds the distance acceleration and pseudo-normals. The surface must have
-    /// passed [`TriSurface::validate`].
-    pub fn new(s: TriSurface) -> SurfaceSolid {
-        let (lo, hi) = crate::mesh::bounds_of(&s.vertices);
-        let diag = norm(sub(hi, lo));
-        let cell = (diag / 48.0).max(1e-9);
-        let dims = [0, 1, 2].map(|d| (((hi[d] - lo[d]) / cell).floor() as usize + 1).max(1));
-        let mut buckets = vec![Vec::new(); dims[0] * dims[1] * dims[2]];
-        let face_n: Vec<[f64; 3]> = s
-            .triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| s.vertices[i as usize]);
-                let n = cross(sub(b, a), sub(c, a));
-                let l = norm(n);
-                n.map(|x| x / l)
-            })
-            .collect();
-        let mut edge_n: HashMap<(u32, u32), [f64; 3]> = HashMap::new();
-        let mut vert_n = vec![[0.0; 3]; s.vertices.len()];
-        for (t, tri) in s.triangles.iter().enumerate() {
-            let pts = tri.map(|i| s.vertices[i as usize]);
-            let (tlo, thi) = crate::mesh::bounds_of(&pts);
-            let c0 = [0, 1, 2].map(|d| (((tlo[d] - lo[d]) / cell) as usize).min(dims[d] - 1));
-            let c1 = [0, 1, 2].map(|d| (((thi[d] - lo[d]) / cell) as usize).min(dims[d] - 1));
-            for k in c0[2]..=c1[2] {
-                for j in c0[1]..=c1[1] {
-                    for i in c0[0]..=c1[0] {
-                        buckets[i + dims[0] * (j + dims[1] * k)].push(t as u32);
-                    }
-                }
-            }
-            for e in 0..3 {
-                let (a, b) = (tri[e], tri[(e + 1) % 3]);
-                let n = edge_n.entry((a.min(b), a.max(b))).or_insert([0.0; 3]);
-                for d in 0..3 {
-                    n[d] += face_n[t][d];
-                }
-                // Angle at vertex e.
-                let u = sub(pts[(e + 1) % 3], pts[e]);
-                let w = sub(pts[(e + 2) % 3], pts[e]);
-                let ang = (dot(u, w) / (norm(u) * norm(w))).clamp(-1.0, 1.0).acos();
-                for d in 0..3 {
-                    vert_n[tri[e] as usize][d] += ang * face_n[t][d];
-                }
-            }
-        }
-        SurfaceSolid {
-            s,
-            lo,
-            hi,
-            cell,
-            dims,
-            buckets,
-            face_n,
-            edge_n,
-            vert_n,
-        }
-    }
-
-    pub fn surface(&self) -> &TriSurface {
-        &self.s
-    }
-
-    /// Closest triangle, barycentric coordinates and distance.
-    fn closest(&self, p: [f64; 3]) -> (usize, [f64; 3], f64) {
-        let c = [0, 1, 2].map(|d| {
-            (((p[d] - self.lo[d]) / self.cell).floor() as i64).clamp(0, self.dims[d] as i64 - 1)
-        });
-        // Distance from p to the grid box (rings start counting from there).
-        let outside: f64 = (0..3)
-            .map(|d| (self.lo[d] - p[d]).max(p[d] - self.hi[d]).max(0.0).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let mut best = (0usize, [1.0, 0.0, 0.0], f64::INFINITY);
-        let max_ring = *self.dims.iter().max().expect("3 dims") as i64;
-        for ring in 0..=max_ring {
-            if best.2 < outside + (ring as f64 - 1.0) * self.cell {
-                break;
-            }
-            for k in c[2] - ring..=c[2] + ring {
-                for j in c[1] - ring..=c[1] + ring {
-                    for i in c[0] - ring..=c[0] + ring {
-                        let on_shell = (i - c[0]).abs() == ring
-                            || (j - c[1]).abs() == ring
-                            || (k - c[2]).abs() == ring;
-                        if !on_shell || i < 0 || j < 0 || k < 0 {
-                            continue;
-                        }
-                        let (i, j, k) = (i as usize, j as usize, k as usize);
-                        if i >= self.dims[0] || j >= self.dims[1] || k >= self.dims[2] {
-                            continue;
-                        }
-                        for &t in &self.buckets[i + self.dims[0] * (j + self.dims[1] * k)] {
-                            let tri =
-                                self.s.triangles[t as usize].map(|v| self.s.vertices[v as usize]);
-                            let bary = crate::axis::closest_point(&tri, &[[0, 1, 2]], p)
-                                .expect("finite")
-                                .bary;
-                            let q = [0, 1, 2].map(|d| {
-                                bary[0] * tri[0][d] + bary[1] * tri[1][d] + bary[2] * tri[2][d]
-                            });
-                            let dist = norm(sub(p, q));
-                            if dist < best.2 {
-                                best = (t as usize, bary, dist);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        best
-    }
-}
-
-impl Implicit for SurfaceSolid {
-    fn value(&self, p: [f64; 3]) -> f64 {
-        let (t, bary, dist) = self.closest(p);
-        let tri = self.s.triangles[t];
-        let zeros = bary.iter().filter(|&&b| b <= 1e-12).count();
-        let n = match zeros {
-            2 => {
-                let k = (0..3).find(|&k| bary[k] > 1e-12).expect("one vertex");
-                self.vert_n[tri[k] as usize]
-            }
-            1 => {
-                let k = (0..3).find(|&k| bary[k] <= 1e-12).expect("one zero");
-                let (a, b) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
-                self.edge_n[&(a.min(b), a.max(b))]
-            }
-            _ => self.face_n[t],
-        };
-        let q = [0, 1, 2].map(|d| {
-            (0..3)
-                .map(|k| bary[k] * self.s.vertices[tri[k] as usize][d])
-                .sum::<f64>()
-        });
-        if dot(sub(p, q), n) < 0.0 { -dist } else { dist }
-    }
-
-    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
-        (self.lo, self.hi)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::stuffing::Implicit;
 
     fn cube_obj() -> String {
         let mut s = String::new();
@@ -766,7 +475,9 @@ mod tests {
             .iter()
             .flat_map(|t| t.map(|i| s.vertices[i as usize]))
             .collect();
-        let mut merged = merge(&corners);
+        let n = corners.len() as u32 / 3;
+        let tris: Vec<[u32; 3]> = (0..n).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        let (mut merged, _) = read::weld(&corners, &tris);
         let e = merged.validate().expect_err("non-manifold");
         assert!(
             matches!(e, SurfaceError::NonManifoldEdge { count: 4, .. }),
