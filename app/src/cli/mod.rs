@@ -17,6 +17,7 @@ mod memory;
 mod mesh;
 mod organ;
 mod plot;
+mod scene;
 mod synth;
 mod tradeoff;
 
@@ -63,6 +64,9 @@ enum Command {
     /// The hyperelastic force law of a palpation scene (depth in, force out).
     #[command(subcommand)]
     DepthLaw(depthlaw::DepthLawCommand),
+    /// A user's organ surface to a palpation scene: `palpa scene build`.
+    #[command(subcommand)]
+    Scene(scene::SceneCommand),
     /// Open the interactive app in a window (the default with no subcommand).
     Open(OpenArgs),
     /// Render frames offscreen with a scripted probe while the force thread runs; report timings.
@@ -95,6 +99,7 @@ pub fn main() -> ExitCode {
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Some(Command::Info(args)) => info::run(&args),
+        Some(Command::Scene(cmd)) => scene::run(&cmd),
         Some(Command::Bench(cmd)) => bench::run(&cmd),
         Some(Command::Synth(args)) => synth::run(&args),
         Some(Command::Mesh(args)) => mesh::run(&args),

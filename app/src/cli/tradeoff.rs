@@ -45,6 +45,13 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     let model = file::load::<f64>(&args.file)
         .with_context(|| format!("loading {}", args.file.display()))?;
     let desc = model.provenance().mesh.clone();
+    if describe_get(&desc, "organ") == Some("user") {
+        bail!(
+            "{}: a scene built from a surface file by `palpa scene build`, which measured its \
+             table then (`palpa info` shows it); rebuild it with `palpa scene build` to measure again",
+            args.file.display()
+        );
+    }
     let level: LevelArg = match describe_get(&desc, "level") {
         Some("coarse") => LevelArg::Coarse,
         Some("medium") => LevelArg::Medium,
@@ -131,22 +138,7 @@ fn run_nodal(
         let c = &t.cases[e.worst_surface_case];
         json!({"kind": c.kind, "point_mm": c.point})
     };
-    let rows: Vec<TradeoffRow> = t
-        .rows
-        .iter()
-        .map(|r| TradeoffRow {
-            modes: r.modes as u32,
-            surface_rel_error: r.errors.surface_rel_error,
-            probe_rel_error: r.errors.compliance_rel_error,
-            map_rel_error: None,
-            svd_rel_error: None,
-            surface_eval_us: r.surface_eval_us,
-            contact_eval_ns: r.contact_eval_ns,
-            bytes: r.bytes,
-            compliance_rel_error: Some(r.errors.compliance_rel_error),
-            surface_max_nodal_error_mm: Some(r.errors.surface_max_nodal_error_mm),
-        })
-        .collect();
+    let rows = t.header_rows();
     let json_rows: Vec<_> = t
         .rows
         .iter()

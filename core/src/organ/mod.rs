@@ -9,6 +9,7 @@ pub mod liver;
 pub mod region;
 pub mod region_file;
 pub mod syntax;
+pub mod user;
 
 use serde::{Deserialize, Serialize};
 

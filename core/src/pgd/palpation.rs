@@ -480,6 +480,32 @@ pub fn describe(
     radius_mm: f64,
     update: bool,
 ) -> String {
+    describe_named("liver", organ, level, element, material, radius_mm, update)
+}
+
+/// As [`describe`], for an organ from a user's surface: `organ=user`, then `source`
+/// (more `key=value` pairs: the file, its hash, units, axes, regions).
+pub fn describe_user(
+    organ: &OrganMesh,
+    level: &str,
+    element: Element,
+    material: Material,
+    radius_mm: f64,
+    source: &str,
+) -> String {
+    let base = describe_named("user", organ, level, element, material, radius_mm, false);
+    format!("{base} {source}")
+}
+
+fn describe_named(
+    name: &str,
+    organ: &OrganMesh,
+    level: &str,
+    element: Element,
+    material: Material,
+    radius_mm: f64,
+    update: bool,
+) -> String {
     let mut h = xxhash_rust::xxh3::Xxh3::new();
     h.update(bytemuck::cast_slice(&organ.mesh.vertices));
     h.update(bytemuck::cast_slice(&organ.mesh.tets));
@@ -492,7 +518,7 @@ pub fn describe(
         .collect();
     h.update(&flags);
     format!(
-        "organ=liver level={level} mesh_xxh3={:016x} element={} young_kpa={} poisson={} radius_mm={} update={}",
+        "organ={name} level={level} mesh_xxh3={:016x} element={} young_kpa={} poisson={} radius_mm={} update={}",
         h.digest(),
         element.name(),
         material.young_kpa,

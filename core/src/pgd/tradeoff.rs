@@ -78,6 +78,27 @@ pub struct NodalTable {
 /// Seed of the held-out points (the same in every table, so tables compare).
 pub const HELD_OUT_SEED: u64 = 0x7e57;
 
+impl NodalTable {
+    /// The rows a file's header stores (what the app's accuracy knob reads).
+    pub fn header_rows(&self) -> Vec<TradeoffRow> {
+        self.rows
+            .iter()
+            .map(|r| TradeoffRow {
+                modes: r.modes as u32,
+                surface_rel_error: r.errors.surface_rel_error,
+                probe_rel_error: r.errors.compliance_rel_error,
+                map_rel_error: None,
+                svd_rel_error: None,
+                surface_eval_us: r.surface_eval_us,
+                contact_eval_ns: r.contact_eval_ns,
+                bytes: r.bytes,
+                compliance_rel_error: Some(r.errors.compliance_rel_error),
+                surface_max_nodal_error_mm: Some(r.errors.surface_max_nodal_error_mm),
+            })
+            .collect()
+    }
+}
+
 /// Measures the table of a nodal-load `model` built on `organ` with this element,
 /// material and tool radius: `random` random held-out points plus the special ones.
 pub fn nodal_table(

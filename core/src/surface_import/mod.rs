@@ -16,6 +16,7 @@ pub mod frame;
 mod ply;
 pub mod read;
 pub mod repair;
+pub mod shapes;
 mod solid;
 
 use std::collections::HashMap;

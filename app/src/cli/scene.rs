@@ -1,0 +1,475 @@
+//! `palpa scene build`: a user's organ surface to a palpation scene in one command.
+//!
+//! Stages: surface (read, repair, units, axes, validate) → mesh (tetrahedra, regions)
+//! → vademecum (the nodal-load linear vademecum, as `palpa offline liver`) → tradeoff
+//! (held-out presses against full FE) → force law (with `--model neo-hookean|svk`)
+//! → scene (surface rows, f32, with the tradeoff table in its header). The slow
+//! stages' results are kept in `OUT.build/`, keyed by everything that determines
+//! them, so an interrupted build run again with the same arguments goes on from the
+//! last finished stage; the folder is removed when the scene is written.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::{Args, Subcommand, ValueEnum};
+use palpa_core::fe::hyper::Law;
+use palpa_core::fe::{Element, Material};
+use palpa_core::file;
+use palpa_core::mesh::quality;
+use palpa_core::organ::region_file::RegionFile;
+use palpa_core::organ::syntax;
+use palpa_core::organ::user::{self, SurfaceOptions};
+use palpa_core::organ::{Level, Selector};
+use palpa_core::pgd::cluster::FarSettings;
+use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
+use palpa_core::pgd::nodal::{self, NodalSettings};
+use palpa_core::pgd::palpation::describe_user;
+use palpa_core::pgd::tradeoff::nodal_table;
+use palpa_core::surface_import::frame::{Axes, Units};
+use serde_json::json;
+
+use super::organ::LevelArg;
+
+#[derive(Debug, Subcommand)]
+pub enum SceneCommand {
+    /// Surface file → tetrahedral mesh → vademecum → tradeoff → scene, resumable.
+    Build(BuildArgs),
+    /// Write a closed surface made here: the kidney example (cm, y up, z anterior), or
+    /// a sphere or an ellipsoid of known volume (for trying `scene build`).
+    Shape(ShapeArgs),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ShapeName {
+    /// A left kidney, 11 × 6 × 4 cm with its hilum, in cm, y up, z anterior.
+    Kidney,
+    /// A sphere of radius `--size` (in the file's units).
+    Sphere,
+    /// An ellipsoid of semi-axes `--size`, `0.75 --size`, `0.5 --size`.
+    Ellipsoid,
+}
+
+#[derive(Debug, Args)]
+pub struct ShapeArgs {
+    #[arg(value_enum)]
+    shape: ShapeName,
+    /// Radius or largest semi-axis (sphere, ellipsoid), in whatever unit the file is
+    /// meant to be read in.
+    #[arg(long, default_value_t = 5.0)]
+    size: f64,
+    /// Subdivisions of the icosahedron (20·4^n triangles).
+    #[arg(long, default_value_t = 4)]
+    subdivisions: u32,
+    /// `.obj`, `.stl` (binary) or `.ply` (binary).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+fn shape(args: &ShapeArgs) -> anyhow::Result<()> {
+    use palpa_core::surface_import::shapes::{ellipsoid, kidney_cm};
+    if !(args.size.is_finite() && args.size > 0.0) || args.subdivisions > 7 {
+        bail!("--size must be positive and --subdivisions at most 7");
+    }
+    let r = args.size;
+    let s = match args.shape {
+        ShapeName::Kidney => kidney_cm(),
+        ShapeName::Sphere => ellipsoid(r, r, r, args.subdivisions),
+        ShapeName::Ellipsoid => ellipsoid(r, 0.75 * r, 0.5 * r, args.subdivisions),
+    };
+    s.write_by_extension(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    println!(
+        "{}",
+        json!({"out": args.out, "vertices": s.vertices.len(), "triangles": s.triangles.len(),
+               "enclosed_volume": s.volume()})
+    );
+    Ok(())
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TissueModel {
+    /// Linear elasticity (the vademecum alone).
+    Linear,
+    /// The vademecum plus a compressible neo-Hookean force law (`OUT.law`).
+    NeoHookean,
+    /// The vademecum plus a Saint Venant–Kirchhoff force law (`OUT.law`).
+    Svk,
+}
+
+#[derive(Debug, Args)]
+pub struct BuildArgs {
+    /// A closed organ surface: OBJ, STL (ASCII or binary) or PLY (ASCII or binary).
+    #[arg(long)]
+    surface: PathBuf,
+    /// The file's length unit (surface files do not carry one).
+    #[arg(long)]
+    units: Units,
+    /// The file axes that become the patient's x (left), y (anterior), z (superior),
+    /// e.g. `x,-z,y`; default `x,y,z`.
+    #[arg(long, conflicts_with_all = ["up", "anterior"])]
+    axes: Option<String>,
+    /// The file's superior (up) axis, e.g. `y` (with --anterior).
+    #[arg(long, requires = "anterior", allow_hyphen_values = true)]
+    up: Option<String>,
+    /// The file's anterior axis, e.g. `-z` (with --up).
+    #[arg(long, requires = "up", allow_hyphen_values = true)]
+    anterior: Option<String>,
+    /// Fixed (attached) boundary, a selector in the organ frame (mm, after units and
+    /// axes), e.g. `normal:posterior:45`; repeat to add. Default: facing posterior
+    /// within 45° (when no --regions file names a fixed region).
+    #[arg(long, allow_hyphen_values = true)]
+    fixed: Vec<String>,
+    /// Palpable boundary, a selector; repeat to add. Default: everything not fixed.
+    #[arg(long, allow_hyphen_values = true)]
+    palpable: Vec<String>,
+    /// A region file (painted in the app, or written by hand).
+    #[arg(long)]
+    regions: Option<PathBuf>,
+    /// Close holes of at most this many edges (a fan from each hole's centroid).
+    #[arg(long, default_value_t = 0)]
+    close_holes: usize,
+    /// Keep the largest piece of a surface in several pieces.
+    #[arg(long)]
+    largest_component: bool,
+    #[arg(long, value_enum, default_value = "coarse")]
+    level: LevelArg,
+    #[arg(long, default_value = "p2")]
+    element: Element,
+    #[arg(long, value_enum, default_value = "linear")]
+    model: TissueModel,
+    /// Probe tool radius (mm).
+    #[arg(long, default_value_t = 5.0)]
+    radius_mm: f64,
+    /// Held-out random presses of the tradeoff table (plus six special ones).
+    #[arg(long, default_value_t = 24)]
+    held_out: usize,
+    #[arg(long)]
+    out: PathBuf,
+    /// Print the summary as one JSON line.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(cmd: &SceneCommand) -> anyhow::Result<()> {
+    match cmd {
+        SceneCommand::Build(args) => build(args),
+        SceneCommand::Shape(args) => shape(args),
+    }
+}
+
+/// One progress line per stage, with the time since the build started.
+struct Progress {
+    t0: Instant,
+    stage: usize,
+    times: Vec<(&'static str, f64)>,
+    last: f64,
+}
+
+const STAGES: usize = 6;
+
+impl Progress {
+    fn start(&mut self, name: &'static str, what: &str) {
+        self.stage += 1;
+        eprintln!(
+            "palpa: [{}/{STAGES}] {name}: {what} ({:.1} s)",
+            self.stage,
+            self.t0.elapsed().as_secs_f64()
+        );
+        let _ = std::io::stderr().flush();
+        self.times.push((name, 0.0));
+    }
+
+    fn done(&mut self) {
+        let now = self.t0.elapsed().as_secs_f64();
+        if let Some(t) = self.times.last_mut() {
+            t.1 = now - self.last;
+        }
+        self.last = now;
+    }
+}
+
+fn axes_of(args: &BuildArgs) -> anyhow::Result<Axes> {
+    Ok(match (&args.axes, &args.up, &args.anterior) {
+        (Some(a), _, _) => Axes::parse(a).map_err(anyhow::Error::msg)?,
+        (None, Some(up), Some(ant)) => {
+            Axes::from_up_anterior(up, ant).map_err(anyhow::Error::msg)?
+        }
+        _ => Axes::default(),
+    })
+}
+
+/// The fixed and palpable selectors from the command line and the region file.
+fn regions_of(args: &BuildArgs) -> anyhow::Result<(Selector, Selector, String)> {
+    let parse = |v: &[String]| {
+        v.iter()
+            .map(|e| syntax::parse(e))
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let mut fixed = parse(&args.fixed)?;
+    let mut palpable = parse(&args.palpable)?;
+    let mut described = Vec::new();
+    if let Some(path) = &args.regions {
+        let r = RegionFile::load(path)?;
+        let (f, p) = r.selectors(path)?;
+        fixed.push(f);
+        palpable.push(p);
+        described.push(format!(
+            "file:{}",
+            path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+        ));
+    }
+    if fixed.is_empty() {
+        fixed.push(palpa_core::organ::default_user_regions().0);
+        described.push("fixed:default".into());
+    }
+    if palpable.is_empty() {
+        palpable.push(Selector::Everything);
+        described.push("palpable:default".into());
+    }
+    // Region hash: the selectors as data (so a changed selector rebuilds).
+    let data = format!("{fixed:?}{palpable:?}");
+    described.push(format!(
+        "xxh3:{:016x}",
+        xxhash_rust::xxh3::xxh3_64(data.as_bytes())
+    ));
+    Ok((
+        Selector::Any(fixed),
+        Selector::Any(palpable),
+        described.join(","),
+    ))
+}
+
+fn build_dir(out: &Path) -> PathBuf {
+    let mut p = out.as_os_str().to_owned();
+    p.push(".build");
+    PathBuf::from(p)
+}
+
+fn build(args: &BuildArgs) -> anyhow::Result<()> {
+    let mut pr = Progress {
+        t0: Instant::now(),
+        stage: 0,
+        times: Vec::new(),
+        last: 0.0,
+    };
+    let level: Level = args.level.into();
+    let material = Material::default();
+    if !(args.radius_mm.is_finite() && args.radius_mm > 0.0) {
+        bail!("--radius-mm {} must be a positive length", args.radius_mm);
+    }
+
+    pr.start("surface", &args.surface.display().to_string());
+    let axes = axes_of(args)?;
+    let (fixed, palpable, regions_desc) = regions_of(args)?;
+    let (solid, sr) = user::prepare(
+        &args.surface,
+        &SurfaceOptions {
+            units: args.units,
+            axes,
+            close_holes_max_edges: args.close_holes,
+            largest_component: args.largest_component,
+        },
+    )
+    .with_context(|| format!("preparing {}", args.surface.display()))?;
+    for w in &sr.warnings {
+        eprintln!("palpa: warning: {w}");
+    }
+    pr.done();
+
+    pr.start("mesh", level.name());
+    let organ = user::mesh(&solid, level, &fixed, &palpable)
+        .with_context(|| format!("meshing {}", args.surface.display()))?;
+    let q = quality(&organ.mesh);
+    let meshed_mm3 = organ.mesh.volume();
+    let volume_rel_diff = (meshed_mm3 - sr.enclosed_volume_mm3) / sr.enclosed_volume_mm3;
+    if volume_rel_diff.abs() > 0.02 {
+        eprintln!(
+            "palpa: warning: the mesh's volume differs from the surface's by {:.1} % (a finer level follows the surface closer)",
+            100.0 * volume_rel_diff
+        );
+    }
+    let source = format!(
+        "source={} source_xxh3={} units={} axes={} regions={}",
+        sr.file_name.replace(char::is_whitespace, "_"),
+        sr.source_xxh3,
+        sr.units.name(),
+        sr.axes,
+        regions_desc
+    );
+    let desc = describe_user(
+        &organ,
+        level.name(),
+        args.element,
+        material,
+        args.radius_mm,
+        &source,
+    );
+    pr.done();
+
+    let dir = build_dir(&args.out);
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let vpath = dir.join("vademecum.palpa");
+    let cached = file::load::<f64>(&vpath)
+        .ok()
+        .filter(|m| m.provenance().mesh == desc);
+    let resumed_vademecum = cached.is_some();
+    let resumed_tradeoff = cached.as_ref().is_some_and(|m| !m.tradeoff().is_empty());
+    pr.start(
+        "vademecum",
+        if resumed_vademecum { "from the build folder" } else { "nodal loads" },
+    );
+    let mut model = match cached {
+        Some(m) => m,
+        None => {
+            let s = nodal::setup(&organ, args.element, material, args.radius_mm)
+                .context("building the FE operators and the load axis")?;
+            let settings = NodalSettings {
+                far: Some(FarSettings::for_tool(args.radius_mm)),
+                ..NodalSettings::default()
+            };
+            let (mut m, _) = nodal::build(&s, &settings, &desc, |stage| {
+                eprintln!("palpa:       {stage} ({:.1} s)", pr.t0.elapsed().as_secs_f64());
+            })
+            .context("computing the vademecum")?;
+            let mut prov = m.provenance().clone();
+            prov.input_hash = format!("{:016x}", xxhash_rust::xxh3::xxh3_64(desc.as_bytes()));
+            m.set_provenance(prov);
+            file::save(&m, &vpath).with_context(|| format!("writing {}", vpath.display()))?;
+            m
+        }
+    };
+    pr.done();
+
+    pr.start(
+        "tradeoff",
+        if resumed_tradeoff { "from the build folder" } else { "held-out presses against full FE" },
+    );
+    let mut tradeoff_json = serde_json::Value::Null;
+    if !resumed_tradeoff {
+        let t = nodal_table(&model, &organ, args.element, material, args.radius_mm, args.held_out)
+            .context("measuring the tradeoff table")?;
+        model.set_tradeoff(t.header_rows());
+        file::save(&model, &vpath).with_context(|| format!("writing {}", vpath.display()))?;
+        tradeoff_json = json!({"fe_reference_s": t.fe_reference_s, "held_out": t.cases.len()});
+    }
+    let rows: Vec<_> = model
+        .tradeoff()
+        .iter()
+        .map(|r| {
+            json!({"modes": r.modes, "surface_rel_error": r.surface_rel_error,
+                   "compliance_rel_error": r.compliance_rel_error,
+                   "surface_max_nodal_error_mm": r.surface_max_nodal_error_mm,
+                   "surface_eval_us": r.surface_eval_us, "contact_eval_ns": r.contact_eval_ns,
+                   "bytes": r.bytes})
+        })
+        .collect();
+    pr.done();
+
+    let law_out = args.out.with_extension("law");
+    let law = match args.model {
+        TissueModel::Linear => None,
+        TissueModel::NeoHookean => Some(Law::NeoHookean),
+        TissueModel::Svk => Some(Law::Svk),
+    };
+    let mut law_json = serde_json::Value::Null;
+    if let Some(law) = law {
+        let lpath = dir.join("scene.law");
+        let key_path = dir.join("law.key");
+        let key = format!("{desc} law={}", law.name());
+        let cached = std::fs::read_to_string(&key_path).ok().as_deref() == Some(key.as_str())
+            && DepthLaw::load(&lpath).is_ok();
+        pr.start(
+            "force law",
+            if cached { "from the build folder" } else { law.name() },
+        );
+        if !cached {
+            let options = DepthLawOptions {
+                law,
+                material,
+                element: args.element,
+                tool_radius_mm: args.radius_mm,
+                ..DepthLawOptions::default()
+            };
+            let built = DepthLaw::build(&organ, options, &mut |k, n| {
+                eprint!("\rpalpa:       sample {k}/{n}   ");
+            })
+            .context("building the force law")?;
+            eprintln!();
+            built.save(&lpath)?;
+            palpa_core::fsutil::atomic_write(&key_path, |w| w.write_all(key.as_bytes()))
+                .with_context(|| format!("writing {}", key_path.display()))?;
+        }
+        let l = DepthLaw::load(&lpath)?;
+        law_json = json!({"law": law.name(), "samples": l.samples.len(),
+                          "depth_max_mm": l.options.depth_max_mm, "build_s": l.build_s});
+        pr.done();
+    } else {
+        pr.start("force law", "none (linear tissue)");
+        pr.done();
+    }
+
+    pr.start("scene", "surface rows, f32");
+    let nodes = organ.surface_nodes();
+    let scene = model
+        .select_nodes(&nodes)
+        .context("selecting the surface rows")?
+        .convert::<f32>();
+    file::save(&scene, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    match law {
+        Some(_) => {
+            let bytes = std::fs::read(dir.join("scene.law"))?;
+            palpa_core::fsutil::atomic_write(&law_out, |w| w.write_all(&bytes))
+                .with_context(|| format!("writing {}", law_out.display()))?;
+        }
+        // A law left from an earlier nonlinear build would make the app nonlinear.
+        None => {
+            if law_out.exists() {
+                std::fs::remove_file(&law_out)
+                    .with_context(|| format!("removing the old {}", law_out.display()))?;
+            }
+        }
+    }
+    pr.done();
+    std::fs::remove_dir_all(&dir).with_context(|| format!("removing {}", dir.display()))?;
+
+    let (lo, hi) = sr.bbox_mm;
+    let summary = json!({
+        "out": args.out,
+        "law_out": law.map(|_| &law_out),
+        "source": {
+            "file": sr.file_name, "xxh3": sr.source_xxh3, "format": sr.format,
+            "units": sr.units.name(), "axes": sr.axes.to_string(), "mirrored": sr.mirrored,
+            "vertices": sr.vertices, "triangles": sr.triangles, "welded": sr.welded,
+            "polygons_split": sr.polygons_split,
+            "holes_closed": sr.holes.closed, "hole_triangles_added": sr.holes.triangles_added,
+            "holes_left_open_edges": sr.holes.left_open,
+            "pieces_dropped_triangles": sr.pieces_dropped, "flipped": sr.flipped,
+            "bbox_mm": {"min": lo, "max": hi},
+            "enclosed_volume_ml": sr.enclosed_volume_mm3 / 1000.0,
+            "warnings": sr.warnings,
+        },
+        "mesh": {
+            "level": level.name(), "lattice_spacing_mm": organ.h_mm,
+            "vertices": organ.mesh.vertices.len(), "tetrahedra": organ.mesh.tets.len(),
+            "boundary_triangles": organ.boundary.len(),
+            "volume_ml": meshed_mm3 / 1000.0, "volume_rel_diff": volume_rel_diff,
+            "min_dihedral_deg": q.min_dihedral_deg, "max_dihedral_deg": q.max_dihedral_deg,
+            "inverted": q.inverted,
+        },
+        "regions": {
+            "description": regions_desc,
+            "fixed_vertices": organ.fixed.iter().filter(|&&f| f).count(),
+            "palpable_triangles": organ.palpable.iter().filter(|&&p| p).count(),
+        },
+        "modes": scene.modes(),
+        "tradeoff": {"rows": rows, "measured": tradeoff_json},
+        "force_law": law_json,
+        "resumed": {"vademecum": resumed_vademecum, "tradeoff": resumed_tradeoff},
+        "bytes": std::fs::metadata(&args.out).map(|m| m.len()).ok(),
+        "seconds": pr.times.iter().map(|(n, s)| (n.to_string(), json!(s))).collect::<serde_json::Map<_, _>>(),
+        "total_s": pr.t0.elapsed().as_secs_f64(),
+    });
+    super::args::print_report(&summary, args.json)
+}
