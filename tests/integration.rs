@@ -17,3 +17,4 @@ mod nodal_liver;
 mod pgd_liver;
 mod scene;
 mod surface_import;
+mod user_organ;

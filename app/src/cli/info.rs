@@ -32,7 +32,18 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             })
         })
         .collect();
+    // A scene built from a user's surface names its source in the provenance.
+    let desc = &m.provenance.mesh;
+    let get = |k| palpa_core::pgd::palpation::describe_get(desc, k);
+    let source = (get("organ") == Some("user")).then(|| {
+        json!({
+            "file": get("source"), "xxh3": get("source_xxh3"), "units": get("units"),
+            "axes": get("axes"), "regions": get("regions"), "level": get("level"),
+            "element": get("element"), "tool_radius_mm": get("radius_mm"),
+        })
+    });
     let summary = json!({
+        "source": source,
         "file": args.file,
         "kind": m.kind,
         "precision": h.precision.name(),

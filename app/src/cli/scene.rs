@@ -217,7 +217,8 @@ fn regions_of(args: &BuildArgs) -> anyhow::Result<(Selector, Selector, String)> 
         palpable.push(p);
         described.push(format!(
             "file:{}",
-            path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+            path.file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
         ));
     }
     if fixed.is_empty() {
@@ -318,7 +319,11 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     let resumed_tradeoff = cached.as_ref().is_some_and(|m| !m.tradeoff().is_empty());
     pr.start(
         "vademecum",
-        if resumed_vademecum { "from the build folder" } else { "nodal loads" },
+        if resumed_vademecum {
+            "from the build folder"
+        } else {
+            "nodal loads"
+        },
     );
     let mut model = match cached {
         Some(m) => m,
@@ -330,7 +335,10 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
                 ..NodalSettings::default()
             };
             let (mut m, _) = nodal::build(&s, &settings, &desc, |stage| {
-                eprintln!("palpa:       {stage} ({:.1} s)", pr.t0.elapsed().as_secs_f64());
+                eprintln!(
+                    "palpa:       {stage} ({:.1} s)",
+                    pr.t0.elapsed().as_secs_f64()
+                );
             })
             .context("computing the vademecum")?;
             let mut prov = m.provenance().clone();
@@ -344,12 +352,23 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
 
     pr.start(
         "tradeoff",
-        if resumed_tradeoff { "from the build folder" } else { "held-out presses against full FE" },
+        if resumed_tradeoff {
+            "from the build folder"
+        } else {
+            "held-out presses against full FE"
+        },
     );
     let mut tradeoff_json = serde_json::Value::Null;
     if !resumed_tradeoff {
-        let t = nodal_table(&model, &organ, args.element, material, args.radius_mm, args.held_out)
-            .context("measuring the tradeoff table")?;
+        let t = nodal_table(
+            &model,
+            &organ,
+            args.element,
+            material,
+            args.radius_mm,
+            args.held_out,
+        )
+        .context("measuring the tradeoff table")?;
         model.set_tradeoff(t.header_rows());
         file::save(&model, &vpath).with_context(|| format!("writing {}", vpath.display()))?;
         tradeoff_json = json!({"fe_reference_s": t.fe_reference_s, "held_out": t.cases.len()});
@@ -382,7 +401,11 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
             && DepthLaw::load(&lpath).is_ok();
         pr.start(
             "force law",
-            if cached { "from the build folder" } else { law.name() },
+            if cached {
+                "from the build folder"
+            } else {
+                law.name()
+            },
         );
         if !cached {
             let options = DepthLawOptions {

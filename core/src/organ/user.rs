@@ -70,7 +70,9 @@ pub enum UserOrganError {
          selectors, or paint a fixed region)"
     )]
     NoFixed,
-    #[error("no boundary triangle is palpable (give --palpable selectors, or paint a palpable region)")]
+    #[error(
+        "no boundary triangle is palpable (give --palpable selectors, or paint a palpable region)"
+    )]
     NoPalpable,
 }
 

@@ -131,7 +131,11 @@ impl TriSurface {
     /// Writes PLY, ASCII or binary little-endian, with a normal per vertex (which
     /// readers must skip) and faces as `uchar int` lists.
     pub fn write_ply(&self, w: &mut impl Write, binary: bool) -> io::Result<()> {
-        let format = if binary { "binary_little_endian" } else { "ascii" };
+        let format = if binary {
+            "binary_little_endian"
+        } else {
+            "ascii"
+        };
         write!(
             w,
             "ply\nformat {format} 1.0\ncomment written by palpa\nelement vertex {}\n\

@@ -1,0 +1,335 @@
+//! A user's organ from a surface file: every reader on files of every kind, units and
+//! axes, repairs, and the extremes (a sphere and an ellipsoid in cm and m against the
+//! volume formula, a triangle soup, polygons, a hole, inside-out, two pieces, a
+//! self-intersection, a huge coordinate, a thin organ).
+
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+use palpa_core::mesh::quality;
+use palpa_core::organ::user::{self, SurfaceOptions, UserOrganError};
+use palpa_core::organ::{Level, Selector, default_user_regions};
+use palpa_core::surface_import::frame::{Axes, Units};
+use palpa_core::surface_import::read::read;
+use palpa_core::surface_import::shapes::{ellipsoid, icosphere};
+use palpa_core::surface_import::{Format, SurfaceError, TriSurface};
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).expect("write");
+    p
+}
+
+fn options(units: Units) -> SurfaceOptions {
+    SurfaceOptions {
+        units,
+        axes: Axes::default(),
+        close_holes_max_edges: 0,
+        largest_component: false,
+    }
+}
+
+fn bytes_of(f: impl FnOnce(&mut Vec<u8>) -> std::io::Result<()>) -> Vec<u8> {
+    let mut v = Vec::new();
+    f(&mut v).expect("write to memory");
+    v
+}
+
+/// The same sphere as OBJ, binary STL, ASCII and binary PLY, under misleading names:
+/// the format is told by content and every reader gives the same closed surface.
+#[test]
+fn every_reader_reads_the_same_surface_by_content() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let s = ellipsoid(40.0, 30.0, 20.0, 2);
+    let files = [
+        ("a.obj", bytes_of(|w| s.write_obj(w)), Format::Obj),
+        (
+            "b.dat",
+            bytes_of(|w| s.write_stl_binary(w)),
+            Format::StlBinary,
+        ),
+        (
+            "c.txt",
+            bytes_of(|w| s.write_ply(w, false)),
+            Format::PlyAscii,
+        ),
+        (
+            "d.stl",
+            bytes_of(|w| s.write_ply(w, true)),
+            Format::PlyBinary,
+        ),
+    ];
+    for (name, bytes, format) in files {
+        let r = read(&write(dir.path(), name, &bytes)).expect(name);
+        assert_eq!(r.format, format, "{name}");
+        let mut got = r.surface;
+        assert_eq!(got.triangles.len(), s.triangles.len(), "{name}");
+        assert_eq!(
+            got.vertices.len(),
+            s.vertices.len(),
+            "{name}: welded to shared vertices"
+        );
+        got.validate().expect(name);
+        let rel = (got.volume() - s.volume()).abs() / s.volume();
+        assert!(rel < 1e-6, "{name}: volume off by {rel:e}");
+    }
+    // Binary STL stores every corner separately: all but one per vertex are welded.
+    let r = read(&write(
+        dir.path(),
+        "e.stl",
+        &bytes_of(|w| s.write_stl_binary(w)),
+    ))
+    .expect("stl");
+    assert_eq!(r.welded, 3 * s.triangles.len() - s.vertices.len());
+}
+
+/// What OBJ exporters write: normals, texture coordinates, groups, objects,
+/// materials, quads, and negative (relative) indices.
+#[test]
+fn obj_with_everything_exporters_write_reads_as_a_closed_cube() {
+    let text = "# exported\nmtllib cube.mtl\no Cube\ng skin\n\
+        v 0 0 0\nv 10 0 0\nv 0 10 0\nv 10 10 0\nv 0 0 10\nv 10 0 10\nv 0 10 10\nv 10 10 10\n\
+        vt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 -1\nusemtl red\ns off\n\
+        f 1/1/1 3/2/1 4/3/1 2/1/1\nf 5//1 6//1 8//1 7//1\nf -8/1 -7/2 -3/3 -4/1\n\
+        f 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+    let dir = tempfile::tempdir().expect("tempdir");
+    let r = read(&write(dir.path(), "cube.obj", text.as_bytes())).expect("obj");
+    assert_eq!(r.polygons_split, 6);
+    let mut s = r.surface;
+    assert_eq!(s.triangles.len(), 12);
+    s.validate().expect("closed cube");
+    assert!((s.volume() - 1000.0).abs() < 1e-9);
+}
+
+/// Spheres and ellipsoids in cm and in m become the right size in mm, their enclosed
+/// volume within 1 % of the formula (the polyhedron is inscribed) and the tetrahedral
+/// mesh's within 2 % of the enclosed one, with min dihedral ≥ 10°.
+#[test]
+fn spheres_and_ellipsoids_in_cm_and_m_mesh_to_the_right_volume() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (units, r_file) in [(Units::Cm, 5.0), (Units::M, 0.05)] {
+        for (name, (a, b, c)) in [("sphere", (1.0, 1.0, 1.0)), ("ellipsoid", (1.0, 0.75, 0.5))] {
+            let s = ellipsoid(a * r_file, b * r_file, c * r_file, 4);
+            let p = dir.path().join(format!("{name}-{}.stl", units.name()));
+            s.write_by_extension(&p).expect("write");
+            let (solid, rep) = user::prepare(&p, &options(units)).expect("prepare");
+            let r_mm = 50.0;
+            let exact = 4.0 / 3.0 * PI * (a * r_mm) * (b * r_mm) * (c * r_mm);
+            let enclosed = rep.enclosed_volume_mm3;
+            assert!(
+                (enclosed - exact).abs() / exact < 0.01,
+                "{name} in {}: {enclosed} mm³ vs {exact}",
+                units.name()
+            );
+            assert!(rep.warnings.is_empty(), "{:?}", rep.warnings);
+            let (fixed, _) = default_user_regions();
+            let organ =
+                user::mesh(&solid, Level::Coarse, &fixed, &Selector::Everything).expect("mesh");
+            let meshed = organ.mesh.volume();
+            assert!(
+                (meshed - enclosed).abs() / enclosed < 0.02,
+                "{name} in {}: meshed {meshed} vs {enclosed}",
+                units.name()
+            );
+            let q = quality(&organ.mesh);
+            assert!(q.min_dihedral_deg >= 10.0 && q.inverted == 0, "{q:?}");
+        }
+    }
+}
+
+/// The same sphere read as mm (0.05 m taken for mm) is flagged as the wrong unit.
+#[test]
+fn a_size_that_looks_like_another_unit_is_flagged() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = dir.path().join("tiny.obj");
+    ellipsoid(0.05, 0.05, 0.05, 2)
+        .write_by_extension(&p)
+        .expect("write");
+    let (_, rep) = user::prepare(&p, &options(Units::Mm)).expect("prepare");
+    assert!(
+        rep.warnings.iter().any(|w| w.contains("larger units")),
+        "{:?}",
+        rep.warnings
+    );
+}
+
+/// Axes: a surface in cm with y up and −z anterior lands with its long axis on the
+/// patient's z and its front on +y.
+#[test]
+fn axes_map_the_file_frame_to_the_patient() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = dir.path().join("e.ply");
+    // Long along file y (up), thin along file z.
+    ellipsoid(3.0, 6.0, 1.5, 2)
+        .write_by_extension(&p)
+        .expect("write");
+    let o = SurfaceOptions {
+        axes: Axes::from_up_anterior("y", "-z").expect("axes"),
+        ..options(Units::Cm)
+    };
+    let (_, rep) = user::prepare(&p, &o).expect("prepare");
+    let (lo, hi) = rep.bbox_mm;
+    assert!((hi[2] - lo[2] - 120.0).abs() < 1e-6, "z span {lo:?} {hi:?}");
+    assert!((hi[1] - lo[1] - 30.0).abs() < 1e-6, "y span");
+    assert!((hi[0] - lo[0] - 60.0).abs() < 1e-6, "x span");
+    assert!(!rep.mirrored && !rep.flipped);
+}
+
+#[test]
+fn a_hole_is_an_error_until_closed_and_the_closing_is_reported() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut s = icosphere(3);
+    // Remove the five triangles around vertex 0: a pentagonal hole.
+    s.triangles.retain(|t| !t.contains(&0));
+    let p = dir.path().join("holed.obj");
+    s.write_by_extension(&p).expect("write");
+    let e = user::prepare(&p, &options(Units::Cm)).expect_err("open");
+    assert!(
+        e.to_string().contains("hole") && e.to_string().contains("--close-holes"),
+        "{e}"
+    );
+    let (_, rep) = user::prepare(
+        &p,
+        &SurfaceOptions {
+            close_holes_max_edges: 8,
+            ..options(Units::Cm)
+        },
+    )
+    .expect("closed");
+    assert_eq!(rep.holes.closed, 1);
+    assert_eq!(rep.holes.triangles_added, 5);
+    // A limit below the hole's size leaves it, and says so.
+    let e = user::prepare(
+        &p,
+        &SurfaceOptions {
+            close_holes_max_edges: 4,
+            ..options(Units::Cm)
+        },
+    )
+    .expect_err("too large");
+    assert!(e.to_string().contains("hole"), "{e}");
+}
+
+#[test]
+fn an_inside_out_surface_is_turned_outward_and_reported() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut s = icosphere(2);
+    for t in &mut s.triangles {
+        t.swap(1, 2);
+    }
+    let p = dir.path().join("inside-out.obj");
+    s.write_by_extension(&p).expect("write");
+    let (solid, rep) = user::prepare(&p, &options(Units::Cm)).expect("prepare");
+    assert!(rep.flipped);
+    assert!(rep.warnings.iter().any(|w| w.contains("inside-out")));
+    assert!(solid.surface().volume() > 0.0);
+}
+
+#[test]
+fn two_pieces_are_refused_then_the_largest_kept_on_request() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let big = icosphere(2);
+    let mut small = ellipsoid(0.3, 0.3, 0.3, 1);
+    for v in &mut small.vertices {
+        v[0] += 3.0;
+    }
+    let n = big.vertices.len() as u32;
+    let s = TriSurface {
+        vertices: big
+            .vertices
+            .iter()
+            .chain(&small.vertices)
+            .copied()
+            .collect(),
+        triangles: big
+            .triangles
+            .iter()
+            .copied()
+            .chain(small.triangles.iter().map(|t| t.map(|i| i + n)))
+            .collect(),
+    };
+    let p = dir.path().join("two.obj");
+    s.write_by_extension(&p).expect("write");
+    let e = user::prepare(&p, &options(Units::Cm)).expect_err("two pieces");
+    assert!(
+        matches!(
+            e,
+            UserOrganError::Surface(SurfaceError::Components { count: 2, .. })
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("--largest-component"), "{e}");
+    let (_, rep) = user::prepare(
+        &p,
+        &SurfaceOptions {
+            largest_component: true,
+            ..options(Units::Cm)
+        },
+    )
+    .expect("largest");
+    assert_eq!(rep.pieces_dropped, vec![80]);
+    assert_eq!(rep.triangles, 320);
+}
+
+/// A closed surface whose faces cross, and a coordinate of 1e308: named, not meshed.
+#[test]
+fn crossing_faces_and_huge_coordinates_are_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut s = icosphere(2);
+    // Pull one vertex through the far side.
+    s.vertices[0] = s.vertices[0].map(|c| -2.0 * c);
+    let p = dir.path().join("crossing.obj");
+    s.write_by_extension(&p).expect("write");
+    let e = user::prepare(&p, &options(Units::Cm)).expect_err("crossing");
+    assert!(e.to_string().contains("intersects itself"), "{e}");
+    let mut s = icosphere(1);
+    s.vertices[3] = [1e308, 0.0, 0.0];
+    let p = dir.path().join("huge.obj");
+    std::fs::write(&p, bytes_of(|w| s.write_obj(w))).expect("write");
+    let e = user::prepare(&p, &options(Units::Mm)).expect_err("huge");
+    assert!(e.to_string().contains("out of range"), "{e}");
+}
+
+/// A plate 1 mm thick and 100 mm wide is thinner than the coarse lattice: said so.
+#[test]
+fn an_organ_thinner_than_the_lattice_says_so() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = dir.path().join("plate.obj");
+    ellipsoid(50.0, 50.0, 0.5, 3)
+        .write_by_extension(&p)
+        .expect("write");
+    let (solid, _) = user::prepare(&p, &options(Units::Mm)).expect("prepare");
+    let e = user::mesh(
+        &solid,
+        Level::Coarse,
+        &Selector::Everything,
+        &Selector::Everything,
+    )
+    .expect_err("thin");
+    assert!(matches!(e, UserOrganError::TooThin { .. }), "{e}");
+    assert!(e.to_string().contains("finer level"), "{e}");
+}
+
+#[test]
+fn regions_that_fix_nothing_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = dir.path().join("s.obj");
+    icosphere(3).write_by_extension(&p).expect("write");
+    let (solid, _) = user::prepare(&p, &options(Units::Cm)).expect("prepare");
+    let e = user::mesh(
+        &solid,
+        Level::Coarse,
+        &Selector::Nothing,
+        &Selector::Everything,
+    )
+    .expect_err("free");
+    assert!(e.to_string().contains("free to move"), "{e}");
+    let e = user::mesh(
+        &solid,
+        Level::Coarse,
+        &Selector::Everything,
+        &Selector::Everything,
+    )
+    .expect_err("nothing palpable");
+    assert!(matches!(e, UserOrganError::NoPalpable), "{e}");
+}
