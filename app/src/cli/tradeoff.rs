@@ -42,16 +42,18 @@ pub struct TradeoffArgs {
 }
 
 pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
-    let model = file::load::<f64>(&args.file)
-        .with_context(|| format!("loading {}", args.file.display()))?;
-    let desc = model.provenance().mesh.clone();
-    if describe_get(&desc, "organ") == Some("user") {
+    let header = file::read_header(&args.file)
+        .with_context(|| format!("reading the header of {}", args.file.display()))?;
+    if describe_get(&header.meta.provenance.mesh, "organ") == Some("user") {
         bail!(
             "{}: a scene built from a surface file by `palpa scene build`, which measured its \
              table then (`palpa info` shows it); rebuild it with `palpa scene build` to measure again",
             args.file.display()
         );
     }
+    let model = file::load::<f64>(&args.file)
+        .with_context(|| format!("loading {}", args.file.display()))?;
+    let desc = model.provenance().mesh.clone();
     let level: LevelArg = match describe_get(&desc, "level") {
         Some("coarse") => LevelArg::Coarse,
         Some("medium") => LevelArg::Medium,

@@ -1,0 +1,221 @@
+//! `palpa scene build` end to end: a surface made here → scene, interrupted with
+//! `kill -9` and resumed, described by `palpa info`, opened by the app offscreen;
+//! regions from selectors and from a region file.
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+fn palpa(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(args)
+        .output()
+        .expect("palpa runs")
+}
+
+fn ok(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    // One JSON line last, or one (pretty) JSON document.
+    serde_json::from_str(text.lines().last().expect("a line"))
+        .or_else(|_| serde_json::from_str(&text))
+        .expect("json")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+#[test]
+fn a_scene_builds_from_a_surface_resumes_after_kill_and_opens() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let surface = dir.path().join("e.ply");
+    let scene = dir.path().join("e.palpa");
+    ok(&palpa(&[
+        "scene",
+        "shape",
+        "ellipsoid",
+        "--size",
+        "4",
+        "--out",
+        s(&surface),
+    ]));
+    let args = [
+        "scene",
+        "build",
+        "--surface",
+        s(&surface),
+        "--units",
+        "cm",
+        "--element",
+        "p1",
+        "--held-out",
+        "4",
+        "--out",
+        s(&scene),
+        "--json",
+    ];
+    // Kill the first run as soon as the vademecum stage is over.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let stderr = BufReader::new(child.stderr.take().expect("stderr"));
+    let mut seen = Vec::new();
+    for line in stderr.lines() {
+        let line = line.expect("line");
+        let at_tradeoff = line.contains("[4/6] tradeoff");
+        seen.push(line);
+        if at_tradeoff {
+            child.kill().expect("kill -9");
+            break;
+        }
+    }
+    let _ = child.wait();
+    let build_dir = dir.path().join("e.palpa.build");
+    assert!(
+        build_dir.join("vademecum.palpa").exists(),
+        "the finished stage is kept: {seen:?}"
+    );
+    assert!(!scene.exists(), "no scene before the last stage");
+
+    let v = ok(&palpa(&args));
+    assert_eq!(v["resumed"]["vademecum"], true, "{v}");
+    assert!(scene.exists() && !build_dir.exists());
+    let vol = v["mesh"]["volume_rel_diff"].as_f64().expect("volume");
+    assert!(vol.abs() < 0.02, "{v}");
+    assert_eq!(v["source"]["format"], "ply (binary)");
+    assert!(
+        v["tradeoff"]["rows"]
+            .as_array()
+            .is_some_and(|r| !r.is_empty()),
+        "{v}"
+    );
+    for stage in [
+        "surface",
+        "mesh",
+        "vademecum",
+        "tradeoff",
+        "force law",
+        "scene",
+    ] {
+        assert!(v["seconds"][stage].is_number(), "{stage}: {v}");
+    }
+
+    let info = ok(&palpa(&["info", s(&scene), "--json"]));
+    assert_eq!(info["source"]["file"], "e.ply");
+    assert_eq!(info["source"]["units"], "cm");
+    assert!(info["tradeoff_rows"].as_u64().is_some_and(|n| n > 0));
+
+    // The app opens it (offscreen, on the software adapter) and presses it.
+    let h = ok(&palpa(&[
+        "headless",
+        "--scene",
+        s(&scene),
+        "--frames",
+        "4",
+        "--size",
+        "320x240",
+        "--no-ui",
+        "--json",
+    ]));
+    assert!(h.is_object(), "{h}");
+
+    // `palpa tradeoff` does not pretend to re-measure a surface scene.
+    let out = palpa(&["tradeoff", s(&scene)]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("scene build"));
+}
+
+#[test]
+fn regions_come_from_selectors_and_region_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let surface = dir.path().join("s.obj");
+    ok(&palpa(&[
+        "scene",
+        "shape",
+        "sphere",
+        "--size",
+        "40",
+        "--subdivisions",
+        "3",
+        "--out",
+        s(&surface),
+    ]));
+    let build = |extra: &[&str], out: &str| {
+        let scene = dir.path().join(out);
+        let mut a = vec![
+            "scene",
+            "build",
+            "--surface",
+            s(&surface),
+            "--units",
+            "mm",
+            "--element",
+            "p1",
+            "--held-out",
+            "2",
+            "--out",
+        ];
+        let scene_s = s(&scene).to_string();
+        a.push(&scene_s);
+        a.push("--json");
+        a.extend_from_slice(extra);
+        palpa(&a)
+    };
+    // The lower half fixed, the front half palpable.
+    let v = ok(&build(
+        &[
+            "--fixed",
+            "half:0,0,0:inferior",
+            "--palpable",
+            "normal:anterior:60",
+        ],
+        "a.palpa",
+    ));
+    let fixed_a = v["regions"]["fixed_vertices"].as_u64().expect("count");
+    let palp_a = v["regions"]["palpable_triangles"].as_u64().expect("count");
+    assert!(fixed_a > 0 && palp_a > 0, "{v}");
+    // The same regions painted: the file's points are the old scene's classification.
+    let regions = dir.path().join("r.toml");
+    let mut fixed_pts = String::new();
+    for k in 0..200 {
+        // Points on the lower hemisphere, spread by the golden angle.
+        let z = -40.0 * (k as f64 + 0.5) / 200.0;
+        let r = (40.0f64 * 40.0 - z * z).sqrt();
+        let a = k as f64 * 2.399_963;
+        fixed_pts += &format!("[{}, {}, {}],", r * a.cos(), r * a.sin(), z);
+    }
+    std::fs::write(
+        &regions,
+        format!(
+            "version = 1\nmatch_radius_mm = 8.0\nfixed_points = [{fixed_pts}]\n\
+             palpable_selectors = [\"normal:anterior:60\"]\n"
+        ),
+    )
+    .expect("write");
+    let v = ok(&build(&["--regions", s(&regions)], "b.palpa"));
+    let fixed_b = v["regions"]["fixed_vertices"].as_u64().expect("count");
+    assert!(
+        fixed_b.abs_diff(fixed_a) < fixed_a / 5,
+        "painted {fixed_b} vs selected {fixed_a}"
+    );
+    // Bad selectors and region files fail naming the problem.
+    let out = build(&["--fixed", "normal:up:45"], "c.palpa");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a direction"));
+    std::fs::write(&regions, "version = 1\nmatch_radius_mm = 8.0\n").expect("write");
+    let out = build(&["--regions", s(&regions)], "d.palpa");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("free to move"));
+    // Selecting nothing to fix is refused before any solving.
+    let out = build(&["--fixed", "none"], "e.palpa");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("free to move"));
+}
