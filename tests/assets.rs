@@ -66,3 +66,69 @@ fn the_default_scene_matches_the_current_mesh_and_settings() {
     // A phone budget of 20 MB.
     assert!(std::fs::metadata(&path).expect("size").len() < 20_000_000);
 }
+
+/// The kidney example in `assets/kidney/` comes from the shipped surface with the
+/// arguments of `scripts/make-kidney.sh`: its recorded source hash is the surface
+/// file's, and re-meshing the surface with those arguments gives the recorded mesh.
+#[test]
+fn the_kidney_example_matches_its_shipped_surface() {
+    use palpa_core::organ::syntax::parse;
+    use palpa_core::organ::user::{self, SurfaceOptions};
+    use palpa_core::pgd::palpation::describe_user;
+    use palpa_core::surface_import::frame::{Axes, Units};
+
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/kidney");
+    let scene =
+        file::load::<f32>(&root.join("kidney-coarse.palpa")).expect("the kidney scene loads");
+    let desc = &scene.provenance().mesh;
+    let surface = root.join("kidney.obj");
+    let bytes = std::fs::read(&surface).expect("the kidney surface is shipped");
+    assert_eq!(
+        describe_get(desc, "source_xxh3"),
+        Some(format!("{:016x}", xxhash_rust::xxh3::xxh3_64(&bytes)).as_str()),
+        "the scene was built from another surface: run scripts/make-kidney.sh"
+    );
+    let (solid, report) = user::prepare(
+        &surface,
+        &SurfaceOptions {
+            units: Units::Cm,
+            axes: Axes::from_up_anterior("y", "z").expect("axes"),
+            close_holes_max_edges: 0,
+            largest_component: false,
+        },
+    )
+    .expect("the kidney surface is a closed manifold");
+    // 11 × 6 × 4 cm.
+    let (lo, hi) = report.bbox_mm;
+    assert!((hi[2] - lo[2] - 110.0).abs() < 1e-6, "{lo:?} {hi:?}");
+    let fixed = parse("normal:posterior:50").expect("selector");
+    let palpable = parse("normal:anterior:85").expect("selector");
+    let organ = user::mesh(
+        &solid,
+        Level::Coarse,
+        &palpa_core::organ::Selector::Any(vec![fixed]),
+        &palpa_core::organ::Selector::Any(vec![palpable]),
+    )
+    .expect("meshes");
+    let regions = describe_get(desc, "regions").expect("regions recorded");
+    let source = format!(
+        "source=kidney.obj source_xxh3={} units=cm axes={} regions={regions}",
+        report.source_xxh3, report.axes
+    );
+    let now = describe_user(
+        &organ,
+        "coarse",
+        Element::P2,
+        Material::default(),
+        5.0,
+        &source,
+    );
+    assert_eq!(
+        desc, &now,
+        "the kidney scene is stale: run scripts/make-kidney.sh"
+    );
+    assert!(
+        !scene.tradeoff().is_empty(),
+        "the scene carries its tradeoff table"
+    );
+}

@@ -174,6 +174,14 @@ impl Controls {
         }
     }
 
+    /// Stops pressing (the probe stays where it is, at no depth).
+    pub fn release_probe(&mut self) {
+        self.pressing = false;
+        self.depth_mm = 0.0;
+        self.trigger_pressing = false;
+        self.gesture = Gesture::None;
+    }
+
     /// The command for the force loop.
     pub fn command(&self) -> ProbeCommand {
         let Some(p) = self.probe else {

@@ -284,6 +284,7 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
             get("element")
         ));
     });
+    ui.collapsing("Regions", |ui| regions(ui, session, hud));
     ui.horizontal(|ui| {
         if ui.button("Screenshot").clicked() {
             hud.screenshot_requested = true;
@@ -295,6 +296,67 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     if let Some(p) = &hud.last_screenshot {
         ui.label(format!("saved {p}"));
     }
+}
+
+/// Where a scene's painted regions are saved: `X.regions.toml` beside a scene file
+/// `X.palpa`, or `NAME.regions.toml` in the working folder for a built-in scene.
+pub fn regions_path(scene_source: &str) -> std::path::PathBuf {
+    let p = std::path::Path::new(scene_source);
+    let stem = p
+        .file_stem()
+        .map_or_else(|| "scene".into(), |s| s.to_string_lossy());
+    p.with_file_name(format!("{stem}.regions.toml"))
+}
+
+/// The region painter: brush, radius, undo, save, and the warning when the regions
+/// would leave the organ free to move.
+fn regions(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
+    use crate::session::paint::Label;
+    let mut on = session.painter.is_some();
+    ui.checkbox(
+        &mut on,
+        "paint regions (left-drag on the organ paints, off it orbits)",
+    );
+    session.set_painting(on);
+    let Some(p) = session.painter.as_mut() else {
+        return;
+    };
+    ui.horizontal(|ui| {
+        ui.radio_value(&mut p.brush, Label::Fixed, "fixed");
+        ui.radio_value(&mut p.brush, Label::Palpable, "palpable");
+        ui.radio_value(&mut p.brush, Label::Neither, "neither");
+    });
+    ui.add(egui::Slider::new(&mut p.radius_mm, 1.0..=40.0).text("brush radius (mm)"));
+    let (fixed, palpable) = p.counts();
+    ui.label(format!("{fixed} triangles fixed, {palpable} palpable"));
+    if let Some(w) = p.warning() {
+        ui.colored_label(Color32::from_rgb(230, 170, 60), w);
+    }
+    let path = regions_path(&hud.scene_source);
+    ui.horizontal(|ui| {
+        if ui
+            .add_enabled(p.can_undo(), egui::Button::new("Undo"))
+            .clicked()
+        {
+            p.undo();
+        }
+        if ui
+            .button("Save")
+            .on_hover_text(path.display().to_string())
+            .clicked()
+        {
+            hud.message = Some(match p.region_file(&hud.scene_source) {
+                Ok(file) => match file.save(&path) {
+                    Ok(()) => format!(
+                        "regions saved to {} (palpa scene build --regions reads it)",
+                        path.display()
+                    ),
+                    Err(e) => format!("regions not saved: {e}"),
+                },
+                Err(why) => format!("regions not saved: {why}"),
+            });
+        }
+    });
 }
 
 fn force_plot(ui: &mut egui::Ui, session: &Session) {
@@ -388,6 +450,10 @@ fn help(ui: &mut egui::Ui) {
             ("Pan", "right- or middle-drag · two-finger drag"),
             ("Zoom", "wheel · pinch"),
             ("Colormap", "C"),
+            (
+                "Paint regions",
+                "Regions ▸ paint: left-drag marks fixed / palpable / neither; Save writes X.regions.toml for palpa scene build --regions",
+            ),
             ("Help", "H or F1"),
         ] {
             ui.label(what);

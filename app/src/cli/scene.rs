@@ -209,7 +209,19 @@ fn regions_of(args: &BuildArgs) -> anyhow::Result<(Selector, Selector, String)> 
     };
     let mut fixed = parse(&args.fixed)?;
     let mut palpable = parse(&args.palpable)?;
-    let mut described = Vec::new();
+    // `fixed[EXPR]`, `palpable[EXPR]`, `file[NAME]`: what `palpa info` shows (the
+    // provenance is whitespace-separated, so whitespace is dropped).
+    let bare = |e: &str| e.split_whitespace().collect::<String>();
+    let mut described: Vec<String> = args
+        .fixed
+        .iter()
+        .map(|e| format!("fixed[{}]", bare(e)))
+        .chain(
+            args.palpable
+                .iter()
+                .map(|e| format!("palpable[{}]", bare(e))),
+        )
+        .collect();
     if let Some(path) = &args.regions {
         let r = RegionFile::load(path)?;
         let (f, p) = r.selectors(path)?;
@@ -223,16 +235,16 @@ fn regions_of(args: &BuildArgs) -> anyhow::Result<(Selector, Selector, String)> 
     }
     if fixed.is_empty() {
         fixed.push(palpa_core::organ::default_user_regions().0);
-        described.push("fixed:default".into());
+        described.push("fixed[default:normal:posterior:45]".into());
     }
     if palpable.is_empty() {
         palpable.push(Selector::Everything);
-        described.push("palpable:default".into());
+        described.push("palpable[default:all]".into());
     }
     // Region hash: the selectors as data (so a changed selector rebuilds).
     let data = format!("{fixed:?}{palpable:?}");
     described.push(format!(
-        "xxh3:{:016x}",
+        "xxh3[{:016x}]",
         xxhash_rust::xxh3::xxh3_64(data.as_bytes())
     ));
     Ok((

@@ -80,6 +80,9 @@ pub struct FrameInput<'a> {
     /// Colour by displacement magnitude, with this value (mm) at the top of the scale.
     pub colormap_mm: Option<f32>,
     pub probe: Option<ProbeVisual>,
+    /// The region mode: per render vertex 0 neither, 1 palpable, 2 fixed, and a
+    /// generation that changes when they do (`None`: the normal colours).
+    pub regions: Option<(&'a [f32], u64)>,
 }
 
 /// Pipelines and buffers for one scene and one target format.
@@ -87,6 +90,10 @@ pub struct FrameInput<'a> {
 pub struct Renderer {
     pub deform: Deform,
     palpable: wgpu::Buffer,
+    /// The scene's own palpable flags, and the region generation the buffer holds
+    /// (0: those flags).
+    palpable_rest: Vec<f32>,
+    regions_generation: u64,
     indices: wgpu::Buffer,
     index_count: u32,
     frame: wgpu::Buffer,
@@ -112,10 +119,11 @@ impl Renderer {
             .iter()
             .map(|&p| f32::from(u8::from(p)))
             .collect();
+        let palpable_rest = palpable.clone();
         let palpable = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("palpable flags"),
             contents: bytemuck::cast_slice(&palpable),
-            usage: wgpu::BufferUsages::VERTEX,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
         });
         let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("surface triangles"),
@@ -172,6 +180,8 @@ impl Renderer {
         Renderer {
             deform,
             palpable,
+            palpable_rest,
+            regions_generation: 0,
             indices,
             index_count: 3 * scene.triangles().len() as u32,
             frame,
@@ -226,12 +236,23 @@ impl Renderer {
             colormap: [
                 f32::from(u8::from(input.colormap_mm.is_some())),
                 input.colormap_mm.unwrap_or(1.0),
-                0.0,
+                f32::from(u8::from(input.regions.is_some())),
                 0.0,
             ],
             center: center.extend(0.0).to_array(),
         };
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
+        match input.regions {
+            Some((values, generation)) if generation != self.regions_generation => {
+                queue.write_buffer(&self.palpable, 0, bytemuck::cast_slice(values));
+                self.regions_generation = generation;
+            }
+            None if self.regions_generation != 0 => {
+                queue.write_buffer(&self.palpable, 0, bytemuck::cast_slice(&self.palpable_rest));
+                self.regions_generation = 0;
+            }
+            _ => {}
+        }
         self.deform.set_coefficients(queue, input.coeffs);
         self.deform.set_near(queue, input.near_mm);
         let objects = self.object_uniforms(input.probe.as_ref());

@@ -22,7 +22,9 @@ use crate::render::{FrameInput, ProbeVisual};
 use crate::stats::Ring;
 
 mod deformation;
+pub mod paint;
 use deformation::Deformation;
+use paint::Painter;
 
 /// Radius of the probe tool, mm (the load radius the vademecum was computed with).
 pub const TOOL_RADIUS_MM: f32 = 5.0;
@@ -45,6 +47,10 @@ pub struct Session {
     pub force_history: Ring2,
     /// Where the mouse last was (mouse button events carry no position).
     pub last_pointer_px: Vec2,
+    /// Region painting (`Some` while the region mode is on): the pointer paints
+    /// instead of pressing.
+    pub painter: Option<Painter>,
+    region_values: (Vec<f32>, u64),
     started: Instant,
     deformation: Deformation,
 }
@@ -101,13 +107,74 @@ impl Session {
                 y: Ring::new(2000),
             },
             last_pointer_px: Vec2::ZERO,
+            painter: None,
+            region_values: (Vec::new(), 0),
             started: Instant::now(),
             deformation,
         })
     }
 
+    /// Turns the region mode on (the probe is lifted) or off.
+    pub fn set_painting(&mut self, on: bool) {
+        match (on, self.painter.is_some()) {
+            (true, false) => {
+                self.controls.release_probe();
+                self.painter = Some(Painter::new(&self.scene));
+            }
+            (false, true) => self.painter = None,
+            _ => {}
+        }
+    }
+
+    /// In the region mode: the primary pointer paints; returns whether it took the event.
+    fn paint_event(&mut self, ev: &InputEvent, viewport_px: Vec2) -> bool {
+        use crate::input::Button;
+        let Some(painter) = self.painter.as_mut() else {
+            return false;
+        };
+        let (pos, starts) = match *ev {
+            InputEvent::PointerDown {
+                button: Button::Primary,
+                pos_px,
+                ..
+            } => (pos_px, true),
+            InputEvent::PointerMove { pos_px, .. } if painter.stroking() => (pos_px, false),
+            InputEvent::PointerUp { .. } if painter.stroking() => {
+                painter.end_stroke();
+                return true;
+            }
+            _ => return false,
+        };
+        let ray = self.controls.camera.ray(pos, viewport_px);
+        let shown = self.deformation.last_deformed_mm();
+        let hit = crate::pick::intersect(&ray, shown, self.scene.triangles());
+        if starts {
+            // A press off the organ orbits, as it does outside the region mode.
+            if hit.is_none() {
+                return false;
+            }
+            painter.begin_stroke();
+        }
+        if let Some((t, bary, _)) = hit {
+            // Paint at the rest position of the point hit (the brush works on rest
+            // centroids, which is what a region file stores).
+            let rest = self.scene.vertices_mm();
+            let tri = self.scene.triangles()[t as usize];
+            let at = [0, 1, 2].map(|d| {
+                (0..3)
+                    .map(|k| bary[k] as f32 * rest[tri[k] as usize][d])
+                    .sum::<f32>()
+            });
+            painter.paint(at);
+        }
+        true
+    }
+
     /// Handles one input event (picking against the currently shown deformation).
     pub fn handle(&mut self, ev: InputEvent, viewport_px: Vec2) {
+        if self.paint_event(&ev, viewport_px) {
+            return;
+        }
         if let InputEvent::PointerMove {
             id: crate::input::PointerId::Mouse,
             pos_px,
@@ -182,7 +249,16 @@ impl Session {
         self.force_history
             .y
             .push(if ok { f64::from(s.magnitude_n) } else { 0.0 });
+        if let Some(p) = &self.painter
+            && p.generation != self.region_values.1
+        {
+            self.region_values = (p.vertex_values(&self.scene), p.generation);
+        }
         FrameInput {
+            regions: self
+                .painter
+                .as_ref()
+                .map(|_| (self.region_values.0.as_slice(), self.region_values.1)),
             camera: &self.controls.camera,
             coeffs: self.deformation.coeffs(),
             near_mm: self.deformation.near_gpu(),
