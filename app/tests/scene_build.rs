@@ -214,6 +214,21 @@ fn regions_come_from_selectors_and_region_files() {
     let out = build(&["--regions", s(&regions)], "d.palpa");
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("free to move"));
+    // The other commands that take a surface need its unit too.
+    let out = palpa(&["mesh", "--surface", s(&surface), "--json"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--units"));
+    let m = ok(&palpa(&[
+        "mesh",
+        "--surface",
+        s(&surface),
+        "--units",
+        "mm",
+        "--json",
+    ]));
+    let ml = m["volume_ml"].as_f64().expect("volume");
+    let exact = 4.0 / 3.0 * std::f64::consts::PI * 40f64.powi(3) / 1000.0;
+    assert!((ml - exact).abs() / exact < 0.03, "{ml} ml vs {exact}");
     // Selecting nothing to fix is refused before any solving.
     let out = build(&["--fixed", "none"], "e.palpa");
     assert!(!out.status.success());

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::bail;
+use anyhow::{Context, bail};
 use clap::Args;
 
 use super::organ::{LevelArg, OrganName};
@@ -14,15 +14,44 @@ pub struct OrganArgs {
     pub organ: OrganName,
     #[arg(long, value_enum, default_value = "coarse")]
     pub level: LevelArg,
-    /// A closed surface (OBJ, or ASCII/binary STL, in mm) to mesh instead of the organ;
-    /// fixed = posterior-facing (−y) surface, palpable = anterior/inferior.
-    #[arg(long)]
+    /// A closed surface (OBJ, STL or PLY) to mesh instead of the organ; fixed =
+    /// posterior-facing (−y) surface, palpable = anterior/inferior (`palpa scene build`
+    /// chooses regions).
+    #[arg(long, requires = "units")]
     pub surface: Option<PathBuf>,
+    /// The surface file's length unit: mm, cm or m.
+    #[arg(long)]
+    pub units: Option<palpa_core::surface_import::frame::Units>,
+    /// The surface file's axes that become the patient's x, y, z (e.g. `x,-z,y`).
+    #[arg(long, requires = "surface")]
+    pub axes: Option<String>,
 }
 
 impl OrganArgs {
     pub fn mesh(&self) -> anyhow::Result<palpa_core::organ::OrganMesh> {
-        super::organ::mesh(self.organ, self.level, self.surface.as_deref())
+        use palpa_core::organ::user::{self, SurfaceOptions};
+        use palpa_core::surface_import::frame::{Axes, Units};
+        let Some(path) = &self.surface else {
+            return super::organ::mesh(self.organ, self.level, None);
+        };
+        let axes = match &self.axes {
+            Some(a) => Axes::parse(a).map_err(anyhow::Error::msg)?,
+            None => Axes::default(),
+        };
+        let options = SurfaceOptions {
+            units: self.units.unwrap_or(Units::Mm),
+            axes,
+            close_holes_max_edges: 0,
+            largest_component: false,
+        };
+        let (solid, report) = user::prepare(path, &options)
+            .with_context(|| format!("preparing {}", path.display()))?;
+        for w in &report.warnings {
+            eprintln!("palpa: warning: {w}");
+        }
+        let (fixed, palpable) = palpa_core::organ::default_user_regions();
+        Ok(user::mesh(&solid, self.level.into(), &fixed, &palpable)
+            .with_context(|| format!("meshing {}", path.display()))?)
     }
 }
 
