@@ -13,6 +13,10 @@ if cargo deny --version >/dev/null 2>&1; then
 else
   echo "check.sh: skipping cargo deny (not installed; 'cargo install cargo-deny --locked')"
 fi
+# Every reader fuzzed briefly (cargo-fuzz; PALPA_FUZZ_SECONDS each, 0 to skip).
+if [ "${PALPA_FUZZ_SECONDS:-10}" != 0 ]; then
+  scripts/fuzz.sh --ci "${PALPA_FUZZ_SECONDS:-10}"
+fi
 # Mobile targets: type-check only, and only where the target is installed (never in CI).
 for t in aarch64-linux-android aarch64-apple-ios; do
   if rustup target list --installed 2>/dev/null | grep -qx "$t"; then

@@ -1,21 +1,46 @@
 #!/usr/bin/env bash
-# Fuzzes a reader for a while (default 60 s): scripts/fuzz.sh [SECONDS] [TARGET]
-# TARGET: load_model (the meta-model loader, default), network_file (SBML and TOML),
-# surface_file (OBJ, STL, PLY) or regions (region files and selectors).
+# Fuzzes the readers with cargo-fuzz (libFuzzer).
+#   scripts/fuzz.sh [SECONDS] [TARGET]   one target for a while (default 60 s, load_model)
+#   scripts/fuzz.sh --ci [SECONDS]       every target briefly (default 10 s each), with
+#                                        the number of inputs each ran
+# TARGETS: load_model (meta-model files of every kind), network_file (SBML and TOML),
+# surface_file (OBJ, STL, PLY), regions (region files and selectors).
 # Needs cargo-fuzz (installed here if missing). On a stable toolchain cargo-fuzz's
-# sanitizer flags need RUSTC_BOOTSTRAP=1.
+# sanitizer flags need RUSTC_BOOTSTRAP=1. A crash is saved under fuzz/artifacts/TARGET/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-secs="${1:-60}"
-target="${2:-load_model}"
+targets=(load_model network_file surface_file regions)
+if [ "${1:-}" = "--ci" ]; then
+  ci=1
+  secs="${2:-10}"
+else
+  ci=0
+  secs="${1:-60}"
+  targets=("${2:-load_model}")
+fi
 command -v cargo-fuzz >/dev/null 2>&1 || cargo install --locked cargo-fuzz
-mkdir -p fuzz/corpus/load_model fuzz/corpus/network_file fuzz/corpus/surface_file fuzz/corpus/regions
+for t in load_model network_file surface_file regions; do mkdir -p "fuzz/corpus/$t"; done
 cp tests/data/dsmts/*/*-sbml-l3v1.xml assets/networks/*.toml fuzz/corpus/network_file/
-cargo run --release --locked -q -p palpa-app --bin palpa -- synth --rows 30 --modes 4 --out fuzz/corpus/load_model/seed-f64.palpa
+cargo build --release --locked -q -p palpa-app --bin palpa
+palpa=target/release/palpa
+$palpa synth --rows 30 --modes 4 --out fuzz/corpus/load_model/seed-f64.palpa >/dev/null
+$palpa synth --rows 12 --modes 3 --precision f32 --out fuzz/corpus/load_model/seed-f32.palpa >/dev/null
 for f in sphere.obj sphere.stl sphere.ply; do
-  cargo run --release --locked -q -p palpa-app --bin palpa -- scene shape sphere --subdivisions 1 --out "fuzz/corpus/surface_file/$f" >/dev/null
+  $palpa scene shape sphere --subdivisions 1 --out "fuzz/corpus/surface_file/$f" >/dev/null
 done
 printf 'version = 1\nmatch_radius_mm = 5.0\nfixed_selectors = ["normal:posterior:45 & !ball:0,0,0:10"]\nfixed_points = [[1.0, 2.0, 3.0]]\n' > fuzz/corpus/regions/seed.toml
-cargo run --release --locked -q -p palpa-app --bin palpa -- synth --rows 12 --modes 3 --precision f32 --out fuzz/corpus/load_model/seed-f32.palpa
+printf '(normal:-y:45 | half:0,0,-20:0,0,1) & !polyline:0,0,0;10,0,0:5' > fuzz/corpus/regions/selector.txt
 cd fuzz
-RUSTC_BOOTSTRAP=1 cargo fuzz run "$target" -- -max_total_time="$secs" -rss_limit_mb=2048
+for t in "${targets[@]}"; do
+  log="$(mktemp)"
+  if ! RUSTC_BOOTSTRAP=1 cargo fuzz run "$t" -- -max_total_time="$secs" -rss_limit_mb=2048 \
+      >"$log" 2>&1; then
+    tail -40 "$log"
+    echo "fuzz.sh: $t FAILED (the input is under fuzz/artifacts/$t/)"
+    exit 1
+  fi
+  runs="$(grep -o 'Done [0-9]* runs' "$log" | tail -1 | grep -o '[0-9]*' || echo '?')"
+  echo "fuzz.sh: $t: $runs inputs in $secs s, no crash"
+  [ "$ci" = 1 ] || tail -5 "$log"
+  rm -f "$log"
+done

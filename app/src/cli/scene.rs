@@ -139,6 +139,9 @@ pub struct BuildArgs {
     element: Element,
     #[arg(long, value_enum, default_value = "linear")]
     model: TissueModel,
+    /// Deepest press the force law covers (mm), with `--model neo-hookean|svk`.
+    #[arg(long, default_value_t = DepthLawOptions::default().depth_max_mm)]
+    depth_max_mm: f64,
     /// Probe tool radius (mm).
     #[arg(long, default_value_t = 5.0)]
     radius_mm: f64,
@@ -408,7 +411,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     if let Some(law) = law {
         let lpath = dir.join("scene.law");
         let key_path = dir.join("law.key");
-        let key = format!("{desc} law={}", law.name());
+        let key = format!("{desc} law={} depth_max_mm={}", law.name(), args.depth_max_mm);
         let cached = std::fs::read_to_string(&key_path).ok().as_deref() == Some(key.as_str())
             && DepthLaw::load(&lpath).is_ok();
         pr.start(
@@ -425,6 +428,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
                 material,
                 element: args.element,
                 tool_radius_mm: args.radius_mm,
+                depth_max_mm: args.depth_max_mm,
                 ..DepthLawOptions::default()
             };
             let built = DepthLaw::build(&organ, options, &mut |k, n| {
@@ -437,7 +441,19 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
                 .with_context(|| format!("writing {}", key_path.display()))?;
         }
         let l = DepthLaw::load(&lpath)?;
-        law_json = json!({"law": law.name(), "samples": l.samples.len(),
+        let asked = l.options.samples;
+        if 2 * l.samples.len() < asked {
+            // Samples are dropped where the depth series does not settle by the
+            // deepest press: the organ is too thin for it there.
+            eprintln!(
+                "palpa: warning: the force law kept {} of {asked} sample positions (the others' \
+                 depth series do not settle by {} mm: the organ is thin for that depth; try a \
+                 smaller --depth-max-mm)",
+                l.samples.len(),
+                l.options.depth_max_mm
+            );
+        }
+        law_json = json!({"law": law.name(), "samples": l.samples.len(), "samples_asked": asked,
                           "depth_max_mm": l.options.depth_max_mm, "build_s": l.build_s});
         pr.done();
     } else {
