@@ -50,8 +50,8 @@ impl OrganArgs {
             eprintln!("palpa: warning: {w}");
         }
         let (fixed, palpable) = palpa_core::organ::default_user_regions();
-        Ok(user::mesh(&solid, self.level.into(), &fixed, &palpable)
-            .with_context(|| format!("meshing {}", path.display()))?)
+        user::mesh(&solid, self.level.into(), &fixed, &palpable)
+            .with_context(|| format!("meshing {}", path.display()))
     }
 }
 

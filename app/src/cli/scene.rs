@@ -411,7 +411,11 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     if let Some(law) = law {
         let lpath = dir.join("scene.law");
         let key_path = dir.join("law.key");
-        let key = format!("{desc} law={} depth_max_mm={}", law.name(), args.depth_max_mm);
+        let key = format!(
+            "{desc} law={} depth_max_mm={}",
+            law.name(),
+            args.depth_max_mm
+        );
         let cached = std::fs::read_to_string(&key_path).ok().as_deref() == Some(key.as_str())
             && DepthLaw::load(&lpath).is_ok();
         pr.start(
