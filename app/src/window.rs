@@ -96,6 +96,9 @@ pub struct App {
     last_pointer_px: Vec2,
     /// Where a drag on the network scene's landscape last was.
     drag_px: Option<Vec2>,
+    /// The GPU device was lost: a new one is made before the next frame, the room
+    /// (session, force loop) kept.
+    gpu_lost: bool,
 }
 
 impl std::fmt::Debug for App {
@@ -128,6 +131,7 @@ impl App {
             last_frame: Instant::now(),
             last_pointer_px: Vec2::ZERO,
             drag_px: None,
+            gpu_lost: false,
         })
     }
 
@@ -267,6 +271,16 @@ impl App {
         }
         self.gamepads.rumble(&self.haptics);
         self.hud.gamepad = self.gamepads.name();
+        if let Some(g) = &self.graphics {
+            if let Some(m) = g.gpu.health.take_message() {
+                self.hud.message = Some(m);
+            }
+            if g.gpu.health.is_lost() {
+                self.graphics = None;
+                self.gpu_lost = true;
+                return;
+            }
+        }
         let (Some(g), Some(window)) = (self.graphics.as_mut(), self.window.clone()) else {
             return;
         };
@@ -505,6 +519,18 @@ impl ApplicationHandler for App {
     }
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gpu_lost {
+            self.gpu_lost = false;
+            match self.start_graphics(event_loop) {
+                Ok(()) => tracing::warn!("a new GPU device replaces the lost one"),
+                Err(e) => {
+                    self.fatal =
+                        Some(e.context("the GPU device was lost and no new one could be made"));
+                    event_loop.exit();
+                    return;
+                }
+            }
+        }
         // Continuous redraw: vsync (AutoVsync) paces the loop at the display rate.
         match &self.window {
             Some(w) if self.surface.size().is_some() => {

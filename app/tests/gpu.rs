@@ -243,3 +243,58 @@ fn the_network_scene_matches_the_reference_image() {
         .count();
     assert!(hot > 20, "only {hot} hot pixels");
 }
+
+/// The GPU's failures become messages, not wgpu's default panic: a deliberately
+/// invalid buffer and an invalid shader (named with its line) are recorded and returned
+/// by the next `submit_and_wait`; destroying the device flags it lost, which the window
+/// answers by making a new device and keeping the session.
+#[test]
+fn gpu_errors_become_messages_and_a_lost_device_is_flagged() {
+    let gpu = gpu();
+    // Mapped at creation, a buffer's size must be a multiple of 4.
+    let _bad = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("deliberately invalid"),
+        size: 3,
+        usage: wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: true,
+    });
+    let encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    let e = gpu
+        .submit_and_wait(encoder)
+        .expect_err("the invalid buffer is reported");
+    assert!(e.to_string().contains("validation"), "{e}");
+    assert_eq!(gpu.health.error_count(), 1);
+    assert!(
+        gpu.health.take_message().is_none(),
+        "a message is shown once"
+    );
+
+    let _shader = gpu
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("broken.wgsl"),
+            source: wgpu::ShaderSource::Wgsl("fn main( {\n".into()),
+        });
+    let encoder = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    let e = gpu
+        .submit_and_wait(encoder)
+        .expect_err("the broken shader is reported");
+    let text = format!("{e:#}");
+    assert!(text.contains("broken.wgsl"), "names the shader: {text}");
+    assert_eq!(gpu.health.error_count(), 2);
+
+    assert!(!gpu.health.is_lost());
+    gpu.device.destroy();
+    let _ = gpu.device.poll(wgpu::PollType::wait_indefinitely());
+    assert!(gpu.health.is_lost(), "a destroyed device is flagged lost");
+    assert!(
+        gpu.health
+            .take_message()
+            .is_some_and(|m| m.contains("lost")),
+        "and says so"
+    );
+}

@@ -1,7 +1,11 @@
 //! The GPU context: instance, adapter, device and queue, with errors that say what to do.
 
+use std::sync::Arc;
+
 use anyhow::{Context, anyhow};
 use serde::Serialize;
+
+use super::health::GpuHealth;
 
 /// What adapter we got, for reports.
 #[derive(Debug, Clone, Serialize)]
@@ -18,6 +22,8 @@ pub struct Gpu {
     pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
+    /// Errors and loss the device reported (instead of wgpu's default panic).
+    pub health: Arc<GpuHealth>,
 }
 
 pub const NO_ADAPTER_HELP: &str = "no GPU adapter found. palpa renders on any Vulkan, Metal, \
@@ -27,13 +33,16 @@ pub const NO_ADAPTER_HELP: &str = "no GPU adapter found. palpa renders on any Vu
 
 impl Gpu {
     /// Submits `encoder` and waits until the GPU has finished it (headless frames are
-    /// timed to completion).
+    /// timed to completion); an error the device reported meanwhile is returned.
     pub fn submit_and_wait(&self, encoder: wgpu::CommandEncoder) -> anyhow::Result<()> {
         self.queue.submit([encoder.finish()]);
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| anyhow::anyhow!("waiting for the GPU: {e}"))?;
-        Ok(())
+        match self.health.take_message() {
+            Some(m) => Err(anyhow!(m)),
+            None => Ok(()),
+        }
     }
 
     /// A context without a window (tests, `palpa headless`). Honours `WGPU_BACKEND`,
@@ -77,11 +86,17 @@ impl Gpu {
             ..Default::default()
         }))
         .with_context(|| format!("the adapter {:?} refused a device", adapter.get_info().name))?;
+        let health = Arc::new(GpuHealth::default());
+        let h = Arc::clone(&health);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| h.record_error(&e)));
+        let h = Arc::clone(&health);
+        device.set_device_lost_callback(move |reason, message| h.record_lost(reason, &message));
         Ok(Gpu {
             instance,
             adapter,
             device,
             queue,
+            health,
         })
     }
 

@@ -8,6 +8,7 @@
 
 pub mod deform;
 pub mod gpu;
+pub mod health;
 pub mod landscape;
 pub mod meshes;
 pub mod offscreen;
