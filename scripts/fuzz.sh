@@ -4,12 +4,13 @@
 #   scripts/fuzz.sh --ci [SECONDS]       every target briefly (default 10 s each), with
 #                                        the number of inputs each ran
 # TARGETS: load_model (meta-model files of every kind), network_file (SBML and TOML),
-# surface_file (OBJ, STL, PLY), regions (region files and selectors).
+# surface_file (OBJ, STL, PLY), regions (region files and selectors), paths (headless
+# probe and coordinate paths).
 # Needs cargo-fuzz (installed here if missing). On a stable toolchain cargo-fuzz's
 # sanitizer flags need RUSTC_BOOTSTRAP=1. A crash is saved under fuzz/artifacts/TARGET/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-targets=(load_model network_file surface_file regions)
+targets=(load_model network_file surface_file regions paths)
 if [ "${1:-}" = "--ci" ]; then
   ci=1
   secs="${2:-10}"
@@ -19,7 +20,7 @@ else
   targets=("${2:-load_model}")
 fi
 command -v cargo-fuzz >/dev/null 2>&1 || cargo install --locked cargo-fuzz
-for t in load_model network_file surface_file regions; do mkdir -p "fuzz/corpus/$t"; done
+for t in load_model network_file surface_file regions paths; do mkdir -p "fuzz/corpus/$t"; done
 cp tests/data/dsmts/*/*-sbml-l3v1.xml assets/networks/*.toml fuzz/corpus/network_file/
 cargo build --release --locked -q -p palpa-app --bin palpa
 palpa=target/release/palpa
@@ -30,6 +31,8 @@ for f in sphere.obj sphere.stl sphere.ply; do
 done
 printf 'version = 1\nmatch_radius_mm = 5.0\nfixed_selectors = ["normal:posterior:45 & !ball:0,0,0:10"]\nfixed_points = [[1.0, 2.0, 3.0]]\n' > fuzz/corpus/regions/seed.toml
 printf '(normal:-y:45 | half:0,0,-20:0,0,1) & !polyline:0,0,0;10,0,0:5' > fuzz/corpus/regions/selector.txt
+printf '{"keyframes": [{"t_s": 0, "at_mm": [0, 40, 0], "depth_mm": 0}, {"t_s": 2, "at_mm": [10, 40, 5], "depth_mm": 8}]}' > fuzz/corpus/paths/probe.json
+printf '{"keyframes": [{"t_s": 0, "coordinates": {"t": 0}}, {"t_s": 4, "coordinates": {"t": 10, "delta": 0.02}}]}' > fuzz/corpus/paths/coordinates.json
 cd fuzz
 for t in "${targets[@]}"; do
   log="$(mktemp)"

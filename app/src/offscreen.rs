@@ -69,14 +69,15 @@ impl ProbePath {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let p: ProbePath = serde_json::from_str(&text).with_context(|| {
-            format!(
-                "{}: expected {{\"keyframes\": [{{\"t_s\": 0, \"at_mm\": [x, y, z], \"depth_mm\": 5}}, ...]}}",
-                path.display()
-            )
-        })?;
-        p.validate()
-            .with_context(|| format!("{}", path.display()))?;
+        Self::from_json(&text).with_context(|| format!("{}", path.display()))
+    }
+
+    /// Parses and checks a probe path's JSON.
+    pub fn from_json(text: &str) -> anyhow::Result<Self> {
+        let p: ProbePath = serde_json::from_str(text).context(
+            "expected {\"keyframes\": [{\"t_s\": 0, \"at_mm\": [x, y, z], \"depth_mm\": 5}, ...]}",
+        )?;
+        p.validate()?;
         Ok(p)
     }
 

@@ -138,3 +138,55 @@ fn a_soak_run_keeps_memory_flat() {
         "resident memory grew from {warm} to {end} MB"
     );
 }
+
+/// Mutated probe and coordinate paths (seeded: bytes replaced, cut, repeated, dropped)
+/// give a path or an error, never a panic; a path that reads evaluates anywhere.
+#[test]
+fn mutated_paths_never_panic() {
+    use palpa_app::network::path::CoordinatePath;
+    use palpa_app::offscreen::ProbePath;
+    use palpa_core::rng::Rng;
+    let seeds = [
+        r#"{"keyframes": [{"t_s": 0, "at_mm": [0, 40, 0], "depth_mm": 0}, {"t_s": 2, "at_mm": [10, 40, 5], "depth_mm": 8}]}"#,
+        r#"{"keyframes": [{"t_s": 0, "coordinates": {"t": 0}}, {"t_s": 4, "coordinates": {"t": 10, "delta": 0.02}}]}"#,
+    ];
+    let mut rng = Rng::seed(19);
+    let mut read = 0;
+    for k in 0..4000 {
+        let mut b = seeds[k % 2].as_bytes().to_vec();
+        for _ in 0..1 + rng.below(3) {
+            if b.is_empty() {
+                break;
+            }
+            let at = rng.below(b.len());
+            match rng.below(4) {
+                0 => b[at] = b"-.0123456789e,:[]{}\" "[rng.below(21)],
+                1 => b.truncate(at),
+                2 => {
+                    let end = (at + rng.below(20)).min(b.len());
+                    let piece = b[at..end].to_vec();
+                    b.splice(at..at, piece);
+                }
+                _ => {
+                    let end = (at + rng.below(20)).min(b.len());
+                    b.drain(at..end);
+                }
+            }
+        }
+        let text = String::from_utf8_lossy(&b);
+        if let Ok(p) = ProbePath::from_json(&text) {
+            read += 1;
+            for t in [-1.0, 0.0, 1.0, 1e300] {
+                let (at, depth) = p.at(t);
+                assert!(at.iter().all(|c| c.is_finite()) && depth.is_finite());
+            }
+        }
+        if CoordinatePath::from_json(&text).is_ok() {
+            read += 1;
+        }
+    }
+    assert!(
+        read > 100,
+        "{read} mutated paths read: the test reaches past the parser"
+    );
+}

@@ -29,13 +29,15 @@ impl CoordinatePath {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let p: CoordinatePath = serde_json::from_str(&text).with_context(|| {
-            format!(
-                "{}: expected {{\"keyframes\": [{{\"t_s\": 0, \"coordinates\": {{\"t\": 10, \"delta\": 0.02}}}}, ...]}}",
-                path.display()
-            )
-        })?;
-        p.validate().with_context(|| path.display().to_string())?;
+        Self::from_json(&text).with_context(|| path.display().to_string())
+    }
+
+    /// Parses and checks a coordinate path's JSON.
+    pub fn from_json(text: &str) -> anyhow::Result<Self> {
+        let p: CoordinatePath = serde_json::from_str(text).context(
+            "expected {\"keyframes\": [{\"t_s\": 0, \"coordinates\": {\"t\": 10, \"delta\": 0.02}}, ...]}",
+        )?;
+        p.validate()?;
         Ok(p)
     }
 
