@@ -36,7 +36,9 @@ printf '{"keyframes": [{"t_s": 0, "coordinates": {"t": 0}}, {"t_s": 4, "coordina
 cd fuzz
 for t in "${targets[@]}"; do
   log="$(mktemp)"
-  if ! RUSTC_BOOTSTRAP=1 cargo fuzz run "$t" -- -max_total_time="$secs" -rss_limit_mb=2048 \
+  features=()
+  [ "$t" = paths ] && features=(--features app)
+  if ! RUSTC_BOOTSTRAP=1 cargo fuzz run "${features[@]}" "$t" -- -max_total_time="$secs" -rss_limit_mb=2048 \
       >"$log" 2>&1; then
     tail -40 "$log"
     echo "fuzz.sh: $t FAILED (the input is under fuzz/artifacts/$t/)"

@@ -130,7 +130,7 @@ fn the_kidney_example_matches_its_shipped_surface() {
     assert!(
         !scene.tradeoff().is_empty(),
         "the scene carries its tradeoff table"
-    );    // What `palpa open --scene assets/kidney/kidney-coarse.palpa` builds.
+    ); // What `palpa open --scene assets/kidney/kidney-coarse.palpa` builds.
     let any = file::load_any(&root.join("kidney-coarse.palpa")).expect("loads");
     let s = palpa_core::scene::PalpationScene::new(any).expect("a palpation scene");
     assert_eq!(s.vertices_mm().len() * 3, scene.rows());

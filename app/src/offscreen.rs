@@ -173,8 +173,21 @@ pub struct HeadlessReport {
     /// the end, MB (Linux; absent elsewhere): a long run should stay flat.
     pub rss_mb_after_warmup: Option<f64>,
     pub rss_mb_end: Option<f64>,
+    /// Per tenth of the run (runs of 100 frames or more): what would drift in a long
+    /// session, so a soak run shows it flat or not.
+    pub tenths: Vec<Tenth>,
     pub adapter: AdapterReport,
     pub out: Option<String>,
+}
+
+/// One tenth of a headless run.
+#[derive(Debug, Clone, Serialize)]
+pub struct Tenth {
+    pub frame_ms_p50: f64,
+    pub frame_ms_p95: f64,
+    /// The force loop's missed deadlines so far (counted from the warm-up's end).
+    pub missed_deadlines: u64,
+    pub rss_mb: Option<f64>,
 }
 
 /// Checks a headless run's frame size and count (either scene).
@@ -219,6 +232,8 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
     session.controls.mode = PressMode::Depth;
 
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
+    let mut tenth_ms: Vec<f64> = Vec::with_capacity(opts.frames as usize / 10 + 1);
+    let mut tenths: Vec<Tenth> = Vec::with_capacity(10);
     let warmup = opts.frames.min(5);
     let memory_warmup = (opts.frames / 10).max(5).min(opts.frames - 1);
     let mut rss_after_warmup = None;
@@ -274,6 +289,15 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         if i >= warmup || opts.frames <= warmup {
             frame_ms.push(ms);
         }
+        tenth_ms.push(ms);
+        if opts.frames >= 100 && (i + 1) % (opts.frames / 10) == 0 && tenths.len() < 10 {
+            tenths.push(Tenth {
+                frame_ms_p50: percentile(tenth_ms.clone(), 0.5),
+                frame_ms_p95: percentile(std::mem::take(&mut tenth_ms), 0.95),
+                missed_deadlines: session.force.stats().missed_deadlines,
+                rss_mb: crate::stats::resident_bytes().map(|b| b as f64 / 1e6),
+            });
+        }
     }
     let image = target.read(&gpu.device)?;
     if let Some(out) = &opts.out {
@@ -307,6 +331,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         ),
         rss_mb_after_warmup: rss_after_warmup.map(|b| b as f64 / 1e6),
         rss_mb_end: crate::stats::resident_bytes().map(|b| b as f64 / 1e6),
+        tenths,
         adapter: gpu.report(),
         out: opts.out.as_ref().map(|p| p.display().to_string()),
     };

@@ -127,6 +127,14 @@ fn a_soak_run_keeps_memory_flat() {
         "headless", "--frames", "600", "--size", "320x240", "--fps", "0", "--json",
     ]);
     let v = common::json_ok(&out);
+    // Ten tenths, and the force loop's missed deadlines never decrease (a count).
+    let tenths = v["tenths"].as_array().expect("tenths");
+    assert_eq!(tenths.len(), 10, "{v}");
+    let missed: Vec<u64> = tenths
+        .iter()
+        .map(|t| t["missed_deadlines"].as_u64().expect("count"))
+        .collect();
+    assert!(missed.windows(2).all(|w| w[0] <= w[1]), "{missed:?}");
     let (Some(warm), Some(end)) = (v["rss_mb_after_warmup"].as_f64(), v["rss_mb_end"].as_f64())
     else {
         // Not Linux: no resident-memory reading to compare.
