@@ -154,7 +154,7 @@ pub struct Controls {
 }
 
 pub const OUTSIDE_PALPABLE: &str =
-    "outside the palpable region: press the anterior or inferior surface";
+    "outside the palpable region: press the lighter, palpable surface";
 
 impl Controls {
     pub fn new(camera: OrbitCamera, modes: u32) -> Self {

@@ -207,7 +207,7 @@ impl App {
             Some(w) => Arc::clone(w),
             None => {
                 let attrs = Window::default_attributes()
-                    .with_title("palpa — liver palpation")
+                    .with_title("palpa")
                     .with_inner_size(winit::dpi::LogicalSize::new(1280.0, 720.0));
                 let w = Arc::new(
                     event_loop
