@@ -267,26 +267,12 @@ fn mutated_network_files_never_panic() {
     let mut rng = Rng::seed(21);
     let mut accepted = 0;
     for k in 0..3000 {
-        let mut bytes = seeds[k % seeds.len()].clone().into_bytes();
-        for _ in 0..1 + rng.below(4) {
-            let at = rng.below(bytes.len().max(1));
-            match rng.below(4) {
-                0 => bytes[at] = b"<>/\"=0123456789-.eE x"[rng.below(21)],
-                1 => bytes.truncate(at),
-                2 => {
-                    let end = (at + rng.below(40)).min(bytes.len());
-                    let piece = bytes[at..end].to_vec();
-                    bytes.splice(at..at, piece);
-                }
-                _ => {
-                    let end = (at + rng.below(40)).min(bytes.len());
-                    bytes.drain(at..end);
-                }
-            }
-            if bytes.is_empty() {
-                break;
-            }
-        }
+        let bytes = rng.mutate_bytes(
+            seeds[k % seeds.len()].as_bytes(),
+            b"<>/\"=0123456789-.eE x",
+            4,
+            40,
+        );
         let text = String::from_utf8_lossy(&bytes);
         if let Ok(net) = Network::from_text(&text, "mutated") {
             accepted += 1;

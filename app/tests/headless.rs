@@ -161,26 +161,7 @@ fn mutated_paths_never_panic() {
     let mut rng = Rng::seed(19);
     let mut read = 0;
     for k in 0..4000 {
-        let mut b = seeds[k % 2].as_bytes().to_vec();
-        for _ in 0..1 + rng.below(3) {
-            if b.is_empty() {
-                break;
-            }
-            let at = rng.below(b.len());
-            match rng.below(4) {
-                0 => b[at] = b"-.0123456789e,:[]{}\" "[rng.below(21)],
-                1 => b.truncate(at),
-                2 => {
-                    let end = (at + rng.below(20)).min(b.len());
-                    let piece = b[at..end].to_vec();
-                    b.splice(at..at, piece);
-                }
-                _ => {
-                    let end = (at + rng.below(20)).min(b.len());
-                    b.drain(at..end);
-                }
-            }
-        }
+        let b = rng.mutate_bytes(seeds[k % 2].as_bytes(), b"-.0123456789e,:[]{}\" ", 3, 20);
         let text = String::from_utf8_lossy(&b);
         if let Ok(p) = ProbePath::from_json(&text) {
             read += 1;

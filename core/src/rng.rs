@@ -57,6 +57,39 @@ impl Rng {
         // Lemire's multiply-shift; the bias is below 2^-64 * n, irrelevant here.
         ((u128::from(self.next_u64()) * n as u128) >> 64) as usize
     }
+
+    /// `seed` with 1 to `max_edits` random edits, what the mutation tests of the file
+    /// readers feed them: a byte replaced by one of `alphabet`, the rest cut off, a run
+    /// of up to `run` bytes repeated, or one dropped.
+    pub fn mutate_bytes(
+        &mut self,
+        seed: &[u8],
+        alphabet: &[u8],
+        max_edits: usize,
+        run: usize,
+    ) -> Vec<u8> {
+        let mut bytes = seed.to_vec();
+        for _ in 0..1 + self.below(max_edits.max(1)) {
+            if bytes.is_empty() || alphabet.is_empty() {
+                break;
+            }
+            let at = self.below(bytes.len());
+            match self.below(4) {
+                0 => bytes[at] = alphabet[self.below(alphabet.len())],
+                1 => bytes.truncate(at),
+                2 => {
+                    let end = (at + self.below(run.max(1))).min(bytes.len());
+                    let piece = bytes[at..end].to_vec();
+                    bytes.splice(at..at, piece);
+                }
+                _ => {
+                    let end = (at + self.below(run.max(1))).min(bytes.len());
+                    bytes.drain(at..end);
+                }
+            }
+        }
+        bytes
+    }
 }
 
 #[cfg(test)]
