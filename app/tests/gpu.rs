@@ -298,3 +298,74 @@ fn gpu_errors_become_messages_and_a_lost_device_is_flagged() {
         "and says so"
     );
 }
+
+/// The region mode draws what was painted: after a stroke with the fixed brush the
+/// frame has blue (fixed) and green (palpable) organ pixels; leaving the mode brings
+/// the tissue colours back (no blue left).
+#[test]
+fn the_region_mode_draws_the_painted_regions() {
+    use glam::Vec2;
+    use palpa_app::input::{Button, InputEvent, PointerId};
+    let gpu = gpu();
+    let loaded = scenes::built_in().expect("built-in scene");
+    let mut session = Session::new(loaded.scene, Box::new(NoHaptics)).expect("session");
+    let size = (320, 240);
+    let view = Vec2::new(size.0 as f32, size.1 as f32);
+    session.frame();
+    session.set_painting(true);
+    let c = view / 2.0;
+    session.handle(
+        InputEvent::PointerDown {
+            id: PointerId::Mouse,
+            button: Button::Primary,
+            pos_px: c - Vec2::new(30.0, 0.0),
+            time_s: 0.0,
+        },
+        view,
+    );
+    for k in 1..=6 {
+        session.handle(
+            InputEvent::PointerMove {
+                id: PointerId::Mouse,
+                pos_px: c + Vec2::new(-30.0 + 10.0 * k as f32, 0.0),
+                time_s: 0.01 * f64::from(k),
+            },
+            view,
+        );
+    }
+    session.handle(
+        InputEvent::PointerUp {
+            id: PointerId::Mouse,
+            time_s: 0.1,
+        },
+        view,
+    );
+    assert!(session.painter.as_ref().expect("on").counts().0 > 0);
+    let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
+    let target = Offscreen::new(&gpu.device, size);
+    let mut render = |session: &mut Session| {
+        let input = session.frame();
+        let mut encoder = renderer.encode_frame(&gpu, &target.view, size, &input);
+        target.encode_copy(&mut encoder);
+        gpu.queue.submit([encoder.finish()]);
+        target.read(&gpu.device).expect("read back")
+    };
+    // Blue clearly above red and green; green clearly above red and blue.
+    let count = |img: &Image, f: &dyn Fn(i32, i32, i32) -> bool| {
+        img.rgba
+            .chunks(4)
+            .filter(|p| f(i32::from(p[0]), i32::from(p[1]), i32::from(p[2])))
+            .count()
+    };
+    let blue = |r: i32, g: i32, b: i32| b > r + 40 && b > g + 30;
+    let green = |r: i32, g: i32, b: i32| g > r + 40 && g > b + 40;
+    let painted = render(&mut session);
+    painted
+        .save_png(&Path::new(env!("CARGO_TARGET_TMPDIR")).join("regions.png"))
+        .expect("png");
+    assert!(count(&painted, &blue) > 50, "fixed region drawn blue");
+    assert!(count(&painted, &green) > 50, "palpable region drawn green");
+    session.set_painting(false);
+    let normal = render(&mut session);
+    assert_eq!(count(&normal, &blue), 0, "tissue colours back");
+}
