@@ -32,7 +32,7 @@ impl OrganArgs {
         use palpa_core::organ::user::{self, SurfaceOptions};
         use palpa_core::surface_import::frame::{Axes, Units};
         let Some(path) = &self.surface else {
-            return super::organ::mesh(self.organ, self.level, None);
+            return super::organ::mesh(self.organ, self.level);
         };
         let axes = match &self.axes {
             Some(a) => Axes::parse(a).map_err(anyhow::Error::msg)?,

@@ -102,7 +102,7 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     if args.wants("poisson") {
         poisson()?;
     }
-    let coarse = mesh_organ(OrganName::Liver, LevelArg::Coarse, None)?;
+    let coarse = mesh_organ(OrganName::Liver, LevelArg::Coarse)?;
     if args.wants("positions") {
         positions(args, &levels)?;
     }
@@ -139,7 +139,7 @@ fn req(at: [f64; 3], force_n: f64) -> ProbeRequest {
 /// Assembly, factorization and solve seconds and peak memory per level and element.
 fn cost(args: &FeBenchArgs, levels: &[LevelArg]) -> anyhow::Result<()> {
     for &level in levels {
-        let organ = mesh_organ(OrganName::Liver, level, None)?;
+        let organ = mesh_organ(OrganName::Liver, level)?;
         for element in [Element::P1, Element::P2] {
             if element == Element::P2 && level == LevelArg::Fine && !args.fine_p2 {
                 println!(
@@ -174,7 +174,7 @@ fn cost(args: &FeBenchArgs, levels: &[LevelArg]) -> anyhow::Result<()> {
 /// The probe displacement as ν → 0.5, P1 against P2 (locking).
 fn poisson() -> anyhow::Result<()> {
     for level in [LevelArg::Coarse, LevelArg::Medium] {
-        let organ = mesh_organ(OrganName::Liver, level, None)?;
+        let organ = mesh_organ(OrganName::Liver, level)?;
         for poisson in [0.45, 0.48, 0.49, 0.499] {
             let mut row = json!({"table": "poisson", "level": format!("{level:?}").to_lowercase(), "poisson": poisson});
             for element in [Element::P1, Element::P2] {
@@ -194,7 +194,7 @@ fn poisson() -> anyhow::Result<()> {
 /// The linear probe displacement at named positions.
 fn positions(args: &FeBenchArgs, levels: &[LevelArg]) -> anyhow::Result<()> {
     for &level in levels {
-        let organ = mesh_organ(OrganName::Liver, level, None)?;
+        let organ = mesh_organ(OrganName::Liver, level)?;
         for (name, at) in POSITIONS {
             let mut row = json!({"table": "positions", "level": format!("{level:?}").to_lowercase(), "position": name});
             for element in [Element::P1, Element::P2] {

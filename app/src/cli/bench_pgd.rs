@@ -31,7 +31,7 @@ pub struct OfflineBenchArgs {
 }
 
 pub fn run(args: &OfflineBenchArgs) -> anyhow::Result<()> {
-    let organ = mesh_organ(OrganName::Liver, args.level, None)?;
+    let organ = mesh_organ(OrganName::Liver, args.level)?;
     let s = setup(&organ, args.element, Material::default(), args.radius_mm)?;
     let ops = s.ops();
     // The brute-force terms are the optimum: their map error is the reference each

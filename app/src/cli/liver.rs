@@ -119,7 +119,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     }
     let t0 = Instant::now();
     let material = Material::default();
-    let organ = mesh_organ(args.organ, args.level, None)?;
+    let organ = mesh_organ(args.organ, args.level)?;
     let s = setup(&organ, args.element, material, args.radius_mm)
         .context("building the FE operators")?;
     let desc = describe_run(&organ, args, material, !args.no_update);
@@ -228,7 +228,7 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
         bail!("--table-degree {q} must be 1 to 8");
     }
     let material = Material::default();
-    let organ = mesh_organ(args.organ, args.level, None)?;
+    let organ = mesh_organ(args.organ, args.level)?;
     let s = nodal::setup(&organ, args.element, material, args.radius_mm)
         .context("building the FE operators and the load axis")?;
     let desc = describe_run(&organ, args, material, false);

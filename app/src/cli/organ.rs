@@ -1,8 +1,6 @@
 //! Organ and level arguments shared by the mesh, FE and vademecum commands (parsing
 //! only: the catalogue is `palpa_core::organ::catalogue`).
 
-use std::path::Path;
-
 use clap::ValueEnum;
 use palpa_core::organ::catalogue;
 use palpa_core::organ::{Level, OrganMesh};
@@ -38,11 +36,7 @@ impl From<LevelArg> for Level {
     }
 }
 
-/// Meshes the named organ, or the closed surface in `surface` (OBJ/STL), at a level.
-pub fn mesh(
-    organ: OrganName,
-    level: LevelArg,
-    surface: Option<&Path>,
-) -> anyhow::Result<OrganMesh> {
-    Ok(catalogue::mesh(organ.into(), level.into(), surface)?)
+/// Meshes the named organ at a level (a user's surface: `OrganArgs::mesh`).
+pub fn mesh(organ: OrganName, level: LevelArg) -> anyhow::Result<OrganMesh> {
+    Ok(catalogue::mesh(organ.into(), level.into()))
 }

@@ -69,7 +69,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         .map_err(anyhow::Error::msg)?;
     let radius_mm: f64 = describe_get(&desc, "radius_mm").unwrap_or("5").parse()?;
     let update = describe_get(&desc, "update") == Some("true");
-    let organ = mesh_organ(OrganName::Liver, level, None)?;
+    let organ = mesh_organ(OrganName::Liver, level)?;
     let material = Material::default();
     if describe(
         &organ,
