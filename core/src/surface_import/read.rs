@@ -72,19 +72,18 @@ pub fn read_bytes(path: &Path, bytes: &[u8]) -> Result<ReadSurface, SurfaceError
         line,
         reason,
     };
-    let (corners_or_mesh, polygons_split) = match format {
-        Format::Obj => (parse_obj(bytes, &err)?, 0),
-        Format::StlAscii => (Indexed::soup(parse_stl_ascii(bytes, &err)?), 0),
-        Format::StlBinary => (Indexed::soup(parse_stl_binary(bytes, &err)?), 0),
-        Format::PlyAscii | Format::PlyBinary => (super::ply::parse(bytes, &err)?, 0),
+    let indexed = match format {
+        Format::Obj => parse_obj(bytes, &err)?,
+        Format::StlAscii => Indexed::soup(parse_stl_ascii(bytes, &err)?),
+        Format::StlBinary => Indexed::soup(parse_stl_binary(bytes, &err)?),
+        Format::PlyAscii | Format::PlyBinary => super::ply::parse(bytes, &err)?,
     };
-    let split = polygons_split + corners_or_mesh.polygons_split;
-    let (surface, welded) = weld(&corners_or_mesh.vertices, &corners_or_mesh.triangles);
+    let (surface, welded) = weld(&indexed.vertices, &indexed.triangles);
     Ok(ReadSurface {
         surface,
         format,
         welded,
-        polygons_split: split,
+        polygons_split: indexed.polygons_split,
     })
 }
 
