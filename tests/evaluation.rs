@@ -265,6 +265,23 @@ fn bad_requests_are_errors_not_nans() {
     assert!(m.truncated(5).is_err());
 }
 
+/// Evaluates `m64` and its f32 conversion at `values`: the f64 coefficients, then the
+/// full field from each.
+fn evaluate_f64_and_f32(
+    m64: &SeparatedModel<f64>,
+    values: &[ParamValue],
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let m32: SeparatedModel<f32> = m64.convert();
+    let n = m64.modes();
+    let (mut c64, mut c32) = (vec![0.0; n], vec![0.0; n]);
+    m64.particularize(values, &mut c64).expect("valid");
+    m32.particularize(values, &mut c32).expect("valid");
+    let (mut u64_, mut u32_) = (vec![0.0; m64.rows()], vec![0.0; m64.rows()]);
+    m64.reconstruct(&c64, &mut u64_);
+    m32.reconstruct(&c32, &mut u32_);
+    (c64, u64_, u32_)
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, rng_seed: proptest::test_runner::RngSeed::Fixed(12), ..ProptestConfig::default() })]
 
@@ -274,14 +291,8 @@ proptest! {
     fn f32_storage_loses_only_storage_precision(seed in 0u64..10_000, n in 1usize..60,
                                                 a in 0.0f64..1.0, f in -1.0f64..7.0) {
         let m64 = small_model::<f64>(16, n, seed);
-        let m32: SeparatedModel<f32> = m64.convert();
         let values = [point(3, a * 0.5, 0.5 - a * 0.5), ParamValue::Scalar(f), ParamValue::Mix([0.3, 0.4, 0.5])];
-        let (mut c64, mut c32) = (vec![0.0; n], vec![0.0; n]);
-        m64.particularize(&values, &mut c64).expect("valid");
-        m32.particularize(&values, &mut c32).expect("valid");
-        let (mut u64_, mut u32_) = (vec![0.0; m64.rows()], vec![0.0; m64.rows()]);
-        m64.reconstruct(&c64, &mut u64_);
-        m32.reconstruct(&c32, &mut u32_);
+        let (c64, u64_, u32_) = evaluate_f64_and_f32(&m64, &values);
         for r in 0..m64.rows() {
             let scale: f64 = (0..n).map(|k| (m64.spatial()[r * n + k] * c64[k]).abs()).sum();
             // 2⁻²⁴ per stored factor: X and one per axis (3 axes) → 4 roundings; ×2 margin.
@@ -304,13 +315,7 @@ fn f32_error_at_1000_modes_stays_at_storage_rounding() {
     ];
     for n in [10, 100, 1000] {
         let m64 = small_model::<f64>(30, n, 77);
-        let m32: SeparatedModel<f32> = m64.convert();
-        let (mut c64, mut c32) = (vec![0.0; n], vec![0.0; n]);
-        m64.particularize(&values, &mut c64).expect("valid");
-        m32.particularize(&values, &mut c32).expect("valid");
-        let (mut u64_, mut u32_) = (vec![0.0; m64.rows()], vec![0.0; m64.rows()]);
-        m64.reconstruct(&c64, &mut u64_);
-        m32.reconstruct(&c32, &mut u32_);
+        let (c64, u64_, u32_) = evaluate_f64_and_f32(&m64, &values);
         let (mut worst_rel_scale, mut worst_rel_value) = (0.0f64, 0.0f64);
         for r in 0..m64.rows() {
             let scale: f64 = (0..n)
