@@ -631,8 +631,10 @@ fn read_header_from<R: Read>(path: &Path, f: &mut Opened<R>) -> Result<Located, 
             actual: f.len,
         });
     }
-    let le_u32 = |b: &[u8]| u32::from_le_bytes(b.try_into().expect("4 bytes"));
-    let le_u64 = |b: &[u8]| u64::from_le_bytes(b.try_into().expect("8 bytes"));
+    let le_u32 =
+        |b: &[u8]| u32::from_le_bytes(b.try_into().expect("callers slice exactly 4 bytes"));
+    let le_u64 =
+        |b: &[u8]| u64::from_le_bytes(b.try_into().expect("callers slice exactly 8 bytes"));
     let version = le_u32(&pre[8..12]);
     if version > FORMAT_VERSION {
         return Err(FileError::NewerVersion {

@@ -123,8 +123,14 @@ impl Options {
         }
         let mut t = vec![0.0];
         let mut h = self.h_first;
-        while *t.last().expect("t_0") < self.t_end * (1.0 - 1e-12) {
-            let now = *t.last().expect("t_0");
+        while *t
+            .last()
+            .expect("the time list starts with t = 0 and only grows")
+            < self.t_end * (1.0 - 1e-12)
+        {
+            let now = *t
+                .last()
+                .expect("the time list starts with t = 0 and only grows");
             let step = h.min(self.t_end - now);
             // Avoid a sliver of a last step (BDF2's step ratio would blow up).
             let step = if self.t_end - now - step < 0.3 * step {
@@ -317,9 +323,15 @@ fn march(
     let mut h: Vec<f64> = Vec::new();
     let mut next_h = options.h_first;
     let mut k = 0;
-    while *t.last().expect("t_0") < options.t_end * (1.0 - 1e-12) {
+    while *t
+        .last()
+        .expect("the time list starts with t = 0 and only grows")
+        < options.t_end * (1.0 - 1e-12)
+    {
         k += 1;
-        let now = *t.last().expect("t_0");
+        let now = *t
+            .last()
+            .expect("the time list starts with t = 0 and only grows");
         let hk = if adaptive {
             let rest = options.t_end - now;
             // No sliver of a last step: BDF2's step ratio would blow up.
@@ -403,7 +415,9 @@ fn march(
 fn stored_nodes(t: &[f64], options: &Options) -> Vec<usize> {
     let mut kept = vec![0usize];
     for k in 1..t.len() {
-        let last = t[*kept.last().expect("t_0")];
+        let last = t[*kept
+            .last()
+            .expect("the time list starts with t = 0 and only grows")];
         let spacing = (options.store_rel * t[k]).min(options.store_max);
         if k + 1 == t.len() || t[k + 1] - last > spacing * (1.0 + 1e-9) {
             kept.push(k);

@@ -339,12 +339,18 @@ fn run(
         shown.push((0.0, p0.clone()));
         pending.remove(0);
     }
-    while *t.last().expect("t_0") < options.t_end * (1.0 - 1e-12) {
+    while *t
+        .last()
+        .expect("the time list starts with t = 0 and only grows")
+        < options.t_end * (1.0 - 1e-12)
+    {
         if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
             return Err(CmePgdError::Cancelled);
         }
         k += 1;
-        let now = *t.last().expect("t_0");
+        let now = *t
+            .last()
+            .expect("the time list starts with t = 0 and only grows");
         let rest = options.t_end - now;
         let mut hk = if rest - next_h < 0.3 * next_h {
             rest
@@ -356,7 +362,9 @@ fn run(
         if let Some(to) = landing {
             hk = to - now;
         }
-        let last = recent.last().expect("a state");
+        let last = recent
+            .last()
+            .expect("the initial state is pushed before the loop");
         let (c0, rhs) = if k == 1 {
             (1.0, last.clone())
         } else {
@@ -828,8 +836,14 @@ impl Stored {
     }
 
     fn merge_last(&mut self) {
-        let b = self.blocks.pop().expect("two blocks");
-        let a = self.blocks.pop().expect("two blocks");
+        let b = self
+            .blocks
+            .pop()
+            .expect("a merge is asked for only with two blocks or more");
+        let a = self
+            .blocks
+            .pop()
+            .expect("a merge is asked for only with two blocks or more");
         let envelope: Vec<Vec<f64>> = a
             .envelope
             .iter()
@@ -859,7 +873,10 @@ impl Stored {
         while self.blocks.len() >= 2 {
             self.merge_last();
         }
-        let last = self.blocks.pop().expect("the initial state");
+        let last = self
+            .blocks
+            .pop()
+            .expect("the initial state is never popped");
         (last.tt, self.t)
     }
 }

@@ -41,7 +41,10 @@ pub fn oversampling(block: usize) -> usize {
 }
 
 fn col(m: &Mat<f64>, j: usize) -> &[f64] {
-    m.col(j).try_as_col_major().expect("contiguous").as_slice()
+    m.col(j)
+        .try_as_col_major()
+        .expect("faer allocates owned matrices column-major and contiguous")
+        .as_slice()
 }
 
 /// `out[:, j] = A x[:, j]` for a symmetric CSC matrix, columns in parallel.

@@ -139,7 +139,7 @@ fn spread_samples(organ: &OrganMesh, n: usize) -> Vec<[f64; 3]> {
             .iter()
             .enumerate()
             .max_by(|a, b| a.1.total_cmp(b.1))
-            .expect("points");
+            .expect("a non-empty list: the loop runs while fewer than all are picked");
         out.push(pts[far]);
         for (m, &p) in nearest.iter_mut().zip(&pts) {
             *m = m.min(d2(p, pts[far]));
@@ -342,11 +342,19 @@ impl DepthLaw {
         if bytes.len() < 20 || &bytes[..8] != MAGIC {
             return Err(DepthLawFileError::Foreign { path: p() });
         }
-        let found = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
+        let found = u32::from_le_bytes(
+            bytes[8..12]
+                .try_into()
+                .expect("length checked above: 8..12 is 4 bytes"),
+        );
         if found != VERSION {
             return Err(DepthLawFileError::Version { path: p(), found });
         }
-        let sum = u64::from_le_bytes(bytes[12..20].try_into().expect("8 bytes"));
+        let sum = u64::from_le_bytes(
+            bytes[12..20]
+                .try_into()
+                .expect("length checked above: 12..20 is 8 bytes"),
+        );
         let body = &bytes[20..];
         if xxhash_rust::xxh3::xxh3_64(body) != sum {
             return Err(DepthLawFileError::Corrupt {

@@ -126,8 +126,10 @@ impl Journal {
 }
 
 fn decode(p: &[u8]) -> Option<(f64, Vec<f64>, Vec<f64>)> {
-    let f = |b: &[u8]| f64::from_le_bytes(b.try_into().expect("8 bytes"));
-    let u = |b: &[u8]| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize;
+    let f = |b: &[u8]| f64::from_le_bytes(b.try_into().expect("callers slice exactly 8 bytes"));
+    let u = |b: &[u8]| {
+        u64::from_le_bytes(b.try_into().expect("callers slice exactly 8 bytes")) as usize
+    };
     if p.len() < 16 {
         return None;
     }

@@ -77,7 +77,12 @@ pub fn setup(
         let t = tri.map(|v| {
             *index.entry(v).or_insert_with(|| {
                 axis_nodes.push(v);
-                face_of.push((f, tri.iter().position(|&x| x == v).expect("corner")));
+                face_of.push((
+                    f,
+                    tri.iter()
+                        .position(|&x| x == v)
+                        .expect("v was found among this triangle's corners"),
+                ));
                 (axis_nodes.len() - 1) as u32
             })
         });

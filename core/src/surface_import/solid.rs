@@ -96,7 +96,7 @@ impl SurfaceSolid {
             .sum::<f64>()
             .sqrt();
         let mut best = (0usize, [1.0, 0.0, 0.0], f64::INFINITY);
-        let max_ring = *self.dims.iter().max().expect("3 dims") as i64;
+        let max_ring = *self.dims.iter().max().expect("an array of 3") as i64;
         for ring in 0..=max_ring {
             if best.2 < outside + (ring as f64 - 1.0) * self.cell {
                 break;
@@ -118,7 +118,7 @@ impl SurfaceSolid {
                             let tri =
                                 self.s.triangles[t as usize].map(|v| self.s.vertices[v as usize]);
                             let bary = crate::axis::closest_point(&tri, &[[0, 1, 2]], p)
-                                .expect("finite")
+                                .expect("the surface was checked finite when it was read")
                                 .bary;
                             let q = [0, 1, 2].map(|d| {
                                 bary[0] * tri[0][d] + bary[1] * tri[1][d] + bary[2] * tri[2][d]

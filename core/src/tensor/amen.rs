@@ -113,12 +113,16 @@ impl Mpo {
                 let from = if k == f {
                     left(NS)
                 } else {
-                    left(channel[k - 1][j].expect("crossing term"))
+                    left(channel[k - 1][j].expect(
+                        "crossing terms are computed for every core before the sweep reads them",
+                    ))
                 };
                 let to = if k == l {
                     right(DONE)
                 } else {
-                    right(channel[k][j].expect("crossing term"))
+                    right(channel[k][j].expect(
+                        "crossing terms are computed for every core before the sweep reads them",
+                    ))
                 };
                 let mut m = t.factors[k]
                     .clone()
@@ -292,7 +296,16 @@ impl Local<'_> {
             for (a, be, s) in &self.w.blocks {
                 if *a == al {
                     any = true;
-                    apply_mode(s, r0, n, r1, z[*be].as_ref().expect("computed"), &mut acc);
+                    apply_mode(
+                        s,
+                        r0,
+                        n,
+                        r1,
+                        z[*be]
+                            .as_ref()
+                            .expect("computed earlier in this sweep, in the same order"),
+                        &mut acc,
+                    );
                 }
             }
             if any {
@@ -465,7 +478,16 @@ fn next_left(w: &MpoCore, left: &[Mat<f64>], x: &Core) -> Vec<Mat<f64>> {
         let mut u = vec![0.0; len];
         for (al, b, s) in &w.blocks {
             if *b == be {
-                apply_mode(s, r0, n, r1, t[*al].as_ref().expect("computed"), &mut u);
+                apply_mode(
+                    s,
+                    r0,
+                    n,
+                    r1,
+                    t[*al]
+                        .as_ref()
+                        .expect("computed earlier in this sweep, in the same order"),
+                    &mut u,
+                );
             }
         }
         out.push(mul(x.left().transpose(), rm(&u, r0 * n, r1)));
@@ -497,7 +519,16 @@ fn prev_right(w: &MpoCore, right: &[Mat<f64>], x: &Core) -> Vec<Mat<f64>> {
         let mut h = vec![0.0; len];
         for (a, be, s) in &w.blocks {
             if *a == al {
-                apply_mode(s, r0, n, r1, g[*be].as_ref().expect("computed"), &mut h);
+                apply_mode(
+                    s,
+                    r0,
+                    n,
+                    r1,
+                    g[*be]
+                        .as_ref()
+                        .expect("computed earlier in this sweep, in the same order"),
+                    &mut h,
+                );
             }
         }
         out.push(mul(x.right(), rm(&h, r0, n * r1).transpose()));
@@ -668,7 +699,16 @@ fn enrich(
             for (al, bb, sp) in &w.blocks {
                 if *bb == be {
                     any = true;
-                    apply_mode(sp, r0, n, r1, t[*al].as_ref().expect("computed"), &mut u);
+                    apply_mode(
+                        sp,
+                        r0,
+                        n,
+                        r1,
+                        t[*al]
+                            .as_ref()
+                            .expect("computed earlier in this sweep, in the same order"),
+                        &mut u,
+                    );
                 }
             }
             if any {

@@ -49,7 +49,8 @@ impl Sparse1d {
                 "entry ({r}, {c}) outside {rows}×{cols}"
             );
             if last == Some((r, c)) {
-                *val.last_mut().expect("a previous entry") += v;
+                *val.last_mut()
+                    .expect("a duplicate index follows an entry pushed for it") += v;
                 continue;
             }
             last = Some((r, c));
