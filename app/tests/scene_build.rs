@@ -88,6 +88,20 @@ fn a_scene_builds_from_a_surface_resumes_after_kill_and_opens() {
     let v = ok(&palpa(&args));
     assert_eq!(v["resumed"]["vademecum"], true, "{v}");
     assert!(scene.exists() && !build_dir.exists());
+    // The resumed scene is an uninterrupted build's (the header's tradeoff table
+    // holds timings, so the payload is compared).
+    let whole = dir.path().join("whole.palpa");
+    let mut whole_args = args;
+    whole_args[whole_args.len() - 2] = s(&whole);
+    ok(&palpa(&whole_args));
+    let (x, y) = (
+        palpa_core::file::read_header(&scene).expect("resumed"),
+        palpa_core::file::read_header(&whole).expect("whole"),
+    );
+    assert_eq!(
+        (x.payload_len, x.payload_xxh3),
+        (y.payload_len, y.payload_xxh3)
+    );
     let vol = v["mesh"]["volume_rel_diff"].as_f64().expect("volume");
     assert!(vol.abs() < 0.02, "{v}");
     assert_eq!(v["source"]["format"], "ply (binary)");

@@ -2,7 +2,7 @@
 //! (see `palpa_core::pgd::depthlaw`): build it off-line from depth series, evaluate it
 //! with a scene's linear compliance.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
@@ -108,12 +108,18 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         orders: args.orders,
         ..DepthLawOptions::default()
     };
-    let law = DepthLaw::build(&organ, options, &mut |k, n| {
-        eprint!("\rsample {k}/{n}   ");
-    })
-    .context("building the depth law")?;
+    // Finished samples are logged beside the output: an interrupted build run again
+    // with the same arguments goes on from the last one.
+    let mut log = args.out.as_os_str().to_owned();
+    log.push(".samples.log");
+    let (law, resumed) =
+        DepthLaw::build_logged(&organ, options, Some(Path::new(&log)), &mut |k, n| {
+            eprint!("\rsample {k}/{n}   ");
+        })
+        .context("building the depth law")?;
     eprintln!();
     law.save(&args.out)?;
+    let _ = std::fs::remove_file(&log);
     if args.samples_json {
         let steps = law.ratio.len() / law.samples.len();
         for (k, p) in law.samples.iter().enumerate() {
@@ -128,7 +134,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         "{}",
         json!({"out": args.out, "law": options.law.name(), "samples": law.samples.len(),
             "orders": options.orders, "depth_max_mm": options.depth_max_mm,
-            "sigma_mm": law.sigma_mm, "build_s": law.build_s,
+            "sigma_mm": law.sigma_mm, "build_s": law.build_s, "resumed_samples": resumed,
             "worst_pade_change": law.pade_change.iter().copied().filter(|c| c.is_finite()).fold(0.0, f64::max),
             "bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0)})
     );

@@ -435,7 +435,8 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
                 depth_max_mm: args.depth_max_mm,
                 ..DepthLawOptions::default()
             };
-            let built = DepthLaw::build(&organ, options, &mut |k, n| {
+            let log = dir.join("law-samples.log");
+            let (built, _) = DepthLaw::build_logged(&organ, options, Some(&log), &mut |k, n| {
                 eprint!("\rpalpa:       sample {k}/{n}   ");
             })
             .context("building the force law")?;

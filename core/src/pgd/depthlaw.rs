@@ -18,6 +18,7 @@
 //! Gaussian-weighted (Shepard) mean of the samples' curves at `s`, interpolated
 //! linearly in `d`. Nothing is allocated per call.
 
+use std::path::Path;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
@@ -28,6 +29,7 @@ use crate::fe::probe::{ProbeRequest, locate, organ_space};
 use crate::fe::series::Expander;
 use crate::fe::{Element, FeError, Material};
 use crate::organ::OrganMesh;
+use crate::pgd::samplelog::SampleLog;
 
 /// The first bytes of a depth-law file.
 pub const MAGIC: &[u8; 8] = b"PALPALAW";
@@ -148,75 +150,169 @@ fn spread_samples(organ: &OrganMesh, n: usize) -> Vec<[f64; 3]> {
     out
 }
 
+/// Why a depth law could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum DepthLawBuildError {
+    #[error(transparent)]
+    Fe(#[from] FeError),
+    #[error("the build's sample log {path}: {source}")]
+    Log {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// What determines every sample's result: the options and the mesh (its nodes,
+/// tetrahedra and regions, hashed).
+fn build_key(organ: &OrganMesh, o: &DepthLawOptions) -> String {
+    let mut bytes: Vec<u8> = Vec::new();
+    for p in &organ.mesh.vertices {
+        p.iter().for_each(|v| bytes.extend(v.to_le_bytes()));
+    }
+    for t in &organ.mesh.tets {
+        t.iter().for_each(|v| bytes.extend(v.to_le_bytes()));
+    }
+    bytes.extend(organ.fixed.iter().map(|&b| u8::from(b)));
+    bytes.extend(organ.palpable.iter().map(|&b| u8::from(b)));
+    format!(
+        "palpa depth-law v{VERSION} mesh {:016x} {o:?}",
+        xxhash_rust::xxh3::xxh3_64(&bytes)
+    )
+}
+
+/// One sample's press: empty when it is skipped, else the Padé change, the linear
+/// stiffness `1/c` and `g` on the depth grid.
+fn sample_record(
+    space: &crate::fe::space::Space,
+    organ: &OrganMesh,
+    expander: &Expander,
+    o: &DepthLawOptions,
+    at: [f64; 3],
+    steps: usize,
+) -> Result<Vec<f64>, FeError> {
+    let req = ProbeRequest {
+        at,
+        force_n: 1.0,
+        dir: None,
+        radius_mm: o.tool_radius_mm,
+    };
+    let (probe, dir) = locate(space, organ, &req)?;
+    let shape = probe_load(space, &probe, dir, 1.0, o.tool_radius_mm)?;
+    let functional = probe_functional(space, &probe, dir);
+    // A tool right at the fixed region's edge may not move its own centre along its
+    // axis: such a sample says nothing about the law; skip it.
+    let series = match expander.expand(&shape, &functional, o.orders) {
+        Ok(s) => s,
+        Err(FeError::ProbeNotMoved) => return Ok(Vec::new()),
+        Err(e) => return Err(e),
+    };
+    let rational = series.rational(o.depth_max_mm);
+    // A rational form that still moves at the deepest point is not trusted: its
+    // curve would pull its neighbours' with it.
+    if rational.change.is_nan() || rational.change > PADE_CHANGE_MAX {
+        return Ok(Vec::new());
+    }
+    let f1 = series.force[0];
+    let mut record = Vec::with_capacity(steps + 2);
+    record.push(rational.change);
+    record.push(f1);
+    for j in 0..steps {
+        let d = j as f64 * o.depth_step_mm;
+        record.push(if j == 0 {
+            1.0
+        } else {
+            let w = rational.weights(d);
+            let f: f64 = w.iter().zip(&series.force).map(|(w, f)| w * f).sum();
+            f / (f1 * d)
+        });
+    }
+    Ok(record)
+}
+
 impl DepthLaw {
     /// Builds the law on `organ`; `progress(done, total)` after each sample.
     pub fn build(
         organ: &OrganMesh,
         options: DepthLawOptions,
         progress: &mut dyn FnMut(usize, usize),
-    ) -> Result<DepthLaw, FeError> {
+    ) -> Result<DepthLaw, DepthLawBuildError> {
+        Self::build_logged(organ, options, None, progress).map(|(law, _)| law)
+    }
+
+    /// [`build`](Self::build), keeping each finished sample in the log at `log` (see
+    /// [`super::samplelog`]): run again after an interruption, it goes on from the
+    /// last finished sample and gives the same law. The caller removes the log once the
+    /// law is saved (a kill before that loses nothing). Returns the law and how many
+    /// samples were taken from the log.
+    pub fn build_logged(
+        organ: &OrganMesh,
+        options: DepthLawOptions,
+        log: Option<&Path>,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<(DepthLaw, usize), DepthLawBuildError> {
         let o = options;
         let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
         if !(o.depth_max_mm > 0.0 && o.depth_step_mm > 0.0 && steps <= MAX_DEPTHS && o.samples > 0)
         {
             return Err(FeError::DepthNotFinite {
                 depth_mm: o.depth_max_mm,
-            });
+            }
+            .into());
         }
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;
         let samples = spread_samples(organ, o.samples);
         if samples.is_empty() {
-            return Err(FeError::NoPalpableSurface);
+            return Err(FeError::NoPalpableSurface.into());
+        }
+        let (mut log, finished) = match log {
+            Some(path) => {
+                let (l, r) = SampleLog::open(path, &build_key(organ, &o)).map_err(|source| {
+                    DepthLawBuildError::Log {
+                        path: path.to_path_buf(),
+                        source,
+                    }
+                })?;
+                (Some((l, path)), r)
+            }
+            None => (None, Vec::new()),
+        };
+        // Each sample's record: empty when skipped, else (Padé change, 1/c, g row).
+        let mut records: Vec<Option<Vec<f64>>> = vec![None; samples.len()];
+        for (k, values) in finished {
+            if k < records.len() && (values.is_empty() || values.len() == steps + 2) {
+                records[k] = Some(values);
+            }
+        }
+        let resumed = records.iter().filter(|r| r.is_some()).count();
+        for (k, &at) in samples.iter().enumerate() {
+            if records[k].is_none() {
+                let record = sample_record(&space, organ, &expander, &o, at, steps)?;
+                if let Some((l, path)) = log.as_mut() {
+                    l.push(&(k, record.clone()))
+                        .map_err(|source| DepthLawBuildError::Log {
+                            path: path.to_path_buf(),
+                            source,
+                        })?;
+                }
+                records[k] = Some(record);
+            }
+            progress(k + 1, samples.len());
         }
         let mut ratio = Vec::with_capacity(samples.len() * steps);
         let mut pade_change = Vec::with_capacity(samples.len());
         let mut skipped = Vec::new();
         let mut stiffness = Vec::with_capacity(samples.len());
-        for (k, &at) in samples.iter().enumerate() {
-            let req = ProbeRequest {
-                at,
-                force_n: 1.0,
-                dir: None,
-                radius_mm: o.tool_radius_mm,
-            };
-            let (probe, dir) = locate(&space, organ, &req)?;
-            let shape = probe_load(&space, &probe, dir, 1.0, o.tool_radius_mm)?;
-            let functional = probe_functional(&space, &probe, dir);
-            // A tool right at the fixed region's edge may not move its own centre
-            // along its axis: such a sample says nothing about the law; skip it.
-            let series = match expander.expand(&shape, &functional, o.orders) {
-                Ok(s) => s,
-                Err(FeError::ProbeNotMoved) => {
-                    skipped.push(k);
-                    progress(k + 1, samples.len());
-                    continue;
+        for (k, record) in records.iter().enumerate() {
+            match record.as_deref() {
+                Some([change, f1, row @ ..]) => {
+                    pade_change.push(*change);
+                    stiffness.push(*f1);
+                    ratio.extend_from_slice(row);
                 }
-                Err(e) => return Err(e),
-            };
-            let rational = series.rational(o.depth_max_mm);
-            // A rational form that still moves at the deepest point is not trusted:
-            // its curve would pull its neighbours' with it.
-            if rational.change.is_nan() || rational.change > PADE_CHANGE_MAX {
-                skipped.push(k);
-                progress(k + 1, samples.len());
-                continue;
+                _ => skipped.push(k),
             }
-            let f1 = series.force[0];
-            for j in 0..steps {
-                let d = j as f64 * o.depth_step_mm;
-                ratio.push(if j == 0 {
-                    1.0
-                } else {
-                    let w = rational.weights(d);
-                    let f: f64 = w.iter().zip(&series.force).map(|(w, f)| w * f).sum();
-                    f / (f1 * d)
-                });
-            }
-            pade_change.push(rational.change);
-            stiffness.push(f1);
-            progress(k + 1, samples.len());
         }
         let samples: Vec<[f64; 3]> = samples
             .into_iter()
@@ -225,7 +321,7 @@ impl DepthLaw {
             .map(|(_, p)| p)
             .collect();
         if samples.is_empty() {
-            return Err(FeError::ProbeNotMoved);
+            return Err(FeError::ProbeNotMoved.into());
         }
         let d =
             |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
@@ -259,7 +355,7 @@ impl DepthLaw {
         // Every row belongs to its sample (a mismatch would put curves at the wrong
         // places silently).
         debug_assert_eq!(law.check(), Ok(()));
-        Ok(law)
+        Ok((law, resumed))
     }
 
     /// Checks what a file or a caller gave: shapes, finite values, `g(0) = 1`.
@@ -306,7 +402,7 @@ impl DepthLaw {
     }
 
     /// Writes the law atomically (a temporary file renamed into place).
-    pub fn save(&self, path: &std::path::Path) -> Result<(), DepthLawFileError> {
+    pub fn save(&self, path: &Path) -> Result<(), DepthLawFileError> {
         let body =
             bincode::serde::encode_to_vec(self, bincode::config::standard()).map_err(|e| {
                 DepthLawFileError::Corrupt {
@@ -328,7 +424,7 @@ impl DepthLaw {
     }
 
     /// Reads and checks a law written by [`Self::save`].
-    pub fn load(path: &std::path::Path) -> Result<DepthLaw, DepthLawFileError> {
+    pub fn load(path: &Path) -> Result<DepthLaw, DepthLawFileError> {
         let bytes = std::fs::read(path).map_err(|source| DepthLawFileError::Io {
             path: path.to_path_buf(),
             source,
@@ -337,7 +433,7 @@ impl DepthLaw {
     }
 
     /// Reads a law from the bytes of a file (`path` names it in errors).
-    pub fn from_bytes(bytes: &[u8], path: &std::path::Path) -> Result<DepthLaw, DepthLawFileError> {
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<DepthLaw, DepthLawFileError> {
         let p = || path.to_path_buf();
         if bytes.len() < 20 || &bytes[..8] != MAGIC {
             return Err(DepthLawFileError::Foreign { path: p() });

@@ -19,4 +19,5 @@ pub mod journal;
 pub mod linear;
 pub mod nodal;
 pub mod palpation;
+pub mod samplelog;
 pub mod tradeoff;

@@ -1,0 +1,216 @@
+//! Off-line builds killed with SIGKILL and run again end with the same file as an
+//! uninterrupted run, never leaving a half-written output; a full disk (simulated)
+//! keeps the previous output and says so. (`palpa offline --method pgd` and
+//! `palpa scene build` have their own resume tests in `cli.rs` and `scene_build.rs`.)
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn palpa(args: &[String]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(args)
+        .output()
+        .expect("palpa runs")
+}
+
+fn args(base: &[&str], out: &Path) -> Vec<String> {
+    let mut a: Vec<String> = base.iter().map(|s| s.to_string()).collect();
+    a.push("--out".into());
+    a.push(out.to_str().expect("utf-8 path").into());
+    a
+}
+
+/// Runs `a`, and SIGKILLs it as soon as `ready()` holds (or it ends by itself).
+fn run_and_kill(a: &[String], ready: impl Fn() -> bool) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(a)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let start = Instant::now();
+    while !ready() {
+        assert!(start.elapsed() < Duration::from_secs(300), "no progress");
+        if child.try_wait().expect("wait").is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+/// Names in `dir` other than the ones given (temporary files left behind).
+fn others(dir: &Path, keep: &[&Path]) -> Vec<PathBuf> {
+    std::fs::read_dir(dir)
+        .expect("ls")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| !keep.contains(&p.as_path()))
+        .collect()
+}
+
+/// The depth law (the nonlinear build): killed after a few samples, run again it
+/// takes those samples from its log, computes the rest, and writes a law equal bit
+/// for bit to an uninterrupted build's; the log is removed.
+#[test]
+fn depth_law_resumes_from_its_sample_log() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let full = dir.path().join("full.law");
+    let cut = dir.path().join("cut.law");
+    let log = dir.path().join("cut.law.samples.log");
+    let base = [
+        "depth-law",
+        "build",
+        "--element",
+        "p1",
+        "--samples",
+        "24",
+        "--orders",
+        "10",
+    ];
+    let a = common::json_ok(&palpa(&args(&base, &full)));
+    assert_eq!(a["resumed_samples"], 0);
+
+    let count = || {
+        std::fs::read_to_string(&log)
+            .map(|s| s.lines().count().saturating_sub(1))
+            .unwrap_or(0)
+    };
+    run_and_kill(&args(&base, &cut), || count() >= 4);
+    let logged = count();
+    assert!(
+        !cut.exists(),
+        "no law is written before every sample is done"
+    );
+    let b = common::json_ok(&palpa(&args(&base, &cut)));
+    let resumed = b["resumed_samples"].as_u64().expect("count") as usize;
+    // The last line may have been torn by the kill.
+    assert!(
+        resumed + 1 >= logged && resumed >= 3,
+        "{resumed} of {logged}"
+    );
+    assert!(!log.exists(), "the log is removed once the law is saved");
+    let x = palpa_core::pgd::depthlaw::DepthLaw::load(&full).expect("full");
+    let y = palpa_core::pgd::depthlaw::DepthLaw::load(&cut).expect("resumed");
+    assert_eq!(x.samples, y.samples);
+    let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&x.ratio), bits(&y.ratio));
+    assert_eq!(bits(&x.pade_change), bits(&y.pade_change));
+    assert_eq!(bits(&x.stiffness_n_per_mm), bits(&y.stiffness_n_per_mm));
+}
+
+/// The builders that finish in seconds to a few minutes at their defaults and start
+/// again from the beginning (the nodal-load vademecum, the CME tensor train and the
+/// greedy PGD): a kill mid-run leaves no output and no temporary file once the next
+/// run is done, and that run's payload is bit for bit an uninterrupted run's.
+#[test]
+fn killed_builds_run_again_to_the_same_file() {
+    let networks = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/networks");
+    let toggle = format!("{networks}/toggle.toml");
+    let cascade = format!("{networks}/cascade.toml");
+    let cases: Vec<(&str, Vec<&str>, u64)> = vec![
+        ("nodal", vec!["offline", "liver", "--element", "p1"], 300),
+        (
+            "tt",
+            vec!["cme", "offline", &cascade, "--t-end", "20"],
+            1000,
+        ),
+        (
+            "greedy",
+            vec![
+                "cme", "offline", &toggle, "--solver", "greedy", "--t-end", "20",
+            ],
+            500,
+        ),
+    ];
+    for (name, base, kill_ms) in cases {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let full = dir.path().join("full.palpa");
+        let cut = dir.path().join("cut.palpa");
+        let out = palpa(&args(&base, &full));
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let start = Instant::now();
+        run_and_kill(&args(&base, &cut), || {
+            start.elapsed() > Duration::from_millis(kill_ms)
+        });
+        assert!(
+            !cut.exists() || palpa_core::file::read_header(&cut).is_ok(),
+            "{name}: a half-written output"
+        );
+        let out = palpa(&args(&base, &cut));
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let x = palpa_core::file::read_header(&full).expect("full");
+        let y = palpa_core::file::read_header(&cut).expect("again");
+        assert_eq!(
+            (x.payload_len, x.payload_xxh3),
+            (y.payload_len, y.payload_xxh3),
+            "{name}: the run after the kill differs from the uninterrupted one"
+        );
+        assert_eq!(
+            others(dir.path(), &[&full, &cut]),
+            Vec::<PathBuf>::new(),
+            "{name}: files left behind"
+        );
+    }
+}
+
+/// A disk that fills up while a model, a depth law or a scene is written: the command
+/// fails naming the file and the cause, and the file that was there is unchanged.
+#[test]
+fn a_full_disk_keeps_the_previous_output() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dir.path().join("m.palpa");
+    let synth = |seed: &str| {
+        args(
+            &["synth", "--rows", "300", "--modes", "8", "--seed", seed],
+            &model,
+        )
+    };
+    let out = palpa(&synth("1"));
+    assert!(out.status.success());
+    let before = std::fs::read(&model).expect("model");
+    let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(synth("2"))
+        .env(palpa_core::fsutil::FAULT_DISK_FULL_ENV, "4096")
+        .output()
+        .expect("palpa runs");
+    assert!(!out.status.success(), "a full disk is an error");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("m.palpa")
+            && err.contains("No space left on device")
+            && err.contains("kept unchanged"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&model).expect("model"), before);
+    assert_eq!(others(dir.path(), &[&model]), Vec::<PathBuf>::new());
+
+    // The same through the depth law's writer, with nothing there before.
+    let law = dir.path().join("l.law");
+    let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(args(
+            &["depth-law", "build", "--element", "p1", "--samples", "4"],
+            &law,
+        ))
+        .env(palpa_core::fsutil::FAULT_DISK_FULL_ENV, "100")
+        .output()
+        .expect("palpa runs");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("No space left on device") && err.contains("nothing was written"),
+        "{err}"
+    );
+    assert!(!law.exists());
+}
