@@ -109,10 +109,15 @@ fn a_views_model_survives_the_file_and_corruption_is_named() {
     let path = dir.path().join("sc5.palpa");
     built.save(&net, &path).expect("saves");
     let back = model::load(&path).expect("loads");
+    let mem = model::load_from_bytes(&std::fs::read(&path).expect("reads")).expect("from memory");
     for t in [0.0, 7.77, 40.0] {
         assert_eq!(
             built.model.evaluate(t, &[], usize::MAX).expect("ok"),
             back.evaluate(t, &[], usize::MAX).expect("ok")
+        );
+        assert_eq!(
+            back.evaluate(t, &[], usize::MAX).expect("ok"),
+            mem.evaluate(t, &[], usize::MAX).expect("ok")
         );
         assert_eq!(
             built.model.pair_joint(t, &[], 0, 2).expect("ok"),

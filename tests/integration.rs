@@ -10,6 +10,7 @@ mod cme_tt;
 mod cme_views;
 mod dsmts;
 mod evaluation;
+mod extremes;
 mod fe_convergence;
 mod fe_liver;
 mod meta_model_file;

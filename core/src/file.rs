@@ -490,8 +490,17 @@ pub type ViewsContents = (ModelMeta, Vec<(ViewShape, Vec<f64>, Vec<f64>)>);
 
 /// Loads a views file written by [`save_views`].
 pub fn load_views(path: &Path) -> Result<ViewsContents, FileError> {
+    views_from(path, None)
+}
+
+/// [`load_views`] from bytes in memory (errors name the file `<memory>`).
+pub fn load_views_from_bytes(bytes: &[u8]) -> Result<ViewsContents, FileError> {
+    views_from(Path::new("<memory>"), Some(bytes))
+}
+
+fn views_from(path: &Path, bytes: Option<&[u8]>) -> Result<ViewsContents, FileError> {
     let p = || path.to_path_buf();
-    let (shapes, header, arrays) = read_f64_layout(path, "views", |l| match l {
+    let (shapes, header, arrays) = read_f64_layout(path, bytes, "views", |l| match l {
         Layout::Views { views } => Some(views.clone()),
         _ => None,
     })?;
@@ -571,6 +580,15 @@ fn write_file<H: Serialize>(
 pub fn read_header(path: &Path) -> Result<Header, FileError> {
     let mut f = open(path)?;
     Ok(read_header_from(path, &mut f)?.header)
+}
+
+/// [`read_header`] from bytes in memory.
+pub fn read_header_from_bytes(bytes: &[u8]) -> Result<Header, FileError> {
+    let mut f = Opened {
+        file: bytes,
+        len: bytes.len() as u64,
+    };
+    Ok(read_header_from(Path::new("<memory>"), &mut f)?.header)
 }
 
 /// A byte source of known total length (a file, or bytes in memory).
@@ -833,8 +851,17 @@ fn load_payload<T: Scalar, R: Read>(
 
 /// Loads a tensor-train model: its metadata and one core per axis.
 pub fn load_train(path: &Path) -> Result<(ModelMeta, Vec<Core>), FileError> {
+    train_from(path, None)
+}
+
+/// [`load_train`] from bytes in memory (errors name the file `<memory>`).
+pub fn load_train_from_bytes(bytes: &[u8]) -> Result<(ModelMeta, Vec<Core>), FileError> {
+    train_from(Path::new("<memory>"), Some(bytes))
+}
+
+fn train_from(path: &Path, bytes: Option<&[u8]>) -> Result<(ModelMeta, Vec<Core>), FileError> {
     let p = || path.to_path_buf();
-    let (ranks, header, arrays) = read_f64_layout(path, "tensor-train", |l| match l {
+    let (ranks, header, arrays) = read_f64_layout(path, bytes, "tensor-train", |l| match l {
         Layout::TensorTrain { ranks } => Some(ranks.clone()),
         _ => None,
     })?;
@@ -866,11 +893,29 @@ pub fn load_train(path: &Path) -> Result<(ModelMeta, Vec<Core>), FileError> {
 /// and reads its header and blocks.
 fn read_f64_layout<T>(
     path: &Path,
+    bytes: Option<&[u8]>,
     expected: &'static str,
     pick: impl Fn(&Layout) -> Option<T>,
 ) -> Result<(T, Header, Vec<Vec<f64>>), FileError> {
-    let mut f = open(path)?;
-    let located = read_header_from(path, &mut f)?;
+    match bytes {
+        Some(b) => {
+            let mut f = Opened {
+                file: b,
+                len: b.len() as u64,
+            };
+            read_f64_layout_from(path, &mut f, expected, pick)
+        }
+        None => read_f64_layout_from(path, &mut open(path)?, expected, pick),
+    }
+}
+
+fn read_f64_layout_from<T, R: Read>(
+    path: &Path,
+    f: &mut Opened<R>,
+    expected: &'static str,
+    pick: impl Fn(&Layout) -> Option<T>,
+) -> Result<(T, Header, Vec<Vec<f64>>), FileError> {
+    let located = read_header_from(path, f)?;
     let Some(picked) = pick(&located.header.layout) else {
         return Err(FileError::WrongLayout {
             path: path.to_path_buf(),
@@ -885,7 +930,7 @@ fn read_f64_layout<T>(
             found: located.header.precision,
         });
     }
-    let (header, arrays) = read_arrays::<f64, File>(path, &mut f, located)?;
+    let (header, arrays) = read_arrays::<f64, R>(path, f, located)?;
     Ok((picked, header, arrays))
 }
 

@@ -779,20 +779,44 @@ pub enum CmeLoadError {
     },
 }
 
-/// Loads a CME meta-model file of either layout.
+/// Loads a CME meta-model file of any layout (separated, tensor train, views).
 pub fn load(path: &std::path::Path) -> Result<CmeModel, CmeLoadError> {
+    load_from(path, None)
+}
+
+/// [`load`] from bytes in memory (an asset bundled into an app, a fuzzer's input).
+pub fn load_from_bytes(bytes: &[u8]) -> Result<CmeModel, CmeLoadError> {
+    load_from(std::path::Path::new("<memory>"), Some(bytes))
+}
+
+fn load_from(path: &std::path::Path, bytes: Option<&[u8]>) -> Result<CmeModel, CmeLoadError> {
     use crate::file::{self, Layout};
-    let header = file::read_header(path)?;
+    let header = match bytes {
+        Some(b) => file::read_header_from_bytes(b)?,
+        None => file::read_header(path)?,
+    };
     let model = match header.layout {
         Layout::TensorTrain { .. } => {
-            let (meta, cores) = file::load_train(path)?;
+            let (meta, cores) = match bytes {
+                Some(b) => file::load_train_from_bytes(b)?,
+                None => file::load_train(path)?,
+            };
             CmeModel::from_train(meta, cores)
         }
         Layout::Views { .. } => {
-            let (meta, views) = file::load_views(path)?;
+            let (meta, views) = match bytes {
+                Some(b) => file::load_views_from_bytes(b)?,
+                None => file::load_views(path)?,
+            };
             Views::from_file(&meta, views).and_then(|v| CmeModel::from_views(meta, v))
         }
-        _ => CmeModel::new(file::load_any(path)?.into_f64()),
+        _ => CmeModel::new(
+            match bytes {
+                Some(b) => file::load_any_from_bytes(b)?,
+                None => file::load_any(path)?,
+            }
+            .into_f64(),
+        ),
     };
     model.map_err(|source| CmeLoadError::Model {
         path: path.to_path_buf(),

@@ -155,6 +155,16 @@ fn spread_samples(organ: &OrganMesh, n: usize) -> Vec<[f64; 3]> {
 pub enum DepthLawBuildError {
     #[error(transparent)]
     Fe(#[from] FeError),
+    #[error(
+        "no sample's depth series settled by {depth_max_mm} mm (best change of a Padé form \
+         there: {best_change}; at most {PADE_CHANGE_MAX} is kept): raise --orders or lower \
+         --depth-max-mm"
+    )]
+    NoSampleSettled {
+        depth_max_mm: f64,
+        /// The smallest relative change, or "no pole-free form".
+        best_change: String,
+    },
     #[error("the build's sample log {path}: {source}")]
     Log {
         path: std::path::PathBuf,
@@ -175,13 +185,14 @@ fn build_key(organ: &OrganMesh, o: &DepthLawOptions) -> String {
     bytes.extend(organ.fixed.iter().map(|&b| u8::from(b)));
     bytes.extend(organ.palpable.iter().map(|&b| u8::from(b)));
     format!(
-        "palpa depth-law v{VERSION} mesh {:016x} {o:?}",
+        "palpa depth-law v{VERSION} log 2 mesh {:016x} {o:?}",
         xxhash_rust::xxh3::xxh3_64(&bytes)
     )
 }
 
-/// One sample's press: empty when it is skipped, else the Padé change, the linear
-/// stiffness `1/c` and `g` on the depth grid.
+/// One sample's press: empty when the tool does not move its centre, the Padé change
+/// alone when the series has not settled by the largest depth, else the Padé change,
+/// the linear stiffness `1/c` and `g` on the depth grid.
 fn sample_record(
     space: &crate::fe::space::Space,
     organ: &OrganMesh,
@@ -210,7 +221,7 @@ fn sample_record(
     // A rational form that still moves at the deepest point is not trusted: its
     // curve would pull its neighbours' with it.
     if rational.change.is_nan() || rational.change > PADE_CHANGE_MAX {
-        return Ok(Vec::new());
+        return Ok(vec![rational.change]);
     }
     let f1 = series.force[0];
     let mut record = Vec::with_capacity(steps + 2);
@@ -278,10 +289,10 @@ impl DepthLaw {
             }
             None => (None, Vec::new()),
         };
-        // Each sample's record: empty when skipped, else (Padé change, 1/c, g row).
+        // Each sample's record (see `sample_record`).
         let mut records: Vec<Option<Vec<f64>>> = vec![None; samples.len()];
         for (k, values) in finished {
-            if k < records.len() && (values.is_empty() || values.len() == steps + 2) {
+            if k < records.len() && (values.len() <= 1 || values.len() == steps + 2) {
                 records[k] = Some(values);
             }
         }
@@ -321,7 +332,26 @@ impl DepthLaw {
             .map(|(_, p)| p)
             .collect();
         if samples.is_empty() {
-            return Err(FeError::ProbeNotMoved.into());
+            let unsettled: Vec<f64> = records
+                .iter()
+                .flatten()
+                .filter_map(|r| match r[..] {
+                    [change] => Some(change),
+                    _ => None,
+                })
+                .collect();
+            if unsettled.is_empty() {
+                return Err(FeError::ProbeNotMoved.into());
+            }
+            let best = unsettled.iter().copied().fold(f64::INFINITY, f64::min);
+            return Err(DepthLawBuildError::NoSampleSettled {
+                depth_max_mm: o.depth_max_mm,
+                best_change: if best.is_finite() {
+                    format!("{best:.2}")
+                } else {
+                    "no pole-free form".into()
+                },
+            });
         }
         let d =
             |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
