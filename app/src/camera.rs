@@ -47,10 +47,27 @@ impl OrbitCamera {
         glam::camera::rh::view::look_at_mat4(self.eye(), self.target_mm, Vec3::Z)
     }
 
+    /// The vertical field of view for a viewport of `aspect` (width / height): `fov_y`
+    /// on a wide viewport; on a tall one (a phone upright) widened so the horizontal
+    /// field stays that of a square viewport, and the organ still fits across.
+    pub fn fov_y_for(&self, aspect: f32) -> f32 {
+        let aspect = aspect.max(1e-3);
+        if aspect >= 1.0 {
+            self.fov_y
+        } else {
+            2.0 * ((0.5 * self.fov_y).tan() / aspect).atan()
+        }
+    }
+
     pub fn clip_from_view(&self, aspect: f32) -> Mat4 {
         let near = (0.05 * self.distance_mm).max(1.0);
         let far = 10.0 * self.distance_mm + 1000.0;
-        glam::camera::rh::proj::directx::perspective(self.fov_y, aspect.max(1e-3), near, far)
+        glam::camera::rh::proj::directx::perspective(
+            self.fov_y_for(aspect),
+            aspect.max(1e-3),
+            near,
+            far,
+        )
     }
 
     pub fn clip_from_world(&self, aspect: f32) -> Mat4 {
@@ -95,9 +112,9 @@ impl OrbitCamera {
     }
 
     /// Moves the target in the view plane by a screen-space delta in pixels.
-    pub fn pan(&mut self, delta_px: Vec2, viewport_height_px: f32) {
-        let mm_per_px =
-            2.0 * self.distance_mm * (0.5 * self.fov_y).tan() / viewport_height_px.max(1.0);
+    pub fn pan(&mut self, delta_px: Vec2, viewport_px: Vec2) {
+        let fov = self.fov_y_for(viewport_px.x / viewport_px.y.max(1.0));
+        let mm_per_px = 2.0 * self.distance_mm * (0.5 * fov).tan() / viewport_px.y.max(1.0);
         let (right, up) = self.screen_axes();
         self.target_mm += (-delta_px.x * right + delta_px.y * up) * mm_per_px;
     }

@@ -341,7 +341,7 @@ impl Controls {
                 };
             }
             Gesture::Pan { id: g, last_px } if g == id => {
-                self.camera.pan(pos_px - last_px, viewport_px.y);
+                self.camera.pan(pos_px - last_px, viewport_px);
                 self.gesture = Gesture::Pan {
                     id,
                     last_px: pos_px,
@@ -363,7 +363,7 @@ impl Controls {
                     self.camera.orbit(-twist, 0.0);
                 }
                 let mid_delta = 0.5 * (na + nb) - 0.5 * (a.1 + b.1);
-                self.camera.pan(mid_delta, viewport_px.y);
+                self.camera.pan(mid_delta, viewport_px);
                 self.gesture = Gesture::Pinch {
                     a: (a.0, na),
                     b: (b.0, nb),

@@ -20,6 +20,7 @@ pub mod force;
 pub mod gamepad;
 pub mod input;
 pub mod latest;
+pub mod layout;
 pub mod network;
 pub mod offscreen;
 pub mod overlay;

@@ -137,6 +137,8 @@ pub struct HeadlessOptions {
     pub fps: f64,
     /// Draw the egui interface over the scene.
     pub ui: bool,
+    /// Density, safe area and panel state of the interface.
+    pub display: crate::layout::Display,
 }
 
 /// The JSON report.
@@ -178,6 +180,8 @@ pub struct HeadlessReport {
     pub tenths: Vec<Tenth>,
     pub adapter: AdapterReport,
     pub out: Option<String>,
+    /// The interface's layout in the last frame (with the interface on).
+    pub layout: Option<crate::layout::LayoutReport>,
 }
 
 /// One tenth of a headless run.
@@ -229,6 +233,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
     let target = Offscreen::new(&gpu.device, opts.size);
     let mut overlay = opts.ui.then(|| Overlay::new(&gpu.device, UI_FORMAT));
     let mut hud = Hud::new(loaded_source);
+    hud.panel_open = opts.display.panel_open;
     session.controls.mode = PressMode::Depth;
 
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
@@ -268,14 +273,19 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         let input = session.frame();
         let mut encoder = renderer.encode_frame(&gpu, &target.view, opts.size, &input);
         if let Some(o) = overlay.as_mut() {
-            let raw = headless_input(opts.size, 1.0, f64::from(i) / 25.0);
+            let raw = headless_input(
+                opts.size,
+                opts.display.pixels_per_point,
+                opts.display.insets,
+                f64::from(i) / 25.0,
+            );
             o.paint(
                 &gpu.device,
                 &gpu.queue,
                 &mut encoder,
                 &target.ui_view,
                 opts.size,
-                1.0,
+                opts.display.pixels_per_point,
                 raw,
                 |ctx| crate::ui::show(ctx, &mut session, &mut hud),
             );
@@ -334,6 +344,9 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         tenths,
         adapter: gpu.report(),
         out: opts.out.as_ref().map(|p| p.display().to_string()),
+        layout: overlay.as_ref().map(|o| {
+            crate::layout::report(&o.ctx, hud.touch_seen, hud.panel_open.unwrap_or(false))
+        }),
     };
     Ok((report, image))
 }

@@ -87,11 +87,23 @@ impl Overlay {
     }
 }
 
-/// Raw input for a frame without a window (headless): the screen size and the time.
-pub fn headless_input(size_px: (u32, u32), pixels_per_point: f32, time_s: f64) -> egui::RawInput {
+/// Raw input for a frame without a window (headless): the screen size, its density and
+/// safe-area insets (what a phone's notch and home indicator take), and the time.
+pub fn headless_input(
+    size_px: (u32, u32),
+    pixels_per_point: f32,
+    insets: crate::layout::Insets,
+    time_s: f64,
+) -> egui::RawInput {
     let size = egui::vec2(size_px.0 as f32, size_px.1 as f32) / pixels_per_point;
     let mut input = egui::RawInput {
         screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, size)),
+        safe_area_insets: Some(egui::SafeAreaInsets(egui::epaint::MarginF32 {
+            left: insets.left,
+            right: insets.right,
+            top: insets.top,
+            bottom: insets.bottom,
+        })),
         time: Some(time_s),
         ..Default::default()
     };

@@ -13,7 +13,19 @@
 #[unsafe(no_mangle)]
 #[allow(unsafe_code)] // The symbol name android-activity looks for; no unsafe code inside.
 fn android_main(app: winit::platform::android::activity::AndroidApp) {
+    use tracing_subscriber::Layer;
+    use tracing_subscriber::layer::SubscriberExt;
+    use tracing_subscriber::util::SubscriberInitExt;
     use winit::platform::android::EventLoopBuilderExtAndroid;
+    // Errors and warnings go to logcat (`adb logcat -s palpa`): a device has no
+    // terminal. A second start of the activity in the same process keeps the first
+    // subscriber.
+    let _ = tracing_subscriber::registry()
+        .with(
+            paranoid_android::layer("palpa")
+                .with_filter(tracing_subscriber::filter::LevelFilter::INFO),
+        )
+        .try_init();
     let event_loop = match winit::event_loop::EventLoop::builder()
         .with_android_app(app)
         .build()

@@ -11,6 +11,7 @@ use egui::{Color32, RichText};
 use palpa_core::TradeoffRow;
 
 use crate::input::PressMode;
+use crate::layout::{Form, Layout, Screen};
 use crate::session::Session;
 use crate::stats::Ring;
 
@@ -31,6 +32,11 @@ pub struct Hud {
     pub switch_to: Option<String>,
     /// The scene path being typed.
     pub scene_field: String,
+    /// The panel unfolded (None: the form's default, unfolded as a drawer, folded as a
+    /// sheet).
+    pub panel_open: Option<bool>,
+    /// A touch was seen: controls get touch sizes from then on.
+    pub touch_seen: bool,
 }
 
 impl Hud {
@@ -45,6 +51,8 @@ impl Hud {
             last_screenshot: None,
             switch_to: None,
             scene_field: String::new(),
+            panel_open: None,
+            touch_seen: false,
         }
     }
 }
@@ -58,16 +66,32 @@ pub fn tradeoff_for(rows: &[TradeoffRow], n: u32) -> Option<&TradeoffRow> {
         .or_else(|| rows.iter().min_by_key(|r| r.modes))
 }
 
+/// The layout for this pass (see [`crate::layout`]), with egui's sizes set for it.
+pub fn layout(ctx: &egui::Context, hud: &Hud) -> Layout {
+    let screen = Screen::from_ctx(ctx, hud.touch_seen);
+    let layout = Layout::for_screen(&screen);
+    crate::layout::apply_style(ctx, &layout);
+    layout
+}
+
 /// Draws the whole interface.
 pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
-    egui::Window::new("palpa")
-        .default_pos([12.0, 12.0])
-        .default_width(290.0)
-        .resizable(false)
-        .show(ctx, |ui| panel(ui, session, hud));
+    let layout = layout(ctx, hud);
+    let mut open = hud.panel_open.unwrap_or(layout.form == Form::Drawer);
+    let s = session.sample;
+    let summary = if s.status() == crate::force::SampleStatus::Ok {
+        format!("{:.1} N · {:.1} mm", s.magnitude_n, s.depth_mm)
+    } else {
+        "probe lifted".into()
+    };
+    crate::layout::panel(ctx, "palpa-panel", &layout, &mut open, &summary, |ui| {
+        panel(ui, session, hud);
+    });
+    hud.panel_open = Some(open);
+    let top = ctx.content_rect().top() + 12.0;
     if let Some(msg) = hud.message.clone() {
         egui::Window::new("Notice")
-            .anchor(egui::Align2::CENTER_TOP, [0.0, 12.0])
+            .anchor(egui::Align2::CENTER_TOP, [0.0, top])
             .collapsible(false)
             .resizable(false)
             .show(ctx, |ui| {
@@ -90,7 +114,7 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
     }
     if hud.show_help {
         egui::Window::new("Controls")
-            .anchor(egui::Align2::RIGHT_TOP, [-12.0, 12.0])
+            .anchor(egui::Align2::RIGHT_TOP, [-12.0, top])
             .collapsible(false)
             .resizable(false)
             .open(&mut hud.show_help)
@@ -124,6 +148,9 @@ fn depth_curve(
         .allow_zoom(false)
         .allow_drag(false)
         .allow_scroll(false)
+        .allow_axis_zoom_drag(false)
+        .allow_double_click_reset(false)
+        .allow_boxed_zoom(false)
         .x_axis_label("depth, mm")
         .y_axis_label("force, N")
         .show(ui, |plot| {
@@ -375,6 +402,9 @@ fn force_plot(ui: &mut egui::Ui, session: &Session) {
         .allow_zoom(false)
         .allow_drag(false)
         .allow_scroll(false)
+        .allow_axis_zoom_drag(false)
+        .allow_double_click_reset(false)
+        .allow_boxed_zoom(false)
         .show(ui, |plot| {
             plot.line(egui_plot::Line::new("|F| (N) over the last 10 s", points));
         });
@@ -386,7 +416,7 @@ pub fn scene_switcher(ui: &mut egui::Ui, hud: &mut Hud) {
     ui.horizontal(|ui| {
         ui.label("open");
         for name in ["liver", "toggle", "cascade"] {
-            if ui.small_button(name).clicked() {
+            if ui.button(name).clicked() {
                 hud.switch_to = Some(name.into());
             }
         }
@@ -398,7 +428,7 @@ pub fn scene_switcher(ui: &mut egui::Ui, hud: &mut Hud) {
                 .desired_width(190.0),
         );
         let enter = field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-        if (ui.small_button("open").clicked() || enter) && !hud.scene_field.trim().is_empty() {
+        if (ui.button("open").clicked() || enter) && !hud.scene_field.trim().is_empty() {
             hud.switch_to = Some(hud.scene_field.trim().to_string());
         }
     });

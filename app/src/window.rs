@@ -334,7 +334,12 @@ impl App {
         let g = self.graphics.as_mut().context("no GPU yet")?;
         let target = Offscreen::new(&g.gpu.device, size);
         let mut overlay = Overlay::new(&g.gpu.device, UI_FORMAT);
-        let raw = crate::overlay::headless_input(size, 1.0, self.started.elapsed().as_secs_f64());
+        let raw = crate::overlay::headless_input(
+            size,
+            1.0,
+            crate::layout::Insets::default(),
+            self.started.elapsed().as_secs_f64(),
+        );
         let mut renderer = match &self.room {
             Room::Palpation(s) => Some(Renderer::new(&g.gpu.device, FORMAT, &s.scene)),
             Room::Network(_) | Room::Building(_) => None,
@@ -478,6 +483,8 @@ impl ApplicationHandler for App {
                 self.pointer(InputEvent::Wheel { lines });
             }
             WindowEvent::Touch(touch) => {
+                // From the first touch on, controls get finger sizes.
+                self.hud.touch_seen = true;
                 let id = PointerId::Touch(touch.id);
                 let pos_px = Vec2::new(touch.location.x as f32, touch.location.y as f32);
                 self.pointer(match touch.phase {

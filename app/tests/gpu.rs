@@ -195,6 +195,7 @@ fn the_network_scene_matches_the_reference_image() {
         exact_check: false,
         ui: true,
         path: None,
+        display: Default::default(),
     })
     .expect("renders");
     // The panel ends at x = 312.

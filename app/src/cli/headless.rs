@@ -46,9 +46,47 @@ pub struct HeadlessArgs {
     /// report its L1 distance to the meta-model.
     #[arg(long)]
     exact_check: bool,
+    /// Physical pixels per interface point: 1 on a desktop monitor, 2 or 3 on tablets
+    /// and phones (which also get touch sizes when the short side is ≤ 900 points).
+    #[arg(long, default_value_t = 1.0)]
+    pixels_per_point: f32,
+    /// Safe-area insets TOP,RIGHT,BOTTOM,LEFT in points (a phone's notch and home
+    /// indicator, e.g. `47,0,34,0`).
+    #[arg(long, default_value = "0,0,0,0")]
+    safe_area: String,
+    /// The panel unfolded or folded (default: unfolded as a side drawer, folded as a
+    /// phone's bottom sheet).
+    #[arg(long)]
+    panel: Option<PanelState>,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum PanelState {
+    Open,
+    Folded,
+}
+
+impl HeadlessArgs {
+    fn display(&self) -> anyhow::Result<palpa_app::layout::Display> {
+        let ppp = self.pixels_per_point;
+        if !(ppp.is_finite() && (0.25..=8.0).contains(&ppp)) {
+            bail!("--pixels-per-point {ppp}: expected a density from 0.25 to 8");
+        }
+        let insets = palpa_app::layout::Insets::parse(&self.safe_area).with_context(|| {
+            format!(
+                "--safe-area {:?}: expected TOP,RIGHT,BOTTOM,LEFT in points, each ≥ 0",
+                self.safe_area
+            )
+        })?;
+        Ok(palpa_app::layout::Display {
+            pixels_per_point: ppp,
+            insets,
+            panel_open: self.panel.map(|p| matches!(p, PanelState::Open)),
+        })
+    }
 }
 
 pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
@@ -63,6 +101,7 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
         colormap_mm: args.colormap_mm,
         fps: args.fps,
         ui: !args.no_ui,
+        display: args.display()?,
     };
     if !(args.fps.is_finite() && args.fps >= 0.0) {
         bail!(
@@ -112,6 +151,7 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
         exact_check: args.exact_check,
         ui: !args.no_ui,
         path: args.coordinate_path.clone(),
+        display: args.display()?,
     };
     let (report, _) = run(&opts)?;
     if !print_json(args.json, &report)? {

@@ -34,6 +34,8 @@ pub struct NetworkHeadless {
     /// Coordinates over the frames (at 25 frames per clock second); `None`: time swept
     /// from 0 to its end, parameters at the middle of their ranges.
     pub path: Option<PathBuf>,
+    /// Density, safe area and panel state of the interface.
+    pub display: crate::layout::Display,
 }
 
 /// The coordinates of a frame.
@@ -69,6 +71,8 @@ pub struct NetworkReport {
     pub exact_s: Option<f64>,
     pub adapter: AdapterReport,
     pub out: Option<String>,
+    /// The interface's layout in the last frame (with the interface on).
+    pub layout: Option<crate::layout::LayoutReport>,
 }
 
 /// Renders the frames; returns the report and the last image.
@@ -89,6 +93,7 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
     let mut overlay = Overlay::new(&gpu.device, UI_FORMAT);
     let mut landscape = Landscape::new(&gpu.device, FORMAT);
     let mut hud = Hud::new(opts.scene.clone());
+    hud.panel_open = opts.display.panel_open;
     let mut frame_ms = Vec::with_capacity(opts.frames as usize);
     for i in 0..opts.frames {
         match &path {
@@ -123,14 +128,19 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
             &room.camera,
         );
         if opts.ui {
-            let raw = headless_input(opts.size, 1.0, f64::from(i) / 25.0);
+            let raw = headless_input(
+                opts.size,
+                opts.display.pixels_per_point,
+                opts.display.insets,
+                f64::from(i) / 25.0,
+            );
             overlay.paint(
                 &gpu.device,
                 &gpu.queue,
                 &mut encoder,
                 &target.ui_view,
                 opts.size,
-                1.0,
+                opts.display.pixels_per_point,
                 raw,
                 |ctx| super::show(ctx, &mut room, &mut hud),
             );
@@ -185,6 +195,13 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         exact_s: room.check_result.as_ref().map(|r| r.exact_s),
         adapter: gpu.report(),
         out: opts.out.as_ref().map(|p| p.display().to_string()),
+        layout: opts.ui.then(|| {
+            crate::layout::report(
+                &overlay.ctx,
+                hud.touch_seen,
+                hud.panel_open.unwrap_or(false),
+            )
+        }),
     };
     Ok((report, image))
 }

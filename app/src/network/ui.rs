@@ -7,38 +7,52 @@ use egui::{Color32, RichText};
 
 use super::NetworkRoom;
 use super::job::JobState;
+use crate::layout::Form;
 use crate::ui::{Hud, ramp};
 
-/// Draws the whole network interface.
+/// Draws the whole network interface: the controls in the panel of
+/// [`crate::layout`] (a bottom sheet on a phone upright, with the distribution in it;
+/// a side drawer elsewhere, with the distribution in a card on the right), the
+/// landscape filling the rest.
 pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
-    let screen = ctx.content_rect();
-    // A phone held upright: the panels stack, full width, the controls on top (they
-    // fold), the distribution at the bottom, the landscape between.
-    let portrait = screen.height() > screen.width() && screen.width() < 700.0;
-    let (controls_pos, controls_width) = if portrait {
-        ([6.0, 6.0], screen.width() - 12.0)
-    } else {
-        ([12.0, 12.0], 300.0)
-    };
-    egui::Window::new("gene network")
-        .default_pos(controls_pos)
-        .default_width(controls_width)
-        .default_open(!portrait)
-        .resizable(false)
-        .show(ctx, |ui| controls(ui, room, hud));
-    // The distribution on the right (landscape) or at the bottom (portrait); the
-    // landscape fills the rest behind the panels.
-    let (pos, width) = if portrait {
-        ([6.0, 0.5 * screen.height()], screen.width() - 12.0)
-    } else {
-        let width = (0.32 * screen.width()).clamp(260.0, 420.0);
-        ([screen.width() - width - 14.0, 12.0], width)
-    };
-    egui::Window::new("distribution")
-        .default_pos(pos)
-        .default_width(width)
-        .resizable(false)
-        .show(ctx, |ui| views(ui, room));
+    let layout = crate::ui::layout(ctx, hud);
+    let mut open = hud.panel_open.unwrap_or(layout.form == Form::Drawer);
+    let summary = format!(
+        "t = {:.3}{}",
+        room.time.value,
+        if room.playing { " ▶" } else { "" }
+    );
+    match layout.form {
+        Form::Sheet => {
+            crate::layout::panel(ctx, "network-panel", &layout, &mut open, &summary, |ui| {
+                controls(ui, room, hud);
+                ui.separator();
+                views(ui, room);
+            });
+        }
+        Form::Drawer => {
+            crate::layout::panel(ctx, "network-panel", &layout, &mut open, &summary, |ui| {
+                controls(ui, room, hud)
+            });
+            // The distribution on the right, inside the safe area.
+            let safe = ctx.content_rect();
+            let width = (0.32 * safe.width()).clamp(260.0, 420.0);
+            egui::Area::new(egui::Id::unique("network-distribution"))
+                .pivot(egui::Align2::RIGHT_TOP)
+                .fixed_pos(safe.right_top() + egui::vec2(-8.0, 8.0))
+                .constrain(true)
+                .show(ctx, |ui| {
+                    egui::Frame::window(ui.style()).show(ui, |ui| {
+                        ui.set_width(width);
+                        egui::ScrollArea::vertical()
+                            .max_height(safe.height() - 40.0)
+                            .scroll_bar_visibility(crate::layout::scroll_bar(&layout))
+                            .show(ui, |ui| views(ui, room));
+                    });
+                });
+        }
+    }
+    hud.panel_open = Some(open);
 }
 
 fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
@@ -362,6 +376,9 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
                     .allow_zoom(false)
                     .allow_drag(false)
                     .allow_scroll(false)
+                    .allow_axis_zoom_drag(false)
+                    .allow_double_click_reset(false)
+                    .allow_boxed_zoom(false)
                     .show(ui, |plot| {
                         plot.bar_chart(egui_plot::BarChart::new(name.clone(), bars));
                         if let Some(points) = exact {

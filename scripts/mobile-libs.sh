@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Builds the app as a static library for each mobile target that is installed here
+# (a static library needs no platform linker or SDK) and prints its size, raw and with
+# the debug sections stripped. The library is the app and the on-line evaluator only:
+# built with --no-default-features, it holds no command line (src/cli/, clap).
+#
+#   scripts/mobile-libs.sh [TARGET ..]   default: aarch64-linux-android aarch64-apple-ios
+#                                        aarch64-apple-ios-sim
+#
+# Output: target/TARGET/release/libpalpa_app.a, and a line per target:
+#   TARGET  raw MB  stripped MB
+# Stripping uses llvm-strip (GNU strip cannot read aarch64 Mach-O objects).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(aarch64-linux-android aarch64-apple-ios aarch64-apple-ios-sim)
+installed="$(rustup target list --installed 2>/dev/null || true)"
+strip_tool="$(command -v llvm-strip || true)"
+built=0
+for t in "${targets[@]}"; do
+  if ! grep -qx "$t" <<<"$installed"; then
+    echo "mobile-libs.sh: skipping $t (not installed; 'rustup target add $t')"
+    continue
+  fi
+  cargo rustc --locked --release -q -p palpa-app --lib --no-default-features \
+    --target "$t" --crate-type staticlib
+  lib="target/$t/release/libpalpa_app.a"
+  raw=$(stat -c %s "$lib")
+  if [ -n "$strip_tool" ]; then
+    "$strip_tool" --strip-debug -o "$lib.stripped" "$lib"
+    stripped=$(stat -c %s "$lib.stripped")
+    printf '%-24s raw %7.1f MB  stripped %7.1f MB\n' "$t" "$(bc -l <<<"$raw/1e6")" "$(bc -l <<<"$stripped/1e6")"
+  else
+    printf '%-24s raw %7.1f MB  (no llvm-strip: apt install llvm)\n' "$t" "$(bc -l <<<"$raw/1e6")"
+  fi
+  built=$((built + 1))
+done
+echo "mobile-libs.sh: $built static librar$([ $built = 1 ] && echo y || echo ies) built"
