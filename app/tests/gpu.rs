@@ -198,8 +198,8 @@ fn the_network_scene_matches_the_reference_image() {
         display: Default::default(),
     })
     .expect("renders");
-    // The panel ends at x = 312.
-    let (x0, w, h) = (320usize, 900usize, 480usize);
+    // The drawer ends at x = 352 (see `layout::DRAWER_WIDTH_PT`).
+    let (x0, w, h) = (360usize, 900usize, 480usize);
     let mut crop = Image {
         width: (w - x0) as u32,
         height: h as u32,
