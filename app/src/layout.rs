@@ -442,7 +442,7 @@ mod tests {
         assert!(l.panel.bottom() <= s.size_pt.y - 34.0);
         assert!(l.panel.top() >= 47.0);
         assert!(!s.too_small());
-        assert!(screen((640, 1136), 2.0).too_small() == false);
+        assert!(!screen((640, 1136), 2.0).too_small());
         assert!(screen((600, 1000), 2.0).too_small());
         assert_eq!(Insets::parse("1,2,3"), None);
         assert_eq!(Insets::parse("1,2,3,-4"), None);

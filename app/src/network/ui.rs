@@ -32,7 +32,7 @@ pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
         }
         Form::Drawer => {
             crate::layout::panel(ctx, "network-panel", &layout, &mut open, &summary, |ui| {
-                controls(ui, room, hud)
+                controls(ui, room, hud);
             });
             // The distribution on the right, inside the safe area.
             let safe = ctx.content_rect();
