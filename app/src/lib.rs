@@ -30,6 +30,7 @@ pub mod priority;
 pub mod render;
 pub mod scenes;
 pub mod session;
+pub mod shell;
 pub mod stats;
 pub mod swapchain;
 pub mod ui;
