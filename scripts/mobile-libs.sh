@@ -10,6 +10,12 @@
 # Output: target/TARGET/release/libpalpa_app.a, and a line per target:
 #   TARGET  raw MB  stripped MB
 # Stripping uses llvm-strip (GNU strip cannot read aarch64 Mach-O objects).
+#
+# For Android it also links the shared library the APK would carry, to measure it:
+# ld.lld, the way rustc links a cdylib (only android_main and ANativeActivity_onCreate
+# exported, unreferenced sections dropped), without the NDK's sysroot: bionic's
+# symbols stay undefined for the device's loader. The size is what ships; the file
+# itself is not for a device (scripts/android-apk.sh links the real one with the NDK).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 targets=("$@")
@@ -32,6 +38,17 @@ for t in "${targets[@]}"; do
     printf '%-24s raw %7.1f MB  stripped %7.1f MB\n' "$t" "$(bc -l <<<"$raw/1e6")" "$(bc -l <<<"$stripped/1e6")"
   else
     printf '%-24s raw %7.1f MB  (no llvm-strip: apt install llvm)\n' "$t" "$(bc -l <<<"$raw/1e6")"
+  fi
+  if [ "$t" = aarch64-linux-android ] && command -v ld.lld >/dev/null && [ -n "$strip_tool" ]; then
+    so="target/$t/release/libpalpa_app.size-check.so"
+    map="$(mktemp)"
+    printf '{ global: android_main; ANativeActivity_onCreate; local: *; };\n' >"$map"
+    ld.lld -m aarch64linux -shared --gc-sections --version-script="$map" -z max-page-size=16384 \
+      --undefined=ANativeActivity_onCreate --undefined=android_main -soname libpalpa_app.so \
+      -o "$so" "$lib"
+    "$strip_tool" --strip-unneeded "$so"
+    rm -f "$map"
+    printf '%-24s linked libpalpa_app.so, stripped: %.1f MB (goal: 25 MB)\n' "$t" "$(bc -l <<<"$(stat -c %s "$so")/1e6")"
   fi
   built=$((built + 1))
 done
