@@ -259,9 +259,18 @@ impl App {
 
 impl ApplicationHandler for App {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
-        if let Err(e) = self.start_graphics(event_loop) {
-            self.fatal = Some(e);
-            event_loop.exit();
+        match self.start_graphics(event_loop) {
+            Ok(()) => {}
+            // A device exists but this resume gave no usable surface (a window not yet
+            // ready, or gone again): wait for the next resume, keeping the session.
+            Err(e) if self.graphics.is_some() => {
+                tracing::warn!("resumed without a usable surface: {e:#}");
+                self.shell.suspended();
+            }
+            Err(e) => {
+                self.fatal = Some(e);
+                event_loop.exit();
+            }
         }
     }
 
