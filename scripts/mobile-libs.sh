@@ -35,9 +35,9 @@ for t in "${targets[@]}"; do
   if [ -n "$strip_tool" ]; then
     "$strip_tool" --strip-debug -o "$lib.stripped" "$lib"
     stripped=$(stat -c %s "$lib.stripped")
-    printf '%-24s raw %7.1f MB  stripped %7.1f MB\n' "$t" "$(bc -l <<<"$raw/1e6")" "$(bc -l <<<"$stripped/1e6")"
+    printf '%-24s raw %7.1f MB  stripped %7.1f MB\n' "$t" "$(bc -l <<<"$raw/1000000")" "$(bc -l <<<"$stripped/1000000")"
   else
-    printf '%-24s raw %7.1f MB  (no llvm-strip: apt install llvm)\n' "$t" "$(bc -l <<<"$raw/1e6")"
+    printf '%-24s raw %7.1f MB  (no llvm-strip: apt install llvm)\n' "$t" "$(bc -l <<<"$raw/1000000")"
   fi
   if [ "$t" = aarch64-linux-android ] && command -v ld.lld >/dev/null && [ -n "$strip_tool" ]; then
     so="target/$t/release/libpalpa_app.size-check.so"
@@ -48,7 +48,7 @@ for t in "${targets[@]}"; do
       -o "$so" "$lib"
     "$strip_tool" --strip-unneeded "$so"
     rm -f "$map"
-    printf '%-24s linked libpalpa_app.so, stripped: %.1f MB (goal: 25 MB)\n' "$t" "$(bc -l <<<"$(stat -c %s "$so")/1e6")"
+    printf '%-24s linked libpalpa_app.so, stripped: %.1f MB (goal: 25 MB)\n' "$t" "$(bc -l <<<"$(stat -c %s "$so")/1000000")"
   fi
   built=$((built + 1))
 done

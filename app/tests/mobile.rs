@@ -38,7 +38,10 @@ fn the_android_manifest_names_the_library_and_its_resources_exist() {
     let cargo = read("app/Cargo.toml");
     let lib = attr(meta, "value").expect("a value");
     assert!(cargo.contains(&format!("name = \"{lib}\"")), "lib {lib}");
-    assert_eq!(attr(find("application"), "hasCode").as_deref(), Some("false"));
+    assert_eq!(
+        attr(find("application"), "hasCode").as_deref(),
+        Some("false")
+    );
     assert_eq!(
         attr(find("activity"), "name").as_deref(),
         Some("android.app.NativeActivity")
@@ -86,7 +89,12 @@ fn the_ios_project_links_the_library_and_calls_its_entry_point() {
         assert!(keys.contains(&key), "Info.plist lacks {key}");
     }
     let spec = read("ios/project.yml");
-    for needle in ["-lpalpa_app", "build-rust.sh", "Palpa/Info.plist", "liver-coarse.palpa"] {
+    for needle in [
+        "-lpalpa_app",
+        "build-rust.sh",
+        "Palpa/Info.plist",
+        "liver-coarse.palpa",
+    ] {
         assert!(spec.contains(needle), "project.yml lacks {needle}");
     }
     assert!(executable("ios/build-rust.sh"));
