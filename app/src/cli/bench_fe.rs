@@ -38,7 +38,7 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson, series, depth_law).
+    /// depth_poisson, series, depth_law, surface_law).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
@@ -59,6 +59,15 @@ pub struct FeBenchArgs {
     /// `depth_law` table: held-out presses compared with Newton.
     #[arg(long, default_value_t = 8)]
     law_heldout: usize,
+    /// `surface_law` table: the element (p1 builds in minutes, p2 in about an hour).
+    #[arg(long, default_value = "p2")]
+    surface_element: Element,
+    /// `surface_law` table: held-out presses compared with Newton.
+    #[arg(long, default_value_t = 6)]
+    surface_heldout: usize,
+    /// `surface_law` table: depths of the held-out presses (mm), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [4.0, 8.5])]
+    surface_depths: Vec<f64>,
     /// `series` table: laws (svk, neo-hookean), comma-separated.
     #[arg(long, value_delimiter = ',', default_values = ["neo-hookean", "svk"])]
     series_laws: Vec<Law>,
@@ -120,6 +129,9 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     }
     if args.wants("depth_law") {
         depth_law(args, &coarse)?;
+    }
+    if args.wants("surface_law") {
+        surface_law(args, &coarse)?;
     }
     if args.wants("svk") {
         svk(&coarse);
@@ -482,6 +494,113 @@ fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
     println!(
         "{}",
         json!({"table": "depth_law", "summary": true, "worst_force_rel_error": worst, "goal_5_percent": worst <= 0.05})
+    );
+    Ok(())
+}
+
+/// The nonlinear surface (neo-Hookean, coarse): residuals from every palpable vertex's
+/// continued depth series, blended barycentrically at held-out random points, against
+/// Newton's surface there; beside it the linear surface at the same depth (what the
+/// app draws without it), the build's time and bytes.
+fn surface_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
+    use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
+    use palpa_core::rng::Rng;
+    let depth_max = args
+        .surface_depths
+        .iter()
+        .copied()
+        .fold(1.0, f64::max)
+        .ceil();
+    let options = SurfaceLawOptions {
+        element: args.surface_element,
+        depth_max_mm: depth_max,
+        depth_step_mm: 0.5,
+        ..SurfaceLawOptions::default()
+    };
+    let law = SurfaceLaw::build(coarse, options, &mut |k, n| {
+        eprint!("\rsurface law: vertex {k}/{n}   ");
+    })?;
+    eprintln!();
+    println!(
+        "{}",
+        json!({"table": "surface_law", "level": "coarse", "element": options.element.name(),
+            "law": options.law.name(), "samples": law.samples.len(), "skipped": law.skipped.len(),
+            "rows": law.rows.len(), "depth_max_mm": depth_max, "build_s": law.build_s,
+            "bytes": law.bytes()})
+    );
+    let faces: Vec<usize> = (0..coarse.palpable.len())
+        .filter(|&f| coarse.palpable[f])
+        .collect();
+    let mut rng = Rng::seed(91);
+    let (mut worst_law, mut worst_linear) = (0.0f64, 0.0f64);
+    for _ in 0..args.surface_heldout {
+        let f = faces[rng.below(faces.len())];
+        let tri = coarse.boundary[f];
+        let (a, b) = (rng.uniform(), rng.uniform());
+        let (a, b) = if a + b > 1.0 {
+            (1.0 - a, 1.0 - b)
+        } else {
+            (a, b)
+        };
+        let bary = [1.0 - a - b, a, b];
+        let p = [0, 1, 2].map(|k| {
+            (0..3)
+                .map(|i| bary[i] * coarse.mesh.vertices[tri[i] as usize][k])
+                .sum::<f64>()
+        });
+        let unit = solve_linear(coarse, options.element, options.material, &req(p, 1.0))?;
+        let c = unit.probe_displacement_mm;
+        for &depth in &args.surface_depths {
+            let t = Instant::now();
+            let reference = solve_hyperelastic(
+                coarse,
+                options.element,
+                options.material,
+                options.law,
+                &req(p, f64::NAN),
+                Some(depth),
+                NewtonSettings::default(),
+            );
+            let newton_s = t.elapsed().as_secs_f64();
+            let mut row = json!({"table": "surface_law", "position": p, "depth_mm": depth,
+                "newton_s": newton_s});
+            match reference {
+                Ok((sol, _)) => {
+                    let n = law.rows.len();
+                    let mut residual = vec![0.0; 3 * n];
+                    let covered = law.add_residual(tri, bary, depth, &mut residual);
+                    let (mut e_law, mut e_lin, mut top) = (0.0f64, 0.0f64, 0.0f64);
+                    for (i, &r) in law.rows.iter().enumerate() {
+                        let mut d_law = 0.0;
+                        let mut d_lin = 0.0;
+                        let mut m = 0.0;
+                        for k in 0..3 {
+                            let g = 3 * r as usize + k;
+                            let lin = depth / c * unit.u[g];
+                            d_lin += (lin - sol.u[g]).powi(2);
+                            d_law += (lin + residual[3 * i + k] - sol.u[g]).powi(2);
+                            m += sol.u[g].powi(2);
+                        }
+                        e_law = e_law.max(d_law.sqrt());
+                        e_lin = e_lin.max(d_lin.sqrt());
+                        top = top.max(m.sqrt());
+                    }
+                    worst_law = worst_law.max(e_law);
+                    worst_linear = worst_linear.max(e_lin);
+                    row["covered"] = json!(covered);
+                    row["max_displacement_mm"] = json!(top);
+                    row["surface_max_error_mm"] = json!(e_law);
+                    row["linear_surface_max_error_mm"] = json!(e_lin);
+                }
+                Err(e) => row["newton_error"] = json!(e.to_string()),
+            }
+            println!("{row}");
+        }
+    }
+    println!(
+        "{}",
+        json!({"table": "surface_law", "summary": true, "worst_surface_max_error_mm": worst_law,
+            "worst_linear_surface_max_error_mm": worst_linear, "goal_0_5_mm": worst_law <= 0.5})
     );
     Ok(())
 }

@@ -687,6 +687,25 @@ pub fn continued_series(
 ) -> Result<Continued, FeError> {
     let t0 = Instant::now();
     let first = depth_series(space, law, material, shape, probe, orders)?;
+    let mut c = continued_from(space, law, material, shape, probe, first, split_mm, orders)?;
+    c.seconds = t0.elapsed().as_secs_f64();
+    Ok(c)
+}
+
+/// [`continued_series`] from a first series already expanded (with an [`Expander`]
+/// shared by many presses): the split state and the second series only.
+#[allow(clippy::too_many_arguments)]
+pub fn continued_from(
+    space: &Space,
+    law: Law,
+    material: Material,
+    shape: &[f64],
+    probe: &[f64],
+    first: DepthSeries,
+    split_mm: f64,
+    orders: usize,
+) -> Result<Continued, FeError> {
+    let t0 = Instant::now();
     let (lambda, mu) = material.lame_n_per_mm2();
     let (f0, u0) = first.evaluate(&first.rational(split_mm), split_mm);
     let pattern = SymCsc::pattern(space);

@@ -20,4 +20,5 @@ pub mod linear;
 pub mod nodal;
 pub mod palpation;
 pub mod samplelog;
+pub mod surfacelaw;
 pub mod tradeoff;
