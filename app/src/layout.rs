@@ -230,6 +230,16 @@ impl Layout {
 /// screens, egui's compact defaults with a mouse.
 pub fn apply_style(ctx: &egui::Context, layout: &Layout) {
     let touch = layout.touch;
+    // Called every pass: the style is rewritten only when the form of input changes.
+    let current = ctx.global_style();
+    let want = if touch {
+        MIN_TARGET_PT
+    } else {
+        egui::Style::default().spacing.interact_size.y
+    };
+    if current.spacing.interact_size.y == want && current.interaction.selectable_labels != touch {
+        return;
+    }
     ctx.global_style_mut(|style| {
         let base = egui::Style::default();
         style.spacing = base.spacing.clone();
