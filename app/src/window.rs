@@ -13,7 +13,9 @@
 //!
 //! Nothing here is desktop-only: on Android the same handler runs under
 //! `android_main` ([`crate::platform`]), with the surface created on `resumed` and
-//! dropped on `suspended`.
+//! dropped on `suspended`. What outlives a surface or a device (the room, the
+//! interface state) is the [`Shell`]; this module only turns winit's events into its
+//! calls and owns the window, the surface and the GPU.
 
 use std::sync::Arc;
 use std::time::Instant;
