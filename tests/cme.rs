@@ -7,7 +7,8 @@ use palpa_core::cme::network::{Network, NetworkError};
 use palpa_core::cme::{fsp, ssa};
 use palpa_tests::poisson;
 
-const IMMIGRATION_DEATH: &str = r#"
+/// Immigration and death of one species (box 0..=60), the CME tests' closed-form case.
+pub(crate) const IMMIGRATION_DEATH: &str = r#"
 name = "immigration-death"
 [[species]]
 name = "x"

@@ -10,6 +10,8 @@ use palpa_core::fe::probe::{ProbeRequest, solve_linear};
 use palpa_core::fe::{Element, FeError, Material};
 use palpa_tests::{coarse_liver, poisson};
 
+use super::cme::IMMIGRATION_DEATH;
+
 /// The probe displacement under 1 N on coarse P1 and P2 as ν goes to 0.5. P2 moves
 /// smoothly towards its incompressible limit (measured: 0.932, 0.913, 0.874, 0.850 mm
 /// at ν = 0.48, 0.49, 0.499, 0.4999), while P1 locks (0.569 → 0.290 mm, a third of P2
@@ -54,27 +56,6 @@ fn near_incompressible_tissue_p2_converges_and_p1_locks() {
         assert!(err.to_string().contains("0.5"), "{err}");
     }
 }
-
-const IMMIGRATION_DEATH: &str = r#"
-name = "immigration-death"
-[[species]]
-name = "x"
-max = 80
-initial = 0
-[[parameters]]
-name = "k"
-value = 4.0
-[[parameters]]
-name = "g"
-value = 0.25
-[[reactions]]
-change = { x = 1 }
-rate = ["k"]
-[[reactions]]
-change = { x = -1 }
-rate = ["g"]
-factors = [{ species = "x", kind = "linear" }]
-"#;
 
 /// t = 0 is the initial point mass exactly; t = 10⁴ (2 500 relaxation times, 10⁵
 /// reaction events on average) is the stationary Poisson(16) law to 1e-12 in L1, with

@@ -2,6 +2,8 @@
 //! --gpu installs it): the compute deformation against the CPU path of palpa-core, and
 //! an offscreen render of the default scene against a reference image.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use palpa_app::force::NoHaptics;
@@ -174,18 +176,9 @@ fn default_scene_matches_the_reference_image() {
 #[test]
 fn the_network_scene_matches_the_reference_image() {
     use palpa_app::network::offscreen::{NetworkHeadless, run};
-    use palpa_core::cme::network::Network;
-    use palpa_core::cme::{build, ttsolve};
-    let net = Network::built_in("toggle").expect("built in");
-    let options = ttsolve::Options {
-        t_end: 2.0,
-        h_max: 0.1,
-        ..ttsolve::Options::default()
-    };
-    let built = build::train(&net, &options, None, &mut |_| {}).expect("builds");
     let dir = tempfile::tempdir().expect("tempdir");
     let file = dir.path().join("toggle.palpa");
-    built.save(&net, &file).expect("save");
+    common::small_toggle(&file);
     let (_, actual) = run(&NetworkHeadless {
         scene: file.display().to_string(),
         // egui lays windows out unseen on their first frame.

@@ -5,6 +5,8 @@
 //! frames drawn offscreen on the software adapter. The session (probe, camera, modes
 //! kept, a network's coordinates) survives all of it.
 
+mod common;
+
 use glam::Vec2;
 use palpa_app::input::{Button, InputEvent, PointerId};
 use palpa_app::layout::Insets;
@@ -186,18 +188,9 @@ fn a_palpation_session_survives_rotation_suspend_resume_a_lost_device_and_low_me
 
 #[test]
 fn a_network_room_keeps_its_coordinates_through_suspend_and_a_new_device() {
-    use palpa_core::cme::network::Network;
-    use palpa_core::cme::{build, ttsolve};
-    let net = Network::built_in("toggle").expect("built in");
-    let options = ttsolve::Options {
-        t_end: 2.0,
-        h_max: 0.1,
-        ..ttsolve::Options::default()
-    };
-    let built = build::train(&net, &options, None, &mut |_| {}).expect("builds");
     let dir = tempfile::tempdir().expect("tempdir");
     let file = dir.path().join("toggle.palpa");
-    built.save(&net, &file).expect("save");
+    common::small_toggle(&file);
 
     let mut shell = Shell::open(file.to_str().expect("utf-8")).expect("opens");
     let gpu = Gpu::headless().expect("software adapter");

@@ -6,6 +6,8 @@
 //! the screen; the smallest supported screen, one below it, a 4K desktop and each
 //! density behave as documented; and two snapshots guard the view beside the panel.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use palpa_app::layout::{Display, Insets, LayoutReport};
@@ -50,17 +52,8 @@ fn liver(size: (u32, u32), d: Display) -> (LayoutReport, Image) {
 fn toggle_file() -> &'static Path {
     static FILE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     FILE.get_or_init(|| {
-        use palpa_core::cme::network::Network;
-        use palpa_core::cme::{build, ttsolve};
-        let net = Network::built_in("toggle").expect("built in");
-        let options = ttsolve::Options {
-            t_end: 2.0,
-            h_max: 0.1,
-            ..ttsolve::Options::default()
-        };
-        let built = build::train(&net, &options, None, &mut |_| {}).expect("builds");
         let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("touch-toggle.palpa");
-        built.save(&net, &path).expect("save");
+        common::small_toggle(&path);
         path
     })
 }

@@ -433,18 +433,7 @@ fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
     let mut rng = Rng::seed(77);
     let mut worst = 0.0f64;
     for _ in 0..args.law_heldout {
-        let f = faces[rng.below(faces.len())];
-        let tri = coarse.boundary[f];
-        let (a, b) = (rng.uniform(), rng.uniform());
-        let (a, b) = if a + b > 1.0 {
-            (1.0 - a, 1.0 - b)
-        } else {
-            (a, b)
-        };
-        let p = [0, 1, 2].map(|k| {
-            let v = |i: usize| coarse.mesh.vertices[tri[i] as usize][k];
-            (1.0 - a - b) * v(0) + a * v(1) + b * v(2)
-        });
+        let (p, _, _) = heldout_point(coarse, &faces, &mut rng);
         let depth = rng.range(2.0, 15.0);
         let unit = solve_linear(coarse, Element::P2, Material::default(), &req(p, 1.0))?;
         let compliance = unit.probe_displacement_mm;
@@ -498,6 +487,29 @@ fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A random point of a random palpable triangle (one of `faces`): the point, the
+/// triangle's vertices and the barycentric weights.
+fn heldout_point(
+    coarse: &OrganMesh,
+    faces: &[usize],
+    rng: &mut palpa_core::rng::Rng,
+) -> ([f64; 3], [u32; 3], [f64; 3]) {
+    let tri = coarse.boundary[faces[rng.below(faces.len())]];
+    let (a, b) = (rng.uniform(), rng.uniform());
+    let (a, b) = if a + b > 1.0 {
+        (1.0 - a, 1.0 - b)
+    } else {
+        (a, b)
+    };
+    let bary = [1.0 - a - b, a, b];
+    let p = [0, 1, 2].map(|k| {
+        (0..3)
+            .map(|i| bary[i] * coarse.mesh.vertices[tri[i] as usize][k])
+            .sum::<f64>()
+    });
+    (p, tri, bary)
+}
+
 /// The nonlinear surface (neo-Hookean, coarse): residuals from every palpable vertex's
 /// continued depth series, blended barycentrically at held-out random points, against
 /// Newton's surface there; beside it the linear surface at the same depth (what the
@@ -534,20 +546,7 @@ fn surface_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
     let mut rng = Rng::seed(91);
     let (mut worst_law, mut worst_linear) = (0.0f64, 0.0f64);
     for _ in 0..args.surface_heldout {
-        let f = faces[rng.below(faces.len())];
-        let tri = coarse.boundary[f];
-        let (a, b) = (rng.uniform(), rng.uniform());
-        let (a, b) = if a + b > 1.0 {
-            (1.0 - a, 1.0 - b)
-        } else {
-            (a, b)
-        };
-        let bary = [1.0 - a - b, a, b];
-        let p = [0, 1, 2].map(|k| {
-            (0..3)
-                .map(|i| bary[i] * coarse.mesh.vertices[tri[i] as usize][k])
-                .sum::<f64>()
-        });
+        let (p, tri, bary) = heldout_point(coarse, &faces, &mut rng);
         let unit = solve_linear(coarse, options.element, options.material, &req(p, 1.0))?;
         let c = unit.probe_displacement_mm;
         for &depth in &args.surface_depths {

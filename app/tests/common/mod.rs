@@ -1,5 +1,8 @@
 //! Helpers shared by the `palpa` binary's integration tests.
 
+// Each test binary compiles this module and uses only some of its helpers.
+#![allow(dead_code)]
+
 use std::process::Output;
 
 /// Asserts the command succeeded (showing its stderr otherwise) and parses its stdout
@@ -11,4 +14,19 @@ pub fn json_ok(out: &Output) -> serde_json::Value {
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+}
+
+/// Builds the toggle switch's meta-model on [0, 2] (steps ≤ 0.1: small and quick) into
+/// `path`: the network scene the GPU, touch and lifecycle tests open.
+pub fn small_toggle(path: &std::path::Path) {
+    use palpa_core::cme::network::Network;
+    use palpa_core::cme::{build, ttsolve};
+    let net = Network::built_in("toggle").expect("built in");
+    let options = ttsolve::Options {
+        t_end: 2.0,
+        h_max: 0.1,
+        ..ttsolve::Options::default()
+    };
+    let built = build::train(&net, &options, None, &mut |_| {}).expect("builds");
+    built.save(&net, path).expect("save");
 }
