@@ -23,6 +23,7 @@ targets=("$@")
 installed="$(rustup target list --installed 2>/dev/null || true)"
 strip_tool="$(command -v llvm-strip || true)"
 built=0
+mb() { awk -v b="$1" 'BEGIN { printf "%.1f", b / 1000000 }'; }
 for t in "${targets[@]}"; do
   if ! grep -qx "$t" <<<"$installed"; then
     echo "mobile-libs.sh: skipping $t (not installed; 'rustup target add $t')"
@@ -35,9 +36,9 @@ for t in "${targets[@]}"; do
   if [ -n "$strip_tool" ]; then
     "$strip_tool" --strip-debug -o "$lib.stripped" "$lib"
     stripped=$(stat -c %s "$lib.stripped")
-    printf '%-24s raw %7.1f MB  stripped %7.1f MB\n' "$t" "$(bc -l <<<"$raw/1000000")" "$(bc -l <<<"$stripped/1000000")"
+    printf '%-24s raw %7s MB  stripped %7s MB\n' "$t" "$(mb "$raw")" "$(mb "$stripped")"
   else
-    printf '%-24s raw %7.1f MB  (no llvm-strip: apt install llvm)\n' "$t" "$(bc -l <<<"$raw/1000000")"
+    printf '%-24s raw %7s MB  (no llvm-strip: apt install llvm)\n' "$t" "$(mb "$raw")"
   fi
   if [ "$t" = aarch64-linux-android ] && command -v ld.lld >/dev/null && [ -n "$strip_tool" ]; then
     so="target/$t/release/libpalpa_app.size-check.so"
@@ -48,7 +49,7 @@ for t in "${targets[@]}"; do
       -o "$so" "$lib"
     "$strip_tool" --strip-unneeded "$so"
     rm -f "$map"
-    printf '%-24s linked libpalpa_app.so, stripped: %.1f MB (goal: 25 MB)\n' "$t" "$(bc -l <<<"$(stat -c %s "$so")/1000000")"
+    printf '%-24s linked libpalpa_app.so, stripped: %s MB (goal: 25 MB)\n' "$t" "$(mb "$(stat -c %s "$so")")"
   fi
   built=$((built + 1))
 done
