@@ -22,6 +22,16 @@ use crate::mesh::{dot, sub};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+/// A point of the palpable region, in the parametric axis's numbering (a palpation
+/// scene's probe point).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbePoint {
+    /// Triangle of the parametric (palpable) surface.
+    pub triangle: u32,
+    /// Barycentric coordinates in that triangle's vertex order.
+    pub bary: [f64; 3],
+}
+
 /// How an axis is discretized. Stored in the meta-model header.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Discretization {

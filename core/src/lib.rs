@@ -44,6 +44,7 @@ pub mod export;
 pub mod farfield;
 pub mod fe;
 pub mod file;
+pub mod framed;
 pub mod fsutil;
 pub mod kernels;
 pub mod mesh;

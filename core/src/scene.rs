@@ -24,9 +24,10 @@ use std::collections::HashMap;
 
 use thiserror::Error;
 
+pub use crate::axis::ProbePoint;
 use crate::axis::{Discretization, ParamValue, closest_point};
 use crate::file::AnyModel;
-use crate::mesh::{cross, sub};
+pub use crate::mesh::vertex_normals;
 use crate::nearfield::NearField;
 use crate::separated::{EvalError, SeparatedModel, TradeoffRow};
 
@@ -65,15 +66,6 @@ pub enum ContactError {
         compliance_mm_per_n: f64,
         modes: usize,
     },
-}
-
-/// A point of the palpable region, in the parametric axis's numbering.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ProbePoint {
-    /// Triangle of the parametric (palpable) surface.
-    pub triangle: u32,
-    /// Barycentric coordinates in that triangle's vertex order.
-    pub bary: [f64; 3],
 }
 
 /// What the contact law gives at a probe point.
@@ -271,6 +263,17 @@ impl PalpationScene {
         self.model.tradeoff()
     }
 
+    /// Rest positions of the palpable (axis) vertices, mm.
+    pub fn axis_vertices_mm(&self) -> &[[f64; 3]] {
+        &self.axis_vertices_mm
+    }
+
+    /// Palpable triangles over the axis vertices (the numbering of
+    /// [`ProbePoint::triangle`]).
+    pub fn axis_triangles(&self) -> &[[u32; 3]] {
+        &self.axis_triangles
+    }
+
     /// Whether render vertex `v` belongs to the palpable region.
     pub fn palpable_vertices(&self) -> Vec<bool> {
         let mut out = vec![false; self.vertices_mm.len()];
@@ -463,28 +466,4 @@ fn not_palpation(m: &SeparatedModel<f32>) -> SceneError {
         kind: m.kind().to_string(),
         axes: m.axes().len(),
     }
-}
-
-/// Area-weighted vertex normals (the cross product's length is twice the area).
-pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
-    let mut n = vec![[0.0f64; 3]; vertices.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| vertices[i as usize].map(f64::from));
-        let cr = cross(sub(b, a), sub(c, a));
-        for &v in t {
-            for c in 0..3 {
-                n[v as usize][c] += cr[c];
-            }
-        }
-    }
-    n.iter()
-        .map(|v| {
-            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            if len > 0.0 {
-                v.map(|c| (c / len) as f32)
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect()
 }

@@ -49,10 +49,19 @@ pub fn assemble_vector<F>(space: &Space, element: F) -> Vec<f64>
 where
     F: Fn(usize, &mut [f64]) + Sync,
 {
+    let all: Vec<usize> = (0..space.cell_count()).collect();
+    assemble_vector_on(space, &all, element)
+}
+
+/// [`assemble_vector`] over the cells `cells` only (the others contribute zero).
+pub fn assemble_vector_on<F>(space: &Space, cells: &[usize], element: F) -> Vec<f64>
+where
+    F: Fn(usize, &mut [f64]) + Sync,
+{
     let m = 3 * space.element.nodes_per_cell();
-    let parts: Vec<(Vec<usize>, Vec<f64>)> = (0..space.cell_count())
-        .into_par_iter()
-        .map(|c| {
+    let parts: Vec<(Vec<usize>, Vec<f64>)> = cells
+        .par_iter()
+        .map(|&c| {
             let mut fe = vec![0.0; m];
             element(c, &mut fe);
             let mut dofs = Vec::with_capacity(m);

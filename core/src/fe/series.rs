@@ -244,6 +244,7 @@ pub fn element_coefficient(
 }
 
 /// `N_p` on the free dofs (see the module doc).
+#[allow(clippy::too_many_arguments)]
 fn coefficient(
     space: &Space,
     law: Law,
@@ -252,10 +253,41 @@ fn coefficient(
     p: usize,
     lambda: f64,
     mu: f64,
+    cells: &[usize],
 ) -> Vec<f64> {
-    super::newton::assemble_vector(space, |c, fe| {
+    super::newton::assemble_vector_on(space, cells, |c, fe| {
         element_coefficient(space, law, c, base, lower, p, lambda, mu, fe);
     })
+}
+
+/// The cells where the press's first order `u1` (all-node) varies by at least
+/// `cutoff` times its largest variation over a cell (`cutoff = 0`: every cell).
+///
+/// Why this is enough: `N_p` (p ≥ 2) is a sum of products of at least two of the
+/// lower orders' gradients, and those orders are driven by `u1`'s; in a cell where
+/// `u1` varies by `ε` of its peak, `N_p` is of order `ε²` of its peak there. A cutoff
+/// of 1e-2 drops terms of relative size 1e-4 and keeps the cells within a few tool
+/// radii of the probe (or the whole lobe, when the press moves a thin lobe as a
+/// body), which is where the nonlinearity lives.
+pub fn active_cells(space: &Space, u1: &[f64], cutoff: f64) -> Vec<usize> {
+    let variation = |c: usize| {
+        let cell = space.cell(c);
+        let first = cell[0] as usize;
+        cell.iter()
+            .map(|&n| {
+                let n = n as usize;
+                (0..3)
+                    .map(|i| (u1[3 * n + i] - u1[3 * first + i]).powi(2))
+                    .sum::<f64>()
+            })
+            .fold(0.0, f64::max)
+            .sqrt()
+    };
+    let all: Vec<f64> = (0..space.cell_count()).map(variation).collect();
+    let top = all.iter().copied().fold(0.0, f64::max);
+    (0..space.cell_count())
+        .filter(|&c| cutoff <= 0.0 || all[c] >= cutoff * top)
+        .collect()
 }
 
 /// A press expanded in its depth.
@@ -573,6 +605,18 @@ impl<'a> Expander<'a> {
         probe: &[f64],
         orders: usize,
     ) -> Result<DepthSeries, FeError> {
+        self.expand_active(shape, probe, orders, 0.0)
+    }
+
+    /// [`Self::expand`] with the higher orders' right-hand sides assembled on the
+    /// [`active_cells`] of `cutoff` only.
+    pub fn expand_active(
+        &self,
+        shape: &[f64],
+        probe: &[f64],
+        orders: usize,
+        cutoff: f64,
+    ) -> Result<DepthSeries, FeError> {
         let t0 = Instant::now();
         let mut out = orders_about(
             self.space,
@@ -584,6 +628,7 @@ impl<'a> Expander<'a> {
             probe,
             None,
             orders,
+            cutoff,
         )?;
         out.factor_s = self.factor_s;
         out.seconds = self.factor_s + t0.elapsed().as_secs_f64();
@@ -604,6 +649,7 @@ fn orders_about(
     probe: &[f64],
     base: Option<&[f64]>,
     orders: usize,
+    cutoff: f64,
 ) -> Result<DepthSeries, FeError> {
     let shape = space.restrict(shape);
     let probe = space.restrict(probe);
@@ -615,14 +661,18 @@ fn orders_about(
     }
     let mut force = Vec::with_capacity(orders);
     let mut lower: Vec<Vec<f64>> = Vec::with_capacity(orders);
+    let mut cells = Vec::new();
     for p in 1..=orders.max(1) {
+        if p == 2 {
+            cells = active_cells(space, &lower[0], cutoff);
+        }
         let (fp, up) = if p == 1 {
             (
                 1.0 / compliance,
                 y.iter().map(|v| v / compliance).collect::<Vec<_>>(),
             )
         } else {
-            let n = coefficient(space, law, base, &lower, p, lambda, mu);
+            let n = coefficient(space, law, base, &lower, p, lambda, mu, &cells);
             let x = chol.solve(&n);
             let fp = dot(&probe, &x) / compliance;
             (fp, y.iter().zip(&x).map(|(a, b)| fp * a - b).collect())
@@ -687,9 +737,33 @@ pub fn continued_series(
 ) -> Result<Continued, FeError> {
     let t0 = Instant::now();
     let first = depth_series(space, law, material, shape, probe, orders)?;
-    let mut c = continued_from(space, law, material, shape, probe, first, split_mm, orders)?;
+    let mut c = continued_from(
+        space,
+        law,
+        material,
+        shape,
+        probe,
+        first,
+        split_mm,
+        orders,
+        SplitTangent::Exact,
+        0.0,
+    )?;
     c.seconds = t0.elapsed().as_secs_f64();
     Ok(c)
+}
+
+/// How the second expansion of a [`Continued`] press gets its tangent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SplitTangent {
+    /// Factor the tangent at the Padé state for the Newton correction, then again at
+    /// the corrected state for the series: the exact ANM step (two factorizations).
+    Exact,
+    /// Factor once, at the Padé state, and use it for the correction (a chord step)
+    /// and the series: the series about the corrected state then solves with a
+    /// tangent that differs from the exact one by the correction's size (about 1e-4
+    /// of the state), for half the factorizations. What a many-press build uses.
+    Shared,
 }
 
 /// [`continued_series`] from a first series already expanded (with an [`Expander`]
@@ -704,6 +778,8 @@ pub fn continued_from(
     first: DepthSeries,
     split_mm: f64,
     orders: usize,
+    tangent: SplitTangent,
+    cutoff: f64,
 ) -> Result<Continued, FeError> {
     let t0 = Instant::now();
     let (lambda, mu) = material.lame_n_per_mm2();
@@ -729,7 +805,10 @@ pub fn continued_from(
     let du = space.expand(&du);
     let base_u: Vec<f64> = u0.iter().zip(&du).map(|(a, b)| a + b).collect();
     let base_force_n = f0 + df;
-    let chol = factor(&base_u)?;
+    let chol = match tangent {
+        SplitTangent::Exact => factor(&base_u)?,
+        SplitTangent::Shared => chol,
+    };
     let second = orders_about(
         space,
         law,
@@ -740,6 +819,7 @@ pub fn continued_from(
         probe,
         Some(&base_u),
         orders,
+        cutoff,
     )?;
     Ok(Continued {
         first,

@@ -119,3 +119,27 @@ pub(crate) fn lerp(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
         a[2] + t * (b[2] - a[2]),
     ]
 }
+
+/// Area-weighted vertex normals (the cross product's length is twice the area).
+pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
+    let mut n = vec![[0.0f64; 3]; vertices.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| vertices[i as usize].map(f64::from));
+        let cr = cross(sub(b, a), sub(c, a));
+        for &v in t {
+            for c in 0..3 {
+                n[v as usize][c] += cr[c];
+            }
+        }
+    }
+    n.iter()
+        .map(|v| {
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            if len > 0.0 {
+                v.map(|c| (c / len) as f32)
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect()
+}

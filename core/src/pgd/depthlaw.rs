@@ -433,27 +433,12 @@ impl DepthLaw {
 
     /// Writes the law atomically (a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), DepthLawFileError> {
-        let body =
-            bincode::serde::encode_to_vec(self, bincode::config::standard()).map_err(|e| {
-                DepthLawFileError::Corrupt {
-                    path: path.to_path_buf(),
-                    why: e.to_string(),
-                }
-            })?;
-        crate::fsutil::atomic_write(path, |w| {
-            use std::io::Write;
-            w.write_all(MAGIC)?;
-            w.write_all(&VERSION.to_le_bytes())?;
-            w.write_all(&xxhash_rust::xxh3::xxh3_64(&body).to_le_bytes())?;
-            w.write_all(&body)
-        })
-        .map_err(|source| DepthLawFileError::Io {
+        crate::framed::write(path, MAGIC, VERSION, self).map_err(|source| DepthLawFileError::Io {
             path: path.to_path_buf(),
             source,
         })
     }
 
-    /// Reads and checks a law written by [`Self::save`].
     pub fn load(path: &Path) -> Result<DepthLaw, DepthLawFileError> {
         let bytes = std::fs::read(path).map_err(|source| DepthLawFileError::Io {
             path: path.to_path_buf(),
@@ -464,44 +449,13 @@ impl DepthLaw {
 
     /// Reads a law from the bytes of a file (`path` names it in errors).
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<DepthLaw, DepthLawFileError> {
+        use crate::framed::FramedError;
         let p = || path.to_path_buf();
-        if bytes.len() < 20 || &bytes[..8] != MAGIC {
-            return Err(DepthLawFileError::Foreign { path: p() });
-        }
-        let found = u32::from_le_bytes(
-            bytes[8..12]
-                .try_into()
-                .expect("length checked above: 8..12 is 4 bytes"),
-        );
-        if found != VERSION {
-            return Err(DepthLawFileError::Version { path: p(), found });
-        }
-        let sum = u64::from_le_bytes(
-            bytes[12..20]
-                .try_into()
-                .expect("length checked above: 12..20 is 8 bytes"),
-        );
-        let body = &bytes[20..];
-        if xxhash_rust::xxh3::xxh3_64(body) != sum {
-            return Err(DepthLawFileError::Corrupt {
-                path: p(),
-                why: "checksum mismatch".into(),
-            });
-        }
-        let (law, used): (DepthLaw, usize) = bincode::serde::decode_from_slice(
-            body,
-            bincode::config::standard().with_limit::<{ 256 << 20 }>(),
-        )
-        .map_err(|e| DepthLawFileError::Corrupt {
-            path: p(),
-            why: e.to_string(),
+        let law: DepthLaw = crate::framed::read(bytes, MAGIC, VERSION).map_err(|e| match e {
+            FramedError::Foreign => DepthLawFileError::Foreign { path: p() },
+            FramedError::Version(found) => DepthLawFileError::Version { path: p(), found },
+            FramedError::Corrupt(why) => DepthLawFileError::Corrupt { path: p(), why },
         })?;
-        if used != body.len() {
-            return Err(DepthLawFileError::Corrupt {
-                path: p(),
-                why: format!("{} bytes after the law", body.len() - used),
-            });
-        }
         law.check()
             .map_err(|why| DepthLawFileError::Corrupt { path: p(), why })?;
         Ok(law)

@@ -21,4 +21,5 @@ pub mod nodal;
 pub mod palpation;
 pub mod samplelog;
 pub mod surfacelaw;
+pub mod tissue;
 pub mod tradeoff;

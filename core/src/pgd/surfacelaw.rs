@@ -28,12 +28,12 @@ use std::time::Instant;
 use crate::fe::hyper::Law;
 use crate::fe::load::{probe_functional, probe_load};
 use crate::fe::probe::{ProbeRequest, locate, organ_space};
-use crate::fe::series::{Expander, continued_from};
+use crate::fe::series::{Expander, SplitTangent, continued_from};
 use crate::fe::{Element, FeError, Material};
 use crate::organ::OrganMesh;
 
 /// How the surface law is built.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SurfaceLawOptions {
     pub law: Law,
     pub material: Material,
@@ -45,6 +45,13 @@ pub struct SurfaceLawOptions {
     /// The continuation's split, as a fraction of the largest depth.
     pub split_fraction: f64,
     pub tool_radius_mm: f64,
+    /// The higher orders are assembled only on cells where the press's first order
+    /// varies by at least this fraction of its peak (see
+    /// [`crate::fe::series::active_cells`]); 0 assembles every cell.
+    pub active_cutoff: f64,
+    /// Press only the palpable vertices within this ball (centre, radius; mm): a
+    /// scene that shows one region models only that region. `None`: all of them.
+    pub within: Option<([f64; 3], f64)>,
 }
 
 impl Default for SurfaceLawOptions {
@@ -58,6 +65,8 @@ impl Default for SurfaceLawOptions {
             orders: 12,
             split_fraction: 0.55,
             tool_radius_mm: 5.0,
+            active_cutoff: 0.01,
+            within: None,
         }
     }
 }
@@ -74,19 +83,42 @@ pub struct SurfaceLaw {
     /// its centre: next to the fixed region).
     pub samples: Vec<u32>,
     pub skipped: Vec<u32>,
+    /// Why each skipped vertex was skipped.
+    pub skip_reasons: Vec<String>,
     steps: usize,
     /// `residual[((sample · steps) + j) · 3·rows + 3·row + c]`, mm.
     residual: Vec<f32>,
+    /// `ratio[sample · steps + j]`: the force over the linear force at grid depth `j`.
+    pub ratio: Vec<f64>,
+    /// Per sample: the FE model's linear stiffness there (N/mm), and the Padé forms'
+    /// largest relative change at the segment ends (the series' error indicator).
+    pub stiffness_n_per_mm: Vec<f64>,
+    pub pade_change: Vec<f64>,
     pub build_s: f64,
 }
 
+/// What one palpable vertex's press gives: its residual surface and force ratio at
+/// every grid depth.
+struct VertexPress {
+    /// `steps × 3·rows`, mm.
+    residual: Vec<f32>,
+    /// `g(d_j) = F(d_j) / (d_j · F₁)`, `g(0) = 1`.
+    ratio: Vec<f64>,
+    stiffness_n_per_mm: f64,
+    pade_change: f64,
+}
+
 impl SurfaceLaw {
-    /// Samples every palpable vertex of `organ`; `progress(done, total)`.
+    /// Samples every palpable vertex of `organ`, the vertices in parallel (the
+    /// expander's factorization is shared read-only); `progress(done, total)` from
+    /// whichever thread finishes a vertex.
     pub fn build(
         organ: &OrganMesh,
         options: SurfaceLawOptions,
-        progress: &mut dyn FnMut(usize, usize),
+        progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<SurfaceLaw, FeError> {
+        use rayon::prelude::*;
+        use std::sync::atomic::{AtomicUsize, Ordering};
         let o = options;
         let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
         if !(o.depth_max_mm > 0.0 && o.depth_step_mm > 0.0 && (2..=256).contains(&steps)) {
@@ -105,79 +137,74 @@ impl SurfaceLaw {
             .filter(|(_, p)| **p)
             .flat_map(|(t, _)| t.iter().copied())
             .filter(|&v| !organ.fixed[v as usize])
+            .filter(|&v| {
+                o.within.is_none_or(|(c, r)| {
+                    let p = organ.mesh.vertices[v as usize];
+                    (0..3).map(|k| (p[k] - c[k]).powi(2)).sum::<f64>() <= r * r
+                })
+            })
             .collect();
         candidates.sort_unstable();
         candidates.dedup();
+        // Each vertex is pressed along its inward area-weighted normal: the direction
+        // a scene's contact law pushes at that vertex (a face's normal would differ
+        // from it by up to the dihedral angle on a sharp border).
+        let normals = organ_vertex_normals(organ);
+        let done = AtomicUsize::new(0);
+        progress(0, candidates.len());
+        let presses: Vec<Result<VertexPress, String>> = candidates
+            .par_iter()
+            .map(|&v| {
+                let push = normals[v as usize].map(|c| -f64::from(c));
+                let press = vertex_press(&space, organ, &expander, &o, &rows, steps, v, push);
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1, candidates.len());
+                press
+            })
+            .collect::<Result<_, _>>()?;
         let mut sample_of = vec![u32::MAX; organ.mesh.vertices.len()];
-        let mut samples = Vec::new();
-        let mut skipped = Vec::new();
+        let (mut samples, mut skipped, mut skip_reasons) = (Vec::new(), Vec::new(), Vec::new());
         let mut residual = Vec::new();
-        let split = o.split_fraction * o.depth_max_mm;
-        for (k, &v) in candidates.iter().enumerate() {
-            progress(k, candidates.len());
-            let req = ProbeRequest {
-                at: organ.mesh.vertices[v as usize],
-                force_n: 1.0,
-                dir: None,
-                radius_mm: o.tool_radius_mm,
-            };
-            let (probe, dir) = locate(&space, organ, &req)?;
-            let shape = probe_load(&space, &probe, dir, 1.0, o.tool_radius_mm)?;
-            let functional = probe_functional(&space, &probe, dir);
-            let first = match expander.expand(&shape, &functional, o.orders) {
-                Ok(s) => s,
-                Err(FeError::ProbeNotMoved) => {
+        let (mut ratio, mut stiffness, mut change) = (Vec::new(), Vec::new(), Vec::new());
+        for (&v, press) in candidates.iter().zip(presses) {
+            let p = match press {
+                Ok(p) => p,
+                Err(why) => {
                     skipped.push(v);
+                    skip_reasons.push(why);
                     continue;
                 }
-                Err(e) => return Err(e),
             };
-            let press = match continued_from(
-                &space,
-                o.law,
-                o.material,
-                &shape,
-                &functional,
-                first,
-                split,
-                o.orders,
-            ) {
-                Ok(c) => c,
-                Err(FeError::ProbeNotMoved | FeError::NotPositiveDefinite { .. }) => {
-                    skipped.push(v);
-                    continue;
-                }
-                Err(e) => return Err(e),
-            };
-            let unit = &press.first.u[0];
             sample_of[v as usize] = samples.len() as u32;
             samples.push(v);
-            for j in 0..steps {
-                let d = j as f64 * o.depth_step_mm;
-                let (_, u) = if j == 0 {
-                    (0.0, vec![0.0; unit.len()])
-                } else {
-                    press.evaluate(d, o.depth_max_mm)
-                };
-                for &r in &rows {
-                    for c in 0..3 {
-                        let i = 3 * r as usize + c;
-                        residual.push((u[i] - d * unit[i]) as f32);
-                    }
-                }
-            }
+            residual.extend_from_slice(&p.residual);
+            ratio.extend_from_slice(&p.ratio);
+            stiffness.push(p.stiffness_n_per_mm);
+            change.push(p.pade_change);
         }
-        progress(candidates.len(), candidates.len());
         Ok(SurfaceLaw {
             options,
             rows,
             sample_of,
             samples,
             skipped,
+            skip_reasons,
             steps,
             residual,
+            ratio,
+            stiffness_n_per_mm: stiffness,
+            pade_change: change,
             build_s: t0.elapsed().as_secs_f64(),
         })
+    }
+
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// Sample `s`'s residual at grid depth `j` (3 per kept row, mm).
+    pub fn residual_at(&self, s: usize, j: usize) -> &[f32] {
+        let n = 3 * self.rows.len();
+        &self.residual[(s * self.steps + j) * n..][..n]
     }
 
     /// Adds the residual at depth `depth_mm` for a probe at barycentric `bary` of the
@@ -224,6 +251,121 @@ impl SurfaceLaw {
     }
 }
 
+/// Outward area-weighted normals of the organ's boundary, per mesh vertex (zero off
+/// the boundary): the same normals a scene computes for its render vertices.
+pub fn organ_vertex_normals(organ: &OrganMesh) -> Vec<[f32; 3]> {
+    let vertices: Vec<[f32; 3]> = organ
+        .mesh
+        .vertices
+        .iter()
+        .map(|p| p.map(|x| x as f32))
+        .collect();
+    crate::mesh::vertex_normals(&vertices, &organ.boundary)
+}
+
+/// One vertex's continued press, or why it is skipped (the tool does not move
+/// its centre, next to the fixed region; or the tangent at the split is not positive
+/// definite, where the tissue has lost stability).
+#[allow(clippy::too_many_arguments)]
+fn vertex_press(
+    space: &crate::fe::space::Space,
+    organ: &OrganMesh,
+    expander: &Expander,
+    o: &SurfaceLawOptions,
+    rows: &[u32],
+    steps: usize,
+    v: u32,
+    push: [f64; 3],
+) -> Result<Result<VertexPress, String>, FeError> {
+    let req = ProbeRequest {
+        at: organ.mesh.vertices[v as usize],
+        force_n: 1.0,
+        dir: Some(push),
+        radius_mm: o.tool_radius_mm,
+    };
+    let (probe, dir) = locate(space, organ, &req)?;
+    let shape = probe_load(space, &probe, dir, 1.0, o.tool_radius_mm)?;
+    let functional = probe_functional(space, &probe, dir);
+    let first = match expander.expand_active(&shape, &functional, o.orders, o.active_cutoff) {
+        Ok(s) => s,
+        Err(e @ FeError::ProbeNotMoved) => return Ok(Err(format!("first series: {e}"))),
+        Err(e) => return Err(e),
+    };
+    // Where the tangent at the split is not positive definite (the first series'
+    // state there is off, or the tissue buckles under the tool), split earlier once.
+    let mut split = o.split_fraction * o.depth_max_mm;
+    let press = loop {
+        match continued_from(
+            space,
+            o.law,
+            o.material,
+            &shape,
+            &functional,
+            first.clone(),
+            split,
+            o.orders,
+            SplitTangent::Shared,
+            o.active_cutoff,
+        ) {
+            Ok(c) => break c,
+            Err(FeError::NotPositiveDefinite { .. }) if split > 0.4 * o.depth_max_mm => {
+                split *= 0.6;
+            }
+            Err(e @ (FeError::ProbeNotMoved | FeError::NotPositiveDefinite { .. })) => {
+                return Ok(Err(format!(
+                    "continuation at {split:.2} mm: {}",
+                    match e {
+                        FeError::NotPositiveDefinite { .. } => {
+                            "the tangent there is not positive definite".to_string()
+                        }
+                        e => e.to_string(),
+                    }
+                )));
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    let unit = &press.first.u[0];
+    let stiffness = press.first.force[0];
+    let change = press
+        .first
+        .rational(split)
+        .change
+        .max(press.second.rational(o.depth_max_mm - split).change);
+    // The same rule as the force law's samples: a series whose Padé forms still
+    // change by more than this at a segment's end is not trusted.
+    if change > crate::pgd::depthlaw::PADE_CHANGE_MAX {
+        return Ok(Err(format!(
+            "the Padé forms change by more than {} at a segment's end",
+            crate::pgd::depthlaw::PADE_CHANGE_MAX
+        )));
+    }
+    let mut residual = Vec::with_capacity(steps * 3 * rows.len());
+    let mut ratio = Vec::with_capacity(steps);
+    for j in 0..steps {
+        let d = j as f64 * o.depth_step_mm;
+        if j == 0 {
+            residual.resize(3 * rows.len(), 0.0);
+            ratio.push(1.0);
+            continue;
+        }
+        let (f, u) = press.evaluate(d, o.depth_max_mm);
+        ratio.push(f / (d * stiffness));
+        for &r in rows {
+            for c in 0..3 {
+                let i = 3 * r as usize + c;
+                residual.push((u[i] - d * unit[i]) as f32);
+            }
+        }
+    }
+    Ok(Ok(VertexPress {
+        residual,
+        ratio,
+        stiffness_n_per_mm: stiffness,
+        pade_change: if change.is_finite() { change } else { 0.0 },
+    }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -256,8 +398,12 @@ mod tests {
             sample_of: vec![0, 1, u32::MAX],
             samples: vec![0, 1],
             skipped: vec![],
+            skip_reasons: vec![],
             steps: 3,
             residual,
+            ratio: vec![1.0; 6],
+            stiffness_n_per_mm: vec![1.0; 2],
+            pade_change: vec![0.0; 2],
             build_s: 0.0,
         };
         let at = |bary: [f64; 3], d: f64| {

@@ -1,0 +1,628 @@
+//! The tissue's nonlinear vademecum `u(x; s, d)` and force law `F(s, d)`, compressed
+//! for a scene: what the app evaluates when the organ is hyperelastic.
+//!
+//! Off-line, [`SurfaceLaw`] presses every palpable vertex `v` through its continued
+//! depth series and keeps, at grid depths `d_j`, the surface residual
+//! `r_v(x; d_j) = u(x; v, d_j) − d_j · û(x; v)` and the force ratio
+//! `g_v(d_j) = F(v, d_j) / (d_j F₁(v))` (the linear force `d / c` is exact in the
+//! linear vademecum, so only the ratio is stored). Each vertex's residuals over the
+//! depths, a matrix `R_v` (3 · surface vertices × depths), are compressed by its thin
+//! SVD,
+//!
+//! ```text
+//! R_v ≈ A_v C_v,   A_v = U_q (3n × q),   C_v = Σ_q V_qᵀ (q × depths),
+//! ```
+//!
+//! keeping the fewest modes `q` with `σ_{q+1} ≤ tol`. Every column's error is then at
+//! most `σ_{q+1}` in the Euclidean norm, and so is every node's: the stored bound is a
+//! guarantee on the compression, not an estimate. (One SVD over all vertices does
+//! poorly here: each press's residual is a bump at its own place, and bumps at 500
+//! places are not a low-rank family; at 512 modes it still errs by 1.4 mm on coarse
+//! P2. Along its depths, one press's residual is nearly one shape growing: two to
+//! four modes.)
+//!
+//! On-line, a probe at barycentric `λ` of a palpable triangle blends its corners'
+//! modes (coefficients linear in `d` between grid depths) on the rows the scene
+//! draws; the force is
+//! `F(s, d) = d / c(s) · Σ_k λ_k g_{v_k}(d)` with `c(s)` the linear vademecum's exact
+//! compliance, and its inverse (force in, depth out) bisects that curve. Corners that
+//! were not sampled (next to the fixed region) drop out and the others are
+//! renormalized. Depths past the grid are held at its end and flagged. Nothing is
+//! allocated per call.
+//!
+//! The file is bound to a scene by the rest positions of its rows and samples, so a
+//! law built on the organ mesh serves any scene exported from the same mesh.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use faer::Mat;
+use serde::{Deserialize, Serialize};
+
+use crate::axis::ProbePoint;
+use crate::organ::OrganMesh;
+use crate::pgd::depthlaw::DepthLaw;
+use crate::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
+use crate::tensor::dense::thin_svd;
+
+/// The first bytes of a tissue file.
+pub const MAGIC: &[u8; 8] = b"PALPATIS";
+/// The file's format version.
+pub const VERSION: u32 = 1;
+
+/// Why a tissue file could not be made, read, written or bound to a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum TissueError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not a palpa tissue file (expected the magic bytes \"PALPATIS\")")]
+    Foreign { path: PathBuf },
+    #[error("{path}: tissue format version {found}, this palpa reads {VERSION}")]
+    Version { path: PathBuf, found: u32 },
+    #[error("{path}: corrupt tissue law: {why}")]
+    Corrupt { path: PathBuf, why: String },
+    #[error("no palpable vertex could be pressed: the surface law is empty")]
+    Empty,
+    #[error("the SVD of the residual matrix ({rows} × {cols}) did not converge")]
+    Svd { rows: usize, cols: usize },
+    #[error(
+        "the tissue law does not fit this scene: {matched} of its {total} palpable vertices \
+         sit on the scene's palpable surface (expected all; was it built on another mesh?)"
+    )]
+    Mismatch { matched: usize, total: usize },
+}
+
+/// The compressed nonlinear vademecum (see the module docs).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TissueLaw {
+    pub options: SurfaceLawOptions,
+    /// Rest positions of the rows (surface vertices), mm.
+    pub rows_mm: Vec<[f32; 3]>,
+    /// Rest positions of the sampled palpable vertices, mm.
+    pub samples_mm: Vec<[f32; 3]>,
+    /// Palpable vertices that were not pressed (next to the fixed region), mm.
+    pub skipped_mm: Vec<[f32; 3]>,
+    /// Grid depths `j · depth_step_mm`, `j = 0..steps`.
+    pub steps: u32,
+    /// `ratio[sample · steps + j]`: `g` at grid depth `j`.
+    pub ratio: Vec<f32>,
+    pub stiffness_n_per_mm: Vec<f32>,
+    pub pade_change: Vec<f32>,
+    /// The most modes a vertex keeps.
+    pub rank: u32,
+    /// Sample `s`'s modes are `mode_start[s]..mode_start[s + 1]`.
+    pub mode_start: Vec<u32>,
+    /// Each mode's surface shape (unit norm), quantized to 16 bits:
+    /// `shape[mode · 3·rows + row3] · shape_scale[mode]`. Quantizing costs at most
+    /// `scale / 2` per entry, which the stored bound includes; it halves the file
+    /// against f32.
+    pub shape: Vec<i16>,
+    pub shape_scale: Vec<f32>,
+    /// `coeffs[mode · steps + j]`: its weight at grid depth `j`, mm.
+    pub coeffs: Vec<f32>,
+    /// The largest `σ_{q+1}` over the vertices: no node's compressed residual is
+    /// farther than this from the computed one, mm.
+    pub truncation_bound_mm: f64,
+    /// The tolerance asked for, mm.
+    pub tolerance_mm: f64,
+    pub build_s: f64,
+    pub compress_s: f64,
+}
+
+/// Most modes one vertex may keep (its depths, at most).
+pub const MAX_RANK: usize = 256;
+
+impl TissueLaw {
+    /// Compresses a built surface law to `tolerance_mm` (see the module docs).
+    pub fn compress(
+        organ: &OrganMesh,
+        law: &SurfaceLaw,
+        tolerance_mm: f64,
+    ) -> Result<TissueLaw, TissueError> {
+        let t0 = Instant::now();
+        let steps = law.steps();
+        let n_samples = law.samples.len();
+        if n_samples == 0 {
+            return Err(TissueError::Empty);
+        }
+        let m = 3 * law.rows.len();
+        let (mut mode_start, mut coeffs) = (vec![0u32], Vec::new());
+        let (mut shape, mut shape_scale) = (Vec::new(), Vec::new());
+        let (mut rank, mut bound) = (0usize, 0.0f64);
+        for s in 0..n_samples {
+            // Columns j ≥ 1 only: depth 0 is exactly zero.
+            let a = Mat::from_fn(m, steps - 1, |i, c| f64::from(law.residual_at(s, c + 1)[i]));
+            let svd = thin_svd(a.as_ref()).ok_or(TissueError::Svd {
+                rows: m,
+                cols: steps - 1,
+            })?;
+            let q = svd.s.iter().take_while(|&&x| x > tolerance_mm).count();
+            let mut vertex_bound = svd.s.get(q).copied().unwrap_or(0.0);
+            rank = rank.max(q);
+            for k in 0..q {
+                let c: Vec<f64> = (0..steps - 1).map(|c| svd.s[k] * svd.v[(c, k)]).collect();
+                let c_max = c.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+                let top = (0..m).fold(0.0f64, |a, i| a.max(svd.u[(i, k)].abs()));
+                let scale = top / f64::from(i16::MAX);
+                let mut err2 = 0.0;
+                for i in 0..m {
+                    let x = svd.u[(i, k)];
+                    let q16 = if scale > 0.0 {
+                        (x / scale).round().clamp(-32767.0, 32767.0)
+                    } else {
+                        0.0
+                    };
+                    err2 += (x - q16 * f64::from(scale as f32)).powi(2);
+                    shape.push(q16 as i16);
+                }
+                shape_scale.push(scale as f32);
+                vertex_bound += err2.sqrt() * c_max;
+                coeffs.push(0.0f32);
+                coeffs.extend(c.iter().map(|&x| x as f32));
+            }
+            bound = bound.max(vertex_bound);
+            mode_start.push(mode_start[s] + q as u32);
+        }
+        let at = |v: u32| organ.mesh.vertices[v as usize].map(|x| x as f32);
+        let tissue = TissueLaw {
+            options: law.options,
+            rows_mm: law.rows.iter().map(|&v| at(v)).collect(),
+            samples_mm: law.samples.iter().map(|&v| at(v)).collect(),
+            skipped_mm: law.skipped.iter().map(|&v| at(v)).collect(),
+            steps: steps as u32,
+            ratio: law.ratio.iter().map(|&g| g as f32).collect(),
+            stiffness_n_per_mm: law.stiffness_n_per_mm.iter().map(|&k| k as f32).collect(),
+            pade_change: law.pade_change.iter().map(|&c| c as f32).collect(),
+            rank: rank as u32,
+            mode_start,
+            shape,
+            shape_scale,
+            coeffs,
+            truncation_bound_mm: bound,
+            tolerance_mm,
+            build_s: law.build_s,
+            compress_s: t0.elapsed().as_secs_f64(),
+        };
+        debug_assert_eq!(tissue.check(), Ok(()));
+        Ok(tissue)
+    }
+
+    pub fn depth_max_mm(&self) -> f64 {
+        self.options.depth_step_mm * f64::from(self.steps.saturating_sub(1))
+    }
+
+    /// Checks what a file gave: shapes, finite values, `g(0) = 1`, zero residual at
+    /// depth 0.
+    pub fn check(&self) -> Result<(), String> {
+        let steps = self.steps as usize;
+        let (ns, rank, m) = (
+            self.samples_mm.len(),
+            self.rank as usize,
+            3 * self.rows_mm.len(),
+        );
+        let step = self.options.depth_step_mm;
+        if !((2..=256).contains(&steps) && step.is_finite() && step > 0.0) {
+            return Err(format!(
+                "{steps} depths in steps of {} mm: expected 2 to 256 depths, a positive step",
+                self.options.depth_step_mm
+            ));
+        }
+        let modes = self.mode_start.last().copied().unwrap_or(0) as usize;
+        if ns == 0 || rank > MAX_RANK || m == 0 {
+            return Err(format!(
+                "{ns} samples, rank {rank}, {m} rows: expected samples, rows, rank ≤ {MAX_RANK}"
+            ));
+        }
+        if self.ratio.len() != ns * steps
+            || self.stiffness_n_per_mm.len() != ns
+            || self.pade_change.len() != ns
+            || self.mode_start.len() != ns + 1
+            || self.mode_start[0] != 0
+            || self
+                .mode_start
+                .windows(2)
+                .any(|w| w[1] < w[0] || (w[1] - w[0]) as usize > rank)
+            || self.shape.len() != modes * m
+            || self.shape_scale.len() != modes
+            || self.coeffs.len() != modes * steps
+        {
+            return Err(format!(
+                "array lengths do not match {ns} samples × {steps} depths, {modes} modes of \
+                 {m} rows"
+            ));
+        }
+        let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+        if !(finite(&self.shape_scale)
+            && finite(&self.coeffs)
+            && finite(&self.stiffness_n_per_mm)
+            && self.ratio.iter().all(|g| g.is_finite() && *g > 0.0)
+            && self
+                .rows_mm
+                .iter()
+                .chain(&self.samples_mm)
+                .all(|p| finite(p)))
+        {
+            return Err("non-finite values, or a non-positive force ratio".into());
+        }
+        if self.ratio.chunks_exact(steps).any(|r| r[0] != 1.0)
+            || self.coeffs.chunks_exact(steps).any(|c| c[0] != 0.0)
+        {
+            return Err("a sample's press at depth 0 is not the rest state".into());
+        }
+        Ok(())
+    }
+
+    /// Bytes of the stored arrays (what a scene keeps in memory).
+    pub fn payload_bytes(&self) -> usize {
+        2 * self.shape.len() + 4 * (self.shape_scale.len() + self.coeffs.len() + self.ratio.len())
+    }
+
+    /// Writes the law atomically (a temporary file renamed into place).
+    pub fn save(&self, path: &Path) -> Result<(), TissueError> {
+        crate::framed::write(path, MAGIC, VERSION, self).map_err(|source| TissueError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    pub fn load(path: &Path) -> Result<TissueLaw, TissueError> {
+        let bytes = std::fs::read(path).map_err(|source| TissueError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Reads a law from a file's bytes (`path` names it in errors).
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<TissueLaw, TissueError> {
+        use crate::framed::FramedError;
+        let p = || path.to_path_buf();
+        let law: TissueLaw = crate::framed::read(bytes, MAGIC, VERSION).map_err(|e| match e {
+            FramedError::Foreign => TissueError::Foreign { path: p() },
+            FramedError::Version(found) => TissueError::Version { path: p(), found },
+            FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
+        })?;
+        law.check()
+            .map_err(|why| TissueError::Corrupt { path: p(), why })?;
+        Ok(law)
+    }
+}
+
+/// How far apart (mm) a law's rest position and a scene's may be and still be the
+/// same mesh vertex (they pass through f32 and f64).
+pub const SAME_POINT_MM: f64 = 0.01;
+
+/// Points by position: which of a set lies within [`SAME_POINT_MM`] of a query (a
+/// hash grid of 1 mm cells, the query's cell and its neighbours searched, so a point
+/// next to a cell's border is found as well).
+#[derive(Debug, Clone)]
+pub struct PointIndex {
+    cells: HashMap<[i64; 3], Vec<(u32, [f64; 3])>>,
+}
+
+impl PointIndex {
+    pub fn new(points: impl IntoIterator<Item = [f64; 3]>) -> PointIndex {
+        let mut cells: HashMap<[i64; 3], Vec<(u32, [f64; 3])>> = HashMap::new();
+        for (i, p) in points.into_iter().enumerate() {
+            cells.entry(cell(p)).or_default().push((i as u32, p));
+        }
+        PointIndex { cells }
+    }
+
+    /// The index of a point within [`SAME_POINT_MM`] of `p`, if any.
+    pub fn find(&self, p: [f64; 3]) -> Option<u32> {
+        let c = cell(p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(list) = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                        continue;
+                    };
+                    for &(i, q) in list {
+                        let d2: f64 = (0..3).map(|k| (p[k] - q[k]).powi(2)).sum();
+                        if d2 <= SAME_POINT_MM * SAME_POINT_MM {
+                            return Some(i);
+                        }
+                    }
+                }
+            }
+        }
+        None
+    }
+}
+
+fn cell(p: [f64; 3]) -> [i64; 3] {
+    p.map(|x| x.floor() as i64)
+}
+
+/// A tissue law bound to one scene: its rows and samples in the scene's numbering.
+#[derive(Debug, Clone)]
+pub struct BoundTissue {
+    pub law: TissueLaw,
+    /// Per law row: the scene's render vertex, or `u32::MAX` (not drawn).
+    vertex_of_row: Vec<u32>,
+    /// Per palpable (axis) triangle: each corner's sample, or `u32::MAX`.
+    corner_samples: Vec<[u32; 3]>,
+    /// Render vertices the law has no row for (kept for the report).
+    pub unmatched_vertices: usize,
+}
+
+/// Scratch for [`BoundTissue::add_surface`]: the weight of each corner's modes.
+#[derive(Debug, Clone)]
+pub struct TissueScratch {
+    c: Vec<f64>,
+}
+
+impl BoundTissue {
+    /// Binds `law` to a scene by rest positions: its render vertices, palpable (axis)
+    /// vertices and palpable triangles over those (`PalpationScene::vertices_mm`,
+    /// `axis_vertices_mm`, `axis_triangles`). Every palpable vertex the law pressed
+    /// must be on the scene's palpable surface.
+    pub fn bind(
+        law: TissueLaw,
+        vertices_mm: &[[f32; 3]],
+        axis_vertices_mm: &[[f64; 3]],
+        axis_triangles: &[[u32; 3]],
+    ) -> Result<BoundTissue, TissueError> {
+        let rows = PointIndex::new(law.rows_mm.iter().map(|p| p.map(f64::from)));
+        let samples = PointIndex::new(law.samples_mm.iter().map(|p| p.map(f64::from)));
+        let mut vertex_of_row = vec![u32::MAX; law.rows_mm.len()];
+        let mut unmatched_vertices = 0;
+        for (v, p) in vertices_mm.iter().enumerate() {
+            match rows.find(p.map(f64::from)) {
+                Some(r) => vertex_of_row[r as usize] = v as u32,
+                None => unmatched_vertices += 1,
+            }
+        }
+        let axis_sample: Vec<u32> = axis_vertices_mm
+            .iter()
+            .map(|&p| samples.find(p).unwrap_or(u32::MAX))
+            .collect();
+        let matched = axis_sample.iter().filter(|&&s| s != u32::MAX).count();
+        if matched < law.samples_mm.len() {
+            return Err(TissueError::Mismatch {
+                matched,
+                total: law.samples_mm.len(),
+            });
+        }
+        let corner_samples = axis_triangles
+            .iter()
+            .map(|t| t.map(|v| axis_sample[v as usize]))
+            .collect();
+        Ok(BoundTissue {
+            law,
+            vertex_of_row,
+            corner_samples,
+            unmatched_vertices,
+        })
+    }
+
+    pub fn scratch(&self) -> TissueScratch {
+        TissueScratch {
+            c: vec![0.0; 3 * self.law.rank as usize],
+        }
+    }
+
+    /// The grid interval of `depth_mm` (held at the ends): `(j, t, beyond)` with the
+    /// depth at `(j + t) · step`.
+    fn interval(&self, depth_mm: f64) -> (usize, f64, bool) {
+        let last = (self.law.steps - 1) as f64;
+        let x = depth_mm.max(0.0) / self.law.options.depth_step_mm;
+        let beyond = x > last * (1.0 + 1e-12);
+        let x = x.min(last);
+        let j = (x.floor() as usize).min(self.law.steps as usize - 2);
+        (j, x - j as f64, beyond)
+    }
+
+    /// The probe's sampled corners with their renormalized weights (`None` when no
+    /// corner was sampled).
+    fn corners(&self, p: &ProbePoint) -> Option<[(usize, f64); 3]> {
+        let samples = self.corner_samples.get(p.triangle as usize)?;
+        let total: f64 = (0..3)
+            .filter(|&k| samples[k] != u32::MAX)
+            .map(|k| p.bary[k])
+            .sum();
+        // NaN weights count as none.
+        if total.is_nan() || total <= 0.0 {
+            return None;
+        }
+        Some(std::array::from_fn(|k| {
+            if samples[k] == u32::MAX {
+                (0, 0.0)
+            } else {
+                (samples[k] as usize, p.bary[k] / total)
+            }
+        }))
+    }
+
+    /// `g(s, d)` and whether `d` lay beyond the grid; 1 where no corner was sampled.
+    pub fn ratio(&self, p: &ProbePoint, depth_mm: f64) -> (f64, bool) {
+        let (j, t, beyond) = self.interval(depth_mm);
+        let Some(corners) = self.corners(p) else {
+            return (1.0, beyond);
+        };
+        let steps = self.law.steps as usize;
+        let g = corners
+            .iter()
+            .map(|&(s, w)| {
+                let a = f64::from(self.law.ratio[s * steps + j]);
+                let b = f64::from(self.law.ratio[s * steps + j + 1]);
+                w * ((1.0 - t) * a + t * b)
+            })
+            .sum();
+        (g, beyond)
+    }
+
+    /// Depth in, force out: `F = d / c · g(s, d)` with the linear compliance
+    /// `compliance_mm_per_n` at `p`; past the grid the force is held at its end.
+    pub fn force_n(&self, p: &ProbePoint, depth_mm: f64, compliance_mm_per_n: f64) -> (f64, bool) {
+        let d = depth_mm.clamp(0.0, self.law.depth_max_mm());
+        let (g, _) = self.ratio(p, d);
+        (
+            d / compliance_mm_per_n * g,
+            depth_mm > self.law.depth_max_mm(),
+        )
+    }
+
+    /// Force in, depth out: the depth whose force is `force_n` (bisection on the
+    /// blended curve, which rises with depth for a stable tissue); held at the
+    /// largest depth, and flagged, when even that needs less force.
+    pub fn depth_mm(&self, p: &ProbePoint, force_n: f64, compliance_mm_per_n: f64) -> (f64, bool) {
+        let top = self.law.depth_max_mm();
+        let f = |d: f64| self.force_n(p, d, compliance_mm_per_n).0;
+        if force_n.is_nan() || force_n <= 0.0 {
+            return (0.0, false);
+        }
+        if f(top) < force_n {
+            return (top, true);
+        }
+        let (mut lo, mut hi) = (0.0, top);
+        for _ in 0..48 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) < force_n {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        (0.5 * (lo + hi), false)
+    }
+
+    /// Adds the nonlinear residual of a press of `depth_mm` at `p` to `rows_mm` (three
+    /// per render vertex, the scene's row order); returns false (adding nothing) where
+    /// no corner was sampled. `3n` multiply-adds per corner mode, no allocation.
+    pub fn add_surface(
+        &self,
+        p: &ProbePoint,
+        depth_mm: f64,
+        scratch: &mut TissueScratch,
+        rows_mm: &mut [f64],
+    ) -> bool {
+        let Some(corners) = self.corners(p) else {
+            return false;
+        };
+        let (j, t, _) = self.interval(depth_mm);
+        let steps = self.law.steps as usize;
+        let m = 3 * self.law.rows_mm.len();
+        // Each kept mode's weight at this depth, for the three corners.
+        let mut n = 0;
+        let mut first = [0usize; 3];
+        for (k, &(s, w)) in corners.iter().enumerate() {
+            let modes = self.law.mode_start[s] as usize..self.law.mode_start[s + 1] as usize;
+            first[k] = modes.start;
+            for mode in modes {
+                let a = f64::from(self.law.coeffs[mode * steps + j]);
+                let b = f64::from(self.law.coeffs[mode * steps + j + 1]);
+                scratch.c[n] = if w == 0.0 {
+                    0.0
+                } else {
+                    w * ((1.0 - t) * a + t * b)
+                };
+                n += 1;
+            }
+        }
+        let mut n = 0;
+        for (k, &(s, _)) in corners.iter().enumerate() {
+            let count = (self.law.mode_start[s + 1] - self.law.mode_start[s]) as usize;
+            for mode in first[k]..first[k] + count {
+                let weight = scratch.c[n];
+                n += 1;
+                if weight == 0.0 {
+                    continue;
+                }
+                let shape = &self.law.shape[mode * m..][..m];
+                let weight = weight * f64::from(self.law.shape_scale[mode]);
+                for (row, &v) in self.vertex_of_row.iter().enumerate() {
+                    if v == u32::MAX {
+                        continue;
+                    }
+                    for comp in 0..3 {
+                        if let Some(o) = rows_mm.get_mut(3 * v as usize + comp) {
+                            *o += weight * f64::from(shape[3 * row + comp]);
+                        }
+                    }
+                }
+            }
+        }
+        true
+    }
+}
+
+/// A scene's nonlinear tissue, as the on-line loops use it: the force law alone
+/// ([`DepthLaw`], samples spread over the surface; the surface drawn is linear), or
+/// the vademecum bound to the scene (force and surface from every palpable vertex).
+#[derive(Debug, Clone)]
+pub enum Tissue {
+    ForceLaw(DepthLaw),
+    Vademecum(Box<BoundTissue>),
+}
+
+impl Tissue {
+    pub fn law(&self) -> crate::fe::hyper::Law {
+        match self {
+            Tissue::ForceLaw(l) => l.options.law,
+            Tissue::Vademecum(t) => t.law.options.law,
+        }
+    }
+
+    pub fn material(&self) -> crate::fe::Material {
+        match self {
+            Tissue::ForceLaw(l) => l.options.material,
+            Tissue::Vademecum(t) => t.law.options.material,
+        }
+    }
+
+    pub fn depth_max_mm(&self) -> f64 {
+        match self {
+            Tissue::ForceLaw(l) => l.options.depth_max_mm,
+            Tissue::Vademecum(t) => t.law.depth_max_mm(),
+        }
+    }
+
+    /// How many positions were pressed off-line.
+    pub fn samples(&self) -> usize {
+        match self {
+            Tissue::ForceLaw(l) => l.samples.len(),
+            Tissue::Vademecum(t) => t.law.samples_mm.len(),
+        }
+    }
+
+    /// Whether the drawn surface is the nonlinear one (else the linear one at the
+    /// press's depth).
+    pub fn has_surface(&self) -> bool {
+        matches!(self, Tissue::Vademecum(_))
+    }
+
+    /// Depth in, force out, at the probe point `p` (rest position `point_mm`) with the
+    /// linear compliance there; flagged past the law's range. Allocation-free.
+    pub fn force_n(
+        &self,
+        p: &ProbePoint,
+        point_mm: [f64; 3],
+        depth_mm: f64,
+        compliance_mm_per_n: f64,
+    ) -> (f64, bool) {
+        match self {
+            Tissue::ForceLaw(l) => l.force_n(point_mm, depth_mm, compliance_mm_per_n),
+            Tissue::Vademecum(t) => t.force_n(p, depth_mm, compliance_mm_per_n),
+        }
+    }
+
+    /// Force in, depth out (the inverse of [`Self::force_n`]). Allocation-free.
+    pub fn depth_mm(
+        &self,
+        p: &ProbePoint,
+        point_mm: [f64; 3],
+        force_n: f64,
+        compliance_mm_per_n: f64,
+    ) -> (f64, bool) {
+        match self {
+            Tissue::ForceLaw(l) => l.depth_mm(point_mm, force_n, compliance_mm_per_n),
+            Tissue::Vademecum(t) => t.depth_mm(p, force_n, compliance_mm_per_n),
+        }
+    }
+}
