@@ -13,6 +13,7 @@ const FLOORS: &[(&str, u32)] = &[
     ("timing", 0),
     ("tensor", 1),
     ("disk", 1),
+    ("framed", 1),
     ("axis", 1),
     ("surface_import", 1),
     ("farfield", 1),

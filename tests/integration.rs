@@ -18,4 +18,5 @@ mod nodal_liver;
 mod pgd_liver;
 mod scene;
 mod surface_import;
+mod tissue;
 mod user_organ;

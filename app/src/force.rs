@@ -5,7 +5,7 @@
 //! ───────────────────            ─────────────────────────────────────────
 //! commands.store(probe) ──────►  cmd = commands.load()
 //!                                contact law on 9 rows of X  (PalpationScene::contact)
-//!                                tissue law F(s, d)          (DepthLaw, if the scene has one)
+//!                                tissue law F(s, d)          (Tissue, if the scene has one)
 //!                                samples.store(force)  ──────►  render reads latest force
 //!                                haptic.apply(force)            (deforms the surface with it)
 //!                                every 50 ticks: stats.store(rate, p50/p99 period, misses)
@@ -24,7 +24,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
-use palpa_core::pgd::depthlaw::DepthLaw;
+use palpa_core::pgd::tissue::Tissue;
 use palpa_core::scene::{PalpationScene, ProbePoint};
 
 use crate::latest::Latest;
@@ -261,7 +261,7 @@ impl ForceLoop {
     /// Starts the thread `palpa-force`.
     pub fn spawn(
         scene: Arc<PalpationScene>,
-        law: Option<Arc<DepthLaw>>,
+        law: Option<Arc<Tissue>>,
         haptic: Box<dyn HapticDevice>,
         timing: LoopTiming,
     ) -> std::io::Result<Self> {
@@ -321,8 +321,8 @@ impl Drop for ForceLoop {
 
 struct Worker {
     scene: Arc<PalpationScene>,
-    /// The tissue's nonlinear force law, if the scene has one (else linear).
-    law: Option<Arc<DepthLaw>>,
+    /// The nonlinear tissue, if the scene has one (else linear).
+    law: Option<Arc<Tissue>>,
     haptic: Box<dyn HapticDevice>,
     timing: LoopTiming,
     commands: Arc<Latest<ProbeCommand>>,
@@ -484,12 +484,12 @@ impl Worker {
                     (None, PressMode::Depth) => (target / comp, target, false),
                     // Impedance rendering: depth in, the nonlinear force out.
                     (Some(law), PressMode::Depth) => {
-                        let (f, beyond) = law.force_n(c.point_mm, target, comp);
+                        let (f, beyond) = law.force_n(&cmd.point(), c.point_mm, target, comp);
                         (f, target, beyond)
                     }
                     // The trigger's force in, the depth that needs it out.
                     (Some(law), PressMode::Force) => {
-                        let (d, beyond) = law.depth_mm(c.point_mm, target, comp);
+                        let (d, beyond) = law.depth_mm(&cmd.point(), c.point_mm, target, comp);
                         (target, d, beyond)
                     }
                 };

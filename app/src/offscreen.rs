@@ -337,7 +337,13 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         final_linear_force_n: session.sample.linear_n,
         tissue: session.law.as_ref().map_or_else(
             || "linear elastic".to_string(),
-            |l| format!("{} force law", l.options.law.name()),
+            |l| {
+                if l.has_surface() {
+                    format!("{} vademecum", l.law().name())
+                } else {
+                    format!("{} force law", l.law().name())
+                }
+            },
         ),
         rss_mb_after_warmup: rss_after_warmup.map(|b| b as f64 / 1e6),
         rss_mb_end: crate::stats::resident_bytes().map(|b| b as f64 / 1e6),

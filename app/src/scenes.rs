@@ -7,6 +7,7 @@ use std::path::Path;
 
 use anyhow::Context;
 use palpa_core::pgd::depthlaw::DepthLaw;
+use palpa_core::pgd::tissue::{BoundTissue, Tissue, TissueLaw};
 use palpa_core::scene::PalpationScene;
 
 /// The shipped default scene, `assets/liver-coarse.palpa`.
@@ -17,21 +18,35 @@ pub const BUILT_IN_LIVER: &[u8] = include_bytes!("../../assets/liver-coarse.palp
 pub struct LoadedScene {
     pub scene: PalpationScene,
     pub source: String,
-    /// The tissue's nonlinear force law: the file `X.law` beside a scene `X.palpa`
-    /// (from `palpa depth-law build`), if there is one; else the tissue is linear.
-    pub law: Option<DepthLaw>,
+    /// The tissue's nonlinear model: the vademecum `X.tissue` beside a scene
+    /// `X.palpa` (from `palpa tissue build`), else the force law `X.law` (from `palpa
+    /// depth-law build`), if there is one; else the tissue is linear.
+    pub law: Option<Tissue>,
 }
 
-/// The force law beside a scene file, if any; a law that is there but cannot be read
-/// is an error (never silently linear).
-fn sidecar_law(scene: &Path) -> anyhow::Result<Option<DepthLaw>> {
-    let path = scene.with_extension("law");
+/// The nonlinear tissue beside a scene file, if any; a file that is there but cannot
+/// be read, or was built for another mesh, is an error (never silently linear).
+pub fn sidecar_tissue(scene_path: &Path, scene: &PalpationScene) -> anyhow::Result<Option<Tissue>> {
+    let path = scene_path.with_extension("tissue");
+    if path.exists() {
+        let law = TissueLaw::load(&path)
+            .with_context(|| format!("the tissue beside {}", scene_path.display()))?;
+        let bound = BoundTissue::bind(
+            law,
+            scene.vertices_mm(),
+            scene.axis_vertices_mm(),
+            scene.axis_triangles(),
+        )
+        .with_context(|| format!("binding {} to its scene", path.display()))?;
+        return Ok(Some(Tissue::Vademecum(Box::new(bound))));
+    }
+    let path = scene_path.with_extension("law");
     if !path.exists() {
         return Ok(None);
     }
     DepthLaw::load(&path)
-        .map(Some)
-        .with_context(|| format!("the force law beside {}", scene.display()))
+        .map(|l| Some(Tissue::ForceLaw(l)))
+        .with_context(|| format!("the force law beside {}", scene_path.display()))
 }
 
 /// `"liver"` (the built-in default) or a path to a palpation `.palpa` file.
@@ -44,10 +59,11 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
         .with_context(|| format!("cannot open the scene {spec}"))?;
     let scene =
         PalpationScene::new(model).with_context(|| format!("{spec} is not a palpation scene"))?;
+    let law = sidecar_tissue(path, &scene)?;
     Ok(LoadedScene {
         scene,
         source: path.display().to_string(),
-        law: sidecar_law(path)?,
+        law,
     })
 }
 

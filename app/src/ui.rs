@@ -126,7 +126,7 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
 /// (dashed), with the current press marked.
 fn depth_curve(
     ui: &mut egui::Ui,
-    law: &palpa_core::pgd::depthlaw::DepthLaw,
+    law: &palpa_core::pgd::tissue::Tissue,
     s: &crate::force::ForceSample,
 ) {
     let c = f64::from(s.compliance_mm_per_n);
@@ -134,12 +134,13 @@ fn depth_curve(
         return;
     }
     let at = s.point_mm.map(f64::from);
-    let top = law.options.depth_max_mm;
+    let p = s.command.point();
+    let top = law.depth_max_mm();
     let n = 60;
     let nonlinear: Vec<[f64; 2]> = (0..=n)
         .map(|k| {
             let d = top * f64::from(k) / f64::from(n);
-            [d, law.force_n(at, d, c).0]
+            [d, law.force_n(&p, at, d, c).0]
         })
         .collect();
     let linear: Vec<[f64; 2]> = vec![[0.0, 0.0], [top, top / c]];
@@ -154,7 +155,7 @@ fn depth_curve(
         .x_axis_label("depth, mm")
         .y_axis_label("force, N")
         .show(ui, |plot| {
-            plot.line(egui_plot::Line::new(law.options.law.name(), nonlinear));
+            plot.line(egui_plot::Line::new(law.law().name(), nonlinear));
             plot.line(
                 egui_plot::Line::new("linear", linear)
                     .style(egui_plot::LineStyle::dashed_loose())
@@ -207,12 +208,17 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     ui.heading("Probe");
     match &session.law {
         Some(law) => ui.label(format!(
-            "tissue: {} (E {:.0} kPa, ν {}), force law to {:.0} mm from {} samples",
-            law.options.law.name(),
-            law.options.material.young_kpa,
-            law.options.material.poisson,
-            law.options.depth_max_mm,
-            law.samples.len()
+            "tissue: {} (E {:.0} kPa, ν {}), {} to {:.0} mm from {} positions",
+            law.law().name(),
+            law.material().young_kpa,
+            law.material().poisson,
+            if law.has_surface() {
+                "force and surface"
+            } else {
+                "force law (surface drawn linear)"
+            },
+            law.depth_max_mm(),
+            law.samples()
         )),
         None => ui.label("tissue: linear elastic (force proportional to depth)"),
     };

@@ -381,7 +381,9 @@ fn the_force_loop_uses_the_tissue_law_both_ways() {
     law.check().expect("consistent");
     let fl = ForceLoop::spawn(
         s.clone(),
-        Some(std::sync::Arc::new(law)),
+        Some(std::sync::Arc::new(
+            palpa_core::pgd::tissue::Tissue::ForceLaw(law),
+        )),
         Box::new(NoHaptics),
         LoopTiming::default(),
     )

@@ -1,7 +1,7 @@
 //! Fuzzes the meta-model loaders: any byte string must give a model or an error, never
 //! a panic, an abort, or an allocation larger than the input justifies. Every kind is
 //! tried: separated palpation and network models (f32, f64), tensor trains, views
-//! models, and depth laws.
+//! models, depth laws and tissue (hyperelastic vademecum) files.
 //! Run: `cargo fuzz run load_model` (see scripts/fuzz.sh).
 #![no_main]
 
@@ -24,5 +24,8 @@ fuzz_target!(|data: &[u8]| {
     }
     if let Ok(law) = palpa_core::pgd::depthlaw::DepthLaw::from_bytes(data, std::path::Path::new("<memory>")) {
         let _ = law.check();
+    }
+    if let Ok(t) = palpa_core::pgd::tissue::TissueLaw::from_bytes(data, std::path::Path::new("<memory>")) {
+        let _ = t.check();
     }
 });

@@ -489,7 +489,7 @@ fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
 
 /// A random point of a random palpable triangle (one of `faces`): the point, the
 /// triangle's vertices and the barycentric weights.
-fn heldout_point(
+pub(super) fn heldout_point(
     coarse: &OrganMesh,
     faces: &[usize],
     rng: &mut palpa_core::rng::Rng,
@@ -529,7 +529,7 @@ fn surface_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
         depth_step_mm: 0.5,
         ..SurfaceLawOptions::default()
     };
-    let law = SurfaceLaw::build(coarse, options, &mut |k, n| {
+    let law = SurfaceLaw::build(coarse, options, &|k, n| {
         eprint!("\rsurface law: vertex {k}/{n}   ");
     })?;
     eprintln!();

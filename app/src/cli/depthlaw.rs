@@ -29,6 +29,15 @@ pub enum NonlinearModel {
     Svk,
 }
 
+impl NonlinearModel {
+    pub fn law(self) -> Law {
+        match self {
+            NonlinearModel::NeoHookean => Law::NeoHookean,
+            NonlinearModel::Svk => Law::Svk,
+        }
+    }
+}
+
 #[derive(Debug, Args)]
 pub struct BuildArgs {
     #[command(flatten)]
@@ -94,10 +103,7 @@ pub fn run(cmd: &DepthLawCommand) -> anyhow::Result<()> {
 fn build(args: &BuildArgs) -> anyhow::Result<()> {
     let organ = args.organ.mesh()?;
     let options = DepthLawOptions {
-        law: match args.model {
-            NonlinearModel::NeoHookean => Law::NeoHookean,
-            NonlinearModel::Svk => Law::Svk,
-        },
+        law: args.model.law(),
         material: Material {
             young_kpa: args.young_kpa,
             poisson: args.poisson,

@@ -19,6 +19,7 @@ mod organ;
 mod plot;
 mod scene;
 mod synth;
+mod tissue;
 mod tradeoff;
 
 use std::process::ExitCode;
@@ -64,6 +65,10 @@ enum Command {
     /// The hyperelastic force law of a palpation scene (depth in, force out).
     #[command(subcommand)]
     DepthLaw(depthlaw::DepthLawCommand),
+    /// The hyperelastic vademecum of a palpation scene (force and surface, every
+    /// palpable vertex): build it, check it against the full nonlinear FE.
+    #[command(subcommand)]
+    Tissue(tissue::TissueCommand),
     /// A user's organ surface to a palpation scene: `palpa scene build`.
     #[command(subcommand)]
     Scene(scene::SceneCommand),
@@ -111,6 +116,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Headless(args)) => headless::run_cmd(&args),
         Some(Command::Cme(cmd)) => cme::run(&cmd),
         Some(Command::DepthLaw(cmd)) => depthlaw::run(&cmd),
+        Some(Command::Tissue(cmd)) => tissue::run(&cmd),
         Some(Command::Open(args)) => palpa_app::window::run(&args.scene),
         None => default_job(),
     }

@@ -1,9 +1,13 @@
 //! What a palpation frame evaluates on the CPU: the mode coefficients at the probe,
-//! the near field under the tool (for the GPU and the picture), the drawn tip, and on
-//! demand the whole deformed surface (for picking). Reused buffers: nothing is
-//! allocated per frame.
+//! the near field under the tool and, for a hyperelastic vademecum, the tissue's
+//! nonlinear residual (both added per row, for the GPU and the picture), the drawn
+//! tip, and on demand the whole deformed surface (for picking). Reused buffers:
+//! nothing is allocated per frame.
+
+use std::sync::Arc;
 
 use glam::Vec3;
+use palpa_core::pgd::tissue::{Tissue, TissueScratch};
 use palpa_core::scene::{PalpationScene, ProbePoint};
 
 #[derive(Debug)]
@@ -18,12 +22,25 @@ pub struct Deformation {
     near_rows: Vec<f64>,
     near_gpu: Vec<[f32; 4]>,
     deformed_valid: bool,
+    /// The hyperelastic vademecum's residual surface, if the scene has one.
+    tissue: Option<(Arc<Tissue>, TissueScratch)>,
 }
 
+/// A press to show: where, the linear force that gives its depth, and the depth.
+pub type Press<'a> = (&'a ProbePoint, [f64; 3], f64);
+
 impl Deformation {
-    pub fn new(scene: &PalpationScene) -> Self {
+    pub fn new(scene: &PalpationScene, tissue: Option<Arc<Tissue>>) -> Self {
         let rows = scene.model().rows();
+        let tissue = tissue.and_then(|t| {
+            let scratch = match &*t {
+                Tissue::Vademecum(b) => b.scratch(),
+                Tissue::ForceLaw(_) => return None,
+            };
+            Some((t, scratch))
+        });
         Deformation {
+            tissue,
             coeffs: vec![0.0; scene.modes()],
             n: 1,
             deformed_mm: scene.vertices_mm().to_vec(),
@@ -35,16 +52,17 @@ impl Deformation {
     }
 
     /// Evaluates the first `n` modes and the near field for a probe at `p` pushing with
-    /// `force` (N), or the rest shape with no probe; returns the drawn tip (mm).
+    /// the linear `force` (N) of its depth (and the tissue's residual at that depth),
+    /// or the rest shape with no probe; returns the drawn tip (mm).
     pub fn evaluate(
         &mut self,
         scene: &PalpationScene,
-        probe: Option<(&ProbePoint, [f64; 3])>,
+        probe: Option<Press<'_>>,
         n: usize,
     ) -> Option<Vec3> {
         self.deformed_valid = false;
         self.n = n;
-        let Some((p, force)) = probe else {
+        let Some((p, force, depth_mm)) = probe else {
             self.coeffs[..n].fill(0.0);
             self.update_near(scene, None);
             return None;
@@ -56,7 +74,7 @@ impl Deformation {
         {
             self.coeffs[..n].fill(0.0);
         }
-        self.update_near(scene, Some((p, force)));
+        self.update_near(scene, Some((p, force, depth_mm)));
         let (x, _) = scene.frame(p);
         let u = scene.point_displacement(p, &self.coeffs[..n], Some(&self.near_rows));
         Some(Vec3::new(
@@ -76,18 +94,24 @@ impl Deformation {
         &self.near_gpu
     }
 
-    /// The exact near field under the tool (zero with no probe or no near field).
-    fn update_near(&mut self, scene: &PalpationScene, probe: Option<(&ProbePoint, [f64; 3])>) {
-        if scene.near().is_none() {
+    /// The exact near field under the tool plus the tissue's residual (zero with no
+    /// probe, or with neither).
+    fn update_near(&mut self, scene: &PalpationScene, probe: Option<Press<'_>>) {
+        if scene.near().is_none() && self.tissue.is_none() {
             return;
         }
         self.near_rows.fill(0.0);
-        if let Some((p, force)) = probe
+        if let Some((p, force, _)) = probe
             && scene
                 .add_near_displacement(p, force, &mut self.near_rows)
                 .is_err()
         {
             self.near_rows.fill(0.0);
+        }
+        if let (Some((p, _, depth_mm)), Some((tissue, scratch))) = (probe, self.tissue.as_mut())
+            && let Tissue::Vademecum(bound) = &**tissue
+        {
+            bound.add_surface(p, depth_mm, scratch, &mut self.near_rows);
         }
         for (g, r) in self.near_gpu.iter_mut().zip(self.near_rows.chunks_exact(3)) {
             *g = [r[0] as f32, r[1] as f32, r[2] as f32, 0.0];

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use palpa_core::pgd::depthlaw::DepthLaw;
+use palpa_core::pgd::tissue::Tissue;
 use palpa_core::scene::PalpationScene;
 
 use crate::camera::OrbitCamera;
@@ -33,8 +33,9 @@ pub const TOOL_RADIUS_MM: f32 = 5.0;
 #[derive(Debug)]
 pub struct Session {
     pub scene: Arc<PalpationScene>,
-    /// The tissue's nonlinear force law (`None`: linear tissue).
-    pub law: Option<Arc<DepthLaw>>,
+    /// The nonlinear tissue: a force law, or the vademecum (force and surface); `None`:
+    /// linear tissue.
+    pub law: Option<Arc<Tissue>>,
     pub controls: Controls,
     pub force: ForceLoop,
     /// Colour by displacement, with this value (mm) at the top of the scale.
@@ -69,12 +70,12 @@ impl Session {
         Self::with_law(scene, None, haptic)
     }
 
-    /// As [`Self::new`], with the tissue's nonlinear force law (see
-    /// `palpa_core::pgd::depthlaw`): the force loop answers depth with its force, and
+    /// As [`Self::new`], with the tissue's nonlinear model (see
+    /// `palpa_core::pgd::tissue`): the force loop answers depth with its force, and
     /// force with its depth.
     pub fn with_law(
         scene: PalpationScene,
-        law: Option<DepthLaw>,
+        law: Option<Tissue>,
         haptic: Box<dyn HapticDevice>,
     ) -> std::io::Result<Self> {
         let scene = Arc::new(scene);
@@ -93,7 +94,7 @@ impl Session {
             haptic,
             LoopTiming::default(),
         )?;
-        let deformation = Deformation::new(&scene);
+        let deformation = Deformation::new(&scene, law.clone());
         Ok(Session {
             scene,
             law,
@@ -214,9 +215,10 @@ impl Session {
         let probe = self.controls.probe;
         let mut visual = None;
         let ok = s.status() == SampleStatus::Ok;
-        // Deform to the sample's depth at the sample's point (the linear field there:
-        // with a nonlinear force law the tool's force differs); no force: rest shape.
-        let (point, force) = if ok {
+        // Deform to the sample's depth at the sample's point: the linear field there
+        // (with a nonlinear tissue the tool's force differs) plus, for a hyperelastic
+        // vademecum, its residual at that depth; no force: rest shape.
+        let (point, force, depth_mm) = if ok {
             let scale = if s.magnitude_n > 0.0 {
                 f64::from(s.linear_n) / f64::from(s.magnitude_n)
             } else {
@@ -225,13 +227,14 @@ impl Session {
             (
                 Some(s.command.point()),
                 s.force_n.map(|f| f64::from(f) * scale),
+                f64::from(s.depth_mm),
             )
         } else {
-            (probe, [0.0; 3])
+            (probe, [0.0; 3], 0.0)
         };
-        let tip = self
-            .deformation
-            .evaluate(&self.scene, point.as_ref().map(|p| (p, force)), n);
+        let tip =
+            self.deformation
+                .evaluate(&self.scene, point.as_ref().map(|p| (p, force, depth_mm)), n);
         if let (Some(p), Some(tip)) = (point, tip) {
             let (_, normal) = self.scene.frame(&p);
             visual = Some(ProbeVisual {

@@ -1,0 +1,269 @@
+//! `palpa tissue …`: the hyperelastic vademecum of a palpation scene (see
+//! `palpa_core::pgd::tissue`): build it off-line from every palpable vertex's depth
+//! series, and check it against the full nonlinear FE at held-out presses.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::{Args, Subcommand};
+use palpa_core::fe::newton::NewtonSettings;
+use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
+use palpa_core::fe::{Element, Material};
+use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
+use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueLaw};
+use palpa_core::rng::Rng;
+use serde_json::json;
+
+use super::args::OrganArgs;
+use super::depthlaw::NonlinearModel;
+
+#[derive(Debug, Subcommand)]
+pub enum TissueCommand {
+    /// Build the nonlinear vademecum off-line: every palpable vertex pressed through
+    /// its depth series, the surfaces compressed by an SVD.
+    Build(BuildArgs),
+    /// Compare a built vademecum with the full nonlinear FE (Newton) at held-out
+    /// random points and depths, through a scene (what the app shows).
+    Check(CheckArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BuildArgs {
+    #[command(flatten)]
+    pub organ: OrganArgs,
+    #[arg(long, value_enum, default_value = "neo-hookean")]
+    pub model: NonlinearModel,
+    #[arg(long, default_value = "p2")]
+    pub element: Element,
+    /// Deepest press covered (mm); deeper presses are held there and flagged.
+    #[arg(long, default_value_t = 15.0)]
+    pub depth_max_mm: f64,
+    /// Grid step in depth (mm).
+    #[arg(long, default_value_t = 1.0)]
+    pub depth_step_mm: f64,
+    /// Orders of each depth series (both segments).
+    #[arg(long, default_value_t = SurfaceLawOptions::default().orders)]
+    pub orders: usize,
+    /// The compression's guaranteed bound on any node's residual (mm).
+    #[arg(long, default_value_t = 0.05)]
+    pub tolerance_mm: f64,
+    /// Higher orders assembled where the first order varies by at least this fraction
+    /// of its peak (0: everywhere).
+    #[arg(long, default_value_t = SurfaceLawOptions::default().active_cutoff)]
+    pub active_cutoff: f64,
+    /// Press only the palpable vertices within X,Y,Z,R (mm): model only the region a
+    /// scene shows.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub within: Option<Vec<f64>>,
+    #[arg(long, default_value_t = 160.0)]
+    pub young_kpa: f64,
+    #[arg(long, default_value_t = 0.48)]
+    pub poisson: f64,
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct CheckArgs {
+    /// A tissue file (from `palpa tissue build`).
+    tissue: PathBuf,
+    #[command(flatten)]
+    organ: OrganArgs,
+    /// The scene it serves: `liver` (built in) or a `.palpa` file of the same mesh.
+    #[arg(long, default_value = "liver")]
+    scene: String,
+    /// Held-out random points (inside palpable triangles whose corners were pressed).
+    #[arg(long, default_value_t = 4)]
+    heldout: usize,
+    /// Depths of each held-out press (mm), off the depth grid.
+    #[arg(long, value_delimiter = ',', default_values_t = [2.6, 7.3, 12.7])]
+    depths: Vec<f64>,
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+}
+
+pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
+    match cmd {
+        TissueCommand::Build(args) => build(args).map(|_| ()),
+        TissueCommand::Check(args) => check(args),
+    }
+}
+
+/// Builds, compresses and saves; prints a JSON summary.
+pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
+    let organ = args.organ.mesh()?;
+    let within = match args.within.as_deref() {
+        None => None,
+        Some(&[x, y, z, r]) if [x, y, z, r].iter().all(|v| v.is_finite()) && r > 0.0 => {
+            Some(([x, y, z], r))
+        }
+        Some(v) => bail!("--within: expected X,Y,Z,R (finite, R > 0), got {v:?}"),
+    };
+    if !(args.tolerance_mm.is_finite() && args.tolerance_mm > 0.0) {
+        bail!(
+            "--tolerance-mm {}: expected a positive length",
+            args.tolerance_mm
+        );
+    }
+    let options = SurfaceLawOptions {
+        law: args.model.law(),
+        material: Material {
+            young_kpa: args.young_kpa,
+            poisson: args.poisson,
+        },
+        element: args.element,
+        depth_max_mm: args.depth_max_mm,
+        depth_step_mm: args.depth_step_mm,
+        orders: args.orders,
+        active_cutoff: args.active_cutoff,
+        within,
+        ..SurfaceLawOptions::default()
+    };
+    let law = SurfaceLaw::build(&organ, options, &|k, n| {
+        eprint!("\rtissue: vertex {k}/{n}   ");
+    })
+    .context("pressing the palpable vertices")?;
+    eprintln!();
+    let mut reasons = std::collections::BTreeMap::<&str, usize>::new();
+    for r in &law.skip_reasons {
+        *reasons.entry(r.as_str()).or_default() += 1;
+    }
+    let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm)?;
+    tissue.save(&args.out)?;
+    println!(
+        "{}",
+        json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
+            "samples": tissue.samples_mm.len(), "skipped": tissue.skipped_mm.len(),
+            "skip_reasons": reasons,
+            "rows": tissue.rows_mm.len(), "depth_max_mm": tissue.depth_max_mm(),
+            "rank": tissue.rank, "truncation_bound_mm": tissue.truncation_bound_mm,
+            "uncompressed_bytes": law.bytes(), "payload_bytes": tissue.payload_bytes(),
+            "file_bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
+            "build_s": tissue.build_s, "compress_s": tissue.compress_s,
+            "worst_pade_change": tissue.pade_change.iter().copied().fold(0.0f32, f32::max)})
+    );
+    Ok(tissue)
+}
+
+fn check(args: &CheckArgs) -> anyhow::Result<()> {
+    let law = TissueLaw::load(&args.tissue)?;
+    let o = law.options;
+    let organ = args.organ.mesh()?;
+    let loaded = palpa_app::scenes::load(&args.scene)?;
+    let scene = loaded.scene;
+    let bound = BoundTissue::bind(
+        law,
+        scene.vertices_mm(),
+        scene.axis_vertices_mm(),
+        scene.axis_triangles(),
+    )?;
+    let law = &bound.law;
+    // Held-out points: random points of organ triangles whose corners were all pressed.
+    let pressed = PointIndex::new(law.samples_mm.iter().map(|p| p.map(f64::from)));
+    let faces: Vec<usize> = (0..organ.boundary.len())
+        .filter(|&f| {
+            organ.palpable[f]
+                && organ.boundary[f]
+                    .iter()
+                    .all(|&v| pressed.find(organ.mesh.vertices[v as usize]).is_some())
+        })
+        .collect();
+    if faces.is_empty() {
+        bail!("no palpable triangle of this organ has all three corners pressed in the file");
+    }
+    let mut rng = Rng::seed(args.seed);
+    let mut scratch = bound.scratch();
+    let mut contact_scratch = scene.contact_scratch();
+    let mut coeffs = vec![0.0; scene.modes()];
+    let rows = 3 * scene.vertices_mm().len();
+    let (mut linear_rows, mut tissue_rows) = (vec![0.0; rows], vec![0.0; rows]);
+    // The scene's render vertex of each organ vertex (by rest position).
+    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
+    let (mut worst_force, mut worst_surface) = (0.0f64, 0.0f64);
+    for _ in 0..args.heldout {
+        let (at, _, _) = super::bench_fe::heldout_point(&organ, &faces, &mut rng);
+        let (point, _) = scene
+            .closest_palpable(at)
+            .context("the scene has no palpable surface")?;
+        let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
+        let c = contact.compliance_mm_per_n;
+        for &depth in &args.depths {
+            let t = Instant::now();
+            let reference = solve_hyperelastic(
+                &organ,
+                o.element,
+                o.material,
+                o.law,
+                // Along the scene's push (the interpolated vertex normal), as the app
+                // presses.
+                &ProbeRequest {
+                    at,
+                    force_n: f64::NAN,
+                    dir: Some(contact.push_dir),
+                    radius_mm: o.tool_radius_mm,
+                },
+                Some(depth),
+                NewtonSettings::default(),
+            );
+            let newton_s = t.elapsed().as_secs_f64();
+            let mut row = json!({"at": at, "depth_mm": depth, "newton_s": newton_s});
+            let (sol, _) = match reference {
+                Ok(r) => r,
+                Err(e) => {
+                    row["newton_error"] = json!(e.to_string());
+                    println!("{row}");
+                    continue;
+                }
+            };
+            let t = Instant::now();
+            let (force, beyond) = bound.force_n(&point, depth, c);
+            let force_us = t.elapsed().as_secs_f64() * 1e6;
+            let push = contact.push_dir.map(|d| d * depth / c);
+            scene.displacement(&point, push, &mut coeffs, &mut linear_rows)?;
+            tissue_rows.copy_from_slice(&linear_rows);
+            let t = Instant::now();
+            bound.add_surface(&point, depth, &mut scratch, &mut tissue_rows);
+            let surface_us = t.elapsed().as_secs_f64() * 1e6;
+            let (mut e_tissue, mut e_linear, mut top) = (0.0f64, 0.0f64, 0.0f64);
+            for v in organ.surface_nodes() {
+                let Some(r) = vertex_of.find(organ.mesh.vertices[v as usize]) else {
+                    continue;
+                };
+                let r = r as usize;
+                let (mut dt, mut dl, mut m) = (0.0, 0.0, 0.0);
+                for k in 0..3 {
+                    let reference = sol.u[3 * v as usize + k];
+                    dt += (tissue_rows[3 * r + k] - reference).powi(2);
+                    dl += (linear_rows[3 * r + k] - reference).powi(2);
+                    m += reference * reference;
+                }
+                e_tissue = e_tissue.max(dt.sqrt());
+                e_linear = e_linear.max(dl.sqrt());
+                top = top.max(m.sqrt());
+            }
+            let f_ref = sol.force_n;
+            let force_err = (force - f_ref).abs() / f_ref;
+            worst_force = worst_force.max(force_err);
+            worst_surface = worst_surface.max(e_tissue);
+            row["force_n"] = json!(force);
+            row["reference_force_n"] = json!(f_ref);
+            row["force_rel_error"] = json!(force_err);
+            row["linear_force_rel_error"] = json!((depth / c - f_ref).abs() / f_ref);
+            row["surface_max_error_mm"] = json!(e_tissue);
+            row["linear_surface_max_error_mm"] = json!(e_linear);
+            row["max_displacement_mm"] = json!(top);
+            row["beyond"] = json!(beyond);
+            row["force_eval_us"] = json!(force_us);
+            row["surface_eval_us"] = json!(surface_us);
+            println!("{row}");
+        }
+    }
+    println!(
+        "{}",
+        json!({"summary": true, "law": o.law.name(), "element": o.element.name(),
+            "worst_force_rel_error": worst_force, "worst_surface_max_error_mm": worst_surface,
+            "goal_force_5_percent": worst_force <= 0.05, "goal_surface_0_5_mm": worst_surface <= 0.5})
+    );
+    Ok(())
+}

@@ -1,0 +1,104 @@
+//! A session on a scene with a hyperelastic vademecum (`X.tissue`): the force loop
+//! answers a depth with the vademecum's force, and the frame draws the linear surface
+//! at that depth plus the vademecum's residual, at the same probe point and depth.
+
+use std::time::Duration;
+
+use palpa_app::force::NoHaptics;
+use palpa_app::offscreen::settle;
+use palpa_app::scenes;
+use palpa_app::session::Session;
+use palpa_core::pgd::surfacelaw::SurfaceLawOptions;
+use palpa_core::pgd::tissue::{BoundTissue, Tissue, TissueLaw};
+use palpa_core::scene::PalpationScene;
+
+/// A hand-made vademecum on the shipped scene: at every palpable vertex the force is
+/// 0.9 of the linear one at 5 mm and 0.8 at 10 mm, and the residual moves render
+/// vertex 0 along x by `d / 5` mm and nothing else.
+fn hand_made(scene: &PalpationScene) -> TissueLaw {
+    let samples = scene.axis_vertices_mm().len();
+    let rows = scene.vertices_mm().len();
+    let mut shape = vec![0i16; samples * 3 * rows];
+    for s in 0..samples {
+        shape[s * 3 * rows] = i16::MAX;
+    }
+    let law = TissueLaw {
+        options: SurfaceLawOptions {
+            depth_max_mm: 10.0,
+            depth_step_mm: 5.0,
+            ..SurfaceLawOptions::default()
+        },
+        rows_mm: scene.vertices_mm().to_vec(),
+        samples_mm: scene
+            .axis_vertices_mm()
+            .iter()
+            .map(|p| p.map(|x| x as f32))
+            .collect(),
+        skipped_mm: vec![],
+        steps: 3,
+        ratio: [1.0, 0.9, 0.8].repeat(samples),
+        stiffness_n_per_mm: vec![1.0; samples],
+        pade_change: vec![0.0; samples],
+        rank: 1,
+        mode_start: (0..=samples as u32).collect(),
+        shape,
+        shape_scale: vec![1.0 / f32::from(i16::MAX); samples],
+        coeffs: [0.0, 1.0, 2.0].repeat(samples),
+        truncation_bound_mm: 0.0,
+        tolerance_mm: 0.05,
+        build_s: 0.0,
+        compress_s: 0.0,
+    };
+    law.check().expect("a consistent hand-made law");
+    law
+}
+
+/// A session pressing 5 mm at its starting probe point, once the loop has answered.
+fn pressed(tissue: Option<Tissue>) -> Session {
+    let loaded = scenes::built_in().expect("built-in scene");
+    let mut s = Session::with_law(loaded.scene, tissue, Box::new(NoHaptics)).expect("session");
+    s.controls.pressing = true;
+    s.controls.depth_mm = 5.0;
+    s.force.command(s.controls.command());
+    settle(&s, Duration::from_secs(2));
+    assert_eq!(s.force.latest().command, s.controls.command());
+    s.frame();
+    s
+}
+
+#[test]
+fn the_frame_draws_the_vademecum_surface_at_the_press_depth() {
+    let scene = scenes::built_in().expect("built-in scene").scene;
+    let law = hand_made(&scene);
+    let bound = BoundTissue::bind(
+        law,
+        scene.vertices_mm(),
+        scene.axis_vertices_mm(),
+        scene.axis_triangles(),
+    )
+    .expect("binds to its own scene");
+    let mut nonlinear = pressed(Some(Tissue::Vademecum(Box::new(bound))));
+    let mut linear = pressed(None);
+    let (sn, sl) = (nonlinear.sample, linear.sample);
+    assert_eq!(sn.depth_mm, 5.0);
+    assert!(
+        (sn.magnitude_n / sl.magnitude_n - 0.9).abs() < 1e-5,
+        "force {} against linear {}",
+        sn.magnitude_n,
+        sl.magnitude_n
+    );
+    assert!((sn.linear_n - sl.magnitude_n).abs() < 1e-5 * sl.magnitude_n);
+    let a = nonlinear.deformed_mm().to_vec();
+    let b = linear.deformed_mm().to_vec();
+    for (v, (p, q)) in a.iter().zip(&b).enumerate() {
+        let expected = if v == 0 { [1.0, 0.0, 0.0] } else { [0.0; 3] };
+        for k in 0..3 {
+            assert!(
+                (p[k] - q[k] - expected[k]).abs() < 1e-4,
+                "vertex {v}, axis {k}: {} against {}",
+                p[k] - q[k],
+                expected[k]
+            );
+        }
+    }
+}

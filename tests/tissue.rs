@@ -1,0 +1,152 @@
+//! The hyperelastic vademecum (`palpa_core::pgd::tissue`), built on coarse P2 in a
+//! small region and bound to the shipped scene: against Newton at a held-out point
+//! (force and surface), and the extremes: depth 0, past the grid, the inverse, a
+//! corrupt file, a law of another mesh.
+
+use std::path::Path;
+
+use palpa_core::fe::hyper::Law;
+use palpa_core::fe::newton::NewtonSettings;
+use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
+use palpa_core::file;
+use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
+use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueError, TissueLaw};
+use palpa_core::scene::PalpationScene;
+use palpa_tests::coarse_liver;
+
+fn shipped_scene() -> PalpationScene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.palpa");
+    PalpationScene::new(file::load_any(&path).expect("the shipped scene loads")).expect("scene")
+}
+
+/// A surface point of the anterior right lobe, not a mesh vertex.
+const CENTRE: [f64; 3] = [-30.3, 70.7, 16.9];
+
+#[test]
+fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
+    let organ = coarse_liver();
+    let options = SurfaceLawOptions {
+        depth_max_mm: 8.0,
+        orders: 10,
+        within: Some((CENTRE, 12.0)),
+        ..SurfaceLawOptions::default()
+    };
+    let law = SurfaceLaw::build(&organ, options, &|_, _| {}).expect("builds");
+    assert!(law.samples.len() >= 3, "{} samples", law.samples.len());
+    let tissue = TissueLaw::compress(&organ, &law, 0.02).expect("compresses");
+    assert!(tissue.truncation_bound_mm <= 0.02);
+
+    // The file comes back as saved; a flipped byte is named, not loaded.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("region.tissue");
+    tissue.save(&path).expect("saves");
+    let back = TissueLaw::load(&path).expect("loads");
+    assert_eq!(back, tissue);
+    let mut bytes = std::fs::read(&path).expect("read");
+    let k = bytes.len() / 2;
+    bytes[k] ^= 0x40;
+    let e = TissueLaw::from_bytes(&bytes, &path).expect_err("corrupt");
+    assert!(e.to_string().contains("checksum"), "{e}");
+
+    let scene = shipped_scene();
+    // A law of another mesh (its samples moved by 5 mm) does not bind.
+    let mut moved = tissue.clone();
+    moved.samples_mm[0][0] += 5.0;
+    let e = BoundTissue::bind(
+        moved,
+        scene.vertices_mm(),
+        scene.axis_vertices_mm(),
+        scene.axis_triangles(),
+    )
+    .expect_err("another mesh");
+    assert!(matches!(e, TissueError::Mismatch { .. }), "{e}");
+    assert!(e.to_string().contains("another mesh"), "{e}");
+
+    let bound = BoundTissue::bind(
+        back,
+        scene.vertices_mm(),
+        scene.axis_vertices_mm(),
+        scene.axis_triangles(),
+    )
+    .expect("binds to the scene of its mesh");
+    let (point, _) = scene.closest_palpable(CENTRE).expect("palpable");
+    let contact = scene
+        .contact(&point, scene.modes(), &mut scene.contact_scratch())
+        .expect("contact");
+    let c = contact.compliance_mm_per_n;
+    let mut scratch = bound.scratch();
+    let rows = 3 * scene.vertices_mm().len();
+
+    // Depth 0: exactly no force and no residual.
+    assert_eq!(bound.force_n(&point, 0.0, c), (0.0, false));
+    let mut zero = vec![0.0; rows];
+    assert!(bound.add_surface(&point, 0.0, &mut scratch, &mut zero));
+    assert!(zero.iter().all(|&v| v == 0.0));
+    // Past the grid: held at its end and flagged.
+    let (f_end, _) = bound.force_n(&point, 8.0, c);
+    assert_eq!(bound.force_n(&point, 11.0, c), (f_end, true));
+    assert_eq!(bound.depth_mm(&point, 2.0 * f_end, c), (8.0, true));
+
+    // Held-out press, 5.3 mm (off the 1 mm grid), along the scene's push.
+    let depth = 5.3;
+    let (newton, _) = solve_hyperelastic(
+        &organ,
+        options.element,
+        options.material,
+        Law::NeoHookean,
+        &ProbeRequest {
+            at: CENTRE,
+            force_n: f64::NAN,
+            dir: Some(contact.push_dir),
+            radius_mm: options.tool_radius_mm,
+        },
+        Some(depth),
+        NewtonSettings::default(),
+    )
+    .expect("newton");
+    let (force, beyond) = bound.force_n(&point, depth, c);
+    assert!(!beyond);
+    let rel = (force - newton.force_n) / newton.force_n;
+    let linear_rel = (depth / c - newton.force_n) / newton.force_n;
+    let (back, _) = bound.depth_mm(&point, force, c);
+    assert!((back - depth).abs() < 1e-9, "inverse: {back}");
+
+    let mut coeffs = vec![0.0; scene.modes()];
+    let mut linear = vec![0.0; rows];
+    scene
+        .displacement(
+            &point,
+            contact.push_dir.map(|d| d * depth / c),
+            &mut coeffs,
+            &mut linear,
+        )
+        .expect("linear surface");
+    let mut nonlinear = linear.clone();
+    bound.add_surface(&point, depth, &mut scratch, &mut nonlinear);
+    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
+    let (mut e_tissue, mut e_linear) = (0.0f64, 0.0f64);
+    for v in organ.surface_nodes() {
+        let r = vertex_of
+            .find(organ.mesh.vertices[v as usize])
+            .expect("every organ surface vertex is a scene vertex") as usize;
+        let err = |rows: &[f64]| {
+            (0..3)
+                .map(|k| (rows[3 * r + k] - newton.u[3 * v as usize + k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        e_tissue = e_tissue.max(err(&nonlinear));
+        e_linear = e_linear.max(err(&linear));
+    }
+    eprintln!(
+        "{depth} mm: force {force:.4} N vs Newton {:.4} N ({rel:.1e}, linear {linear_rel:.1e}); \
+         surface max error {e_tissue:.3} mm (linear {e_linear:.3} mm)",
+        newton.force_n
+    );
+    assert!(rel.abs() < 0.03, "force {rel}");
+    assert!(rel.abs() < linear_rel.abs(), "no better than linear");
+    assert!(
+        e_tissue < 0.3 && e_tissue < 0.5 * e_linear,
+        "{e_tissue} {e_linear}"
+    );
+}
