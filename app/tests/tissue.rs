@@ -102,3 +102,67 @@ fn the_frame_draws_the_vademecum_surface_at_the_press_depth() {
         }
     }
 }
+
+/// `palpa eval` on a tissue file: depth in gives the vademecum's force (0.9 of the
+/// linear at 5 mm), that force in gives the depth back, the surface carries the
+/// residual, a press past the grid is flagged, and bad requests are named.
+#[test]
+fn eval_reads_a_tissue_file_both_ways() {
+    let scene = scenes::built_in().expect("built-in scene").scene;
+    let law = hand_made(&scene);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("hand.tissue");
+    law.save(&path).expect("saves");
+    let f = path.to_str().expect("utf-8 path");
+    // A palpable vertex: the blend is exact there.
+    let at = scene.axis_vertices_mm()[0]
+        .map(|x| format!("{x}"))
+        .join(",");
+    let eval = |extra: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args(["eval", f, "--at", &at, "--json"])
+            .args(extra)
+            .output()
+            .expect("palpa runs");
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        let json = out
+            .status
+            .success()
+            .then(|| serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("json"));
+        (json, stderr)
+    };
+    let (v, e) = eval(&["--depth-mm", "5"]);
+    let v = v.unwrap_or_else(|| panic!("{e}"));
+    assert_eq!(v["model"], "tissue");
+    assert_eq!(v["probe_displacement_mm"], 5.0);
+    let force = v["force_n"].as_f64().expect("force");
+    let linear = v["linear_force_n"].as_f64().expect("linear force");
+    assert!(
+        (force / linear - 0.9).abs() < 1e-6,
+        "{force} against {linear}"
+    );
+    // Render vertex 0 moves 1 mm along x beyond the linear surface: at least that far.
+    assert!(v["max_displacement_mm"].as_f64().expect("max") > 0.0);
+    assert_eq!(v["beyond_depth_max"], false);
+
+    let (v, e) = eval(&["--force-n", &format!("{force}")]);
+    let v = v.unwrap_or_else(|| panic!("{e}"));
+    let back = v["probe_displacement_mm"].as_f64().expect("depth");
+    assert!((back - 5.0).abs() < 1e-6, "inverse gave {back} mm");
+
+    let (v, e) = eval(&["--depth-mm", "12"]);
+    let v = v.unwrap_or_else(|| panic!("{e}"));
+    assert_eq!(v["beyond_depth_max"], true);
+
+    let (v, e) = eval(&["--depth-mm", "0"]);
+    let v = v.unwrap_or_else(|| panic!("{e}"));
+    assert_eq!(v["force_n"], 0.0);
+    assert_eq!(v["max_displacement_mm"], 0.0);
+
+    let (v, e) = eval(&["--depth-mm=-1"]);
+    assert!(v.is_none() && e.contains("--depth-mm -1"), "{e}");
+    let (v, e) = eval(&["--force-n", "NaN"]);
+    assert!(v.is_none() && e.contains("--force-n NaN"), "{e}");
+    let (v, e) = eval(&["--depth-mm", "5", "--dir", "0,0,1"]);
+    assert!(v.is_none() && e.contains("surface normal"), "{e}");
+}

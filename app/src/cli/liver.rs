@@ -297,11 +297,24 @@ pub struct EvalArgs {
     /// surface triangles when it has them, else its nodes as points).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// For a tissue file (`palpa tissue build`): the scene it serves, `liver` (built
+    /// in) or a `.palpa` file of the same mesh.
+    #[arg(long, default_value = "liver")]
+    scene: String,
     #[arg(long)]
     json: bool,
 }
 
 pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
+    if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
+        return super::tissue::eval(
+            &args.file,
+            &args.probe,
+            &args.scene,
+            args.out.as_deref(),
+            args.json,
+        );
+    }
     match file::load_any(&args.file).with_context(|| format!("loading {}", args.file.display()))? {
         palpa_core::AnyModel::F32(m) => eval_model(&m, args),
         palpa_core::AnyModel::F64(m) => eval_model(&m, args),

@@ -8,9 +8,10 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
 use palpa_core::fe::newton::NewtonSettings;
-use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
+use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
+use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::fe::{Element, Material};
-use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
+use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, press_at};
 use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueLaw};
 use palpa_core::rng::Rng;
 use serde_json::json;
@@ -81,6 +82,11 @@ pub struct CheckArgs {
     depths: Vec<f64>,
     #[arg(long, default_value_t = 7)]
     seed: u64,
+    /// Also expand the press at each held-out point itself, as the build expands a
+    /// vertex (shared tangent) and with the exact tangent: splits the error into the
+    /// method's own (series) and the blend between vertices.
+    #[arg(long)]
+    series: bool,
 }
 
 pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
@@ -181,6 +187,12 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     // The scene's render vertex of each organ vertex (by rest position).
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let (mut worst_force, mut worst_surface) = (0.0f64, 0.0f64);
+    let space = organ_space(&organ, o.element);
+    let expander = if args.series {
+        Some(Expander::new(&space, o.law, o.material)?)
+    } else {
+        None
+    };
     for _ in 0..args.heldout {
         let (at, _, _) = super::bench_fe::heldout_point(&organ, &faces, &mut rng);
         let (point, _) = scene
@@ -188,6 +200,18 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             .context("the scene has no palpable surface")?;
         let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
         let c = contact.compliance_mm_per_n;
+        // The method at this very point: (name, press) for each tangent.
+        let mut own = Vec::new();
+        if let Some(expander) = &expander {
+            for (name, tangent) in [
+                ("shared", SplitTangent::Shared),
+                ("exact", SplitTangent::Exact),
+            ] {
+                let t = Instant::now();
+                let press = press_at(&space, &organ, expander, &o, at, contact.push_dir, tangent)?;
+                own.push((name, press, t.elapsed().as_secs_f64()));
+            }
+        }
         for &depth in &args.depths {
             let t = Instant::now();
             let reference = solve_hyperelastic(
@@ -254,6 +278,30 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             row["linear_surface_max_error_mm"] = json!(e_linear);
             row["max_displacement_mm"] = json!(top);
             row["beyond"] = json!(beyond);
+            for (name, press, seconds) in &own {
+                let key = format!("series_{name}");
+                row[&key] = match press {
+                    Err(why) => json!({"skipped": why}),
+                    Ok((press, change)) => {
+                        let (f, u) = press.evaluate(depth, o.depth_max_mm);
+                        let e = organ
+                            .surface_nodes()
+                            .iter()
+                            .map(|&v| {
+                                (0..3)
+                                    .map(|k| {
+                                        (u[3 * v as usize + k] - sol.u[3 * v as usize + k]).powi(2)
+                                    })
+                                    .sum::<f64>()
+                                    .sqrt()
+                            })
+                            .fold(0.0, f64::max);
+                        json!({"force_rel_error": (f - f_ref).abs() / f_ref,
+                            "surface_max_error_mm": e, "split_mm": press.split_mm,
+                            "pade_change": change, "expand_s": seconds})
+                    }
+                };
+            }
             row["force_eval_us"] = json!(force_us);
             row["surface_eval_us"] = json!(surface_us);
             println!("{row}");
@@ -266,4 +314,105 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             "goal_force_5_percent": worst_force <= 0.05, "goal_surface_0_5_mm": worst_surface <= 0.5})
     );
     Ok(())
+}
+
+/// `palpa eval` on a tissue file: the press at the palpable point closest to `--at`,
+/// through the scene the file serves, depth in (force out) or force in (depth out),
+/// with the same keys as `palpa fe solve`. The vademecum presses along the surface's
+/// vertex normal (each vertex was pressed along its own), so `--dir` is refused.
+pub fn eval(
+    file: &std::path::Path,
+    probe: &super::args::ProbeArgs,
+    scene: &str,
+    out: Option<&std::path::Path>,
+    json_out: bool,
+) -> anyhow::Result<()> {
+    if probe.dir.is_some() {
+        bail!(
+            "--dir: a tissue vademecum presses along the surface normal, the direction its \
+             vertices were pressed in; leave --dir out"
+        );
+    }
+    let at = probe.at()?;
+    let law = TissueLaw::load(file)?;
+    let loaded = palpa_app::scenes::load(scene)?;
+    let scene = loaded.scene;
+    let bound = BoundTissue::bind(
+        law,
+        scene.vertices_mm(),
+        scene.axis_vertices_mm(),
+        scene.axis_triangles(),
+    )?;
+    let (point, distance_mm) = scene
+        .closest_palpable(at)
+        .context("the scene has no palpable surface")?;
+    let mut contact_scratch = scene.contact_scratch();
+    let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
+    let c = contact.compliance_mm_per_n;
+    let t = Instant::now();
+    let (depth, force, beyond) = match (probe.depth_mm, probe.force_n) {
+        (Some(d), _) => {
+            if !(d.is_finite() && d >= 0.0) {
+                bail!("--depth-mm {d}: expected a finite depth ≥ 0 mm");
+            }
+            let (f, beyond) = bound.force_n(&point, d, c);
+            (d, f, beyond)
+        }
+        (None, Some(f)) => {
+            if !(f.is_finite() && f >= 0.0) {
+                bail!("--force-n {f}: expected a finite force ≥ 0 N");
+            }
+            let (d, beyond) = bound.depth_mm(&point, f, c);
+            (d, f, beyond)
+        }
+        (None, None) => bail!("give --depth-mm or --force-n"),
+    };
+    let force_eval_us = t.elapsed().as_secs_f64() * 1e6;
+    let mut coeffs = vec![0.0; scene.modes()];
+    let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
+    let mut scratch = bound.scratch();
+    let t = Instant::now();
+    let push = contact.push_dir.map(|d| d * depth / c);
+    scene.displacement(&point, push, &mut coeffs, &mut rows)?;
+    bound.add_surface(&point, depth, &mut scratch, &mut rows);
+    let surface_eval_us = t.elapsed().as_secs_f64() * 1e6;
+    let max = rows
+        .chunks_exact(3)
+        .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+        .fold(0.0, f64::max);
+    if let Some(out) = out {
+        use palpa_core::export::{FieldValue, PointField, write_surface_vtu};
+        let nodes: Vec<[f64; 3]> = scene
+            .vertices_mm()
+            .iter()
+            .map(|p| p.map(f64::from))
+            .collect();
+        let fields = [PointField {
+            name: "displacement".into(),
+            components: 3,
+            values: rows.clone(),
+        }];
+        let meta = [
+            FieldValue {
+                name: "force_n".into(),
+                value: force,
+            },
+            FieldValue {
+                name: "depth_mm".into(),
+                value: depth,
+            },
+        ];
+        write_surface_vtu(out, &nodes, scene.triangles(), &fields, &meta)
+            .with_context(|| format!("writing {}", out.display()))?;
+    }
+    let report = json!({
+        "model": "tissue", "law": bound.law.options.law.name(),
+        "element": bound.law.options.element.name(),
+        "at": scene.frame(&point).0, "projected_distance_mm": distance_mm,
+        "probe_displacement_mm": depth, "force_n": force, "linear_force_n": depth / c,
+        "max_displacement_mm": max, "depth_max_mm": bound.law.depth_max_mm(),
+        "beyond_depth_max": beyond,
+        "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
+    });
+    super::args::print_report(&report, json_out)
 }

@@ -28,7 +28,7 @@ use std::time::Instant;
 use crate::fe::hyper::Law;
 use crate::fe::load::{probe_functional, probe_load};
 use crate::fe::probe::{ProbeRequest, locate, organ_space};
-use crate::fe::series::{Expander, SplitTangent, continued_from};
+use crate::fe::series::{Continued, Expander, SplitTangent, continued_from};
 use crate::fe::{Element, FeError, Material};
 use crate::organ::OrganMesh;
 
@@ -263,22 +263,22 @@ pub fn organ_vertex_normals(organ: &OrganMesh) -> Vec<[f32; 3]> {
     crate::mesh::vertex_normals(&vertices, &organ.boundary)
 }
 
-/// One vertex's continued press, or why it is skipped (the tool does not move
-/// its centre, next to the fixed region; or the tangent at the split is not positive
-/// definite, where the tissue has lost stability).
-#[allow(clippy::too_many_arguments)]
-fn vertex_press(
+/// A continued press at `at` along `push` with the build's options (a palpable
+/// vertex's, or any point's to judge the method apart from the blend), its largest
+/// Padé change, or why it is not trusted (the tool does not move its centre, next to
+/// the fixed region; the tangent at the split is not positive definite, where the
+/// tissue has lost stability; or the Padé forms still change at a segment's end).
+pub fn press_at(
     space: &crate::fe::space::Space,
     organ: &OrganMesh,
     expander: &Expander,
     o: &SurfaceLawOptions,
-    rows: &[u32],
-    steps: usize,
-    v: u32,
+    at: [f64; 3],
     push: [f64; 3],
-) -> Result<Result<VertexPress, String>, FeError> {
+    tangent: SplitTangent,
+) -> Result<Result<(Continued, f64), String>, FeError> {
     let req = ProbeRequest {
-        at: organ.mesh.vertices[v as usize],
+        at,
         force_n: 1.0,
         dir: Some(push),
         radius_mm: o.tool_radius_mm,
@@ -304,7 +304,7 @@ fn vertex_press(
             first.clone(),
             split,
             o.orders,
-            SplitTangent::Shared,
+            tangent,
             o.active_cutoff,
         ) {
             Ok(c) => break c,
@@ -325,8 +325,6 @@ fn vertex_press(
             Err(e) => return Err(e),
         }
     };
-    let unit = &press.first.u[0];
-    let stiffness = press.first.force[0];
     let change = press
         .first
         .rational(split)
@@ -340,6 +338,30 @@ fn vertex_press(
             crate::pgd::depthlaw::PADE_CHANGE_MAX
         )));
     }
+    Ok(Ok((press, change)))
+}
+
+/// One vertex's continued press sampled on the depth grid, or why it is skipped (see
+/// [`press_at`]).
+#[allow(clippy::too_many_arguments)]
+fn vertex_press(
+    space: &crate::fe::space::Space,
+    organ: &OrganMesh,
+    expander: &Expander,
+    o: &SurfaceLawOptions,
+    rows: &[u32],
+    steps: usize,
+    v: u32,
+    push: [f64; 3],
+) -> Result<Result<VertexPress, String>, FeError> {
+    let at = organ.mesh.vertices[v as usize];
+    let (press, change) = match press_at(space, organ, expander, o, at, push, SplitTangent::Shared)?
+    {
+        Ok(p) => p,
+        Err(why) => return Ok(Err(why)),
+    };
+    let unit = &press.first.u[0];
+    let stiffness = press.first.force[0];
     let mut residual = Vec::with_capacity(steps * 3 * rows.len());
     let mut ratio = Vec::with_capacity(steps);
     for j in 0..steps {

@@ -292,6 +292,16 @@ impl TissueLaw {
     }
 }
 
+/// Whether `path` starts with a tissue file's magic (an unreadable path is not one;
+/// loading it then says why).
+pub fn is_tissue_file(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| &head == MAGIC)
+}
+
 /// How far apart (mm) a law's rest position and a scene's may be and still be the
 /// same mesh vertex (they pass through f32 and f64).
 pub const SAME_POINT_MM: f64 = 0.01;
