@@ -133,7 +133,9 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
     eprintln!();
     let mut reasons = std::collections::BTreeMap::<&str, usize>::new();
     for r in &law.skip_reasons {
-        *reasons.entry(r.as_str()).or_default() += 1;
+        // The reason without its figures (after " ("), so like skips count together.
+        let kind = r.split(" (").next().unwrap_or(r);
+        *reasons.entry(kind).or_default() += 1;
     }
     let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm)?;
     tissue.save(&args.out)?;
@@ -298,7 +300,8 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                             .fold(0.0, f64::max);
                         json!({"force_rel_error": (f - f_ref).abs() / f_ref,
                             "surface_max_error_mm": e, "split_mm": press.split_mm,
-                            "pade_change": change, "expand_s": seconds})
+                            "pade_change": change, "expand_s": seconds,
+                            "correction_rel": press.correction_rel})
                     }
                 };
             }

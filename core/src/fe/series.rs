@@ -693,8 +693,8 @@ fn orders_about(
 
 /// A press expanded twice: about the rest state up to `split_mm`, then about the
 /// state there (ANM continuation). The second expansion starts from the first one's
-/// Padé state at the split, made an exact equilibrium by one Newton correction with
-/// the tangent there, and uses the tangent at the corrected state.
+/// Padé state at the split, brought to equilibrium by one Newton correction with the
+/// tangent there; see [`SplitTangent`] for which state it expands about.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Continued {
     pub first: DepthSeries,
@@ -702,6 +702,9 @@ pub struct Continued {
     /// The corrected state at the split (all-node) and its force.
     pub base_u: Vec<f64>,
     pub base_force_n: f64,
+    /// The Newton correction's size relative to the Padé state (Euclidean norms):
+    /// how far the first series was from equilibrium at the split.
+    pub correction_rel: f64,
     /// The series in `a = d − split`.
     pub second: DepthSeries,
     pub seconds: f64,
@@ -759,10 +762,10 @@ pub enum SplitTangent {
     /// Factor the tangent at the Padé state for the Newton correction, then again at
     /// the corrected state for the series: the exact ANM step (two factorizations).
     Exact,
-    /// Factor once, at the Padé state, and use it for the correction (a chord step)
-    /// and the series: the series about the corrected state then solves with a
-    /// tangent that differs from the exact one by the correction's size (about 1e-4
-    /// of the state), for half the factorizations. What a many-press build uses.
+    /// Factor once, at the Padé state, for the correction and for a series about
+    /// that same state, then shift the series by the correction (a constant offset;
+    /// it is about 1e-3 of the state, and its change along the segment is of second
+    /// order): half the factorizations. What a many-press build uses.
     Shared,
 }
 
@@ -803,11 +806,17 @@ pub fn continued_from(
     let df = (dot(&probe_free, &x1) - g) / dot(&probe_free, &x2);
     let du: Vec<f64> = x2.iter().zip(&x1).map(|(a, b)| df * a - b).collect();
     let du = space.expand(&du);
+    let correction_rel = dot(&du, &du).sqrt() / dot(&u0, &u0).sqrt().max(f64::MIN_POSITIVE);
     let base_u: Vec<f64> = u0.iter().zip(&du).map(|(a, b)| a + b).collect();
     let base_force_n = f0 + df;
-    let chol = match tangent {
-        SplitTangent::Exact => factor(&base_u)?,
-        SplitTangent::Shared => chol,
+    // The series must expand about the state its tangent belongs to: with the
+    // tangent of another state (even one 1e-3 away) the orders' errors compound and
+    // the Padé forms stop converging. `Shared` expands about the Padé state, the
+    // equilibrium path of a load off by that state's small residual, and carries the
+    // correction along as a constant offset (in `base_u`).
+    let (chol, about) = match tangent {
+        SplitTangent::Exact => (factor(&base_u)?, &base_u),
+        SplitTangent::Shared => (chol, &u0),
     };
     let second = orders_about(
         space,
@@ -817,7 +826,7 @@ pub fn continued_from(
         &chol,
         shape,
         probe,
-        Some(&base_u),
+        Some(about),
         orders,
         cutoff,
     )?;
@@ -826,6 +835,7 @@ pub fn continued_from(
         split_mm,
         base_u,
         base_force_n,
+        correction_rel,
         second,
         seconds: t0.elapsed().as_secs_f64(),
     })

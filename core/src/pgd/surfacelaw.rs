@@ -334,8 +334,10 @@ pub fn press_at(
     // change by more than this at a segment's end is not trusted.
     if change > crate::pgd::depthlaw::PADE_CHANGE_MAX {
         return Ok(Err(format!(
-            "the Padé forms change by more than {} at a segment's end",
-            crate::pgd::depthlaw::PADE_CHANGE_MAX
+            "the Padé forms change by more than {} at a segment's end ({change:.3}; \
+             split correction {:.1e})",
+            crate::pgd::depthlaw::PADE_CHANGE_MAX,
+            press.correction_rel
         )));
     }
     Ok(Ok((press, change)))
