@@ -82,6 +82,10 @@ pub struct CheckArgs {
     depths: Vec<f64>,
     #[arg(long, default_value_t = 7)]
     seed: u64,
+    /// Press at these points (X,Y,Z[,X,Y,Z…], mm) instead of random ones: compare two
+    /// files at the same presses.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    at: Option<Vec<f64>>,
     /// Also expand the press at each held-out point itself, as the build expands a
     /// vertex (shared tangent) and with the exact tangent: splits the error into the
     /// method's own (series) and the blend between vertices.
@@ -195,8 +199,16 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     } else {
         None
     };
-    for _ in 0..args.heldout {
-        let (at, _, _) = super::bench_fe::heldout_point(&organ, &faces, &mut rng);
+    let points: Vec<[f64; 3]> = match args.at.as_deref() {
+        Some(v) if !v.is_empty() && v.len() % 3 == 0 && v.iter().all(|x| x.is_finite()) => {
+            v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        }
+        Some(v) => bail!("--at: expected X,Y,Z triples of finite numbers, got {v:?}"),
+        None => (0..args.heldout)
+            .map(|_| super::bench_fe::heldout_point(&organ, &faces, &mut rng).0)
+            .collect(),
+    };
+    for at in points {
         let (point, _) = scene
             .closest_palpable(at)
             .context("the scene has no palpable surface")?;
