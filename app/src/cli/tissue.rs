@@ -296,7 +296,8 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                 let key = format!("series_{name}");
                 row[&key] = match press {
                     Err(why) => json!({"skipped": why}),
-                    Ok((press, change)) => {
+                    Ok(p) => {
+                        let (press, change) = (&p.press, p.pade_change);
                         let (f, u) = press.evaluate(depth, o.depth_max_mm);
                         let e = organ
                             .surface_nodes()
@@ -313,7 +314,8 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                         json!({"force_rel_error": (f - f_ref).abs() / f_ref,
                             "surface_max_error_mm": e, "split_mm": press.split_mm,
                             "pade_change": change, "expand_s": seconds,
-                            "correction_rel": press.correction_rel})
+                            "correction_rel": press.correction_rel,
+                            "residual_rel": p.residual_rel})
                     }
                 };
             }

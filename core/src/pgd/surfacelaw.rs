@@ -263,9 +263,21 @@ pub fn organ_vertex_normals(organ: &OrganMesh) -> Vec<[f32; 3]> {
     crate::mesh::vertex_normals(&vertices, &organ.boundary)
 }
 
+/// A continued press with what says how far to trust it.
+#[derive(Debug, Clone)]
+pub struct PointPress {
+    pub press: Continued,
+    /// The largest change of the segments' Padé forms at their ends (a proxy).
+    pub pade_change: f64,
+    /// The equilibrium residual at the deepest depth, `‖f_int(u) − F f̂‖ / ‖F f̂‖` on
+    /// the free dofs: a direct measure of the press's own error there (reported;
+    /// not yet a skip rule).
+    pub residual_rel: f64,
+}
+
 /// A continued press at `at` along `push` with the build's options (a palpable
-/// vertex's, or any point's to judge the method apart from the blend), its largest
-/// Padé change, or why it is not trusted (the tool does not move its centre, next to
+/// vertex's, or any point's to judge the method apart from the blend), or why it is
+/// not trusted (the tool does not move its centre, next to
 /// the fixed region; the tangent at the split is not positive definite, where the
 /// tissue has lost stability; or the Padé forms still change at a segment's end).
 pub fn press_at(
@@ -276,7 +288,7 @@ pub fn press_at(
     at: [f64; 3],
     push: [f64; 3],
     tangent: SplitTangent,
-) -> Result<Result<(Continued, f64), String>, FeError> {
+) -> Result<Result<PointPress, String>, FeError> {
     let req = ProbeRequest {
         at,
         force_n: 1.0,
@@ -340,7 +352,20 @@ pub fn press_at(
             press.correction_rel
         )));
     }
-    Ok(Ok((press, change)))
+    let (force_n, u) = press.evaluate(o.depth_max_mm, o.depth_max_mm);
+    let (lambda, mu) = o.material.lame_n_per_mm2();
+    let internal = crate::fe::newton::internal_force(space, o.law, &u, lambda, mu);
+    let load = space.restrict(&shape);
+    let (mut r2, mut f2) = (0.0, 0.0);
+    for (fi, l) in internal.iter().zip(&load) {
+        r2 += (fi - force_n * l).powi(2);
+        f2 += (force_n * l).powi(2);
+    }
+    Ok(Ok(PointPress {
+        press,
+        pade_change: change,
+        residual_rel: (r2 / f2.max(f64::MIN_POSITIVE)).sqrt(),
+    }))
 }
 
 /// One vertex's continued press sampled on the depth grid, or why it is skipped (see
@@ -359,7 +384,7 @@ fn vertex_press(
     let at = organ.mesh.vertices[v as usize];
     let (press, change) = match press_at(space, organ, expander, o, at, push, SplitTangent::Shared)?
     {
-        Ok(p) => p,
+        Ok(p) => (p.press, p.pade_change),
         Err(why) => return Ok(Err(why)),
     };
     let unit = &press.first.u[0];
