@@ -449,7 +449,8 @@ mod hyperelastic {
             eprintln!(
                 "{tangent:?}: Padé change {change:.1e}, correction {:.1e}, residual at the \
                  end {:.1e}, force {rel:.1e}, worst nodal {worst:.3} mm",
-                c.correction_rel, p.residual_rel
+                c.correction_rel,
+                p.residual_rel(&space, &options, options.depth_max_mm)
             );
             assert!(rel.abs() < 0.01, "{tangent:?}: force {rel}");
             assert!(worst < 0.3, "{tangent:?}: nodal {worst} mm");

@@ -326,7 +326,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                             "surface_max_error_mm": e, "split_mm": press.split_mm,
                             "pade_change": change, "expand_s": seconds,
                             "correction_rel": press.correction_rel,
-                            "residual_rel": p.residual_rel})
+                            "residual_rel": p.residual_rel(&space, &o, o.depth_max_mm)})
                     }
                 };
             }

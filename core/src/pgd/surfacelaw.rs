@@ -269,11 +269,33 @@ pub struct PointPress {
     pub press: Continued,
     /// The largest change of the segments' Padé forms at their ends (a proxy).
     pub pade_change: f64,
-    /// The equilibrium residual at the deepest depth, `‖f_int(u) − F f̂‖ / ‖F f̂‖` on
-    /// the free dofs. Reported, not a skip rule: measured at 15 mm on coarse P2 it
-    /// was 6.2 for a press 14 % off at 12.7 mm and 3.4–3.9 for one 1.5–2.6 % off,
-    /// so in this norm and at this depth it does not yet separate them.
-    pub residual_rel: f64,
+    /// The unit tool load `f̂` the press was expanded for (all-node).
+    pub shape: Vec<f64>,
+}
+
+impl PointPress {
+    /// The equilibrium residual at `depth_mm`, `‖f_int(u) − F f̂‖ / ‖F f̂‖` on the free
+    /// dofs (one internal-force assembly; the build does not pay for it). Reported,
+    /// not a skip rule: measured at 15 mm on coarse P2 it was 6.2 for a press 14 % off
+    /// at 12.7 mm and 3.4–3.9 for one 1.5–2.6 % off, so in this norm and at this depth
+    /// it does not yet separate them.
+    pub fn residual_rel(
+        &self,
+        space: &crate::fe::space::Space,
+        o: &SurfaceLawOptions,
+        depth_mm: f64,
+    ) -> f64 {
+        let (force_n, u) = self.press.evaluate(depth_mm, o.depth_max_mm);
+        let (lambda, mu) = o.material.lame_n_per_mm2();
+        let internal = crate::fe::newton::internal_force(space, o.law, &u, lambda, mu);
+        let load = space.restrict(&self.shape);
+        let (mut r2, mut f2) = (0.0, 0.0);
+        for (fi, l) in internal.iter().zip(&load) {
+            r2 += (fi - force_n * l).powi(2);
+            f2 += (force_n * l).powi(2);
+        }
+        (r2 / f2.max(f64::MIN_POSITIVE)).sqrt()
+    }
 }
 
 /// A continued press at `at` along `push` with the build's options (a palpable
@@ -353,19 +375,10 @@ pub fn press_at(
             press.correction_rel
         )));
     }
-    let (force_n, u) = press.evaluate(o.depth_max_mm, o.depth_max_mm);
-    let (lambda, mu) = o.material.lame_n_per_mm2();
-    let internal = crate::fe::newton::internal_force(space, o.law, &u, lambda, mu);
-    let load = space.restrict(&shape);
-    let (mut r2, mut f2) = (0.0, 0.0);
-    for (fi, l) in internal.iter().zip(&load) {
-        r2 += (fi - force_n * l).powi(2);
-        f2 += (force_n * l).powi(2);
-    }
     Ok(Ok(PointPress {
         press,
         pade_change: change,
-        residual_rel: (r2 / f2.max(f64::MIN_POSITIVE)).sqrt(),
+        shape,
     }))
 }
 
