@@ -461,6 +461,65 @@ mod hyperelastic {
             .zip(&fields[1])
             .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
         assert!(apart < 0.1, "shared and exact differ by {apart} mm");
+
+        // The build's route: the series predicts, a chord Newton corrects at each grid
+        // depth. Its states are equilibria to its tolerance, so it meets Newton to
+        // that: tight, and at the build's defaults with a new segment after every
+        // depth (each one's tangent factored at the last accepted state).
+        use palpa_core::fe::load::{probe_functional, probe_load};
+        use palpa_core::fe::path::{PathOptions, PressLoad, follow};
+        let (probe, dir) = locate(&space, &organ, &press(POINTS[0], 1.0)).expect("locates");
+        let shape = probe_load(&space, &probe, dir, 1.0, options.tool_radius_mm).expect("load");
+        let functional = probe_functional(&space, &probe, dir);
+        let load = PressLoad {
+            shape: &shape,
+            probe: &functional,
+        };
+        let depths: Vec<f64> = (0..=7).map(|j| 1.5 * f64::from(j)).collect();
+        let tight = PathOptions {
+            tolerance_mm: 1e-3,
+            force_tolerance: 1e-5,
+            ..PathOptions::default()
+        };
+        let every_depth = PathOptions {
+            refresh_after: 0,
+            max_segments: 4,
+            ..PathOptions::default()
+        };
+        for (o, force_within, nodes_within_mm) in [(tight, 1e-4, 0.005), (every_depth, 5e-3, 0.05)]
+        {
+            let p = follow(
+                &space,
+                options.law,
+                options.material,
+                &expander,
+                &load,
+                &depths,
+                &o,
+            )
+            .expect("follows")
+            .unwrap_or_else(|why| panic!("{o:?}: {why}"));
+            let rel = (p.force_n[7] - newton.force_n) / newton.force_n;
+            let worst = p.u[7]
+                .iter()
+                .zip(&newton.u)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            eprintln!(
+                "followed (tolerance {} mm): segments at {:?} mm, {} chord steps, last \
+                 correction {:.1e} mm, force {rel:.1e}, worst nodal {worst:.1e} mm",
+                o.tolerance_mm, p.segment_starts_mm, p.chord_steps, p.worst_correction_mm
+            );
+            assert_eq!(p.u.len(), depths.len());
+            assert!(p.worst_correction_mm <= o.tolerance_mm);
+            assert!(rel.abs() < force_within, "force {rel}");
+            assert!(worst < nodes_within_mm, "nodal {worst} mm");
+            if o.refresh_after == 0 {
+                assert!(
+                    p.segment_starts_mm.len() >= o.max_segments,
+                    "segments restart"
+                );
+            }
+        }
     }
 
     /// The force law built from a few sampled depth series (P1 for speed) against

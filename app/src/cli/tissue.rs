@@ -153,7 +153,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
             "uncompressed_bytes": law.bytes(), "payload_bytes": tissue.payload_bytes(),
             "file_bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
             "build_s": tissue.build_s, "compress_s": tissue.compress_s,
-            "worst_pade_change": tissue.pade_change.iter().copied().fold(0.0f32, f32::max)})
+            "worst_correction_mm": tissue.correction_mm.iter().copied().fold(0.0f32, f32::max),
+            "most_segments": tissue.segments.iter().copied().max()})
     );
     Ok(tissue)
 }

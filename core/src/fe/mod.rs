@@ -28,6 +28,7 @@ pub mod elasticity;
 pub mod hyper;
 pub mod load;
 pub mod newton;
+pub mod path;
 pub mod probe;
 pub mod series;
 pub mod shape;

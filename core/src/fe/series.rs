@@ -634,12 +634,17 @@ impl<'a> Expander<'a> {
         out.seconds = self.factor_s + t0.elapsed().as_secs_f64();
         Ok(out)
     }
+
+    /// The factored rest stiffness (the first segment's tangent for every press).
+    pub fn rest_factor(&self) -> &Cholesky {
+        &self.chol
+    }
 }
 
 /// The orders `1..=orders` about `base` (`None`: the rest state) with `chol` the
 /// factored tangent there (see the module doc).
 #[allow(clippy::too_many_arguments)]
-fn orders_about(
+pub(crate) fn orders_about(
     space: &Space,
     law: Law,
     lambda: f64,

@@ -9,12 +9,14 @@
 //! r(x; s, d) = u(x; s, d) − d · û(x; s),      r(s; s, d) · n = 0 (the depth is exact),
 //! ```
 //!
-//! which is computed off-line, per palpable vertex `v`, from the press's depth series
-//! ([`crate::fe::series`]): one series about the rest state to a split depth, then a
-//! second about the state there (ANM continuation); `û` is the series' first order
-//! (the linear field), so `r_v(d) = Σ_{p≥2} d^p u_p` summed through the Padé forms.
-//! Each vertex costs a linear solve per order with the rest stiffness (factored once
-//! for all) plus one factorization of the tangent at its split.
+//! which is computed off-line, per palpable vertex `v`, by following its press along the
+//! depth grid ([`crate::fe::path`]): the depth series ([`crate::fe::series`]) predicts
+//! and a chord Newton corrects each grid depth to equilibrium, with a new series
+//! segment (one factorization) wherever the last one stops predicting. The first
+//! segment uses the rest stiffness, factored once for all vertices; `û` is its first
+//! order (the linear field), so `r_v(d_j) = u_v(d_j) − d_j u_1`. The stored states are
+//! equilibria to the corrector's tolerance (1e-3 mm): at the vertices the vademecum is
+//! the full nonlinear FE.
 //!
 //! On-line, a probe inside a palpable triangle blends its corners' residuals with its
 //! barycentric weights, linearly in `d` between grid depths:
@@ -27,6 +29,7 @@ use std::time::Instant;
 
 use crate::fe::hyper::Law;
 use crate::fe::load::{probe_functional, probe_load};
+use crate::fe::path::{PathOptions, PressLoad, follow};
 use crate::fe::probe::{ProbeRequest, locate, organ_space};
 use crate::fe::series::{Continued, Expander, SplitTangent, continued_from};
 use crate::fe::{Element, FeError, Material};
@@ -90,10 +93,12 @@ pub struct SurfaceLaw {
     residual: Vec<f32>,
     /// `ratio[sample · steps + j]`: the force over the linear force at grid depth `j`.
     pub ratio: Vec<f64>,
-    /// Per sample: the FE model's linear stiffness there (N/mm), and the Padé forms'
-    /// largest relative change at the segment ends (the series' error indicator).
+    /// Per sample: the FE model's linear stiffness there (N/mm), the largest last
+    /// Newton correction of its grid states (mm: their equilibrium tolerance), and the
+    /// series segments its press took.
     pub stiffness_n_per_mm: Vec<f64>,
-    pub pade_change: Vec<f64>,
+    pub correction_mm: Vec<f64>,
+    pub segments: Vec<u32>,
     pub build_s: f64,
 }
 
@@ -105,7 +110,8 @@ struct VertexPress {
     /// `g(d_j) = F(d_j) / (d_j · F₁)`, `g(0) = 1`.
     ratio: Vec<f64>,
     stiffness_n_per_mm: f64,
-    pade_change: f64,
+    correction_mm: f64,
+    segments: u32,
 }
 
 impl SurfaceLaw {
@@ -164,7 +170,8 @@ impl SurfaceLaw {
         let mut sample_of = vec![u32::MAX; organ.mesh.vertices.len()];
         let (mut samples, mut skipped, mut skip_reasons) = (Vec::new(), Vec::new(), Vec::new());
         let mut residual = Vec::new();
-        let (mut ratio, mut stiffness, mut change) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut ratio, mut stiffness) = (Vec::new(), Vec::new());
+        let (mut correction, mut segments) = (Vec::new(), Vec::new());
         for (&v, press) in candidates.iter().zip(presses) {
             let p = match press {
                 Ok(p) => p,
@@ -179,7 +186,8 @@ impl SurfaceLaw {
             residual.extend_from_slice(&p.residual);
             ratio.extend_from_slice(&p.ratio);
             stiffness.push(p.stiffness_n_per_mm);
-            change.push(p.pade_change);
+            correction.push(p.correction_mm);
+            segments.push(p.segments);
         }
         Ok(SurfaceLaw {
             options,
@@ -192,7 +200,8 @@ impl SurfaceLaw {
             residual,
             ratio,
             stiffness_n_per_mm: stiffness,
-            pade_change: change,
+            correction_mm: correction,
+            segments,
             build_s: t0.elapsed().as_secs_f64(),
         })
     }
@@ -312,15 +321,7 @@ pub fn press_at(
     push: [f64; 3],
     tangent: SplitTangent,
 ) -> Result<Result<PointPress, String>, FeError> {
-    let req = ProbeRequest {
-        at,
-        force_n: 1.0,
-        dir: Some(push),
-        radius_mm: o.tool_radius_mm,
-    };
-    let (probe, dir) = locate(space, organ, &req)?;
-    let shape = probe_load(space, &probe, dir, 1.0, o.tool_radius_mm)?;
-    let functional = probe_functional(space, &probe, dir);
+    let (shape, functional) = tool_load(space, organ, o, at, push)?;
     let first = match expander.expand_active(&shape, &functional, o.orders, o.active_cutoff) {
         Ok(s) => s,
         Err(e @ FeError::ProbeNotMoved) => return Ok(Err(format!("first series: {e}"))),
@@ -382,8 +383,37 @@ pub fn press_at(
     }))
 }
 
-/// One vertex's continued press sampled on the depth grid, or why it is skipped (see
-/// [`press_at`]).
+/// The unit tool load and the probe functional of a press at `at` along `push`.
+fn tool_load(
+    space: &crate::fe::space::Space,
+    organ: &OrganMesh,
+    o: &SurfaceLawOptions,
+    at: [f64; 3],
+    push: [f64; 3],
+) -> Result<(Vec<f64>, Vec<f64>), FeError> {
+    let req = ProbeRequest {
+        at,
+        force_n: 1.0,
+        dir: Some(push),
+        radius_mm: o.tool_radius_mm,
+    };
+    let (probe, dir) = locate(space, organ, &req)?;
+    let shape = probe_load(space, &probe, dir, 1.0, o.tool_radius_mm)?;
+    Ok((shape, probe_functional(space, &probe, dir)))
+}
+
+/// The path options a build uses.
+pub fn path_options(o: &SurfaceLawOptions) -> PathOptions {
+    PathOptions {
+        orders: o.orders,
+        active_cutoff: o.active_cutoff,
+        ..PathOptions::default()
+    }
+}
+
+/// One vertex's press followed to equilibrium on the depth grid ([`follow`]), or why
+/// it is skipped (the tool does not move its centre, next to the fixed region; or no
+/// equilibrium was found at some depth).
 #[allow(clippy::too_many_arguments)]
 fn vertex_press(
     space: &crate::fe::space::Space,
@@ -396,24 +426,34 @@ fn vertex_press(
     push: [f64; 3],
 ) -> Result<Result<VertexPress, String>, FeError> {
     let at = organ.mesh.vertices[v as usize];
-    let (press, change) = match press_at(space, organ, expander, o, at, push, SplitTangent::Shared)?
-    {
-        Ok(p) => (p.press, p.pade_change),
+    let (shape, probe) = tool_load(space, organ, o, at, push)?;
+    let depths: Vec<f64> = (0..steps).map(|j| j as f64 * o.depth_step_mm).collect();
+    let load = PressLoad {
+        shape: &shape,
+        probe: &probe,
+    };
+    let press = match follow(
+        space,
+        o.law,
+        o.material,
+        expander,
+        &load,
+        &depths,
+        &path_options(o),
+    )? {
+        Ok(p) => p,
         Err(why) => return Ok(Err(why)),
     };
     let unit = &press.first.u[0];
     let stiffness = press.first.force[0];
     let mut residual = Vec::with_capacity(steps * 3 * rows.len());
     let mut ratio = Vec::with_capacity(steps);
-    for j in 0..steps {
-        let d = j as f64 * o.depth_step_mm;
-        if j == 0 {
-            residual.resize(3 * rows.len(), 0.0);
-            ratio.push(1.0);
-            continue;
-        }
-        let (f, u) = press.evaluate(d, o.depth_max_mm);
-        ratio.push(f / (d * stiffness));
+    for (j, (&d, u)) in depths.iter().zip(&press.u).enumerate() {
+        ratio.push(if j == 0 {
+            1.0
+        } else {
+            press.force_n[j] / (d * stiffness)
+        });
         for &r in rows {
             for c in 0..3 {
                 let i = 3 * r as usize + c;
@@ -425,7 +465,8 @@ fn vertex_press(
         residual,
         ratio,
         stiffness_n_per_mm: stiffness,
-        pade_change: if change.is_finite() { change } else { 0.0 },
+        correction_mm: press.worst_correction_mm,
+        segments: press.segment_starts_mm.len() as u32,
     }))
 }
 
@@ -466,7 +507,8 @@ mod tests {
             residual,
             ratio: vec![1.0; 6],
             stiffness_n_per_mm: vec![1.0; 2],
-            pade_change: vec![0.0; 2],
+            correction_mm: vec![0.0; 2],
+            segments: vec![1; 2],
             build_s: 0.0,
         };
         let at = |bary: [f64; 3], d: f64| {

@@ -49,7 +49,7 @@ use crate::tensor::dense::thin_svd;
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
 /// The file's format version.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -91,7 +91,10 @@ pub struct TissueLaw {
     /// `ratio[sample · steps + j]`: `g` at grid depth `j`.
     pub ratio: Vec<f32>,
     pub stiffness_n_per_mm: Vec<f32>,
-    pub pade_change: Vec<f32>,
+    /// Per sample: the largest last Newton correction of its grid states (mm), and the
+    /// series segments its press took.
+    pub correction_mm: Vec<f32>,
+    pub segments: Vec<u32>,
     /// The most modes a vertex keeps.
     pub rank: u32,
     /// Sample `s`'s modes are `mode_start[s]..mode_start[s + 1]`.
@@ -140,27 +143,41 @@ impl TissueLaw {
                 rows: m,
                 cols: steps - 1,
             })?;
-            let q = svd.s.iter().take_while(|&&x| x > tolerance_mm).count();
-            let mut vertex_bound = svd.s.get(q).copied().unwrap_or(0.0);
+            // Each mode quantized, with what quantizing costs it at most (mm).
+            let n = svd.s.len().min(MAX_RANK);
+            let modes: Vec<(Vec<i16>, f64, f64, Vec<f64>)> = (0..n)
+                .map(|k| {
+                    let c: Vec<f64> = (0..steps - 1).map(|c| svd.s[k] * svd.v[(c, k)]).collect();
+                    let c_max = c.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+                    let top = (0..m).fold(0.0f64, |a, i| a.max(svd.u[(i, k)].abs()));
+                    let scale = top / f64::from(i16::MAX);
+                    let mut err2 = 0.0;
+                    let q16: Vec<i16> = (0..m)
+                        .map(|i| {
+                            let x = svd.u[(i, k)];
+                            let q = if scale > 0.0 {
+                                (x / scale).round().clamp(-32767.0, 32767.0)
+                            } else {
+                                0.0
+                            };
+                            err2 += (x - q * f64::from(scale as f32)).powi(2);
+                            q as i16
+                        })
+                        .collect();
+                    (q16, scale, err2.sqrt() * c_max, c)
+                })
+                .collect();
+            // The fewest modes whose truncation plus quantization stays within the
+            // tolerance (all of them where quantizing alone would exceed it).
+            let cost = |q: usize| {
+                svd.s.get(q).copied().unwrap_or(0.0) + modes[..q].iter().map(|m| m.2).sum::<f64>()
+            };
+            let q = (0..=n).find(|&q| cost(q) <= tolerance_mm).unwrap_or(n);
+            let vertex_bound = cost(q);
             rank = rank.max(q);
-            for k in 0..q {
-                let c: Vec<f64> = (0..steps - 1).map(|c| svd.s[k] * svd.v[(c, k)]).collect();
-                let c_max = c.iter().fold(0.0f64, |a, x| a.max(x.abs()));
-                let top = (0..m).fold(0.0f64, |a, i| a.max(svd.u[(i, k)].abs()));
-                let scale = top / f64::from(i16::MAX);
-                let mut err2 = 0.0;
-                for i in 0..m {
-                    let x = svd.u[(i, k)];
-                    let q16 = if scale > 0.0 {
-                        (x / scale).round().clamp(-32767.0, 32767.0)
-                    } else {
-                        0.0
-                    };
-                    err2 += (x - q16 * f64::from(scale as f32)).powi(2);
-                    shape.push(q16 as i16);
-                }
+            for (q16, scale, _, c) in modes.into_iter().take(q) {
+                shape.extend(q16);
                 shape_scale.push(scale as f32);
-                vertex_bound += err2.sqrt() * c_max;
                 coeffs.push(0.0f32);
                 coeffs.extend(c.iter().map(|&x| x as f32));
             }
@@ -176,7 +193,8 @@ impl TissueLaw {
             steps: steps as u32,
             ratio: law.ratio.iter().map(|&g| g as f32).collect(),
             stiffness_n_per_mm: law.stiffness_n_per_mm.iter().map(|&k| k as f32).collect(),
-            pade_change: law.pade_change.iter().map(|&c| c as f32).collect(),
+            correction_mm: law.correction_mm.iter().map(|&c| c as f32).collect(),
+            segments: law.segments.clone(),
             rank: rank as u32,
             mode_start,
             shape,
@@ -219,7 +237,8 @@ impl TissueLaw {
         }
         if self.ratio.len() != ns * steps
             || self.stiffness_n_per_mm.len() != ns
-            || self.pade_change.len() != ns
+            || self.correction_mm.len() != ns
+            || self.segments.len() != ns
             || self.mode_start.len() != ns + 1
             || self.mode_start[0] != 0
             || self
