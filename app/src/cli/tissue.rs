@@ -86,9 +86,10 @@ pub struct CheckArgs {
     /// files at the same presses.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     at: Option<Vec<f64>>,
-    /// Also expand the press at each held-out point itself, as the build expands a
-    /// vertex (shared tangent) and with the exact tangent: splits the error into the
-    /// method's own (series) and the blend between vertices.
+    /// Also expand the press at each held-out point itself by the two-segment series
+    /// (one factorization at the split, and the exact two): what an uncorrected
+    /// series gives there, apart from the blend between vertices. (The build now
+    /// corrects each vertex's states to equilibrium; see `fe::path`.)
     #[arg(long)]
     series: bool,
 }

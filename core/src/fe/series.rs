@@ -770,7 +770,7 @@ pub enum SplitTangent {
     /// Factor once, at the Padé state, for the correction and for a series about
     /// that same state, then shift the series by the correction (a constant offset;
     /// it is about 1e-3 of the state, and its change along the segment is of second
-    /// order): half the factorizations. What a many-press build uses.
+    /// order): half the factorizations.
     Shared,
 }
 

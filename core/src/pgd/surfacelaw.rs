@@ -307,9 +307,10 @@ impl PointPress {
     }
 }
 
-/// A continued press at `at` along `push` with the build's options (a palpable
-/// vertex's, or any point's to judge the method apart from the blend), or why it is
-/// not trusted (the tool does not move its centre, next to
+/// The two-segment series press at `at` along `push` with the build's options, with
+/// no correction at the grid depths (what the build used before [`follow`]; kept to
+/// judge an uncorrected series at any point apart from the blend), or why it is not
+/// trusted (the tool does not move its centre, next to
 /// the fixed region; the tangent at the split is not positive definite, where the
 /// tissue has lost stability; or the Padé forms still change at a segment's end).
 pub fn press_at(
