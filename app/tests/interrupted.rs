@@ -102,6 +102,51 @@ fn depth_law_resumes_from_its_sample_log() {
     assert_eq!(bits(&x.stiffness_n_per_mm), bits(&y.stiffness_n_per_mm));
 }
 
+/// The tissue build (every vertex's press followed to equilibrium): killed after a
+/// few presses are logged, run again it takes those from its binary log, presses the
+/// rest and writes the same law as an uninterrupted build (all but the timings); the
+/// log is removed.
+#[test]
+fn tissue_build_resumes_from_its_press_log() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let full = dir.path().join("full.tissue");
+    let cut = dir.path().join("cut.tissue");
+    let log = dir.path().join("cut.tissue.presses.log");
+    // About 40 vertices of coarse P1 in the anterior lobe, to 6 mm: seconds.
+    let base = [
+        "tissue",
+        "build",
+        "--element",
+        "p1",
+        "--depth-max-mm",
+        "6",
+        "--within",
+        "-30.3,70.7,16.9,30",
+    ];
+    let a = common::json_ok(&palpa(&args(&base, &full)));
+    assert_eq!(a["resumed_presses"], 0);
+    let samples = a["samples"].as_u64().expect("samples");
+    assert!(samples >= 20, "{samples} vertices");
+    // A press of 7 depths × 858 rows × 3 f32 is 72 kB: kill after a few.
+    let size = || std::fs::metadata(&log).map(|m| m.len()).unwrap_or(0);
+    run_and_kill(&args(&base, &cut), || size() > 4 * 72_000);
+    assert!(
+        !cut.exists(),
+        "no law is written before every press is done"
+    );
+    let b = common::json_ok(&palpa(&args(&base, &cut)));
+    let resumed = b["resumed_presses"].as_u64().expect("count");
+    assert!(
+        (3..samples).contains(&resumed),
+        "{resumed} of {samples} presses taken from the log"
+    );
+    assert!(!log.exists(), "the log is removed once the law is saved");
+    let x = palpa_core::pgd::tissue::TissueLaw::load(&full).expect("full");
+    let mut y = palpa_core::pgd::tissue::TissueLaw::load(&cut).expect("resumed");
+    (y.build_s, y.compress_s) = (x.build_s, x.compress_s);
+    assert!(x == y, "the resumed law differs from the uninterrupted one");
+}
+
 /// The builders that finish in seconds to a few minutes at their defaults and start
 /// again from the beginning (the nodal-load vademecum, the CME tensor train and the
 /// greedy PGD): a kill mid-run leaves no output and no temporary file once the next

@@ -21,8 +21,9 @@ use super::depthlaw::NonlinearModel;
 
 #[derive(Debug, Subcommand)]
 pub enum TissueCommand {
-    /// Build the nonlinear vademecum off-line: every palpable vertex pressed through
-    /// its depth series, the surfaces compressed by an SVD.
+    /// Build the nonlinear vademecum off-line: every palpable vertex's press followed
+    /// to equilibrium on the depth grid, the surfaces compressed by an SVD; finished
+    /// presses are logged in `OUT.presses.log`, so a killed build run again goes on.
     Build(BuildArgs),
     /// Compare a built vademecum with the full nonlinear FE (Newton) at held-out
     /// random points and depths, through a scene (what the app shows).
@@ -43,7 +44,7 @@ pub struct BuildArgs {
     /// Grid step in depth (mm).
     #[arg(long, default_value_t = 1.0)]
     pub depth_step_mm: f64,
-    /// Orders of each depth series (both segments).
+    /// Orders of the rest series (each press's first predictor; later segments use 6).
     #[arg(long, default_value_t = SurfaceLawOptions::default().orders)]
     pub orders: usize,
     /// The compression's guaranteed bound on any node's residual (mm).
@@ -131,7 +132,12 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
         within,
         ..SurfaceLawOptions::default()
     };
-    let law = SurfaceLaw::build(&organ, options, &|k, n| {
+    // Finished presses are logged beside the output: an interrupted build run again
+    // with the same arguments goes on from the last one.
+    let mut log = args.out.as_os_str().to_owned();
+    log.push(".presses.log");
+    let log = PathBuf::from(log);
+    let (law, resumed) = SurfaceLaw::build_logged(&organ, options, Some(&log), &|k, n| {
         eprint!("\rtissue: vertex {k}/{n}   ");
     })
     .context("pressing the palpable vertices")?;
@@ -144,6 +150,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
     }
     let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm)?;
     tissue.save(&args.out)?;
+    let _ = std::fs::remove_file(&log);
     println!(
         "{}",
         json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
@@ -153,7 +160,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
             "rank": tissue.rank, "truncation_bound_mm": tissue.truncation_bound_mm,
             "uncompressed_bytes": law.bytes(), "payload_bytes": tissue.payload_bytes(),
             "file_bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
-            "build_s": tissue.build_s, "compress_s": tissue.compress_s,
+            "build_s": tissue.build_s, "resumed_presses": resumed, "compress_s": tissue.compress_s,
             "worst_correction_mm": tissue.correction_mm.iter().copied().fold(0.0f32, f32::max),
             "most_segments": tissue.segments.iter().copied().max()})
     );

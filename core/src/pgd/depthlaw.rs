@@ -175,6 +175,15 @@ pub enum DepthLawBuildError {
 /// What determines every sample's result: the options and the mesh (its nodes,
 /// tetrahedra and regions, hashed).
 fn build_key(organ: &OrganMesh, o: &DepthLawOptions) -> String {
+    format!(
+        "palpa depth-law v{VERSION} log 2 mesh {:016x} {o:?}",
+        organ_hash(organ)
+    )
+}
+
+/// The hash of what a press on `organ` depends on: its nodes, tets, fixed and palpable
+/// flags (a log of presses on another mesh is not taken).
+pub(crate) fn organ_hash(organ: &OrganMesh) -> u64 {
     let mut bytes: Vec<u8> = Vec::new();
     for p in &organ.mesh.vertices {
         p.iter().for_each(|v| bytes.extend(v.to_le_bytes()));
@@ -184,10 +193,7 @@ fn build_key(organ: &OrganMesh, o: &DepthLawOptions) -> String {
     }
     bytes.extend(organ.fixed.iter().map(|&b| u8::from(b)));
     bytes.extend(organ.palpable.iter().map(|&b| u8::from(b)));
-    format!(
-        "palpa depth-law v{VERSION} log 2 mesh {:016x} {o:?}",
-        xxhash_rust::xxh3::xxh3_64(&bytes)
-    )
+    xxhash_rust::xxh3::xxh3_64(&bytes)
 }
 
 /// One sample's press: empty when the tool does not move its centre, the Padé change

@@ -19,6 +19,7 @@ pub mod journal;
 pub mod linear;
 pub mod nodal;
 pub mod palpation;
+pub mod presslog;
 pub mod samplelog;
 pub mod surfacelaw;
 pub mod tissue;

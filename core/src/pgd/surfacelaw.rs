@@ -25,6 +25,8 @@
 //! floor as a P1 interpolation of the linear field (where the linear vademecum is exact
 //! by its nodal loads instead). Only the surface vertices' rows are kept, in f32.
 
+use std::path::Path;
+use std::sync::Mutex;
 use std::time::Instant;
 
 use crate::fe::hyper::Law;
@@ -34,6 +36,7 @@ use crate::fe::probe::{ProbeRequest, locate, organ_space};
 use crate::fe::series::{Continued, Expander, SplitTangent, continued_from};
 use crate::fe::{Element, FeError, Material};
 use crate::organ::OrganMesh;
+use crate::pgd::presslog::RecordLog;
 
 /// How the surface law is built.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -102,8 +105,21 @@ pub struct SurfaceLaw {
     pub build_s: f64,
 }
 
+/// Why a surface law could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum SurfaceLawBuildError {
+    #[error(transparent)]
+    Fe(#[from] FeError),
+    #[error("the build's press log {path}: {source}")]
+    Log {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
+}
+
 /// What one palpable vertex's press gives: its residual surface and force ratio at
 /// every grid depth.
+#[derive(serde::Serialize, serde::Deserialize)]
 struct VertexPress {
     /// `steps × 3·rows`, mm.
     residual: Vec<f32>,
@@ -122,7 +138,22 @@ impl SurfaceLaw {
         organ: &OrganMesh,
         options: SurfaceLawOptions,
         progress: &(dyn Fn(usize, usize) + Sync),
-    ) -> Result<SurfaceLaw, FeError> {
+    ) -> Result<SurfaceLaw, SurfaceLawBuildError> {
+        Self::build_logged(organ, options, None, progress).map(|(law, _)| law)
+    }
+
+    /// [`build`](Self::build), keeping each finished vertex's press in the log at
+    /// `log` (see [`super::presslog`]): run again after an interruption, it takes the
+    /// logged presses, computes the rest and gives the same law bit for bit (each press
+    /// is computed alone, so the order the threads finish in does not matter). The
+    /// caller removes the log once the law is saved. Returns the law and how many
+    /// presses were taken from the log.
+    pub fn build_logged(
+        organ: &OrganMesh,
+        options: SurfaceLawOptions,
+        log: Option<&Path>,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         use rayon::prelude::*;
         use std::sync::atomic::{AtomicUsize, Ordering};
         let o = options;
@@ -130,7 +161,8 @@ impl SurfaceLaw {
         if !(o.depth_max_mm > 0.0 && o.depth_step_mm > 0.0 && (2..=256).contains(&steps)) {
             return Err(FeError::DepthNotFinite {
                 depth_mm: o.depth_max_mm,
-            });
+            }
+            .into());
         }
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);
@@ -152,21 +184,67 @@ impl SurfaceLaw {
             .collect();
         candidates.sort_unstable();
         candidates.dedup();
+        let log_error = |path: &Path, source| SurfaceLawBuildError::Log {
+            path: path.to_path_buf(),
+            source,
+        };
+        let (log, finished) = match log {
+            Some(path) => {
+                let key = format!(
+                    "palpa tissue-build log 1 mesh {:016x} rows {} {o:?} {:?}",
+                    crate::pgd::depthlaw::organ_hash(organ),
+                    rows.len(),
+                    path_options(&o)
+                );
+                let (l, r) = RecordLog::open::<Result<VertexPress, String>>(path, &key)
+                    .map_err(|e| log_error(path, e))?;
+                (Some((Mutex::new(l), path)), r)
+            }
+            None => (None, Vec::new()),
+        };
+        let mut presses: Vec<Option<Result<VertexPress, String>>> =
+            candidates.iter().map(|_| None).collect();
+        for (v, press) in finished {
+            let fits = press.as_ref().map_or(true, |p| {
+                p.ratio.len() == steps && p.residual.len() == steps * 3 * rows.len()
+            });
+            if let Ok(k) = candidates.binary_search(&v)
+                && fits
+            {
+                presses[k] = Some(press);
+            }
+        }
+        let resumed = presses.iter().filter(|p| p.is_some()).count();
         // Each vertex is pressed along its inward area-weighted normal: the direction
         // a scene's contact law pushes at that vertex (a face's normal would differ
         // from it by up to the dihedral angle on a sharp border).
         let normals = organ_vertex_normals(organ);
-        let done = AtomicUsize::new(0);
-        progress(0, candidates.len());
-        let presses: Vec<Result<VertexPress, String>> = candidates
+        let done = AtomicUsize::new(resumed);
+        progress(resumed, candidates.len());
+        let todo: Vec<usize> = (0..candidates.len())
+            .filter(|&k| presses[k].is_none())
+            .collect();
+        let computed: Vec<(usize, Result<VertexPress, String>)> = todo
             .par_iter()
-            .map(|&v| {
+            .map(|&k| -> Result<_, SurfaceLawBuildError> {
+                let v = candidates[k];
                 let push = normals[v as usize].map(|c| -f64::from(c));
-                let press = vertex_press(&space, organ, &expander, &o, &rows, steps, v, push);
+                let press = vertex_press(&space, organ, &expander, &o, &rows, steps, v, push)?;
+                if let Some((l, path)) = &log {
+                    // Off-line and once a press (seconds): a lock is fine here.
+                    let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
+                    l.push(v, &press).map_err(|e| log_error(path, e))?;
+                }
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1, candidates.len());
-                press
+                Ok((k, press))
             })
             .collect::<Result<_, _>>()?;
+        for (k, press) in computed {
+            presses[k] = Some(press);
+        }
+        let presses = presses
+            .into_iter()
+            .map(|p| p.expect("every vertex is pressed"));
         let mut sample_of = vec![u32::MAX; organ.mesh.vertices.len()];
         let (mut samples, mut skipped, mut skip_reasons) = (Vec::new(), Vec::new(), Vec::new());
         let mut residual = Vec::new();
@@ -189,7 +267,7 @@ impl SurfaceLaw {
             correction.push(p.correction_mm);
             segments.push(p.segments);
         }
-        Ok(SurfaceLaw {
+        let law = SurfaceLaw {
             options,
             rows,
             sample_of,
@@ -203,7 +281,8 @@ impl SurfaceLaw {
             correction_mm: correction,
             segments,
             build_s: t0.elapsed().as_secs_f64(),
-        })
+        };
+        Ok((law, resumed))
     }
 
     pub fn steps(&self) -> usize {
