@@ -486,8 +486,18 @@ mod hyperelastic {
             max_segments: 4,
             ..PathOptions::default()
         };
-        for (o, force_within, nodes_within_mm) in [(tight, 1e-4, 0.005), (every_depth, 5e-3, 0.05)]
-        {
+        // The plain chord (no Anderson acceleration), with the refresh rule it needs.
+        let plain = PathOptions {
+            anderson: 0,
+            refresh_after: 1,
+            max_steps: 6,
+            ..PathOptions::default()
+        };
+        for (o, force_within, nodes_within_mm) in [
+            (tight, 1e-4, 0.005),
+            (every_depth, 5e-3, 0.05),
+            (plain, 5e-3, 0.05),
+        ] {
             let p = follow(
                 &space,
                 options.law,

@@ -25,22 +25,26 @@
 //! off in force through near the liver's sharp border).
 //!
 //! The chord contracts by about `‖I − K⁻¹K_t(u)‖` a step. On the liver (coarse P2,
-//! neo-Hookean, ν = 0.48) it *diverges* from a tangent 2–4 mm old: the second
-//! correction is 2–4 times the first, the force correction flips sign. So a depth that
-//! needs more than [`PathOptions::refresh_after`] step (one, by default) starts a new
-//! segment at it: its tangent is factored at the accepted state and a short series
+//! neo-Hookean, ν = 0.48) the plain chord *diverges* from a tangent 2–4 mm old: the
+//! second correction is 2–4 times the first, the force correction flips sign. Those
+//! are a few large eigenvalues (the tangent changed near the tool only), which
+//! Anderson acceleration ([`PathOptions::anderson`], see [`accelerated`]) removes the
+//! way GMRES would, at the chord's cost a step. A depth that needs more than
+//! [`PathOptions::refresh_after`] steps (three) still starts a new segment after it:
+//! its tangent is factored at the accepted state and a short series
 //! ([`PathOptions::restart_orders`], 6) expanded about it, exactly (the base is an
 //! equilibrium, so this is the textbook ANM step). Measured on six spread vertices to
-//! 15 mm: 2–8 segments and 17–27 chord steps a press, 7–23 s on this machine's two
-//! cores. Extrapolating the accepted states instead of a restart series needs a new
-//! segment nearly every millimetre (5–12 segments, no faster); a 12-order series
-//! from the rest state predicts 1 mm to 1e-6 mm but 3 mm only to 6e-3 mm where the
-//! press is stiff. Where the chord from a segment that starts at the last accepted
-//! state still fails, that depth is solved by Newton from the prediction, the tangent
-//! refactored at each iterate (at most four times), and a segment starts there; where
-//! that fails too, the step toward the next grid depth is halved (at most three times,
-//! to an eighth of the grid step; the intermediate states are accepted like grid ones
-//! but not stored) and doubled back after a success. Near the liver's sharp inferior
+//! 15 mm: 1–4 segments and 18–53 steps a press, 7–18 s (65 s for the six; the plain
+//! chord, refreshing after any second step: 2–8 segments, 83 s). Extrapolating the
+//! accepted states instead of a restart series needs a new segment nearly every
+//! millimetre (5–12 segments, no faster); a 12-order series from the rest state
+//! predicts 1 mm to 1e-6 mm but 3 mm only to 6e-3 mm where the press is stiff. Where
+//! the chord from a segment that starts at the last accepted state still fails, that
+//! depth is solved by Newton from the prediction, the tangent refactored at each
+//! iterate (at most four times), and a segment starts there; where that fails too, the
+//! step toward the next grid depth is halved (at most three times, to an eighth of the
+//! grid step; the intermediate states are accepted like grid ones but not stored) and
+//! doubled back after a success. Near the liver's sharp inferior
 //! border this is what carries a press to 15 mm: without it two of eleven vertices
 //! there were given up, at 9 and 14 mm. A press is given up, with the depth named, only
 //! where the halved steps fail too.
@@ -66,6 +70,8 @@ pub struct PathOptions {
     pub tolerance_mm: f64,
     pub force_tolerance: f64,
     /// A depth that needs more chord steps than this starts a new segment after it.
+    /// Three with the Anderson acceleration (the plain chord needs one: it diverges
+    /// rather than slows).
     pub refresh_after: usize,
     /// Most chord steps at one depth before it counts as not converging.
     pub max_steps: usize,
@@ -74,6 +80,8 @@ pub struct PathOptions {
     pub max_segments: usize,
     /// The higher orders' active-cell cutoff (see [`super::series::active_cells`]).
     pub active_cutoff: f64,
+    /// Corrections kept by the Anderson acceleration of the chord (0: the plain chord).
+    pub anderson: usize,
 }
 
 impl Default for PathOptions {
@@ -83,10 +91,11 @@ impl Default for PathOptions {
             restart_orders: 6,
             tolerance_mm: 0.05,
             force_tolerance: 5e-3,
-            refresh_after: 1,
-            max_steps: 6,
+            refresh_after: 3,
+            max_steps: 10,
             max_segments: 8,
             active_cutoff: 0.01,
+            anderson: 6,
         }
     }
 }
@@ -266,6 +275,7 @@ pub fn follow(
             d,
             (o.tolerance_mm, o.force_tolerance),
             steps,
+            o.anderson,
         )
     };
     let grid_step = |j: usize| depths_mm[j] - depths_mm[j - 1];
@@ -380,7 +390,22 @@ fn chord(
     d: f64,
     (tolerance_mm, force_tolerance): (f64, f64),
     max_steps: usize,
+    anderson: usize,
 ) -> Chord {
+    if anderson > 0 {
+        return accelerated(
+            space,
+            law,
+            (lambda, mu),
+            (k, y),
+            (shape, probe),
+            (force_n, u),
+            d,
+            (tolerance_mm, force_tolerance),
+            max_steps,
+            anderson,
+        );
+    }
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
     let ny = dot(probe, y);
     let mut previous = f64::INFINITY;
@@ -420,4 +445,142 @@ fn chord(
         previous = size;
     }
     unreachable!("the loop returns at its last step")
+}
+
+/// The chord with Anderson acceleration: the chord step is a fixed-point map
+/// `z ← z + c(z)` on `z = (u_free, F·ĉ)` (the force scaled by the segment's compliance
+/// `ĉ = n̂·K⁻¹f̂`, so both parts are in mm). With the last `m` differences of iterates
+/// `ΔZ` and of corrections `ΔC`, the next iterate is
+///
+/// ```text
+/// γ = argmin ‖c_k − ΔC γ‖,    z_{k+1} = z_k + c_k − (ΔZ + ΔC) γ,
+/// ```
+///
+/// which for a linear map is GMRES on the chord's preconditioned system: it converges
+/// where the plain chord diverges through a few large eigenvalues of `I − K⁻¹K_t(u)`
+/// (the tangent changed near the tool only). The same acceptance rule as the chord.
+#[allow(clippy::too_many_arguments)]
+fn accelerated(
+    space: &Space,
+    law: Law,
+    (lambda, mu): (f64, f64),
+    (k, y): (&Cholesky, &[f64]),
+    (shape, probe): (&[f64], &[f64]),
+    (force_n, u): (f64, Vec<f64>),
+    d: f64,
+    (tolerance_mm, force_tolerance): (f64, f64),
+    max_steps: usize,
+    m: usize,
+) -> Chord {
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let ny = dot(probe, y);
+    let n = y.len();
+    // z = (u_free, F ĉ).
+    let mut z = space.restrict(&u);
+    z.push(force_n * ny);
+    let (mut dz, mut dc): (Vec<Vec<f64>>, Vec<Vec<f64>>) = (Vec::new(), Vec::new());
+    let mut last: Option<(Vec<f64>, Vec<f64>)> = None;
+    let mut first = f64::INFINITY;
+    let all = |z: &[f64]| space.expand(&z[..n]);
+    for step in 1..=max_steps.max(1) {
+        let u = all(&z);
+        let f = z[n] / ny;
+        let fi = internal_force(space, law, &u, lambda, mu);
+        let r: Vec<f64> = fi.iter().zip(shape).map(|(a, b)| a - f * b).collect();
+        let g = dot(probe, &z[..n]) - d;
+        let x = k.solve(&r);
+        let df = (dot(probe, &x) - g) / ny;
+        let mut c: Vec<f64> = y.iter().zip(&x).map(|(a, b)| df * a - b).collect();
+        c.push(df * ny);
+        let size = c[..n].iter().fold(0.0f64, |s, v| s.max(v.abs()));
+        let converged = size <= tolerance_mm && df.abs() <= force_tolerance * (f + df).abs();
+        if step == 1 {
+            first = size;
+        }
+        let blown = !(size.is_finite() && df.is_finite()) || size > 10.0 * first;
+        if converged || blown || step >= max_steps {
+            if !blown {
+                z.iter_mut().zip(&c).for_each(|(a, b)| *a += b);
+            }
+            return Chord {
+                force_n: z[n] / ny,
+                u: all(&z),
+                steps: step,
+                last_mm: if blown { f64::INFINITY } else { size },
+                converged,
+            };
+        }
+        if let Some((z0, c0)) = last.take() {
+            dz.push(z.iter().zip(&z0).map(|(a, b)| a - b).collect());
+            dc.push(c.iter().zip(&c0).map(|(a, b)| a - b).collect());
+            if dz.len() > m {
+                dz.remove(0);
+                dc.remove(0);
+            }
+        }
+        let gamma = least_squares(&dc, &c);
+        let mut next: Vec<f64> = z.iter().zip(&c).map(|(a, b)| a + b).collect();
+        for ((g, zi), ci) in gamma.iter().zip(&dz).zip(&dc) {
+            for ((v, a), b) in next.iter_mut().zip(zi).zip(ci) {
+                *v -= g * (a + b);
+            }
+        }
+        last = Some((z, c));
+        z = next;
+    }
+    unreachable!("the loop returns at its last step")
+}
+
+/// `argmin ‖b − A γ‖` over the columns `a` (few), by the normal equations with a
+/// relative ridge of 1e-12 (the columns are nearly dependent near convergence).
+fn least_squares(a: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
+    let m = a.len();
+    if m == 0 {
+        return Vec::new();
+    }
+    let dot = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(x, y)| x * y).sum::<f64>();
+    let mut g = vec![0.0; m * m];
+    let mut rhs = vec![0.0; m];
+    for i in 0..m {
+        for j in 0..=i {
+            g[i * m + j] = dot(&a[i], &a[j]);
+            g[j * m + i] = g[i * m + j];
+        }
+        rhs[i] = dot(&a[i], b);
+    }
+    let trace: f64 = (0..m).map(|i| g[i * m + i]).sum();
+    for i in 0..m {
+        g[i * m + i] += 1e-12 * trace + f64::MIN_POSITIVE;
+    }
+    // Cholesky of the small Gram matrix.
+    for j in 0..m {
+        let mut s = g[j * m + j];
+        for k in 0..j {
+            s -= g[j * m + k] * g[j * m + k];
+        }
+        let ljj = s.max(f64::MIN_POSITIVE).sqrt();
+        g[j * m + j] = ljj;
+        for i in j + 1..m {
+            let mut s = g[i * m + j];
+            for k in 0..j {
+                s -= g[i * m + k] * g[j * m + k];
+            }
+            g[i * m + j] = s / ljj;
+        }
+    }
+    for i in 0..m {
+        let mut s = rhs[i];
+        for k in 0..i {
+            s -= g[i * m + k] * rhs[k];
+        }
+        rhs[i] = s / g[i * m + i];
+    }
+    for i in (0..m).rev() {
+        let mut s = rhs[i];
+        for k in i + 1..m {
+            s -= g[k * m + i] * rhs[k];
+        }
+        rhs[i] = s / g[i * m + i];
+    }
+    rhs
 }
