@@ -31,6 +31,8 @@ pub fn sidecar_tissue(scene_path: &Path, scene: &PalpationScene) -> anyhow::Resu
     if path.exists() {
         let law = TissueLaw::load(&path)
             .with_context(|| format!("the tissue beside {}", scene_path.display()))?;
+        law.check_linear_model(&scene.model().provenance().mesh)
+            .with_context(|| format!("binding {} to its scene", path.display()))?;
         let bound = BoundTissue::bind(
             law,
             scene.vertices_mm(),

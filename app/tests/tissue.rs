@@ -167,3 +167,106 @@ fn eval_reads_a_tissue_file_both_ways() {
     let (v, e) = eval(&["--depth-mm", "5", "--dir", "0,0,1"]);
     assert!(v.is_none() && e.contains("surface normal"), "{e}");
 }
+
+/// `palpa tissue check` on a built P1 vademecum (a small anterior region) against a P1
+/// scene: each held-out press is compared with Newton, and `--own` follows the press at
+/// the point itself, which matches Newton to the corrector's tolerance, so what is left
+/// is the blend between vertices; the vademecum beats the linear model there. Bound to
+/// the P2 scene instead, the P1 law is refused by name.
+#[test]
+fn tissue_check_separates_the_blend_from_the_press() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("p1.palpa");
+    let tissue = dir.path().join("p1.tissue");
+    let palpa = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args(args)
+            .output()
+            .expect("palpa runs")
+    };
+    let path = |p: &std::path::Path| p.to_str().expect("utf-8 path").to_string();
+    let out = palpa(&[
+        "offline",
+        "liver",
+        "--element",
+        "p1",
+        "--out",
+        &path(&scene),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = palpa(&[
+        "tissue",
+        "build",
+        "--element",
+        "p1",
+        "--depth-max-mm",
+        "6",
+        "--within",
+        "-30.3,70.7,16.9,15",
+        "--out",
+        &path(&tissue),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let check = |scene: &str| {
+        palpa(&[
+            "tissue",
+            "check",
+            &path(&tissue),
+            "--scene",
+            scene,
+            "--heldout",
+            "2",
+            "--depths",
+            "3.3,5.6",
+            "--own",
+        ])
+    };
+    let out = check(&path(&scene));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object a line"))
+        .collect();
+    let (summary, presses) = rows.split_last().expect("rows");
+    assert_eq!(summary["presses_compared"], 4);
+    assert_eq!(presses.len(), 4);
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    for p in presses {
+        let own = &p["own"];
+        assert!(num(own, "force_rel_error") < 1e-3, "{p}");
+        assert!(num(own, "surface_max_error_mm") < 0.01, "{p}");
+        // The triangle inequality: the total error is the blend's within the press's own.
+        let total = num(p, "surface_max_error_mm");
+        let blend = num(own, "blend_surface_max_mm");
+        assert!(
+            (total - blend).abs() <= num(own, "surface_max_error_mm") + 1e-9,
+            "{p}"
+        );
+        assert!(total < num(p, "linear_surface_max_error_mm"), "{p}");
+        assert!(
+            num(p, "force_rel_error") < num(p, "linear_force_rel_error"),
+            "{p}"
+        );
+    }
+
+    let out = check("liver");
+    assert!(!out.status.success(), "a P1 law on the P2 scene is refused");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("p1") && err.contains("p2") && err.contains("--element"),
+        "{err}"
+    );
+}

@@ -11,7 +11,7 @@ use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::fe::{Element, Material};
-use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, press_at};
+use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, press_at};
 use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueLaw};
 use palpa_core::rng::Rng;
 use serde_json::json;
@@ -93,6 +93,11 @@ pub struct CheckArgs {
     /// corrects each vertex's states to equilibrium; see `fe::path`.)
     #[arg(long)]
     series: bool,
+    /// Also follow the press at each held-out point itself to equilibrium, as the
+    /// build follows a vertex's (`own_*` keys): its error against Newton is the
+    /// press's own, its distance from the vademecum's surface the blend's.
+    #[arg(long)]
+    own: bool,
 }
 
 pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
@@ -174,6 +179,7 @@ fn bound_to_scene(
 ) -> anyhow::Result<(BoundTissue, palpa_core::scene::PalpationScene)> {
     let law = TissueLaw::load(file)?;
     let scene = palpa_app::scenes::load(scene)?.scene;
+    law.check_linear_model(&scene.model().provenance().mesh)?;
     let bound = BoundTissue::bind(
         law,
         scene.vertices_mm(),
@@ -213,7 +219,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     // Presses Newton answered: with none, no goal is met or missed.
     let mut compared = 0usize;
     let space = organ_space(&organ, o.element);
-    let expander = if args.series {
+    let expander = if args.series || args.own {
         Some(Expander::new(&space, o.law, o.material)?)
     } else {
         None
@@ -245,6 +251,22 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                 own.push((name, press, t.elapsed().as_secs_f64()));
             }
         }
+        let followed = match (&expander, args.own) {
+            (Some(expander), true) => {
+                let t = Instant::now();
+                let p = follow_at(
+                    &space,
+                    &organ,
+                    expander,
+                    &o,
+                    at,
+                    contact.push_dir,
+                    &args.depths,
+                )?;
+                Some((p, t.elapsed().as_secs_f64()))
+            }
+            _ => None,
+        };
         for &depth in &args.depths {
             let t = Instant::now();
             let reference = solve_hyperelastic(
@@ -337,6 +359,36 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                             "correction_rel": press.correction_rel,
                             "residual_rel": p.residual_rel(&space, &o, o.depth_max_mm)})
                     }
+                };
+            }
+            if let Some((p, seconds)) = &followed {
+                row["own"] = match p {
+                    Err(why) => json!({"skipped": why}),
+                    Ok((p, depths)) => match depths.iter().position(|&d| d == depth) {
+                        None => json!({"skipped": "past the grid's largest depth"}),
+                        Some(j) => {
+                            let (mut own, mut blend) = (0.0f64, 0.0f64);
+                            for v in organ.surface_nodes() {
+                                let i = 3 * v as usize;
+                                let Some(r) = vertex_of.find(organ.mesh.vertices[v as usize])
+                                else {
+                                    continue;
+                                };
+                                let (mut a, mut b) = (0.0, 0.0);
+                                for k in 0..3 {
+                                    a += (p.u[j][i + k] - sol.u[i + k]).powi(2);
+                                    b += (tissue_rows[3 * r as usize + k] - p.u[j][i + k]).powi(2);
+                                }
+                                own = own.max(a.sqrt());
+                                blend = blend.max(b.sqrt());
+                            }
+                            json!({"force_rel_error": (p.force_n[j] - f_ref).abs() / f_ref,
+                                "surface_max_error_mm": own,
+                                "blend_surface_max_mm": blend,
+                                "blend_force_rel": (force - p.force_n[j]).abs() / p.force_n[j],
+                                "segments": p.segment_starts_mm.len(), "follow_s": seconds})
+                        }
+                    },
                 };
             }
             row["force_eval_us"] = json!(force_us);

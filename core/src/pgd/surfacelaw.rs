@@ -31,7 +31,7 @@ use std::time::Instant;
 
 use crate::fe::hyper::Law;
 use crate::fe::load::{probe_functional, probe_load};
-use crate::fe::path::{PathOptions, PressLoad, follow};
+use crate::fe::path::{GridPress, PathOptions, PressLoad, follow};
 use crate::fe::probe::{ProbeRequest, locate, organ_space};
 use crate::fe::series::{Continued, Expander, SplitTangent, continued_from};
 use crate::fe::{Element, FeError, Material};
@@ -461,6 +461,46 @@ pub fn press_at(
         pade_change: change,
         shape,
     }))
+}
+
+/// The press at `at` along `push` followed to equilibrium ([`follow`]) with the build's
+/// options, through the build's depth grid and the extra depths `extra_mm` (each
+/// within the grid's range): what the build would store if `at` were a vertex, so a
+/// check can tell the blend's error from the press's own. Returns the press and the
+/// depths its states are at, or why it was given up.
+pub fn follow_at(
+    space: &crate::fe::space::Space,
+    organ: &OrganMesh,
+    expander: &Expander,
+    o: &SurfaceLawOptions,
+    at: [f64; 3],
+    push: [f64; 3],
+    extra_mm: &[f64],
+) -> Result<Result<(GridPress, Vec<f64>), String>, FeError> {
+    let (shape, probe) = tool_load(space, organ, o, at, push)?;
+    let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
+    let mut depths: Vec<f64> = (0..steps).map(|j| j as f64 * o.depth_step_mm).collect();
+    depths.extend(
+        extra_mm
+            .iter()
+            .filter(|d| **d > 0.0 && **d <= o.depth_max_mm),
+    );
+    depths.sort_by(f64::total_cmp);
+    depths.dedup();
+    let load = PressLoad {
+        shape: &shape,
+        probe: &probe,
+    };
+    Ok(follow(
+        space,
+        o.law,
+        o.material,
+        expander,
+        &load,
+        &depths,
+        &path_options(o),
+    )?
+    .map(|p| (p, depths)))
 }
 
 /// The unit tool load and the probe functional of a press at `at` along `push`.
