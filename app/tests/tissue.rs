@@ -172,7 +172,9 @@ fn eval_reads_a_tissue_file_both_ways() {
 /// scene: each held-out press is compared with Newton, and `--own` follows the press at
 /// the point itself, which matches Newton to the corrector's tolerance, so what is left
 /// is the blend between vertices; the vademecum beats the linear model there. Bound to
-/// the P2 scene instead, the P1 law is refused by name.
+/// the P2 scene instead, the P1 law is refused by name. `palpa export-scene` takes the
+/// tissue along (and opens the export with it); a tissue that does not fit the
+/// exported scene is named and not left beside it.
 #[test]
 fn tissue_check_separates_the_blend_from_the_press() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -268,5 +270,63 @@ fn tissue_check_separates_the_blend_from_the_press() {
     assert!(
         err.contains("p1") && err.contains("p2") && err.contains("--element"),
         "{err}"
+    );
+
+    // The export keeps the tissue: surface rows only, three modes.
+    let exported = dir.path().join("small.palpa");
+    let out = palpa(&[
+        "export-scene",
+        &path(&scene),
+        "--surface-only",
+        "--modes",
+        "3",
+        "--out",
+        &path(&exported),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(dir.path().join("small.tissue").exists());
+    let out = palpa(&[
+        "eval",
+        &path(&dir.path().join("small.tissue")),
+        "--scene",
+        &path(&exported),
+        "--at",
+        "-30.3,70.7,16.9",
+        "--depth-mm",
+        "4",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The P1 tissue beside the shipped P2 scene: the export is refused by name.
+    let p2 = dir.path().join("p2.palpa");
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa"),
+        &p2,
+    )
+    .expect("copy the shipped scene");
+    std::fs::copy(&tissue, dir.path().join("p2.tissue")).expect("copy");
+    let out = palpa(&[
+        "export-scene",
+        &path(&p2),
+        "--out",
+        &path(&dir.path().join("e.palpa")),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("does not open with the tissue") && err.contains("p1"),
+        "{err}"
+    );
+    assert!(
+        !dir.path().join("e.tissue").exists(),
+        "no unfit tissue is left beside it"
     );
 }

@@ -698,14 +698,51 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
         PrecisionArg::F64 => file::save(&m, &args.out),
     }
     .with_context(|| format!("writing {}", args.out.display()))?;
+    let sidecars = export_sidecars(&args.file, &args.out)?;
     let bytes = std::fs::metadata(&args.out).map(|x| x.len()).unwrap_or(0);
     println!(
         "{}",
-        json!({"out": args.out, "rows": m.rows(), "modes": m.modes(),
+        json!({"out": args.out, "rows": m.rows(), "modes": m.modes(), "sidecars": sidecars,
                "precision": match args.precision { PrecisionArg::F32 => Precision::F32, PrecisionArg::F64 => Precision::F64 }.name(),
                "bytes": bytes})
     );
     Ok(())
+}
+
+/// The nonlinear tissue beside a scene (`X.tissue`, `X.law`) goes with its export:
+/// copied beside the exported scene, which is then opened with it (the vademecum binds
+/// by rest positions, so a scene cut to its surface rows or to fewer modes keeps it;
+/// one that no longer fits is named, and its copy removed).
+fn export_sidecars(from: &Path, to: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut copied = Vec::new();
+    for ext in ["tissue", "law"] {
+        let src = from.with_extension(ext);
+        if !src.exists() {
+            continue;
+        }
+        let dest = to.with_extension(ext);
+        if dest != src {
+            let bytes =
+                std::fs::read(&src).with_context(|| format!("reading {}", src.display()))?;
+            palpa_core::fsutil::atomic_write(&dest, |w| w.write_all(&bytes))
+                .with_context(|| format!("writing {}", dest.display()))?;
+        }
+        copied.push(dest);
+    }
+    if let Some(first) = copied.first()
+        && let Err(e) = palpa_app::scenes::load(&to.display().to_string())
+    {
+        for c in &copied {
+            if c != &from.with_extension(c.extension().unwrap_or_default()) {
+                let _ = std::fs::remove_file(c);
+            }
+        }
+        return Err(e.context(format!(
+            "the exported scene does not open with the tissue {} that came with it",
+            first.display()
+        )));
+    }
+    Ok(copied)
 }
 
 /// `--far-tolerance`: `auto`, a positive number or `none`.
