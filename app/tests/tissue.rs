@@ -2,6 +2,8 @@
 //! answers a depth with the vademecum's force, and the frame draws the linear surface
 //! at that depth plus the vademecum's residual, at the same probe point and depth.
 
+mod common;
+
 use std::time::Duration;
 
 use palpa_app::force::NoHaptics;
@@ -35,6 +37,7 @@ fn hand_made(scene: &PalpationScene) -> TissueLaw {
             .map(|p| p.map(|x| x as f32))
             .collect(),
         skipped_mm: vec![],
+        edge_ends: vec![],
         steps: 3,
         ratio: [1.0, 0.9, 0.8].repeat(samples),
         stiffness_n_per_mm: vec![1.0; samples],
@@ -187,36 +190,26 @@ fn tissue_check_separates_the_blend_from_the_press() {
             .expect("palpa runs")
     };
     let path = |p: &std::path::Path| p.to_str().expect("utf-8 path").to_string();
+    // The scene and its tissue in one command (the vademecum beside the scene).
     let out = palpa(&[
         "offline",
         "liver",
         "--element",
         "p1",
-        "--out",
-        &path(&scene),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let out = palpa(&[
-        "tissue",
-        "build",
-        "--element",
-        "p1",
+        "--model",
+        "neo-hookean",
         "--depth-max-mm",
         "6",
         "--within",
         "-30.3,70.7,16.9,15",
         "--out",
-        &path(&tissue),
+        &path(&scene),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let built = common::json_ok(&out);
+    assert_eq!(built["tissue"]["out"], path(&tissue).as_str());
+    // The vertices and the edges between them (the quadratic blend's midpoints).
+    let count = |k: &str| built["tissue"][k].as_u64().unwrap_or_else(|| panic!("{k}"));
+    assert!(count("samples") >= 8 && count("edges") >= count("samples"));
 
     let check = |scene: &str| {
         palpa(&[

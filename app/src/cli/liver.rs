@@ -87,6 +87,26 @@ pub struct OfflineArgs {
     /// Continue from the journal of an interrupted run (`OUT.journal`).
     #[arg(long)]
     resume: bool,
+    /// The tissue: `linear` writes the scene alone; `neo-hookean` or `svk` also builds
+    /// the hyperelastic vademecum beside it (`OUT.tissue`, as `palpa tissue build`
+    /// with its defaults would), so the scene opens with it.
+    #[arg(long, value_enum, default_value = "linear")]
+    model: TissueModel,
+    /// With a hyperelastic `--model`: the deepest press it covers (mm).
+    #[arg(long, default_value_t = 15.0)]
+    depth_max_mm: f64,
+    /// With a hyperelastic `--model`: press only the palpable surface within X,Y,Z,R
+    /// (mm), the region a scene shows.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    within: Option<Vec<f64>>,
+}
+
+/// The tissue an `offline` scene is built for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TissueModel {
+    Linear,
+    NeoHookean,
+    Svk,
 }
 
 /// The vademecum's description of an `offline` run (mesh, level, element, material,
@@ -116,6 +136,11 @@ fn journal_path(out: &Path) -> PathBuf {
 pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     if args.method == MethodArg::Nodal {
         return offline_nodal(args);
+    }
+    if args.model != TissueModel::Linear {
+        bail!(
+            "--model: the hyperelastic vademecum is built beside the nodal scene; leave out --method pgd"
+        );
     }
     let t0 = Instant::now();
     let material = Material::default();
@@ -215,6 +240,14 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
     if args.resume {
         bail!("--resume applies to --method pgd; the nodal build has no journal");
     }
+    if args.model != TissueModel::Linear && args.radius_mm != 5.0 {
+        bail!(
+            "--radius-mm {}: the hyperelastic vademecum presses with the 5 mm tool; leave \
+             --radius-mm out with --model {:?}",
+            args.radius_mm,
+            args.model
+        );
+    }
     let modes = args.modes.unwrap_or(NodalSettings::default().modes);
     if modes == 0 {
         bail!("--modes must be at least 1");
@@ -254,10 +287,12 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
     prov.input_hash = format!("{:016x}", xxhash_rust::xxh3::xxh3_64(desc.as_bytes()));
     model.set_provenance(prov);
     file::save(&model, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    let tissue = tissue_beside(args)?;
     println!(
         "{}",
         json!({
             "out": args.out,
+            "tissue": tissue,
             "method": "nodal",
             "modes": model.modes(),
             "load_nodes": report.load_nodes,
@@ -707,6 +742,42 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
                "bytes": bytes})
     );
     Ok(())
+}
+
+/// With a hyperelastic `--model`, the vademecum built beside the scene just written
+/// (`OUT.tissue`) and its summary; `None` for a linear tissue.
+fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>> {
+    use super::depthlaw::NonlinearModel;
+    let model = match args.model {
+        TissueModel::Linear => return Ok(None),
+        TissueModel::NeoHookean => NonlinearModel::NeoHookean,
+        TissueModel::Svk => NonlinearModel::Svk,
+    };
+    let defaults = palpa_core::pgd::surfacelaw::SurfaceLawOptions::default();
+    let material = Material::default();
+    let build = super::tissue::BuildArgs {
+        organ: super::args::OrganArgs {
+            organ: args.organ,
+            level: args.level,
+            surface: None,
+            units: None,
+            axes: None,
+        },
+        model,
+        element: args.element,
+        depth_max_mm: args.depth_max_mm,
+        depth_step_mm: 1.0,
+        orders: defaults.orders,
+        tolerance_mm: 0.05,
+        active_cutoff: defaults.active_cutoff,
+        within: args.within.clone(),
+        young_kpa: material.young_kpa,
+        poisson: material.poisson,
+        no_edges: false,
+        out: args.out.with_extension("tissue"),
+    };
+    let (_, summary) = super::tissue::build(&build).context("building the tissue vademecum")?;
+    Ok(Some(summary))
 }
 
 /// The nonlinear tissue beside a scene (`X.tissue`, `X.law`) goes with its export:

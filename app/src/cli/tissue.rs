@@ -62,6 +62,11 @@ pub struct BuildArgs {
     pub young_kpa: f64,
     #[arg(long, default_value_t = 0.48)]
     pub poisson: f64,
+    /// Press the palpable vertices only, not also the edge midpoints: a third of the
+    /// presses, and a linear blend between vertices (measured up to 3 mm off near the
+    /// sharp border at 13 mm, where the quadratic blend erred by 0.2 mm).
+    #[arg(long)]
+    pub no_edges: bool,
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -102,13 +107,13 @@ pub struct CheckArgs {
 
 pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
     match cmd {
-        TissueCommand::Build(args) => build(args).map(|_| ()),
+        TissueCommand::Build(args) => build(args).map(|(_, summary)| println!("{summary}")),
         TissueCommand::Check(args) => check(args),
     }
 }
 
-/// Builds, compresses and saves; prints a JSON summary.
-pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
+/// Builds, compresses and saves; returns the law and a JSON summary.
+pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)> {
     let organ = args.organ.mesh()?;
     let within = match args.within.as_deref() {
         None => None,
@@ -135,6 +140,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
         orders: args.orders,
         active_cutoff: args.active_cutoff,
         within,
+        edges: !args.no_edges,
         ..SurfaceLawOptions::default()
     };
     // Finished presses are logged beside the output: an interrupted build run again
@@ -156,10 +162,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
     let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm)?;
     tissue.save(&args.out)?;
     let _ = std::fs::remove_file(&log);
-    println!(
-        "{}",
-        json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
-            "samples": tissue.samples_mm.len(), "skipped": tissue.skipped_mm.len(),
+    let summary = json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
+            "samples": tissue.samples_mm.len(), "edges": tissue.edge_ends.len(), "skipped": tissue.skipped_mm.len(),
             "skip_reasons": reasons,
             "rows": tissue.rows_mm.len(), "depth_max_mm": tissue.depth_max_mm(),
             "rank": tissue.rank, "truncation_bound_mm": tissue.truncation_bound_mm,
@@ -167,9 +171,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<TissueLaw> {
             "file_bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
             "build_s": tissue.build_s, "resumed_presses": resumed, "compress_s": tissue.compress_s,
             "worst_correction_mm": tissue.correction_mm.iter().copied().fold(0.0f32, f32::max),
-            "most_segments": tissue.segments.iter().copied().max()})
-    );
-    Ok(tissue)
+            "most_segments": tissue.segments.iter().copied().max()});
+    Ok((tissue, summary))
 }
 
 /// A tissue file loaded and bound to the scene it serves (`liver` or a `.palpa` file).

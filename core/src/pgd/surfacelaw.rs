@@ -58,6 +58,10 @@ pub struct SurfaceLawOptions {
     /// Press only the palpable vertices within this ball (centre, radius; mm): a
     /// scene that shows one region models only that region. `None`: all of them.
     pub within: Option<([f64; 3], f64)>,
+    /// Also press the midpoint of every palpable edge whose ends are pressed, and
+    /// store its surplus over the ends' mean: the blend becomes quadratic (see the
+    /// module docs). About three times the presses.
+    pub edges: bool,
 }
 
 impl Default for SurfaceLawOptions {
@@ -73,6 +77,7 @@ impl Default for SurfaceLawOptions {
             tool_radius_mm: 5.0,
             active_cutoff: 0.01,
             within: None,
+            edges: true,
         }
     }
 }
@@ -89,6 +94,10 @@ pub struct SurfaceLaw {
     /// its centre: next to the fixed region).
     pub samples: Vec<u32>,
     pub skipped: Vec<u32>,
+    /// Pressed edge midpoints, as the two end samples' indices: sample
+    /// `samples.len() + e` holds edge `e`'s surplus `r_mid − (r_a + r_b)/2` (and the
+    /// same for the force ratio).
+    pub edges: Vec<[u32; 2]>,
     /// Why each skipped vertex was skipped.
     pub skip_reasons: Vec<String>,
     steps: usize,
@@ -202,13 +211,36 @@ impl SurfaceLaw {
             }
             None => (None, Vec::new()),
         };
+        // The palpable edges whose ends are both candidates (sorted, deduplicated).
+        let edges: Vec<[u32; 2]> = if o.edges {
+            let mut e: Vec<[u32; 2]> = organ
+                .boundary
+                .iter()
+                .zip(&organ.palpable)
+                .filter(|(_, p)| **p)
+                .flat_map(|(t, _)| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+                .map(|[a, b]| [a.min(b), a.max(b)])
+                .filter(|e| e.iter().all(|v| candidates.binary_search(v).is_ok()))
+                .collect();
+            e.sort_unstable();
+            e.dedup();
+            e
+        } else {
+            Vec::new()
+        };
         let mut presses: Vec<Option<Result<VertexPress, String>>> =
-            candidates.iter().map(|_| None).collect();
-        for (v, press) in finished {
+            (0..candidates.len() + edges.len()).map(|_| None).collect();
+        let n_vertices = organ.mesh.vertices.len() as u32;
+        for (id, press) in finished {
             let fits = press.as_ref().map_or(true, |p| {
                 p.ratio.len() == steps && p.residual.len() == steps * 3 * rows.len()
             });
-            if let Ok(k) = candidates.binary_search(&v)
+            let k = if id < n_vertices {
+                candidates.binary_search(&id).ok()
+            } else {
+                Some(candidates.len() + (id - n_vertices) as usize).filter(|&k| k < presses.len())
+            };
+            if let Some(k) = k
                 && fits
             {
                 presses[k] = Some(press);
@@ -217,34 +249,49 @@ impl SurfaceLaw {
         let resumed = presses.iter().filter(|p| p.is_some()).count();
         // Each vertex is pressed along its inward area-weighted normal: the direction
         // a scene's contact law pushes at that vertex (a face's normal would differ
-        // from it by up to the dihedral angle on a sharp border).
+        // from it by up to the dihedral angle on a sharp border); an edge midpoint
+        // along the mean of its ends' (the scene interpolates them).
         let normals = organ_vertex_normals(organ);
         let done = AtomicUsize::new(resumed);
-        progress(resumed, candidates.len());
-        let todo: Vec<usize> = (0..candidates.len())
-            .filter(|&k| presses[k].is_none())
-            .collect();
+        let total = candidates.len() + edges.len();
+        progress(resumed, total);
+        let todo: Vec<usize> = (0..total).filter(|&k| presses[k].is_none()).collect();
         let computed: Vec<(usize, Result<VertexPress, String>)> = todo
             .par_iter()
             .map(|&k| -> Result<_, SurfaceLawBuildError> {
-                let v = candidates[k];
-                let push = normals[v as usize].map(|c| -f64::from(c));
-                let press = vertex_press(&space, organ, &expander, &o, &rows, steps, v, push)?;
+                let (at, push, id) = if k < candidates.len() {
+                    let v = candidates[k];
+                    let push = normals[v as usize].map(|c| -f64::from(c));
+                    (organ.mesh.vertices[v as usize], push, v)
+                } else {
+                    let [a, b] = edges[k - candidates.len()];
+                    let (pa, pb) = (
+                        organ.mesh.vertices[a as usize],
+                        organ.mesh.vertices[b as usize],
+                    );
+                    let (na, nb) = (normals[a as usize], normals[b as usize]);
+                    let push = [0, 1, 2].map(|c| -f64::from(na[c] + nb[c]));
+                    let mid = [0, 1, 2].map(|c| 0.5 * (pa[c] + pb[c]));
+                    (mid, push, edge_id(organ, k - candidates.len()))
+                };
+                let press = point_press(&space, organ, &expander, &o, &rows, steps, at, push)?;
                 if let Some((l, path)) = &log {
                     // Off-line and once a press (seconds): a lock is fine here.
                     let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
-                    l.push(v, &press).map_err(|e| log_error(path, e))?;
+                    l.push(id, &press).map_err(|e| log_error(path, e))?;
                 }
-                progress(done.fetch_add(1, Ordering::Relaxed) + 1, candidates.len());
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
                 Ok((k, press))
             })
             .collect::<Result<_, _>>()?;
         for (k, press) in computed {
             presses[k] = Some(press);
         }
-        let presses = presses
+        let mut presses: Vec<Result<VertexPress, String>> = presses
             .into_iter()
-            .map(|p| p.expect("every vertex is pressed"));
+            .map(|p| p.expect("every vertex is pressed"))
+            .collect();
+        let edge_presses = presses.split_off(candidates.len());
         let mut sample_of = vec![u32::MAX; organ.mesh.vertices.len()];
         let (mut samples, mut skipped, mut skip_reasons) = (Vec::new(), Vec::new(), Vec::new());
         let mut residual = Vec::new();
@@ -267,12 +314,37 @@ impl SurfaceLaw {
             correction.push(p.correction_mm);
             segments.push(p.segments);
         }
+        // Edge surpluses over their ends' mean, for edges whose three presses stand.
+        let mut kept_edges = Vec::new();
+        let n_row = steps * 3 * rows.len();
+        for (&[a, b], press) in edges.iter().zip(&edge_presses) {
+            let (sa, sb) = (sample_of[a as usize], sample_of[b as usize]);
+            let Ok(p) = press else { continue };
+            if sa == u32::MAX || sb == u32::MAX {
+                continue;
+            }
+            let (ra, rb) = (sa as usize * n_row, sb as usize * n_row);
+            let surplus: Vec<f32> = (0..n_row)
+                .map(|i| p.residual[i] - 0.5 * (residual[ra + i] + residual[rb + i]))
+                .collect();
+            residual.extend(surplus);
+            let (ga, gb) = (sa as usize * steps, sb as usize * steps);
+            let g: Vec<f64> = (0..steps)
+                .map(|j| p.ratio[j] - 0.5 * (ratio[ga + j] + ratio[gb + j]))
+                .collect();
+            ratio.extend(g);
+            stiffness.push(p.stiffness_n_per_mm);
+            correction.push(p.correction_mm);
+            segments.push(p.segments);
+            kept_edges.push([sa, sb]);
+        }
         let law = SurfaceLaw {
             options,
             rows,
             sample_of,
             samples,
             skipped,
+            edges: kept_edges,
             skip_reasons,
             steps,
             residual,
@@ -531,21 +603,25 @@ pub fn path_options(o: &SurfaceLawOptions) -> PathOptions {
     }
 }
 
-/// One vertex's press followed to equilibrium on the depth grid ([`follow`]), or why
-/// it is skipped (the tool does not move its centre, next to the fixed region; or no
-/// equilibrium was found at some depth).
+/// The log id of edge `e`: after every mesh vertex id.
+fn edge_id(organ: &OrganMesh, e: usize) -> u32 {
+    (organ.mesh.vertices.len() + e) as u32
+}
+
+/// One surface point's press (a vertex or an edge midpoint) followed to equilibrium on
+/// the depth grid ([`follow`]), or why it is skipped (the tool does not move its
+/// centre, next to the fixed region; or no equilibrium was found at some depth).
 #[allow(clippy::too_many_arguments)]
-fn vertex_press(
+fn point_press(
     space: &crate::fe::space::Space,
     organ: &OrganMesh,
     expander: &Expander,
     o: &SurfaceLawOptions,
     rows: &[u32],
     steps: usize,
-    v: u32,
+    at: [f64; 3],
     push: [f64; 3],
 ) -> Result<Result<VertexPress, String>, FeError> {
-    let at = organ.mesh.vertices[v as usize];
     let (shape, probe) = tool_load(space, organ, o, at, push)?;
     let depths: Vec<f64> = (0..steps).map(|j| j as f64 * o.depth_step_mm).collect();
     let load = PressLoad {
@@ -622,6 +698,7 @@ mod tests {
             sample_of: vec![0, 1, u32::MAX],
             samples: vec![0, 1],
             skipped: vec![],
+            edges: vec![],
             skip_reasons: vec![],
             steps: 3,
             residual,

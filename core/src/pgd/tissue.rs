@@ -1,8 +1,8 @@
 //! The tissue's nonlinear vademecum `u(x; s, d)` and force law `F(s, d)`, compressed
 //! for a scene: what the app evaluates when the organ is hyperelastic.
 //!
-//! Off-line, [`SurfaceLaw`] presses every palpable vertex `v` through its continued
-//! depth series and keeps, at grid depths `d_j`, the surface residual
+//! Off-line, [`SurfaceLaw`] follows the press at every palpable vertex `v` to
+//! equilibrium on the depth grid and keeps, at grid depths `d_j`, the surface residual
 //! `r_v(x; d_j) = u(x; v, d_j) − d_j · û(x; v)` and the force ratio
 //! `g_v(d_j) = F(v, d_j) / (d_j F₁(v))` (the linear force `d / c` is exact in the
 //! linear vademecum, so only the ratio is stored). Each vertex's residuals over the
@@ -21,13 +21,26 @@
 //! P2. Along its depths, one press's residual is nearly one shape growing: two to
 //! four modes.)
 //!
-//! On-line, a probe at barycentric `λ` of a palpable triangle blends its corners'
-//! modes (coefficients linear in `d` between grid depths) on the rows the scene
-//! draws; the force is
-//! `F(s, d) = d / c(s) · Σ_k λ_k g_{v_k}(d)` with `c(s)` the linear vademecum's exact
-//! compliance, and its inverse (force in, depth out) bisects that curve. Corners that
-//! were not sampled (next to the fixed region) drop out and the others are
-//! renormalized. Depths past the grid are held at its end and flagged. Nothing is
+//! Where the edges were pressed too (the default), each palpable edge `ab` also keeps
+//! the surplus of its midpoint's press over its ends' mean,
+//! `e_ab = r_mid − (r_a + r_b)/2` (and the same for `g`), compressed like a vertex.
+//!
+//! On-line, a probe at barycentric `λ` of a palpable triangle blends the quadratic
+//! (hierarchical) interpolant of its corners and edges on the rows the scene draws,
+//!
+//! ```text
+//! r(x; s, d) ≈ Σ_k λ_k r_{v_k}(x; d) + Σ_{edges ab} 4 λ_a λ_b e_ab(x; d),
+//! ```
+//!
+//! coefficients linear in `d` between grid depths; the force is
+//! `F(s, d) = d / c(s) · g(s, d)`, `g` blended the same way, with `c(s)` the linear
+//! vademecum's exact compliance, and its inverse (force in, depth out) bisects that
+//! curve. The quadratic term matters where the deep press's response turns quickly
+//! along the surface: near a sharp border the tissue under the tool slides sideways by
+//! up to 6 mm beyond the linear answer at 13 mm, and the linear blend of three corners
+//! erred by 3.1 mm at a held-out point where the quadratic one erred by 0.2 mm (coarse
+//! P2). Corners that were not sampled (next to the fixed region) drop out and the others
+//! are renormalized; an edge is pressed only where both its ends were. Depths past the grid are held at its end and flagged. Nothing is
 //! allocated per call.
 //!
 //! The file is bound to a scene by the rest positions of its rows and samples, so a
@@ -49,7 +62,7 @@ use crate::tensor::dense::thin_svd;
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
 /// The file's format version.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -93,6 +106,10 @@ pub struct TissueLaw {
     pub samples_mm: Vec<[f32; 3]>,
     /// Palpable vertices that were not pressed (next to the fixed region), mm.
     pub skipped_mm: Vec<[f32; 3]>,
+    /// Pressed palpable edges, as their ends' sample indices: sample
+    /// `samples_mm.len() + e` of every per-sample array is edge `e`'s surplus over its
+    /// ends' mean (residual and force ratio; see the module docs).
+    pub edge_ends: Vec<[u32; 2]>,
     /// Grid depths `j · depth_step_mm`, `j = 0..steps`.
     pub steps: u32,
     /// `ratio[sample · steps + j]`: `g` at grid depth `j`.
@@ -173,8 +190,8 @@ impl TissueLaw {
     ) -> Result<TissueLaw, TissueError> {
         let t0 = Instant::now();
         let steps = law.steps();
-        let n_samples = law.samples.len();
-        if n_samples == 0 {
+        let n_samples = law.samples.len() + law.edges.len();
+        if law.samples.is_empty() {
             return Err(TissueError::Empty);
         }
         let m = 3 * law.rows.len();
@@ -235,6 +252,7 @@ impl TissueLaw {
             rows_mm: law.rows.iter().map(|&v| at(v)).collect(),
             samples_mm: law.samples.iter().map(|&v| at(v)).collect(),
             skipped_mm: law.skipped.iter().map(|&v| at(v)).collect(),
+            edge_ends: law.edges.clone(),
             steps: steps as u32,
             ratio: law.ratio.iter().map(|&g| g as f32).collect(),
             stiffness_n_per_mm: law.stiffness_n_per_mm.iter().map(|&k| k as f32).collect(),
@@ -262,8 +280,9 @@ impl TissueLaw {
     /// depth 0.
     pub fn check(&self) -> Result<(), String> {
         let steps = self.steps as usize;
+        let vertices = self.samples_mm.len();
         let (ns, rank, m) = (
-            self.samples_mm.len(),
+            vertices + self.edge_ends.len(),
             self.rank as usize,
             3 * self.rows_mm.len(),
         );
@@ -275,7 +294,7 @@ impl TissueLaw {
             ));
         }
         let modes = self.mode_start.last().copied().unwrap_or(0) as usize;
-        if ns == 0 || rank > MAX_RANK || m == 0 {
+        if vertices == 0 || rank > MAX_RANK || m == 0 {
             return Err(format!(
                 "{ns} samples, rank {rank}, {m} rows: expected samples, rows, rank ≤ {MAX_RANK}"
             ));
@@ -303,7 +322,10 @@ impl TissueLaw {
         if !(finite(&self.shape_scale)
             && finite(&self.coeffs)
             && finite(&self.stiffness_n_per_mm)
-            && self.ratio.iter().all(|g| g.is_finite() && *g > 0.0)
+            && self.ratio[..vertices * steps]
+                .iter()
+                .all(|g| g.is_finite() && *g > 0.0)
+            && finite(&self.ratio[vertices * steps..])
             && self
                 .rows_mm
                 .iter()
@@ -312,7 +334,18 @@ impl TissueLaw {
         {
             return Err("non-finite values, or a non-positive force ratio".into());
         }
-        if self.ratio.chunks_exact(steps).any(|r| r[0] != 1.0)
+        if self
+            .edge_ends
+            .iter()
+            .any(|&[a, b]| a == b || a as usize >= vertices || b as usize >= vertices)
+        {
+            return Err(format!(
+                "an edge's ends are not two of the {vertices} samples"
+            ));
+        }
+        let (at_vertices, at_edges) = self.ratio.split_at(vertices * steps);
+        if at_vertices.chunks_exact(steps).any(|r| r[0] != 1.0)
+            || at_edges.chunks_exact(steps).any(|r| r[0] != 0.0)
             || self.coeffs.chunks_exact(steps).any(|c| c[0] != 0.0)
         {
             return Err("a sample's press at depth 0 is not the rest state".into());
@@ -421,6 +454,9 @@ pub struct BoundTissue {
     vertex_of_row: Vec<u32>,
     /// Per palpable (axis) triangle: each corner's sample, or `u32::MAX`.
     corner_samples: Vec<[u32; 3]>,
+    /// Per palpable triangle: the surplus sample of its edges (corners 0–1, 1–2, 2–0),
+    /// or `u32::MAX` where the edge was not pressed.
+    edge_samples: Vec<[u32; 3]>,
     /// Render vertices the law has no row for (kept for the report).
     pub unmatched_vertices: usize,
 }
@@ -463,21 +499,41 @@ impl BoundTissue {
                 total: law.samples_mm.len(),
             });
         }
-        let corner_samples = axis_triangles
+        let corner_samples: Vec<[u32; 3]> = axis_triangles
             .iter()
             .map(|t| t.map(|v| axis_sample[v as usize]))
+            .collect();
+        let first_edge = law.samples_mm.len();
+        let edge_of: HashMap<[u32; 2], u32> = law
+            .edge_ends
+            .iter()
+            .enumerate()
+            .map(|(e, &[a, b])| ([a.min(b), a.max(b)], (first_edge + e) as u32))
+            .collect();
+        let edge_samples = corner_samples
+            .iter()
+            .map(|c| {
+                std::array::from_fn(|k| {
+                    let (a, b) = (c[k], c[(k + 1) % 3]);
+                    edge_of
+                        .get(&[a.min(b), a.max(b)])
+                        .copied()
+                        .unwrap_or(u32::MAX)
+                })
+            })
             .collect();
         Ok(BoundTissue {
             law,
             vertex_of_row,
             corner_samples,
+            edge_samples,
             unmatched_vertices,
         })
     }
 
     pub fn scratch(&self) -> TissueScratch {
         TissueScratch {
-            c: vec![0.0; 3 * self.law.rank as usize],
+            c: vec![0.0; 6 * self.law.rank as usize],
         }
     }
 
@@ -492,9 +548,11 @@ impl BoundTissue {
         (j, x - j as f64, beyond)
     }
 
-    /// The probe's sampled corners with their renormalized weights (`None` when no
-    /// corner was sampled).
-    fn corners(&self, p: &ProbePoint) -> Option<[(usize, f64); 3]> {
+    /// The samples the probe's press is blended from, with their weights: the sampled
+    /// corners with their barycentric weights renormalized, then the pressed edges'
+    /// surpluses with `4 λ_a λ_b` (the quadratic hierarchical blend); unused entries have
+    /// weight 0. `None` when no corner was sampled.
+    fn terms(&self, p: &ProbePoint) -> Option<[(usize, f64); 6]> {
         let samples = self.corner_samples.get(p.triangle as usize)?;
         let total: f64 = (0..3)
             .filter(|&k| samples[k] != u32::MAX)
@@ -504,11 +562,22 @@ impl BoundTissue {
         if total.is_nan() || total <= 0.0 {
             return None;
         }
+        let edges = self.edge_samples[p.triangle as usize];
         Some(std::array::from_fn(|k| {
-            if samples[k] == u32::MAX {
-                (0, 0.0)
+            if k < 3 {
+                if samples[k] == u32::MAX {
+                    (0, 0.0)
+                } else {
+                    (samples[k] as usize, p.bary[k] / total)
+                }
             } else {
-                (samples[k] as usize, p.bary[k] / total)
+                // An edge is pressed only where both its ends were: no renormalizing.
+                let e = k - 3;
+                if edges[e] == u32::MAX {
+                    (0, 0.0)
+                } else {
+                    (edges[e] as usize, 4.0 * p.bary[e] * p.bary[(e + 1) % 3])
+                }
             }
         }))
     }
@@ -516,7 +585,7 @@ impl BoundTissue {
     /// `g(s, d)` and whether `d` lay beyond the grid; 1 where no corner was sampled.
     pub fn ratio(&self, p: &ProbePoint, depth_mm: f64) -> (f64, bool) {
         let (j, t, beyond) = self.interval(depth_mm);
-        let Some(corners) = self.corners(p) else {
+        let Some(corners) = self.terms(p) else {
             return (1.0, beyond);
         };
         let steps = self.law.steps as usize;
@@ -576,7 +645,7 @@ impl BoundTissue {
         scratch: &mut TissueScratch,
         rows_mm: &mut [f64],
     ) -> bool {
-        let Some(corners) = self.corners(p) else {
+        let Some(corners) = self.terms(p) else {
             return false;
         };
         let (j, t, _) = self.interval(depth_mm);
@@ -584,7 +653,7 @@ impl BoundTissue {
         let m = 3 * self.law.rows_mm.len();
         // Each kept mode's weight at this depth, for the three corners.
         let mut n = 0;
-        let mut first = [0usize; 3];
+        let mut first = [0usize; 6];
         for (k, &(s, w)) in corners.iter().enumerate() {
             let modes = self.law.mode_start[s] as usize..self.law.mode_start[s + 1] as usize;
             first[k] = modes.start;
@@ -698,5 +767,79 @@ impl Tissue {
             Tissue::ForceLaw(l) => l.depth_mm(point_mm, force_n, compliance_mm_per_n),
             Tissue::Vademecum(t) => t.depth_mm(p, force_n, compliance_mm_per_n),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One triangle (samples 0, 1, 2 at its corners), one row, depths 0 and 1 mm, and
+    /// edge 0–1 pressed: the blend is exact at corners and at that edge's midpoint
+    /// (ends' mean plus surplus), plain linear on the unpressed edge 1–2, and the
+    /// surplus weighs `4 λ_a λ_b` inside.
+    #[test]
+    fn the_quadratic_blend_is_exact_at_corners_and_pressed_midpoints() {
+        let corners = [[0.0f32, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
+        // Per sample: g at depth 1, and the residual's x at depth 1 (one mode each).
+        let g1 = [0.9f32, 0.7, 0.8, 0.05];
+        let x1 = [1.0f32, 3.0, 5.0, -0.5];
+        let law = TissueLaw {
+            options: SurfaceLawOptions {
+                depth_max_mm: 1.0,
+                depth_step_mm: 1.0,
+                ..SurfaceLawOptions::default()
+            },
+            rows_mm: vec![[0.0, 0.0, 5.0]],
+            samples_mm: corners.to_vec(),
+            skipped_mm: vec![],
+            edge_ends: vec![[0, 1]],
+            steps: 2,
+            ratio: g1
+                .iter()
+                .enumerate()
+                .flat_map(|(s, &g)| [if s < 3 { 1.0 } else { 0.0 }, g])
+                .collect(),
+            stiffness_n_per_mm: vec![1.0; 4],
+            correction_mm: vec![0.0; 4],
+            segments: vec![1; 4],
+            rank: 1,
+            mode_start: (0..=4).collect(),
+            shape: [i16::MAX, 0, 0].repeat(4),
+            shape_scale: vec![1.0 / f32::from(i16::MAX); 4],
+            coeffs: x1.iter().flat_map(|&x| [0.0, x]).collect(),
+            truncation_bound_mm: 0.0,
+            tolerance_mm: 0.05,
+            build_s: 0.0,
+            compress_s: 0.0,
+        };
+        law.check().expect("consistent");
+        let axis: Vec<[f64; 3]> = corners.iter().map(|p| p.map(f64::from)).collect();
+        let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &[[0, 1, 2]]).expect("binds");
+        let mut scratch = bound.scratch();
+        let mut at = |bary: [f64; 3]| {
+            let p = ProbePoint { triangle: 0, bary };
+            let mut rows = [0.0; 3];
+            assert!(bound.add_surface(&p, 1.0, &mut scratch, &mut rows));
+            (bound.ratio(&p, 1.0).0, rows[0])
+        };
+        let close =
+            |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).abs() < 1e-6 && (a.1 - b.1).abs() < 1e-6;
+        assert!(close(at([1.0, 0.0, 0.0]), (0.9, 1.0)));
+        assert!(close(at([0.0, 0.0, 1.0]), (0.8, 5.0)));
+        // The pressed edge's midpoint: the mean plus the whole surplus.
+        let mid = at([0.5, 0.5, 0.0]);
+        assert!(close(mid, (0.8 + 0.05, 2.0 - 0.5)), "{mid:?}");
+        // The unpressed edge: linear.
+        assert!(close(at([0.0, 0.5, 0.5]), (0.75, 4.0)));
+        // Inside: 4 λ0 λ1 = 4 · 0.25 · 0.25 of the surplus.
+        let w = 0.25;
+        assert!(close(
+            at([0.25, 0.25, 0.5]),
+            (
+                0.25 * 0.9 + 0.25 * 0.7 + 0.5 * 0.8 + w * 0.05,
+                0.25 + 0.75 + 2.5 - w * 0.5
+            )
+        ));
     }
 }
