@@ -154,7 +154,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     .context("pressing the palpable vertices")?;
     eprintln!();
     let mut reasons = std::collections::BTreeMap::<&str, usize>::new();
-    for r in &law.skip_reasons {
+    for r in law.skip_reasons.iter().chain(&law.edge_skip_reasons) {
         // The reason without its figures (after " ("), so like skips count together.
         let kind = r.split(" (").next().unwrap_or(r);
         *reasons.entry(kind).or_default() += 1;
@@ -163,7 +163,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     tissue.save(&args.out)?;
     let _ = std::fs::remove_file(&log);
     let summary = json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
-            "samples": tissue.samples_mm.len(), "edges": tissue.edge_ends.len(), "skipped": tissue.skipped_mm.len(),
+            "samples": tissue.samples_mm.len(), "edges": tissue.edge_ends.len(),
+            "edges_skipped": law.edge_skip_reasons.len(), "skipped": tissue.skipped_mm.len(),
             "skip_reasons": reasons,
             "rows": tissue.rows_mm.len(), "depth_max_mm": tissue.depth_max_mm(),
             "rank": tissue.rank, "truncation_bound_mm": tissue.truncation_bound_mm,

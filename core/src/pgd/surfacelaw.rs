@@ -98,6 +98,9 @@ pub struct SurfaceLaw {
     /// `samples.len() + e` holds edge `e`'s surplus `r_mid − (r_a + r_b)/2` (and the
     /// same for the force ratio).
     pub edges: Vec<[u32; 2]>,
+    /// Why each edge midpoint whose ends were pressed was not (its edge then blends
+    /// linearly).
+    pub edge_skip_reasons: Vec<String>,
     /// Why each skipped vertex was skipped.
     pub skip_reasons: Vec<String>,
     steps: usize,
@@ -315,11 +318,17 @@ impl SurfaceLaw {
             segments.push(p.segments);
         }
         // Edge surpluses over their ends' mean, for edges whose three presses stand.
-        let mut kept_edges = Vec::new();
+        let (mut kept_edges, mut edge_skip_reasons) = (Vec::new(), Vec::new());
         let n_row = steps * 3 * rows.len();
         for (&[a, b], press) in edges.iter().zip(&edge_presses) {
             let (sa, sb) = (sample_of[a as usize], sample_of[b as usize]);
-            let Ok(p) = press else { continue };
+            let p = match press {
+                Ok(p) => p,
+                Err(why) => {
+                    edge_skip_reasons.push(why.clone());
+                    continue;
+                }
+            };
             if sa == u32::MAX || sb == u32::MAX {
                 continue;
             }
@@ -345,6 +354,7 @@ impl SurfaceLaw {
             samples,
             skipped,
             edges: kept_edges,
+            edge_skip_reasons,
             skip_reasons,
             steps,
             residual,
@@ -699,6 +709,7 @@ mod tests {
             samples: vec![0, 1],
             skipped: vec![],
             edges: vec![],
+            edge_skip_reasons: vec![],
             skip_reasons: vec![],
             steps: 3,
             residual,
