@@ -493,10 +493,17 @@ mod hyperelastic {
             max_steps: 6,
             ..PathOptions::default()
         };
+        // Every later tangent augmented by α n̂n̂ᵀ (what a tangent that is not positive
+        // definite gets): the same equilibria.
+        let augmented = PathOptions {
+            always_augment: true,
+            ..every_depth
+        };
         for (o, force_within, nodes_within_mm) in [
             (tight, 1e-4, 0.005),
             (every_depth, 5e-3, 0.05),
             (plain, 5e-3, 0.05),
+            (augmented, 5e-3, 0.05),
         ] {
             let p = follow(
                 &space,

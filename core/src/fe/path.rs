@@ -44,7 +44,10 @@
 //! iterate (at most four times), and a segment starts there; where that fails too, the
 //! step toward the next grid depth is halved (at most three times, to an eighth of the
 //! grid step; the intermediate states are accepted like grid ones but not stored) and
-//! doubled back after a success. Near the liver's sharp inferior
+//! doubled back after a success. A tangent that is not positive definite (past a
+//! force limit point, where depth control is still stable) is factored augmented,
+//! `K + α n̂n̂ᵀ`, which gives the same depth-controlled corrections (see [`Augment`]).
+//! Near the liver's sharp inferior
 //! border this is what carries a press to 15 mm: without it two of eleven vertices
 //! there were given up, at 9 and 14 mm. A press is given up, with the depth named, only
 //! where the halved steps fail too.
@@ -52,7 +55,7 @@
 use std::time::Instant;
 
 use super::hyper::Law;
-use super::newton::{factor_tangent, internal_force};
+use super::newton::{factor_tangent, internal_force, tangent};
 use super::series::{DepthSeries, Expander, orders_about};
 use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
@@ -82,6 +85,10 @@ pub struct PathOptions {
     pub active_cutoff: f64,
     /// Corrections kept by the Anderson acceleration of the chord (0: the plain chord).
     pub anderson: usize,
+    /// Factor every later segment's tangent augmented (`K + α n̂n̂ᵀ`, see [`Augment`]),
+    /// not only where `K` alone is not positive definite: the same corrections, for
+    /// tests and comparisons.
+    pub always_augment: bool,
 }
 
 impl Default for PathOptions {
@@ -96,6 +103,7 @@ impl Default for PathOptions {
             max_segments: 8,
             active_cutoff: 0.01,
             anderson: 6,
+            always_augment: false,
         }
     }
 }
@@ -126,6 +134,19 @@ struct Segment<'a> {
     chol: Tangent<'a>,
     /// `K⁻¹ f̂` on the free dofs.
     y: Vec<f64>,
+    /// The augmentation, where the tangent alone was not positive definite.
+    aug: Augment,
+}
+
+/// A tangent factored as `K_α = K + α n̂n̂ᵀ` (α > 0) where `K` alone is not positive
+/// definite: past a force limit point under depth control the equilibrium is stable
+/// (K is positive definite on `n̂·δu = 0`) while `K` has a negative direction, and
+/// Cholesky fails. Since every step also fixes `n̂·δu`, `K_α` gives the same
+/// corrections: `K_α δu = K δu + α n̂ (n̂·δu)` with `n̂·δu` known. `z = K_α⁻¹ n̂`.
+#[derive(Clone, Default)]
+struct Augment {
+    alpha: f64,
+    z: Vec<f64>,
 }
 
 enum Tangent<'a> {
@@ -220,6 +241,7 @@ pub fn follow(
         series: first.clone(),
         y: rest.solve(&shape_free),
         chol: Tangent::Rest(rest),
+        aug: Augment::default(),
     };
     let pattern = SymCsc::pattern(space);
     let mut out = GridPress {
@@ -234,10 +256,17 @@ pub fn follow(
     // Starts a segment at an accepted state; `None` where its tangent is not positive
     // definite (the caller keeps the old one).
     let restart = |at: &State| -> Result<Option<Segment<'static>>, FeError> {
-        let chol = match factor_tangent(space, law, &pattern, &at.u, lambda, mu) {
-            Ok(c) => c,
-            Err(FeError::NotPositiveDefinite { .. }) => return Ok(None),
-            Err(e) => return Err(e),
+        let Some((chol, aug)) = factor_bordered(
+            space,
+            law,
+            &pattern,
+            &at.u,
+            (lambda, mu),
+            &probe_free,
+            o.always_augment,
+        )?
+        else {
+            return Ok(None);
         };
         let series = match orders_about(
             space,
@@ -250,6 +279,7 @@ pub fn follow(
             Some(&at.u),
             o.restart_orders.max(1),
             o.active_cutoff,
+            (aug.alpha > 0.0).then_some((aug.alpha, aug.z.as_slice())),
         ) {
             Ok(s) => s,
             Err(FeError::ProbeNotMoved) => return Ok(None),
@@ -262,22 +292,24 @@ pub fn follow(
             series,
             y: chol.solve(&shape_free),
             chol: Tangent::Own(chol),
+            aug,
         }))
     };
-    let step = |c: &Cholesky, y: &[f64], from: (f64, Vec<f64>), d: f64, steps: usize| {
-        chord(
-            space,
-            law,
-            (lambda, mu),
-            (c, y),
-            (&shape_free, &probe_free),
-            from,
-            d,
-            (o.tolerance_mm, o.force_tolerance),
-            steps,
-            o.anderson,
-        )
-    };
+    let step =
+        |c: &Cholesky, y: &[f64], aug: &Augment, from: (f64, Vec<f64>), d: f64, steps: usize| {
+            chord(
+                space,
+                law,
+                (lambda, mu),
+                (c, y, aug),
+                (&shape_free, &probe_free),
+                from,
+                d,
+                (o.tolerance_mm, o.force_tolerance),
+                steps,
+                o.anderson,
+            )
+        };
     let grid_step = |j: usize| depths_mm[j] - depths_mm[j - 1];
     let mut last = State {
         depth_mm: 0.0,
@@ -299,6 +331,7 @@ pub fn follow(
         let mut c = step(
             seg.chol.get(),
             &seg.y,
+            &seg.aug,
             prediction.clone(),
             target,
             o.max_steps,
@@ -317,13 +350,20 @@ pub fn follow(
             // each iterate (at most four times).
             let mut from = prediction;
             for _ in 0..4 {
-                let chol = match factor_tangent(space, law, &pattern, &from.1, lambda, mu) {
-                    Ok(k) => k,
-                    Err(FeError::NotPositiveDefinite { .. }) => break,
-                    Err(e) => return Err(e),
+                let Some((chol, aug)) = factor_bordered(
+                    space,
+                    law,
+                    &pattern,
+                    &from.1,
+                    (lambda, mu),
+                    &probe_free,
+                    o.always_augment,
+                )?
+                else {
+                    break;
                 };
                 let y = chol.solve(&shape_free);
-                c = step(&chol, &y, from, target, o.max_steps);
+                c = step(&chol, &y, &aug, from, target, o.max_steps);
                 out.chord_steps += c.steps;
                 if c.converged || !c.last_mm.is_finite() {
                     break;
@@ -372,6 +412,75 @@ pub fn follow(
     Ok(Ok(out))
 }
 
+impl Augment {
+    /// `K_α⁻¹ (r + α g n̂)`: the chord's `K⁻¹ r` for a step that makes `n̂·δu = −g`.
+    fn solve(&self, k: &Cholesky, r: &[f64], g: f64) -> Vec<f64> {
+        let mut x = k.solve(r);
+        if self.alpha > 0.0 {
+            x.iter_mut()
+                .zip(&self.z)
+                .for_each(|(a, b)| *a += self.alpha * g * b);
+        }
+        x
+    }
+}
+
+/// The tangent at `u` factored, augmented by `α n̂n̂ᵀ` where it is not positive
+/// definite (see [`Augment`]); `α` starts at a hundred times the largest diagonal
+/// entry on the probe's dofs and grows a hundredfold once. `None` where even that
+/// fails: the state is unstable under depth control too.
+fn factor_bordered(
+    space: &Space,
+    law: Law,
+    pattern: &SymCsc,
+    u: &[f64],
+    (lambda, mu): (f64, f64),
+    probe: &[f64],
+    always: bool,
+) -> Result<Option<(Cholesky, Augment)>, FeError> {
+    if !always {
+        match factor_tangent(space, law, pattern, u, lambda, mu) {
+            Ok(c) => return Ok(Some((c, Augment::default()))),
+            Err(FeError::NotPositiveDefinite { .. }) => {}
+            Err(e) => return Err(e),
+        }
+    }
+    let k = tangent(space, law, pattern, u, lambda, mu);
+    let support: Vec<usize> = (0..probe.len()).filter(|&i| probe[i] != 0.0).collect();
+    let diagonal = |i: usize| {
+        let (lo, hi) = (k.col_ptr[i], k.col_ptr[i + 1]);
+        (lo..hi)
+            .find(|&q| k.row_idx[q] == i)
+            .map_or(0.0, |q| k.val[q].abs())
+    };
+    let top = support.iter().map(|&i| diagonal(i)).fold(0.0f64, f64::max);
+    for alpha in [1e2 * top, 1e4 * top] {
+        if !(alpha.is_finite() && alpha > 0.0) {
+            break;
+        }
+        let mut ka = k.clone();
+        for &c in &support {
+            for &r in support.iter().filter(|&&r| r >= c) {
+                if !ka.has(r, c) {
+                    // One face's nodes share a cell, so this does not happen; if it
+                    // did, the augmentation would not be rank one.
+                    return Ok(None);
+                }
+                ka.add(r, c, alpha * probe[r] * probe[c]);
+            }
+        }
+        match Cholesky::factor(&ka, space.fixed_count()) {
+            Ok(chol) => {
+                let z = chol.solve(probe);
+                return Ok(Some((chol, Augment { alpha, z })));
+            }
+            Err(FeError::NotPositiveDefinite { .. }) => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(None)
+}
+
 /// How many times a step toward the next grid depth may be halved.
 const MAX_HALVINGS: u32 = 3;
 
@@ -384,7 +493,7 @@ fn chord(
     space: &Space,
     law: Law,
     (lambda, mu): (f64, f64),
-    (k, y): (&Cholesky, &[f64]),
+    (k, y, aug): (&Cholesky, &[f64], &Augment),
     (shape, probe): (&[f64], &[f64]),
     (mut force_n, mut u): (f64, Vec<f64>),
     d: f64,
@@ -397,7 +506,7 @@ fn chord(
             space,
             law,
             (lambda, mu),
-            (k, y),
+            (k, y, aug),
             (shape, probe),
             (force_n, u),
             d,
@@ -413,7 +522,7 @@ fn chord(
         let fi = internal_force(space, law, &u, lambda, mu);
         let r: Vec<f64> = fi.iter().zip(shape).map(|(a, b)| a - force_n * b).collect();
         let g = dot(probe, &space.restrict(&u)) - d;
-        let x = k.solve(&r);
+        let x = aug.solve(k, &r, g);
         let df = (dot(probe, &x) - g) / ny;
         let du: Vec<f64> = y.iter().zip(&x).map(|(a, b)| df * a - b).collect();
         let size = du.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -464,7 +573,7 @@ fn accelerated(
     space: &Space,
     law: Law,
     (lambda, mu): (f64, f64),
-    (k, y): (&Cholesky, &[f64]),
+    (k, y, aug): (&Cholesky, &[f64], &Augment),
     (shape, probe): (&[f64], &[f64]),
     (force_n, u): (f64, Vec<f64>),
     d: f64,
@@ -488,7 +597,7 @@ fn accelerated(
         let fi = internal_force(space, law, &u, lambda, mu);
         let r: Vec<f64> = fi.iter().zip(shape).map(|(a, b)| a - f * b).collect();
         let g = dot(probe, &z[..n]) - d;
-        let x = k.solve(&r);
+        let x = aug.solve(k, &r, g);
         let df = (dot(probe, &x) - g) / ny;
         let mut c: Vec<f64> = y.iter().zip(&x).map(|(a, b)| df * a - b).collect();
         c.push(df * ny);

@@ -629,6 +629,7 @@ impl<'a> Expander<'a> {
             None,
             orders,
             cutoff,
+            None,
         )?;
         out.factor_s = self.factor_s;
         out.seconds = self.factor_s + t0.elapsed().as_secs_f64();
@@ -655,6 +656,7 @@ pub(crate) fn orders_about(
     base: Option<&[f64]>,
     orders: usize,
     cutoff: f64,
+    augment: Option<(f64, &[f64])>,
 ) -> Result<DepthSeries, FeError> {
     let shape = space.restrict(shape);
     let probe = space.restrict(probe);
@@ -672,10 +674,21 @@ pub(crate) fn orders_about(
             cells = active_cells(space, &lower[0], cutoff);
         }
         let (fp, up) = if p == 1 {
-            (
-                1.0 / compliance,
-                y.iter().map(|v| v / compliance).collect::<Vec<_>>(),
-            )
+            match augment {
+                // `chol` factors `K + α n̂n̂ᵀ` (z = its inverse on n̂): `u₁ = F₁ y + α z`
+                // with `n̂·u₁ = 1`.
+                Some((alpha, z)) => {
+                    let f1 = (1.0 - alpha * dot(&probe, z)) / compliance;
+                    (
+                        f1,
+                        y.iter().zip(z).map(|(a, b)| f1 * a + alpha * b).collect(),
+                    )
+                }
+                None => (
+                    1.0 / compliance,
+                    y.iter().map(|v| v / compliance).collect::<Vec<_>>(),
+                ),
+            }
         } else {
             let n = coefficient(space, law, base, &lower, p, lambda, mu, &cells);
             let x = chol.solve(&n);
@@ -834,6 +847,7 @@ pub fn continued_from(
         Some(about),
         orders,
         cutoff,
+        None,
     )?;
     Ok(Continued {
         first,

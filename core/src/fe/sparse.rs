@@ -81,6 +81,13 @@ impl SymCsc {
 
     /// Adds `v` at (row, col), row ≥ col, which must be in the pattern.
     #[inline]
+    /// Whether `(row, col)` (lower triangle) is in the pattern.
+    pub fn has(&self, row: usize, col: usize) -> bool {
+        let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        let k = lo + self.row_idx[lo..hi].partition_point(|&r| r < row);
+        k < hi && self.row_idx[k] == row
+    }
+
     pub fn add(&mut self, row: usize, col: usize, v: f64) {
         let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
         let k = lo + self.row_idx[lo..hi].partition_point(|&r| r < row);
