@@ -56,7 +56,7 @@ use std::time::Instant;
 
 use super::hyper::Law;
 use super::newton::{factor_tangent, internal_force, tangent};
-use super::series::{DepthSeries, Expander, orders_about};
+use super::series::{DepthSeries, Expander, orders_about, solve_dense};
 use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
 use super::{FeError, Material};
@@ -661,35 +661,6 @@ fn least_squares(a: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
     for i in 0..m {
         g[i * m + i] += 1e-12 * trace + f64::MIN_POSITIVE;
     }
-    // Cholesky of the small Gram matrix.
-    for j in 0..m {
-        let mut s = g[j * m + j];
-        for k in 0..j {
-            s -= g[j * m + k] * g[j * m + k];
-        }
-        let ljj = s.max(f64::MIN_POSITIVE).sqrt();
-        g[j * m + j] = ljj;
-        for i in j + 1..m {
-            let mut s = g[i * m + j];
-            for k in 0..j {
-                s -= g[i * m + k] * g[j * m + k];
-            }
-            g[i * m + j] = s / ljj;
-        }
-    }
-    for i in 0..m {
-        let mut s = rhs[i];
-        for k in 0..i {
-            s -= g[i * m + k] * rhs[k];
-        }
-        rhs[i] = s / g[i * m + i];
-    }
-    for i in (0..m).rev() {
-        let mut s = rhs[i];
-        for k in i + 1..m {
-            s -= g[k * m + i] * rhs[k];
-        }
-        rhs[i] = s / g[i * m + i];
-    }
-    rhs
+    // No step to mix in where even the ridged system is singular.
+    solve_dense(g, rhs).unwrap_or_else(|| vec![0.0; m])
 }

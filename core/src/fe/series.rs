@@ -395,7 +395,9 @@ impl Rational {
 
 /// Solves the small dense system `a x = b` (row-major `n × n`) by Gaussian elimination
 /// with partial pivoting; `None` if singular.
-fn solve_dense(mut a: Vec<f64>, mut b: Vec<f64>) -> Option<Vec<f64>> {
+/// Solves the dense `n × n` system `a x = b` (row-major) by Gaussian elimination with
+/// partial pivoting; `None` where it is singular or the answer not finite.
+pub(super) fn solve_dense(mut a: Vec<f64>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     let n = b.len();
     for col in 0..n {
         let piv =
