@@ -484,6 +484,29 @@ fn factor_bordered(
 /// How many times a step toward the next grid depth may be halved.
 const MAX_HALVINGS: u32 = 3;
 
+/// One chord correction at depth `d` from `(force_n, u)` with the segment's factored
+/// tangent (see the module doc): `(Δu, ΔF)`, `Δu` on the free dofs, with `n̂·Δu`
+/// bringing the depth to `d`.
+#[allow(clippy::too_many_arguments)]
+fn correction(
+    space: &Space,
+    law: Law,
+    (lambda, mu): (f64, f64),
+    (k, y, aug): (&Cholesky, &[f64], &Augment),
+    (shape, probe): (&[f64], &[f64]),
+    force_n: f64,
+    u: &[f64],
+    d: f64,
+) -> (Vec<f64>, f64) {
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let fi = internal_force(space, law, u, lambda, mu);
+    let r: Vec<f64> = fi.iter().zip(shape).map(|(a, b)| a - force_n * b).collect();
+    let g = dot(probe, &space.restrict(u)) - d;
+    let x = aug.solve(k, &r, g);
+    let df = (dot(probe, &x) - g) / dot(probe, y);
+    (y.iter().zip(&x).map(|(a, b)| df * a - b).collect(), df)
+}
+
 /// Chord Newton at depth `d` from `start` with a fixed factored tangent `k` and
 /// `y = k⁻¹ f̂`: converged when the last correction moves no node by more than
 /// `tolerance_mm` and the force by less than `force_tolerance` of itself; given up after
@@ -515,16 +538,18 @@ fn chord(
             anderson,
         );
     }
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let ny = dot(probe, y);
     let mut previous = f64::INFINITY;
     for step in 1..=max_steps.max(1) {
-        let fi = internal_force(space, law, &u, lambda, mu);
-        let r: Vec<f64> = fi.iter().zip(shape).map(|(a, b)| a - force_n * b).collect();
-        let g = dot(probe, &space.restrict(&u)) - d;
-        let x = aug.solve(k, &r, g);
-        let df = (dot(probe, &x) - g) / ny;
-        let du: Vec<f64> = y.iter().zip(&x).map(|(a, b)| df * a - b).collect();
+        let (du, df) = correction(
+            space,
+            law,
+            (lambda, mu),
+            (k, y, aug),
+            (shape, probe),
+            force_n,
+            &u,
+            d,
+        );
         let size = du.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         if !(size.is_finite() && df.is_finite()) {
             return Chord {
@@ -594,12 +619,16 @@ fn accelerated(
     for step in 1..=max_steps.max(1) {
         let u = all(&z);
         let f = z[n] / ny;
-        let fi = internal_force(space, law, &u, lambda, mu);
-        let r: Vec<f64> = fi.iter().zip(shape).map(|(a, b)| a - f * b).collect();
-        let g = dot(probe, &z[..n]) - d;
-        let x = aug.solve(k, &r, g);
-        let df = (dot(probe, &x) - g) / ny;
-        let mut c: Vec<f64> = y.iter().zip(&x).map(|(a, b)| df * a - b).collect();
+        let (mut c, df) = correction(
+            space,
+            law,
+            (lambda, mu),
+            (k, y, aug),
+            (shape, probe),
+            f,
+            &u,
+            d,
+        );
         c.push(df * ny);
         let size = c[..n].iter().fold(0.0f64, |s, v| s.max(v.abs()));
         let converged = size <= tolerance_mm && df.abs() <= force_tolerance * (f + df).abs();

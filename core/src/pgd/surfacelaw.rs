@@ -632,21 +632,8 @@ fn point_press(
     at: [f64; 3],
     push: [f64; 3],
 ) -> Result<Result<VertexPress, String>, FeError> {
-    let (shape, probe) = tool_load(space, organ, o, at, push)?;
-    let depths: Vec<f64> = (0..steps).map(|j| j as f64 * o.depth_step_mm).collect();
-    let load = PressLoad {
-        shape: &shape,
-        probe: &probe,
-    };
-    let press = match follow(
-        space,
-        o.law,
-        o.material,
-        expander,
-        &load,
-        &depths,
-        &path_options(o),
-    )? {
+    // The build's grid alone: `depths.len() == steps`.
+    let (press, depths) = match follow_at(space, organ, expander, o, at, push, &[])? {
         Ok(p) => p,
         Err(why) => return Ok(Err(why)),
     };
