@@ -483,9 +483,11 @@ impl Worker {
                     (None, PressMode::Force) => (target, target * comp, false),
                     (None, PressMode::Depth) => (target / comp, target, false),
                     // Impedance rendering: depth in, the nonlinear force out.
+                    // Past the law's limit there both are held at it (the surface is
+                    // drawn at the same depth).
                     (Some(law), PressMode::Depth) => {
                         let (f, beyond) = law.force_n(&cmd.point(), c.point_mm, target, comp);
-                        (f, target, beyond)
+                        (f, target.min(law.limit_mm(&cmd.point()).0), beyond)
                     }
                     // The trigger's force in, the depth that needs it out.
                     (Some(law), PressMode::Force) => {

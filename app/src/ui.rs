@@ -135,7 +135,8 @@ fn depth_curve(
     }
     let at = s.point_mm.map(f64::from);
     let p = s.command.point();
-    let top = law.depth_max_mm();
+    // To the depth the law answers here (less than its grid where a press stopped).
+    let top = law.limit_mm(&p).0;
     let n = 60;
     let nonlinear: Vec<[f64; 2]> = (0..=n)
         .map(|k| {
@@ -238,10 +239,13 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
             s.magnitude_n, s.depth_mm, s.compliance_mm_per_n
         ));
         if s.beyond_law != 0 {
-            ui.colored_label(
-                Color32::from_rgb(230, 160, 60),
-                "deeper than the force law covers: held at its last depth",
-            );
+            let text = match session.law.as_ref().map(|l| l.limit_mm(&s.command.point())) {
+                Some((limit, Some(why))) => {
+                    format!("held at {limit:.0} mm: a press here found {why}")
+                }
+                _ => "deeper than the force law covers: held at its last depth".to_string(),
+            };
+            ui.colored_label(Color32::from_rgb(230, 160, 60), text);
         }
         if let Some(law) = &session.law {
             depth_curve(ui, law, &s);

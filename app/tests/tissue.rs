@@ -43,6 +43,8 @@ fn hand_made(scene: &PalpationScene) -> TissueLaw {
         stiffness_n_per_mm: vec![1.0; samples],
         correction_mm: vec![0.0; samples],
         segments: vec![1; samples],
+        reach: vec![3; samples],
+        stopped: vec![String::new(); samples],
         rank: 1,
         mode_start: (0..=samples as u32).collect(),
         shape,
@@ -321,5 +323,115 @@ fn tissue_check_separates_the_blend_from_the_press() {
     assert!(
         !dir.path().join("e.tissue").exists(),
         "no unfit tissue is left beside it"
+    );
+}
+
+/// Saint Venant–Kirchhoff loses stability in compression: its presses stop where the
+/// force peaks (or no equilibrium is found), the vademecum answers each probe only to
+/// the least reach of the presses it blends, and beyond that the force and the
+/// surface are held there, flagged, with the press's reason; Newton fails there too,
+/// and the check reports those presses apart from the compared ones.
+#[test]
+fn svk_presses_stop_where_the_tissue_loses_stability() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("svk.palpa");
+    let tissue = dir.path().join("svk.tissue");
+    let palpa = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args(args)
+            .output()
+            .expect("palpa runs")
+    };
+    let path = |p: &std::path::Path| p.to_str().expect("utf-8 path").to_string();
+    let out = palpa(&[
+        "offline",
+        "liver",
+        "--element",
+        "p1",
+        "--model",
+        "svk",
+        "--depth-max-mm",
+        "6",
+        "--within",
+        "-30.3,70.7,16.9,12",
+        "--out",
+        &path(&scene),
+    ]);
+    let built = common::json_ok(&out);
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    assert!(num(&built["tissue"], "stopped_short") >= 1.0, "{built}");
+    assert!(
+        num(&built["tissue"], "shallowest_reach_mm") < 6.0,
+        "{built}"
+    );
+
+    let at = "-30.3,70.7,16.9";
+    let eval = |depth: &str| {
+        common::json_ok(&palpa(&[
+            "eval",
+            &path(&tissue),
+            "--scene",
+            &path(&scene),
+            "--at",
+            at,
+            "--depth-mm",
+            depth,
+            "--json",
+        ]))
+    };
+    let deep = eval("6");
+    let limit = num(&deep, "depth_limit_mm");
+    assert!((1.0..6.0).contains(&limit), "{deep}");
+    assert_eq!(deep["beyond_depth_max"], true, "{deep}");
+    assert_eq!(
+        num(&deep, "probe_displacement_mm"),
+        limit,
+        "held at the limit"
+    );
+    let why = deep["stopped"].as_str().expect("a reason");
+    assert!(
+        why.contains("force peaks") || why.contains("no equilibrium"),
+        "{why}"
+    );
+    // At the limit itself: the same force, not flagged.
+    let at_limit = eval(&limit.to_string());
+    assert_eq!(at_limit["beyond_depth_max"], false, "{at_limit}");
+    assert!((num(&at_limit, "force_n") - num(&deep, "force_n")).abs() < 1e-9);
+
+    let out = palpa(&[
+        "tissue",
+        "check",
+        &path(&tissue),
+        "--scene",
+        &path(&scene),
+        "--at",
+        at,
+        "--depths",
+        &format!("{},5.9", 0.5 * limit),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object a line"))
+        .collect();
+    let (summary, presses) = rows.split_last().expect("rows");
+    assert_eq!(summary["presses_compared"], 1, "{summary}");
+    assert_eq!(summary["presses_past_limit"], 1, "{summary}");
+    // Within the reach the vademecum is the tissue (force goal, surface goal).
+    assert!(num(&presses[0], "force_rel_error") < 0.05, "{}", presses[0]);
+    assert!(
+        num(&presses[0], "surface_max_error_mm") < 0.5,
+        "{}",
+        presses[0]
+    );
+    assert_eq!(
+        num(&presses[1], "vademecum_limit_mm"),
+        limit,
+        "{}",
+        presses[1]
     );
 }

@@ -159,6 +159,16 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         let kind = r.split(" (").next().unwrap_or(r);
         *reasons.entry(kind).or_default() += 1;
     }
+    // Presses that found no equilibrium before the grid's end: how many, and the
+    // shallowest depth any reached (the vademecum answers each probe to the least
+    // reach of the presses it blends).
+    let steps = law.steps() as u32;
+    let stopped_short = law.reach.iter().filter(|&&r| r < steps).count();
+    let shallowest = law
+        .reach
+        .iter()
+        .min()
+        .map(|&r| f64::from(r - 1) * options.depth_step_mm);
     let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm)?;
     tissue.save(&args.out)?;
     let _ = std::fs::remove_file(&log);
@@ -166,6 +176,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             "samples": tissue.samples_mm.len(), "edges": tissue.edge_ends.len(),
             "edges_skipped": law.edge_skip_reasons.len(), "skipped": tissue.skipped_mm.len(),
             "skip_reasons": reasons,
+            "stopped_short": stopped_short, "shallowest_reach_mm": shallowest,
             "rows": tissue.rows_mm.len(), "depth_max_mm": tissue.depth_max_mm(),
             "rank": tissue.rank, "truncation_bound_mm": tissue.truncation_bound_mm,
             "uncompressed_bytes": law.bytes(), "payload_bytes": tissue.payload_bytes(),
@@ -222,6 +233,9 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     let (mut worst_force, mut worst_surface) = (0.0f64, 0.0f64);
     // Presses Newton answered: with none, no goal is met or missed.
     let mut compared = 0usize;
+    // Presses deeper than the vademecum answers at their point (a press of its blend
+    // found no equilibrium deeper): reported, not compared.
+    let mut past_limit = 0usize;
     let space = organ_space(&organ, o.element);
     let expander = if args.series || args.own {
         Some(Expander::new(&space, o.law, o.material)?)
@@ -291,10 +305,16 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             );
             let newton_s = t.elapsed().as_secs_f64();
             let mut row = json!({"at": at, "depth_mm": depth, "newton_s": newton_s});
+            let (limit, stopped) = bound.limit_mm(&point);
+            if depth > limit {
+                row["vademecum_limit_mm"] = json!(limit);
+                row["vademecum_stopped"] = json!(stopped);
+            }
             let (sol, _) = match reference {
                 Ok(r) => r,
                 Err(e) => {
                     row["newton_error"] = json!(e.to_string());
+                    past_limit += usize::from(depth > limit);
                     println!("{row}");
                     continue;
                 }
@@ -327,9 +347,13 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             }
             let f_ref = sol.force_n;
             let force_err = (force - f_ref).abs() / f_ref;
-            worst_force = worst_force.max(force_err);
-            compared += 1;
-            worst_surface = worst_surface.max(e_tissue);
+            if depth > limit {
+                past_limit += 1;
+            } else {
+                worst_force = worst_force.max(force_err);
+                worst_surface = worst_surface.max(e_tissue);
+                compared += 1;
+            }
             row["force_n"] = json!(force);
             row["reference_force_n"] = json!(f_ref);
             row["force_rel_error"] = json!(force_err);
@@ -370,6 +394,9 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                     Err(why) => json!({"skipped": why}),
                     Ok((p, depths)) => match depths.iter().position(|&d| d == depth) {
                         None => json!({"skipped": "past the grid's largest depth"}),
+                        Some(j) if j >= p.u.len() => {
+                            json!({"skipped": p.stopped.as_deref().unwrap_or("stopped")})
+                        }
                         Some(j) => {
                             let (mut own, mut blend) = (0.0f64, 0.0f64);
                             for v in organ.surface_nodes() {
@@ -403,7 +430,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     println!(
         "{}",
         json!({"summary": true, "law": o.law.name(), "element": o.element.name(),
-            "presses_compared": compared,
+            "presses_compared": compared, "presses_past_limit": past_limit,
             "worst_force_rel_error": worst_force, "worst_surface_max_error_mm": worst_surface,
             "goal_force_5_percent": (compared > 0).then_some(worst_force <= 0.05),
             "goal_surface_0_5_mm": (compared > 0).then_some(worst_surface <= 0.5)})
@@ -442,8 +469,9 @@ pub fn eval(
             if !(d.is_finite() && d >= 0.0) {
                 bail!("--depth-mm {d}: expected a finite depth ≥ 0 mm");
             }
+            // Past the limit both the force and the surface are held at it.
             let (f, beyond) = bound.force_n(&point, d, c);
-            (d, f, beyond)
+            (d.min(bound.limit_mm(&point).0), f, beyond)
         }
         (None, Some(f)) => {
             if !(f.is_finite() && f >= 0.0) {
@@ -499,6 +527,7 @@ pub fn eval(
         "probe_displacement_mm": depth, "force_n": force, "linear_force_n": depth / c,
         "max_displacement_mm": max, "depth_max_mm": bound.law.depth_max_mm(),
         "beyond_depth_max": beyond,
+        "depth_limit_mm": bound.limit_mm(&point).0, "stopped": bound.limit_mm(&point).1,
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
     });
     super::args::print_report(&report, json_out)

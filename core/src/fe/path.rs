@@ -49,8 +49,10 @@
 //! `K + α n̂n̂ᵀ`, which gives the same depth-controlled corrections (see [`Augment`]).
 //! Near the liver's sharp inferior
 //! border this is what carries a press to 15 mm: without it two of eleven vertices
-//! there were given up, at 9 and 14 mm. A press is given up, with the depth named, only
-//! where the halved steps fail too.
+//! there were given up, at 9 and 14 mm. Where the halved steps fail too the press stops
+//! there: the depths reached are kept (each an equilibrium) and the depth that failed is
+//! named ([`GridPress::stopped`]). Saint Venant–Kirchhoff stops this way where it loses
+//! stability, which the vademecum then reports as the press's limit.
 
 use std::time::Instant;
 
@@ -123,6 +125,9 @@ pub struct GridPress {
     /// The largest accepted last correction (mm): the states' equilibrium tolerance.
     pub worst_correction_mm: f64,
     pub seconds: f64,
+    /// Where no equilibrium was found past the last state kept, why (naming the
+    /// depth): `u` and `force_n` then stop short of the grid. `None`: every depth.
+    pub stopped: Option<String>,
 }
 
 /// One series and the factored tangent it was expanded with.
@@ -203,7 +208,10 @@ pub struct PressLoad<'a> {
 }
 
 /// Follows the press of `load` through `depths_mm` (increasing, the first 0) and
-/// returns its states there, or why it was given up (a message naming the depth).
+/// returns its states there. Where no equilibrium is found at some depth (a material
+/// that loses stability, a press that rolls off the tool) the states stop at the last
+/// depth reached and [`GridPress::stopped`] says why; a press that reached no depth past
+/// rest is given up (the message names the depth).
 /// The first segment uses `expander`'s rest factorization, shared by every press.
 pub fn follow(
     space: &Space,
@@ -252,6 +260,7 @@ pub fn follow(
         chord_steps: 0,
         worst_correction_mm: 0.0,
         seconds: 0.0,
+        stopped: None,
     };
     // Starts a segment at an accepted state; `None` where its tangent is not positive
     // definite (the caller keeps the old one).
@@ -375,12 +384,19 @@ pub fn follow(
                     h /= 2.0;
                     continue;
                 }
-                return Ok(Err(format!(
+                let why = format!(
                     "no equilibrium at {target:.2} mm: neither the chord from the tangent \
                      at {:.2} mm nor Newton from there converged, with the step halved \
                      {MAX_HALVINGS} times",
                     seg.start_mm
-                )));
+                );
+                // The depths reached stand (each an equilibrium); a press that reached
+                // no depth past rest has nothing to give.
+                if out.u.len() < 2 {
+                    return Ok(Err(why));
+                }
+                out.stopped = Some(why);
+                break;
             }
             refresh = true;
         }

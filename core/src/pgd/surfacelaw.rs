@@ -24,6 +24,13 @@
 //! errs between them by the change of the residual's shape over one edge, the same
 //! floor as a P1 interpolation of the linear field (where the linear vademecum is exact
 //! by its nodal loads instead). Only the surface vertices' rows are kept, in f32.
+//!
+//! A press is kept only as deep as it has an equilibrium *and* its force still rises:
+//! where the corrector finds none, or the force peaks (Saint Venant–Kirchhoff past its
+//! loss of stability in compression: under depth control the states go on, but a hand
+//! pressing with a force snaps through them), the press's *reach* ends at the last
+//! grid depth before, its arrays hold that depth beyond, and the reason is kept. An
+//! edge's surplus reaches as far as its midpoint and both its ends.
 
 use std::path::Path;
 use std::sync::Mutex;
@@ -103,6 +110,11 @@ pub struct SurfaceLaw {
     pub edge_skip_reasons: Vec<String>,
     /// Why each skipped vertex was skipped.
     pub skip_reasons: Vec<String>,
+    /// Per sample (vertices, then edges): the grid depths its press reached, depth 0
+    /// included (`steps` for all), and why it stopped short (empty where it did not).
+    /// An edge's surplus reaches as far as its midpoint and both ends.
+    pub reach: Vec<u32>,
+    pub stopped: Vec<String>,
     steps: usize,
     /// `residual[((sample · steps) + j) · 3·rows + 3·row + c]`, mm.
     residual: Vec<f32>,
@@ -140,6 +152,11 @@ struct VertexPress {
     stiffness_n_per_mm: f64,
     correction_mm: f64,
     segments: u32,
+    /// Grid depths reached (depth 0 included); past them `residual` and `ratio` hold
+    /// the last one reached.
+    reach: u32,
+    /// Why the press stopped short of the grid (empty where it did not).
+    stopped: String,
 }
 
 impl SurfaceLaw {
@@ -203,7 +220,7 @@ impl SurfaceLaw {
         let (log, finished) = match log {
             Some(path) => {
                 let key = format!(
-                    "palpa tissue-build log 1 mesh {:016x} rows {} {o:?} {:?}",
+                    "palpa tissue-build log 3 mesh {:016x} rows {} {o:?} {:?}",
                     crate::pgd::depthlaw::organ_hash(organ),
                     rows.len(),
                     path_options(&o)
@@ -236,7 +253,9 @@ impl SurfaceLaw {
         let n_vertices = organ.mesh.vertices.len() as u32;
         for (id, press) in finished {
             let fits = press.as_ref().map_or(true, |p| {
-                p.ratio.len() == steps && p.residual.len() == steps * 3 * rows.len()
+                p.ratio.len() == steps
+                    && p.residual.len() == steps * 3 * rows.len()
+                    && (2..=steps as u32).contains(&p.reach)
             });
             let k = if id < n_vertices {
                 candidates.binary_search(&id).ok()
@@ -300,6 +319,7 @@ impl SurfaceLaw {
         let mut residual = Vec::new();
         let (mut ratio, mut stiffness) = (Vec::new(), Vec::new());
         let (mut correction, mut segments) = (Vec::new(), Vec::new());
+        let (mut reach, mut stopped) = (Vec::new(), Vec::new());
         for (&v, press) in candidates.iter().zip(presses) {
             let p = match press {
                 Ok(p) => p,
@@ -316,6 +336,8 @@ impl SurfaceLaw {
             stiffness.push(p.stiffness_n_per_mm);
             correction.push(p.correction_mm);
             segments.push(p.segments);
+            reach.push(p.reach);
+            stopped.push(p.stopped);
         }
         // Edge surpluses over their ends' mean, for edges whose three presses stand.
         let (mut kept_edges, mut edge_skip_reasons) = (Vec::new(), Vec::new());
@@ -333,18 +355,39 @@ impl SurfaceLaw {
                 continue;
             }
             let (ra, rb) = (sa as usize * n_row, sb as usize * n_row);
+            // The surplus up to the depth all three reached, held there.
+            let r = p.reach.min(reach[sa as usize]).min(reach[sb as usize]) as usize;
+            let row = 3 * rows.len();
+            let held = |i: usize| (i / row).min(r - 1) * row + i % row;
             let surplus: Vec<f32> = (0..n_row)
-                .map(|i| p.residual[i] - 0.5 * (residual[ra + i] + residual[rb + i]))
+                .map(|i| {
+                    let i = held(i);
+                    p.residual[i] - 0.5 * (residual[ra + i] + residual[rb + i])
+                })
                 .collect();
             residual.extend(surplus);
             let (ga, gb) = (sa as usize * steps, sb as usize * steps);
             let g: Vec<f64> = (0..steps)
-                .map(|j| p.ratio[j] - 0.5 * (ratio[ga + j] + ratio[gb + j]))
+                .map(|j| {
+                    let j = j.min(r - 1);
+                    p.ratio[j] - 0.5 * (ratio[ga + j] + ratio[gb + j])
+                })
                 .collect();
             ratio.extend(g);
             stiffness.push(p.stiffness_n_per_mm);
             correction.push(p.correction_mm);
             segments.push(p.segments);
+            // Why: the reason of whichever of the three stopped first.
+            let why = [
+                (p.reach, &p.stopped),
+                (reach[sa as usize], &stopped[sa as usize]),
+                (reach[sb as usize], &stopped[sb as usize]),
+            ]
+            .into_iter()
+            .min_by_key(|(r, _)| *r)
+            .map_or(String::new(), |(_, w)| w.clone());
+            stopped.push(why);
+            reach.push(r as u32);
             kept_edges.push([sa, sb]);
         }
         let law = SurfaceLaw {
@@ -356,6 +399,8 @@ impl SurfaceLaw {
             edges: kept_edges,
             edge_skip_reasons,
             skip_reasons,
+            reach,
+            stopped,
             steps,
             residual,
             ratio,
@@ -641,7 +686,27 @@ fn point_press(
     let stiffness = press.first.force[0];
     let mut residual = Vec::with_capacity(steps * 3 * rows.len());
     let mut ratio = Vec::with_capacity(steps);
-    for (j, (&d, u)) in depths.iter().zip(&press.u).enumerate() {
+    let mut reach = press.u.len();
+    let mut stopped = press.stopped;
+    // A press is kept only while its force still rises: past a force maximum (Saint
+    // Venant–Kirchhoff's loss of stability in compression) the states exist under
+    // depth control, but a hand pressing with a force snaps through them, and the
+    // force-in, depth-out inverse needs a rising curve.
+    if let Some(j) = (1..reach).find(|&j| press.force_n[j] <= press.force_n[j - 1]) {
+        stopped = Some(format!(
+            "the force peaks at {:.2} N near {:.2} mm ({:.2} N at {:.2} mm): past it the \
+             tissue snaps through under a pressing hand",
+            press.force_n[j - 1],
+            depths[j - 1],
+            press.force_n[j],
+            depths[j]
+        ));
+        reach = j;
+    }
+    if reach < 2 {
+        return Ok(Err(stopped.unwrap_or_default()));
+    }
+    for (j, (&d, u)) in depths.iter().zip(&press.u).take(reach).enumerate() {
         ratio.push(if j == 0 {
             1.0
         } else {
@@ -654,12 +719,20 @@ fn point_press(
             }
         }
     }
+    // Past the depths reached, the last one held (the on-line blend stops there).
+    let row = 3 * rows.len();
+    for _ in reach..steps {
+        residual.extend_from_within((reach - 1) * row..reach * row);
+        ratio.push(ratio[reach - 1]);
+    }
     Ok(Ok(VertexPress {
         residual,
         ratio,
         stiffness_n_per_mm: stiffness,
         correction_mm: press.worst_correction_mm,
         segments: press.segment_starts_mm.len() as u32,
+        reach: reach as u32,
+        stopped: stopped.unwrap_or_default(),
     }))
 }
 
@@ -698,6 +771,8 @@ mod tests {
             edges: vec![],
             edge_skip_reasons: vec![],
             skip_reasons: vec![],
+            reach: vec![3; 2],
+            stopped: vec![String::new(); 2],
             steps: 3,
             residual,
             ratio: vec![1.0; 6],

@@ -40,8 +40,15 @@
 //! up to 6 mm beyond the linear answer at 13 mm, and the linear blend of three corners
 //! erred by 3.1 mm at a held-out point where the quadratic one erred by 0.2 mm (coarse
 //! P2). Corners that were not sampled (next to the fixed region) drop out and the others
-//! are renormalized; an edge is pressed only where both its ends were. Depths past the grid are held at its end and flagged. Nothing is
-//! allocated per call.
+//! are renormalized; an edge is pressed only where both its ends were. Depths past the
+//! grid are held at its end and flagged. Nothing is allocated per call.
+//!
+//! A press with no equilibrium past some depth (Saint Venant–Kirchhoff losing
+//! stability, a deep press rolling off the frictionless tool) keeps the depths it
+//! reached: each sample stores its *reach* and why it stopped, and a probe's own limit
+//! is the least reach among the samples its blend uses. Past that limit the force and
+//! surface are held at it and flagged, the way they are past the grid, and the reason
+//! is the press's own message (the depth that failed).
 //!
 //! The file is bound to a scene by the rest positions of its rows and samples, so a
 //! law built on the organ mesh serves any scene exported from the same mesh.
@@ -62,7 +69,7 @@ use crate::tensor::dense::thin_svd;
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
 /// The file's format version.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -119,6 +126,11 @@ pub struct TissueLaw {
     /// series segments its press took.
     pub correction_mm: Vec<f32>,
     pub segments: Vec<u32>,
+    /// Per sample: the grid depths its press reached, depth 0 included (`steps` where
+    /// it reached them all), and why it stopped short (empty where it did not). Past
+    /// its reach a sample's arrays hold the last depth reached.
+    pub reach: Vec<u32>,
+    pub stopped: Vec<String>,
     /// The most modes a vertex keeps.
     pub rank: u32,
     /// Sample `s`'s modes are `mode_start[s]..mode_start[s + 1]`.
@@ -258,6 +270,8 @@ impl TissueLaw {
             stiffness_n_per_mm: law.stiffness_n_per_mm.iter().map(|&k| k as f32).collect(),
             correction_mm: law.correction_mm.iter().map(|&c| c as f32).collect(),
             segments: law.segments.clone(),
+            reach: law.reach.clone(),
+            stopped: law.stopped.clone(),
             rank: rank as u32,
             mode_start,
             shape,
@@ -303,6 +317,8 @@ impl TissueLaw {
             || self.stiffness_n_per_mm.len() != ns
             || self.correction_mm.len() != ns
             || self.segments.len() != ns
+            || self.reach.len() != ns
+            || self.stopped.len() != ns
             || self.mode_start.len() != ns + 1
             || self.mode_start[0] != 0
             || self
@@ -341,6 +357,13 @@ impl TissueLaw {
         {
             return Err(format!(
                 "an edge's ends are not two of the {vertices} samples"
+            ));
+        }
+        if self.reach.iter().zip(&self.stopped).any(|(&r, why)| {
+            !(2..=steps as u32).contains(&r) || (r < steps as u32) == why.is_empty()
+        }) {
+            return Err(format!(
+                "a sample's reach is not 2 to {steps} depths, or says no reason for stopping short"
             ));
         }
         let (at_vertices, at_edges) = self.ratio.split_at(vertices * steps);
@@ -537,15 +560,38 @@ impl BoundTissue {
         }
     }
 
-    /// The grid interval of `depth_mm` (held at the ends): `(j, t, beyond)` with the
-    /// depth at `(j + t) · step`.
-    fn interval(&self, depth_mm: f64) -> (usize, f64, bool) {
-        let last = (self.law.steps - 1) as f64;
+    /// The grid interval of `depth_mm` (held at the ends, the last being grid depth
+    /// `last`): `(j, t, beyond)` with the depth at `(j + t) · step`.
+    fn interval(&self, depth_mm: f64, last: usize) -> (usize, f64, bool) {
         let x = depth_mm.max(0.0) / self.law.options.depth_step_mm;
-        let beyond = x > last * (1.0 + 1e-12);
-        let x = x.min(last);
-        let j = (x.floor() as usize).min(self.law.steps as usize - 2);
+        let beyond = x > last as f64 * (1.0 + 1e-12);
+        let x = x.min(last as f64);
+        let j = (x.floor() as usize).min(last - 1);
         (j, x - j as f64, beyond)
+    }
+
+    /// The last grid depth every sample of `terms` (with a weight) reached, and the
+    /// sample that stops there first (`None` where all reached the grid's end).
+    fn last_depth(&self, terms: Option<&[(usize, f64); 6]>) -> (usize, Option<usize>) {
+        let full = self.law.steps as usize - 1;
+        terms.into_iter().flatten().filter(|(_, w)| *w != 0.0).fold(
+            (full, None),
+            |(last, who), &(s, _)| {
+                let r = self.law.reach[s] as usize - 1;
+                if r < last { (r, Some(s)) } else { (last, who) }
+            },
+        )
+    }
+
+    /// The deepest press the vademecum answers at `p` (mm): the grid's end, or less
+    /// where a press its blend uses found no equilibrium deeper, with that press's
+    /// reason (naming the depth it failed at).
+    pub fn limit_mm(&self, p: &ProbePoint) -> (f64, Option<&str>) {
+        let (last, who) = self.last_depth(self.terms(p).as_ref());
+        (
+            last as f64 * self.law.options.depth_step_mm,
+            who.map(|s| self.law.stopped[s].as_str()),
+        )
     }
 
     /// The samples the probe's press is blended from, with their weights: the sampled
@@ -584,8 +630,10 @@ impl BoundTissue {
 
     /// `g(s, d)` and whether `d` lay beyond the grid; 1 where no corner was sampled.
     pub fn ratio(&self, p: &ProbePoint, depth_mm: f64) -> (f64, bool) {
-        let (j, t, beyond) = self.interval(depth_mm);
-        let Some(corners) = self.terms(p) else {
+        let terms = self.terms(p);
+        let (last, _) = self.last_depth(terms.as_ref());
+        let (j, t, beyond) = self.interval(depth_mm, last);
+        let Some(corners) = terms else {
             return (1.0, beyond);
         };
         let steps = self.law.steps as usize;
@@ -601,21 +649,20 @@ impl BoundTissue {
     }
 
     /// Depth in, force out: `F = d / c · g(s, d)` with the linear compliance
-    /// `compliance_mm_per_n` at `p`; past the grid the force is held at its end.
+    /// `compliance_mm_per_n` at `p`; past the grid, or past the depth a press of the
+    /// blend reached ([`Self::limit_mm`]), the force is held there and flagged.
     pub fn force_n(&self, p: &ProbePoint, depth_mm: f64, compliance_mm_per_n: f64) -> (f64, bool) {
-        let d = depth_mm.clamp(0.0, self.law.depth_max_mm());
+        let (top, _) = self.limit_mm(p);
+        let d = depth_mm.clamp(0.0, top);
         let (g, _) = self.ratio(p, d);
-        (
-            d / compliance_mm_per_n * g,
-            depth_mm > self.law.depth_max_mm(),
-        )
+        (d / compliance_mm_per_n * g, depth_mm > top * (1.0 + 1e-12))
     }
 
     /// Force in, depth out: the depth whose force is `force_n` (bisection on the
     /// blended curve, which rises with depth for a stable tissue); held at the
     /// largest depth, and flagged, when even that needs less force.
     pub fn depth_mm(&self, p: &ProbePoint, force_n: f64, compliance_mm_per_n: f64) -> (f64, bool) {
-        let top = self.law.depth_max_mm();
+        let (top, _) = self.limit_mm(p);
         let f = |d: f64| self.force_n(p, d, compliance_mm_per_n).0;
         if force_n.is_nan() || force_n <= 0.0 {
             return (0.0, false);
@@ -648,7 +695,8 @@ impl BoundTissue {
         let Some(corners) = self.terms(p) else {
             return false;
         };
-        let (j, t, _) = self.interval(depth_mm);
+        let (last, _) = self.last_depth(Some(&corners));
+        let (j, t, _) = self.interval(depth_mm, last);
         let steps = self.law.steps as usize;
         let m = 3 * self.law.rows_mm.len();
         // Each kept mode's weight at this depth, for the three corners.
@@ -723,6 +771,15 @@ impl Tissue {
         match self {
             Tissue::ForceLaw(l) => l.options.depth_max_mm,
             Tissue::Vademecum(t) => t.law.depth_max_mm(),
+        }
+    }
+
+    /// The deepest press answered at `p` (mm) and, where a press of the blend stopped
+    /// short of the grid, why (see [`BoundTissue::limit_mm`]). Allocation-free.
+    pub fn limit_mm(&self, p: &ProbePoint) -> (f64, Option<&str>) {
+        match self {
+            Tissue::ForceLaw(l) => (l.options.depth_max_mm, None),
+            Tissue::Vademecum(t) => t.limit_mm(p),
         }
     }
 
@@ -803,6 +860,8 @@ mod tests {
             stiffness_n_per_mm: vec![1.0; 4],
             correction_mm: vec![0.0; 4],
             segments: vec![1; 4],
+            reach: vec![2; 4],
+            stopped: vec![String::new(); 4],
             rank: 1,
             mode_start: (0..=4).collect(),
             shape: [i16::MAX, 0, 0].repeat(4),
@@ -841,5 +900,78 @@ mod tests {
                 0.25 + 0.75 + 2.5 - w * 0.5
             )
         ));
+    }
+
+    /// Three corners, depths 0, 1, 2 mm; corner 1's press stopped after 1 mm. A probe
+    /// whose blend uses corner 1 is answered to 1 mm only (held there, flagged, with
+    /// the press's reason); one at corner 0 alone to the grid's end.
+    #[test]
+    fn a_press_that_stopped_short_limits_only_the_probes_that_blend_it() {
+        let corners = [[0.0f32, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
+        let why = "no equilibrium at 2.00 mm".to_string();
+        let law = TissueLaw {
+            options: SurfaceLawOptions {
+                depth_max_mm: 2.0,
+                depth_step_mm: 1.0,
+                edges: false,
+                ..SurfaceLawOptions::default()
+            },
+            rows_mm: vec![[0.0, 0.0, 5.0]],
+            samples_mm: corners.to_vec(),
+            skipped_mm: vec![],
+            edge_ends: vec![],
+            steps: 3,
+            // g: 1 at rest, 0.9 / 0.8 at 1 / 2 mm (corner 1 held at 0.9 past its reach).
+            ratio: [1.0, 0.9, 0.8].repeat(3),
+            stiffness_n_per_mm: vec![1.0; 3],
+            correction_mm: vec![0.0; 3],
+            segments: vec![1; 3],
+            reach: vec![3, 2, 3],
+            stopped: vec![String::new(), why.clone(), String::new()],
+            rank: 1,
+            mode_start: (0..=3).collect(),
+            shape: [i16::MAX, 0, 0].repeat(3),
+            shape_scale: vec![1.0 / f32::from(i16::MAX); 3],
+            // x residual: 0, 1, 4 mm (corner 1: 0, 1, 1 held).
+            coeffs: [[0.0, 1.0, 4.0], [0.0, 1.0, 1.0], [0.0, 1.0, 4.0]].concat(),
+            truncation_bound_mm: 0.0,
+            tolerance_mm: 0.05,
+            build_s: 0.0,
+            compress_s: 0.0,
+        };
+        law.check().expect("consistent");
+        let mut bad = law.clone();
+        bad.stopped[1].clear();
+        assert!(bad.check().is_err(), "a short reach needs its reason");
+        let axis: Vec<[f64; 3]> = corners.iter().map(|p| p.map(f64::from)).collect();
+        let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &[[0, 1, 2]]).expect("binds");
+        let mut scratch = bound.scratch();
+        let at_corner = ProbePoint {
+            triangle: 0,
+            bary: [1.0, 0.0, 0.0],
+        };
+        let inside = ProbePoint {
+            triangle: 0,
+            bary: [0.5, 0.25, 0.25],
+        };
+        assert_eq!(bound.limit_mm(&at_corner), (2.0, None));
+        assert_eq!(bound.limit_mm(&inside), (1.0, Some(why.as_str())));
+        // Compliance 1 mm/N: F = d · g.
+        let (f, flagged) = bound.force_n(&at_corner, 2.0, 1.0);
+        assert!((f - 1.6).abs() < 1e-6 && !flagged);
+        let (f, flagged) = bound.force_n(&inside, 1.5, 1.0);
+        assert!((f - 0.9).abs() < 1e-6 && flagged, "held at 1 mm: {f}");
+        let (d, flagged) = bound.depth_mm(&inside, 5.0, 1.0);
+        assert!((d - 1.0).abs() < 1e-9 && flagged);
+        // Within the reach: d (1 − 0.1 d) = 0.45.
+        let (d, flagged) = bound.depth_mm(&inside, 0.45, 1.0);
+        let want = (1.0 - 0.82f64.sqrt()) / 0.2;
+        assert!((d - want).abs() < 1e-6 && !flagged, "{d}");
+        let mut rows = [0.0; 3];
+        assert!(bound.add_surface(&inside, 1.7, &mut scratch, &mut rows));
+        assert!((rows[0] - 1.0).abs() < 1e-6, "held at 1 mm: {rows:?}");
+        let mut rows = [0.0; 3];
+        assert!(bound.add_surface(&at_corner, 1.5, &mut scratch, &mut rows));
+        assert!((rows[0] - 2.5).abs() < 1e-6, "{rows:?}");
     }
 }
