@@ -17,7 +17,11 @@
 //!
 //! Depth control passes the force limit points that stop force control (where the
 //! tissue softens, the force needed falls while the depth still rises), and is what a
-//! haptic device does: depth in, force out.
+//! haptic device does: depth in, force out. Past such a point the tangent `K` is no
+//! longer positive definite while the state is still stable under depth control (`K`
+//! is, on `n̂·δu = 0`): there the step is solved with `K + α n̂n̂ᵀ`, which gives the
+//! same correction (see [`super::path`]); only where that fails too has the tissue
+//! lost stability under the tool itself.
 //!
 //! Both step from 0 to the target: each step starts from the last converged state; a
 //! step that fails (too many iterations, a growing residual, a tangent that is not
@@ -392,20 +396,40 @@ impl Problem<'_> {
                 return Ok((st, history));
             }
             report.iterations += 1;
-            let k = tangent(
-                self.space,
-                self.law,
-                &self.pattern,
-                &self.space.expand(&st.u),
-                self.lambda,
-                self.mu,
-            );
-            let chol = Cholesky::factor(&k, self.space.fixed_count())
-                .map_err(|e| StepFailure::Tangent(e.to_string()))?;
-            let x1 = chol.solve(&r);
+            let all = self.space.expand(&st.u);
             let (du, df) = match &self.probe {
-                None => (x1.iter().map(|v| -v).collect::<Vec<_>>(), 0.0),
+                None => {
+                    let k = tangent(
+                        self.space,
+                        self.law,
+                        &self.pattern,
+                        &all,
+                        self.lambda,
+                        self.mu,
+                    );
+                    let chol = Cholesky::factor(&k, self.space.fixed_count())
+                        .map_err(|e| StepFailure::Tangent(e.to_string()))?;
+                    (chol.solve(&r).iter().map(|v| -v).collect::<Vec<_>>(), 0.0)
+                }
                 Some(n) => {
+                    let (chol, aug) = super::path::factor_bordered(
+                        self.space,
+                        self.law,
+                        &self.pattern,
+                        &all,
+                        (self.lambda, self.mu),
+                        n,
+                        false,
+                    )
+                    .map_err(|e| StepFailure::Tangent(e.to_string()))?
+                    .ok_or_else(|| {
+                        StepFailure::Tangent(
+                            "not positive definite even under the tool's constraint: the \
+                             tissue is unstable under depth control"
+                                .into(),
+                        )
+                    })?;
+                    let x1 = aug.solve(&chol, &r, g);
                     let x2 = chol.solve(&self.shape);
                     let dot =
                         |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();

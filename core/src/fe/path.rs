@@ -91,6 +91,11 @@ pub struct PathOptions {
     /// not only where `K` alone is not positive definite: the same corrections, for
     /// tests and comparisons.
     pub always_augment: bool,
+    /// Stop at the first grid depth whose force is not above the last one's (kept, so
+    /// the caller sees the drop): past a force maximum a pressing hand snaps through,
+    /// and following the press there (Saint Venant–Kirchhoff in strong compression)
+    /// costs the most, in failed corrections, for states no one uses.
+    pub stop_past_force_peak: bool,
 }
 
 impl Default for PathOptions {
@@ -106,6 +111,7 @@ impl Default for PathOptions {
             active_cutoff: 0.01,
             anderson: 6,
             always_augment: false,
+            stop_past_force_peak: true,
         }
     }
 }
@@ -149,7 +155,7 @@ struct Segment<'a> {
 /// Cholesky fails. Since every step also fixes `n̂·δu`, `K_α` gives the same
 /// corrections: `K_α δu = K δu + α n̂ (n̂·δu)` with `n̂·δu` known. `z = K_α⁻¹ n̂`.
 #[derive(Clone, Default)]
-struct Augment {
+pub(super) struct Augment {
     alpha: f64,
     z: Vec<f64>,
 }
@@ -410,6 +416,16 @@ pub fn follow(
             out.u.push(last.u.clone());
             out.force_n.push(last.force_n);
             j += 1;
+            if o.stop_past_force_peak && last.force_n <= out.force_n[j - 2] {
+                out.stopped = Some(format!(
+                    "the force fell from {:.2} N at {:.2} mm to {:.2} N at {:.2} mm",
+                    out.force_n[j - 2],
+                    depths_mm[j - 2],
+                    last.force_n,
+                    depths_mm[j - 1]
+                ));
+                break;
+            }
         }
         if j < depths_mm.len() {
             h = (2.0 * h).min(grid_step(j));
@@ -430,7 +446,7 @@ pub fn follow(
 
 impl Augment {
     /// `K_α⁻¹ (r + α g n̂)`: the chord's `K⁻¹ r` for a step that makes `n̂·δu = −g`.
-    fn solve(&self, k: &Cholesky, r: &[f64], g: f64) -> Vec<f64> {
+    pub(super) fn solve(&self, k: &Cholesky, r: &[f64], g: f64) -> Vec<f64> {
         let mut x = k.solve(r);
         if self.alpha > 0.0 {
             x.iter_mut()
@@ -445,7 +461,7 @@ impl Augment {
 /// definite (see [`Augment`]); `α` starts at a hundred times the largest diagonal
 /// entry on the probe's dofs and grows a hundredfold once. `None` where even that
 /// fails: the state is unstable under depth control too.
-fn factor_bordered(
+pub(super) fn factor_bordered(
     space: &Space,
     law: Law,
     pattern: &SymCsc,
