@@ -434,4 +434,10 @@ fn svk_presses_stop_where_the_tissue_loses_stability() {
         "{}",
         presses[1]
     );
+
+    // `tradeoff` on a tissue file points at the check (its table has a depth axis).
+    let out = palpa(&["tradeoff", &path(&tissue)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("tissue check"), "{err}");
 }

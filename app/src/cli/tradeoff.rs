@@ -42,6 +42,15 @@ pub struct TradeoffArgs {
 }
 
 pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
+    if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
+        bail!(
+            "{}: a tissue vademecum, whose table has a depth axis and is measured against \
+             Newton at held-out points and depths: `palpa tissue check {} --heldout N \
+             --depths D1,D2,..`",
+            args.file.display(),
+            args.file.display()
+        );
+    }
     let header = file::read_header(&args.file)
         .with_context(|| format!("reading the header of {}", args.file.display()))?;
     if describe_get(&header.meta.provenance.mesh, "organ") == Some("user") {
