@@ -131,8 +131,10 @@ pub struct GridPress {
     /// The largest accepted last correction (mm): the states' equilibrium tolerance.
     pub worst_correction_mm: f64,
     pub seconds: f64,
-    /// Where no equilibrium was found past the last state kept, why (naming the
-    /// depth): `u` and `force_n` then stop short of the grid. `None`: every depth.
+    /// Why the press stopped short of the grid: no equilibrium at the depth named, or
+    /// its force fell (the last state kept is the one it fell at, see
+    /// [`PathOptions::stop_past_force_peak`]). `u` and `force_n` then end there.
+    /// `None`: every depth.
     pub stopped: Option<String>,
 }
 
