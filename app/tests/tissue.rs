@@ -59,6 +59,36 @@ fn hand_made(scene: &PalpationScene) -> TissueLaw {
     law
 }
 
+fn palpa(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(args)
+        .output()
+        .expect("palpa runs")
+}
+
+fn path(p: &std::path::Path) -> String {
+    p.to_str().expect("utf-8 path").to_string()
+}
+
+/// `palpa offline liver` on coarse P1 with the tissue vademecum of `model` to 6 mm,
+/// pressed within `within` (X,Y,Z,R), into `scene` (the tissue beside it): its JSON.
+fn p1_scene_with_tissue(scene: &std::path::Path, model: &str, within: &str) -> serde_json::Value {
+    common::json_ok(&palpa(&[
+        "offline",
+        "liver",
+        "--element",
+        "p1",
+        "--model",
+        model,
+        "--depth-max-mm",
+        "6",
+        "--within",
+        within,
+        "--out",
+        &path(scene),
+    ]))
+}
+
 /// A session pressing 5 mm at its starting probe point, once the loop has answered.
 fn pressed(tissue: Option<Tissue>) -> Session {
     let loaded = scenes::built_in().expect("built-in scene");
@@ -185,29 +215,8 @@ fn tissue_check_separates_the_blend_from_the_press() {
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = dir.path().join("p1.palpa");
     let tissue = dir.path().join("p1.tissue");
-    let palpa = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
-            .args(args)
-            .output()
-            .expect("palpa runs")
-    };
-    let path = |p: &std::path::Path| p.to_str().expect("utf-8 path").to_string();
     // The scene and its tissue in one command (the vademecum beside the scene).
-    let out = palpa(&[
-        "offline",
-        "liver",
-        "--element",
-        "p1",
-        "--model",
-        "neo-hookean",
-        "--depth-max-mm",
-        "6",
-        "--within",
-        "-30.3,70.7,16.9,15",
-        "--out",
-        &path(&scene),
-    ]);
-    let built = common::json_ok(&out);
+    let built = p1_scene_with_tissue(&scene, "neo-hookean", "-30.3,70.7,16.9,15");
     assert_eq!(built["tissue"]["out"], path(&tissue).as_str());
     // The vertices and the edges between them (the quadratic blend's midpoints).
     let count = |k: &str| built["tissue"][k].as_u64().unwrap_or_else(|| panic!("{k}"));
@@ -329,35 +338,14 @@ fn tissue_check_separates_the_blend_from_the_press() {
 /// Saint Venant–Kirchhoff loses stability in compression: its presses stop where the
 /// force peaks (or no equilibrium is found), the vademecum answers each probe only to
 /// the least reach of the presses it blends, and beyond that the force and the
-/// surface are held there, flagged, with the press's reason; Newton fails there too,
-/// and the check reports those presses apart from the compared ones.
+/// surface are held there, flagged, with the press's reason, and the check counts
+/// those presses apart from the compared ones.
 #[test]
 fn svk_presses_stop_where_the_tissue_loses_stability() {
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = dir.path().join("svk.palpa");
     let tissue = dir.path().join("svk.tissue");
-    let palpa = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
-            .args(args)
-            .output()
-            .expect("palpa runs")
-    };
-    let path = |p: &std::path::Path| p.to_str().expect("utf-8 path").to_string();
-    let out = palpa(&[
-        "offline",
-        "liver",
-        "--element",
-        "p1",
-        "--model",
-        "svk",
-        "--depth-max-mm",
-        "6",
-        "--within",
-        "-30.3,70.7,16.9,12",
-        "--out",
-        &path(&scene),
-    ]);
-    let built = common::json_ok(&out);
+    let built = p1_scene_with_tissue(&scene, "svk", "-30.3,70.7,16.9,12");
     let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
     assert!(num(&built["tissue"], "stopped_short") >= 1.0, "{built}");
     assert!(
