@@ -632,6 +632,17 @@ impl BoundTissue {
     pub fn ratio(&self, p: &ProbePoint, depth_mm: f64) -> (f64, bool) {
         let terms = self.terms(p);
         let (last, _) = self.last_depth(terms.as_ref());
+        self.blended_ratio(terms.as_ref(), last, depth_mm)
+    }
+
+    /// [`Self::ratio`] for the blend `terms` answered to grid depth `last`: the
+    /// force and its inverse find both once per call, not once per depth tried.
+    fn blended_ratio(
+        &self,
+        terms: Option<&[(usize, f64); 6]>,
+        last: usize,
+        depth_mm: f64,
+    ) -> (f64, bool) {
         let (j, t, beyond) = self.interval(depth_mm, last);
         let Some(corners) = terms else {
             return (1.0, beyond);
@@ -652,18 +663,23 @@ impl BoundTissue {
     /// `compliance_mm_per_n` at `p`; past the grid, or past the depth a press of the
     /// blend reached ([`Self::limit_mm`]), the force is held there and flagged.
     pub fn force_n(&self, p: &ProbePoint, depth_mm: f64, compliance_mm_per_n: f64) -> (f64, bool) {
-        let (top, _) = self.limit_mm(p);
+        let terms = self.terms(p);
+        let (last, _) = self.last_depth(terms.as_ref());
+        let top = last as f64 * self.law.options.depth_step_mm;
         let d = depth_mm.clamp(0.0, top);
-        let (g, _) = self.ratio(p, d);
+        let (g, _) = self.blended_ratio(terms.as_ref(), last, d);
         (d / compliance_mm_per_n * g, depth_mm > top * (1.0 + 1e-12))
     }
 
     /// Force in, depth out: the depth whose force is `force_n` (bisection on the
-    /// blended curve, which rises with depth for a stable tissue); held at the
-    /// largest depth, and flagged, when even that needs less force.
+    /// blended curve, which rises with depth up to the probe's limit: every press kept
+    /// stops where its force stops rising); held at the limit, and flagged, when even
+    /// that needs less force.
     pub fn depth_mm(&self, p: &ProbePoint, force_n: f64, compliance_mm_per_n: f64) -> (f64, bool) {
-        let (top, _) = self.limit_mm(p);
-        let f = |d: f64| self.force_n(p, d, compliance_mm_per_n).0;
+        let terms = self.terms(p);
+        let (last, _) = self.last_depth(terms.as_ref());
+        let top = last as f64 * self.law.options.depth_step_mm;
+        let f = |d: f64| d / compliance_mm_per_n * self.blended_ratio(terms.as_ref(), last, d).0;
         if force_n.is_nan() || force_n <= 0.0 {
             return (0.0, false);
         }
