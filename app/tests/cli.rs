@@ -68,15 +68,7 @@ fn bench_eval_prints_one_json_object_per_configuration() {
         "1",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("a JSON object per line"))
-        .collect();
+    let lines = common::json_lines_ok(&out);
     assert_eq!(lines.len(), 2);
     for v in &lines {
         for key in [

@@ -237,15 +237,7 @@ fn tissue_check_separates_the_blend_from_the_press() {
         ])
     };
     let out = check(&path(&scene));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("one JSON object a line"))
-        .collect();
+    let rows = common::json_lines_ok(&out);
     let (summary, presses) = rows.split_last().expect("rows");
     assert_eq!(summary["presses_compared"], 4);
     assert_eq!(presses.len(), 4);
@@ -397,15 +389,7 @@ fn svk_presses_stop_where_the_tissue_loses_stability() {
         "--depths",
         &format!("{},5.9", 0.5 * limit),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("one JSON object a line"))
-        .collect();
+    let rows = common::json_lines_ok(&out);
     let (summary, presses) = rows.split_last().expect("rows");
     assert_eq!(summary["presses_compared"], 1, "{summary}");
     assert_eq!(summary["presses_past_limit"], 1, "{summary}");

@@ -16,6 +16,20 @@ pub fn json_ok(out: &Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
 }
 
+/// Asserts the command succeeded (showing its stderr otherwise) and parses each line
+/// of its stdout as one JSON object.
+pub fn json_lines_ok(out: &Output) -> Vec<serde_json::Value> {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object a line"))
+        .collect()
+}
+
 /// Builds the toggle switch's meta-model on [0, 2] (steps ≤ 0.1: small and quick) into
 /// `path`: the network scene the GPU, touch and lifecycle tests open.
 pub fn small_toggle(path: &std::path::Path) {
