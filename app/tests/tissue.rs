@@ -260,6 +260,58 @@ fn tissue_check_separates_the_blend_from_the_press() {
         );
     }
 
+    // The tradeoff at the same held-out presses (same seed, points, depths): its row
+    // that keeps every mode and depth is the check's answer, fewer modes or a longer
+    // step weigh less, and the linear model errs more.
+    let table = common::json_ok(&palpa(&[
+        "tradeoff",
+        &path(&tissue),
+        "--scene",
+        &path(&scene),
+        "--held-out",
+        "2",
+        "--depths",
+        "3.3,5.6",
+        "--json",
+    ]));
+    let table_rows = table["rows"].as_array().expect("rows");
+    let rank = table_rows
+        .iter()
+        .filter_map(|r| r["modes_max"].as_u64())
+        .max()
+        .expect("a mode count");
+    let row = |modes: u64, step: f64| {
+        table_rows
+            .iter()
+            .find(|r| r["modes_max"] == modes && r["depth_step_mm"] == step)
+            .unwrap_or_else(|| panic!("no row {modes} modes, {step} mm: {table}"))
+    };
+    let full = row(rank, 1.0);
+    for (k, check_key) in [
+        ("worst_force_rel_error", "worst_force_rel_error"),
+        ("worst_surface_max_error_mm", "worst_surface_max_error_mm"),
+    ] {
+        assert!(
+            (num(full, k) - num(summary, check_key)).abs() < 1e-12,
+            "{full} {summary}"
+        );
+    }
+    assert_eq!(full["presses_compared"], 4, "{full}");
+    for by_depth in full["by_depth"].as_array().expect("by depth") {
+        assert_eq!(by_depth["presses_compared"], 2, "{by_depth}");
+    }
+    assert!(num(full, "force_eval_us") > 0.0 && num(full, "surface_eval_us") > 0.0);
+    let linear = &table["linear"];
+    assert!(num(linear, "worst_surface_max_error_mm") > num(full, "worst_surface_max_error_mm"));
+    assert!(num(linear, "worst_force_rel_error") > num(full, "worst_force_rel_error"));
+    if rank > 1 {
+        assert!(num(row(1, 1.0), "payload_bytes") < num(full, "payload_bytes"));
+        assert!(num(row(1, 1.0), "dropped_sigma_mm") > 0.0);
+    }
+    // Six 1 mm intervals: steps of 2 and 3 mm too, lighter.
+    assert!(num(row(rank, 3.0), "payload_bytes") < num(row(rank, 2.0), "payload_bytes"));
+    assert!(num(row(rank, 2.0), "payload_bytes") < num(full, "payload_bytes"));
+
     let out = check("liver");
     assert!(!out.status.success(), "a P1 law on the P2 scene is refused");
     let err = String::from_utf8_lossy(&out.stderr);
@@ -406,10 +458,4 @@ fn svk_presses_stop_where_the_tissue_loses_stability() {
         "{}",
         presses[1]
     );
-
-    // `tradeoff` on a tissue file points at the check (its table has a depth axis).
-    let out = palpa(&["tradeoff", &path(&tissue)]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("tissue check"), "{err}");
 }

@@ -20,6 +20,7 @@ mod plot;
 mod scene;
 mod synth;
 mod tissue;
+mod tissue_tradeoff;
 mod tradeoff;
 
 use std::process::ExitCode;

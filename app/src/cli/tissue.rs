@@ -188,7 +188,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
 }
 
 /// A tissue file loaded and bound to the scene it serves (`liver` or a `.palpa` file).
-fn bound_to_scene(
+pub(super) fn bound_to_scene(
     file: &std::path::Path,
     scene: &str,
 ) -> anyhow::Result<(BoundTissue, palpa_core::scene::PalpationScene)> {
@@ -209,20 +209,6 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     let o = bound.law.options;
     let organ = args.organ.mesh()?;
     let law = &bound.law;
-    // Held-out points: random points of organ triangles whose corners were all pressed.
-    let pressed = PointIndex::new(law.samples_mm.iter().map(|p| p.map(f64::from)));
-    let faces: Vec<usize> = (0..organ.boundary.len())
-        .filter(|&f| {
-            organ.palpable[f]
-                && organ.boundary[f]
-                    .iter()
-                    .all(|&v| pressed.find(organ.mesh.vertices[v as usize]).is_some())
-        })
-        .collect();
-    if faces.is_empty() {
-        bail!("no palpable triangle of this organ has all three corners pressed in the file");
-    }
-    let mut rng = Rng::seed(args.seed);
     let mut scratch = bound.scratch();
     let mut contact_scratch = scene.contact_scratch();
     let mut coeffs = vec![0.0; scene.modes()];
@@ -242,15 +228,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     } else {
         None
     };
-    let points: Vec<[f64; 3]> = match args.at.as_deref() {
-        Some(v) if !v.is_empty() && v.len() % 3 == 0 && v.iter().all(|x| x.is_finite()) => {
-            v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
-        }
-        Some(v) => bail!("--at: expected X,Y,Z triples of finite numbers, got {v:?}"),
-        None => (0..args.heldout)
-            .map(|_| super::bench_fe::heldout_point(&organ, &faces, &mut rng).0)
-            .collect(),
-    };
+    let points = press_points(&organ, law, args.at.as_deref(), args.heldout, args.seed)?;
     for at in points {
         let (point, _) = scene
             .closest_palpable(at)
@@ -328,23 +306,8 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             let t = Instant::now();
             bound.add_surface(&point, depth, &mut scratch, &mut tissue_rows);
             let surface_us = t.elapsed().as_secs_f64() * 1e6;
-            let (mut e_tissue, mut e_linear, mut top) = (0.0f64, 0.0f64, 0.0f64);
-            for v in organ.surface_nodes() {
-                let Some(r) = vertex_of.find(organ.mesh.vertices[v as usize]) else {
-                    continue;
-                };
-                let r = r as usize;
-                let (mut dt, mut dl, mut m) = (0.0, 0.0, 0.0);
-                for k in 0..3 {
-                    let reference = sol.u[3 * v as usize + k];
-                    dt += (tissue_rows[3 * r + k] - reference).powi(2);
-                    dl += (linear_rows[3 * r + k] - reference).powi(2);
-                    m += reference * reference;
-                }
-                e_tissue = e_tissue.max(dt.sqrt());
-                e_linear = e_linear.max(dl.sqrt());
-                top = top.max(m.sqrt());
-            }
+            let ([e_tissue, e_linear], top) =
+                max_node_errors(&organ, &vertex_of, &sol.u, [&tissue_rows, &linear_rows]);
             let f_ref = sol.force_n;
             let force_err = (force - f_ref).abs() / f_ref;
             if depth > limit {
@@ -436,6 +399,71 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             "goal_surface_0_5_mm": (compared > 0).then_some(worst_surface <= 0.5)})
     );
     Ok(())
+}
+
+/// The points a check presses at: `at` (X,Y,Z triples) where given, else `heldout`
+/// seeded random points inside organ triangles whose three corners were pressed
+/// (never a sample itself).
+pub(super) fn press_points(
+    organ: &palpa_core::organ::OrganMesh,
+    law: &TissueLaw,
+    at: Option<&[f64]>,
+    heldout: usize,
+    seed: u64,
+) -> anyhow::Result<Vec<[f64; 3]>> {
+    match at {
+        Some(v) if !v.is_empty() && v.len() % 3 == 0 && v.iter().all(|x| x.is_finite()) => {
+            return Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect());
+        }
+        Some(v) => bail!("--at: expected X,Y,Z triples of finite numbers, got {v:?}"),
+        None => {}
+    }
+    let pressed = PointIndex::new(law.samples_mm.iter().map(|p| p.map(f64::from)));
+    let faces: Vec<usize> = (0..organ.boundary.len())
+        .filter(|&f| {
+            organ.palpable[f]
+                && organ.boundary[f]
+                    .iter()
+                    .all(|&v| pressed.find(organ.mesh.vertices[v as usize]).is_some())
+        })
+        .collect();
+    if faces.is_empty() {
+        bail!("no palpable triangle of this organ has all three corners pressed in the file");
+    }
+    let mut rng = Rng::seed(seed);
+    Ok((0..heldout)
+        .map(|_| super::bench_fe::heldout_point(organ, &faces, &mut rng).0)
+        .collect())
+}
+
+/// Over the organ's surface nodes drawn by the scene (`vertex_of`: a node's render
+/// vertex by rest position): each candidate's largest nodal distance from the
+/// reference field `reference` (organ node order; candidates in the scene's row
+/// order), and the reference's largest displacement (mm).
+pub(super) fn max_node_errors<const N: usize>(
+    organ: &palpa_core::organ::OrganMesh,
+    vertex_of: &PointIndex,
+    reference: &[f64],
+    candidates: [&[f64]; N],
+) -> ([f64; N], f64) {
+    let (mut worst, mut top) = ([0.0f64; N], 0.0f64);
+    for v in organ.surface_nodes() {
+        let Some(r) = vertex_of.find(organ.mesh.vertices[v as usize]) else {
+            continue;
+        };
+        let (i, r) = (3 * v as usize, 3 * r as usize);
+        let dist = |rows: &[f64]| {
+            (0..3)
+                .map(|k| (rows[r + k] - reference[i + k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        for (w, rows) in worst.iter_mut().zip(candidates) {
+            *w = w.max(dist(rows));
+        }
+        top = top.max((0..3).map(|k| reference[i + k].powi(2)).sum::<f64>().sqrt());
+    }
+    (worst, top)
 }
 
 /// `palpa eval` on a tissue file: the press at the palpable point closest to `--at`,

@@ -27,10 +27,23 @@ use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
 #[derive(Debug, Args)]
 pub struct TradeoffArgs {
     file: PathBuf,
-    /// Random held-out probe positions (a nodal model adds two near the fixed region,
-    /// two on the sharpest border and two on the left lobe).
-    #[arg(long, default_value_t = 24)]
-    held_out: usize,
+    /// Random held-out probe positions (default 24; a nodal model adds two near the
+    /// fixed region, two on the sharpest border and two on the left lobe; a tissue
+    /// file: 4, each pressed at every `--depths`).
+    #[arg(long)]
+    held_out: Option<usize>,
+    /// A tissue file's held-out depths (mm), off its depth grids.
+    #[arg(long, value_delimiter = ',', default_values_t = [2.6, 7.3, 12.7])]
+    depths: Vec<f64>,
+    /// A tissue file's scene: `liver` (built in) or a `.palpa` file of its mesh.
+    #[arg(long, default_value = "liver")]
+    scene: String,
+    /// Seed of the held-out points (tissue files).
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// The organ a tissue file was built on (a vademecum's own file names it).
+    #[command(flatten)]
+    organ: super::args::OrganArgs,
     /// Compute the optimal (SVD) errors even above the coarse level.
     #[arg(long)]
     svd: bool,
@@ -43,14 +56,16 @@ pub struct TradeoffArgs {
 
 pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
-        bail!(
-            "{}: a tissue vademecum, whose table has a depth axis and is measured against \
-             Newton at held-out points and depths: `palpa tissue check {} --heldout N \
-             --depths D1,D2,..`",
-            args.file.display(),
-            args.file.display()
-        );
+        let settings = super::tissue_tradeoff::Settings {
+            organ: &args.organ,
+            scene: &args.scene,
+            heldout: args.held_out.unwrap_or(4),
+            depths_mm: &args.depths,
+            seed: args.seed,
+        };
+        return super::tissue_tradeoff::run(&args.file, &settings, args.json);
     }
+    let held_out = args.held_out.unwrap_or(24);
     let header = file::read_header(&args.file)
         .with_context(|| format!("reading the header of {}", args.file.display()))?;
     if describe_get(&header.meta.provenance.mesh, "organ") == Some("user") {
@@ -97,7 +112,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     if let Some(Discretization::SurfaceLoad { .. }) =
         model.axes().first().map(|a| &a.info.discretization)
     {
-        return run_nodal(args, model, &organ, element, material, radius_mm);
+        return run_nodal(args, held_out, model, &organ, element, material, radius_mm);
     }
     let t = pgd_table(
         &model,
@@ -105,7 +120,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         element,
         material,
         radius_mm,
-        args.held_out,
+        held_out,
         level == LevelArg::Coarse || args.svd,
     )?;
     let (rows, surface_optimum) = (t.rows, t.surface_optimum);
@@ -127,7 +142,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.plot {
         plot(&rows, &surface_optimum, path)?;
     }
-    let out = json!({"rows": json_rows, "held_out": args.held_out,
+    let out = json!({"rows": json_rows, "held_out": held_out,
                      "s_interpolation_floor": {"surface_rel_error": floor_surf, "probe_rel_error": floor_probe},
                      "brute_force_solve_s": t.brute_force_solve_s});
     super::args::print_report(&out, args.json)
@@ -137,6 +152,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
 /// stored in the file's header and printed.
 fn run_nodal(
     args: &TradeoffArgs,
+    held_out: usize,
     model: palpa_core::SeparatedModel<f64>,
     organ: &palpa_core::organ::OrganMesh,
     element: Element,
@@ -144,7 +160,7 @@ fn run_nodal(
     radius_mm: f64,
 ) -> anyhow::Result<()> {
     use palpa_core::pgd::tradeoff::nodal_table;
-    let t = nodal_table(&model, organ, element, material, radius_mm, args.held_out)?;
+    let t = nodal_table(&model, organ, element, material, radius_mm, held_out)?;
     let worst = |e: &palpa_core::pgd::heldout::Errors| {
         let c = &t.cases[e.worst_surface_case];
         json!({"kind": c.kind, "point_mm": c.point})

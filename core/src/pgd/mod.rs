@@ -23,4 +23,5 @@ pub mod presslog;
 pub mod samplelog;
 pub mod surfacelaw;
 pub mod tissue;
+pub mod tissue_knobs;
 pub mod tradeoff;

@@ -1,0 +1,253 @@
+//! `palpa tradeoff X.tissue`: the measured speed/accuracy table of a tissue
+//! vademecum over its two knobs, the modes each sample keeps and the depth grid's step
+//! (`palpa_core::pgd::tissue_knobs`), with the errors at held-out points *and*
+//! depths (the λ axis) against the full nonlinear FE.
+//!
+//! The reference is computed once: Newton under depth control at each held-out press
+//! (random points inside pressed triangles, depths off every grid), along the scene's
+//! push as the app presses. Each setting is then the stored law cut and bound to the
+//! scene again, so one build measures the whole table; the linear model's errors at
+//! the same presses are the row that keeps nothing. The table is printed, not stored:
+//! a tissue file keeps every mode and depth it was built with.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Context;
+use palpa_core::axis::ProbePoint;
+use palpa_core::fe::newton::NewtonSettings;
+use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
+use palpa_core::pgd::tissue::{BoundTissue, PointIndex};
+use serde_json::json;
+
+use super::args::OrganArgs;
+use super::tissue::{bound_to_scene, max_node_errors, press_points};
+
+/// What the table is measured at.
+pub struct Settings<'a> {
+    pub organ: &'a OrganArgs,
+    pub scene: &'a str,
+    pub heldout: usize,
+    pub depths_mm: &'a [f64],
+    pub seed: u64,
+}
+
+/// One held-out press and Newton's answer there.
+struct Press {
+    point: ProbePoint,
+    compliance_mm_per_n: f64,
+    depth_mm: f64,
+    force_n: f64,
+    /// Newton's displacement (organ node order) and the scene's linear surface (row
+    /// order) at this depth.
+    reference: Vec<f64>,
+    linear_rows: Vec<f64>,
+}
+
+/// A setting's errors over the presses it answers.
+#[derive(Default)]
+struct Errors {
+    compared: usize,
+    past_limit: usize,
+    worst_force: f64,
+    sum_force: f64,
+    worst_surface_mm: f64,
+}
+
+impl Errors {
+    fn add(&mut self, force_rel: f64, surface_mm: f64) {
+        self.compared += 1;
+        self.worst_force = self.worst_force.max(force_rel);
+        self.sum_force += force_rel;
+        self.worst_surface_mm = self.worst_surface_mm.max(surface_mm);
+    }
+
+    fn json(&self) -> serde_json::Value {
+        let some = self.compared > 0;
+        json!({"presses_compared": self.compared, "presses_past_limit": self.past_limit,
+            "worst_force_rel_error": some.then_some(self.worst_force),
+            "mean_force_rel_error": some.then(|| self.sum_force / self.compared as f64),
+            "worst_surface_max_error_mm": some.then_some(self.worst_surface_mm),
+            "meets_goals": some.then_some(self.worst_force <= 0.05 && self.worst_surface_mm <= 0.5)})
+    }
+}
+
+pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
+    let (full, scene) = bound_to_scene(file, s.scene)?;
+    let organ = s.organ.mesh()?;
+    let law = full.law.clone();
+    let o = law.options;
+    if s.depths_mm.is_empty() || s.depths_mm.iter().any(|d| !(d.is_finite() && *d > 0.0)) {
+        anyhow::bail!("--depths {:?}: expected positive depths (mm)", s.depths_mm);
+    }
+    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
+    let mut contact_scratch = scene.contact_scratch();
+    let mut coeffs = vec![0.0; scene.modes()];
+    let rows = 3 * scene.vertices_mm().len();
+    let (mut presses, mut newton_failed) = (Vec::new(), Vec::new());
+    let t = Instant::now();
+    for at in press_points(&organ, &law, None, s.heldout, s.seed)? {
+        let (point, _) = scene
+            .closest_palpable(at)
+            .context("the scene has no palpable surface")?;
+        let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
+        for &depth_mm in s.depths_mm {
+            eprint!("\rtradeoff: Newton at press {}   ", presses.len() + 1);
+            let request = ProbeRequest {
+                at,
+                force_n: f64::NAN,
+                dir: Some(contact.push_dir),
+                radius_mm: o.tool_radius_mm,
+            };
+            let solved = solve_hyperelastic(
+                &organ,
+                o.element,
+                o.material,
+                o.law,
+                &request,
+                Some(depth_mm),
+                NewtonSettings::default(),
+            );
+            let sol = match solved {
+                Ok((sol, _)) => sol,
+                Err(e) => {
+                    newton_failed
+                        .push(json!({"at": at, "depth_mm": depth_mm, "why": e.to_string()}));
+                    continue;
+                }
+            };
+            let c = contact.compliance_mm_per_n;
+            let mut linear_rows = vec![0.0; rows];
+            let push = contact.push_dir.map(|d| d * depth_mm / c);
+            scene.displacement(&point, push, &mut coeffs, &mut linear_rows)?;
+            presses.push(Press {
+                point,
+                compliance_mm_per_n: c,
+                depth_mm,
+                force_n: sol.force_n,
+                reference: sol.u,
+                linear_rows,
+            });
+        }
+    }
+    eprintln!();
+    let reference_s = t.elapsed().as_secs_f64();
+    // The linear model: what the app draws with no tissue file.
+    let mut linear = Errors::default();
+    for p in &presses {
+        let f = p.depth_mm / p.compliance_mm_per_n;
+        let ([e], _) = max_node_errors(&organ, &vertex_of, &p.reference, [&p.linear_rows]);
+        linear.add((f - p.force_n).abs() / p.force_n, e);
+    }
+    let mut table = Vec::new();
+    let intervals = law.steps as usize - 1;
+    let strides: Vec<usize> = (1..=intervals.min(5))
+        .filter(|&k| intervals.is_multiple_of(k))
+        .collect();
+    let rank = law.rank as usize;
+    let mut modes: Vec<usize> = std::iter::successors(Some(1), |m| Some(2 * m))
+        .take_while(|&m| m < rank)
+        .collect();
+    modes.push(rank);
+    for &stride in &strides {
+        for &modes_max in &modes {
+            let cut = match law.coarsened(modes_max, stride) {
+                Ok(cut) => cut,
+                Err(why) => {
+                    table.push(json!({"modes_max": modes_max,
+                        "depth_step_mm": o.depth_step_mm * stride as f64, "refused": why}));
+                    continue;
+                }
+            };
+            let bytes = cut.law.payload_bytes();
+            let bound = BoundTissue::bind(
+                cut.law,
+                scene.vertices_mm(),
+                scene.axis_vertices_mm(),
+                scene.axis_triangles(),
+            )?;
+            table.push(measure(
+                &bound,
+                &presses,
+                &organ,
+                &vertex_of,
+                s.depths_mm,
+                &json!({
+                "modes_max": modes_max, "depth_step_mm": o.depth_step_mm * stride as f64,
+                "payload_bytes": bytes, "dropped_sigma_mm": cut.dropped_sigma_mm,
+                "truncation_bound_mm": bound.law.truncation_bound_mm}),
+            ));
+        }
+    }
+    let report = json!({"law": o.law.name(), "element": o.element.name(),
+        "depth_max_mm": law.depth_max_mm(), "held_out_points": s.heldout,
+        "depths_mm": s.depths_mm, "seed": s.seed, "rows": table,
+        "linear": linear.json(), "newton_failed": newton_failed,
+        "newton_reference_s": reference_s});
+    super::args::print_report(&report, json_out)
+}
+
+/// One setting's row: errors over all presses and per held-out depth, and the
+/// on-line times (force: mean of many calls; surface: one whole-surface update).
+fn measure(
+    bound: &BoundTissue,
+    presses: &[Press],
+    organ: &palpa_core::organ::OrganMesh,
+    vertex_of: &PointIndex,
+    depths_mm: &[f64],
+    knobs: &serde_json::Value,
+) -> serde_json::Value {
+    let mut scratch = bound.scratch();
+    let mut rows = vec![0.0; presses.first().map_or(0, |p| p.linear_rows.len())];
+    let mut all = Errors::default();
+    let mut by_depth: Vec<Errors> = depths_mm.iter().map(|_| Errors::default()).collect();
+    let (mut force_s, mut force_calls, mut surface_s) = (0.0, 0usize, 0.0);
+    for p in presses {
+        let (limit, _) = bound.limit_mm(&p.point);
+        let at_depth = depths_mm.iter().position(|&d| d == p.depth_mm);
+        if p.depth_mm > limit {
+            all.past_limit += 1;
+            if let Some(k) = at_depth {
+                by_depth[k].past_limit += 1;
+            }
+            continue;
+        }
+        let t = Instant::now();
+        let mut force = 0.0;
+        for _ in 0..1000 {
+            force =
+                std::hint::black_box(bound.force_n(&p.point, p.depth_mm, p.compliance_mm_per_n)).0;
+        }
+        force_s += t.elapsed().as_secs_f64();
+        force_calls += 1000;
+        rows.copy_from_slice(&p.linear_rows);
+        let t = Instant::now();
+        bound.add_surface(&p.point, p.depth_mm, &mut scratch, &mut rows);
+        surface_s += t.elapsed().as_secs_f64();
+        let ([e], _) = max_node_errors(organ, vertex_of, &p.reference, [&rows]);
+        let f = (force - p.force_n).abs() / p.force_n;
+        all.add(f, e);
+        if let Some(k) = at_depth {
+            by_depth[k].add(f, e);
+        }
+    }
+    let mut row = knobs.clone();
+    for (k, v) in all.json().as_object().into_iter().flatten() {
+        row[k] = v.clone();
+    }
+    row["by_depth"] = json!(
+        depths_mm
+            .iter()
+            .zip(&by_depth)
+            .map(|(d, e)| {
+                let mut v = e.json();
+                v["depth_mm"] = json!(d);
+                v
+            })
+            .collect::<Vec<_>>()
+    );
+    row["force_eval_us"] = json!((force_calls > 0).then(|| force_s / force_calls as f64 * 1e6));
+    row["surface_eval_us"] =
+        json!((all.compared > 0).then(|| surface_s / all.compared as f64 * 1e6));
+    row
+}
