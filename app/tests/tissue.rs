@@ -459,3 +459,78 @@ fn svk_presses_stop_where_the_tissue_loses_stability() {
         presses[1]
     );
 }
+
+/// Near incompressibility (ν = 0.499) the scene and its tissue are built for that
+/// material: the tissue binds to its own scene and meets both goals against Newton
+/// at held-out presses (coarse P1, 4 mm), the built-in ν = 0.48 scene refuses it by
+/// the material, the linear scene's tradeoff reads its material from the file, and
+/// ν = 0.5 is refused.
+#[test]
+fn a_nearly_incompressible_tissue_meets_the_goals_on_its_own_scene() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("nu.palpa");
+    let tissue = dir.path().join("nu.tissue");
+    let built = common::json_ok(&palpa(&[
+        "offline",
+        "liver",
+        "--element",
+        "p1",
+        "--poisson",
+        "0.499",
+        "--model",
+        "neo-hookean",
+        "--depth-max-mm",
+        "4",
+        "--within",
+        "-30.3,70.7,16.9,14",
+        "--out",
+        &path(&scene),
+    ]));
+    assert_eq!(built["tissue"]["stopped_short"], 0, "{built}");
+    let check = |scene: &str| {
+        palpa(&[
+            "tissue",
+            "check",
+            &path(&tissue),
+            "--scene",
+            scene,
+            "--heldout",
+            "2",
+            "--depths",
+            "1.3,3.3",
+        ])
+    };
+    let rows = common::json_lines_ok(&check(&path(&scene)));
+    let summary = rows.last().expect("summary");
+    assert_eq!(summary["presses_compared"], 4, "{summary}");
+    assert_eq!(summary["goal_force_5_percent"], true, "{summary}");
+    assert_eq!(summary["goal_surface_0_5_mm"], true, "{summary}");
+    let out = check("liver");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("ν = 0.499"), "{err}");
+    let table = common::json_ok(&palpa(&[
+        "tradeoff",
+        &path(&scene),
+        "--held-out",
+        "1",
+        "--json",
+    ]));
+    assert!(
+        !table["rows"].as_array().expect("rows").is_empty(),
+        "{table}"
+    );
+    // ν = 0.5 itself is refused by name.
+    let out = palpa(&[
+        "offline",
+        "liver",
+        "--poisson",
+        "0.5",
+        "--out",
+        &path(&scene),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("ν = 0.5 is incompressible"),
+        "{err}"
+    );
+}

@@ -69,6 +69,12 @@ pub struct OfflineArgs {
     tol: f64,
     #[arg(long, default_value_t = 5.0)]
     radius_mm: f64,
+    /// The tissue's Young modulus (kPa).
+    #[arg(long, default_value_t = Material::default().young_kpa)]
+    young_kpa: f64,
+    /// The tissue's Poisson ratio (below 0.5; P2 stays accurate toward it, P1 locks).
+    #[arg(long, default_value_t = Material::default().poisson)]
+    poisson: f64,
     /// Skip the Galerkin update of the parametric functions after each term.
     #[arg(long)]
     no_update: bool,
@@ -99,6 +105,23 @@ pub struct OfflineArgs {
     /// (mm), the region a scene shows.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     within: Option<Vec<f64>>,
+}
+
+impl OfflineArgs {
+    /// The material asked for, checked (a finite positive modulus, `-1 < ν < 0.5`).
+    fn material(&self) -> anyhow::Result<Material> {
+        let (e, nu) = (self.young_kpa, self.poisson);
+        if !(e.is_finite() && e > 0.0 && nu.is_finite() && nu > -1.0 && nu < 0.5) {
+            bail!(
+                "--young-kpa {e} --poisson {nu}: expected a positive modulus and -1 < ν < 0.5 \
+                 (ν = 0.5 is incompressible, which displacement elements cannot represent)"
+            );
+        }
+        Ok(Material {
+            young_kpa: e,
+            poisson: nu,
+        })
+    }
 }
 
 /// The tissue an `offline` scene is built for.
@@ -143,7 +166,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
         );
     }
     let t0 = Instant::now();
-    let material = Material::default();
+    let material = args.material()?;
     let organ = mesh_organ(args.organ, args.level)?;
     let s = setup(&organ, args.element, material, args.radius_mm)
         .context("building the FE operators")?;
@@ -260,7 +283,7 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
     {
         bail!("--table-degree {q} must be 1 to 8");
     }
-    let material = Material::default();
+    let material = args.material()?;
     let organ = mesh_organ(args.organ, args.level)?;
     let s = nodal::setup(&organ, args.element, material, args.radius_mm)
         .context("building the FE operators and the load axis")?;
@@ -754,7 +777,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         TissueModel::Svk => NonlinearModel::Svk,
     };
     let defaults = palpa_core::pgd::surfacelaw::SurfaceLawOptions::default();
-    let material = Material::default();
+    let material = args.material()?;
     let build = super::tissue::BuildArgs {
         organ: super::args::OrganArgs {
             organ: args.organ,

@@ -94,7 +94,17 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     let radius_mm: f64 = describe_get(&desc, "radius_mm").unwrap_or("5").parse()?;
     let update = describe_get(&desc, "update") == Some("true");
     let organ = mesh_organ(OrganName::Liver, level)?;
-    let material = Material::default();
+    // The material its provenance names (the defaults where an older file names none).
+    let number = |key: &str, default: f64| -> anyhow::Result<f64> {
+        describe_get(&desc, key).map_or(Ok(default), |v| {
+            v.parse()
+                .with_context(|| format!("provenance {key}={v}: expected a number"))
+        })
+    };
+    let material = Material {
+        young_kpa: number("young_kpa", Material::default().young_kpa)?,
+        poisson: number("poisson", Material::default().poisson)?,
+    };
     if describe(
         &organ,
         &format!("{level:?}").to_lowercase(),
