@@ -34,6 +34,7 @@ pub struct Settings<'a> {
 
 /// One held-out press and Newton's answer there.
 struct Press {
+    at: [f64; 3],
     point: ProbePoint,
     compliance_mm_per_n: f64,
     depth_mm: f64,
@@ -52,14 +53,19 @@ struct Errors {
     worst_force: f64,
     sum_force: f64,
     worst_surface_mm: f64,
+    /// Where the worst surface error was: point and depth (mm).
+    worst_surface_at: Option<([f64; 3], f64)>,
 }
 
 impl Errors {
-    fn add(&mut self, force_rel: f64, surface_mm: f64) {
+    fn add(&mut self, p: &Press, force_rel: f64, surface_mm: f64) {
         self.compared += 1;
         self.worst_force = self.worst_force.max(force_rel);
         self.sum_force += force_rel;
-        self.worst_surface_mm = self.worst_surface_mm.max(surface_mm);
+        if surface_mm >= self.worst_surface_mm {
+            self.worst_surface_mm = surface_mm;
+            self.worst_surface_at = Some((p.at, p.depth_mm));
+        }
     }
 
     fn json(&self) -> serde_json::Value {
@@ -68,6 +74,7 @@ impl Errors {
             "worst_force_rel_error": some.then_some(self.worst_force),
             "mean_force_rel_error": some.then(|| self.sum_force / self.compared as f64),
             "worst_surface_max_error_mm": some.then_some(self.worst_surface_mm),
+            "worst_surface_at": self.worst_surface_at.map(|(at, d)| json!({"at": at, "depth_mm": d})),
             "meets_goals": some.then_some(self.worst_force <= 0.05 && self.worst_surface_mm <= 0.5)})
     }
 }
@@ -121,6 +128,7 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
             let push = contact.push_dir.map(|d| d * depth_mm / c);
             scene.displacement(&point, push, &mut coeffs, &mut linear_rows)?;
             presses.push(Press {
+                at,
                 point,
                 compliance_mm_per_n: c,
                 depth_mm,
@@ -137,7 +145,7 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
     for p in &presses {
         let f = p.depth_mm / p.compliance_mm_per_n;
         let ([e], _) = max_node_errors(&organ, &vertex_of, &p.reference, [&p.linear_rows]);
-        linear.add((f - p.force_n).abs() / p.force_n, e);
+        linear.add(p, (f - p.force_n).abs() / p.force_n, e);
     }
     let mut table = Vec::new();
     let intervals = law.steps as usize - 1;
@@ -226,9 +234,9 @@ fn measure(
         surface_s += t.elapsed().as_secs_f64();
         let ([e], _) = max_node_errors(organ, vertex_of, &p.reference, [&rows]);
         let f = (force - p.force_n).abs() / p.force_n;
-        all.add(f, e);
+        all.add(p, f, e);
         if let Some(k) = at_depth {
-            by_depth[k].add(f, e);
+            by_depth[k].add(p, f, e);
         }
     }
     let mut row = knobs.clone();
