@@ -80,13 +80,13 @@ impl Errors {
 }
 
 pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
-    let (full, scene) = bound_to_scene(file, s.scene)?;
-    let organ = s.organ.mesh()?;
-    let law = full.law.clone();
-    let o = law.options;
     if s.depths_mm.is_empty() || s.depths_mm.iter().any(|d| !(d.is_finite() && *d > 0.0)) {
         anyhow::bail!("--depths {:?}: expected positive depths (mm)", s.depths_mm);
     }
+    let (bound, scene) = bound_to_scene(file, s.scene)?;
+    let organ = s.organ.mesh()?;
+    let law = bound.law;
+    let o = law.options;
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let mut contact_scratch = scene.contact_scratch();
     let mut coeffs = vec![0.0; scene.modes()];
