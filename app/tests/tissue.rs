@@ -70,6 +70,30 @@ fn path(p: &std::path::Path) -> String {
     p.to_str().expect("utf-8 path").to_string()
 }
 
+/// `palpa tissue check TISSUE --scene SCENE` at two held-out points (the default
+/// seed), each pressed at `depths` (D1,D2,..), with `extra` arguments.
+fn tissue_check(
+    tissue: &std::path::Path,
+    scene: &str,
+    depths: &str,
+    extra: &[&str],
+) -> std::process::Output {
+    let tissue = path(tissue);
+    let mut args = vec![
+        "tissue",
+        "check",
+        &tissue,
+        "--scene",
+        scene,
+        "--heldout",
+        "2",
+        "--depths",
+        depths,
+    ];
+    args.extend_from_slice(extra);
+    palpa(&args)
+}
+
 /// `palpa offline liver` on coarse P1 with the tissue vademecum of `model` to 6 mm,
 /// pressed within `within` (X,Y,Z,R), into `scene` (the tissue beside it): its JSON.
 fn p1_scene_with_tissue(scene: &std::path::Path, model: &str, within: &str) -> serde_json::Value {
@@ -222,20 +246,7 @@ fn tissue_check_separates_the_blend_from_the_press() {
     let count = |k: &str| built["tissue"][k].as_u64().unwrap_or_else(|| panic!("{k}"));
     assert!(count("samples") >= 8 && count("edges") >= count("samples"));
 
-    let check = |scene: &str| {
-        palpa(&[
-            "tissue",
-            "check",
-            &path(&tissue),
-            "--scene",
-            scene,
-            "--heldout",
-            "2",
-            "--depths",
-            "3.3,5.6",
-            "--own",
-        ])
-    };
+    let check = |scene: &str| tissue_check(&tissue, scene, "3.3,5.6", &["--own"]);
     let out = check(&path(&scene));
     let rows = common::json_lines_ok(&out);
     let (summary, presses) = rows.split_last().expect("rows");
@@ -487,19 +498,7 @@ fn a_nearly_incompressible_tissue_meets_the_goals_on_its_own_scene() {
         &path(&scene),
     ]));
     assert_eq!(built["tissue"]["stopped_short"], 0, "{built}");
-    let check = |scene: &str| {
-        palpa(&[
-            "tissue",
-            "check",
-            &path(&tissue),
-            "--scene",
-            scene,
-            "--heldout",
-            "2",
-            "--depths",
-            "1.3,3.3",
-        ])
-    };
+    let check = |scene: &str| tissue_check(&tissue, scene, "1.3,3.3", &[]);
     let rows = common::json_lines_ok(&check(&path(&scene)));
     let summary = rows.last().expect("summary");
     assert_eq!(summary["presses_compared"], 4, "{summary}");
