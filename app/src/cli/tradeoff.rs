@@ -9,6 +9,10 @@
 //! map in the natural norm against the optimal rank-n approximation (Eckart–Young;
 //! computed by default on coarse, `--svd` elsewhere: one FE solve per palpable node
 //! and direction).
+//!
+//! A tissue file (`X.tissue`) gets its own table, over its modes and depth step with
+//! errors at held-out points and depths against Newton (`tissue_tradeoff`); `--depths`,
+//! `--scene`, `--seed` and the organ options apply to it only.
 
 use std::path::PathBuf;
 
