@@ -10,7 +10,7 @@ use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
 use palpa_core::file;
 use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueError, TissueLaw};
+use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueError, TissueLaw};
 use palpa_core::scene::PalpationScene;
 use palpa_tests::coarse_liver;
 
@@ -33,8 +33,11 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
     };
     let law = SurfaceLaw::build(&organ, options, &|_, _| {}).expect("builds");
     assert!(law.samples.len() >= 3, "{} samples", law.samples.len());
-    let tissue = TissueLaw::compress(&organ, &law, 0.02).expect("compresses");
+    let tissue = TissueLaw::compress(&organ, &law, 0.02, ShapeBits::Sixteen).expect("compresses");
     assert!(tissue.truncation_bound_mm <= 0.02);
+    // Eight bits: fewer bytes, and a bound that still says what a node may err.
+    let eight = TissueLaw::compress(&organ, &law, 0.02, ShapeBits::Eight).expect("compresses");
+    assert!(eight.payload_bytes() < tissue.payload_bytes());
 
     // The file comes back as saved; a flipped byte is named, not loaded.
     let dir = tempfile::tempdir().expect("tempdir");
@@ -123,6 +126,26 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
         .expect("linear surface");
     let mut nonlinear = linear.clone();
     bound.add_surface(&point, depth, &mut scratch, &mut nonlinear);
+    // The eight-bit law's surface differs from the sixteen-bit one's by at most both
+    // bounds times the blend's total weight (corners 1, edges at most 4/3).
+    let bound8 = BoundTissue::bind(
+        eight,
+        scene.vertices_mm(),
+        scene.axis_vertices_mm(),
+        scene.axis_triangles(),
+    )
+    .expect("binds");
+    let mut nonlinear8 = linear.clone();
+    bound8.add_surface(&point, depth, &mut bound8.scratch(), &mut nonlinear8);
+    let apart = nonlinear
+        .chunks(3)
+        .zip(nonlinear8.chunks(3))
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0f64, f64::max);
+    let allowed =
+        (bound.law.truncation_bound_mm + bound8.law.truncation_bound_mm) * (1.0 + 4.0 / 3.0);
+    eprintln!("eight bits: {apart:.4} mm from sixteen (allowed {allowed:.4} mm)");
+    assert!(apart > 0.0 && apart <= allowed, "{apart} vs {allowed}");
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let (mut e_tissue, mut e_linear) = (0.0f64, 0.0f64);
     for v in organ.surface_nodes() {

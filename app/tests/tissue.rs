@@ -47,7 +47,7 @@ fn hand_made(scene: &PalpationScene) -> TissueLaw {
         stopped: vec![String::new(); samples],
         rank: 1,
         mode_start: (0..=samples as u32).collect(),
-        shape,
+        shape: palpa_core::pgd::tissue::Shapes::Sixteen(shape),
         shape_scale: vec![1.0 / f32::from(i16::MAX); samples],
         coeffs: [0.0, 1.0, 2.0].repeat(samples),
         truncation_bound_mm: 0.0,
@@ -291,13 +291,28 @@ fn tissue_check_separates_the_blend_from_the_press() {
         .filter_map(|r| r["modes_max"].as_u64())
         .max()
         .expect("a mode count");
-    let row = |modes: u64, step: f64| {
+    let row_in = |modes: u64, step: f64, bits: u64| {
         table_rows
             .iter()
-            .find(|r| r["modes_max"] == modes && r["depth_step_mm"] == step)
-            .unwrap_or_else(|| panic!("no row {modes} modes, {step} mm: {table}"))
+            .find(|r| r["modes_max"] == modes && r["depth_step_mm"] == step && r["bits"] == bits)
+            .unwrap_or_else(|| panic!("no row {modes} modes, {step} mm, {bits} bits: {table}"))
     };
+    let row = |modes: u64, step: f64| row_in(modes, step, 16);
     let full = row(rank, 1.0);
+    // Eight bits: half the shapes' bytes, the same force, a surface within what the
+    // requantization reports (times the blend's total weight, at most 1 + 4/3).
+    let eight = row_in(rank, 1.0, 8);
+    assert!(num(eight, "payload_bytes") < num(full, "payload_bytes"));
+    assert_eq!(
+        eight["worst_force_rel_error"],
+        full["worst_force_rel_error"]
+    );
+    let surface = "worst_surface_max_error_mm";
+    assert!(
+        (num(eight, surface) - num(full, surface)).abs()
+            <= num(eight, "requantized_mm") * (1.0 + 4.0 / 3.0) + 1e-9,
+        "{eight} {full}"
+    );
     for (k, check_key) in [
         ("worst_force_rel_error", "worst_force_rel_error"),
         ("worst_surface_max_error_mm", "worst_surface_max_error_mm"),

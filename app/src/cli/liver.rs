@@ -792,6 +792,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         depth_step_mm: 1.0,
         orders: defaults.orders,
         tolerance_mm: 0.05,
+        bits: 16,
         active_cutoff: defaults.active_cutoff,
         within: args.within.clone(),
         young_kpa: material.young_kpa,

@@ -12,7 +12,7 @@ use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, press_at};
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueLaw};
+use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueLaw};
 use palpa_core::rng::Rng;
 use serde_json::json;
 
@@ -50,6 +50,10 @@ pub struct BuildArgs {
     /// The compression's guaranteed bound on any node's residual (mm).
     #[arg(long, default_value_t = 0.05)]
     pub tolerance_mm: f64,
+    /// Bits per stored entry of a mode's shape: 16, or 8 for half the bytes (the
+    /// quantization is part of the bound; `palpa tradeoff` measures both).
+    #[arg(long, default_value_t = 16, value_parser = parse_bits)]
+    pub bits: u32,
     /// Higher orders assembled where the first order varies by at least this fraction
     /// of its peak (0: everywhere).
     #[arg(long, default_value_t = SurfaceLawOptions::default().active_cutoff)]
@@ -103,6 +107,16 @@ pub struct CheckArgs {
     /// press's own, its distance from the vademecum's surface the blend's.
     #[arg(long)]
     own: bool,
+}
+
+/// `--bits`: 8 or 16.
+pub fn parse_bits(s: &str) -> Result<u32, String> {
+    match s.parse::<u32>() {
+        Ok(b) if ShapeBits::from_count(b).is_some() => Ok(b),
+        _ => Err(format!(
+            "{s}: expected 8 or 16 (bits per stored shape entry)"
+        )),
+    }
 }
 
 pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
@@ -169,7 +183,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         .iter()
         .min()
         .map(|&r| f64::from(r - 1) * options.depth_step_mm);
-    let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm)?;
+    let bits = ShapeBits::from_count(args.bits).context("--bits: expected 8 or 16")?;
+    let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm, bits)?;
     tissue.save(&args.out)?;
     let _ = std::fs::remove_file(&log);
     let summary = json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
@@ -178,6 +193,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             "skip_reasons": reasons,
             "stopped_short": stopped_short, "shallowest_reach_mm": shallowest,
             "rows": tissue.rows_mm.len(), "depth_max_mm": tissue.depth_max_mm(),
+            "bits": tissue.shape.bits().count(),
             "rank": tissue.rank, "truncation_bound_mm": tissue.truncation_bound_mm,
             "uncompressed_bytes": law.bytes(), "payload_bytes": tissue.payload_bytes(),
             "file_bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),

@@ -17,7 +17,7 @@ use anyhow::Context;
 use palpa_core::axis::ProbePoint;
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex};
+use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits};
 use serde_json::json;
 
 use super::args::OrganArgs;
@@ -157,12 +157,21 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
         .take_while(|&m| m < rank)
         .collect();
     modes.push(rank);
-    for &stride in &strides {
-        for &modes_max in &modes {
-            let cut = match law.coarsened(modes_max, stride) {
+    // The law's own bits, and eight where it has sixteen.
+    let mut precisions = vec![law.shape.bits()];
+    if law.shape.bits() != ShapeBits::Eight {
+        precisions.push(ShapeBits::Eight);
+    }
+    for (&stride, &modes_max, &bits) in strides
+        .iter()
+        .flat_map(|s| modes.iter().map(move |m| (s, m)))
+        .flat_map(|(s, m)| precisions.iter().map(move |b| (s, m, b)))
+    {
+        {
+            let cut = match law.coarsened(modes_max, bits, stride) {
                 Ok(cut) => cut,
                 Err(why) => {
-                    table.push(json!({"modes_max": modes_max,
+                    table.push(json!({"modes_max": modes_max, "bits": bits.count(),
                         "depth_step_mm": o.depth_step_mm * stride as f64, "refused": why}));
                     continue;
                 }
@@ -181,8 +190,10 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
                 &vertex_of,
                 s.depths_mm,
                 &json!({
-                "modes_max": modes_max, "depth_step_mm": o.depth_step_mm * stride as f64,
+                "modes_max": modes_max, "bits": bits.count(),
+                "depth_step_mm": o.depth_step_mm * stride as f64,
                 "payload_bytes": bytes, "dropped_sigma_mm": cut.dropped_sigma_mm,
+                "requantized_mm": cut.requantized_mm,
                 "truncation_bound_mm": bound.law.truncation_bound_mm}),
             ));
         }

@@ -24,4 +24,5 @@ pub mod samplelog;
 pub mod surfacelaw;
 pub mod tissue;
 pub mod tissue_knobs;
+pub mod tissue_shapes;
 pub mod tradeoff;

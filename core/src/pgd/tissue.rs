@@ -13,9 +13,10 @@
 //! R_v ≈ A_v C_v,   A_v = U_q (3n × q),   C_v = Σ_q V_qᵀ (q × depths),
 //! ```
 //!
-//! keeping the fewest modes `q` with `σ_{q+1} ≤ tol`. Every column's error is then at
-//! most `σ_{q+1}` in the Euclidean norm, and so is every node's: the stored bound is a
-//! guarantee on the compression, not an estimate. (One SVD over all vertices does
+//! keeping the fewest modes `q` with `σ_{q+1}` plus what storing the kept modes in 16
+//! or 8 bits costs a node ([`super::tissue_shapes`]) at most `tol`. The truncation
+//! errs by at most `σ_{q+1}` in any column's Euclidean norm, and so at any node: the
+//! stored bound is a guarantee on the compression, not an estimate. (One SVD over all vertices does
 //! poorly here: each press's residual is a bump at its own place, and bumps at 500
 //! places are not a low-rank family; at 512 modes it still errs by 1.4 mm on coarse
 //! P2. Along its depths, one press's residual is nearly one shape growing: two to
@@ -64,12 +65,13 @@ use crate::axis::ProbePoint;
 use crate::organ::OrganMesh;
 use crate::pgd::depthlaw::DepthLaw;
 use crate::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
+pub use crate::pgd::tissue_shapes::{ShapeBits, Shapes};
 use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
 /// The file's format version.
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -135,11 +137,10 @@ pub struct TissueLaw {
     pub rank: u32,
     /// Sample `s`'s modes are `mode_start[s]..mode_start[s + 1]`.
     pub mode_start: Vec<u32>,
-    /// Each mode's surface shape (unit norm), quantized to 16 bits:
-    /// `shape[mode · 3·rows + row3] · shape_scale[mode]`. Quantizing costs at most
-    /// `scale / 2` per entry, which the stored bound includes; it halves the file
-    /// against f32.
-    pub shape: Vec<i16>,
+    /// Each mode's surface shape (unit norm), quantized to 16 or 8 bits (see
+    /// [`super::tissue_shapes`]): entry `mode · 3·rows + row3` times
+    /// `shape_scale[mode]`. What quantizing costs a node is in the stored bound.
+    pub shape: Shapes,
     pub shape_scale: Vec<f32>,
     /// `coeffs[mode · steps + j]`: its weight at grid depth `j`, mm.
     pub coeffs: Vec<f32>,
@@ -194,11 +195,13 @@ impl TissueLaw {
         Ok(())
     }
 
-    /// Compresses a built surface law to `tolerance_mm` (see the module docs).
+    /// Compresses a built surface law to `tolerance_mm`, its shapes stored in `bits`
+    /// (see the module docs).
     pub fn compress(
         organ: &OrganMesh,
         law: &SurfaceLaw,
         tolerance_mm: f64,
+        bits: ShapeBits,
     ) -> Result<TissueLaw, TissueError> {
         let t0 = Instant::now();
         let steps = law.steps();
@@ -208,7 +211,7 @@ impl TissueLaw {
         }
         let m = 3 * law.rows.len();
         let (mut mode_start, mut coeffs) = (vec![0u32], Vec::new());
-        let (mut shape, mut shape_scale) = (Vec::new(), Vec::new());
+        let (mut shape, mut shape_scale) = (Shapes::new(bits), Vec::new());
         let (mut rank, mut bound) = (0usize, 0.0f64);
         for s in 0..n_samples {
             // Columns j ≥ 1 only: depth 0 is exactly zero.
@@ -217,28 +220,17 @@ impl TissueLaw {
                 rows: m,
                 cols: steps - 1,
             })?;
-            // Each mode quantized, with what quantizing costs it at most (mm).
+            // Each mode quantized alone, with what quantizing costs a node at most
+            // (mm, at the mode's largest weight).
             let n = svd.s.len().min(MAX_RANK);
-            let modes: Vec<(Vec<i16>, f64, f64, Vec<f64>)> = (0..n)
+            let modes: Vec<(Shapes, f32, f64, Vec<f64>)> = (0..n)
                 .map(|k| {
                     let c: Vec<f64> = (0..steps - 1).map(|c| svd.s[k] * svd.v[(c, k)]).collect();
                     let c_max = c.iter().fold(0.0f64, |a, x| a.max(x.abs()));
-                    let top = (0..m).fold(0.0f64, |a, i| a.max(svd.u[(i, k)].abs()));
-                    let scale = top / f64::from(i16::MAX);
-                    let mut err2 = 0.0;
-                    let q16: Vec<i16> = (0..m)
-                        .map(|i| {
-                            let x = svd.u[(i, k)];
-                            let q = if scale > 0.0 {
-                                (x / scale).round().clamp(-32767.0, 32767.0)
-                            } else {
-                                0.0
-                            };
-                            err2 += (x - q * f64::from(scale as f32)).powi(2);
-                            q as i16
-                        })
-                        .collect();
-                    (q16, scale, err2.sqrt() * c_max, c)
+                    let column: Vec<f64> = (0..m).map(|i| svd.u[(i, k)]).collect();
+                    let mut one = Shapes::new(bits);
+                    let (scale, node_error) = one.push_mode(&column);
+                    (one, scale, node_error * c_max, c)
                 })
                 .collect();
             // The fewest modes whose truncation plus quantization stays within the
@@ -249,9 +241,9 @@ impl TissueLaw {
             let q = (0..=n).find(|&q| cost(q) <= tolerance_mm).unwrap_or(n);
             let vertex_bound = cost(q);
             rank = rank.max(q);
-            for (q16, scale, _, c) in modes.into_iter().take(q) {
-                shape.extend(q16);
-                shape_scale.push(scale as f32);
+            for (one, scale, _, c) in modes.into_iter().take(q) {
+                shape.push_copy(&one, 0, m);
+                shape_scale.push(scale);
                 coeffs.push(0.0f32);
                 coeffs.extend(c.iter().map(|&x| x as f32));
             }
@@ -378,7 +370,7 @@ impl TissueLaw {
 
     /// Bytes of the stored arrays (what a scene keeps in memory).
     pub fn payload_bytes(&self) -> usize {
-        2 * self.shape.len() + 4 * (self.shape_scale.len() + self.coeffs.len() + self.ratio.len())
+        self.shape.bytes() + 4 * (self.shape_scale.len() + self.coeffs.len() + self.ratio.len())
     }
 
     /// Writes the law atomically (a temporary file renamed into place).
@@ -714,7 +706,6 @@ impl BoundTissue {
         let (last, _) = self.last_depth(Some(&corners));
         let (j, t, _) = self.interval(depth_mm, last);
         let steps = self.law.steps as usize;
-        let m = 3 * self.law.rows_mm.len();
         // Each kept mode's weight at this depth, for the three corners.
         let mut n = 0;
         let mut first = [0usize; 6];
@@ -741,18 +732,10 @@ impl BoundTissue {
                 if weight == 0.0 {
                     continue;
                 }
-                let shape = &self.law.shape[mode * m..][..m];
                 let weight = weight * f64::from(self.law.shape_scale[mode]);
-                for (row, &v) in self.vertex_of_row.iter().enumerate() {
-                    if v == u32::MAX {
-                        continue;
-                    }
-                    for comp in 0..3 {
-                        if let Some(o) = rows_mm.get_mut(3 * v as usize + comp) {
-                            *o += weight * f64::from(shape[3 * row + comp]);
-                        }
-                    }
-                }
+                self.law
+                    .shape
+                    .add_mode(mode, weight, &self.vertex_of_row, rows_mm);
             }
         }
         true
@@ -880,7 +863,7 @@ mod tests {
             stopped: vec![String::new(); 4],
             rank: 1,
             mode_start: (0..=4).collect(),
-            shape: [i16::MAX, 0, 0].repeat(4),
+            shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(4)),
             shape_scale: vec![1.0 / f32::from(i16::MAX); 4],
             coeffs: x1.iter().flat_map(|&x| [0.0, x]).collect(),
             truncation_bound_mm: 0.0,
@@ -946,7 +929,7 @@ mod tests {
             stopped: vec![String::new(), why.clone(), String::new()],
             rank: 1,
             mode_start: (0..=3).collect(),
-            shape: [i16::MAX, 0, 0].repeat(3),
+            shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(3)),
             shape_scale: vec![1.0 / f32::from(i16::MAX); 3],
             // x residual: 0, 1, 4 mm (corner 1: 0, 1, 1 held).
             coeffs: [[0.0, 1.0, 4.0], [0.0, 1.0, 1.0], [0.0, 1.0, 4.0]].concat(),

@@ -1,5 +1,5 @@
-//! The tissue vademecum's two knobs, applied to a built law: the modes each sample
-//! keeps and the depth grid's step. `palpa tradeoff` measures each setting's error
+//! The tissue vademecum's three knobs, applied to a built law: the modes each sample
+//! keeps, the bits each mode's shape is stored in, and the depth grid's step. `palpa tradeoff` measures each setting's error
 //! at held-out points and depths against the full nonlinear FE, and its bytes and
 //! evaluation time.
 //!
@@ -10,6 +10,10 @@
 //!   row `k` has norm `σ_k` (see [`super::tissue`]). Keeping the first `q` modes
 //!   errs by at most `σ_{q+1}` in any column, and so at any node, on top of the
 //!   stored bound: the largest dropped `σ` is reported with the cut.
+//! - **Precision.** Each kept mode is quantized again to the bits asked for (a cut
+//!   to the bits it has copies it): its node error per unit weight times its largest
+//!   weight is what that adds to a node, reported with the cut (see
+//!   [`super::tissue_shapes`]).
 //! - **Depth step.** Keeping every `k`-th grid depth, `d_{kj'}`, is the law a build
 //!   with the `k` times longer step would have stored (each grid state is an
 //!   equilibrium of its own depth, not of the path between), blended linearly in `d`
@@ -18,6 +22,7 @@
 //!   alone is refused.
 
 use super::tissue::TissueLaw;
+use super::tissue_shapes::{ShapeBits, Shapes};
 
 /// A law with fewer modes, or a longer depth step, and what the modes dropped weigh.
 #[derive(Debug, Clone)]
@@ -26,12 +31,20 @@ pub struct Coarsened {
     /// The largest singular value dropped from any sample (mm): the added bound on a
     /// node's residual at a grid depth.
     pub dropped_sigma_mm: f64,
+    /// The most that quantizing to fewer bits adds to a node of any sample (mm).
+    pub requantized_mm: f64,
 }
 
 impl TissueLaw {
-    /// Keeps at most `modes_max` modes per sample and every `depth_stride`-th grid
-    /// depth. The stride must divide the grid's intervals (the deepest depth stays).
-    pub fn coarsened(&self, modes_max: usize, depth_stride: usize) -> Result<Coarsened, String> {
+    /// Keeps at most `modes_max` modes per sample, in `bits`, and every
+    /// `depth_stride`-th grid depth. The stride must divide the grid's intervals (the
+    /// deepest depth stays). The law's bound grows by what is dropped and requantized.
+    pub fn coarsened(
+        &self,
+        modes_max: usize,
+        bits: ShapeBits,
+        depth_stride: usize,
+    ) -> Result<Coarsened, String> {
         let (steps, k) = (self.steps as usize, depth_stride);
         if modes_max == 0 || k == 0 || !(steps - 1).is_multiple_of(k) {
             return Err(format!(
@@ -63,12 +76,14 @@ impl TissueLaw {
             .collect();
         let m = 3 * self.rows_mm.len();
         let (mut mode_start, mut shape, mut shape_scale, mut coeffs) =
-            (vec![0u32], Vec::new(), Vec::new(), Vec::new());
-        let (mut rank, mut dropped) = (0usize, 0.0f64);
+            (vec![0u32], Shapes::new(bits), Vec::new(), Vec::new());
+        let (mut rank, mut dropped, mut requantized) = (0usize, 0.0f64, 0.0f64);
+        let mut mode_mm = vec![0.0; m];
         for s in 0..n_samples {
             let modes = self.mode_start[s] as usize..self.mode_start[s + 1] as usize;
             let keep = modes.len().min(modes_max);
             rank = rank.max(keep);
+            let mut sample_requantized = 0.0;
             for (i, mode) in modes.enumerate() {
                 let row = &self.coeffs[mode * steps..][..steps];
                 if i >= keep {
@@ -76,10 +91,22 @@ impl TissueLaw {
                     dropped = dropped.max(sigma.sqrt());
                     continue;
                 }
-                shape.extend_from_slice(&self.shape[mode * m..][..m]);
-                shape_scale.push(self.shape_scale[mode]);
+                if bits == self.shape.bits() {
+                    shape.push_copy(&self.shape, mode, m);
+                    shape_scale.push(self.shape_scale[mode]);
+                } else {
+                    let scale = f64::from(self.shape_scale[mode]);
+                    for (k, x) in mode_mm.iter_mut().enumerate() {
+                        *x = self.shape.get(mode * m + k) * scale;
+                    }
+                    let (scale, node_error) = shape.push_mode(&mode_mm);
+                    shape_scale.push(scale);
+                    let c_max = row.iter().fold(0.0f64, |a, &c| a.max(f64::from(c).abs()));
+                    sample_requantized += node_error * c_max;
+                }
                 coeffs.extend((0..new_steps).map(|j| row[source(s, j)]));
             }
+            requantized = f64::max(requantized, sample_requantized);
             mode_start.push(mode_start[s] + keep as u32);
         }
         let mut options = self.options;
@@ -94,13 +121,14 @@ impl TissueLaw {
             shape,
             shape_scale,
             coeffs,
-            truncation_bound_mm: self.truncation_bound_mm.max(dropped),
+            truncation_bound_mm: self.truncation_bound_mm + dropped + requantized,
             ..self.clone()
         };
         law.check()?;
         Ok(Coarsened {
             law,
             dropped_sigma_mm: dropped,
+            requantized_mm: requantized,
         })
     }
 }
@@ -148,7 +176,7 @@ mod tests {
             ],
             rank: 2,
             mode_start: vec![0, 2, 4, 6],
-            shape: [i16::MAX, 0, 0, 0, i16::MAX, 0].repeat(3),
+            shape: Shapes::Sixteen([i16::MAX, 0, 0, 0, i16::MAX, 0].repeat(3)),
             shape_scale: vec![s; 6],
             coeffs: [
                 x.clone(),
@@ -177,28 +205,57 @@ mod tests {
 
     #[test]
     fn the_full_setting_is_the_law_itself() {
-        let c = law().coarsened(8, 1).expect("valid");
+        let c = law().coarsened(8, ShapeBits::Sixteen, 1).expect("valid");
         assert_eq!(c.law, law());
-        assert_eq!(c.dropped_sigma_mm, 0.0);
+        assert_eq!((c.dropped_sigma_mm, c.requantized_mm), (0.0, 0.0));
+    }
+
+    #[test]
+    fn eight_bits_halve_the_shapes_and_err_within_what_they_report() {
+        // A mode with entries of several sizes, so that quantizing costs something.
+        let mut l = law();
+        let x = [32767i16, 12345, -777, 5, 20000, -31111].repeat(3);
+        l.shape = Shapes::Sixteen(x);
+        let c = l.coarsened(8, ShapeBits::Eight, 1).expect("valid");
+        assert_eq!(c.law.shape.bits(), ShapeBits::Eight);
+        assert_eq!(2 * c.law.shape.bytes(), l.shape.bytes());
+        assert!(c.requantized_mm > 0.0);
+        assert!((c.law.truncation_bound_mm - (0.01 + c.requantized_mm)).abs() < 1e-12);
+        for (bary, depth) in [([1.0, 0.0, 0.0], 4.0), ([0.2, 0.3, 0.5], 2.5)] {
+            let (a, b) = (
+                surface(l.clone(), bary, depth),
+                surface(c.law.clone(), bary, depth),
+            );
+            let e = (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
+            assert!(
+                e > 0.0 && e <= c.requantized_mm,
+                "{e} vs {}",
+                c.requantized_mm
+            );
+        }
+        // Back to sixteen bits: a step 127/32767 of the eight-bit one, so what that
+        // costs is about 1/258 of what eight bits did.
+        let back = c.law.coarsened(8, ShapeBits::Sixteen, 1).expect("valid");
+        assert!(back.requantized_mm < 1e-2 * c.requantized_mm);
     }
 
     #[test]
     fn fewer_modes_drop_the_later_ones_and_report_their_weight() {
-        let c = law().coarsened(1, 1).expect("valid");
+        let c = law().coarsened(1, ShapeBits::Sixteen, 1).expect("valid");
         assert_eq!(
             (c.law.rank, c.law.mode_start.clone()),
             (1, vec![0, 1, 2, 3])
         );
         // Mode 1's coefficients: 0.1 · (0, 1, 2, 3, 4), norm 0.1 · √30.
         assert!((c.dropped_sigma_mm - 0.1 * 30f64.sqrt()).abs() < 1e-6);
-        assert_eq!(c.law.truncation_bound_mm, c.dropped_sigma_mm);
+        assert!((c.law.truncation_bound_mm - (0.01 + c.dropped_sigma_mm)).abs() < 1e-12);
         let r = surface(c.law, [1.0, 0.0, 0.0], 2.0);
         assert!((r[0] - 1.0).abs() < 1e-6 && r[1] == 0.0, "{r:?}");
     }
 
     #[test]
     fn a_longer_step_keeps_grid_depths_and_blends_linearly_between() {
-        let c = law().coarsened(8, 2).expect("valid");
+        let c = law().coarsened(8, ShapeBits::Sixteen, 2).expect("valid");
         assert_eq!((c.law.steps, c.law.options.depth_step_mm), (3, 2.0));
         // Corner 2 reached 3 mm: 0 and 2 mm kept, so it answers to 2 mm.
         assert_eq!(c.law.reach, vec![3, 3, 2]);
@@ -227,17 +284,19 @@ mod tests {
 
     #[test]
     fn cuts_that_lose_the_deepest_depth_or_a_whole_press_are_refused() {
-        assert!(law().coarsened(0, 1).is_err());
+        assert!(law().coarsened(0, ShapeBits::Sixteen, 1).is_err());
         assert!(
             law()
-                .coarsened(2, 3)
+                .coarsened(2, ShapeBits::Sixteen, 3)
                 .expect_err("3 does not divide 4")
                 .contains("4 intervals")
         );
         let mut short = law();
         short.reach[2] = 2;
         short.coeffs[20..25].copy_from_slice(&[0.0, 0.25, 0.25, 0.25, 0.25]);
-        let why = short.coarsened(2, 2).expect_err("a press left at rest");
+        let why = short
+            .coarsened(2, ShapeBits::Sixteen, 2)
+            .expect_err("a press left at rest");
         assert!(why.contains("sample 2 reached 1 mm"), "{why}");
     }
 }
