@@ -291,28 +291,17 @@ fn tissue_check_separates_the_blend_from_the_press() {
         .filter_map(|r| r["modes_max"].as_u64())
         .max()
         .expect("a mode count");
-    let row_in = |modes: u64, step: f64, bits: u64| {
+    // Built with the default eight bits, the table offers no sixteen (nothing to
+    // gain from requantizing up); eight against sixteen is tested on a law built
+    // with sixteen (`tests/tissue.rs`, `tissue_knobs`).
+    assert!(table_rows.iter().all(|r| r["bits"] == 8), "{table}");
+    let row = |modes: u64, step: f64| {
         table_rows
             .iter()
-            .find(|r| r["modes_max"] == modes && r["depth_step_mm"] == step && r["bits"] == bits)
-            .unwrap_or_else(|| panic!("no row {modes} modes, {step} mm, {bits} bits: {table}"))
+            .find(|r| r["modes_max"] == modes && r["depth_step_mm"] == step)
+            .unwrap_or_else(|| panic!("no row {modes} modes, {step} mm: {table}"))
     };
-    let row = |modes: u64, step: f64| row_in(modes, step, 16);
     let full = row(rank, 1.0);
-    // Eight bits: half the shapes' bytes, the same force, a surface within what the
-    // requantization reports (times the blend's total weight, at most 1 + 4/3).
-    let eight = row_in(rank, 1.0, 8);
-    assert!(num(eight, "payload_bytes") < num(full, "payload_bytes"));
-    assert_eq!(
-        eight["worst_force_rel_error"],
-        full["worst_force_rel_error"]
-    );
-    let surface = "worst_surface_max_error_mm";
-    assert!(
-        (num(eight, surface) - num(full, surface)).abs()
-            <= num(eight, "requantized_mm") * (1.0 + 4.0 / 3.0) + 1e-9,
-        "{eight} {full}"
-    );
     for (k, check_key) in [
         ("worst_force_rel_error", "worst_force_rel_error"),
         ("worst_surface_max_error_mm", "worst_surface_max_error_mm"),

@@ -12,7 +12,9 @@ use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, press_at};
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueLaw};
+use palpa_core::pgd::tissue::{
+    BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, PointIndex, ShapeBits, TissueLaw,
+};
 use palpa_core::rng::Rng;
 use serde_json::json;
 
@@ -48,11 +50,11 @@ pub struct BuildArgs {
     #[arg(long, default_value_t = SurfaceLawOptions::default().orders)]
     pub orders: usize,
     /// The compression's guaranteed bound on any node's residual (mm).
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = DEFAULT_TOLERANCE_MM)]
     pub tolerance_mm: f64,
-    /// Bits per stored entry of a mode's shape: 16, or 8 for half the bytes (the
+    /// Bits per stored entry of a mode's shape: 8 (half the bytes) or 16 (the
     /// quantization is part of the bound; `palpa tradeoff` measures both).
-    #[arg(long, default_value_t = 16, value_parser = parse_bits)]
+    #[arg(long, default_value_t = DEFAULT_BITS.count(), value_parser = parse_bits)]
     pub bits: u32,
     /// Higher orders assembled where the first order varies by at least this fraction
     /// of its peak (0: everywhere).

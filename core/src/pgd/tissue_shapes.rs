@@ -22,7 +22,7 @@ pub enum ShapeBits {
 }
 
 impl ShapeBits {
-    pub fn count(self) -> u32 {
+    pub const fn count(self) -> u32 {
         match self {
             ShapeBits::Eight => 8,
             ShapeBits::Sixteen => 16,
