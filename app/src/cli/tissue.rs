@@ -111,6 +111,16 @@ pub struct CheckArgs {
     own: bool,
 }
 
+/// A duration for a progress line: `42 s`, `17 min`, `3 h 05 min`.
+fn minutes(seconds: f64) -> String {
+    let s = seconds.max(0.0).round() as u64;
+    match s {
+        0..60 => format!("{s} s"),
+        60..3600 => format!("{} min", s / 60),
+        _ => format!("{} h {:02} min", s / 3600, s % 3600 / 60),
+    }
+}
+
 /// `--bits`: 8 or 16.
 pub fn parse_bits(s: &str) -> Result<u32, String> {
     match s.parse::<u32>() {
@@ -164,8 +174,24 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     let mut log = args.out.as_os_str().to_owned();
     log.push(".presses.log");
     let log = PathBuf::from(log);
+    // Progress with an estimate of what is left, from the presses this run computed
+    // (the first call reports those taken from the log).
+    let started = Instant::now();
+    let from_log = std::sync::OnceLock::new();
     let (law, resumed) = SurfaceLaw::build_logged(&organ, options, Some(&log), &|k, n| {
-        eprint!("\rtissue: vertex {k}/{n}   ");
+        let &k0 = from_log.get_or_init(|| k);
+        let elapsed_s = started.elapsed().as_secs_f64();
+        let left = match k.saturating_sub(k0) {
+            0 => String::new(),
+            done => format!(
+                ", about {} left",
+                minutes(elapsed_s / done as f64 * n.saturating_sub(k) as f64)
+            ),
+        };
+        eprint!(
+            "\rtissue: press {k}/{n}, {} elapsed{left}   ",
+            minutes(elapsed_s)
+        );
     })
     .context("pressing the palpable vertices")?;
     eprintln!();
@@ -577,4 +603,27 @@ pub fn eval(
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
     });
     super::args::print_report(&report, json_out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn progress_durations_read_as_a_person_would_say_them() {
+        assert_eq!(minutes(0.4), "0 s");
+        assert_eq!(minutes(59.4), "59 s");
+        assert_eq!(minutes(61.0), "1 min");
+        assert_eq!(minutes(3599.0), "59 min");
+        assert_eq!(minutes(3600.0 * 3.0 + 5.0 * 60.0 + 20.0), "3 h 05 min");
+        assert_eq!(minutes(f64::NAN), "0 s");
+    }
+
+    #[test]
+    fn bits_are_eight_or_sixteen() {
+        assert_eq!(parse_bits("8"), Ok(8));
+        assert_eq!(parse_bits("16"), Ok(16));
+        let e = parse_bits("12").expect_err("12 bits");
+        assert!(e.contains("8 or 16"), "{e}");
+    }
 }
