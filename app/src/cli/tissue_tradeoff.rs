@@ -1,5 +1,6 @@
 //! `palpa tradeoff X.tissue`: the measured speed/accuracy table of a tissue
-//! vademecum over its two knobs, the modes each sample keeps and the depth grid's step
+//! vademecum over its three knobs, the modes each sample keeps, the bits of each
+//! stored shape entry (eight beside a sixteen-bit law's own) and the depth grid's step
 //! (`palpa_core::pgd::tissue_knobs`), with the errors at held-out points *and*
 //! depths (the λ axis) against the full nonlinear FE.
 //!
