@@ -537,3 +537,61 @@ fn a_nearly_incompressible_tissue_meets_the_goals_on_its_own_scene() {
         "{err}"
     );
 }
+
+/// Bad build options are named before any press: a region that is not X,Y,Z,R, a
+/// bound that is not a length, bits other than 8 or 16, no press threads.
+#[test]
+fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("bad.tissue");
+    for (bad, says) in [
+        (&["--within", "1,2,3"][..], "X,Y,Z,R"),
+        (&["--tolerance-mm=-1"][..], "positive length"),
+        (&["--bits", "12"][..], "8 or 16"),
+        (&["--jobs", "0"][..], "at least one press"),
+    ] {
+        let mut args = vec!["tissue", "build", "--element", "p1", "--out"];
+        let out_s = path(&out);
+        args.push(&out_s);
+        args.extend_from_slice(bad);
+        let run = palpa(&args);
+        assert!(!run.status.success(), "{bad:?} accepted");
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(err.contains(says), "{bad:?}: {err}");
+        assert!(!out.exists(), "{bad:?} wrote a file");
+    }
+}
+
+/// One press at a time (`--jobs 1`, for a machine short of memory) gives the law that
+/// pressing on every core gives, bit for bit: each press is computed alone.
+#[test]
+fn pressing_one_at_a_time_gives_the_same_law() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let build = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let out_s = path(&out);
+        let mut args = vec![
+            "tissue",
+            "build",
+            "--element",
+            "p1",
+            "--depth-max-mm",
+            "3",
+            "--within=-30.3,70.7,16.9,8",
+            "--out",
+            &out_s,
+        ];
+        args.extend_from_slice(extra);
+        common::json_ok(&palpa(&args));
+        let mut law = TissueLaw::load(&out).expect("loads");
+        (law.build_s, law.compress_s) = (0.0, 0.0);
+        law
+    };
+    let one = build("one.tissue", &["--jobs", "1"]);
+    assert!(
+        one.samples_mm.len() >= 2,
+        "{} samples",
+        one.samples_mm.len()
+    );
+    assert_eq!(one, build("all.tissue", &[]));
+}

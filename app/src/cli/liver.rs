@@ -798,6 +798,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         young_kpa: material.young_kpa,
         poisson: material.poisson,
         no_edges: false,
+        jobs: None,
         out: args.out.with_extension("tissue"),
     };
     let (_, summary) = super::tissue::build(&build).context("building the tissue vademecum")?;
