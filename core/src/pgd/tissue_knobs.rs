@@ -1,7 +1,7 @@
 //! The tissue vademecum's three knobs, applied to a built law: the modes each sample
-//! keeps, the bits each mode's shape is stored in, and the depth grid's step. `palpa tradeoff` measures each setting's error
-//! at held-out points and depths against the full nonlinear FE, and its bytes and
-//! evaluation time.
+//! keeps, the bits each mode's shape is stored in, and the depth grid's step.
+//! `palpa tradeoff` measures each setting's error at held-out points and depths
+//! against the full nonlinear FE, and its bytes and evaluation time.
 //!
 //! Both are cuts of what was stored, so one build serves the whole table:
 //!
@@ -24,7 +24,8 @@
 use super::tissue::TissueLaw;
 use super::tissue_shapes::{ShapeBits, Shapes};
 
-/// A law with fewer modes, or a longer depth step, and what the modes dropped weigh.
+/// A law with fewer modes, fewer bits or a longer depth step, and what the modes
+/// dropped and the requantization weigh.
 #[derive(Debug, Clone)]
 pub struct Coarsened {
     pub law: TissueLaw,
