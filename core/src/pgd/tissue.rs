@@ -157,9 +157,9 @@ pub struct TissueLaw {
 pub const MAX_RANK: usize = 256;
 
 /// The compression's default bound on any node's residual (mm) and bits per stored
-/// shape entry. Eight bits halve the file; measured at held-out presses on coarse P2
-/// they moved the surface by at most 0.02 mm against sixteen, while the blend between
-/// presses errs by 0.2–0.7 mm (docs/methods.md §2e). Their quantization costs a node
+/// shape entry. Eight bits halve the file; at held-out presses on coarse P2 they
+/// changed the worst surface error by at most 0.02 mm against sixteen, while the blend
+/// between presses errs by 0.2–0.7 mm (docs/methods.md §2e). Their quantization costs a node
 /// about 0.06 mm, so the bound is 0.1 mm (a fifth of the surface goal), not 0.05.
 pub const DEFAULT_TOLERANCE_MM: f64 = 0.1;
 pub const DEFAULT_BITS: ShapeBits = ShapeBits::Eight;
