@@ -595,3 +595,55 @@ fn pressing_one_at_a_time_gives_the_same_law() {
     );
     assert_eq!(one, build("all.tissue", &[]));
 }
+
+/// A law built with sixteen bits: `tradeoff` measures it requantized to eight too,
+/// with half the shapes' bytes, the same force, and a surface within what the
+/// requantization reports (times the blend's total weight, at most 1 + 4/3).
+#[test]
+fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let tissue = dir.path().join("p2.tissue");
+    common::json_ok(&palpa(&[
+        "tissue",
+        "build",
+        "--depth-max-mm",
+        "3",
+        "--within=-30.3,70.7,16.9,9",
+        "--bits",
+        "16",
+        "--out",
+        &path(&tissue),
+    ]));
+    let table = common::json_ok(&palpa(&[
+        "tradeoff",
+        &path(&tissue),
+        "--held-out",
+        "1",
+        "--depths",
+        "2.4",
+        "--json",
+    ]));
+    let rows = table["rows"].as_array().expect("rows");
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    let rank = rows.iter().filter_map(|r| r["modes_max"].as_u64()).max();
+    let full = |bits: u64| {
+        rows.iter()
+            .find(|r| {
+                r["modes_max"].as_u64() == rank && r["depth_step_mm"] == 1.0 && r["bits"] == bits
+            })
+            .unwrap_or_else(|| panic!("no full row at {bits} bits: {table}"))
+    };
+    let (sixteen, eight) = (full(16), full(8));
+    assert!(2.0 * num(eight, "payload_bytes") < 1.2 * num(sixteen, "payload_bytes"));
+    assert_eq!(
+        eight["worst_force_rel_error"],
+        sixteen["worst_force_rel_error"]
+    );
+    assert_eq!(num(sixteen, "requantized_mm"), 0.0);
+    let surface = "worst_surface_max_error_mm";
+    assert!(
+        (num(eight, surface) - num(sixteen, surface)).abs()
+            <= num(eight, "requantized_mm") * (1.0 + 4.0 / 3.0) + 1e-9,
+        "{eight} {sixteen}"
+    );
+}
