@@ -265,6 +265,21 @@ fn tissue_check_separates_the_blend_from_the_press() {
             "{p}"
         );
         assert!(total < num(p, "linear_surface_max_error_mm"), "{p}");
+        // The worst node is the one the total names, its push part within it, and the
+        // shells around the probe hold it.
+        let worst = &p["worst_node"];
+        assert!((num(worst, "error_mm") - total).abs() <= 1e-12, "{p}");
+        assert!(num(worst, "along_push_mm").abs() <= total + 1e-12, "{p}");
+        assert!(num(worst, "from_probe_mm") >= 0.0, "{p}");
+        let shells = worst["max_error_mm_by_tool_radii"]
+            .as_object()
+            .expect("shells");
+        assert_eq!(shells.len(), 5);
+        let top = shells
+            .values()
+            .filter_map(|v| v.as_f64())
+            .fold(0.0, f64::max);
+        assert!((top - total).abs() <= 1e-12, "{p}");
         assert!(
             num(p, "force_rel_error") < num(p, "linear_force_rel_error"),
             "{p}"
