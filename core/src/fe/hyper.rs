@@ -231,30 +231,48 @@ pub fn element(
                 }
             }
         }
-        for a in 0..npc {
-            let sga = [0, 1, 2].map(|j| (0..3).map(|kk| s[j][kk] * g[a][kk]).sum::<f64>());
-            for b in 0..npc {
-                let geo = wv * (0..3).map(|j| g[b][j] * sga[j]).sum::<f64>();
-                for i in 0..3 {
-                    let r = 3 * a + i;
-                    for kc in 0..3 {
-                        let col = 3 * b + kc;
-                        // δE_r : 𝕀 : δE_col (SVK) or δE_r : 𝕀_{C⁻¹} : δE_col
-                        // = tr(C⁻¹δE_r C⁻¹δE_col) (neo-Hookean).
-                        let dd: f64 = match law {
-                            Law::Svk => (0..3)
-                                .flat_map(|x| (0..3).map(move |y| (x, y)))
-                                .map(|(x, y)| de[r][x][y] * de[col][x][y])
-                                .sum(),
-                            Law::NeoHookean => (0..3)
-                                .flat_map(|x| (0..3).map(move |y| (x, y)))
-                                .map(|(x, y)| cde[r][x][y] * cde[col][y][x])
-                                .sum(),
-                        };
-                        let v = lambda * lin[r] * lin[col] + 2.0 * st.shear * dd;
-                        k[r * m + col] += wv * v + if i == kc { geo } else { 0.0 };
+        // The tangent is symmetric: fill the upper triangle (col ≥ r), mirror after.
+        let sg: [[f64; 3]; 10] = std::array::from_fn(|a| {
+            [0, 1, 2].map(|j| s[j][0] * g[a][0] + s[j][1] * g[a][1] + s[j][2] * g[a][2])
+        });
+        for r in 0..m {
+            let (a, i) = (r / 3, r % 3);
+            let (lr, dr, cr) = (lin[r], &de[r], &cde[r]);
+            for col in r..m {
+                let (b, kc) = (col / 3, col % 3);
+                // δE_r : 𝕀 : δE_col (SVK) or δE_r : 𝕀_{C⁻¹} : δE_col
+                // = tr(C⁻¹δE_r C⁻¹δE_col) (neo-Hookean).
+                let mut dd = 0.0;
+                match law {
+                    Law::Svk => {
+                        let dc = &de[col];
+                        for x in 0..3 {
+                            for y in 0..3 {
+                                dd += dr[x][y] * dc[x][y];
+                            }
+                        }
+                    }
+                    Law::NeoHookean => {
+                        let cc = &cde[col];
+                        for x in 0..3 {
+                            for y in 0..3 {
+                                dd += cr[x][y] * cc[y][x];
+                            }
+                        }
                     }
                 }
+                let mut v = wv * (lambda * lr * lin[col] + 2.0 * st.shear * dd);
+                if i == kc {
+                    v += wv * (g[b][0] * sg[a][0] + g[b][1] * sg[a][1] + g[b][2] * sg[a][2]);
+                }
+                k[r * m + col] += v;
+            }
+        }
+    }
+    if let Some(k) = ke {
+        for r in 0..m {
+            for col in 0..r {
+                k[r * m + col] = k[col * m + r];
             }
         }
     }
