@@ -122,16 +122,17 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
             })
             .collect(),
         Law::NeoHookean => {
-            // J = det F: each permutation's product of three entry series.
+            // J = det F: each permutation's product of three entry series, as two
+            // Cauchy products (the first two rows' entries, then the third's): O(p²)
+            // a permutation where the triple sum is O(p³).
             let mut jac = vec![0.0; p + 1];
+            let mut pair = vec![0.0; p + 1];
             for (perm, sign) in PERMS {
+                for (k, q) in pair.iter_mut().enumerate() {
+                    *q = (0..=k).map(|a| f[a][0][perm[0]] * f[k - a][1][perm[1]]).sum();
+                }
                 for (k, jk) in jac.iter_mut().enumerate() {
-                    let mut sum = 0.0;
-                    for a in 0..=k {
-                        for b in 0..=k - a {
-                            sum += f[a][0][perm[0]] * f[b][1][perm[1]] * f[k - a - b][2][perm[2]];
-                        }
-                    }
+                    let sum: f64 = (0..=k).map(|m| pair[m] * f[k - m][2][perm[2]]).sum();
                     *jk += sign * sum;
                 }
             }
