@@ -59,10 +59,12 @@
 //! chord's tangent is already some millimetres old): every residual and every
 //! acceptance test is in double precision, so the factor's rounding can change the
 //! steps but not what counts as an equilibrium. The rest stiffness, whose solves are
-//! the rest series' exact coefficients, stays in double. Measured on four spread
-//! vertices of coarse P2 pressed to 15 mm: 39.4 s against 48.1 s, the same segments
-//! (14) and chord steps (117), states within 0.0014 mm and forces within 1e-4 of
-//! the double-precision ones.
+//! the rest series' exact coefficients, stays in double (a single copy of it for the
+//! first segment's corrections was 6 % faster again, but made the law depend on the
+//! number of threads in its last bits). Measured on four spread vertices of coarse P2
+//! pressed to 15 mm: the same segments (14) and chord steps (117), states within
+//! 0.0014 mm and forces within 1e-4 of the double-precision ones; the build's time
+//! is in `docs/methods.md` §2e.
 
 use std::time::Instant;
 

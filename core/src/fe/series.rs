@@ -129,7 +129,9 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
             let mut pair = vec![0.0; p + 1];
             for (perm, sign) in PERMS {
                 for (k, q) in pair.iter_mut().enumerate() {
-                    *q = (0..=k).map(|a| f[a][0][perm[0]] * f[k - a][1][perm[1]]).sum();
+                    *q = (0..=k)
+                        .map(|a| f[a][0][perm[0]] * f[k - a][1][perm[1]])
+                        .sum();
                 }
                 for (k, jk) in jac.iter_mut().enumerate() {
                     let sum: f64 = (0..=k).map(|m| pair[m] * f[k - m][2][perm[2]]).sum();

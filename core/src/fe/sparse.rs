@@ -3,10 +3,12 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use faer::Side;
+use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::prelude::Solve;
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::{Conj, Mat, Par, Side};
 
 use super::FeError;
 use super::space::Space;
@@ -157,7 +159,7 @@ pub fn set_factor_budget_bytes(bytes: u64) {
 /// workspace, estimated as the factor again.
 pub fn factor_bytes_estimate(a: &SymCsc) -> Result<u64, FeError> {
     let m = a.to_faer();
-    let sym = faer::sparse::linalg::cholesky::factorize_symbolic_cholesky(
+    let sym = factorize_symbolic_cholesky(
         m.symbolic(),
         Side::Lower,
         Default::default(),
@@ -180,7 +182,9 @@ pub struct Cholesky {
 #[derive(Debug)]
 enum Factor {
     Double(Llt<usize, f64>),
-    Single(Llt<usize, f32>),
+    /// The symbolic analysis and the factor's values, used sequentially (see
+    /// [`Cholesky::factor_single`]).
+    Single(Box<SymbolicCholesky<usize>>, Vec<f32>),
 }
 
 impl Cholesky {
@@ -214,51 +218,82 @@ impl Cholesky {
     /// [`factor`](Self::factor) in single precision: half the memory traffic of the
     /// factorization and of each solve, for a factor used only as an approximate
     /// inverse whose answers are corrected against double-precision residuals.
+    /// Factored and solved sequentially: faer's parallel single-precision kernels
+    /// round differently with the number of threads, and a build must give the same
+    /// law on one core as on all (its presses already run in parallel).
     pub fn factor_single(a: &SymCsc, fixed_nodes: usize) -> Result<Cholesky, FeError> {
-        let m = a.to_faer();
         let err = |e: String| FeError::NotPositiveDefinite {
             fixed_nodes,
             detail: e,
         };
-        let values: Vec<f32> = a.val.iter().map(|&v| v as f32).collect();
+        let m = a.to_faer();
+        let symbolic = factorize_symbolic_cholesky(
+            m.symbolic(),
+            Side::Lower,
+            Default::default(),
+            Default::default(),
+        )
+        .map_err(|e| err(format!("{e:?}")))?;
         let single = SparseColMat::new(
             m.symbolic().to_owned().map_err(|e| err(format!("{e:?}")))?,
-            values,
+            a.val.iter().map(|&v| v as f32).collect(),
         );
-        let sym =
-            SymbolicLlt::try_new(m.symbolic(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
-        let llt = Llt::try_new_with_symbolic(sym, single.as_ref(), Side::Lower)
+        let mut values = vec![0.0f32; symbolic.len_val()];
+        let mut scratch = MemBuffer::new(
+            symbolic.factorize_numeric_llt_scratch::<f32>(Par::Seq, Default::default()),
+        );
+        symbolic
+            .factorize_numeric_llt(
+                &mut values,
+                single.as_ref(),
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut scratch),
+                Default::default(),
+            )
             .map_err(|e| err(format!("{e:?}")))?;
         Ok(Cholesky {
-            llt: Factor::Single(llt),
+            llt: Factor::Single(Box::new(symbolic), values),
             n: a.n,
         })
+    }
+
+    /// Solves the single factor for the columns of `rhs`, sequentially.
+    fn solve_single(symbolic: &SymbolicCholesky<usize>, values: &[f32], rhs: &mut Mat<f32>) {
+        let mut scratch =
+            MemBuffer::new(symbolic.solve_in_place_scratch::<f32>(rhs.ncols(), Par::Seq));
+        LltRef::new(symbolic, values).solve_in_place_with_conj(
+            Conj::No,
+            rhs.as_mut(),
+            Par::Seq,
+            MemStack::new(&mut scratch),
+        );
     }
 
     /// Solves A x = b for one right-hand side.
     pub fn solve(&self, b: &[f64]) -> Vec<f64> {
         match &self.llt {
             Factor::Double(llt) => {
-                let mut rhs = faer::Mat::<f64>::from_fn(self.n, 1, |i, _| b[i]);
+                let mut rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| b[i]);
                 llt.solve_in_place(rhs.as_mut());
                 (0..self.n).map(|i| rhs[(i, 0)]).collect()
             }
-            Factor::Single(llt) => {
-                let mut rhs = faer::Mat::<f32>::from_fn(self.n, 1, |i, _| b[i] as f32);
-                llt.solve_in_place(rhs.as_mut());
+            Factor::Single(symbolic, values) => {
+                let mut rhs = Mat::<f32>::from_fn(self.n, 1, |i, _| b[i] as f32);
+                Self::solve_single(symbolic, values, &mut rhs);
                 (0..self.n).map(|i| f64::from(rhs[(i, 0)])).collect()
             }
         }
     }
 
     /// Solves for several right-hand sides at once (columns of `b`, n × k, column-major).
-    pub fn solve_many(&self, b: &mut faer::Mat<f64>) {
+    pub fn solve_many(&self, b: &mut Mat<f64>) {
         match &self.llt {
             Factor::Double(llt) => llt.solve_in_place(b.as_mut()),
-            Factor::Single(llt) => {
-                let mut single =
-                    faer::Mat::<f32>::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] as f32);
-                llt.solve_in_place(single.as_mut());
+            Factor::Single(symbolic, values) => {
+                let mut single = Mat::<f32>::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] as f32);
+                Self::solve_single(symbolic, values, &mut single);
                 for j in 0..b.ncols() {
                     for i in 0..b.nrows() {
                         b[(i, j)] = f64::from(single[(i, j)]);
@@ -314,7 +349,7 @@ mod tests {
             a.mul(&x, &mut ax);
             let r: Vec<f64> = ax.iter().zip(&b).map(|(p, q)| p - q).collect();
             assert!(norm(&r) <= tol * norm(&b), "single {single}: {}", norm(&r));
-            let mut many = faer::Mat::<f64>::from_fn(a.n, 2, |i, j| b[i] * (j + 1) as f64);
+            let mut many = Mat::<f64>::from_fn(a.n, 2, |i, j| b[i] * (j + 1) as f64);
             f.solve_many(&mut many);
             for i in 0..a.n {
                 assert_eq!(many[(i, 0)], x[i]);
