@@ -158,9 +158,13 @@ pub fn set_factor_budget_bytes(bytes: u64) {
 /// the same ordering the numeric factorization uses), plus the factorization's
 /// workspace, estimated as the factor again.
 pub fn factor_bytes_estimate(a: &SymCsc) -> Result<u64, FeError> {
-    let m = a.to_faer();
-    let sym = factorize_symbolic_cholesky(
-        m.symbolic(),
+    Ok(2 * 8 * symbolic(a)?.len_val() as u64)
+}
+
+/// The symbolic Cholesky analysis of `a` (ordering and fill-in), faer's defaults.
+fn symbolic(a: &SymCsc) -> Result<SymbolicCholesky<usize>, FeError> {
+    factorize_symbolic_cholesky(
+        a.to_faer().symbolic(),
         Side::Lower,
         Default::default(),
         Default::default(),
@@ -168,8 +172,7 @@ pub fn factor_bytes_estimate(a: &SymCsc) -> Result<u64, FeError> {
     .map_err(|e| FeError::NotPositiveDefinite {
         fixed_nodes: 0,
         detail: format!("symbolic analysis failed: {e:?}"),
-    })?;
-    Ok(2 * 8 * sym.len_val() as u64)
+    })
 }
 
 /// A factored symmetric positive-definite matrix, in double or single precision.
@@ -227,13 +230,17 @@ impl Cholesky {
             detail: e,
         };
         let m = a.to_faer();
-        let symbolic = factorize_symbolic_cholesky(
-            m.symbolic(),
-            Side::Lower,
-            Default::default(),
-            Default::default(),
-        )
-        .map_err(|e| err(format!("{e:?}")))?;
+        let symbolic = symbolic(a)?;
+        // The budget as for `factor`: the factor and its workspace, in four bytes.
+        let need = 2 * 4 * symbolic.len_val() as u64;
+        let budget = FACTOR_BUDGET_BYTES.load(Ordering::Relaxed);
+        if need > budget {
+            return Err(FeError::TooLarge {
+                dofs: a.n,
+                need_gb: need as f64 / 1e9,
+                budget_gb: budget as f64 / 1e9,
+            });
+        }
         let single = SparseColMat::new(
             m.symbolic().to_owned().map_err(|e| err(format!("{e:?}")))?,
             a.val.iter().map(|&v| v as f32).collect(),
