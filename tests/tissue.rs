@@ -7,9 +7,11 @@ use std::path::Path;
 
 use palpa_core::fe::hyper::Law;
 use palpa_core::fe::newton::NewtonSettings;
+use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
+use palpa_core::fe::series::Expander;
 use palpa_core::file;
-use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
+use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, organ_vertex_normals};
 use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueError, TissueLaw};
 use palpa_core::scene::PalpationScene;
 use palpa_tests::coarse_liver;
@@ -31,7 +33,7 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
         within: Some((CENTRE, 12.0)),
         ..SurfaceLawOptions::default()
     };
-    let law = SurfaceLaw::build(&organ, options, &|_, _| {}).expect("builds");
+    let law = SurfaceLaw::build(&organ, options, None, &|_, _| {}).expect("builds");
     assert!(law.samples.len() >= 3, "{} samples", law.samples.len());
     let tissue = TissueLaw::compress(&organ, &law, 0.02, ShapeBits::Sixteen).expect("compresses");
     assert!(tissue.truncation_bound_mm <= 0.02);
@@ -172,4 +174,123 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
         e_tissue < 0.3 && e_tissue < 0.5 * e_linear,
         "{e_tissue} {e_linear}"
     );
+}
+
+/// The split triangles (docs/methods.md §2e) through the whole chain: plan, surplus,
+/// compression, binding and blend. Split everywhere in a small region, the vademecum
+/// gives back at an inner point and at a quarter point the press computed there alone,
+/// where the plain quadratic blend of the same presses does not. The split presses are
+/// appended to the log of a plain build, and a third run takes them all from it.
+#[test]
+fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
+    let organ = coarse_liver();
+    let options = SurfaceLawOptions {
+        depth_max_mm: 6.0,
+        orders: 10,
+        within: Some((CENTRE, 12.0)),
+        ..SurfaceLawOptions::default()
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let log = dir.path().join("split.presses.log");
+    let none = &|_: usize, _: usize| {};
+    let (plain, resumed) =
+        SurfaceLaw::build_logged(&organ, options, None, Some(&log), none).expect("builds");
+    assert_eq!(resumed, 0);
+    let (split, resumed) =
+        SurfaceLaw::build_logged(&organ, options, Some(0.0), Some(&log), none).expect("splits");
+    let first = plain.samples.len() + plain.edges.len();
+    assert!(
+        resumed >= first,
+        "the plain presses come from the log: {resumed}"
+    );
+    let r = &split.refinement;
+    assert!(!r.triangles.is_empty(), "no triangle split");
+    assert_eq!(r.inner_corners.len(), 3 * r.triangles.len());
+    assert!(
+        split.refine_skip_reasons.is_empty(),
+        "{:?}",
+        split.refine_skip_reasons
+    );
+    let total = first + r.quarter_ends.len() + r.inner_corners.len();
+    let (again, resumed) =
+        SurfaceLaw::build_logged(&organ, options, Some(0.0), Some(&log), none).expect("again");
+    assert!(resumed >= total, "{resumed} of {total} from the log");
+    for s in 0..total {
+        for j in 0..split.steps() {
+            assert_eq!(again.residual_at(s, j), split.residual_at(s, j));
+            if s < first {
+                assert_eq!(plain.residual_at(s, j), split.residual_at(s, j));
+            }
+        }
+    }
+
+    let compress = |law: &SurfaceLaw| {
+        let t = TissueLaw::compress(&organ, law, 0.002, ShapeBits::Sixteen).expect("compresses");
+        let scene = shipped_scene();
+        BoundTissue::bind(
+            t,
+            scene.vertices_mm(),
+            scene.axis_vertices_mm(),
+            scene.axis_triangles(),
+        )
+        .expect("binds")
+    };
+    let (bound_split, bound_plain) = (compress(&split), compress(&plain));
+    let scene = shipped_scene();
+    let space = organ_space(&organ, options.element);
+    let expander = Expander::new(&space, options.law, options.material).expect("rest factor");
+    let normals = organ_vertex_normals(&organ);
+    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
+    let c = r.inner_corners[0];
+    let depth = options.depth_max_mm;
+    // The inner point near corner c[0], and the quarter point of edge c[0]–c[1] near c[0].
+    for weights in [[0.5, 0.25, 0.25], [0.75, 0.25, 0.0]] {
+        let (mut at, mut push) = ([0.0; 3], [0.0; 3]);
+        for (k, w) in weights.iter().enumerate() {
+            let v = split.samples[c[k] as usize] as usize;
+            for d in 0..3 {
+                at[d] += w * organ.mesh.vertices[v][d];
+                push[d] -= w * f64::from(normals[v][d]);
+            }
+        }
+        let (press, depths) = follow_at(&space, &organ, &expander, &options, at, push, &[])
+            .expect("fe")
+            .expect("the press reaches the grid's end");
+        assert_eq!(press.u.len(), depths.len());
+        let (u, unit) = (press.u.last().expect("states"), &press.first.u[0]);
+        let (point, _) = scene.closest_palpable(at).expect("palpable");
+        let error = |bound: &BoundTissue| {
+            let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
+            assert!(bound.add_surface(&point, depth, &mut bound.scratch(), &mut rows));
+            organ
+                .surface_nodes()
+                .into_iter()
+                .map(|v| {
+                    let row = vertex_of
+                        .find(organ.mesh.vertices[v as usize])
+                        .expect("row");
+                    (0..3)
+                        .map(|d| {
+                            let i = 3 * v as usize + d;
+                            (rows[3 * row as usize + d] - (u[i] - depth * unit[i])).powi(2)
+                        })
+                        .sum::<f64>()
+                        .sqrt()
+                })
+                .fold(0.0, f64::max)
+        };
+        let (e_split, e_plain) = (error(&bound_split), error(&bound_plain));
+        // Each sample's compression errs by at most its bound; the blend's weights sum
+        // to at most 3.25 here (corners 1, edges 1.25, the point's own surplus 1).
+        let allowed = 3.25 * bound_split.law.truncation_bound_mm + 1e-4;
+        eprintln!(
+            "{weights:?} at {depth} mm: split {e_split:.4} mm (allowed {allowed:.4}), \
+             plain quadratic {e_plain:.4} mm"
+        );
+        assert!(e_split <= allowed, "{e_split} > {allowed}");
+        assert!(
+            e_plain > 2.0 * allowed,
+            "the split changed nothing: {e_plain}"
+        );
+    }
 }

@@ -10,7 +10,7 @@ use palpa_app::force::NoHaptics;
 use palpa_app::offscreen::settle;
 use palpa_app::scenes;
 use palpa_app::session::Session;
-use palpa_core::pgd::surfacelaw::SurfaceLawOptions;
+use palpa_core::pgd::surfacelaw::{Refinement, SurfaceLawOptions};
 use palpa_core::pgd::tissue::{BoundTissue, Tissue, TissueLaw};
 use palpa_core::scene::PalpationScene;
 
@@ -38,6 +38,7 @@ fn hand_made(scene: &PalpationScene) -> TissueLaw {
             .collect(),
         skipped_mm: vec![],
         edge_ends: vec![],
+        refinement: Refinement::default(),
         steps: 3,
         ratio: [1.0, 0.9, 0.8].repeat(samples),
         stiffness_n_per_mm: vec![1.0; samples],

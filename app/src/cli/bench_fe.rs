@@ -529,7 +529,7 @@ fn surface_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
         depth_step_mm: 0.5,
         ..SurfaceLawOptions::default()
     };
-    let law = SurfaceLaw::build(coarse, options, &|k, n| {
+    let law = SurfaceLaw::build(coarse, options, None, &|k, n| {
         eprint!("\rsurface law: vertex {k}/{n}   ");
     })?;
     eprintln!();

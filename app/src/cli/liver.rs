@@ -798,6 +798,8 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         young_kpa: material.young_kpa,
         poisson: material.poisson,
         no_edges: false,
+        refine_above_mm: palpa_core::pgd::surfacelaw::DEFAULT_REFINE_ABOVE_MM,
+        no_refine: false,
         jobs: None,
         out: args.out.with_extension("tissue"),
     };

@@ -11,7 +11,9 @@ use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::fe::{Element, Material};
-use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, press_at};
+use palpa_core::pgd::surfacelaw::{
+    DEFAULT_REFINE_ABOVE_MM, SurfaceLaw, SurfaceLawOptions, follow_at, press_at,
+};
 use palpa_core::pgd::tissue::{
     BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, PointIndex, ShapeBits, TissueLaw,
 };
@@ -73,6 +75,14 @@ pub struct BuildArgs {
     /// sharp border at 13 mm, where the quadratic blend erred by 0.2 mm).
     #[arg(long)]
     pub no_edges: bool,
+    /// Split into four the triangles whose largest edge surplus (the midpoint's press
+    /// off its ends' mean, any node, any depth) exceeds this (mm), and press their
+    /// quarter and inner points: a denser blend where the response turns quickly.
+    #[arg(long, default_value_t = DEFAULT_REFINE_ABOVE_MM)]
+    pub refine_above_mm: f64,
+    /// Split no triangle: the quadratic blend everywhere.
+    #[arg(long)]
+    pub no_refine: bool,
     /// Presses computed at once. Each holds its own factored tangent: on medium P2
     /// two at once peaked at 21.7 GB. Default: one per core.
     #[arg(long)]
@@ -182,6 +192,13 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     // (the first call reports those taken from the log).
     let started = Instant::now();
     let from_log = std::sync::OnceLock::new();
+    if !(args.refine_above_mm.is_finite() && args.refine_above_mm >= 0.0) {
+        bail!(
+            "--refine-above-mm {}: expected a length of at least 0",
+            args.refine_above_mm
+        );
+    }
+    let refine = (!args.no_refine && !args.no_edges).then_some(args.refine_above_mm);
     if args.jobs == Some(0) {
         bail!("--jobs 0: expected at least one press at a time");
     }
@@ -206,11 +223,16 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         );
     };
     let (law, resumed) = pool
-        .install(|| SurfaceLaw::build_logged(&organ, options, Some(&log), &progress))
+        .install(|| SurfaceLaw::build_logged(&organ, options, refine, Some(&log), &progress))
         .context("pressing the palpable vertices")?;
     eprintln!();
     let mut reasons = std::collections::BTreeMap::<&str, usize>::new();
-    for r in law.skip_reasons.iter().chain(&law.edge_skip_reasons) {
+    for r in law
+        .skip_reasons
+        .iter()
+        .chain(&law.edge_skip_reasons)
+        .chain(&law.refine_skip_reasons)
+    {
         // The reason without its figures (after " ("), so like skips count together.
         let kind = r.split(" (").next().unwrap_or(r);
         *reasons.entry(kind).or_default() += 1;
@@ -232,6 +254,11 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     let summary = json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
             "samples": tissue.samples_mm.len(), "edges": tissue.edge_ends.len(),
             "edges_skipped": law.edge_skip_reasons.len(), "skipped": tissue.skipped_mm.len(),
+            "refine_above_mm": refine, "split_triangles": law.refinement.triangles.len(),
+            "quarter_points": law.refinement.quarter_ends.len(),
+            "inner_points": law.refinement.inner_corners.len(),
+            "refine_skipped": law.refine_skip_reasons.len(),
+            "split": law.split_figures.iter().map(|(edge, points)| json!({"edge_surplus_mm": edge, "quarter_surplus_mm": points})).collect::<Vec<_>>(),
             "skip_reasons": reasons,
             "stopped_short": stopped_short, "shallowest_reach_mm": shallowest,
             "rows": tissue.rows_mm.len(), "depth_max_mm": tissue.depth_max_mm(),

@@ -32,6 +32,7 @@
 //! grid depth before, its arrays hold that depth beyond, and the reason is kept. An
 //! edge's surplus reaches as far as its midpoint and both its ends.
 
+use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Mutex;
 use std::time::Instant;
@@ -110,6 +111,16 @@ pub struct SurfaceLaw {
     pub edge_skip_reasons: Vec<String>,
     /// Why each skipped vertex was skipped.
     pub skip_reasons: Vec<String>,
+    /// The triangles split into four, and their quarter and inner points' samples
+    /// (after the edges'; see [`Refinement`]).
+    pub refinement: Refinement,
+    /// Why each quarter or inner point of a split triangle was not kept (its term then
+    /// drops out of the blend).
+    pub refine_skip_reasons: Vec<String>,
+    /// Per split triangle: its largest edge surplus, what decided the split, and the
+    /// largest surplus of its quarter and inner points, which is how far the quadratic
+    /// blend there was from those points' own presses (mm, any node, any depth).
+    pub split_figures: Vec<(f64, f64)>,
     /// Per sample (vertices, then edges): the grid depths its press reached, depth 0
     /// included (`steps` for all), and why it stopped short (empty where it did not).
     /// An edge's surplus reaches as far as its midpoint and both ends.
@@ -160,15 +171,19 @@ struct VertexPress {
 }
 
 impl SurfaceLaw {
-    /// Samples every palpable vertex of `organ`, the vertices in parallel (the
-    /// expander's factorization is shared read-only); `progress(done, total)` from
-    /// whichever thread finishes a vertex.
+    /// Samples every palpable vertex of `organ` (and, with the options' `edges`, every
+    /// palpable edge's midpoint), the presses in parallel (the expander's factorization
+    /// is shared read-only); then, with `refine_above_mm`, splits into four the
+    /// triangles whose largest edge surplus exceeds it and presses their quarter and
+    /// inner points (see [`Refinement`]). `progress(done, total)` from whichever thread
+    /// finishes a press.
     pub fn build(
         organ: &OrganMesh,
         options: SurfaceLawOptions,
+        refine_above_mm: Option<f64>,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<SurfaceLaw, SurfaceLawBuildError> {
-        Self::build_logged(organ, options, None, progress).map(|(law, _)| law)
+        Self::build_logged(organ, options, refine_above_mm, None, progress).map(|(law, _)| law)
     }
 
     /// [`build`](Self::build), keeping each finished vertex's press in the log at
@@ -180,6 +195,7 @@ impl SurfaceLaw {
     pub fn build_logged(
         organ: &OrganMesh,
         options: SurfaceLawOptions,
+        refine_above_mm: Option<f64>,
         log: Option<&Path>,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
@@ -231,95 +247,96 @@ impl SurfaceLaw {
             }
             None => (None, Vec::new()),
         };
+        // Logged presses by id (a later record of an id wins), those of another grid
+        // or row set dropped.
+        let mut finished: HashMap<u32, Result<VertexPress, String>> = finished
+            .into_iter()
+            .filter(|(_, press)| {
+                press.as_ref().map_or(true, |p| {
+                    p.ratio.len() == steps
+                        && p.residual.len() == steps * 3 * rows.len()
+                        && (2..=steps as u32).contains(&p.reach)
+                })
+            })
+            .collect();
         // The palpable edges whose ends are both candidates (sorted, deduplicated).
         let edges: Vec<[u32; 2]> = if o.edges {
-            let mut e: Vec<[u32; 2]> = organ
-                .boundary
-                .iter()
-                .zip(&organ.palpable)
-                .filter(|(_, p)| **p)
-                .flat_map(|(t, _)| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
-                .map(|[a, b]| [a.min(b), a.max(b)])
+            palpable_edges(organ)
+                .into_iter()
                 .filter(|e| e.iter().all(|v| candidates.binary_search(v).is_ok()))
-                .collect();
-            e.sort_unstable();
-            e.dedup();
-            e
+                .collect()
         } else {
             Vec::new()
         };
-        let mut presses: Vec<Option<Result<VertexPress, String>>> =
-            (0..candidates.len() + edges.len()).map(|_| None).collect();
-        let n_vertices = organ.mesh.vertices.len() as u32;
-        for (id, press) in finished {
-            let fits = press.as_ref().map_or(true, |p| {
-                p.ratio.len() == steps
-                    && p.residual.len() == steps * 3 * rows.len()
-                    && (2..=steps as u32).contains(&p.reach)
-            });
-            let k = if id < n_vertices {
-                candidates.binary_search(&id).ok()
-            } else {
-                Some(candidates.len() + (id - n_vertices) as usize).filter(|&k| k < presses.len())
-            };
-            if let Some(k) = k
-                && fits
-            {
-                presses[k] = Some(press);
-            }
-        }
-        let resumed = presses.iter().filter(|p| p.is_some()).count();
         // Each vertex is pressed along its inward area-weighted normal: the direction
         // a scene's contact law pushes at that vertex (a face's normal would differ
         // from it by up to the dihedral angle on a sharp border); an edge midpoint
         // along the mean of its ends' (the scene interpolates them).
         let normals = organ_vertex_normals(organ);
-        let done = AtomicUsize::new(resumed);
-        let total = candidates.len() + edges.len();
-        progress(resumed, total);
-        let todo: Vec<usize> = (0..total).filter(|&k| presses[k].is_none()).collect();
-        let computed: Vec<(usize, Result<VertexPress, String>)> = todo
-            .par_iter()
-            .map(|&k| -> Result<_, SurfaceLawBuildError> {
-                let (at, push, id) = if k < candidates.len() {
-                    let v = candidates[k];
-                    let push = normals[v as usize].map(|c| -f64::from(c));
-                    (organ.mesh.vertices[v as usize], push, v)
-                } else {
-                    let [a, b] = edges[k - candidates.len()];
-                    let (pa, pb) = (
-                        organ.mesh.vertices[a as usize],
-                        organ.mesh.vertices[b as usize],
-                    );
-                    let (na, nb) = (normals[a as usize], normals[b as usize]);
-                    let push = [0, 1, 2].map(|c| -f64::from(na[c] + nb[c]));
-                    let mid = [0, 1, 2].map(|c| 0.5 * (pa[c] + pb[c]));
-                    (mid, push, edge_id(organ, k - candidates.len()))
-                };
-                let press = point_press(&space, organ, &expander, &o, &rows, steps, at, push)?;
-                if let Some((l, path)) = &log {
-                    // Off-line and once a press (seconds): a lock is fine here.
-                    let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
-                    l.push(id, &press).map_err(|e| log_error(path, e))?;
-                }
-                progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-                Ok((k, press))
+        let mut points: Vec<PressPoint> = candidates
+            .iter()
+            .map(|&v| PressPoint {
+                at: organ.mesh.vertices[v as usize],
+                push: normals[v as usize].map(|c| -f64::from(c)),
+                id: v,
             })
-            .collect::<Result<_, _>>()?;
-        for (k, press) in computed {
-            presses[k] = Some(press);
-        }
-        let mut presses: Vec<Result<VertexPress, String>> = presses
-            .into_iter()
-            .map(|p| p.expect("every vertex is pressed"))
             .collect();
+        points.extend(edges.iter().enumerate().map(|(e, &[a, b])| {
+            let (pa, pb) = (
+                organ.mesh.vertices[a as usize],
+                organ.mesh.vertices[b as usize],
+            );
+            let (na, nb) = (normals[a as usize], normals[b as usize]);
+            PressPoint {
+                at: [0, 1, 2].map(|c| 0.5 * (pa[c] + pb[c])),
+                push: [0, 1, 2].map(|c| -f64::from(na[c] + nb[c])),
+                id: edge_id(organ, e),
+            }
+        }));
+        let done = AtomicUsize::new(0);
+        // Presses `points` (those in the log taken from it), in parallel; `total` is
+        // what the progress counts to.
+        let press_all = |points: &[PressPoint],
+                         finished: &mut HashMap<u32, Result<VertexPress, String>>,
+                         total: usize|
+         -> Result<
+            (Vec<Result<VertexPress, String>>, usize),
+            SurfaceLawBuildError,
+        > {
+            let mut out: Vec<Option<Result<VertexPress, String>>> =
+                points.iter().map(|p| finished.remove(&p.id)).collect();
+            let resumed = out.iter().filter(|p| p.is_some()).count();
+            progress(done.fetch_add(resumed, Ordering::Relaxed) + resumed, total);
+            let todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
+            let computed: Vec<(usize, Result<VertexPress, String>)> = todo
+                .par_iter()
+                .map(|&k| -> Result<_, SurfaceLawBuildError> {
+                    let p = &points[k];
+                    let press =
+                        point_press(&space, organ, &expander, &o, &rows, steps, p.at, p.push)?;
+                    if let Some((l, path)) = &log {
+                        // Off-line and once a press (seconds): a lock is fine here.
+                        let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
+                        l.push(p.id, &press).map_err(|e| log_error(path, e))?;
+                    }
+                    progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+                    Ok((k, press))
+                })
+                .collect::<Result<_, _>>()?;
+            for (k, press) in computed {
+                out[k] = Some(press);
+            }
+            let out = out
+                .into_iter()
+                .map(|p| p.expect("every point is pressed"))
+                .collect();
+            Ok((out, resumed))
+        };
+        let (mut presses, mut resumed) = press_all(&points, &mut finished, points.len())?;
         let edge_presses = presses.split_off(candidates.len());
         let mut sample_of = vec![u32::MAX; organ.mesh.vertices.len()];
         let (mut samples, mut skipped, mut skip_reasons) = (Vec::new(), Vec::new(), Vec::new());
-        let mut residual = Vec::new();
-        let (mut ratio, mut stiffness) = (Vec::new(), Vec::new());
-        let (mut correction, mut segments) = (Vec::new(), Vec::new());
-        let (mut reach, mut stopped) = (Vec::new(), Vec::new());
+        let mut stored = Stored::default();
         for (&v, press) in candidates.iter().zip(presses) {
             let p = match press {
                 Ok(p) => p,
@@ -331,13 +348,7 @@ impl SurfaceLaw {
             };
             sample_of[v as usize] = samples.len() as u32;
             samples.push(v);
-            residual.extend_from_slice(&p.residual);
-            ratio.extend_from_slice(&p.ratio);
-            stiffness.push(p.stiffness_n_per_mm);
-            correction.push(p.correction_mm);
-            segments.push(p.segments);
-            reach.push(p.reach);
-            stopped.push(p.stopped);
+            stored.push(&p, &p.residual, &p.ratio, p.reach, p.stopped.clone());
         }
         // Edge surpluses over their ends' mean, for edges whose three presses stand.
         let (mut kept_edges, mut edge_skip_reasons) = (Vec::new(), Vec::new());
@@ -356,39 +367,78 @@ impl SurfaceLaw {
             }
             let (ra, rb) = (sa as usize * n_row, sb as usize * n_row);
             // The surplus up to the depth all three reached, held there.
-            let r = p.reach.min(reach[sa as usize]).min(reach[sb as usize]) as usize;
+            let r = p
+                .reach
+                .min(stored.reach[sa as usize])
+                .min(stored.reach[sb as usize]) as usize;
             let row = 3 * rows.len();
             let held = |i: usize| (i / row).min(r - 1) * row + i % row;
+            let residual = &stored.residual;
             let surplus: Vec<f32> = (0..n_row)
                 .map(|i| {
                     let i = held(i);
                     p.residual[i] - 0.5 * (residual[ra + i] + residual[rb + i])
                 })
                 .collect();
-            residual.extend(surplus);
             let (ga, gb) = (sa as usize * steps, sb as usize * steps);
             let g: Vec<f64> = (0..steps)
                 .map(|j| {
                     let j = j.min(r - 1);
-                    p.ratio[j] - 0.5 * (ratio[ga + j] + ratio[gb + j])
+                    p.ratio[j] - 0.5 * (stored.ratio[ga + j] + stored.ratio[gb + j])
                 })
                 .collect();
-            ratio.extend(g);
-            stiffness.push(p.stiffness_n_per_mm);
-            correction.push(p.correction_mm);
-            segments.push(p.segments);
-            // Why: the reason of whichever of the three stopped first.
-            let why = [
-                (p.reach, &p.stopped),
-                (reach[sa as usize], &stopped[sa as usize]),
-                (reach[sb as usize], &stopped[sb as usize]),
-            ]
-            .into_iter()
-            .min_by_key(|(r, _)| *r)
-            .map_or(String::new(), |(_, w)| w.clone());
-            stopped.push(why);
-            reach.push(r as u32);
+            let why = stored.first_stop(p, &[sa as usize, sb as usize]);
+            stored.push(p, &surplus, &g, r as u32, why);
             kept_edges.push([sa, sb]);
+        }
+        let mut refinement = Refinement {
+            above_mm: refine_above_mm,
+            ..Refinement::default()
+        };
+        let mut refine_skip_reasons = Vec::new();
+        let mut split_figures = Vec::new();
+        if let Some(above_mm) = refine_above_mm {
+            let plan = refine_plan(organ, &sample_of, &kept_edges, &stored, n_row, above_mm);
+            let first = points.len();
+            let quarter_points = plan.quarters.iter().map(|q| q.point(organ, &normals));
+            let inner_points = plan.inner.iter().map(|q| q.point(organ, &normals));
+            let points: Vec<PressPoint> = quarter_points.chain(inner_points).collect();
+            let (presses, more) = press_all(&points, &mut finished, first + points.len())?;
+            resumed += more;
+            refinement.triangles = plan.triangles.clone();
+            // Per plan point: the largest node of its kept surplus (mm).
+            let mut point_peak = Vec::new();
+            for (q, press) in plan.quarters.iter().chain(&plan.inner).zip(presses) {
+                let p = match press {
+                    Ok(p) => p,
+                    Err(why) => {
+                        refine_skip_reasons.push(why);
+                        point_peak.push(0.0);
+                        continue;
+                    }
+                };
+                let (surplus, g, reach, why) = stored.surplus(&p, &q.base, steps, 3 * rows.len());
+                point_peak.push(node_peak(&surplus));
+                stored.push(&p, &surplus, &g, reach, why);
+                match q.near.len() {
+                    2 => refinement.quarter_ends.push([q.near[0], q.near[1]]),
+                    _ => refinement
+                        .inner_corners
+                        .push([q.near[0], q.near[1], q.near[2]]),
+                }
+            }
+            let n_quarters = plan.quarters.len();
+            split_figures = plan
+                .figures
+                .iter()
+                .map(|(edge, quarters, inner)| {
+                    let points = quarters
+                        .iter()
+                        .copied()
+                        .chain(inner.iter().map(|&i| n_quarters + i));
+                    (*edge, points.map(|k| point_peak[k]).fold(0.0, f64::max))
+                })
+                .collect();
         }
         let law = SurfaceLaw {
             options,
@@ -399,14 +449,17 @@ impl SurfaceLaw {
             edges: kept_edges,
             edge_skip_reasons,
             skip_reasons,
-            reach,
-            stopped,
+            refinement,
+            refine_skip_reasons,
+            split_figures,
+            reach: stored.reach,
+            stopped: stored.stopped,
             steps,
-            residual,
-            ratio,
-            stiffness_n_per_mm: stiffness,
-            correction_mm: correction,
-            segments,
+            residual: stored.residual,
+            ratio: stored.ratio,
+            stiffness_n_per_mm: stored.stiffness,
+            correction_mm: stored.correction,
+            segments: stored.segments,
             build_s: t0.elapsed().as_secs_f64(),
         };
         Ok((law, resumed))
@@ -463,6 +516,272 @@ impl SurfaceLaw {
 
     pub fn bytes(&self) -> usize {
         4 * self.residual.len()
+    }
+}
+
+/// Triangles split once into four where the quadratic blend is too coarse: a palpable
+/// triangle (corners `a, b, c`, edge midpoints `m_ab, m_bc, m_ca`, all pressed) whose
+/// largest edge surplus (any node, any depth) exceeds `above_mm` also has its *quarter
+/// points* `(3a + b)/4, …` (two per edge, shared with the neighbour across it) and its
+/// *inner points* `(2a + b + c)/4, …` (one per corner) pressed. Each stores its surplus
+/// over the parent's quadratic interpolant there,
+///
+/// ```text
+/// q_a,ab = r((3a + b)/4) − (¾ r_a + ¼ r_b + ¾ e_ab),
+/// i_a    = r((2a + b + c)/4) − (½ r_a + ¼ r_b + ¼ r_c + ½ e_ab + ¼ e_bc + ½ e_ca),
+/// ```
+///
+/// so that adding `4 μ_i μ_j` of each sub-triangle edge's surplus (`μ` the probe's
+/// barycentric coordinates in its quarter of the triangle) makes the blend the
+/// quadratic interpolant of the sub-triangle's six presses. Along a split edge the
+/// quarter terms depend on that edge alone, so a neighbour that was not split blends
+/// them too (with the same weights on the edge) and the surface does not jump as the
+/// probe crosses it. Measured on the anterior lobe's worst triangle (sides 8.6–12 mm)
+/// at 7 mm: 0.19–0.48 mm quadratic, 0.05–0.11 mm split (docs/methods.md §2e).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Refinement {
+    /// The threshold the build used (mm); `None`: no triangle is split.
+    pub above_mm: Option<f64>,
+    /// The split triangles' corner samples (vertex sample indices, the mesh's order).
+    pub triangles: Vec<[u32; 3]>,
+    /// Per kept quarter point, after the edges' samples: its edge's near and far end.
+    pub quarter_ends: Vec<[u32; 2]>,
+    /// Per kept inner point, after the quarter points: its triangle's corners, the
+    /// one it lies nearest first, the others in the triangle's order.
+    pub inner_corners: Vec<[u32; 3]>,
+}
+
+/// The default split threshold of a build (mm): see [`Refinement`].
+pub const DEFAULT_REFINE_ABOVE_MM: f64 = 1.0;
+
+/// A surface point to press: where, along what, and its id in the press log.
+struct PressPoint {
+    at: [f64; 3],
+    push: [f64; 3],
+    id: u32,
+}
+
+/// A quarter or inner point of a split triangle (see [`Refinement`]).
+struct RefinePoint {
+    /// The point on its flat triangle: mesh vertices and weights.
+    at: Vec<(u32, f64)>,
+    /// The parent's quadratic interpolant there: stored samples and weights.
+    base: Vec<(usize, f64)>,
+    /// `[near, far]` end samples (a quarter point) or `[near, next, next]` corners.
+    near: Vec<u32>,
+    id: u32,
+}
+
+impl RefinePoint {
+    /// Where it is pressed, and along the same blend of the vertex normals the scene
+    /// interpolates.
+    fn point(&self, organ: &OrganMesh, normals: &[[f32; 3]]) -> PressPoint {
+        let (mut at, mut push) = ([0.0; 3], [0.0; 3]);
+        for &(v, w) in &self.at {
+            for c in 0..3 {
+                at[c] += w * organ.mesh.vertices[v as usize][c];
+                push[c] -= w * f64::from(normals[v as usize][c]);
+            }
+        }
+        PressPoint {
+            at,
+            push,
+            id: self.id,
+        }
+    }
+}
+
+/// The triangles to split and the points to press.
+#[derive(Default)]
+struct RefinePlan {
+    triangles: Vec<[u32; 3]>,
+    /// Per split triangle: its largest edge surplus (mm), and its six quarter points'
+    /// and three inner points' indices in `quarters` and `inner`.
+    figures: Vec<(f64, [usize; 6], [usize; 3])>,
+    quarters: Vec<RefinePoint>,
+    inner: Vec<RefinePoint>,
+}
+
+/// The palpable boundary edges, as sorted vertex pairs, sorted and each once.
+fn palpable_edges(organ: &OrganMesh) -> Vec<[u32; 2]> {
+    let mut e: Vec<[u32; 2]> = organ
+        .boundary
+        .iter()
+        .zip(&organ.palpable)
+        .filter(|(_, p)| **p)
+        .flat_map(|(t, _)| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+        .map(|[a, b]| [a.min(b), a.max(b)])
+        .collect();
+    e.sort_unstable();
+    e.dedup();
+    e
+}
+
+/// The largest node displacement in a sample's residuals (mm; 3 entries a node).
+fn node_peak(residual: &[f32]) -> f64 {
+    residual
+        .chunks_exact(3)
+        .map(|c| f64::from(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt())
+        .fold(0.0, f64::max)
+}
+
+/// The split triangles of a build (see [`Refinement`]): palpable triangles whose
+/// corners and edges were all kept and whose largest edge surplus exceeds `above_mm`.
+/// Log ids come after every vertex and edge id, from the mesh alone (not from which
+/// triangles are split), so a resumed build finds them.
+fn refine_plan(
+    organ: &OrganMesh,
+    sample_of: &[u32],
+    kept_edges: &[[u32; 2]],
+    stored: &Stored,
+    n_row: usize,
+    above_mm: f64,
+) -> RefinePlan {
+    let all_edges = palpable_edges(organ);
+    let first_edge = sample_of.iter().filter(|&&s| s != u32::MAX).count();
+    let first_id = organ.mesh.vertices.len() + 3 * organ.boundary.len();
+    let edge_sample: HashMap<[u32; 2], usize> = kept_edges
+        .iter()
+        .enumerate()
+        .map(|(e, &[a, b])| ([a.min(b), a.max(b)], first_edge + e))
+        .collect();
+    let peak = |s: usize| node_peak(&stored.residual[s * n_row..][..n_row]);
+    let mut plan = RefinePlan::default();
+    let mut seen = HashMap::new();
+    for (t, (tri, _)) in organ
+        .boundary
+        .iter()
+        .zip(&organ.palpable)
+        .enumerate()
+        .filter(|(_, (_, p))| **p)
+    {
+        let c = tri.map(|v| sample_of[v as usize]);
+        if c.contains(&u32::MAX) {
+            continue;
+        }
+        let e: [Option<usize>; 3] = std::array::from_fn(|k| {
+            let (a, b) = (c[k], c[(k + 1) % 3]);
+            edge_sample.get(&[a.min(b), a.max(b)]).copied()
+        });
+        let Some(e) = e.into_iter().collect::<Option<Vec<usize>>>() else {
+            continue;
+        };
+        let worst = e.iter().map(|&s| peak(s)).fold(0.0, f64::max);
+        if worst <= above_mm {
+            continue;
+        }
+        plan.triangles.push(c);
+        let (mut quarters, mut inner) = ([0; 6], [0; 3]);
+        for k in 0..3 {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            for (side, (near, far)) in [(k, i), (i, k)].into_iter().enumerate() {
+                let (a, b) = (tri[near], tri[far]);
+                if let Some(&q) = seen.get(&[a, b]) {
+                    quarters[2 * k + side] = q;
+                    continue;
+                }
+                quarters[2 * k + side] = plan.quarters.len();
+                seen.insert([a, b], plan.quarters.len());
+                let g = all_edges
+                    .binary_search(&[a.min(b), a.max(b)])
+                    .expect("a palpable triangle's edge is palpable");
+                plan.quarters.push(RefinePoint {
+                    at: vec![(a, 0.75), (b, 0.25)],
+                    base: vec![
+                        (c[near] as usize, 0.75),
+                        (c[far] as usize, 0.25),
+                        (e[k], 0.75),
+                    ],
+                    near: vec![c[near], c[far]],
+                    id: (first_id + 2 * g + usize::from(a > b)) as u32,
+                });
+            }
+            inner[k] = plan.inner.len();
+            plan.inner.push(RefinePoint {
+                at: vec![(tri[k], 0.5), (tri[i], 0.25), (tri[j], 0.25)],
+                base: vec![
+                    (c[k] as usize, 0.5),
+                    (c[i] as usize, 0.25),
+                    (c[j] as usize, 0.25),
+                    (e[k], 0.5),
+                    (e[i], 0.25),
+                    (e[j], 0.5),
+                ],
+                near: vec![c[k], c[i], c[j]],
+                id: (first_id + 2 * all_edges.len() + 3 * t + k) as u32,
+            });
+        }
+        plan.figures.push((worst, quarters, inner));
+    }
+    plan
+}
+
+/// The per-sample arrays as the build fills them (vertices, edges, quarter points,
+/// inner points).
+#[derive(Default)]
+struct Stored {
+    residual: Vec<f32>,
+    ratio: Vec<f64>,
+    stiffness: Vec<f64>,
+    correction: Vec<f64>,
+    segments: Vec<u32>,
+    reach: Vec<u32>,
+    stopped: Vec<String>,
+}
+
+impl Stored {
+    fn push(&mut self, p: &VertexPress, residual: &[f32], ratio: &[f64], reach: u32, why: String) {
+        self.residual.extend_from_slice(residual);
+        self.ratio.extend_from_slice(ratio);
+        self.stiffness.push(p.stiffness_n_per_mm);
+        self.correction.push(p.correction_mm);
+        self.segments.push(p.segments);
+        self.reach.push(reach);
+        self.stopped.push(why);
+    }
+
+    /// The reason of whichever of `p` and the stored samples `others` stopped first
+    /// (empty where none stopped short).
+    fn first_stop(&self, p: &VertexPress, others: &[usize]) -> String {
+        std::iter::once((p.reach, &p.stopped))
+            .chain(others.iter().map(|&s| (self.reach[s], &self.stopped[s])))
+            .min_by_key(|(r, _)| *r)
+            .map_or(String::new(), |(_, w)| w.clone())
+    }
+
+    /// `p`'s surplus over the blend `base` of stored samples, up to the depth all of
+    /// them reached and held there: residual, ratio, reach and why it stopped.
+    fn surplus(
+        &self,
+        p: &VertexPress,
+        base: &[(usize, f64)],
+        steps: usize,
+        row: usize,
+    ) -> (Vec<f32>, Vec<f64>, u32, String) {
+        let r = base.iter().fold(p.reach, |r, &(s, _)| r.min(self.reach[s])) as usize;
+        let n = steps * row;
+        let residual = (0..n)
+            .map(|i| {
+                let i = (i / row).min(r - 1) * row + i % row;
+                let b: f64 = base
+                    .iter()
+                    .map(|&(s, w)| w * f64::from(self.residual[s * n + i]))
+                    .sum();
+                (f64::from(p.residual[i]) - b) as f32
+            })
+            .collect();
+        let ratio = (0..steps)
+            .map(|j| {
+                let j = j.min(r - 1);
+                let b: f64 = base
+                    .iter()
+                    .map(|&(s, w)| w * self.ratio[s * steps + j])
+                    .sum();
+                p.ratio[j] - b
+            })
+            .collect();
+        let others: Vec<usize> = base.iter().map(|b| b.0).collect();
+        (residual, ratio, r as u32, self.first_stop(p, &others))
     }
 }
 
@@ -771,6 +1090,9 @@ mod tests {
             edges: vec![],
             edge_skip_reasons: vec![],
             skip_reasons: vec![],
+            refinement: Refinement::default(),
+            refine_skip_reasons: vec![],
+            split_figures: vec![],
             reach: vec![3; 2],
             stopped: vec![String::new(); 2],
             steps: 3,

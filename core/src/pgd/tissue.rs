@@ -44,6 +44,16 @@
 //! are renormalized; an edge is pressed only where both its ends were. Depths past the
 //! grid are held at its end and flagged. Nothing is allocated per call.
 //!
+//! Where the quadratic blend is too coarse (a triangle whose largest edge surplus
+//! exceeds the build's threshold), the triangle is split once into four and its quarter
+//! and inner points are pressed too (see [`Refinement`]): their surpluses over the
+//! quadratic blend come after the edges', and a probe in a split triangle adds the three
+//! of the quarter it lies in with weights `4 μ_i μ_j`, so the blend there is the
+//! quadratic interpolant of that quarter's six presses. A neighbour that was not split
+//! adds the quarter points of the edge they share, weighted as on the edge and fading
+//! towards its far corner, so the surface does not jump as the probe crosses the edge.
+//! At most nine samples enter one probe's blend.
+//!
 //! A press with no equilibrium past some depth (Saint Venant–Kirchhoff losing
 //! stability, a deep press rolling off the frictionless tool) keeps the depths it
 //! reached: each sample stores its *reach* and why it stopped, and a probe's own limit
@@ -64,14 +74,14 @@ use serde::{Deserialize, Serialize};
 use crate::axis::ProbePoint;
 use crate::organ::OrganMesh;
 use crate::pgd::depthlaw::DepthLaw;
-use crate::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
+use crate::pgd::surfacelaw::{Refinement, SurfaceLaw, SurfaceLawOptions};
 pub use crate::pgd::tissue_shapes::{ShapeBits, Shapes};
 use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
 /// The file's format version.
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -119,6 +129,9 @@ pub struct TissueLaw {
     /// `samples_mm.len() + e` of every per-sample array is edge `e`'s surplus over its
     /// ends' mean (residual and force ratio; see the module docs).
     pub edge_ends: Vec<[u32; 2]>,
+    /// Triangles split into four: their quarter and inner points' samples follow the
+    /// edges' (see [`Refinement`]).
+    pub refinement: Refinement,
     /// Grid depths `j · depth_step_mm`, `j = 0..steps`.
     pub steps: u32,
     /// `ratio[sample · steps + j]`: `g` at grid depth `j`.
@@ -213,7 +226,10 @@ impl TissueLaw {
     ) -> Result<TissueLaw, TissueError> {
         let t0 = Instant::now();
         let steps = law.steps();
-        let n_samples = law.samples.len() + law.edges.len();
+        let n_samples = law.samples.len()
+            + law.edges.len()
+            + law.refinement.quarter_ends.len()
+            + law.refinement.inner_corners.len();
         if law.samples.is_empty() {
             return Err(TissueError::Empty);
         }
@@ -265,6 +281,7 @@ impl TissueLaw {
             samples_mm: law.samples.iter().map(|&v| at(v)).collect(),
             skipped_mm: law.skipped.iter().map(|&v| at(v)).collect(),
             edge_ends: law.edges.clone(),
+            refinement: law.refinement.clone(),
             steps: steps as u32,
             ratio: law.ratio.iter().map(|&g| g as f32).collect(),
             stiffness_n_per_mm: law.stiffness_n_per_mm.iter().map(|&k| k as f32).collect(),
@@ -295,8 +312,12 @@ impl TissueLaw {
     pub fn check(&self) -> Result<(), String> {
         let steps = self.steps as usize;
         let vertices = self.samples_mm.len();
+        let refined = &self.refinement;
         let (ns, rank, m) = (
-            vertices + self.edge_ends.len(),
+            vertices
+                + self.edge_ends.len()
+                + refined.quarter_ends.len()
+                + refined.inner_corners.len(),
             self.rank as usize,
             3 * self.rows_mm.len(),
         );
@@ -357,6 +378,20 @@ impl TissueLaw {
         {
             return Err(format!(
                 "an edge's ends are not two of the {vertices} samples"
+            ));
+        }
+        let distinct = |c: &[u32]| {
+            c.iter().all(|&v| (v as usize) < vertices)
+                && (0..c.len()).all(|i| (i + 1..c.len()).all(|j| c[i] != c[j]))
+        };
+        if !(refined.quarter_ends.iter().all(|c| distinct(c))
+            && refined.inner_corners.iter().all(|c| distinct(c))
+            && refined.triangles.iter().all(|c| distinct(c))
+            && refined.above_mm.is_none_or(|t| t.is_finite() && t >= 0.0))
+        {
+            return Err(format!(
+                "a split triangle's corners or a quarter or inner point's are not distinct \
+                 samples of the {vertices}, or the split threshold is not a length"
             ));
         }
         if self.reach.iter().zip(&self.stopped).any(|(&r, why)| {
@@ -469,6 +504,13 @@ fn cell(p: [f64; 3]) -> [i64; 3] {
     p.map(|x| x.floor() as i64)
 }
 
+/// Most samples one probe's blend uses: three corners, three edges, three surpluses of
+/// a split triangle's quarter or of split edges (see [`BoundTissue::terms`]).
+const TERMS: usize = 9;
+
+/// The samples and weights of one probe's blend.
+type Terms = [(usize, f64); TERMS];
+
 /// A tissue law bound to one scene: its rows and samples in the scene's numbering.
 #[derive(Debug, Clone)]
 pub struct BoundTissue {
@@ -480,6 +522,14 @@ pub struct BoundTissue {
     /// Per palpable triangle: the surplus sample of its edges (corners 0–1, 1–2, 2–0),
     /// or `u32::MAX` where the edge was not pressed.
     edge_samples: Vec<[u32; 3]>,
+    /// Per palpable triangle: whether it was split into four (see [`Refinement`]).
+    split: Vec<bool>,
+    /// Per palpable triangle and edge `k` (corners `k`, `k + 1`): the surplus samples of
+    /// its quarter points near corner `k` and near corner `k + 1`, or `u32::MAX`.
+    quarter_samples: Vec<[[u32; 2]; 3]>,
+    /// Per palpable triangle: the surplus sample of its inner point near each corner,
+    /// or `u32::MAX`.
+    inner_samples: Vec<[u32; 3]>,
     /// Render vertices the law has no row for (kept for the report).
     pub unmatched_vertices: usize,
 }
@@ -545,18 +595,68 @@ impl BoundTissue {
                 })
             })
             .collect();
+        // The split triangles' samples, found by the corner samples they refine.
+        let r = &law.refinement;
+        let sorted = |mut c: [u32; 3]| {
+            c.sort_unstable();
+            c
+        };
+        let split_set: std::collections::HashSet<[u32; 3]> =
+            r.triangles.iter().map(|&c| sorted(c)).collect();
+        let first_quarter = first_edge + law.edge_ends.len();
+        let quarter_of: HashMap<[u32; 2], u32> = r
+            .quarter_ends
+            .iter()
+            .enumerate()
+            .map(|(q, &ends)| (ends, (first_quarter + q) as u32))
+            .collect();
+        let first_inner = first_quarter + r.quarter_ends.len();
+        let inner_of: HashMap<([u32; 3], u32), u32> = r
+            .inner_corners
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| ((sorted(c), c[0]), (first_inner + i) as u32))
+            .collect();
+        let split = corner_samples
+            .iter()
+            .map(|&c| !c.contains(&u32::MAX) && split_set.contains(&sorted(c)))
+            .collect();
+        let quarter_samples = corner_samples
+            .iter()
+            .map(|c| {
+                std::array::from_fn(|k| {
+                    let (a, b) = (c[k], c[(k + 1) % 3]);
+                    let find = |ends| quarter_of.get(&ends).copied().unwrap_or(u32::MAX);
+                    [find([a, b]), find([b, a])]
+                })
+            })
+            .collect();
+        let inner_samples = corner_samples
+            .iter()
+            .map(|&c| {
+                std::array::from_fn(|k| {
+                    inner_of
+                        .get(&(sorted(c), c[k]))
+                        .copied()
+                        .unwrap_or(u32::MAX)
+                })
+            })
+            .collect();
         Ok(BoundTissue {
             law,
             vertex_of_row,
             corner_samples,
             edge_samples,
+            split,
+            quarter_samples,
+            inner_samples,
             unmatched_vertices,
         })
     }
 
     pub fn scratch(&self) -> TissueScratch {
         TissueScratch {
-            c: vec![0.0; 6 * self.law.rank as usize],
+            c: vec![0.0; TERMS * self.law.rank as usize],
         }
     }
 
@@ -572,7 +672,7 @@ impl BoundTissue {
 
     /// The last grid depth every sample of `terms` (with a weight) reached, and the
     /// sample that stops there first (`None` where all reached the grid's end).
-    fn last_depth(&self, terms: Option<&[(usize, f64); 6]>) -> (usize, Option<usize>) {
+    fn last_depth(&self, terms: Option<&Terms>) -> (usize, Option<usize>) {
         let full = self.law.steps as usize - 1;
         terms.into_iter().flatten().filter(|(_, w)| *w != 0.0).fold(
             (full, None),
@@ -595,11 +695,14 @@ impl BoundTissue {
     }
 
     /// The samples the probe's press is blended from, with their weights: the sampled
-    /// corners with their barycentric weights renormalized, then the pressed edges'
-    /// surpluses with `4 λ_a λ_b` (the quadratic hierarchical blend); unused entries have
+    /// corners with their barycentric weights renormalized, the pressed edges'
+    /// surpluses with `4 λ_a λ_b` (the quadratic hierarchical blend), then the split
+    /// triangle's sub-triangle surpluses with `4 μ_i μ_j`, or, in a triangle not split,
+    /// the quarter points of its split edges (see [`Refinement`]); unused entries have
     /// weight 0. `None` when no corner was sampled.
-    fn terms(&self, p: &ProbePoint) -> Option<[(usize, f64); 6]> {
-        let samples = self.corner_samples.get(p.triangle as usize)?;
+    fn terms(&self, p: &ProbePoint) -> Option<Terms> {
+        let t = p.triangle as usize;
+        let samples = self.corner_samples.get(t)?;
         let total: f64 = (0..3)
             .filter(|&k| samples[k] != u32::MAX)
             .map(|k| p.bary[k])
@@ -608,24 +711,63 @@ impl BoundTissue {
         if total.is_nan() || total <= 0.0 {
             return None;
         }
-        let edges = self.edge_samples[p.triangle as usize];
-        Some(std::array::from_fn(|k| {
-            if k < 3 {
-                if samples[k] == u32::MAX {
-                    (0, 0.0)
-                } else {
-                    (samples[k] as usize, p.bary[k] / total)
-                }
+        let mut out = [(0usize, 0.0f64); TERMS];
+        let term = |s: u32, w: f64| {
+            if s == u32::MAX {
+                (0, 0.0)
             } else {
-                // An edge is pressed only where both its ends were: no renormalizing.
-                let e = k - 3;
-                if edges[e] == u32::MAX {
-                    (0, 0.0)
-                } else {
-                    (edges[e] as usize, 4.0 * p.bary[e] * p.bary[(e + 1) % 3])
+                (s as usize, w)
+            }
+        };
+        let l = p.bary;
+        let edges = self.edge_samples[t];
+        for k in 0..3 {
+            out[k] = term(samples[k], l[k] / total);
+            // An edge is pressed only where both its ends were: no renormalizing.
+            out[3 + k] = term(edges[k], 4.0 * l[k] * l[(k + 1) % 3]);
+        }
+        let quarters = self.quarter_samples[t];
+        if self.split[t] {
+            let inner = self.inner_samples[t];
+            // All corners were pressed: λ sums to one.
+            match (0..3).find(|&k| l[k] >= 0.5) {
+                // The quarter at corner k: μ_k = 2λ_k − 1, μ_i = 2λ_i, μ_j = 2λ_j.
+                Some(k) => {
+                    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                    let (mk, mi, mj) = (2.0 * l[k] - 1.0, 2.0 * l[i], 2.0 * l[j]);
+                    out[6] = term(quarters[k][0], 4.0 * mk * mi);
+                    out[7] = term(quarters[j][1], 4.0 * mj * mk);
+                    out[8] = term(inner[k], 4.0 * mi * mj);
+                }
+                // The middle quarter, corners the edge midpoints: μ(m_ki) = 1 − 2λ_j.
+                None => {
+                    for k in 0..3 {
+                        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                        out[6 + k] = term(inner[k], 4.0 * (1.0 - 2.0 * l[j]) * (1.0 - 2.0 * l[i]));
+                    }
                 }
             }
-        }))
+        } else {
+            // A split neighbour's quarter points along each edge, at `t` of the way from
+            // corner k to corner i, weighted as on the edge and fading to the far corner.
+            for k in 0..3 {
+                let i = (k + 1) % 3;
+                let along = l[k] + l[i];
+                if along <= 0.0 {
+                    continue;
+                }
+                let t = l[i] / along;
+                out[6 + k] = if t <= 0.5 {
+                    term(quarters[k][0], along * 4.0 * (1.0 - 2.0 * t) * (2.0 * t))
+                } else {
+                    term(
+                        quarters[k][1],
+                        along * 4.0 * (2.0 * t - 1.0) * (2.0 - 2.0 * t),
+                    )
+                };
+            }
+        }
+        Some(out)
     }
 
     /// `g(s, d)` and whether `d` lay beyond the grid; 1 where no corner was sampled.
@@ -637,12 +779,7 @@ impl BoundTissue {
 
     /// [`Self::ratio`] for the blend `terms` answered to grid depth `last`: the
     /// force and its inverse find both once per call, not once per depth tried.
-    fn blended_ratio(
-        &self,
-        terms: Option<&[(usize, f64); 6]>,
-        last: usize,
-        depth_mm: f64,
-    ) -> (f64, bool) {
+    fn blended_ratio(&self, terms: Option<&Terms>, last: usize, depth_mm: f64) -> (f64, bool) {
         let (j, t, beyond) = self.interval(depth_mm, last);
         let Some(corners) = terms else {
             return (1.0, beyond);
@@ -716,7 +853,7 @@ impl BoundTissue {
         let steps = self.law.steps as usize;
         // Each kept mode's weight at this depth, for the three corners.
         let mut n = 0;
-        let mut first = [0usize; 6];
+        let mut first = [0usize; TERMS];
         for (k, &(s, w)) in corners.iter().enumerate() {
             let modes = self.law.mode_start[s] as usize..self.law.mode_start[s + 1] as usize;
             first[k] = modes.start;
@@ -858,6 +995,7 @@ mod tests {
             samples_mm: corners.to_vec(),
             skipped_mm: vec![],
             edge_ends: vec![[0, 1]],
+            refinement: Refinement::default(),
             steps: 2,
             ratio: g1
                 .iter()
@@ -927,6 +1065,7 @@ mod tests {
             samples_mm: corners.to_vec(),
             skipped_mm: vec![],
             edge_ends: vec![],
+            refinement: Refinement::default(),
             steps: 3,
             // g: 1 at rest, 0.9 / 0.8 at 1 / 2 mm (corner 1 held at 0.9 past its reach).
             ratio: [1.0, 0.9, 0.8].repeat(3),
@@ -980,5 +1119,170 @@ mod tests {
         let mut rows = [0.0; 3];
         assert!(bound.add_surface(&at_corner, 1.5, &mut scratch, &mut rows));
         assert!((rows[0] - 2.5).abs() < 1e-6, "{rows:?}");
+    }
+
+    /// Two triangles sharing the edge 0–1: `[0, 1, 2]` split into four (its corners,
+    /// edges, quarter and inner points all pressed), `[1, 0, 3]` not. The stored
+    /// surpluses are made from a smooth field `f` with the Lagrange P2 basis (not the
+    /// build's hierarchical weights): inside each quarter of the split triangle the
+    /// blend must be the P2 interpolant of that quarter's six points, and the
+    /// neighbour must agree with it along the shared edge.
+    #[test]
+    fn a_split_triangle_blends_each_quarter_quadratically_and_its_neighbour_agrees() {
+        let f = |p: [f64; 2]| (0.3 * p[0]).sin() + (0.2 * p[1]).cos() + 0.01 * p[0] * p[1];
+        let corners = [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, -10.0]];
+        let at = |w: [f64; 3]| [0, 1].map(|c| (0..3).map(|k| w[k] * corners[k][c]).sum::<f64>());
+        // P2 on the whole triangle [0, 1, 2] from f at its corners and midpoints.
+        let p2 = |l: [f64; 3]| {
+            let mut v = 0.0;
+            for k in 0..3 {
+                let i = (k + 1) % 3;
+                let mut m = [0.0; 3];
+                m[k] = 0.5;
+                m[i] = 0.5;
+                let mut c = [0.0; 3];
+                c[k] = 1.0;
+                v += l[k] * (2.0 * l[k] - 1.0) * f(at(c)) + 4.0 * l[k] * l[i] * f(at(m));
+            }
+            v
+        };
+        let mut x = Vec::new();
+        for v in &corners {
+            x.push(f(*v));
+        }
+        let mut edge_ends = Vec::new();
+        for k in 0..3u32 {
+            let i = (k + 1) % 3;
+            let mut m = [0.0; 3];
+            m[k as usize] = 0.5;
+            m[i as usize] = 0.5;
+            let (a, b) = (f(corners[k as usize]), f(corners[i as usize]));
+            x.push(f(at(m)) - 0.5 * (a + b));
+            edge_ends.push([k, i]);
+        }
+        let mut quarter_ends = Vec::new();
+        for k in 0..3u32 {
+            let i = (k + 1) % 3;
+            for (near, far) in [(k, i), (i, k)] {
+                let mut l = [0.0; 3];
+                l[near as usize] = 0.75;
+                l[far as usize] = 0.25;
+                x.push(f(at(l)) - p2(l));
+                quarter_ends.push([near, far]);
+            }
+        }
+        let mut inner_corners = Vec::new();
+        for k in 0..3u32 {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            let mut l = [0.25; 3];
+            l[k as usize] = 0.5;
+            x.push(f(at(l)) - p2(l));
+            inner_corners.push([k, i, j]);
+        }
+        let n = x.len();
+        let law = TissueLaw {
+            options: SurfaceLawOptions {
+                depth_max_mm: 1.0,
+                depth_step_mm: 1.0,
+                ..SurfaceLawOptions::default()
+            },
+            rows_mm: vec![[0.0, 0.0, 5.0]],
+            samples_mm: corners
+                .iter()
+                .map(|p| [p[0] as f32, p[1] as f32, 0.0])
+                .collect(),
+            skipped_mm: vec![],
+            edge_ends,
+            refinement: Refinement {
+                above_mm: Some(0.0),
+                triangles: vec![[0, 1, 2]],
+                quarter_ends,
+                inner_corners,
+            },
+            steps: 2,
+            ratio: (0..n)
+                .flat_map(|s| [if s < 4 { 1.0 } else { 0.0 }, 0.5])
+                .collect(),
+            stiffness_n_per_mm: vec![1.0; n],
+            correction_mm: vec![0.0; n],
+            segments: vec![1; n],
+            reach: vec![2; n],
+            stopped: vec![String::new(); n],
+            rank: 1,
+            mode_start: (0..=n as u32).collect(),
+            shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(n)),
+            shape_scale: vec![1.0 / f32::from(i16::MAX); n],
+            coeffs: x.iter().flat_map(|&v| [0.0, v as f32]).collect(),
+            truncation_bound_mm: 0.0,
+            tolerance_mm: 0.05,
+            build_s: 0.0,
+            compress_s: 0.0,
+        };
+        law.check().expect("consistent");
+        let axis: Vec<[f64; 3]> = corners.iter().map(|p| [p[0], p[1], 0.0]).collect();
+        let triangles = [[0, 1, 2], [1, 0, 3]];
+        let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds");
+        let mut scratch = bound.scratch();
+        let mut blend = |triangle: u32, bary: [f64; 3]| {
+            let mut rows = [0.0; 3];
+            let p = ProbePoint { triangle, bary };
+            assert!(bound.add_surface(&p, 1.0, &mut scratch, &mut rows));
+            rows[0]
+        };
+        // f32 coefficients: about 1e-7 of values of order one.
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-5;
+        // The four quarters as barycentric corners in the big triangle.
+        let (v, m) = (
+            [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            [[0.5, 0.5, 0.0], [0.0, 0.5, 0.5], [0.5, 0.0, 0.5]],
+        );
+        let quarters = [
+            [v[0], m[0], m[2]],
+            [m[0], v[1], m[1]],
+            [m[2], m[1], v[2]],
+            [m[0], m[1], m[2]],
+        ];
+        let mut rng = crate::rng::Rng::seed(11);
+        for q in &quarters {
+            // The quarter's own P2 from f at its corners and midpoints.
+            let point = |w: [f64; 3]| {
+                std::array::from_fn::<f64, 3, _>(|c| (0..3).map(|k| w[k] * q[k][c]).sum())
+            };
+            for _ in 0..20 {
+                let (a, b) = (rng.uniform(), rng.uniform());
+                let (a, b) = if a + b > 1.0 {
+                    (1.0 - a, 1.0 - b)
+                } else {
+                    (a, b)
+                };
+                let mu = [1.0 - a - b, a, b];
+                let mut want = 0.0;
+                for k in 0..3 {
+                    let i = (k + 1) % 3;
+                    let mut c = [0.0; 3];
+                    c[k] = 1.0;
+                    let mut mid = [0.0; 3];
+                    mid[k] = 0.5;
+                    mid[i] = 0.5;
+                    want += mu[k] * (2.0 * mu[k] - 1.0) * f(at(point(c)))
+                        + 4.0 * mu[k] * mu[i] * f(at(point(mid)));
+                }
+                let got = blend(0, point(mu));
+                assert!(close(got, want), "quarter {q:?} at {mu:?}: {got} vs {want}");
+            }
+        }
+        // Along the shared edge the unsplit neighbour [1, 0, 3] agrees, quarter points
+        // included; off it, it fades to its far corner.
+        for t in [0.0, 0.1, 0.25, 0.4, 0.5, 0.6, 0.75, 0.9, 1.0] {
+            let split = blend(0, [1.0 - t, t, 0.0]);
+            let neighbour = blend(1, [t, 1.0 - t, 0.0]);
+            assert!(close(split, neighbour), "t = {t}: {split} vs {neighbour}");
+        }
+        assert!(close(blend(1, [0.0, 0.0, 1.0]), f(corners[3])));
+        // And the split changes something: the plain quadratic blend misses f at a
+        // quarter point by more than the tolerance.
+        let l = [0.75, 0.25, 0.0];
+        assert!((p2(l) - f(at(l))).abs() > 1e-3);
+        assert!(close(blend(0, l), f(at(l))));
     }
 }

@@ -138,7 +138,7 @@ impl TissueLaw {
 mod tests {
     use super::*;
     use crate::axis::ProbePoint;
-    use crate::pgd::surfacelaw::SurfaceLawOptions;
+    use crate::pgd::surfacelaw::{Refinement, SurfaceLawOptions};
     use crate::pgd::tissue::BoundTissue;
 
     /// Three corners, depths 0–4 mm, two modes each (x and y of one row); corner 2's
@@ -159,6 +159,7 @@ mod tests {
             samples_mm: vec![[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]],
             skipped_mm: vec![],
             edge_ends: vec![],
+            refinement: Refinement::default(),
             steps: 5,
             ratio: [
                 [1.0, 0.9, 0.8, 0.7, 0.6],
