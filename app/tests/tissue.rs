@@ -612,19 +612,23 @@ fn pressing_one_at_a_time_gives_the_same_law() {
     assert_eq!(one, build("all.tissue", &[]));
 }
 
-/// A law built with sixteen bits: `tradeoff` measures it requantized to eight too,
-/// with half the shapes' bytes, the same force, and a surface within what the
-/// requantization reports (times the blend's total weight, at most 1 + 4/3).
+/// A law built with sixteen bits and every triangle split: `tradeoff` measures it
+/// requantized to eight too, with half the shapes' bytes, the same force, and a surface
+/// within what the requantization reports (times the blend's total weight, at most
+/// 1 + 4/3 + 4/3: corners, edges, a quarter's surpluses); and without its split
+/// points, a row of fewer bytes.
 #[test]
 fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
     let dir = tempfile::tempdir().expect("tempdir");
     let tissue = dir.path().join("p2.tissue");
-    common::json_ok(&palpa(&[
+    let built = common::json_ok(&palpa(&[
         "tissue",
         "build",
         "--depth-max-mm",
         "3",
         "--within=-30.3,70.7,16.9,9",
+        "--refine-above-mm",
+        "0",
         "--bits",
         "16",
         "--out",
@@ -659,7 +663,16 @@ fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
     let surface = "worst_surface_max_error_mm";
     assert!(
         (num(eight, surface) - num(sixteen, surface)).abs()
-            <= num(eight, "requantized_mm") * (1.0 + 4.0 / 3.0) + 1e-9,
+            <= num(eight, "requantized_mm") * (1.0 + 8.0 / 3.0) + 1e-9,
         "{eight} {sixteen}"
     );
+    let split = num(&built, "split_triangles");
+    assert!(split >= 1.0, "{built}");
+    assert_eq!(num(sixteen, "split_triangles"), split);
+    let plain = rows
+        .iter()
+        .find(|r| r["split_triangles"] == 0)
+        .unwrap_or_else(|| panic!("no row without the split: {table}"));
+    assert!(num(plain, "payload_bytes") < num(sixteen, "payload_bytes"));
+    assert!(num(plain, "presses_compared") >= 1.0, "{plain}");
 }

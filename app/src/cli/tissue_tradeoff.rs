@@ -1,8 +1,9 @@
 //! `palpa tradeoff X.tissue`: the measured speed/accuracy table of a tissue
-//! vademecum over its three knobs, the modes each sample keeps, the bits of each
-//! stored shape entry (eight beside a sixteen-bit law's own) and the depth grid's step
-//! (`palpa_core::pgd::tissue_knobs`), with the errors at held-out points *and*
-//! depths (the λ axis) against the full nonlinear FE.
+//! vademecum over its knobs, the modes each sample keeps, the bits of each stored
+//! shape entry (eight beside a sixteen-bit law's own), the depth grid's step and, for a
+//! law with split triangles, the same presses without their quarter and inner points
+//! (`split_triangles: 0`; `palpa_core::pgd::tissue_knobs`), with the errors at
+//! held-out points *and* depths (the λ axis) against the full nonlinear FE.
 //!
 //! The reference is computed once: Newton under depth control at each held-out press
 //! (random points inside pressed triangles, depths off every grid), along the scene's
@@ -195,9 +196,32 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
                 "depth_step_mm": o.depth_step_mm * stride as f64,
                 "payload_bytes": bytes, "dropped_sigma_mm": cut.dropped_sigma_mm,
                 "requantized_mm": cut.requantized_mm,
+                "split_triangles": bound.law.refinement.triangles.len(),
                 "truncation_bound_mm": bound.law.truncation_bound_mm}),
             ));
         }
+    }
+    // The split knob: the same presses without the split triangles' points.
+    if !law.refinement.triangles.is_empty() {
+        let plain = law.unsplit();
+        let bytes = plain.payload_bytes();
+        let bound = BoundTissue::bind(
+            plain,
+            scene.vertices_mm(),
+            scene.axis_vertices_mm(),
+            scene.axis_triangles(),
+        )?;
+        table.push(measure(
+            &bound,
+            &presses,
+            &organ,
+            &vertex_of,
+            s.depths_mm,
+            &json!({"modes_max": rank, "bits": law.shape.bits().count(),
+                "depth_step_mm": o.depth_step_mm, "payload_bytes": bytes,
+                "dropped_sigma_mm": 0.0, "requantized_mm": 0.0, "split_triangles": 0,
+                "truncation_bound_mm": bound.law.truncation_bound_mm}),
+        ));
     }
     let report = json!({"law": o.law.name(), "element": o.element.name(),
         "depth_max_mm": law.depth_max_mm(), "held_out_points": s.heldout,

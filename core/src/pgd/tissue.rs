@@ -1284,5 +1284,18 @@ mod tests {
         let l = [0.75, 0.25, 0.0];
         assert!((p2(l) - f(at(l))).abs() > 1e-3);
         assert!(close(blend(0, l), f(at(l))));
+        // Without the split points the law is the quadratic blend of the same presses.
+        let plain = bound.law.unsplit();
+        plain.check().expect("consistent");
+        assert_eq!(plain.reach.len(), 7);
+        assert!(plain.payload_bytes() < bound.law.payload_bytes());
+        let plain = BoundTissue::bind(plain, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds");
+        let mut rows = [0.0; 3];
+        let p = ProbePoint {
+            triangle: 0,
+            bary: l,
+        };
+        assert!(plain.add_surface(&p, 1.0, &mut plain.scratch(), &mut rows));
+        assert!(close(rows[0], p2(l)), "{} vs {}", rows[0], p2(l));
     }
 }

@@ -132,6 +132,35 @@ impl TissueLaw {
             requantized_mm: requantized,
         })
     }
+
+    /// The law without its split triangles' quarter and inner points: the quadratic
+    /// blend everywhere, what a build with `--no-refine` stores from the same presses
+    /// (the split points' samples come last, so the others keep their indices).
+    pub fn unsplit(&self) -> TissueLaw {
+        let (steps, m) = (self.steps as usize, 3 * self.rows_mm.len());
+        let n = self.samples_mm.len() + self.edge_ends.len();
+        let modes = self.mode_start[n] as usize;
+        let rank = self.mode_start[..=n]
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .max()
+            .unwrap_or(0);
+        TissueLaw {
+            refinement: super::surfacelaw::Refinement::default(),
+            ratio: self.ratio[..n * steps].to_vec(),
+            stiffness_n_per_mm: self.stiffness_n_per_mm[..n].to_vec(),
+            correction_mm: self.correction_mm[..n].to_vec(),
+            segments: self.segments[..n].to_vec(),
+            reach: self.reach[..n].to_vec(),
+            stopped: self.stopped[..n].to_vec(),
+            rank,
+            mode_start: self.mode_start[..=n].to_vec(),
+            shape: self.shape.prefix(modes * m),
+            shape_scale: self.shape_scale[..modes].to_vec(),
+            coeffs: self.coeffs[..modes * steps].to_vec(),
+            ..self.clone()
+        }
+    }
 }
 
 #[cfg(test)]

@@ -88,6 +88,14 @@ impl Shapes {
         }
     }
 
+    /// The first `n` entries (whole modes, when `n` is a multiple of a mode's length).
+    pub fn prefix(&self, n: usize) -> Shapes {
+        match self {
+            Shapes::Eight(v) => Shapes::Eight(v[..n].to_vec()),
+            Shapes::Sixteen(v) => Shapes::Sixteen(v[..n].to_vec()),
+        }
+    }
+
     /// Entry `i` as stored (multiply by its mode's scale for mm per unit weight).
     pub fn get(&self, i: usize) -> f64 {
         match self {
