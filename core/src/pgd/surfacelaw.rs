@@ -365,30 +365,10 @@ impl SurfaceLaw {
             if sa == u32::MAX || sb == u32::MAX {
                 continue;
             }
-            let (ra, rb) = (sa as usize * n_row, sb as usize * n_row);
             // The surplus up to the depth all three reached, held there.
-            let r = p
-                .reach
-                .min(stored.reach[sa as usize])
-                .min(stored.reach[sb as usize]) as usize;
-            let row = 3 * rows.len();
-            let held = |i: usize| (i / row).min(r - 1) * row + i % row;
-            let residual = &stored.residual;
-            let surplus: Vec<f32> = (0..n_row)
-                .map(|i| {
-                    let i = held(i);
-                    p.residual[i] - 0.5 * (residual[ra + i] + residual[rb + i])
-                })
-                .collect();
-            let (ga, gb) = (sa as usize * steps, sb as usize * steps);
-            let g: Vec<f64> = (0..steps)
-                .map(|j| {
-                    let j = j.min(r - 1);
-                    p.ratio[j] - 0.5 * (stored.ratio[ga + j] + stored.ratio[gb + j])
-                })
-                .collect();
-            let why = stored.first_stop(p, &[sa as usize, sb as usize]);
-            stored.push(p, &surplus, &g, r as u32, why);
+            let base = [(sa as usize, 0.5), (sb as usize, 0.5)];
+            let (surplus, g, reach, why) = stored.surplus(p, &base, steps, 3 * rows.len());
+            stored.push(p, &surplus, &g, reach, why);
             kept_edges.push([sa, sb]);
         }
         let mut refinement = Refinement {
