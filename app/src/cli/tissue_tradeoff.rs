@@ -19,7 +19,7 @@ use anyhow::Context;
 use palpa_core::axis::ProbePoint;
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits};
+use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueLaw};
 use serde_json::json;
 
 use super::args::OrganArgs;
@@ -164,6 +164,27 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
     if law.shape.bits() != ShapeBits::Eight {
         precisions.push(ShapeBits::Eight);
     }
+    // One setting's row: the cut law bound to the scene and measured, with its knobs,
+    // bytes, split triangles and bound.
+    let row = |cut: TissueLaw, mut knobs: serde_json::Value| -> anyhow::Result<_> {
+        knobs["payload_bytes"] = json!(cut.payload_bytes());
+        knobs["split_triangles"] = json!(cut.refinement.triangles.len());
+        knobs["truncation_bound_mm"] = json!(cut.truncation_bound_mm);
+        let bound = BoundTissue::bind(
+            cut,
+            scene.vertices_mm(),
+            scene.axis_vertices_mm(),
+            scene.axis_triangles(),
+        )?;
+        Ok(measure(
+            &bound,
+            &presses,
+            &organ,
+            &vertex_of,
+            s.depths_mm,
+            &knobs,
+        ))
+    };
     for (&stride, &modes_max, &bits) in strides
         .iter()
         .flat_map(|s| modes.iter().map(move |m| (s, m)))
@@ -178,50 +199,23 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
                     continue;
                 }
             };
-            let bytes = cut.law.payload_bytes();
-            let bound = BoundTissue::bind(
+            table.push(row(
                 cut.law,
-                scene.vertices_mm(),
-                scene.axis_vertices_mm(),
-                scene.axis_triangles(),
-            )?;
-            table.push(measure(
-                &bound,
-                &presses,
-                &organ,
-                &vertex_of,
-                s.depths_mm,
-                &json!({
-                "modes_max": modes_max, "bits": bits.count(),
-                "depth_step_mm": o.depth_step_mm * stride as f64,
-                "payload_bytes": bytes, "dropped_sigma_mm": cut.dropped_sigma_mm,
-                "requantized_mm": cut.requantized_mm,
-                "split_triangles": bound.law.refinement.triangles.len(),
-                "truncation_bound_mm": bound.law.truncation_bound_mm}),
-            ));
+                json!({"modes_max": modes_max, "bits": bits.count(),
+                    "depth_step_mm": o.depth_step_mm * stride as f64,
+                    "dropped_sigma_mm": cut.dropped_sigma_mm,
+                    "requantized_mm": cut.requantized_mm}),
+            )?);
         }
     }
     // The split knob: the same presses without the split triangles' points.
     if !law.refinement.triangles.is_empty() {
-        let plain = law.unsplit();
-        let bytes = plain.payload_bytes();
-        let bound = BoundTissue::bind(
-            plain,
-            scene.vertices_mm(),
-            scene.axis_vertices_mm(),
-            scene.axis_triangles(),
-        )?;
-        table.push(measure(
-            &bound,
-            &presses,
-            &organ,
-            &vertex_of,
-            s.depths_mm,
-            &json!({"modes_max": rank, "bits": law.shape.bits().count(),
-                "depth_step_mm": o.depth_step_mm, "payload_bytes": bytes,
-                "dropped_sigma_mm": 0.0, "requantized_mm": 0.0, "split_triangles": 0,
-                "truncation_bound_mm": bound.law.truncation_bound_mm}),
-        ));
+        table.push(row(
+            law.unsplit(),
+            json!({"modes_max": rank, "bits": law.shape.bits().count(),
+                "depth_step_mm": o.depth_step_mm, "dropped_sigma_mm": 0.0,
+                "requantized_mm": 0.0}),
+        )?);
     }
     let report = json!({"law": o.law.name(), "element": o.element.name(),
         "depth_max_mm": law.depth_max_mm(), "held_out_points": s.heldout,
