@@ -499,11 +499,42 @@ mod hyperelastic {
             always_augment: true,
             ..every_depth
         };
+        // A follower whose own corrections never converge (a negative tolerance no
+        // step meets; even four Newton steps reach round-off, not zero): every depth
+        // falls to the Newton fallback, which must give the reference's equilibria;
+        // without it the press is given up.
+        let starved = PathOptions {
+            max_steps: 1,
+            tolerance_mm: -1.0,
+            force_tolerance: -1.0,
+            ..PathOptions::default()
+        };
+        let given_up = follow(
+            &space,
+            options.law,
+            options.material,
+            &expander,
+            &load,
+            &depths,
+            &PathOptions {
+                newton_fallback: false,
+                ..starved
+            },
+        )
+        .expect("follows");
+        assert!(
+            given_up
+                .as_ref()
+                .is_err_and(|why| why.contains("no equilibrium")),
+            "{:?}",
+            given_up.map(|p| p.u.len())
+        );
         for (o, force_within, nodes_within_mm) in [
             (tight, 1e-4, 0.005),
             (every_depth, 5e-3, 0.05),
             (plain, 5e-3, 0.05),
             (augmented, 5e-3, 0.05),
+            (starved, 1e-6, 1e-4),
         ] {
             let p = follow(
                 &space,
@@ -527,7 +558,19 @@ mod hyperelastic {
                 o.tolerance_mm, p.segment_starts_mm, p.chord_steps, p.worst_correction_mm
             );
             assert_eq!(p.u.len(), depths.len());
-            assert!(p.worst_correction_mm <= o.tolerance_mm);
+            assert!(p.worst_correction_mm <= o.tolerance_mm.max(0.0));
+            // The fallback acts only where the follower's own corrections fail.
+            let by_newton = if o.max_steps == 1 {
+                depths.len() - 1
+            } else {
+                0
+            };
+            assert_eq!(
+                p.newton_depths_mm.len(),
+                by_newton,
+                "{:?}",
+                p.newton_depths_mm
+            );
             assert!(rel.abs() < force_within, "force {rel}");
             assert!(worst < nodes_within_mm, "nodal {worst} mm");
             if o.refresh_after == 0 {

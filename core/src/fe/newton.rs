@@ -249,7 +249,7 @@ pub fn solve(
         last_step_residuals: Vec::new(),
         seconds: 0.0,
     };
-    let mut state = State {
+    let state = State {
         u: vec![0.0; space.free_dofs],
         force: 0.0,
     };
@@ -290,53 +290,7 @@ pub fn solve(
         }
         pb.depth_weight = pb.shape_norm / c0.abs();
     }
-    let mut done = 0.0f64;
-    let mut step = settings.initial_step.min(1.0);
-    while done < 1.0 {
-        let frac = (done + step).min(1.0);
-        match pb.step(frac * target, &state, &mut report) {
-            Ok((next, residuals)) => {
-                state = next;
-                done = frac;
-                report.load_steps += 1;
-                if residuals.len() <= 6 {
-                    step = (step * 1.5).min(1.0);
-                }
-                report.last_step_residuals = residuals;
-            }
-            Err(why) => {
-                report.step_cuts += 1;
-                step *= 0.5;
-                if step < settings.min_step {
-                    let advice = match law {
-                        Law::Svk => {
-                            "Saint Venant–Kirchhoff loses stability under large compression: \
-                             press less, or use the neo-Hookean law"
-                        }
-                        Law::NeoHookean => "the mesh may be too coarse for this deformation",
-                    };
-                    return Err(match pb.probe {
-                        None => FeError::NoConvergence {
-                            law: law.name(),
-                            reached_share: done,
-                            why,
-                            min_step: settings.min_step,
-                            advice,
-                        },
-                        Some(_) => FeError::NoConvergenceDepth {
-                            law: law.name(),
-                            reached_mm: done * target,
-                            target_mm: target,
-                            force_n: state.force,
-                            why,
-                            min_step: settings.min_step,
-                            advice,
-                        },
-                    });
-                }
-            }
-        }
-    }
+    let state = pb.ramp(state, 0.0, target, &mut report)?;
     report.seconds = t0.elapsed().as_secs_f64();
     Ok(NewtonSolution {
         u: space.expand(&state.u),
@@ -345,7 +299,127 @@ pub fn solve(
     })
 }
 
+/// Depth control from an equilibrium already reached: `start` is its depth (mm), force
+/// (N) and all-node state (mm), and the solve steps from there to `depth_mm` as
+/// [`solve`] steps from rest (the same line search, cuts and errors, the steps now
+/// shares of `depth_mm − start depth`). `stiffness_n_per_mm` is the press's linear
+/// stiffness at the probe (`1 / n̂·K₀⁻¹f̂`), which weighs the depth error in the merit;
+/// the caller has it, so the rest tangent is not factored again. This is what a press
+/// followed along a depth grid ([`super::path`]) falls back on where its own
+/// corrections find no equilibrium.
+#[allow(clippy::too_many_arguments)]
+pub fn continue_depth(
+    space: &Space,
+    law: Law,
+    material: Material,
+    (shape, probe): (&[f64], &[f64]),
+    stiffness_n_per_mm: f64,
+    (start_mm, start_force_n, start_u): (f64, f64, &[f64]),
+    depth_mm: f64,
+    settings: NewtonSettings,
+) -> Result<NewtonSolution, FeError> {
+    material.validate()?;
+    if !depth_mm.is_finite() {
+        return Err(FeError::DepthNotFinite { depth_mm });
+    }
+    let t0 = Instant::now();
+    let (lambda, mu) = material.lame_n_per_mm2();
+    let shape = space.restrict(shape);
+    let pb = Problem {
+        space,
+        law,
+        lambda,
+        mu,
+        pattern: SymCsc::pattern(space),
+        shape_norm: norm(&shape),
+        depth_weight: norm(&shape) * stiffness_n_per_mm.abs(),
+        shape,
+        probe: Some(space.restrict(probe)),
+        settings,
+    };
+    let mut report = NewtonReport {
+        iterations: 0,
+        load_steps: 0,
+        step_cuts: 0,
+        last_step_residuals: Vec::new(),
+        seconds: 0.0,
+    };
+    let start = State {
+        u: space.restrict(start_u),
+        force: start_force_n,
+    };
+    let state = pb.ramp(start, start_mm, depth_mm, &mut report)?;
+    report.seconds = t0.elapsed().as_secs_f64();
+    Ok(NewtonSolution {
+        u: space.expand(&state.u),
+        force_n: state.force,
+        report,
+    })
+}
+
 impl Problem<'_> {
+    /// Steps the target from `from` to `to` (load factors under force control, depths
+    /// under depth control), each step from the last converged state: a failed step is
+    /// halved, steps grow again after easy convergence, and below the minimum step the
+    /// solve stops saying how far it got.
+    fn ramp(
+        &self,
+        mut state: State,
+        from: f64,
+        to: f64,
+        report: &mut NewtonReport,
+    ) -> Result<State, FeError> {
+        let settings = self.settings;
+        let mut done = 0.0f64;
+        let mut step = settings.initial_step.min(1.0);
+        while done < 1.0 {
+            let frac = (done + step).min(1.0);
+            match self.step(from + frac * (to - from), &state, report) {
+                Ok((next, residuals)) => {
+                    state = next;
+                    done = frac;
+                    report.load_steps += 1;
+                    if residuals.len() <= 6 {
+                        step = (step * 1.5).min(1.0);
+                    }
+                    report.last_step_residuals = residuals;
+                }
+                Err(why) => {
+                    report.step_cuts += 1;
+                    step *= 0.5;
+                    if step < settings.min_step {
+                        let advice = match self.law {
+                            Law::Svk => {
+                                "Saint Venant–Kirchhoff loses stability under large \
+                                 compression: press less, or use the neo-Hookean law"
+                            }
+                            Law::NeoHookean => "the mesh may be too coarse for this deformation",
+                        };
+                        return Err(match self.probe {
+                            None => FeError::NoConvergence {
+                                law: self.law.name(),
+                                reached_share: from + done * (to - from),
+                                why,
+                                min_step: settings.min_step,
+                                advice,
+                            },
+                            Some(_) => FeError::NoConvergenceDepth {
+                                law: self.law.name(),
+                                reached_mm: from + done * (to - from),
+                                target_mm: to,
+                                force_n: state.force,
+                                why,
+                                min_step: settings.min_step,
+                                advice,
+                            },
+                        });
+                    }
+                }
+            }
+        }
+        Ok(state)
+    }
+
     /// `R(u, F) = f_int(u) − F f̂` and, under depth control, `g = n̂·u − d`.
     fn residual(&self, st: &State, target: f64) -> (Vec<f64>, f64) {
         let full = self.space.expand(&st.u);

@@ -49,9 +49,14 @@
 //! `K + α n̂n̂ᵀ`, which gives the same depth-controlled corrections (see [`Augment`]).
 //! Near the liver's sharp inferior
 //! border this is what carries a press to 15 mm: without it two of eleven vertices
-//! there were given up, at 9 and 14 mm. Where the halved steps fail too the press stops
-//! there: the depths reached are kept (each an equilibrium) and the depth that failed is
-//! named ([`GridPress::stopped`]). Saint Venant–Kirchhoff stops this way where it loses
+//! there were given up, at 9 and 14 mm. Where the halved steps fail too, the next grid
+//! depth is handed to the reference Newton ([`super::newton::continue_depth`]: a fresh
+//! tangent each iteration, a line search on the residual, its own step cuts down to a
+//! thirty-second), first from the last accepted state, then from rest as the reference
+//! solve itself starts ([`PathOptions::newton_fallback`]). It runs only where the press
+//! would otherwise stop, so every press that got through without it is unchanged.
+//! Where that fails too the press stops there: the depths reached are kept (each an
+//! equilibrium) and the depth that failed is named ([`GridPress::stopped`]). Saint Venant–Kirchhoff stops this way where it loses
 //! stability, which the vademecum then reports as the press's limit.
 //!
 //! A later segment's tangent is factored in single precision
@@ -69,7 +74,7 @@
 use std::time::Instant;
 
 use super::hyper::Law;
-use super::newton::{internal_force, tangent};
+use super::newton::{NewtonSettings, continue_depth, internal_force, tangent};
 use super::series::{DepthSeries, Expander, orders_about, solve_dense};
 use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
@@ -108,6 +113,12 @@ pub struct PathOptions {
     /// and following the press there (Saint Venant–Kirchhoff in strong compression)
     /// costs the most, in failed corrections, for states no one uses.
     pub stop_past_force_peak: bool,
+    /// Where the halved steps find no equilibrium either, solve the next grid depth by
+    /// the reference Newton ([`super::newton::continue_depth`]: a fresh tangent each
+    /// iteration, a line search, its own step cuts) from the last accepted state before
+    /// the press stops. It runs only where the press would otherwise stop, so a press
+    /// that reaches every depth without it is the same with it.
+    pub newton_fallback: bool,
 }
 
 impl Default for PathOptions {
@@ -124,6 +135,7 @@ impl Default for PathOptions {
             anderson: 6,
             always_augment: false,
             stop_past_force_peak: true,
+            newton_fallback: true,
         }
     }
 }
@@ -148,6 +160,8 @@ pub struct GridPress {
     /// [`PathOptions::stop_past_force_peak`]). `u` and `force_n` then end there.
     /// `None`: every depth.
     pub stopped: Option<String>,
+    /// The grid depths solved by the Newton fallback ([`PathOptions::newton_fallback`]).
+    pub newton_depths_mm: Vec<f64>,
 }
 
 /// One series and the factored tangent it was expanded with.
@@ -281,6 +295,7 @@ pub fn follow(
         worst_correction_mm: 0.0,
         seconds: 0.0,
         stopped: None,
+        newton_depths_mm: Vec::new(),
     };
     // Starts a segment at an accepted state; `None` where its tangent is not positive
     // definite (the caller keeps the old one).
@@ -355,7 +370,7 @@ pub fn follow(
         0.0
     };
     while j < depths_mm.len() {
-        let target = depths_mm[j].min(last.depth_mm + h);
+        let mut target = depths_mm[j].min(last.depth_mm + h);
         let prediction = seg.predict(target);
         let mut c = step(
             seg.chol.get(),
@@ -404,19 +419,62 @@ pub fn follow(
                     h /= 2.0;
                     continue;
                 }
-                let why = format!(
+                let mut why = format!(
                     "no equilibrium at {target:.2} mm: neither the chord from the tangent \
                      at {:.2} mm nor Newton from there converged, with the step halved \
                      {MAX_HALVINGS} times",
                     seg.start_mm
                 );
-                // The depths reached stand (each an equilibrium); a press that reached
-                // no depth past rest has nothing to give.
-                if out.u.len() < 2 {
-                    return Ok(Err(why));
+                let goal = depths_mm[j];
+                let rest = vec![0.0; n_all];
+                // From the last state, then from rest (what the reference solve does:
+                // where the press slides, the equilibrium followed from the last state
+                // may end while the one reached from rest goes on).
+                let starts = [
+                    (last.depth_mm, last.force_n, last.u.as_slice()),
+                    (0.0, 0.0, rest.as_slice()),
+                ];
+                for start in starts.into_iter().filter(|_| o.newton_fallback) {
+                    match continue_depth(
+                        space,
+                        law,
+                        material,
+                        (load.shape, load.probe),
+                        out.first.force[0],
+                        start,
+                        goal,
+                        FALLBACK,
+                    ) {
+                        Ok(sol) => {
+                            out.chord_steps += sol.report.iterations;
+                            out.newton_depths_mm.push(goal);
+                            target = goal;
+                            c = Chord {
+                                force_n: sol.force_n,
+                                u: sol.u,
+                                steps: sol.report.iterations,
+                                // Newton's own tolerance (a residual 1e-8 of the
+                                // force) is far inside the chord's.
+                                last_mm: 0.0,
+                                converged: true,
+                            };
+                            break;
+                        }
+                        Err(e @ FeError::NoConvergenceDepth { .. }) => {
+                            why = format!("{why}; nor Newton from {:.2} mm: {e}", start.0);
+                        }
+                        Err(e) => return Err(e),
+                    }
                 }
-                out.stopped = Some(why);
-                break;
+                if !c.converged {
+                    // The depths reached stand (each an equilibrium); a press that
+                    // reached no depth past rest has nothing to give.
+                    if out.u.len() < 2 {
+                        return Ok(Err(why));
+                    }
+                    out.stopped = Some(why);
+                    break;
+                }
             }
             refresh = true;
         }
@@ -532,6 +590,16 @@ pub(super) fn factor_bordered(
 
 /// How many times a step toward the next grid depth may be halved.
 const MAX_HALVINGS: u32 = 3;
+
+/// The Newton fallback's settings: its steps are shares of what is left to the next
+/// grid depth (at most one grid step), cut down to a thirty-second of it; a residual of
+/// 1e-8 of the force is converged (the chord's acceptance is far looser).
+const FALLBACK: NewtonSettings = NewtonSettings {
+    rel_tol: 1e-8,
+    max_iterations_per_step: 12,
+    initial_step: 1.0,
+    min_step: 1.0 / 32.0,
+};
 
 /// One chord correction at depth `d` from `(force_n, u)` with the segment's factored
 /// tangent (see the module doc): `(Δu, ΔF)`, `Δu` on the free dofs, with `n̂·Δu`

@@ -235,12 +235,27 @@ impl SurfaceLaw {
         };
         let (log, finished) = match log {
             Some(path) => {
-                let key = format!(
-                    "palpa tissue-build log 3 mesh {:016x} rows {} {o:?} {:?}",
-                    crate::pgd::depthlaw::organ_hash(organ),
-                    rows.len(),
-                    path_options(&o)
-                );
+                let po = path_options(&o);
+                let key_of = |version: u32, path: String| {
+                    format!(
+                        "palpa tissue-build log {version} mesh {:016x} rows {} {o:?} {path}",
+                        crate::pgd::depthlaw::organ_hash(organ),
+                        rows.len(),
+                    )
+                };
+                let key = key_of(4, format!("{po:?}"));
+                // Version 3 is the same build before the path follower's Newton
+                // fallback, which acts only where a press would stop: its presses that
+                // reached every depth are what this build makes, the others are pressed
+                // again.
+                if po.newton_fallback {
+                    let previous =
+                        key_of(3, format!("{po:?}").replace(", newton_fallback: true", ""));
+                    RecordLog::upgrade::<Result<VertexPress, String>>(path, &previous, &key, |p| {
+                        p.as_ref().is_ok_and(|p| p.reach as usize == steps)
+                    })
+                    .map_err(|e| log_error(path, e))?;
+                }
                 let (l, r) = RecordLog::open::<Result<VertexPress, String>>(path, &key)
                     .map_err(|e| log_error(path, e))?;
                 (Some((Mutex::new(l), path)), r)
