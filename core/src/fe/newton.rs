@@ -145,7 +145,7 @@ impl Default for NewtonSettings {
 }
 
 /// What a nonlinear solve did.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct NewtonReport {
     pub iterations: usize,
     pub load_steps: usize,
@@ -242,13 +242,7 @@ pub fn solve(
             )
         }
     };
-    let mut report = NewtonReport {
-        iterations: 0,
-        load_steps: 0,
-        step_cuts: 0,
-        last_step_residuals: Vec::new(),
-        seconds: 0.0,
-    };
+    let mut report = NewtonReport::default();
     let state = State {
         u: vec![0.0; space.free_dofs],
         force: 0.0,
@@ -261,18 +255,7 @@ pub fn solve(
             report,
         });
     }
-    let mut pb = Problem {
-        space,
-        law,
-        lambda,
-        mu,
-        pattern: SymCsc::pattern(space),
-        shape_norm: norm(&shape),
-        shape,
-        probe,
-        depth_weight: 0.0,
-        settings,
-    };
+    let mut pb = Problem::new(space, law, (lambda, mu), shape, probe, settings);
     if let Some(n) = &pb.probe {
         // Linear compliance at the probe: n̂·K₀⁻¹f̂ (mm per unit force).
         let chol = factor_tangent(
@@ -324,26 +307,16 @@ pub fn continue_depth(
     }
     let t0 = Instant::now();
     let (lambda, mu) = material.lame_n_per_mm2();
-    let shape = space.restrict(shape);
-    let pb = Problem {
+    let mut pb = Problem::new(
         space,
         law,
-        lambda,
-        mu,
-        pattern: SymCsc::pattern(space),
-        shape_norm: norm(&shape),
-        depth_weight: norm(&shape) * stiffness_n_per_mm.abs(),
-        shape,
-        probe: Some(space.restrict(probe)),
+        (lambda, mu),
+        space.restrict(shape),
+        Some(space.restrict(probe)),
         settings,
-    };
-    let mut report = NewtonReport {
-        iterations: 0,
-        load_steps: 0,
-        step_cuts: 0,
-        last_step_residuals: Vec::new(),
-        seconds: 0.0,
-    };
+    );
+    pb.depth_weight = pb.shape_norm * stiffness_n_per_mm.abs();
+    let mut report = NewtonReport::default();
     let start = State {
         u: space.restrict(start_u),
         force: start_force_n,
@@ -357,7 +330,31 @@ pub fn continue_depth(
     })
 }
 
-impl Problem<'_> {
+impl<'a> Problem<'a> {
+    /// The problem with the merit's depth weight still 0 (the caller sets it under
+    /// depth control).
+    fn new(
+        space: &'a Space,
+        law: Law,
+        (lambda, mu): (f64, f64),
+        shape: Vec<f64>,
+        probe: Option<Vec<f64>>,
+        settings: NewtonSettings,
+    ) -> Self {
+        Problem {
+            space,
+            law,
+            lambda,
+            mu,
+            pattern: SymCsc::pattern(space),
+            shape_norm: norm(&shape),
+            shape,
+            probe,
+            depth_weight: 0.0,
+            settings,
+        }
+    }
+
     /// Steps the target from `from` to `to` (load factors under force control, depths
     /// under depth control), each step from the last converged state: a failed step is
     /// halved, steps grow again after easy convergence, and below the minimum step the
