@@ -108,10 +108,13 @@ pub struct PathOptions {
     /// not only where `K` alone is not positive definite: the same corrections, for
     /// tests and comparisons.
     pub always_augment: bool,
-    /// Stop at the first grid depth whose force is not above the last one's (kept, so
-    /// the caller sees the drop): past a force maximum a pressing hand snaps through,
-    /// and following the press there (Saint Venant–Kirchhoff in strong compression)
-    /// costs the most, in failed corrections, for states no one uses.
+    /// Stop at the first grid depth whose force falls below the largest so far by more
+    /// than [`Self::force_tolerance`] of it (kept, so the caller sees the drop): past a
+    /// force maximum a pressing hand snaps through, and following the press there
+    /// (Saint Venant–Kirchhoff in strong compression) costs the most, in failed
+    /// corrections, for states no one uses. A smaller dip is within what each state's
+    /// force is known to: where the tool slides along a flat stretch of the curve,
+    /// stopping on it (the rule before) cut presses short on noise.
     pub stop_past_force_peak: bool,
     /// Where the halved steps find no equilibrium either, solve the next grid depth by
     /// the reference Newton ([`super::newton::continue_depth`]: a fresh tangent each
@@ -488,11 +491,13 @@ pub fn follow(
             out.u.push(last.u.clone());
             out.force_n.push(last.force_n);
             j += 1;
-            if o.stop_past_force_peak && last.force_n <= out.force_n[j - 2] {
+            if o.stop_past_force_peak
+                && let Some(k) = force_peak_passed(&out.force_n, o.force_tolerance)
+            {
                 out.stopped = Some(format!(
                     "the force fell from {:.2} N at {:.2} mm to {:.2} N at {:.2} mm",
-                    out.force_n[j - 2],
-                    depths_mm[j - 2],
+                    out.force_n[k],
+                    depths_mm[k],
                     last.force_n,
                     depths_mm[j - 1]
                 ));
@@ -514,6 +519,18 @@ pub fn follow(
     }
     out.seconds = t0.elapsed().as_secs_f64();
     Ok(Ok(out))
+}
+
+/// Where the last of `force_n` has fallen below the largest before it by more than
+/// `tolerance` of that largest: the index of the largest. `None` while the curve still
+/// rises, or dips by no more than its states' force tolerance.
+pub fn force_peak_passed(force_n: &[f64], tolerance: f64) -> Option<usize> {
+    let (&last, before) = force_n.split_last()?;
+    let (k, &top) = before
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))?;
+    (last < (1.0 - tolerance) * top).then_some(k)
 }
 
 impl Augment {
@@ -809,4 +826,30 @@ fn least_squares(a: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
     }
     // No step to mix in where even the ridged system is singular.
     solve_dense(g, rhs).unwrap_or_else(|| vec![0.0; m])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::force_peak_passed;
+
+    /// A rising curve and a dip within the tolerance go on; a fall past it names the
+    /// largest force's index, also where the fall came slowly over several depths.
+    #[test]
+    fn a_force_peak_is_a_fall_past_the_tolerance_below_the_largest() {
+        let tol = 5e-3;
+        assert_eq!(force_peak_passed(&[0.0, 1.0, 2.0, 3.0], tol), None);
+        assert_eq!(force_peak_passed(&[0.0], tol), None);
+        // 14.26 → 14.25 N: 0.07 % down, a flat stretch.
+        assert_eq!(force_peak_passed(&[0.0, 9.0, 14.26, 14.25], tol), None);
+        assert_eq!(force_peak_passed(&[0.0, 9.0, 14.26, 14.26], tol), None);
+        assert_eq!(force_peak_passed(&[0.0, 9.0, 14.26, 14.0], tol), Some(2));
+        // Three dips of 0.2 % each: none alone, the third past the largest by 0.6 %.
+        let mut f = vec![0.0, 10.0];
+        for _ in 0..2 {
+            f.push(f[f.len() - 1] * 0.998);
+            assert_eq!(force_peak_passed(&f, tol), None, "{f:?}");
+        }
+        f.push(f[f.len() - 1] * 0.998);
+        assert_eq!(force_peak_passed(&f, tol), Some(1));
+    }
 }

@@ -25,11 +25,14 @@
 //! floor as a P1 interpolation of the linear field (where the linear vademecum is exact
 //! by its nodal loads instead). Only the surface vertices' rows are kept, in f32.
 //!
-//! A press is kept only as deep as it has an equilibrium *and* its force still rises:
-//! where the corrector finds none, or the force peaks (Saint Venant–Kirchhoff past its
-//! loss of stability in compression: under depth control the states go on, but a hand
+//! A press is kept only as deep as it has an equilibrium *and* its force does not
+//! fall: where the corrector finds none, or the force drops below its largest by more
+//! than the states' force tolerance (Saint Venant–Kirchhoff past its loss of
+//! stability in compression: under depth control the states go on, but a hand
 //! pressing with a force snaps through them), the press's *reach* ends at the last
-//! grid depth before, its arrays hold that depth beyond, and the reason is kept. An
+//! grid depth before, its arrays hold that depth beyond, and the reason is kept. A
+//! smaller dip (the tool sliding along a flat stretch) is not a peak: the stored force
+//! is held at its largest before it, so the curve never falls. An
 //! edge's surplus reaches as far as its midpoint and both its ends.
 
 use std::collections::HashMap;
@@ -243,18 +246,23 @@ impl SurfaceLaw {
                         rows.len(),
                     )
                 };
-                let key = key_of(4, format!("{po:?}"));
-                // Version 3 is the same build before the path follower's Newton
-                // fallback, which acts only where a press would stop: its presses that
-                // reached every depth are what this build makes, the others are pressed
-                // again.
-                if po.newton_fallback {
-                    let previous =
-                        key_of(3, format!("{po:?}").replace(", newton_fallback: true", ""));
-                    RecordLog::upgrade::<Result<VertexPress, String>>(path, &previous, &key, |p| {
-                        p.as_ref().is_ok_and(|p| p.reach as usize == steps)
-                    })
-                    .map_err(|e| log_error(path, e))?;
+                let key = key_of(5, format!("{po:?}"));
+                // Versions 3 (before the path follower's Newton fallback) and 4 (which
+                // stopped a press at any dip of its force) differ from this build only
+                // where a press stopped short: their presses that reached every depth
+                // are what this build makes, the others are pressed again.
+                if po.newton_fallback && po.stop_past_force_peak {
+                    let v4 = format!("{po:?}");
+                    let v3 = v4.replace(", newton_fallback: true", "");
+                    for previous in [key_of(3, v3), key_of(4, v4)] {
+                        RecordLog::upgrade::<Result<VertexPress, String>>(
+                            path,
+                            &previous,
+                            &key,
+                            |p| p.as_ref().is_ok_and(|p| p.reach as usize == steps),
+                        )
+                        .map_err(|e| log_error(path, e))?;
+                    }
                 }
                 let (l, r) = RecordLog::open::<Result<VertexPress, String>>(path, &key)
                     .map_err(|e| log_error(path, e))?;
@@ -1008,29 +1016,34 @@ fn point_press(
     let mut ratio = Vec::with_capacity(steps);
     let mut reach = press.u.len();
     let mut stopped = press.stopped;
-    // A press is kept only while its force still rises: past a force maximum (Saint
+    // A press is kept only while its force does not fall: past a force maximum (Saint
     // Venant–Kirchhoff's loss of stability in compression) the states exist under
     // depth control, but a hand pressing with a force snaps through them, and the
-    // force-in, depth-out inverse needs a rising curve.
-    if let Some(j) = (1..reach).find(|&j| press.force_n[j] <= press.force_n[j - 1]) {
+    // force-in, depth-out inverse needs a curve that does not fall. A dip within the
+    // states' own force tolerance is no maximum (the tool sliding along a flat stretch):
+    // the press goes on, its force held at the largest before it (off by less than that
+    // tolerance).
+    let tolerance = path_options(o).force_tolerance;
+    if let Some((j, k)) = (1..reach).find_map(|j| {
+        crate::fe::path::force_peak_passed(&press.force_n[..=j], tolerance).map(|k| (j, k))
+    }) {
         stopped = Some(format!(
             "the force peaks at {:.2} N near {:.2} mm ({:.2} N at {:.2} mm): past it the \
              tissue snaps through under a pressing hand",
-            press.force_n[j - 1],
-            depths[j - 1],
-            press.force_n[j],
-            depths[j]
+            press.force_n[k], depths[k], press.force_n[j], depths[j]
         ));
         reach = j;
     }
     if reach < 2 {
         return Ok(Err(stopped.unwrap_or_default()));
     }
+    let mut top_n = 0.0f64;
     for (j, (&d, u)) in depths.iter().zip(&press.u).take(reach).enumerate() {
         ratio.push(if j == 0 {
             1.0
         } else {
-            press.force_n[j] / (d * stiffness)
+            top_n = top_n.max(press.force_n[j]);
+            top_n / (d * stiffness)
         });
         for &r in rows {
             for c in 0..3 {

@@ -809,8 +809,9 @@ impl BoundTissue {
     }
 
     /// Force in, depth out: the depth whose force is `force_n` (bisection on the
-    /// blended curve, which rises with depth up to the probe's limit: every press kept
-    /// stops where its force stops rising); held at the limit, and flagged, when even
+    /// blended curve, which does not fall with depth up to the probe's limit: every
+    /// press kept stops where its force falls, and is held at its largest over a dip
+    /// within tolerance); held at the limit, and flagged, when even
     /// that needs less force.
     pub fn depth_mm(&self, p: &ProbePoint, force_n: f64, compliance_mm_per_n: f64) -> (f64, bool) {
         let terms = self.terms(p);
