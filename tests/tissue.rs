@@ -35,6 +35,19 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
     };
     let law = SurfaceLaw::build(&organ, options, None, &|_, _| {}).expect("builds");
     assert!(law.samples.len() >= 3, "{} samples", law.samples.len());
+    // Each vertex's stored force never falls with depth, as far as its press reached
+    // (the inverse bisects it): a dip within tolerance is held at the largest force.
+    let steps = law.ratio.len() / law.reach.len();
+    for (s, &reach) in law.reach.iter().enumerate().take(law.samples.len()) {
+        let force = |j: usize| law.ratio[s * steps + j] * j as f64;
+        for j in 1..reach as usize {
+            assert!(
+                force(j) >= force(j - 1),
+                "vertex {s}: depth {j} below {}",
+                j - 1
+            );
+        }
+    }
     let tissue = TissueLaw::compress(&organ, &law, 0.02, ShapeBits::Sixteen).expect("compresses");
     assert!(tissue.truncation_bound_mm <= 0.02);
     // Eight bits: fewer bytes, and a bound that still says what a node may err.
