@@ -523,8 +523,10 @@ pub fn follow(
 
 /// Where the last of `force_n` has fallen below the largest before it by more than
 /// `tolerance` of that largest: the index of the largest. `None` while the curve still
-/// rises, or dips by no more than its states' force tolerance.
+/// rises, or dips by no more than its states' force tolerance. A negative tolerance
+/// (one no correction meets, as tests set to starve the chord) counts as none.
 pub fn force_peak_passed(force_n: &[f64], tolerance: f64) -> Option<usize> {
+    let tolerance = tolerance.max(0.0);
     let (&last, before) = force_n.split_last()?;
     let (k, &top) = before
         .iter()
@@ -851,5 +853,9 @@ mod tests {
         }
         f.push(f[f.len() - 1] * 0.998);
         assert_eq!(force_peak_passed(&f, tol), Some(1));
+        // A negative tolerance: any fall stops, a rise or a flat force does not.
+        assert_eq!(force_peak_passed(&[0.0, 1.0, 2.0], -1.0), None);
+        assert_eq!(force_peak_passed(&[0.0, 2.0, 2.0], -1.0), None);
+        assert_eq!(force_peak_passed(&[0.0, 2.0, 1.999], -1.0), Some(1));
     }
 }
