@@ -509,19 +509,23 @@ mod hyperelastic {
             force_tolerance: -1.0,
             ..PathOptions::default()
         };
-        let given_up = follow(
-            &space,
-            options.law,
-            options.material,
-            &expander,
-            &load,
-            &depths,
-            &PathOptions {
-                newton_fallback: false,
-                ..starved
-            },
-        )
-        .expect("follows");
+        // The press at the test's point and depths, followed with the options given.
+        let follow_with = |o: &PathOptions| {
+            follow(
+                &space,
+                options.law,
+                options.material,
+                &expander,
+                &load,
+                &depths,
+                o,
+            )
+            .expect("follows")
+        };
+        let given_up = follow_with(&PathOptions {
+            newton_fallback: false,
+            ..starved
+        });
         assert!(
             given_up
                 .as_ref()
@@ -536,17 +540,7 @@ mod hyperelastic {
             (augmented, 5e-3, 0.05),
             (starved, 1e-6, 1e-4),
         ] {
-            let p = follow(
-                &space,
-                options.law,
-                options.material,
-                &expander,
-                &load,
-                &depths,
-                &o,
-            )
-            .expect("follows")
-            .unwrap_or_else(|why| panic!("{o:?}: {why}"));
+            let p = follow_with(&o).unwrap_or_else(|why| panic!("{o:?}: {why}"));
             let rel = (p.force_n[7] - newton.force_n) / newton.force_n;
             let worst = p.u[7]
                 .iter()
