@@ -256,8 +256,7 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let c = r.inner_corners[0];
     let depth = options.depth_max_mm;
-    // The inner point near corner c[0], and the quarter point of edge c[0]–c[1] near c[0].
-    for weights in [[0.5, 0.25, 0.25], [0.75, 0.25, 0.0]] {
+    let point = |weights: [f64; 3]| {
         let (mut at, mut push) = ([0.0; 3], [0.0; 3]);
         for (k, w) in weights.iter().enumerate() {
             let v = split.samples[c[k] as usize] as usize;
@@ -266,6 +265,37 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
                 push[d] -= w * f64::from(normals[v][d]);
             }
         }
+        (at, push)
+    };
+    // The inner point's triangle alone (`build_covering`): every press it makes is the
+    // split build's press of the same point, bit for bit, so there it answers as the
+    // larger build does.
+    let (inner_at, _) = point([0.5, 0.25, 0.25]);
+    let (cover, _) =
+        SurfaceLaw::build_covering(&organ, options, Some(0.0), &[inner_at], None, none)
+            .expect("covers");
+    assert_eq!(cover.samples.len(), 3, "one triangle's corners");
+    assert_eq!(cover.refinement.triangles.len(), 1, "one triangle split");
+    let (in_split, in_cover) = (sample_keys(&split), sample_keys(&cover));
+    assert_eq!(in_cover.len(), 3 + 3 + 9);
+    for (key, &s) in &in_cover {
+        let t = *in_split
+            .get(key)
+            .unwrap_or_else(|| panic!("{key:?} not in the split build"));
+        for j in 0..split.steps() {
+            assert_eq!(cover.residual_at(s, j), split.residual_at(t, j), "{key:?}");
+        }
+    }
+    let off = SurfaceLaw::build_covering(&organ, options, None, &[[0.0, 0.0, 0.0]], None, none);
+    assert!(
+        off.as_ref()
+            .is_err_and(|e| e.to_string().contains("palpable surface")),
+        "a point inside the organ is refused"
+    );
+    let bound_cover = compress(&cover);
+    // The inner point near corner c[0], and the quarter point of edge c[0]–c[1] near c[0].
+    for weights in [[0.5, 0.25, 0.25], [0.75, 0.25, 0.0]] {
+        let (at, push) = point(weights);
         let (press, depths) = follow_at(&space, &organ, &expander, &options, at, push, &[])
             .expect("fe")
             .expect("the press reaches the grid's end");
@@ -301,9 +331,38 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
              plain quadratic {e_plain:.4} mm"
         );
         assert!(e_split <= allowed, "{e_split} > {allowed}");
+        if weights[2] > 0.0 {
+            let e_cover = error(&bound_cover);
+            assert!(e_cover <= allowed, "covering build: {e_cover} > {allowed}");
+        }
         assert!(
             e_plain > 2.0 * allowed,
             "the split changed nothing: {e_plain}"
         );
     }
+}
+
+/// What each stored sample of a law is, by the mesh vertices that name it (a vertex,
+/// an edge's ends, a quarter point's near and far ends, an inner point's corners),
+/// and its index: two builds of different extent compared press by press.
+fn sample_keys(law: &SurfaceLaw) -> std::collections::HashMap<Vec<u32>, usize> {
+    let v = |s: u32| law.samples[s as usize];
+    let r = &law.refinement;
+    law.samples
+        .iter()
+        .map(|&s| vec![s])
+        .chain(law.edges.iter().map(|e| {
+            let mut k = vec![v(e[0]), v(e[1])];
+            k.sort_unstable();
+            k
+        }))
+        .chain(
+            r.quarter_ends
+                .iter()
+                .map(|q| vec![u32::MAX, v(q[0]), v(q[1])]),
+        )
+        .chain(r.inner_corners.iter().map(|c| c.map(v).to_vec()))
+        .enumerate()
+        .map(|(i, k)| (k, i))
+        .collect()
 }

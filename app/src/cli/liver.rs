@@ -795,6 +795,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         bits: palpa_core::pgd::tissue::DEFAULT_BITS.count(),
         active_cutoff: defaults.active_cutoff,
         within: args.within.clone(),
+        cover: None,
         young_kpa: material.young_kpa,
         poisson: material.poisson,
         no_edges: false,

@@ -32,6 +32,20 @@ pub enum TissueCommand {
     /// Compare a built vademecum with the full nonlinear FE (Newton) at held-out
     /// random points and depths, through a scene (what the app shows).
     Check(CheckArgs),
+    /// Draw held-out points over the whole palpable surface (seeded) and print them as
+    /// `X,Y,Z,…` for `tissue build --cover` and `tissue check --at`: a whole-surface
+    /// accuracy table from the few triangles that hold them.
+    Points(PointsArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct PointsArgs {
+    #[command(flatten)]
+    organ: OrganArgs,
+    #[arg(long, default_value_t = 16)]
+    heldout: usize,
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
 }
 
 #[derive(Debug, Args)]
@@ -66,6 +80,11 @@ pub struct BuildArgs {
     /// scene shows.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub within: Option<Vec<f64>>,
+    /// Press only what answers at these points (X,Y,Z[,X,Y,Z…], mm, on the palpable
+    /// surface): the triangles holding them, split as the whole build would split
+    /// them. There the file answers as a whole-surface build does (see `tissue points`).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub cover: Option<Vec<f64>>,
     #[arg(long, default_value_t = 160.0)]
     pub young_kpa: f64,
     #[arg(long, default_value_t = 0.48)]
@@ -149,6 +168,13 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
     match cmd {
         TissueCommand::Build(args) => build(args).map(|(_, summary)| println!("{summary}")),
         TissueCommand::Check(args) => check(args),
+        TissueCommand::Points(args) => {
+            let organ = args.organ.mesh()?;
+            let points = surface_points(&organ, args.heldout, args.seed)?;
+            let text: Vec<String> = points.iter().flatten().map(|c| format!("{c:.4}")).collect();
+            println!("{}", text.join(","));
+            Ok(())
+        }
     }
 }
 
@@ -222,8 +248,22 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             minutes(elapsed_s)
         );
     };
+    let cover = match args.cover.as_deref() {
+        None => None,
+        Some(v) if !v.is_empty() && v.len() % 3 == 0 && v.iter().all(|x| x.is_finite()) => Some(
+            v.chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect::<Vec<_>>(),
+        ),
+        Some(v) => bail!("--cover: expected X,Y,Z triples of finite numbers, got {v:?}"),
+    };
     let (law, resumed) = pool
-        .install(|| SurfaceLaw::build_logged(&organ, options, refine, Some(&log), &progress))
+        .install(|| match &cover {
+            None => SurfaceLaw::build_logged(&organ, options, refine, Some(&log), &progress),
+            Some(points) => {
+                SurfaceLaw::build_covering(&organ, options, refine, points, Some(&log), &progress)
+            }
+        })
         .context("pressing the palpable vertices")?;
     eprintln!();
     let mut reasons = std::collections::BTreeMap::<&str, usize>::new();
@@ -526,6 +566,28 @@ pub(super) fn press_points(
     }
     let mut rng = Rng::seed(seed);
     Ok((0..heldout)
+        .map(|_| super::bench_fe::heldout_point(organ, &faces, &mut rng).0)
+        .collect())
+}
+
+/// `n` seeded random points over the whole palpable surface: a triangle drawn
+/// uniformly among the palpable ones with no fixed corner (those a whole build
+/// presses), then a point uniformly inside it.
+pub(super) fn surface_points(
+    organ: &palpa_core::organ::OrganMesh,
+    n: usize,
+    seed: u64,
+) -> anyhow::Result<Vec<[f64; 3]>> {
+    let faces: Vec<usize> = (0..organ.boundary.len())
+        .filter(|&f| {
+            organ.palpable[f] && organ.boundary[f].iter().all(|&v| !organ.fixed[v as usize])
+        })
+        .collect();
+    if faces.is_empty() {
+        bail!("this organ has no palpable triangle clear of its fixed region");
+    }
+    let mut rng = Rng::seed(seed);
+    Ok((0..n)
         .map(|_| super::bench_fe::heldout_point(organ, &faces, &mut rng).0)
         .collect())
 }

@@ -148,6 +148,14 @@ pub struct SurfaceLaw {
 pub enum SurfaceLawBuildError {
     #[error(transparent)]
     Fe(#[from] FeError),
+    #[error(
+        "the point {point_mm:?} lies {distance_mm:.3} mm from the organ's palpable surface: \
+         expected a point on a palpable triangle (within {COVER_SLACK_MM} mm)"
+    )]
+    OffSurface {
+        point_mm: [f64; 3],
+        distance_mm: f64,
+    },
     #[error("the build's press log {path}: {source}")]
     Log {
         path: std::path::PathBuf,
@@ -202,6 +210,39 @@ impl SurfaceLaw {
         log: Option<&Path>,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
+        Self::build_selected(organ, options, refine_above_mm, log, None, progress)
+    }
+
+    /// [`build_logged`](Self::build_logged) pressing only what the vademecum needs to
+    /// answer at `points`: the corners of the palpable triangle holding each (see
+    /// [`covering_vertices`]), the edges between them, and the quarter and inner points
+    /// of those triangles that the threshold splits. A triangle's blend reads only its
+    /// own corners, edges and split points, each pressed alone, so at those points the
+    /// law answers as the whole-surface build does, for a few presses a point: how a
+    /// whole-surface accuracy table is measured without pressing the whole surface.
+    /// The log's key names the covered vertices.
+    pub fn build_covering(
+        organ: &OrganMesh,
+        options: SurfaceLawOptions,
+        refine_above_mm: Option<f64>,
+        points: &[[f64; 3]],
+        log: Option<&Path>,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
+        let cover = covering_vertices(organ, points)?;
+        Self::build_selected(organ, options, refine_above_mm, log, Some(&cover), progress)
+    }
+
+    /// The build; `cover` (sorted mesh vertex ids), where given, restricts the
+    /// candidates further than `options.within`.
+    fn build_selected(
+        organ: &OrganMesh,
+        options: SurfaceLawOptions,
+        refine_above_mm: Option<f64>,
+        log: Option<&Path>,
+        cover: Option<&[u32]>,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         use rayon::prelude::*;
         use std::sync::atomic::{AtomicUsize, Ordering};
         let o = options;
@@ -223,6 +264,7 @@ impl SurfaceLaw {
             .filter(|(_, p)| **p)
             .flat_map(|(t, _)| t.iter().copied())
             .filter(|&v| !organ.fixed[v as usize])
+            .filter(|v| cover.is_none_or(|c| c.binary_search(v).is_ok()))
             .filter(|&v| {
                 o.within.is_none_or(|(c, r)| {
                     let p = organ.mesh.vertices[v as usize];
@@ -239,9 +281,19 @@ impl SurfaceLaw {
         let (log, finished) = match log {
             Some(path) => {
                 let po = path_options(&o);
+                // A covering build's edge ids count its own edges, so its log is its
+                // own: the key names the covered vertices.
+                let covered = cover.map_or(String::new(), |c| {
+                    let bytes: Vec<u8> = c.iter().flat_map(|v| v.to_le_bytes()).collect();
+                    format!(
+                        " cover {} {:016x}",
+                        c.len(),
+                        xxhash_rust::xxh3::xxh3_64(&bytes)
+                    )
+                });
                 let key_of = |version: u32, path: String| {
                     format!(
-                        "palpa tissue-build log {version} mesh {:016x} rows {} {o:?} {path}",
+                        "palpa tissue-build log {version} mesh {:016x} rows {} {o:?} {path}{covered}",
                         crate::pgd::depthlaw::organ_hash(organ),
                         rows.len(),
                     )
@@ -609,6 +661,42 @@ struct RefinePlan {
     figures: Vec<(f64, [usize; 6], [usize; 3])>,
     quarters: Vec<RefinePoint>,
     inner: Vec<RefinePoint>,
+}
+
+/// How far a covered point may lie from the palpable surface (mm): a point drawn on a
+/// triangle and printed to a few decimals lands within it.
+pub const COVER_SLACK_MM: f64 = 0.1;
+
+/// The corners of the palpable triangle closest to each of `points` (sorted, each
+/// once, fixed vertices left out as a build leaves them), or which point lies off the
+/// palpable surface.
+pub fn covering_vertices(
+    organ: &OrganMesh,
+    points: &[[f64; 3]],
+) -> Result<Vec<u32>, SurfaceLawBuildError> {
+    let palpable: Vec<[u32; 3]> = organ
+        .boundary
+        .iter()
+        .zip(&organ.palpable)
+        .filter_map(|(t, p)| p.then_some(*t))
+        .collect();
+    let mut cover = Vec::with_capacity(3 * points.len());
+    for &p in points {
+        let off = |distance_mm| SurfaceLawBuildError::OffSurface {
+            point_mm: p,
+            distance_mm,
+        };
+        let hit = crate::axis::closest_point(&organ.mesh.vertices, &palpable, p)
+            .ok_or(off(f64::INFINITY))?;
+        if hit.distance > COVER_SLACK_MM {
+            return Err(off(hit.distance));
+        }
+        cover.extend(palpable[hit.triangle as usize]);
+    }
+    cover.retain(|&v| !organ.fixed[v as usize]);
+    cover.sort_unstable();
+    cover.dedup();
+    Ok(cover)
 }
 
 /// The palpable boundary edges, as sorted vertex pairs, sorted and each once.
