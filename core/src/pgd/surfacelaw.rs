@@ -383,8 +383,12 @@ impl SurfaceLaw {
             let resumed = out.iter().filter(|p| p.is_some()).count();
             progress(done.fetch_add(resumed, Ordering::Relaxed) + resumed, total);
             let todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
+            // One press a task: rayon otherwise hands each thread a run of presses to
+            // do in turn, and a build's last run (presses of minutes on medium P2) went
+            // on on one core while the other sat idle.
             let computed: Vec<(usize, Result<VertexPress, String>)> = todo
                 .par_iter()
+                .with_max_len(1)
                 .map(|&k| -> Result<_, SurfaceLawBuildError> {
                     let p = &points[k];
                     let press =
