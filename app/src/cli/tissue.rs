@@ -248,15 +248,11 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             minutes(elapsed_s)
         );
     };
-    let cover = match args.cover.as_deref() {
-        None => None,
-        Some(v) if !v.is_empty() && v.len() % 3 == 0 && v.iter().all(|x| x.is_finite()) => Some(
-            v.chunks_exact(3)
-                .map(|c| [c[0], c[1], c[2]])
-                .collect::<Vec<_>>(),
-        ),
-        Some(v) => bail!("--cover: expected X,Y,Z triples of finite numbers, got {v:?}"),
-    };
+    let cover = args
+        .cover
+        .as_deref()
+        .map(|v| triples("--cover", v))
+        .transpose()?;
     let (law, resumed) = pool
         .install(|| match &cover {
             None => SurfaceLaw::build_logged(&organ, options, refine, Some(&log), &progress),
@@ -545,12 +541,8 @@ pub(super) fn press_points(
     heldout: usize,
     seed: u64,
 ) -> anyhow::Result<Vec<[f64; 3]>> {
-    match at {
-        Some(v) if !v.is_empty() && v.len() % 3 == 0 && v.iter().all(|x| x.is_finite()) => {
-            return Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect());
-        }
-        Some(v) => bail!("--at: expected X,Y,Z triples of finite numbers, got {v:?}"),
-        None => {}
+    if let Some(v) = at {
+        return triples("--at", v);
     }
     let pressed = PointIndex::new(law.samples_mm.iter().map(|p| p.map(f64::from)));
     let faces: Vec<usize> = (0..organ.boundary.len())
@@ -564,10 +556,29 @@ pub(super) fn press_points(
     if faces.is_empty() {
         bail!("no palpable triangle of this organ has all three corners pressed in the file");
     }
+    Ok(points_in(organ, &faces, heldout, seed))
+}
+
+/// `n` seeded random points in `faces`: a face drawn uniformly, then a point uniformly
+/// inside it.
+fn points_in(
+    organ: &palpa_core::organ::OrganMesh,
+    faces: &[usize],
+    n: usize,
+    seed: u64,
+) -> Vec<[f64; 3]> {
     let mut rng = Rng::seed(seed);
-    Ok((0..heldout)
-        .map(|_| super::bench_fe::heldout_point(organ, &faces, &mut rng).0)
-        .collect())
+    (0..n)
+        .map(|_| super::bench_fe::heldout_point(organ, faces, &mut rng).0)
+        .collect()
+}
+
+/// A flag's `X,Y,Z[,X,Y,Z…]` list as points, or what was wrong with it.
+fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
+    if v.is_empty() || !v.len().is_multiple_of(3) || !v.iter().all(|x| x.is_finite()) {
+        bail!("{flag}: expected X,Y,Z triples of finite numbers, got {v:?}");
+    }
+    Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
 /// `n` seeded random points over the whole palpable surface: a triangle drawn
@@ -586,10 +597,7 @@ pub(super) fn surface_points(
     if faces.is_empty() {
         bail!("this organ has no palpable triangle clear of its fixed region");
     }
-    let mut rng = Rng::seed(seed);
-    Ok((0..n)
-        .map(|_| super::bench_fe::heldout_point(organ, &faces, &mut rng).0)
-        .collect())
+    Ok(points_in(organ, &faces, n, seed))
 }
 
 /// Over the organ's surface nodes drawn by the scene (`vertex_of`: a node's render
