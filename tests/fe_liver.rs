@@ -502,11 +502,13 @@ mod hyperelastic {
         // A follower whose own corrections never converge (a negative tolerance no
         // step meets; even four Newton steps reach round-off, not zero): every depth
         // falls to the Newton fallback, which must give the reference's equilibria;
-        // without it the press is given up.
+        // without it the press is given up. (About twenty factorizations a depth: no
+        // budget.)
         let starved = PathOptions {
             max_steps: 1,
             tolerance_mm: -1.0,
             force_tolerance: -1.0,
+            max_factorizations: usize::MAX,
             ..PathOptions::default()
         };
         // The press at the test's point and depths, followed with the options given.
@@ -573,6 +575,28 @@ mod hyperelastic {
                     "segments restart"
                 );
             }
+        }
+        // A budget of tangent factorizations bounds a press that struggles: the starved
+        // follower spends about twenty a depth (Newton at each halving, then the
+        // fallback), so thirty reach the first depth and stop in the second, keeping
+        // the first as the unbounded press has it and naming the budget.
+        let unbounded = follow_with(&starved).expect("the starved press");
+        let bounded = follow_with(&PathOptions {
+            max_factorizations: 30,
+            ..starved
+        })
+        .expect("reaches the first depth");
+        let why = bounded.stopped.as_deref().unwrap_or_default();
+        assert!(why.contains("budget of 30"), "{why}");
+        assert!(bounded.factorizations <= 30, "{}", bounded.factorizations);
+        assert!(
+            unbounded.factorizations > 30,
+            "{}",
+            unbounded.factorizations
+        );
+        assert!(bounded.u.len() >= 2 && bounded.u.len() < depths.len());
+        for (a, b) in bounded.u.iter().zip(&unbounded.u) {
+            assert_eq!(a, b, "a reached depth is the unbounded press's own");
         }
     }
 

@@ -129,6 +129,16 @@ pub enum StepFailure {
     LineSearch { residual_n: f64 },
     #[error("no convergence in {iterations} iterations (residual {residual_n:.3e} N)")]
     Iterations { iterations: usize, residual_n: f64 },
+    #[error("its budget of {factorizations} tangent factorizations is spent")]
+    Budget { factorizations: usize },
+}
+
+/// How a ramp ended: its step cut below the smallest, or its factorization budget spent.
+fn gave_up(why: &StepFailure, min_step: f64) -> String {
+    match why {
+        StepFailure::Budget { .. } => "it stopped there".into(),
+        _ => format!("the step fell below {min_step} of it"),
+    }
 }
 
 /// Why a finite-element computation failed.
@@ -157,8 +167,9 @@ pub enum FeError {
     #[error("invalid press: the load does not move the probe point along the tool axis")]
     ProbeNotMoved,
     #[error(
-        "Newton did not converge: {law} reached {:.1}% of the load ({why}); the step fell below {min_step} of it. {advice}",
-        100.0 * reached_share
+        "Newton did not converge: {law} reached {:.1}% of the load ({why}); {}. {advice}",
+        100.0 * reached_share,
+        gave_up(why, *min_step)
     )]
     NoConvergence {
         law: &'static str,
@@ -168,7 +179,8 @@ pub enum FeError {
         advice: &'static str,
     },
     #[error(
-        "Newton did not converge: {law} reached a depth of {reached_mm:.2} of {target_mm:.2} mm at {force_n:.3} N ({why}); the step fell below {min_step} of it. {advice}"
+        "Newton did not converge: {law} reached a depth of {reached_mm:.2} of {target_mm:.2} mm at {force_n:.3} N ({why}); {}. {advice}",
+        gave_up(why, *min_step)
     )]
     NoConvergenceDepth {
         law: &'static str,

@@ -129,6 +129,10 @@ pub struct NewtonSettings {
     pub max_iterations_per_step: usize,
     pub initial_step: f64,
     pub min_step: f64,
+    /// Most Newton iterations over the whole solve, each a tangent factorization: a
+    /// caller with a budget (a press's fallback, see [`super::path`]) stops here rather
+    /// than cutting its step further. Unbounded by default.
+    pub max_iterations: usize,
 }
 
 impl Default for NewtonSettings {
@@ -140,6 +144,7 @@ impl Default for NewtonSettings {
             max_iterations_per_step: 12,
             initial_step: 1.0,
             min_step: 1.0 / 1024.0,
+            max_iterations: usize::MAX,
         }
     }
 }
@@ -289,7 +294,9 @@ pub fn solve(
 /// stiffness at the probe (`1 / n̂·K₀⁻¹f̂`), which weighs the depth error in the merit;
 /// the caller has it, so the rest tangent is not factored again. This is what a press
 /// followed along a depth grid ([`super::path`]) falls back on where its own
-/// corrections find no equilibrium.
+/// corrections find no equilibrium. `iterations` counts the Newton iterations (each a
+/// tangent factorization) it spent, whether it converged or not, so the caller can keep
+/// a budget ([`NewtonSettings::max_iterations`]).
 #[allow(clippy::too_many_arguments)]
 pub fn continue_depth(
     space: &Space,
@@ -300,6 +307,7 @@ pub fn continue_depth(
     (start_mm, start_force_n, start_u): (f64, f64, &[f64]),
     depth_mm: f64,
     settings: NewtonSettings,
+    iterations: &mut usize,
 ) -> Result<NewtonSolution, FeError> {
     material.validate()?;
     if !depth_mm.is_finite() {
@@ -321,7 +329,9 @@ pub fn continue_depth(
         u: space.restrict(start_u),
         force: start_force_n,
     };
-    let state = pb.ramp(start, start_mm, depth_mm, &mut report)?;
+    let state = pb.ramp(start, start_mm, depth_mm, &mut report);
+    *iterations += report.iterations;
+    let state = state?;
     report.seconds = t0.elapsed().as_secs_f64();
     Ok(NewtonSolution {
         u: space.expand(&state.u),
@@ -384,7 +394,8 @@ impl<'a> Problem<'a> {
                 Err(why) => {
                     report.step_cuts += 1;
                     step *= 0.5;
-                    if step < settings.min_step {
+                    let spent = matches!(why, StepFailure::Budget { .. });
+                    if spent || step < settings.min_step {
                         let advice = match self.law {
                             Law::Svk => {
                                 "Saint Venant–Kirchhoff loses stability under large \
@@ -465,6 +476,11 @@ impl<'a> Problem<'a> {
         for _ in 0..settings.max_iterations_per_step {
             if rn <= tol {
                 return Ok((st, history));
+            }
+            if report.iterations >= settings.max_iterations {
+                return Err(StepFailure::Budget {
+                    factorizations: settings.max_iterations,
+                });
             }
             report.iterations += 1;
             let all = self.space.expand(&st.u);

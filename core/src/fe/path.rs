@@ -59,6 +59,15 @@
 //! equilibrium) and the depth that failed is named ([`GridPress::stopped`]). Saint Venant–Kirchhoff stops this way where it loses
 //! stability, which the vademecum then reports as the press's limit.
 //!
+//! Each press has a budget of tangent factorizations
+//! ([`PathOptions::max_factorizations`], 40): segments, Newton at a depth and the
+//! fallback's iterations all count, and a press that spends it stops where it is, as
+//! where no equilibrium is found, saying so. An ordinary press spends 2–10. The budget
+//! bounds the presses that end in the fallback: on coarse P2 one such press spent 135
+//! (129 s, most of it in a fallback from rest that failed as well) and now stops after
+//! 40 (56 s) at the same depth; on medium, where each factorization takes tens of
+//! seconds on one thread, such a press ran for more than an hour.
+//!
 //! A later segment's tangent is factored in single precision
 //! ([`Cholesky::factor_single`]). Its factor is only an approximate inverse here (the
 //! chord's tangent is already some millimetres old): every residual and every
@@ -122,6 +131,12 @@ pub struct PathOptions {
     /// the press stops. It runs only where the press would otherwise stop, so a press
     /// that reaches every depth without it is the same with it.
     pub newton_fallback: bool,
+    /// Most tangent factorizations one press may spend (segments, Newton at a depth,
+    /// the fallback's iterations); past it the press stops where it is, as where no
+    /// equilibrium is found. An ordinary press spends 2–10; one that ends in the
+    /// fallback spent 135 on coarse P2 (129 s, nearly all in a fallback from rest that
+    /// failed too) and, on medium, more than an hour of single-threaded factoring.
+    pub max_factorizations: usize,
 }
 
 impl Default for PathOptions {
@@ -139,6 +154,7 @@ impl Default for PathOptions {
             always_augment: false,
             stop_past_force_peak: true,
             newton_fallback: true,
+            max_factorizations: 40,
         }
     }
 }
@@ -165,6 +181,9 @@ pub struct GridPress {
     pub stopped: Option<String>,
     /// The grid depths solved by the Newton fallback ([`PathOptions::newton_fallback`]).
     pub newton_depths_mm: Vec<f64>,
+    /// Tangent factorizations spent (each segment, each Newton iteration; see
+    /// [`PathOptions::max_factorizations`]).
+    pub factorizations: usize,
 }
 
 /// One series and the factored tangent it was expanded with.
@@ -299,6 +318,7 @@ pub fn follow(
         seconds: 0.0,
         stopped: None,
         newton_depths_mm: Vec::new(),
+        factorizations: 0,
     };
     // Starts a segment at an accepted state; `None` where its tangent is not positive
     // definite (the caller keeps the old one).
@@ -385,9 +405,14 @@ pub fn follow(
         );
         out.chord_steps += c.steps;
         let mut refresh = c.steps > o.refresh_after;
+        let budget_left = |out: &GridPress| o.max_factorizations.saturating_sub(out.factorizations);
         if !c.converged {
             if seg.start_mm < last.depth_mm
-                && let Some(s) = restart(&last)?
+                && budget_left(&out) > 0
+                && let Some(s) = {
+                    out.factorizations += 1;
+                    restart(&last)?
+                }
             {
                 out.segment_starts_mm.push(s.start_mm);
                 seg = s;
@@ -397,6 +422,10 @@ pub fn follow(
             // each iterate (at most four times).
             let mut from = prediction;
             for _ in 0..4 {
+                if budget_left(&out) == 0 {
+                    break;
+                }
+                out.factorizations += 1;
                 let Some((chol, aug)) = factor_bordered(
                     space,
                     law,
@@ -418,16 +447,25 @@ pub fn follow(
                 from = (c.force_n, c.u.clone());
             }
             if !c.converged {
-                if h > grid_step(j) / f64::from(1u32 << MAX_HALVINGS) {
+                let spent = budget_left(&out) == 0;
+                if !spent && h > grid_step(j) / f64::from(1u32 << MAX_HALVINGS) {
                     h /= 2.0;
                     continue;
                 }
-                let mut why = format!(
-                    "no equilibrium at {target:.2} mm: neither the chord from the tangent \
-                     at {:.2} mm nor Newton from there converged, with the step halved \
-                     {MAX_HALVINGS} times",
-                    seg.start_mm
-                );
+                let mut why = if spent {
+                    format!(
+                        "gave up at {target:.2} mm: the press's budget of {} tangent \
+                         factorizations is spent",
+                        o.max_factorizations
+                    )
+                } else {
+                    format!(
+                        "no equilibrium at {target:.2} mm: neither the chord from the \
+                         tangent at {:.2} mm nor Newton from there converged, with the \
+                         step halved {MAX_HALVINGS} times",
+                        seg.start_mm
+                    )
+                };
                 let goal = depths_mm[j];
                 let rest = vec![0.0; n_all];
                 // From the last state, then from rest (what the reference solve does:
@@ -438,6 +476,10 @@ pub fn follow(
                     (0.0, 0.0, rest.as_slice()),
                 ];
                 for start in starts.into_iter().filter(|_| o.newton_fallback) {
+                    let left = budget_left(&out);
+                    if left == 0 {
+                        break;
+                    }
                     match continue_depth(
                         space,
                         law,
@@ -446,7 +488,11 @@ pub fn follow(
                         out.first.force[0],
                         start,
                         goal,
-                        FALLBACK,
+                        NewtonSettings {
+                            max_iterations: left,
+                            ..FALLBACK
+                        },
+                        &mut out.factorizations,
                     ) {
                         Ok(sol) => {
                             out.chord_steps += sol.report.iterations;
@@ -468,6 +514,12 @@ pub fn follow(
                         }
                         Err(e) => return Err(e),
                     }
+                }
+                if !c.converged && !spent && budget_left(&out) == 0 {
+                    why = format!(
+                        "{why}; the press's budget of {} tangent factorizations is spent",
+                        o.max_factorizations
+                    );
                 }
                 if !c.converged {
                     // The depths reached stand (each an equilibrium); a press that
@@ -511,7 +563,11 @@ pub fn follow(
         if refresh
             && more
             && j < depths_mm.len()
-            && let Some(s) = restart(&last)?
+            && budget_left(&out) > 0
+            && let Some(s) = {
+                out.factorizations += 1;
+                restart(&last)?
+            }
         {
             out.segment_starts_mm.push(s.start_mm);
             seg = s;
@@ -618,6 +674,7 @@ const FALLBACK: NewtonSettings = NewtonSettings {
     max_iterations_per_step: 12,
     initial_step: 1.0,
     min_step: 1.0 / 32.0,
+    max_iterations: usize::MAX,
 };
 
 /// One chord correction at depth `d` from `(force_n, u)` with the segment's factored

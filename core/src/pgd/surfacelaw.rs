@@ -298,15 +298,20 @@ impl SurfaceLaw {
                         rows.len(),
                     )
                 };
-                let key = key_of(5, format!("{po:?}"));
-                // Versions 3 (before the path follower's Newton fallback) and 4 (which
-                // stopped a press at any dip of its force) differ from this build only
-                // where a press stopped short: their presses that reached every depth
-                // are what this build makes, the others are pressed again.
-                if po.newton_fallback && po.stop_past_force_peak {
-                    let v4 = format!("{po:?}");
-                    let v3 = v4.replace(", newton_fallback: true", "");
-                    for previous in [key_of(3, v3), key_of(4, v4)] {
+                let key = key_of(6, format!("{po:?}"));
+                // Versions 3 (before the path follower's Newton fallback), 4 (which
+                // stopped a press at any dip of its force) and 5 (no factorization
+                // budget) differ from this build only where a press stopped short, or
+                // reached every depth through a fallback longer than the budget (none
+                // seen: every fallback measured that spent past it failed): their
+                // presses that reached every depth are kept, the others pressed again.
+                let budget = PathOptions::default().max_factorizations;
+                if po.newton_fallback && po.stop_past_force_peak && po.max_factorizations == budget
+                {
+                    let v5 =
+                        format!("{po:?}").replace(&format!(", max_factorizations: {budget}"), "");
+                    let v3 = v5.replace(", newton_fallback: true", "");
+                    for previous in [key_of(3, v3), key_of(4, v5.clone()), key_of(5, v5)] {
                         RecordLog::upgrade::<Result<VertexPress, String>>(
                             path,
                             &previous,
