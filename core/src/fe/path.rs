@@ -320,9 +320,15 @@ pub fn follow(
         newton_depths_mm: Vec::new(),
         factorizations: 0,
     };
-    // Starts a segment at an accepted state; `None` where its tangent is not positive
-    // definite (the caller keeps the old one).
-    let restart = |at: &State| -> Result<Option<Segment<'static>>, FeError> {
+    let budget_left = |out: &GridPress| o.max_factorizations.saturating_sub(out.factorizations);
+    // Starts a segment at an accepted state, counting its factorization in `spent`;
+    // `None` where its tangent is not positive definite or the budget is spent (the
+    // caller keeps the old one).
+    let restart = |at: &State, spent: &mut usize| -> Result<Option<Segment<'static>>, FeError> {
+        if *spent >= o.max_factorizations {
+            return Ok(None);
+        }
+        *spent += 1;
         let Some((chol, aug)) = factor_bordered(
             space,
             law,
@@ -405,14 +411,9 @@ pub fn follow(
         );
         out.chord_steps += c.steps;
         let mut refresh = c.steps > o.refresh_after;
-        let budget_left = |out: &GridPress| o.max_factorizations.saturating_sub(out.factorizations);
         if !c.converged {
             if seg.start_mm < last.depth_mm
-                && budget_left(&out) > 0
-                && let Some(s) = {
-                    out.factorizations += 1;
-                    restart(&last)?
-                }
+                && let Some(s) = restart(&last, &mut out.factorizations)?
             {
                 out.segment_starts_mm.push(s.start_mm);
                 seg = s;
@@ -563,11 +564,7 @@ pub fn follow(
         if refresh
             && more
             && j < depths_mm.len()
-            && budget_left(&out) > 0
-            && let Some(s) = {
-                out.factorizations += 1;
-                restart(&last)?
-            }
+            && let Some(s) = restart(&last, &mut out.factorizations)?
         {
             out.segment_starts_mm.push(s.start_mm);
             seg = s;
