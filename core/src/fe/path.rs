@@ -62,7 +62,7 @@
 //! Each press has a budget of tangent factorizations
 //! ([`PathOptions::max_factorizations`], 40): segments, Newton at a depth and the
 //! fallback's iterations all count, and a press that spends it stops where it is, as
-//! where no equilibrium is found, saying so. An ordinary press spends 2–10. The budget
+//! where no equilibrium is found, saying so. An ordinary press spends 1–10. The budget
 //! bounds the presses that end in the fallback: on coarse P2 one such press spent 135
 //! (129 s, most of it in a fallback from rest that failed as well) and now stops after
 //! 40 (56 s) at the same depth; on medium, where each factorization takes tens of
@@ -133,7 +133,7 @@ pub struct PathOptions {
     pub newton_fallback: bool,
     /// Most tangent factorizations one press may spend (segments, Newton at a depth,
     /// the fallback's iterations); past it the press stops where it is, as where no
-    /// equilibrium is found. An ordinary press spends 2–10; one that ends in the
+    /// equilibrium is found. An ordinary press spends 1–10; one that ends in the
     /// fallback spent 135 on coarse P2 (129 s, nearly all in a fallback from rest that
     /// failed too) and, on medium, more than an hour of single-threaded factoring.
     pub max_factorizations: usize,
