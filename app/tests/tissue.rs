@@ -384,6 +384,75 @@ fn tissue_check_separates_the_blend_from_the_press() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // `palpa info` reads a tissue file; `palpa tissue cut` keeps one mode a sample and
+    // every second depth, and says what that adds to the bound.
+    let info = common::json_ok(&palpa(&["info", &path(&tissue), "--json"]));
+    assert_eq!(info["kind"], "tissue");
+    assert_eq!(info["vertices"].as_u64(), Some(count("samples")), "{info}");
+    assert_eq!(info["edges"].as_u64(), Some(count("edges")), "{info}");
+    let split: f64 = ["vertices", "edges", "quarter_points", "inner_points"]
+        .iter()
+        .map(|k| num(&info, k))
+        .sum();
+    assert_eq!(num(&info, "presses"), split, "{info}");
+    let cut_path = dir.path().join("cut.tissue");
+    let cut = common::json_ok(&palpa(&[
+        "tissue",
+        "cut",
+        &path(&tissue),
+        "--modes",
+        "1",
+        "--depth-stride",
+        "2",
+        "--out",
+        &path(&cut_path),
+    ]));
+    let (from, to) = (&cut["from"], &cut["out"]);
+    assert_eq!(to["rank"], 1, "{cut}");
+    assert!(
+        num(to, "payload_bytes") < num(from, "payload_bytes"),
+        "{cut}"
+    );
+    assert!((num(to, "depth_step_mm") - 2.0 * num(from, "depth_step_mm")).abs() < 1e-12);
+    let grown = num(from, "truncation_bound_mm")
+        + num(&cut, "dropped_sigma_mm")
+        + num(&cut, "requantized_mm");
+    assert!(
+        (num(to, "truncation_bound_mm") - grown).abs() < 1e-9,
+        "{cut}"
+    );
+    let out = palpa(&[
+        "eval",
+        &path(&cut_path),
+        "--scene",
+        &path(&scene),
+        "--at",
+        "-30.3,70.7,16.9",
+        "--depth-mm",
+        "4",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // A stride that does not divide the grid is refused by name, and writes nothing.
+    let refused = dir.path().join("refused.tissue");
+    let out = palpa(&[
+        "tissue",
+        "cut",
+        &path(&tissue),
+        "--depth-stride",
+        "4",
+        "--out",
+        &path(&refused),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("stride dividing"), "{err}");
+    assert!(!refused.exists());
+
     // The P1 tissue beside the shipped P2 scene: the export is refused by name.
     let p2 = dir.path().join("p2.palpa");
     std::fs::copy(

@@ -9,7 +9,7 @@ use serde_json::json;
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The meta-model file.
+    /// The meta-model file (a `.palpa` scene or network, or a `.tissue` vademecum).
     file: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -17,6 +17,12 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
+    // A tissue vademecum (`palpa tissue build`) has its own format.
+    if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
+        let law = palpa_core::pgd::tissue::TissueLaw::load(&args.file)?;
+        let summary = super::tissue::summary(&law, &args.file);
+        return super::args::print_report(&summary, args.json);
+    }
     let h = file::read_header(&args.file)
         .with_context(|| format!("reading the header of {}", args.file.display()))?;
     let m = &h.meta;

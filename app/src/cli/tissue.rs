@@ -36,6 +36,28 @@ pub enum TissueCommand {
     /// `X,Y,Z,…` for `tissue build --cover` and `tissue check --at`: a whole-surface
     /// accuracy table from the few triangles that hold them.
     Points(PointsArgs),
+    /// Cut a built vademecum to fewer modes per sample, fewer bits or a longer depth
+    /// step (what `palpa tradeoff` measures) and save it: a scene ships only what it
+    /// shows. The stored bound grows by what the cut drops.
+    Cut(CutArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct CutArgs {
+    /// A tissue file (from `palpa tissue build`).
+    tissue: PathBuf,
+    /// Most modes a sample keeps (its first, by singular value).
+    #[arg(long, default_value_t = palpa_core::pgd::tissue::MAX_RANK)]
+    modes: usize,
+    /// Bits per stored shape entry: 8 or 16 (default: as built).
+    #[arg(long, value_parser = parse_bits)]
+    bits: Option<u32>,
+    /// Keep every k-th grid depth (k must divide the grid's intervals).
+    #[arg(long, default_value_t = 1)]
+    depth_stride: usize,
+    /// Where to write the cut law (atomically; it may be the input).
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -175,7 +197,62 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
             println!("{}", text.join(","));
             Ok(())
         }
+        TissueCommand::Cut(args) => cut(args),
     }
+}
+
+/// `palpa tissue cut`: a law with fewer modes, bits or depths, saved.
+fn cut(args: &CutArgs) -> anyhow::Result<()> {
+    let law = TissueLaw::load(&args.tissue)?;
+    let bits = match args.bits {
+        None => law.shape.bits(),
+        Some(b) => ShapeBits::from_count(b).context("--bits: expected 8 or 16")?,
+    };
+    let cut = law
+        .coarsened(args.modes, bits, args.depth_stride)
+        .map_err(|why| anyhow::anyhow!("cutting {}: {why}", args.tissue.display()))?;
+    cut.law.save(&args.out)?;
+    let summary = json!({
+        "from": summary(&law, &args.tissue),
+        "out": summary(&cut.law, &args.out),
+        "dropped_sigma_mm": cut.dropped_sigma_mm,
+        "requantized_mm": cut.requantized_mm,
+    });
+    super::args::print_report(&summary, false)
+}
+
+/// What a tissue file holds: its samples, how far its presses reach, its bytes and
+/// bound (`palpa info X.tissue`, `palpa tissue cut`).
+pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
+    let o = &law.options;
+    let steps = law.steps;
+    let stopped_short = law.reach.iter().filter(|&&r| r < steps).count();
+    let shallowest = law
+        .reach
+        .iter()
+        .min()
+        .map(|&r| f64::from(r - 1) * o.depth_step_mm);
+    let vertices = law.samples_mm.len();
+    let modes = law.mode_start.last().copied().unwrap_or(0);
+    json!({
+        "file": path, "kind": "tissue",
+        "law": o.law.name(), "element": o.element.name(),
+        "young_kpa": o.material.young_kpa, "poisson": o.material.poisson,
+        "depth_max_mm": law.depth_max_mm(), "depth_step_mm": o.depth_step_mm,
+        "vertices": vertices, "vertices_skipped": law.skipped_mm.len(),
+        "edges": law.edge_ends.len(),
+        "split_triangles": law.refinement.triangles.len(),
+        "quarter_points": law.refinement.quarter_ends.len(),
+        "inner_points": law.refinement.inner_corners.len(),
+        "presses": law.reach.len(),
+        "stopped_short": stopped_short, "shallowest_reach_mm": shallowest,
+        "rows": law.rows_mm.len(), "rank": law.rank, "modes": modes,
+        "bits": law.shape.bits().count(),
+        "truncation_bound_mm": law.truncation_bound_mm, "tolerance_mm": law.tolerance_mm,
+        "payload_bytes": law.payload_bytes(),
+        "file_bytes": std::fs::metadata(path).map(|m| m.len()).unwrap_or(0),
+        "build_s": law.build_s,
+    })
 }
 
 /// Builds, compresses and saves; returns the law and a JSON summary.
