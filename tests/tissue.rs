@@ -21,6 +21,32 @@ fn shipped_scene() -> PalpationScene {
     PalpationScene::new(file::load_any(&path).expect("the shipped scene loads")).expect("scene")
 }
 
+/// The largest node error, over grid depths, of sample `s`'s reconstruction from the
+/// stored `modes` against the residual its press computed (mm).
+fn stored_error(t: &TissueLaw, law: &SurfaceLaw, s: usize, modes: std::ops::Range<usize>) -> f64 {
+    let (steps, m) = (t.steps as usize, 3 * t.rows_mm.len());
+    let mut worst = 0.0f64;
+    for j in 0..steps {
+        let computed = law.residual_at(s, j);
+        for n in 0..m / 3 {
+            let node = (0..3).map(|c| {
+                let i = 3 * n + c;
+                let stored: f64 = modes
+                    .clone()
+                    .map(|k| {
+                        t.shape.get(k * m + i)
+                            * f64::from(t.shape_scale[k])
+                            * f64::from(t.coeffs[k * steps + j])
+                    })
+                    .sum();
+                (stored - f64::from(computed[i])).powi(2)
+            });
+            worst = worst.max(node.sum::<f64>().sqrt());
+        }
+    }
+    worst
+}
+
 /// A surface point of the anterior right lobe, not a mesh vertex.
 const CENTRE: [f64; 3] = [-30.3, 70.7, 16.9];
 
@@ -53,6 +79,27 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
     // Eight bits: fewer bytes, and a bound that still says what a node may err.
     let eight = TissueLaw::compress(&organ, &law, 0.02, ShapeBits::Eight).expect("compresses");
     assert!(eight.payload_bytes() < tissue.payload_bytes());
+    // The stored bound is the stored error, node by node at every grid depth, and each
+    // sample keeps the fewest modes within the tolerance.
+    for t in [&tissue, &eight] {
+        let mut worst = 0.0f64;
+        for s in 0..t.reach.len() {
+            let (first, end) = (t.mode_start[s] as usize, t.mode_start[s + 1] as usize);
+            let with = |q: usize| stored_error(t, &law, s, first..first + q);
+            worst = worst.max(with(end - first));
+            if end > first {
+                assert!(
+                    with(end - first - 1) > 0.02,
+                    "sample {s} keeps a mode too many"
+                );
+            }
+        }
+        assert!(
+            (worst - t.truncation_bound_mm).abs() <= 1e-9 * worst.max(1e-3),
+            "{worst} vs {}",
+            t.truncation_bound_mm
+        );
+    }
 
     // The file comes back as saved; a flipped byte is named, not loaded.
     let dir = tempfile::tempdir().expect("tempdir");
