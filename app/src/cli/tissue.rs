@@ -221,17 +221,19 @@ fn cut(args: &CutArgs) -> anyhow::Result<()> {
     super::args::print_report(&summary, false)
 }
 
+/// Of presses that reached `reach` grid depths (depth 0 included) out of `steps`: how
+/// many stopped short, and the shallowest depth any reached (mm).
+fn reach_figures(reach: &[u32], steps: u32, step_mm: f64) -> (usize, Option<f64>) {
+    let stopped_short = reach.iter().filter(|&&r| r < steps).count();
+    let shallowest = reach.iter().min().map(|&r| f64::from(r - 1) * step_mm);
+    (stopped_short, shallowest)
+}
+
 /// What a tissue file holds: its samples, how far its presses reach, its bytes and
 /// bound (`palpa info X.tissue`, `palpa tissue cut`).
 pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
     let o = &law.options;
-    let steps = law.steps;
-    let stopped_short = law.reach.iter().filter(|&&r| r < steps).count();
-    let shallowest = law
-        .reach
-        .iter()
-        .min()
-        .map(|&r| f64::from(r - 1) * o.depth_step_mm);
+    let (stopped_short, shallowest) = reach_figures(&law.reach, law.steps, o.depth_step_mm);
     let vertices = law.samples_mm.len();
     let modes = law.mode_start.last().copied().unwrap_or(0);
     json!({
@@ -353,13 +355,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     // Presses that found no equilibrium before the grid's end: how many, and the
     // shallowest depth any reached (the vademecum answers each probe to the least
     // reach of the presses it blends).
-    let steps = law.steps() as u32;
-    let stopped_short = law.reach.iter().filter(|&&r| r < steps).count();
-    let shallowest = law
-        .reach
-        .iter()
-        .min()
-        .map(|&r| f64::from(r - 1) * options.depth_step_mm);
+    let (stopped_short, shallowest) =
+        reach_figures(&law.reach, law.steps() as u32, options.depth_step_mm);
     let bits = ShapeBits::from_count(args.bits).context("--bits: expected 8 or 16")?;
     let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm, bits)?;
     tissue.save(&args.out)?;
