@@ -71,6 +71,26 @@ fn path(p: &std::path::Path) -> String {
     p.to_str().expect("utf-8 path").to_string()
 }
 
+/// `palpa eval TISSUE --scene SCENE` answers at the anterior lobe, 4 mm deep.
+fn eval_answers(tissue: &std::path::Path, scene: &std::path::Path) {
+    let out = palpa(&[
+        "eval",
+        &path(tissue),
+        "--scene",
+        &path(scene),
+        "--at",
+        "-30.3,70.7,16.9",
+        "--depth-mm",
+        "4",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 /// `palpa tissue check TISSUE --scene SCENE` at two held-out points (the default
 /// seed), each pressed at `depths` (D1,D2,..), with `extra` arguments.
 fn tissue_check(
@@ -368,22 +388,7 @@ fn tissue_check_separates_the_blend_from_the_press() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(dir.path().join("small.tissue").exists());
-    let out = palpa(&[
-        "eval",
-        &path(&dir.path().join("small.tissue")),
-        "--scene",
-        &path(&exported),
-        "--at",
-        "-30.3,70.7,16.9",
-        "--depth-mm",
-        "4",
-        "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    eval_answers(&dir.path().join("small.tissue"), &exported);
     // `palpa info` reads a tissue file; `palpa tissue cut` keeps one mode a sample and
     // every second depth, and says what that adds to the bound.
     let info = common::json_ok(&palpa(&["info", &path(&tissue), "--json"]));
@@ -421,22 +426,7 @@ fn tissue_check_separates_the_blend_from_the_press() {
         (num(to, "truncation_bound_mm") - grown).abs() < 1e-9,
         "{cut}"
     );
-    let out = palpa(&[
-        "eval",
-        &path(&cut_path),
-        "--scene",
-        &path(&scene),
-        "--at",
-        "-30.3,70.7,16.9",
-        "--depth-mm",
-        "4",
-        "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    eval_answers(&cut_path, &scene);
     // A stride that does not divide the grid is refused by name, and writes nothing.
     let refused = dir.path().join("refused.tissue");
     let out = palpa(&[
