@@ -314,7 +314,7 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
         let desc = &m.provenance().mesh;
         let get = |k| palpa_core::pgd::palpation::describe_get(desc, k).unwrap_or("?");
         ui.label(format!(
-            "material: linear elastic, E = {} kPa, ν = {}; tool radius {} mm; {} elements",
+            "linear vademecum: E = {} kPa, ν = {}; tool radius {} mm; {} elements",
             get("young_kpa"),
             get("poisson"),
             get("radius_mm"),
@@ -338,6 +338,11 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
 /// Where a scene's painted regions are saved: `X.regions.toml` beside a scene file
 /// `X.palpa`, or `NAME.regions.toml` in the working folder for a built-in scene.
 pub fn regions_path(scene_source: &str) -> std::path::PathBuf {
+    // A built-in scene's source reads "built-in NAME (…)", not a path.
+    if let Some(rest) = scene_source.strip_prefix("built-in ") {
+        let name = rest.split_whitespace().next().unwrap_or("scene");
+        return format!("{name}.regions.toml").into();
+    }
     let p = std::path::Path::new(scene_source);
     let stem = p
         .file_stem()
@@ -501,4 +506,22 @@ fn help(ui: &mut egui::Ui) {
             ui.end_row();
         }
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::regions_path;
+
+    #[test]
+    fn regions_are_saved_beside_a_scene_file_or_in_the_working_folder() {
+        assert_eq!(
+            regions_path("organs/kidney.palpa"),
+            std::path::Path::new("organs/kidney.regions.toml")
+        );
+        let built_in = "built-in liver (assets/liver-coarse.palpa, tissue assets/x.tissue)";
+        assert_eq!(
+            regions_path(built_in),
+            std::path::Path::new("liver.regions.toml")
+        );
+    }
 }
