@@ -3,6 +3,9 @@
 # the coarse-level P2 liver vademecum, its measured tradeoff table, then only what a
 # phone needs: the surface rows, f32. The asset test checks that the result's recorded
 # inputs (mesh hash, element, material, tool) match the current code.
+# With TISSUE=1 it also rebuilds the scene's hyperelastic tissue, assets/liver-coarse.tissue
+# (neo-Hookean, every palpable vertex and edge midpoint pressed to 15 mm: about two hours and
+# a quarter on 2 cores; a killed build run again goes on from its log of presses).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # MODES overrides the nodal build's global modes; PALPA a palpa binary already built.
@@ -18,5 +21,9 @@ fi
 $palpa offline liver --level coarse --element p2 "${modes[@]}" --out "$tmp/full.palpa"
 $palpa tradeoff "$tmp/full.palpa" --json > "$tmp/tradeoff.json"
 $palpa export-scene "$tmp/full.palpa" --surface-only --precision f32 --out assets/liver-coarse.palpa
+if [ -n "${TISSUE:-}" ]; then
+  $palpa tissue build --level coarse --model neo-hookean --depth-max-mm 15 --no-refine \
+    --out assets/liver-coarse.tissue
+fi
 echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"
 cat "$tmp/tradeoff.json"

@@ -248,6 +248,36 @@ fn eval_reads_a_tissue_file_both_ways() {
     assert!(v.is_none() && e.contains("surface normal"), "{e}");
 }
 
+/// The default scene opens with its hyperelastic tissue, and that tissue meets the
+/// goals (surface within 0.5 mm, force within 5 % of Newton) at two held-out points
+/// 7.3 mm deep, off its depth grid: what the built-in scene's panel line says.
+#[test]
+fn the_default_tissue_meets_the_goals_at_held_out_points() {
+    let loaded = scenes::built_in().expect("built-in scene");
+    let law = match &loaded.law {
+        Some(Tissue::Vademecum(b)) => b,
+        Some(_) => panic!("the default scene's tissue is a force law, not a vademecum"),
+        None => panic!("the default scene has no tissue"),
+    };
+    assert_eq!(law.law.options.law.name(), "neo-hookean");
+    assert!(loaded.source.contains("to 7 mm deep"), "{}", loaded.source);
+
+    let tissue =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.tissue");
+    let rows = common::json_lines_ok(&tissue_check(&tissue, "liver", "7.3", &[]));
+    let (summary, presses) = rows.split_last().expect("rows");
+    assert_eq!(summary["presses_compared"], 2, "{summary}");
+    assert_eq!(summary["goal_surface_0_5_mm"], true, "{presses:?}");
+    assert_eq!(summary["goal_force_5_percent"], true, "{presses:?}");
+    for p in presses {
+        let e = |k: &str| p[k].as_f64().unwrap_or_else(|| panic!("{k}: {p}"));
+        assert!(
+            e("surface_max_error_mm") < e("linear_surface_max_error_mm"),
+            "{p}"
+        );
+    }
+}
+
 /// `palpa tissue check` on a built P1 vademecum (a small anterior region) against a P1
 /// scene: each held-out press is compared with Newton, and `--own` follows the press at
 /// the point itself, which matches Newton to the corrector's tolerance, so what is left
