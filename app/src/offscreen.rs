@@ -216,6 +216,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
     let mut renderer = Renderer::new(&gpu.device, FORMAT, &loaded.scene);
     let mut session = Session::with_law(loaded.scene, loaded.law, Box::new(NoHaptics))
         .context("starting the force thread")?;
+    session.goals_to_mm = loaded.goals_to_mm;
     if let Some(n) = opts.modes {
         session.controls.modes = n.clamp(1, session.scene.modes() as u32);
     }

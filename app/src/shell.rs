@@ -301,13 +301,13 @@ impl Shell {
 /// without a meta-model starts its build).
 pub fn room_of(opened: Opened, haptics: &AtomicHaptics) -> anyhow::Result<(Room, String)> {
     Ok(match opened {
-        Opened::Palpation(loaded) => (
-            Room::Palpation(Box::new(
+        Opened::Palpation(loaded) => {
+            let mut session =
                 Session::with_law(loaded.scene, loaded.law, Box::new(haptics.clone()))
-                    .context("starting the force thread")?,
-            )),
-            loaded.source,
-        ),
+                    .context("starting the force thread")?;
+            session.goals_to_mm = loaded.goals_to_mm;
+            (Room::Palpation(Box::new(session)), loaded.source)
+        }
         Opened::Network { room, source } => (Room::Network(room), source),
         Opened::NetworkSource {
             network,

@@ -250,7 +250,8 @@ fn eval_reads_a_tissue_file_both_ways() {
 
 /// The default scene opens with its hyperelastic tissue, and that tissue meets the
 /// goals (surface within 0.5 mm, force within 5 % of Newton) at two held-out points
-/// 7.3 mm deep, off its depth grid: what the built-in scene's panel line says.
+/// as deep as the scene says it does (7.3 mm, off its depth grid); a session pressed
+/// deeper flags it, one pressed shallower does not.
 #[test]
 fn the_default_tissue_meets_the_goals_at_held_out_points() {
     let loaded = scenes::built_in().expect("built-in scene");
@@ -261,10 +262,23 @@ fn the_default_tissue_meets_the_goals_at_held_out_points() {
     };
     assert_eq!(law.law.options.law.name(), "neo-hookean");
     assert!(loaded.source.contains("to 7 mm deep"), "{}", loaded.source);
+    let goals_mm = loaded
+        .goals_to_mm
+        .expect("the built-in tissue's measured depth");
+    let mut s = Session::with_law(loaded.scene, loaded.law, Box::new(NoHaptics)).expect("session");
+    s.goals_to_mm = Some(goals_mm);
+    s.controls.pressing = true;
+    for (depth_mm, flagged) in [(goals_mm - 2.0, None), (goals_mm + 1.0, Some(goals_mm))] {
+        s.controls.depth_mm = depth_mm;
+        s.force.command(s.controls.command());
+        settle(&s, Duration::from_secs(2));
+        s.frame();
+        assert_eq!(s.past_goals_mm(), flagged, "pressed {depth_mm} mm");
+    }
 
     let tissue =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.tissue");
-    let rows = common::json_lines_ok(&tissue_check(&tissue, "liver", "7.3", &[]));
+    let rows = common::json_lines_ok(&tissue_check(&tissue, "liver", &goals_mm.to_string(), &[]));
     let (summary, presses) = rows.split_last().expect("rows");
     assert_eq!(summary["presses_compared"], 2, "{summary}");
     assert_eq!(summary["goal_surface_0_5_mm"], true, "{presses:?}");

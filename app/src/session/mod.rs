@@ -51,6 +51,9 @@ pub struct Session {
     /// Region painting (`Some` while the region mode is on): the pointer paints
     /// instead of pressing.
     pub painter: Option<Painter>,
+    /// The depth (mm) to which the tissue is measured within the goals, where known
+    /// (see `scenes::LoadedScene::goals_to_mm`).
+    pub goals_to_mm: Option<f32>,
     region_values: (Vec<f32>, u64),
     started: Instant,
     deformation: Deformation,
@@ -109,10 +112,19 @@ impl Session {
             },
             last_pointer_px: Vec2::ZERO,
             painter: None,
+            goals_to_mm: None,
             region_values: (Vec::new(), 0),
             started: Instant::now(),
             deformation,
         })
+    }
+
+    /// The depth to which the tissue is measured within the goals, when the sample the
+    /// frame shows presses deeper.
+    pub fn past_goals_mm(&self) -> Option<f32> {
+        let s = &self.sample;
+        let pressed = s.status() == SampleStatus::Ok;
+        self.goals_to_mm.filter(|&g| pressed && s.depth_mm > g)
     }
 
     /// Turns the region mode on (the probe is lifted) or off.
