@@ -329,7 +329,12 @@ mod tests {
     #[test]
     fn switching_scenes_replaces_the_room_or_says_why_not() {
         let mut shell = Shell::open("liver").expect("the built-in liver");
-        assert!(matches!(shell.room, Room::Palpation(_)));
+        // The built-in tissue's measured depth reaches the session (the panel's flag).
+        let Room::Palpation(session) = &shell.room else {
+            panic!("the built-in liver is a palpation scene")
+        };
+        let goals = Some(crate::scenes::BUILT_IN_GOALS_TO_MM);
+        assert_eq!(session.goals_to_mm, goals);
         let dir = tempfile::tempdir().expect("tempdir");
         let toml = dir.path().join("net.toml");
         std::fs::copy(
