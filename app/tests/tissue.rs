@@ -6,7 +6,7 @@ mod common;
 
 use std::time::Duration;
 
-use palpa_app::force::NoHaptics;
+use palpa_app::force::{NoHaptics, PressMode};
 use palpa_app::offscreen::settle;
 use palpa_app::scenes;
 use palpa_app::session::Session;
@@ -246,6 +246,63 @@ fn eval_reads_a_tissue_file_both_ways() {
     assert!(v.is_none() && e.contains("--force-n NaN"), "{e}");
     let (v, e) = eval(&["--depth-mm", "5", "--dir", "0,0,1"]);
     assert!(v.is_none() && e.contains("surface normal"), "{e}");
+}
+
+/// The default scene pressed as the app presses it: the mouse's depth (depth in, force
+/// out) and the gamepad trigger's force (force in, depth out) go through the shipped
+/// tissue, answer as `palpa eval` does on that file at the same point, and are each
+/// other's inverse.
+#[test]
+fn the_default_scene_presses_with_its_tissue_both_ways() {
+    let loaded = scenes::built_in().expect("built-in scene");
+    let mut s = Session::with_law(loaded.scene, loaded.law, Box::new(NoHaptics)).expect("session");
+    let probe = s.controls.probe.expect("a starting probe point");
+    let at = s.scene.frame(&probe).0.map(|x| format!("{x}")).join(",");
+    let tissue =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.tissue");
+    let eval = |flag: &str, value: f64| {
+        common::json_ok(&palpa(&[
+            "eval",
+            &path(&tissue),
+            "--at",
+            &at,
+            flag,
+            &value.to_string(),
+            "--json",
+        ]))
+    };
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+
+    // The mouse: 6 mm deep.
+    s.controls.pressing = true;
+    s.controls.depth_mm = 6.0;
+    s.force.command(s.controls.command());
+    settle(&s, Duration::from_secs(2));
+    let pressed = s.force.latest();
+    assert_eq!(pressed.beyond_law, 0);
+    let cli = eval("--depth-mm", 6.0);
+    let force_n = num(&cli, "force_n");
+    assert!(
+        (f64::from(pressed.magnitude_n) - force_n).abs() <= 1e-4 * force_n,
+        "the loop's {} N against eval's {force_n} N",
+        pressed.magnitude_n
+    );
+    // Nonlinear: not the linear force at that depth.
+    let linear_n = num(&cli, "linear_force_n");
+    assert!((force_n - linear_n).abs() > 1e-3 * linear_n, "{cli}");
+
+    // The trigger: that force back in gives 6 mm.
+    s.controls.mode = PressMode::Force;
+    s.controls.force_n = pressed.magnitude_n;
+    s.force.command(s.controls.command());
+    settle(&s, Duration::from_secs(2));
+    let back = s.force.latest();
+    assert!((back.depth_mm - 6.0).abs() < 1e-3, "{back:?}");
+    let cli = eval("--force-n", force_n);
+    assert!(
+        (num(&cli, "probe_displacement_mm") - 6.0).abs() < 1e-3,
+        "{cli}"
+    );
 }
 
 /// The default scene opens with its hyperelastic tissue, and that tissue meets the
