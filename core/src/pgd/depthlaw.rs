@@ -28,6 +28,7 @@ use crate::fe::load::{probe_functional, probe_load};
 use crate::fe::probe::{ProbeRequest, locate, organ_space};
 use crate::fe::series::Expander;
 use crate::fe::{Element, FeError, Material};
+use crate::framed::Body;
 use crate::organ::OrganMesh;
 use crate::pgd::samplelog::SampleLog;
 
@@ -439,9 +440,11 @@ impl DepthLaw {
 
     /// Writes the law atomically (a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), DepthLawFileError> {
-        crate::framed::write(path, MAGIC, VERSION, self).map_err(|source| DepthLawFileError::Io {
-            path: path.to_path_buf(),
-            source,
+        crate::framed::write(path, MAGIC, (VERSION, Body::Plain), self).map_err(|source| {
+            DepthLawFileError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
         })
     }
 
@@ -457,11 +460,12 @@ impl DepthLaw {
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<DepthLaw, DepthLawFileError> {
         use crate::framed::FramedError;
         let p = || path.to_path_buf();
-        let law: DepthLaw = crate::framed::read(bytes, MAGIC, VERSION).map_err(|e| match e {
-            FramedError::Foreign => DepthLawFileError::Foreign { path: p() },
-            FramedError::Version(found) => DepthLawFileError::Version { path: p(), found },
-            FramedError::Corrupt(why) => DepthLawFileError::Corrupt { path: p(), why },
-        })?;
+        let law: DepthLaw =
+            crate::framed::read(bytes, MAGIC, &[(VERSION, Body::Plain)]).map_err(|e| match e {
+                FramedError::Foreign => DepthLawFileError::Foreign { path: p() },
+                FramedError::Version(found) => DepthLawFileError::Version { path: p(), found },
+                FramedError::Corrupt(why) => DepthLawFileError::Corrupt { path: p(), why },
+            })?;
         law.check()
             .map_err(|why| DepthLawFileError::Corrupt { path: p(), why })?;
         Ok(law)

@@ -79,6 +79,7 @@ use faer::Mat;
 use serde::{Deserialize, Serialize};
 
 use crate::axis::ProbePoint;
+use crate::framed::Body;
 use crate::organ::OrganMesh;
 use crate::pgd::depthlaw::DepthLaw;
 use crate::pgd::surfacelaw::{Refinement, SurfaceLaw, SurfaceLawOptions};
@@ -87,8 +88,9 @@ use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version.
-pub const VERSION: u32 = 6;
+/// The file's format version (7: the body deflated; version 6 files, plain, still
+/// load).
+pub const VERSION: u32 = 7;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -100,7 +102,7 @@ pub enum TissueError {
     },
     #[error("{path}: not a palpa tissue file (expected the magic bytes \"PALPATIS\")")]
     Foreign { path: PathBuf },
-    #[error("{path}: tissue format version {found}, this palpa reads {VERSION}")]
+    #[error("{path}: tissue format version {found}, this palpa reads versions 6 and {VERSION}")]
     Version { path: PathBuf, found: u32 },
     #[error("{path}: corrupt tissue law: {why}")]
     Corrupt { path: PathBuf, why: String },
@@ -470,9 +472,11 @@ impl TissueLaw {
 
     /// Writes the law atomically (a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), TissueError> {
-        crate::framed::write(path, MAGIC, VERSION, self).map_err(|source| TissueError::Io {
-            path: path.to_path_buf(),
-            source,
+        crate::framed::write(path, MAGIC, (VERSION, Body::Deflated), self).map_err(|source| {
+            TissueError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
         })
     }
 
@@ -488,7 +492,8 @@ impl TissueLaw {
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<TissueLaw, TissueError> {
         use crate::framed::FramedError;
         let p = || path.to_path_buf();
-        let law: TissueLaw = crate::framed::read(bytes, MAGIC, VERSION).map_err(|e| match e {
+        let reads = [(VERSION, Body::Deflated), (6, Body::Plain)];
+        let law: TissueLaw = crate::framed::read(bytes, MAGIC, &reads).map_err(|e| match e {
             FramedError::Foreign => TissueError::Foreign { path: p() },
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
