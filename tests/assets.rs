@@ -166,16 +166,7 @@ fn the_default_tissue_comes_from_the_current_code() {
         &liver.fixed_region(),
         &liver.palpable_region(),
     );
-    let mut palpable: Vec<u32> = organ
-        .boundary
-        .iter()
-        .zip(&organ.palpable)
-        .filter(|(_, p)| **p)
-        .flat_map(|(t, _)| *t)
-        .filter(|&v| !organ.fixed[v as usize])
-        .collect();
-    palpable.sort_unstable();
-    palpable.dedup();
+    let palpable = organ.pressable_vertices();
     assert_eq!(
         law.samples_mm.len() + law.skipped_mm.len(),
         palpable.len(),

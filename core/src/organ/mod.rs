@@ -64,6 +64,22 @@ pub struct OrganMesh {
 }
 
 impl OrganMesh {
+    /// The vertices a probe can press: corners of palpable boundary triangles, outside
+    /// the fixed region (a tool there moves nothing), sorted, each once.
+    pub fn pressable_vertices(&self) -> Vec<u32> {
+        let mut v: Vec<u32> = self
+            .boundary
+            .iter()
+            .zip(&self.palpable)
+            .filter(|(_, p)| **p)
+            .flat_map(|(t, _)| t.iter().copied())
+            .filter(|&v| !self.fixed[v as usize])
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+
     /// The boundary's vertices, sorted, each once (the rows a palpation scene keeps).
     pub fn surface_nodes(&self) -> Vec<u32> {
         let mut v: Vec<u32> = self.boundary.iter().flatten().copied().collect();

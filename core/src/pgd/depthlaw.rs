@@ -117,16 +117,7 @@ pub struct DepthLaw {
 /// Picks `n` vertices of the palpable surface, each the farthest from those picked
 /// (never a fixed vertex: a tool there moves nothing).
 fn spread_samples(organ: &OrganMesh, n: usize) -> Vec<[f64; 3]> {
-    let mut verts: Vec<u32> = organ
-        .boundary
-        .iter()
-        .zip(&organ.palpable)
-        .filter(|(_, p)| **p)
-        .flat_map(|(t, _)| *t)
-        .filter(|&v| !organ.fixed[v as usize])
-        .collect();
-    verts.sort_unstable();
-    verts.dedup();
+    let verts = organ.pressable_vertices();
     let pts: Vec<[f64; 3]> = verts
         .iter()
         .map(|&v| organ.mesh.vertices[v as usize])

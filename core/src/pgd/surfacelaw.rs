@@ -258,12 +258,8 @@ impl SurfaceLaw {
         let expander = Expander::new(&space, o.law, o.material)?;
         let rows = organ.surface_nodes();
         let mut candidates: Vec<u32> = organ
-            .boundary
-            .iter()
-            .zip(&organ.palpable)
-            .filter(|(_, p)| **p)
-            .flat_map(|(t, _)| t.iter().copied())
-            .filter(|&v| !organ.fixed[v as usize])
+            .pressable_vertices()
+            .into_iter()
             .filter(|v| cover.is_none_or(|c| c.binary_search(v).is_ok()))
             .filter(|&v| {
                 o.within.is_none_or(|(c, r)| {
