@@ -5,8 +5,7 @@
 use palpa_core::axis::Discretization;
 use palpa_core::fe::{Element, Material};
 use palpa_core::file;
-use palpa_core::organ::liver::{Liver, spacing_mm};
-use palpa_core::organ::{Level, mesh_organ};
+use palpa_core::organ::Level;
 use palpa_core::pgd::palpation::{describe, describe_get};
 
 #[test]
@@ -15,13 +14,7 @@ fn the_default_scene_matches_the_current_mesh_and_settings() {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.palpa");
     let model = file::load::<f32>(&path).expect("assets/liver-coarse.palpa loads as an f32 scene");
     let desc = &model.provenance().mesh;
-    let liver = Liver::default();
-    let organ = mesh_organ(
-        &liver,
-        spacing_mm(Level::Coarse),
-        &liver.fixed_region(),
-        &liver.palpable_region(),
-    );
+    let organ = palpa_tests::coarse_liver();
     let radius: f64 = describe_get(desc, "radius_mm")
         .expect("radius recorded")
         .parse()
@@ -159,13 +152,7 @@ fn the_default_tissue_comes_from_the_current_code() {
         },
         "the tissue was built with other options: see scripts/make-assets.sh"
     );
-    let liver = Liver::default();
-    let organ = mesh_organ(
-        &liver,
-        spacing_mm(Level::Coarse),
-        &liver.fixed_region(),
-        &liver.palpable_region(),
-    );
+    let organ = palpa_tests::coarse_liver();
     let palpable = organ.pressable_vertices();
     assert_eq!(
         law.samples_mm.len() + law.skipped_mm.len(),
@@ -205,31 +192,14 @@ fn the_default_tissue_comes_from_the_current_code() {
     assert_eq!(again.samples.len(), 1);
     let steps = law.steps as usize;
     assert_eq!(again.reach[0], law.reach[k]);
-    let m = 3 * law.rows_mm.len();
     let modes = law.mode_start[k] as usize..law.mode_start[k + 1] as usize;
-    let (mut force, mut surface) = (0.0f64, 0.0f64);
-    for j in 0..steps {
-        let stored = f64::from(law.ratio[k * steps + j]);
-        force = force.max((stored - again.ratio[j]).abs() / again.ratio[j]);
-        let computed = again.residual_at(0, j);
-        for n in 0..m / 3 {
-            let node: f64 = (0..3)
-                .map(|c| {
-                    let i = 3 * n + c;
-                    let r: f64 = modes
-                        .clone()
-                        .map(|q| {
-                            law.shape.get(q * m + i)
-                                * f64::from(law.shape_scale[q])
-                                * f64::from(law.coeffs[q * steps + j])
-                        })
-                        .sum();
-                    (r - f64::from(computed[i])).powi(2)
-                })
-                .sum();
-            surface = surface.max(node.sqrt());
-        }
-    }
+    let force = (0..steps)
+        .map(|j| {
+            let stored = f64::from(law.ratio[k * steps + j]);
+            (stored - again.ratio[j]).abs() / again.ratio[j]
+        })
+        .fold(0.0f64, f64::max);
+    let surface = palpa_tests::stored_error(&law, modes, |j| again.residual_at(0, j));
     eprintln!(
         "vertex {at:?} pressed again: force ratio within {force:.2e}, surface within \
          {surface:.4} mm (stored bound {:.4} mm)",

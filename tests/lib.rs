@@ -64,6 +64,37 @@ pub fn small_model<T: Scalar>(nodes: usize, modes: usize, seed: u64) -> Separate
     SeparatedModel::new(meta, rows, modes, x, values).expect("consistent shapes")
 }
 
+/// The largest node error, over grid depths, of a tissue law's reconstruction from
+/// its stored `modes` against the residual a press computed, `computed(j)` at grid
+/// depth `j` (mm).
+pub fn stored_error<'a>(
+    t: &palpa_core::pgd::tissue::TissueLaw,
+    modes: std::ops::Range<usize>,
+    computed: impl Fn(usize) -> &'a [f32],
+) -> f64 {
+    let (steps, m) = (t.steps as usize, 3 * t.rows_mm.len());
+    let mut worst = 0.0f64;
+    for j in 0..steps {
+        let computed = computed(j);
+        for n in 0..m / 3 {
+            let node = (0..3).map(|c| {
+                let i = 3 * n + c;
+                let stored: f64 = modes
+                    .clone()
+                    .map(|k| {
+                        t.shape.get(k * m + i)
+                            * f64::from(t.shape_scale[k])
+                            * f64::from(t.coeffs[k * steps + j])
+                    })
+                    .sum();
+                (stored - f64::from(computed[i])).powi(2)
+            });
+            worst = worst.max(node.sum::<f64>().sqrt());
+        }
+    }
+    worst
+}
+
 /// The procedural liver meshed at the coarse level with its own regions.
 pub fn coarse_liver() -> palpa_core::organ::OrganMesh {
     use palpa_core::organ::liver::{Liver, spacing_mm};

@@ -14,37 +14,11 @@ use palpa_core::file;
 use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, organ_vertex_normals};
 use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueError, TissueLaw};
 use palpa_core::scene::PalpationScene;
-use palpa_tests::coarse_liver;
+use palpa_tests::{coarse_liver, stored_error};
 
 fn shipped_scene() -> PalpationScene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.palpa");
     PalpationScene::new(file::load_any(&path).expect("the shipped scene loads")).expect("scene")
-}
-
-/// The largest node error, over grid depths, of sample `s`'s reconstruction from the
-/// stored `modes` against the residual its press computed (mm).
-fn stored_error(t: &TissueLaw, law: &SurfaceLaw, s: usize, modes: std::ops::Range<usize>) -> f64 {
-    let (steps, m) = (t.steps as usize, 3 * t.rows_mm.len());
-    let mut worst = 0.0f64;
-    for j in 0..steps {
-        let computed = law.residual_at(s, j);
-        for n in 0..m / 3 {
-            let node = (0..3).map(|c| {
-                let i = 3 * n + c;
-                let stored: f64 = modes
-                    .clone()
-                    .map(|k| {
-                        t.shape.get(k * m + i)
-                            * f64::from(t.shape_scale[k])
-                            * f64::from(t.coeffs[k * steps + j])
-                    })
-                    .sum();
-                (stored - f64::from(computed[i])).powi(2)
-            });
-            worst = worst.max(node.sum::<f64>().sqrt());
-        }
-    }
-    worst
 }
 
 /// A surface point of the anterior right lobe, not a mesh vertex.
@@ -98,7 +72,7 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
         let mut worst = 0.0f64;
         for s in 0..t.reach.len() {
             let (first, end) = (t.mode_start[s] as usize, t.mode_start[s + 1] as usize);
-            let with = |q: usize| stored_error(t, &law, s, first..first + q);
+            let with = |q: usize| stored_error(t, first..first + q, |j| law.residual_at(s, j));
             worst = worst.max(with(end - first));
             if end > first {
                 assert!(
