@@ -192,14 +192,14 @@ fn the_default_tissue_comes_from_the_current_code() {
     assert_eq!(again.samples.len(), 1);
     let steps = law.steps as usize;
     assert_eq!(again.reach[0], law.reach[k]);
-    let modes = law.mode_start[k] as usize..law.mode_start[k + 1] as usize;
     let force = (0..steps)
         .map(|j| {
             let stored = f64::from(law.ratio[k * steps + j]);
             (stored - again.ratio[j]).abs() / again.ratio[j]
         })
         .fold(0.0f64, f64::max);
-    let surface = palpa_tests::stored_error(&law, modes, |j| again.residual_at(0, j));
+    let count = law.sample_modes(k).0.len();
+    let surface = palpa_tests::stored_error(&law, k, count, |j| again.residual_at(0, j));
     eprintln!(
         "vertex {at:?} pressed again: force ratio within {force:.2e}, surface within \
          {surface:.4} mm (stored bound {:.4} mm)",

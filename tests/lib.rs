@@ -64,15 +64,17 @@ pub fn small_model<T: Scalar>(nodes: usize, modes: usize, seed: u64) -> Separate
     SeparatedModel::new(meta, rows, modes, x, values).expect("consistent shapes")
 }
 
-/// The largest node error, over grid depths, of a tissue law's reconstruction from
-/// its stored `modes` against the residual a press computed, `computed(j)` at grid
-/// depth `j` (mm).
+/// The largest node error, over grid depths, of a tissue law's reconstruction of
+/// `sample` from the first `kept` modes of its group against the residual a press
+/// computed, `computed(j)` at grid depth `j` (mm).
 pub fn stored_error<'a>(
     t: &palpa_core::pgd::tissue::TissueLaw,
-    modes: std::ops::Range<usize>,
+    sample: usize,
+    kept: usize,
     computed: impl Fn(usize) -> &'a [f32],
 ) -> f64 {
     let (steps, m) = (t.steps as usize, 3 * t.rows_mm.len());
+    let (modes, first) = t.sample_modes(sample);
     let mut worst = 0.0f64;
     for j in 0..steps {
         let computed = computed(j);
@@ -81,10 +83,12 @@ pub fn stored_error<'a>(
                 let i = 3 * n + c;
                 let stored: f64 = modes
                     .clone()
-                    .map(|k| {
-                        t.shape.get(k * m + i)
-                            * f64::from(t.shape_scale[k])
-                            * f64::from(t.coeffs[k * steps + j])
+                    .take(kept)
+                    .enumerate()
+                    .map(|(k, mode)| {
+                        t.shape.get(mode * m + i)
+                            * f64::from(t.shape_scale[mode])
+                            * f64::from(t.coeffs[first + k * steps + j])
                     })
                     .sum();
                 (stored - f64::from(computed[i])).powi(2)

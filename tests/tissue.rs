@@ -12,7 +12,9 @@ use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
 use palpa_core::fe::series::Expander;
 use palpa_core::file;
 use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, organ_vertex_normals};
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueError, TissueLaw};
+use palpa_core::pgd::tissue::{
+    BoundTissue, Grouping, PointIndex, ShapeBits, TissueError, TissueLaw,
+};
 use palpa_core::scene::PalpationScene;
 use palpa_tests::{coarse_liver, stored_error};
 
@@ -71,12 +73,12 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
     for (t, tolerance_mm) in [(&tissue, 0.02), (&eight, 0.02), (&tight, 0.002)] {
         let mut worst = 0.0f64;
         for s in 0..t.reach.len() {
-            let (first, end) = (t.mode_start[s] as usize, t.mode_start[s + 1] as usize);
-            let with = |q: usize| stored_error(t, first..first + q, |j| law.residual_at(s, j));
-            worst = worst.max(with(end - first));
-            if end > first {
+            let count = t.sample_modes(s).0.len();
+            let with = |q: usize| stored_error(t, s, q, |j| law.residual_at(s, j));
+            worst = worst.max(with(count));
+            if count > 0 {
                 assert!(
-                    with(end - first - 1) > tolerance_mm,
+                    with(count - 1) > tolerance_mm,
                     "sample {s} keeps a mode too many"
                 );
             }
@@ -283,6 +285,28 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
         .expect("binds")
     };
     let (bound_split, bound_plain) = (compress(&split), compress(&plain));
+    // Each split triangle's points share one set of modes: fewer modes than each point
+    // alone, and every sample's stored error, measured, within the law's bound.
+    let shared = &bound_split.law;
+    let alone =
+        TissueLaw::compress_grouped(&organ, &split, 0.002, ShapeBits::Sixteen, Grouping::Sample)
+            .expect("compresses");
+    let modes = |t: &TissueLaw| t.mode_start.last().copied().unwrap_or(0);
+    let groups = |t: &TissueLaw| t.mode_start.len() - 1;
+    eprintln!(
+        "split law: {} modes in {} groups, {} with each sample alone",
+        modes(shared),
+        groups(shared),
+        modes(&alone)
+    );
+    assert_eq!(groups(shared), first + r.triangles.len());
+    assert!(modes(shared) < modes(&alone));
+    assert!(shared.truncation_bound_mm <= 0.002);
+    for s in 0..total {
+        let count = shared.sample_modes(s).0.len();
+        let e = stored_error(shared, s, count, |j| split.residual_at(s, j));
+        assert!(e <= shared.truncation_bound_mm + 1e-12, "sample {s}: {e}");
+    }
     let scene = shipped_scene();
     let space = organ_space(&organ, options.element);
     let expander = Expander::new(&space, options.law, options.material).expect("rest factor");

@@ -48,6 +48,8 @@ fn hand_made(scene: &PalpationScene) -> TissueLaw {
         stopped: vec![String::new(); samples],
         rank: 1,
         mode_start: (0..=samples as u32).collect(),
+        group: (0..samples as u32).collect(),
+        coeff_start: (0..=samples as u32).map(|s| 3 * s).collect(),
         shape: palpa_core::pgd::tissue::Shapes::Sixteen(shape),
         shape_scale: vec![1.0 / f32::from(i16::MAX); samples],
         coeffs: [0.0, 1.0, 2.0].repeat(samples),

@@ -801,6 +801,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         no_edges: false,
         refine_above_mm: palpa_core::pgd::surfacelaw::DEFAULT_REFINE_ABOVE_MM,
         no_refine: false,
+        separate_modes: false,
         jobs: None,
         out: args.out.with_extension("tissue"),
     };

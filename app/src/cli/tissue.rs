@@ -15,7 +15,7 @@ use palpa_core::pgd::surfacelaw::{
     DEFAULT_REFINE_ABOVE_MM, SurfaceLaw, SurfaceLawOptions, follow_at, press_at,
 };
 use palpa_core::pgd::tissue::{
-    BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, PointIndex, ShapeBits, TissueLaw,
+    BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, PointIndex, ShapeBits, TissueLaw,
 };
 use palpa_core::rng::Rng;
 use serde_json::json;
@@ -36,9 +36,9 @@ pub enum TissueCommand {
     /// `X,Y,Z,…` for `tissue build --cover` and `tissue check --at`: a whole-surface
     /// accuracy table from the few triangles that hold them.
     Points(PointsArgs),
-    /// Cut a built vademecum to fewer modes per sample, fewer bits or a longer depth
-    /// step (what `palpa tradeoff` measures) and save it: a scene ships only what it
-    /// shows. The stored bound grows by what the cut drops.
+    /// Cut a built vademecum to fewer modes per sample (or per group of samples that
+    /// share them), fewer bits or a longer depth step (what `palpa tradeoff` measures)
+    /// and save it: a scene ships only what it shows. The stored bound grows by what the cut drops.
     Cut(CutArgs),
 }
 
@@ -124,6 +124,10 @@ pub struct BuildArgs {
     /// Split no triangle: the quadratic blend everywhere.
     #[arg(long)]
     pub no_refine: bool,
+    /// Give each split triangle's quarter and inner points modes of their own, not one
+    /// set shared by the triangle's points (measured: about three times the modes).
+    #[arg(long)]
+    pub separate_modes: bool,
     /// Presses computed at once. Each holds its own factored tangent: on medium P2
     /// two at once peaked at 21.7 GB. Default: one per core.
     #[arg(long)]
@@ -249,6 +253,7 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
         "presses": law.reach.len(),
         "stopped_short": stopped_short, "shallowest_reach_mm": shallowest,
         "rows": law.rows_mm.len(), "rank": law.rank, "modes": modes,
+        "mode_groups": law.mode_start.len() - 1,
         "bits": law.shape.bits().count(),
         "truncation_bound_mm": law.truncation_bound_mm, "tolerance_mm": law.tolerance_mm,
         "payload_bytes": law.payload_bytes(),
@@ -358,7 +363,12 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     let (stopped_short, shallowest) =
         reach_figures(&law.reach, law.steps() as u32, options.depth_step_mm);
     let bits = ShapeBits::from_count(args.bits).context("--bits: expected 8 or 16")?;
-    let tissue = TissueLaw::compress(&organ, &law, args.tolerance_mm, bits)?;
+    let grouping = if args.separate_modes {
+        Grouping::Sample
+    } else {
+        Grouping::SplitTriangle
+    };
+    let tissue = TissueLaw::compress_grouped(&organ, &law, args.tolerance_mm, bits, grouping)?;
     tissue.save(&args.out)?;
     let _ = std::fs::remove_file(&log);
     let summary = json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
@@ -374,6 +384,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             "rows": tissue.rows_mm.len(), "depth_max_mm": tissue.depth_max_mm(),
             "bits": tissue.shape.bits().count(),
             "rank": tissue.rank, "truncation_bound_mm": tissue.truncation_bound_mm,
+            "modes": tissue.mode_start.last(), "mode_groups": tissue.mode_start.len() - 1,
             "uncompressed_bytes": law.bytes(), "payload_bytes": tissue.payload_bytes(),
             "file_bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
             "build_s": tissue.build_s, "resumed_presses": resumed, "compress_s": tissue.compress_s,

@@ -25,4 +25,5 @@ pub mod surfacelaw;
 pub mod tissue;
 pub mod tissue_knobs;
 pub mod tissue_shapes;
+mod tissue_v7;
 pub mod tradeoff;

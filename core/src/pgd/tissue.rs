@@ -56,7 +56,11 @@
 //! and inner points are pressed too (see [`Refinement`]): their surpluses over the
 //! quadratic blend come after the edges', and a probe in a split triangle adds the three
 //! of the quarter it lies in with weights `4 μ_i μ_j`, so the blend there is the
-//! quadratic interpolant of that quarter's six presses. A neighbour that was not split
+//! quadratic interpolant of that quarter's six presses. A split triangle's points lie
+//! a few millimetres apart and their surpluses share their shape far from the tool, so
+//! they are compressed together ([`Grouping`]): one SVD of the group's columns (every
+//! member at every depth), `[R_1 … R_n] ≈ A [C_1 … C_n]`, the same exact node-error
+//! rule over all of them, one set of shapes `A` and a weight block `C_i` per member. A neighbour that was not split
 //! adds the quarter points of the edge they share, weighted as on the edge and fading
 //! towards its far corner, so the surface does not jump as the probe crosses the edge.
 //! At most nine samples enter one probe's blend.
@@ -88,9 +92,9 @@ use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (7: the body deflated; version 6 files, plain, still
-/// load).
-pub const VERSION: u32 = 7;
+/// The file's format version (8: modes shared within groups of samples; version 7
+/// files, deflated, and 6, plain, still load, each sample its own group).
+pub const VERSION: u32 = 8;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -102,7 +106,7 @@ pub enum TissueError {
     },
     #[error("{path}: not a palpa tissue file (expected the magic bytes \"PALPATIS\")")]
     Foreign { path: PathBuf },
-    #[error("{path}: tissue format version {found}, this palpa reads versions 6 and {VERSION}")]
+    #[error("{path}: tissue format version {found}, this palpa reads versions 6 to {VERSION}")]
     Version { path: PathBuf, found: u32 },
     #[error("{path}: corrupt tissue law: {why}")]
     Corrupt { path: PathBuf, why: String },
@@ -155,16 +159,22 @@ pub struct TissueLaw {
     /// its reach a sample's arrays hold the last depth reached.
     pub reach: Vec<u32>,
     pub stopped: Vec<String>,
-    /// The most modes a vertex keeps.
+    /// The most modes a group keeps.
     pub rank: u32,
-    /// Sample `s`'s modes are `mode_start[s]..mode_start[s + 1]`.
+    /// Group `g`'s modes are `mode_start[g]..mode_start[g + 1]` (see [`Grouping`]).
     pub mode_start: Vec<u32>,
+    /// Per sample: the group whose modes its residual weighs.
+    pub group: Vec<u32>,
+    /// Per sample: where its weights start in `coeffs` (its group's modes × `steps`,
+    /// mode by mode); `coeff_start[samples]` is `coeffs.len()`.
+    pub coeff_start: Vec<u32>,
     /// Each mode's surface shape (unit norm), quantized to 16 or 8 bits (see
     /// [`super::tissue_shapes`]): entry `mode · 3·rows + row3` times
     /// `shape_scale[mode]`. What quantizing costs a node is in the stored bound.
     pub shape: Shapes,
     pub shape_scale: Vec<f32>,
-    /// `coeffs[mode · steps + j]`: its weight at grid depth `j`, mm.
+    /// `coeffs[coeff_start[s] + k · steps + j]`: sample `s`'s weight of its group's
+    /// `k`-th mode at grid depth `j`, mm.
     pub coeffs: Vec<f32>,
     /// The largest node error of any sample's stored reconstruction at any grid depth,
     /// measured exactly when compressed (grown by what a cut drops, see
@@ -189,7 +199,71 @@ fn node_max(a: faer::MatRef<'_, f64>) -> f64 {
     worst.sqrt()
 }
 
-/// Most modes one vertex may keep (its depths, at most).
+/// Which samples share their modes (format 8).
+///
+/// A split triangle's quarter and inner points lie within a few millimetres of each
+/// other, and their surpluses over the quadratic blend are not local (on coarse P2 a
+/// split point's surplus exceeds 0.05 mm at 522 of 858 surface nodes on average) but
+/// share their far shape: on the 16 split triangles of a covering build (coarse P2,
+/// to 15 mm, 8 bits, 0.1 mm), one SVD over each triangle's nine points needed 171
+/// modes where the points alone needed 580. Vertex and edge presses, 8–12 mm apart,
+/// share much less (a vertex with its edges: 690 modes against 863), and are kept
+/// alone. See docs/methods.md §2e.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Grouping {
+    /// Every sample its own modes (what formats 6 and 7 stored).
+    Sample,
+    /// The quarter and inner points of each split triangle share one set of modes (a
+    /// quarter point on an edge between two split triangles goes with the first);
+    /// vertices and edges keep their own.
+    #[default]
+    SplitTriangle,
+}
+
+impl Grouping {
+    /// The groups of `law`'s samples (indices in sample order within each group;
+    /// every sample in exactly one group).
+    fn groups(self, law: &SurfaceLaw) -> Vec<Vec<usize>> {
+        let r = &law.refinement;
+        let first_quarter = law.samples.len() + law.edges.len();
+        let first_inner = first_quarter + r.quarter_ends.len();
+        let n = first_inner + r.inner_corners.len();
+        if self == Grouping::Sample || r.triangles.is_empty() {
+            return (0..n).map(|s| vec![s]).collect();
+        }
+        let mut groups: Vec<Vec<usize>> = (0..first_quarter).map(|s| vec![s]).collect();
+        let mut taken = vec![false; n];
+        let sorted = |mut c: [u32; 3]| {
+            c.sort_unstable();
+            c
+        };
+        for &tri in &r.triangles {
+            let quarters = r
+                .quarter_ends
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| tri.contains(&e[0]) && tri.contains(&e[1]))
+                .map(|(q, _)| first_quarter + q);
+            let inner = r
+                .inner_corners
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| sorted(**c) == sorted(tri))
+                .map(|(i, _)| first_inner + i);
+            let members: Vec<usize> = quarters.chain(inner).filter(|&s| !taken[s]).collect();
+            for &s in &members {
+                taken[s] = true;
+            }
+            if !members.is_empty() {
+                groups.push(members);
+            }
+        }
+        groups.extend((first_quarter..n).filter(|&s| !taken[s]).map(|s| vec![s]));
+        groups
+    }
+}
+
+/// Most modes one group may keep.
 pub const MAX_RANK: usize = 256;
 
 /// The compression's default bound on any node's residual (mm) and bits per stored
@@ -247,32 +321,44 @@ impl TissueLaw {
         tolerance_mm: f64,
         bits: ShapeBits,
     ) -> Result<TissueLaw, TissueError> {
+        Self::compress_grouped(organ, law, tolerance_mm, bits, Grouping::default())
+    }
+
+    /// [`Self::compress`] with the samples sharing modes as `grouping` says.
+    pub fn compress_grouped(
+        organ: &OrganMesh,
+        law: &SurfaceLaw,
+        tolerance_mm: f64,
+        bits: ShapeBits,
+        grouping: Grouping,
+    ) -> Result<TissueLaw, TissueError> {
         let t0 = Instant::now();
         let steps = law.steps();
-        let n_samples = law.samples.len()
-            + law.edges.len()
-            + law.refinement.quarter_ends.len()
-            + law.refinement.inner_corners.len();
         if law.samples.is_empty() {
             return Err(TissueError::Empty);
         }
+        let groups = grouping.groups(law);
+        let n_samples = groups.iter().map(Vec::len).sum::<usize>();
         let m = 3 * law.rows.len();
-        let (mut mode_start, mut coeffs) = (vec![0u32], Vec::new());
+        let (mut mode_start, mut group) = (vec![0u32], vec![0u32; n_samples]);
+        let mut sample_coeffs: Vec<Vec<f32>> = vec![Vec::new(); n_samples];
         let (mut shape, mut shape_scale) = (Shapes::new(bits), Vec::new());
         let (mut rank, mut bound) = (0usize, 0.0f64);
-        for s in 0..n_samples {
-            // Columns j ≥ 1 only: depth 0 is exactly zero.
-            let a = Mat::from_fn(m, steps - 1, |i, c| f64::from(law.residual_at(s, c + 1)[i]));
-            let svd = thin_svd(a.as_ref()).ok_or(TissueError::Svd {
-                rows: m,
-                cols: steps - 1,
-            })?;
+        for (g, members) in groups.iter().enumerate() {
+            // Columns j ≥ 1 only (depth 0 is exactly zero), sample after sample.
+            let cols = members.len() * (steps - 1);
+            let a = Mat::from_fn(m, cols, |i, c| {
+                let (s, j) = (members[c / (steps - 1)], c % (steps - 1) + 1);
+                f64::from(law.residual_at(s, j)[i])
+            });
+            let svd_error = || TissueError::Svd { rows: m, cols };
+            let svd = thin_svd(a.as_ref()).ok_or_else(svd_error)?;
             // The modes as stored (shape in `bits` with an f32 scale, weights in f32),
-            // added one by one until no node of any grid depth errs by more than the
-            // tolerance: the error measured exactly, as evaluation will see it, not
-            // bounded by `σ_{q+1}` plus each mode's quantization (that bound is loose
-            // by the spread of the error over nodes and modes: on coarse P2 it kept
-            // about half as many modes again).
+            // added one by one until no node of any grid depth of any member errs by
+            // more than the tolerance: the error measured exactly, as evaluation will
+            // see it, not bounded by `σ_{q+1}` plus each mode's quantization (that
+            // bound is loose by the spread of the error over nodes and modes: on coarse
+            // P2 it kept about half as many modes again).
             // Past the SVD's own modes (where the stored ones still leave more than the
             // tolerance: 8-bit quantization's floor at a large press), each further mode
             // is the leading singular pair of what the stored modes leave, while that
@@ -286,18 +372,15 @@ impl TissueLaw {
                     let k = kept;
                     (
                         (0..m).map(|i| svd.u[(i, k)]).collect(),
-                        (0..steps - 1)
+                        (0..cols)
                             .map(|c| (svd.s[k] * svd.v[(c, k)]) as f32)
                             .collect(),
                     )
                 } else {
-                    let rest = thin_svd(left.as_ref()).ok_or(TissueError::Svd {
-                        rows: m,
-                        cols: steps - 1,
-                    })?;
+                    let rest = thin_svd(left.as_ref()).ok_or_else(svd_error)?;
                     (
                         (0..m).map(|i| rest.u[(i, 0)]).collect(),
-                        (0..steps - 1)
+                        (0..cols)
                             .map(|c| (rest.s[0] * rest.v[(c, 0)]) as f32)
                             .collect(),
                     )
@@ -318,16 +401,25 @@ impl TissueLaw {
                 (left, error) = (next, next_error);
                 shape.push_copy(&one, 0, m);
                 shape_scale.push(scale);
-                coeffs.push(0.0f32);
-                coeffs.extend(c);
+                for (k, &s) in members.iter().enumerate() {
+                    sample_coeffs[s].push(0.0f32);
+                    sample_coeffs[s].extend(&c[k * (steps - 1)..][..steps - 1]);
+                }
                 kept += 1;
             }
             // Where even that leaves more, the bound says what remains.
-            let (q, vertex_bound) = (kept, error);
-            rank = rank.max(q);
-            bound = bound.max(vertex_bound);
-            mode_start.push(mode_start[s] + q as u32);
+            rank = rank.max(kept);
+            bound = bound.max(error);
+            mode_start.push(mode_start[g] + kept as u32);
+            for &s in members {
+                group[s] = g as u32;
+            }
         }
+        let mut coeff_start = vec![0u32];
+        for c in &sample_coeffs {
+            coeff_start.push(coeff_start.last().copied().unwrap_or(0) + c.len() as u32);
+        }
+        let coeffs = sample_coeffs.concat();
         let at = |v: u32| organ.mesh.vertices[v as usize].map(|x| x as f32);
         let tissue = TissueLaw {
             options: law.options,
@@ -345,6 +437,8 @@ impl TissueLaw {
             stopped: law.stopped.clone(),
             rank: rank as u32,
             mode_start,
+            group,
+            coeff_start,
             shape,
             shape_scale,
             coeffs,
@@ -359,6 +453,28 @@ impl TissueLaw {
 
     pub fn depth_max_mm(&self) -> f64 {
         self.options.depth_step_mm * f64::from(self.steps.saturating_sub(1))
+    }
+
+    /// Sample `s`'s modes (its group's), and where its weights of them start in
+    /// `coeffs` (`steps` a mode).
+    pub fn sample_modes(&self, s: usize) -> (std::ops::Range<usize>, usize) {
+        let g = self.group[s] as usize;
+        let modes = self.mode_start[g] as usize..self.mode_start[g + 1] as usize;
+        (modes, self.coeff_start[s] as usize)
+    }
+
+    /// Sample `s`'s stored residual at grid depth `j` added to `out` (three per row,
+    /// the law's row order).
+    pub fn add_sample(&self, s: usize, j: usize, out: &mut [f64]) {
+        let (steps, m) = (self.steps as usize, 3 * self.rows_mm.len());
+        let (modes, first) = self.sample_modes(s);
+        for (k, mode) in modes.enumerate() {
+            let w =
+                f64::from(self.coeffs[first + k * steps + j]) * f64::from(self.shape_scale[mode]);
+            for (i, x) in out.iter_mut().enumerate().take(m) {
+                *x += w * self.shape.get(mode * m + i);
+            }
+        }
     }
 
     /// Checks what a file gave: shapes, finite values, `g(0) = 1`, zero residual at
@@ -383,6 +499,7 @@ impl TissueLaw {
             ));
         }
         let modes = self.mode_start.last().copied().unwrap_or(0) as usize;
+        let groups = self.mode_start.len().saturating_sub(1);
         if vertices == 0 || rank > MAX_RANK || m == 0 {
             return Err(format!(
                 "{ns} samples, rank {rank}, {m} rows: expected samples, rows, rank ≤ {MAX_RANK}"
@@ -394,19 +511,28 @@ impl TissueLaw {
             || self.segments.len() != ns
             || self.reach.len() != ns
             || self.stopped.len() != ns
-            || self.mode_start.len() != ns + 1
-            || self.mode_start[0] != 0
+            || self.mode_start.first() != Some(&0)
             || self
                 .mode_start
                 .windows(2)
                 .any(|w| w[1] < w[0] || (w[1] - w[0]) as usize > rank)
+            || self.group.len() != ns
+            || self.group.iter().any(|&g| g as usize >= groups)
+            || self.coeff_start.len() != ns + 1
+            || self.coeff_start[0] != 0
+            || self.coeff_start[ns] as usize != self.coeffs.len()
+            || (0..ns).any(|s| {
+                let g = self.group[s] as usize;
+                let count = (self.mode_start[g + 1] - self.mode_start[g]) as usize;
+                self.coeff_start[s + 1].checked_sub(self.coeff_start[s])
+                    != Some((count * steps) as u32)
+            })
             || self.shape.len() != modes * m
             || self.shape_scale.len() != modes
-            || self.coeffs.len() != modes * steps
         {
             return Err(format!(
                 "array lengths do not match {ns} samples × {steps} depths, {modes} modes of \
-                 {m} rows"
+                 {m} rows in {groups} groups"
             ));
         }
         let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
@@ -492,12 +618,20 @@ impl TissueLaw {
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<TissueLaw, TissueError> {
         use crate::framed::FramedError;
         let p = || path.to_path_buf();
-        let reads = [(VERSION, Body::Deflated), (6, Body::Plain)];
-        let law: TissueLaw = crate::framed::read(bytes, MAGIC, &reads).map_err(|e| match e {
+        let named = |e| match e {
             FramedError::Foreign => TissueError::Foreign { path: p() },
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
-        })?;
+        };
+        let law: TissueLaw = match crate::framed::read(bytes, MAGIC, &[(VERSION, Body::Deflated)]) {
+            Err(FramedError::Version(7 | 6)) => {
+                let reads = [(7, Body::Deflated), (6, Body::Plain)];
+                let old: super::tissue_v7::TissueLawV7 =
+                    crate::framed::read(bytes, MAGIC, &reads).map_err(named)?;
+                old.into()
+            }
+            read => read.map_err(named)?,
+        };
         law.check()
             .map_err(|why| TissueError::Corrupt { path: p(), why })?;
         Ok(law)
@@ -591,7 +725,7 @@ pub struct BoundTissue {
     pub unmatched_vertices: usize,
 }
 
-/// Scratch for [`BoundTissue::add_surface`]: the weight of each corner's modes.
+/// Scratch for [`BoundTissue::add_surface`]: the weight of each blended group's modes.
 #[derive(Debug, Clone)]
 pub struct TissueScratch {
     c: Vec<f64>,
@@ -909,29 +1043,36 @@ impl BoundTissue {
         let (last, _) = self.last_depth(Some(&corners));
         let (j, t, _) = self.interval(depth_mm, last);
         let steps = self.law.steps as usize;
-        // Each kept mode's weight at this depth, for the three corners.
-        let mut n = 0;
-        let mut first = [0usize; TERMS];
-        for (k, &(s, w)) in corners.iter().enumerate() {
-            let modes = self.law.mode_start[s] as usize..self.law.mode_start[s + 1] as usize;
-            first[k] = modes.start;
-            for mode in modes {
-                let a = f64::from(self.law.coeffs[mode * steps + j]);
-                let b = f64::from(self.law.coeffs[mode * steps + j + 1]);
-                scratch.c[n] = if w == 0.0 {
-                    0.0
-                } else {
-                    w * ((1.0 - t) * a + t * b)
-                };
-                n += 1;
+        // Each mode's weight at this depth, summed over the terms that share its group
+        // (a split triangle's points share theirs): `groups[n]` is the n-th distinct
+        // group, its first mode, count and first slot in the scratch.
+        let mut groups = [(0u32, 0usize, 0usize, 0usize); TERMS];
+        let (mut n_groups, mut slots) = (0, 0);
+        for &(s, w) in &corners {
+            if w == 0.0 {
+                continue;
+            }
+            let (modes, first) = self.law.sample_modes(s);
+            let group = self.law.group[s];
+            let slot = match groups[..n_groups].iter().find(|g| g.0 == group) {
+                Some(g) => g.3,
+                None => {
+                    groups[n_groups] = (group, modes.start, modes.len(), slots);
+                    scratch.c[slots..slots + modes.len()].fill(0.0);
+                    n_groups += 1;
+                    slots += modes.len();
+                    slots - modes.len()
+                }
+            };
+            for k in 0..modes.len() {
+                let a = f64::from(self.law.coeffs[first + k * steps + j]);
+                let b = f64::from(self.law.coeffs[first + k * steps + j + 1]);
+                scratch.c[slot + k] += w * ((1.0 - t) * a + t * b);
             }
         }
-        let mut n = 0;
-        for (k, &(s, _)) in corners.iter().enumerate() {
-            let count = (self.law.mode_start[s + 1] - self.law.mode_start[s]) as usize;
-            for mode in first[k]..first[k] + count {
-                let weight = scratch.c[n];
-                n += 1;
+        for &(_, start, count, slot) in &groups[..n_groups] {
+            for (k, mode) in (start..start + count).enumerate() {
+                let weight = scratch.c[slot + k];
                 if weight == 0.0 {
                     continue;
                 }
@@ -1067,6 +1208,8 @@ mod tests {
             stopped: vec![String::new(); 4],
             rank: 1,
             mode_start: (0..=4).collect(),
+            group: (0..4).collect(),
+            coeff_start: (0..=4).map(|s| 2 * s).collect(),
             shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(4)),
             shape_scale: vec![1.0 / f32::from(i16::MAX); 4],
             coeffs: x1.iter().flat_map(|&x| [0.0, x]).collect(),
@@ -1134,6 +1277,8 @@ mod tests {
             stopped: vec![String::new(), why.clone(), String::new()],
             rank: 1,
             mode_start: (0..=3).collect(),
+            group: (0..3).collect(),
+            coeff_start: (0..=3).map(|s| 3 * s).collect(),
             shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(3)),
             shape_scale: vec![1.0 / f32::from(i16::MAX); 3],
             // x residual: 0, 1, 4 mm (corner 1: 0, 1, 1 held).
@@ -1268,6 +1413,8 @@ mod tests {
             stopped: vec![String::new(); n],
             rank: 1,
             mode_start: (0..=n as u32).collect(),
+            group: (0..n as u32).collect(),
+            coeff_start: (0..=n as u32).map(|s| 2 * s).collect(),
             shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(n)),
             shape_scale: vec![1.0 / f32::from(i16::MAX); n],
             coeffs: x.iter().flat_map(|&v| [0.0, v as f32]).collect(),

@@ -5,9 +5,10 @@
 //!
 //! Both are cuts of what was stored, so one build serves the whole table:
 //!
-//! - **Modes.** A sample's residual over the depths is `R ≈ A C` with `A`'s columns
-//!   the SVD's left vectors in order of their singular values, and `C = Σ Vᵀ`, whose
-//!   row `k` has norm `σ_k` (see [`super::tissue`]). Keeping the first `q` modes
+//! - **Modes.** A group's residuals over the depths (one sample, or a split
+//!   triangle's points) are `R ≈ A C` with `A`'s columns the SVD's left vectors in
+//!   order of their singular values, and `C = Σ Vᵀ`, whose row `k` has norm `σ_k`
+//!   over all the group's members (see [`super::tissue`]). Keeping the first `q` modes
 //!   errs by at most `σ_{q+1}` in any column, and so at any node, on top of the
 //!   stored bound: the largest dropped `σ` is reported with the cut.
 //! - **Precision.** Each kept mode is quantized again to the bits asked for (a cut
@@ -29,7 +30,7 @@ use super::tissue_shapes::{ShapeBits, Shapes};
 #[derive(Debug, Clone)]
 pub struct Coarsened {
     pub law: TissueLaw,
-    /// The largest singular value dropped from any sample (mm): the added bound on a
+    /// The largest singular value dropped from any group (mm): the added bound on a
     /// node's residual at a grid depth.
     pub dropped_sigma_mm: f64,
     /// The most that quantizing to fewer bits adds to a node of any sample (mm).
@@ -37,7 +38,7 @@ pub struct Coarsened {
 }
 
 impl TissueLaw {
-    /// Keeps at most `modes_max` modes per sample, in `bits`, and every
+    /// Keeps at most `modes_max` modes per group, in `bits`, and every
     /// `depth_stride`-th grid depth. The stride must divide the grid's intervals (the
     /// deepest depth stays). The law's bound grows by what is dropped and requantized.
     pub fn coarsened(
@@ -76,19 +77,31 @@ impl TissueLaw {
             .map(|(s, j)| self.ratio[s * steps + source(s, j)])
             .collect();
         let m = 3 * self.rows_mm.len();
-        let (mut mode_start, mut shape, mut shape_scale, mut coeffs) =
-            (vec![0u32], Shapes::new(bits), Vec::new(), Vec::new());
-        let (mut rank, mut dropped, mut requantized) = (0usize, 0.0f64, 0.0f64);
+        let groups = self.mode_start.len() - 1;
+        let mut members = vec![Vec::new(); groups];
+        for (s, &g) in self.group.iter().enumerate() {
+            members[g as usize].push(s);
+        }
+        let (mut mode_start, mut shape, mut shape_scale) =
+            (vec![0u32], Shapes::new(bits), Vec::new());
+        let mut sample_coeffs: Vec<Vec<f32>> = vec![Vec::new(); n_samples];
+        let mut sample_requantized = vec![0.0f64; n_samples];
+        let (mut rank, mut dropped) = (0usize, 0.0f64);
         let mut mode_mm = vec![0.0; m];
-        for s in 0..n_samples {
-            let modes = self.mode_start[s] as usize..self.mode_start[s + 1] as usize;
+        for (g, members) in members.iter().enumerate() {
+            let modes = self.mode_start[g] as usize..self.mode_start[g + 1] as usize;
             let keep = modes.len().min(modes_max);
             rank = rank.max(keep);
-            let mut sample_requantized = 0.0;
             for (i, mode) in modes.enumerate() {
-                let row = &self.coeffs[mode * steps..][..steps];
+                // Mode `i`'s weights over the group's members: a row of `Σ Vᵀ`.
+                let row =
+                    |s: usize| &self.coeffs[self.coeff_start[s] as usize + i * steps..][..steps];
                 if i >= keep {
-                    let sigma = row.iter().map(|&c| f64::from(c).powi(2)).sum::<f64>();
+                    let sigma: f64 = members
+                        .iter()
+                        .flat_map(|&s| row(s))
+                        .map(|&c| f64::from(c).powi(2))
+                        .sum();
                     dropped = dropped.max(sigma.sqrt());
                     continue;
                 }
@@ -102,14 +115,26 @@ impl TissueLaw {
                     }
                     let (scale, node_error) = shape.push_mode(&mode_mm);
                     shape_scale.push(scale);
-                    let c_max = row.iter().fold(0.0f64, |a, &c| a.max(f64::from(c).abs()));
-                    sample_requantized += node_error * c_max;
+                    for &s in members {
+                        let c_max = row(s)
+                            .iter()
+                            .fold(0.0f64, |a, &c| a.max(f64::from(c).abs()));
+                        sample_requantized[s] += node_error * c_max;
+                    }
                 }
-                coeffs.extend((0..new_steps).map(|j| row[source(s, j)]));
+                for &s in members {
+                    let row = row(s);
+                    sample_coeffs[s].extend((0..new_steps).map(|j| row[source(s, j)]));
+                }
             }
-            requantized = f64::max(requantized, sample_requantized);
-            mode_start.push(mode_start[s] + keep as u32);
+            mode_start.push(mode_start[g] + keep as u32);
         }
+        let requantized = sample_requantized.iter().copied().fold(0.0, f64::max);
+        let mut coeff_start = vec![0u32];
+        for c in &sample_coeffs {
+            coeff_start.push(coeff_start.last().copied().unwrap_or(0) + c.len() as u32);
+        }
+        let coeffs = sample_coeffs.concat();
         let mut options = self.options;
         options.depth_step_mm *= k as f64;
         let law = TissueLaw {
@@ -119,6 +144,7 @@ impl TissueLaw {
             reach,
             rank: rank as u32,
             mode_start,
+            coeff_start,
             shape,
             shape_scale,
             coeffs,
@@ -139,8 +165,14 @@ impl TissueLaw {
     pub fn unsplit(&self) -> TissueLaw {
         let (steps, m) = (self.steps as usize, 3 * self.rows_mm.len());
         let n = self.samples_mm.len() + self.edge_ends.len();
-        let modes = self.mode_start[n] as usize;
-        let rank = self.mode_start[..=n]
+        // Vertices' and edges' groups come first (see `Grouping`).
+        let groups = self.group[..n]
+            .iter()
+            .map(|&g| g as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let modes = self.mode_start[groups] as usize;
+        let rank = self.mode_start[..=groups]
             .windows(2)
             .map(|w| w[1] - w[0])
             .max()
@@ -154,17 +186,19 @@ impl TissueLaw {
             reach: self.reach[..n].to_vec(),
             stopped: self.stopped[..n].to_vec(),
             rank,
-            mode_start: self.mode_start[..=n].to_vec(),
+            mode_start: self.mode_start[..=groups].to_vec(),
+            group: self.group[..n].to_vec(),
+            coeff_start: self.coeff_start[..=n].to_vec(),
             shape: self.shape.prefix(modes * m),
             shape_scale: self.shape_scale[..modes].to_vec(),
-            coeffs: self.coeffs[..modes * steps].to_vec(),
+            coeffs: self.coeffs[..self.coeff_start[n] as usize].to_vec(),
             ..self.clone()
         }
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::axis::ProbePoint;
     use crate::pgd::surfacelaw::{Refinement, SurfaceLawOptions};
@@ -172,7 +206,7 @@ mod tests {
 
     /// Three corners, depths 0–4 mm, two modes each (x and y of one row); corner 2's
     /// press reached 3 mm. Mode 0's x residual is `d²/4`, mode 1's y is `0.1 d`.
-    fn law() -> TissueLaw {
+    pub(in crate::pgd) fn law() -> TissueLaw {
         let x: Vec<f32> = (0..5).map(|j| (j * j) as f32 / 4.0).collect();
         let y: Vec<f32> = (0..5).map(|j| 0.1 * j as f32).collect();
         let held = |v: &[f32]| [&v[..4], &[v[3]]].concat();
@@ -207,6 +241,8 @@ mod tests {
             ],
             rank: 2,
             mode_start: vec![0, 2, 4, 6],
+            group: vec![0, 1, 2],
+            coeff_start: vec![0, 10, 20, 30],
             shape: Shapes::Sixteen([i16::MAX, 0, 0, 0, i16::MAX, 0].repeat(3)),
             shape_scale: vec![s; 6],
             coeffs: [
@@ -232,6 +268,63 @@ mod tests {
         let p = ProbePoint { triangle: 0, bary };
         assert!(bound.add_surface(&p, depth_mm, &mut bound.scratch(), &mut rows));
         rows
+    }
+
+    /// The same law with its three samples in one group: their shapes are the same
+    /// two, so one copy serves all and each keeps its own weights.
+    fn grouped() -> TissueLaw {
+        let l = law();
+        let Shapes::Sixteen(x) = &l.shape else {
+            unreachable!()
+        };
+        TissueLaw {
+            mode_start: vec![0, 2],
+            group: vec![0, 0, 0],
+            shape: Shapes::Sixteen(x[..6].to_vec()),
+            shape_scale: l.shape_scale[..2].to_vec(),
+            ..l
+        }
+    }
+
+    #[test]
+    fn samples_sharing_a_group_blend_as_they_do_alone() {
+        let (alone, shared) = (law(), grouped());
+        assert_eq!(shared.check(), Ok(()));
+        for bary in [[1.0, 0.0, 0.0], [0.2, 0.3, 0.5], [0.0, 0.5, 0.5]] {
+            for depth_mm in [0.0, 1.5, 3.0, 3.7, 5.0] {
+                let (a, b) = (
+                    surface(alone.clone(), bary, depth_mm),
+                    surface(shared.clone(), bary, depth_mm),
+                );
+                for k in 0..3 {
+                    assert!(
+                        (a[k] - b[k]).abs() <= 1e-12,
+                        "{bary:?} {depth_mm}: {a:?} {b:?}"
+                    );
+                }
+            }
+        }
+        // Cutting a shared mode drops it from every member: its weight over all of them
+        // is what the cut reports.
+        let cut = shared.coarsened(1, ShapeBits::Sixteen, 1).expect("valid");
+        let y2: f64 = [0.0, 0.01, 0.04, 0.09, 0.16].iter().sum::<f64>() * 2.0
+            + [0.0, 0.01, 0.04, 0.09, 0.09].iter().sum::<f64>();
+        assert!(
+            (cut.dropped_sigma_mm - y2.sqrt()).abs() < 1e-6,
+            "{}",
+            cut.dropped_sigma_mm
+        );
+        assert_eq!(
+            (cut.law.mode_start.clone(), cut.law.coeff_start.clone()),
+            (vec![0, 1], vec![0, 5, 10, 15])
+        );
+        // A sample whose weights do not cover its group's modes is refused.
+        let mut bad = grouped();
+        bad.coeff_start[1] = 9;
+        assert!(bad.check().is_err());
+        bad = grouped();
+        bad.group[2] = 1;
+        assert!(bad.check().is_err());
     }
 
     #[test]

@@ -1,0 +1,126 @@
+//! Tissue files of formats 6 and 7, read into today's law: one group per sample.
+//!
+//! Before format 8 every sample had modes of its own (`mode_start` per sample, its
+//! weights at `coeffs[mode · steps + j]`). That is the grouped layout with each
+//! sample alone in its group, so the conversion only adds the per-sample arrays.
+
+use serde::Deserialize;
+
+use super::surfacelaw::{Refinement, SurfaceLawOptions};
+use super::tissue::TissueLaw;
+use super::tissue_shapes::Shapes;
+
+/// The law as formats 6 and 7 store it (field order is the format).
+#[derive(Deserialize)]
+#[cfg_attr(test, derive(serde::Serialize))]
+pub(super) struct TissueLawV7 {
+    options: SurfaceLawOptions,
+    rows_mm: Vec<[f32; 3]>,
+    samples_mm: Vec<[f32; 3]>,
+    skipped_mm: Vec<[f32; 3]>,
+    edge_ends: Vec<[u32; 2]>,
+    refinement: Refinement,
+    steps: u32,
+    ratio: Vec<f32>,
+    stiffness_n_per_mm: Vec<f32>,
+    correction_mm: Vec<f32>,
+    segments: Vec<u32>,
+    reach: Vec<u32>,
+    stopped: Vec<String>,
+    rank: u32,
+    mode_start: Vec<u32>,
+    shape: Shapes,
+    shape_scale: Vec<f32>,
+    coeffs: Vec<f32>,
+    truncation_bound_mm: f64,
+    tolerance_mm: f64,
+    build_s: f64,
+    compress_s: f64,
+}
+
+impl From<TissueLawV7> for TissueLaw {
+    fn from(o: TissueLawV7) -> TissueLaw {
+        let samples = o.mode_start.len().saturating_sub(1) as u32;
+        TissueLaw {
+            group: (0..samples).collect(),
+            coeff_start: o.mode_start.iter().map(|&m| m * o.steps).collect(),
+            options: o.options,
+            rows_mm: o.rows_mm,
+            samples_mm: o.samples_mm,
+            skipped_mm: o.skipped_mm,
+            edge_ends: o.edge_ends,
+            refinement: o.refinement,
+            steps: o.steps,
+            ratio: o.ratio,
+            stiffness_n_per_mm: o.stiffness_n_per_mm,
+            correction_mm: o.correction_mm,
+            segments: o.segments,
+            reach: o.reach,
+            stopped: o.stopped,
+            rank: o.rank,
+            mode_start: o.mode_start,
+            shape: o.shape,
+            shape_scale: o.shape_scale,
+            coeffs: o.coeffs,
+            truncation_bound_mm: o.truncation_bound_mm,
+            tolerance_mm: o.tolerance_mm,
+            build_s: o.build_s,
+            compress_s: o.compress_s,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::framed::Body;
+    use crate::pgd::tissue::MAGIC;
+
+    /// A law of one group per sample, as format 7 wrote it.
+    fn as_v7(l: &TissueLaw) -> TissueLawV7 {
+        TissueLawV7 {
+            options: l.options,
+            rows_mm: l.rows_mm.clone(),
+            samples_mm: l.samples_mm.clone(),
+            skipped_mm: l.skipped_mm.clone(),
+            edge_ends: l.edge_ends.clone(),
+            refinement: l.refinement.clone(),
+            steps: l.steps,
+            ratio: l.ratio.clone(),
+            stiffness_n_per_mm: l.stiffness_n_per_mm.clone(),
+            correction_mm: l.correction_mm.clone(),
+            segments: l.segments.clone(),
+            reach: l.reach.clone(),
+            stopped: l.stopped.clone(),
+            rank: l.rank,
+            mode_start: l.mode_start.clone(),
+            shape: l.shape.clone(),
+            shape_scale: l.shape_scale.clone(),
+            coeffs: l.coeffs.clone(),
+            truncation_bound_mm: l.truncation_bound_mm,
+            tolerance_mm: l.tolerance_mm,
+            build_s: l.build_s,
+            compress_s: l.compress_s,
+        }
+    }
+
+    #[test]
+    fn version_6_and_7_files_load_with_each_sample_its_own_group() {
+        let law = crate::pgd::tissue_knobs::tests::law();
+        let dir = tempfile::tempdir().expect("tempdir");
+        for (version, body) in [(7, Body::Deflated), (6, Body::Plain)] {
+            let path = dir.path().join(format!("v{version}.tissue"));
+            crate::framed::write(&path, MAGIC, (version, body), &as_v7(&law)).expect("writes");
+            let back = TissueLaw::load(&path).expect("loads");
+            assert_eq!(back, law, "version {version}");
+            assert_eq!(back.group, vec![0, 1, 2]);
+        }
+        // Today's files are version 8, and a version this palpa does not know is named.
+        let path = dir.path().join("v8.tissue");
+        law.save(&path).expect("saves");
+        assert_eq!(TissueLaw::load(&path).expect("loads"), law);
+        crate::framed::write(&path, MAGIC, (9, Body::Deflated), &law).expect("writes");
+        let e = TissueLaw::load(&path).expect_err("version 9");
+        assert!(e.to_string().contains("version 9"), "{e}");
+    }
+}
