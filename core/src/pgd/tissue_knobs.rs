@@ -30,8 +30,9 @@ use super::tissue_shapes::{ShapeBits, Shapes};
 #[derive(Debug, Clone)]
 pub struct Coarsened {
     pub law: TissueLaw,
-    /// The largest singular value dropped from any group (mm): the added bound on a
-    /// node's residual at a grid depth.
+    /// The largest singular value dropped from any one-sample group, or the largest
+    /// sum of the dropped modes' weights over a group of several (mm): the added bound
+    /// on a node's residual at a grid depth.
     pub dropped_sigma_mm: f64,
     /// The most that quantizing to fewer bits adds to a node of any sample (mm).
     pub requantized_mm: f64,
@@ -92,6 +93,9 @@ impl TissueLaw {
             let modes = self.mode_start[g] as usize..self.mode_start[g + 1] as usize;
             let keep = modes.len().min(modes_max);
             rank = rank.max(keep);
+            // A group's modes are each the leading pair of what the earlier ones left,
+            // not one SVD's orthogonal tail: what they drop is bounded by their sum.
+            let mut group_dropped = 0.0f64;
             for (i, mode) in modes.enumerate() {
                 // Mode `i`'s weights over the group's members: a row of `Σ Vᵀ`.
                 let row =
@@ -102,7 +106,10 @@ impl TissueLaw {
                         .flat_map(|&s| row(s))
                         .map(|&c| f64::from(c).powi(2))
                         .sum();
-                    dropped = dropped.max(sigma.sqrt());
+                    match members.len() {
+                        1 => dropped = dropped.max(sigma.sqrt()),
+                        _ => group_dropped += sigma.sqrt(),
+                    }
                     continue;
                 }
                 if bits == self.shape.bits() {
@@ -127,6 +134,7 @@ impl TissueLaw {
                     sample_coeffs[s].extend((0..new_steps).map(|j| row[source(s, j)]));
                 }
             }
+            dropped = dropped.max(group_dropped);
             mode_start.push(mode_start[g] + keep as u32);
         }
         let requantized = sample_requantized.iter().copied().fold(0.0, f64::max);
