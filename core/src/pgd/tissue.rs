@@ -206,7 +206,10 @@ fn node_max(a: faer::MatRef<'_, f64>) -> f64 {
 /// split point's surplus exceeds 0.05 mm at 522 of 858 surface nodes on average) but
 /// share their far shape: on four split triangles of a covering build (coarse P2, to
 /// 15 mm, 8 bits, 0.1 mm), their 36 points took 45 modes shared by triangle, where
-/// they took 100 alone (the file 151 KB against 200 KB, the same bound). Vertex and
+/// they took 100 alone (the file 151 KB against 200 KB, the same bound); on eight
+/// neighbouring ones (the anterior lobe), 72 against 103 (201 KB against 217 KB).
+/// One group for all 56 points there took 40 modes, but its weights outweighed the
+/// shapes saved (258 KB). Vertex and
 /// edge presses, 8–12 mm apart, share little (grouped with the split points of their
 /// triangle: 89 modes in all against 94), and are kept alone. See docs/methods.md §2e.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
