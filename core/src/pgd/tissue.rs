@@ -58,9 +58,10 @@
 //! of the quarter it lies in with weights `4 μ_i μ_j`, so the blend there is the
 //! quadratic interpolant of that quarter's six presses. A split triangle's points lie
 //! a few millimetres apart and their surpluses share their shape far from the tool, so
-//! they are compressed together ([`Grouping`]): one SVD of the group's columns (every
-//! member at every depth), `[R_1 … R_n] ≈ A [C_1 … C_n]`, the same exact node-error
-//! rule over all of them, one set of shapes `A` and a weight block `C_i` per member. A neighbour that was not split
+//! they are compressed together ([`Grouping`]): `[R_1 … R_n] ≈ A [C_1 … C_n]` over the
+//! group's columns (every member at every depth), each mode the leading singular pair
+//! of what the stored ones leave, the same exact node-error rule over all members, one
+//! set of shapes `A` and a weight block `C_i` per member. A neighbour that was not split
 //! adds the quarter points of the edge they share, weighted as on the edge and fading
 //! towards its far corner, so the surface does not jump as the probe crosses the edge.
 //! At most nine samples enter one probe's blend.
@@ -209,9 +210,9 @@ fn node_max(a: faer::MatRef<'_, f64>) -> f64 {
 /// they took 100 alone (the file 151 KB against 200 KB, the same bound); on eight
 /// neighbouring ones (the anterior lobe), 72 against 103 (201 KB against 217 KB).
 /// One group for all 56 points there took 40 modes, but its weights outweighed the
-/// shapes saved (258 KB). Vertex and
-/// edge presses, 8–12 mm apart, share little (grouped with the split points of their
-/// triangle: 89 modes in all against 94), and are kept alone. See docs/methods.md §2e.
+/// shapes saved (258 KB). Vertex and edge presses, 8–12 mm apart, share little
+/// (grouped with the split points of their triangle: 89 modes in all against 94), and
+/// are kept alone. See docs/methods.md §2e.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Grouping {
     /// Every sample its own modes (what formats 6 and 7 stored).
