@@ -492,20 +492,6 @@ impl TissueLaw {
         (modes, self.coeff_start[s] as usize)
     }
 
-    /// Sample `s`'s stored residual at grid depth `j` added to `out` (three per row,
-    /// the law's row order).
-    pub fn add_sample(&self, s: usize, j: usize, out: &mut [f64]) {
-        let (steps, m) = (self.steps as usize, 3 * self.rows_mm.len());
-        let (modes, first) = self.sample_modes(s);
-        for (k, mode) in modes.enumerate() {
-            let w =
-                f64::from(self.coeffs[first + k * steps + j]) * f64::from(self.shape_scale[mode]);
-            for (i, x) in out.iter_mut().enumerate().take(m) {
-                *x += w * self.shape.get(mode * m + i);
-            }
-        }
-    }
-
     /// Checks what a file gave: shapes, finite values, `g(0) = 1`, zero residual at
     /// depth 0.
     pub fn check(&self) -> Result<(), String> {
