@@ -46,7 +46,8 @@ pub enum TissueCommand {
 pub struct CutArgs {
     /// A tissue file (from `palpa tissue build`).
     tissue: PathBuf,
-    /// Most modes a sample keeps (its first, by singular value).
+    /// Most modes a sample (or a group of samples sharing them) keeps: its first, by
+    /// singular value.
     #[arg(long, default_value_t = palpa_core::pgd::tissue::MAX_RANK)]
     modes: usize,
     /// Bits per stored shape entry: 8 or 16 (default: as built).
