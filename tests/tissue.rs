@@ -13,7 +13,7 @@ use palpa_core::fe::series::Expander;
 use palpa_core::file;
 use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, organ_vertex_normals};
 use palpa_core::pgd::tissue::{
-    BoundTissue, Grouping, PointIndex, ShapeBits, TissueError, TissueLaw,
+    BoundTissue, Grouping, PointIndex, QUANT_SHARES, ShapeBits, TissueError, TissueLaw,
 };
 use palpa_core::scene::PalpationScene;
 use palpa_tests::{coarse_liver, stored_error};
@@ -307,6 +307,41 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
         let e = stored_error(shared, s, count, |j| split.residual_at(s, j));
         assert!(e <= shared.truncation_bound_mm + 1e-12, "sample {s}: {e}");
     }
+    // At 8 bits each mode's step follows its weights (coarser where they are small):
+    // a smaller file than every mode at the full 8 bits, the same bound kept.
+    let file_bytes = |t: &TissueLaw, name: &str| {
+        let path = dir.path().join(name);
+        t.save(&path).expect("saves");
+        std::fs::metadata(&path).expect("saved").len()
+    };
+    let (mut sizes, tolerance_mm) = (Vec::new(), 0.05);
+    for shares in [&QUANT_SHARES[..], &[0.0]] {
+        let t = TissueLaw::compress_with(
+            &organ,
+            &split,
+            tolerance_mm,
+            ShapeBits::Eight,
+            Grouping::default(),
+            shares,
+        )
+        .expect("compresses");
+        assert!(t.truncation_bound_mm <= tolerance_mm, "{shares:?}");
+        for s in 0..total {
+            let count = t.sample_modes(s).0.len();
+            let e = stored_error(&t, s, count, |j| split.residual_at(s, j));
+            assert!(
+                e <= t.truncation_bound_mm + 1e-9,
+                "{shares:?}, sample {s}: {e}"
+            );
+        }
+        sizes.push(file_bytes(&t, &format!("{}.tissue", sizes.len())));
+    }
+    eprintln!(
+        "8-bit split law: {} bytes, {} at the full 8 bits",
+        sizes[0], sizes[1]
+    );
+    assert!(sizes[0] < sizes[1], "{sizes:?}");
+
     let scene = shipped_scene();
     let space = organ_space(&organ, options.element);
     let expander = Expander::new(&space, options.law, options.material).expect("rest factor");

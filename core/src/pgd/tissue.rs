@@ -188,6 +188,125 @@ pub struct TissueLaw {
     pub compress_s: f64,
 }
 
+/// The shares of the tolerance one mode's rounding may take (node error in mm at the
+/// mode's largest weight), tried in turn while a group is left above the tolerance.
+/// A mode's step is then coarser than `bits` allow wherever its weights are small, and
+/// fewer levels deflate to fewer bytes (the entries stay `bits` wide); the stop rule
+/// measures the error exactly, so the bound keeps its meaning. Measured on the whole
+/// coarse surface's 2 147 presses (8 bits, 0.1 mm; docs/methods.md §2e), one share for
+/// every press: 0 (the plain 8-bit step) 4 134 modes, 6.15 MB; 0.1: 4 152, 3.77 MB;
+/// 0.2: 4 177, 2.82 MB; 0.3: 4 232, 2.31 MB; 0.4: 4 352, 2.01 MB; 0.5 left a press at
+/// 0.11 mm. A split triangle's shared modes, refitted to their own rounding, often
+/// stay above the tolerance at 0.3, hence the finer shares after it.
+pub const QUANT_SHARES: [f64; 3] = [0.3, 0.1, 0.0];
+
+/// One group's modes as stored: shapes, scales, each mode's weights (member after
+/// member, depths 1.. each), and the largest node error they leave.
+struct GroupModes {
+    shape: Shapes,
+    scale: Vec<f32>,
+    weights: Vec<Vec<f32>>,
+    error: f64,
+}
+
+/// Compresses one group's residual columns `a` (`members` samples, depths 1.. each).
+///
+/// The modes as stored (shape in `bits` with an f32 scale, weights in f32) are added
+/// one by one until no node of any grid depth of any member errs by more than the
+/// tolerance: the error measured exactly, as evaluation will see it, not bounded by
+/// `σ_{q+1}` plus each mode's quantization (that bound is loose by the spread of the
+/// error over nodes and modes: on coarse P2 it kept about half as many modes again).
+/// Past the SVD's own modes (where the stored ones still leave more than the
+/// tolerance: 8-bit quantization's floor at a large press), each further mode is the
+/// leading singular pair of what the stored modes leave, while that lowers the error.
+/// A group of several samples takes each mode from what the stored ones leave,
+/// quantization included, with the weights fitted to the quantized shape: its weights
+/// are larger than one sample's, and the SVD's own modes, each quantized, left a floor
+/// that further modes chased (measured on four split triangles of coarse P2 at 8 bits:
+/// up to 136 modes a group, more than its nine points took alone). Each mode's step is
+/// at least what lets it err by `share` of the tolerance at its largest weight (see
+/// [`QUANT_SHARES`]). `None` where an SVD fails.
+fn group_modes(
+    a: faer::MatRef<'_, f64>,
+    members: usize,
+    tolerance_mm: f64,
+    bits: ShapeBits,
+    share: f64,
+) -> Option<GroupModes> {
+    let (m, cols) = (a.nrows(), a.ncols());
+    let refit = members > 1;
+    let svd = match refit {
+        true => None,
+        false => Some(thin_svd(a)?),
+    };
+    let n = svd.as_ref().map_or(0, |svd| svd.s.len().min(MAX_RANK));
+    let mut left = a.to_owned();
+    let mut out = GroupModes {
+        shape: Shapes::new(bits),
+        scale: Vec::new(),
+        weights: Vec::new(),
+        error: node_max(left.as_ref()),
+    };
+    while out.scale.len() < MAX_RANK && out.error > tolerance_mm {
+        let kept = out.scale.len();
+        let (column, mut c): (Vec<f64>, Vec<f32>) =
+            if let Some(svd) = svd.as_ref().filter(|_| kept < n) {
+                (
+                    (0..m).map(|i| svd.u[(i, kept)]).collect(),
+                    (0..cols)
+                        .map(|c| (svd.s[kept] * svd.v[(c, kept)]) as f32)
+                        .collect(),
+                )
+            } else {
+                let rest = thin_svd(left.as_ref())?;
+                (
+                    (0..m).map(|i| rest.u[(i, 0)]).collect(),
+                    (0..cols)
+                        .map(|c| (rest.s[0] * rest.v[(c, 0)]) as f32)
+                        .collect(),
+                )
+            };
+        let top_weight = c.iter().fold(0.0f64, |t, &w| t.max(f64::from(w).abs()));
+        // Node error of a step `h`: at most `√3 h / 2` per unit weight.
+        let min_step = match top_weight > 0.0 {
+            true => 2.0 * share * tolerance_mm / (3f64.sqrt() * top_weight),
+            false => 0.0,
+        };
+        let mut one = Shapes::new(bits);
+        let (scale, _) = one.push_mode_coarse(&column, min_step);
+        if refit {
+            let q: Vec<f64> = (0..m).map(|i| one.get(i) * f64::from(scale)).collect();
+            let qq: f64 = q.iter().map(|x| x * x).sum();
+            for (j, w) in c.iter_mut().enumerate() {
+                let along: f64 = (0..m).map(|i| q[i] * left[(i, j)]).sum();
+                *w = if qq > 0.0 { (along / qq) as f32 } else { 0.0 };
+            }
+        }
+        let mut next = left.clone();
+        for (j, &w) in c.iter().enumerate() {
+            let w = f64::from(w) * f64::from(scale);
+            for i in 0..m {
+                next[(i, j)] -= w * one.get(i);
+            }
+        }
+        let next_error = node_max(next.as_ref());
+        // A refitted mode lowers the residual's norm, not always its worst node: it
+        // stops only where it lowers nothing.
+        let stalled = match refit {
+            true => next.norm_l2() >= left.norm_l2(),
+            false => kept >= n && next_error >= out.error,
+        };
+        if stalled {
+            break;
+        }
+        (left, out.error) = (next, next_error);
+        out.shape.push_copy(&one, 0, m);
+        out.scale.push(scale);
+        out.weights.push(c);
+    }
+    Some(out)
+}
+
 /// The largest node displacement (three rows a node) over the columns of `a`, mm.
 fn node_max(a: faer::MatRef<'_, f64>) -> f64 {
     let mut worst = 0.0f64;
@@ -336,6 +455,21 @@ impl TissueLaw {
         bits: ShapeBits,
         grouping: Grouping,
     ) -> Result<TissueLaw, TissueError> {
+        Self::compress_with(organ, law, tolerance_mm, bits, grouping, &QUANT_SHARES)
+    }
+
+    /// [`Self::compress_grouped`] with each mode's rounding allowed `shares[0]` of the
+    /// tolerance, then each next share where a group is left above the tolerance
+    /// ([`QUANT_SHARES`] by default; `&[0.0]`: every mode at the full `bits`).
+    pub fn compress_with(
+        organ: &OrganMesh,
+        law: &SurfaceLaw,
+        tolerance_mm: f64,
+        bits: ShapeBits,
+        grouping: Grouping,
+        shares: &[f64],
+    ) -> Result<TissueLaw, TissueError> {
+        let (first_share, finer) = shares.split_first().unwrap_or((&0.0, &[]));
         let t0 = Instant::now();
         let steps = law.steps();
         if law.samples.is_empty() {
@@ -356,85 +490,32 @@ impl TissueLaw {
                 f64::from(law.residual_at(s, j)[i])
             });
             let svd_error = || TissueError::Svd { rows: m, cols };
-            // The modes as stored (shape in `bits` with an f32 scale, weights in f32),
-            // added one by one until no node of any grid depth of any member errs by
-            // more than the tolerance: the error measured exactly, as evaluation will
-            // see it, not bounded by `σ_{q+1}` plus each mode's quantization (that
-            // bound is loose by the spread of the error over nodes and modes: on coarse
-            // P2 it kept about half as many modes again).
-            // Past the SVD's own modes (where the stored ones still leave more than the
-            // tolerance: 8-bit quantization's floor at a large press), each further mode
-            // is the leading singular pair of what the stored modes leave, while that
-            // lowers the error.
-            // A group of several samples takes each mode from what the stored ones
-            // leave, quantization included, with the weights fitted to the quantized
-            // shape: its weights are larger than one sample's, and the SVD's own modes,
-            // each quantized, left a floor that further modes chased (measured on four
-            // split triangles of coarse P2 at 8 bits: up to 136 modes a group, more
-            // than its nine points took alone).
-            let refit = members.len() > 1;
-            let svd = match refit {
-                true => None,
-                false => Some(thin_svd(a.as_ref()).ok_or_else(svd_error)?),
-            };
-            let n = svd.as_ref().map_or(0, |svd| svd.s.len().min(MAX_RANK));
-            let mut left = a;
-            let mut error = node_max(left.as_ref());
-            let mut kept = 0;
-            while kept < MAX_RANK && error > tolerance_mm {
-                let (column, mut c): (Vec<f64>, Vec<f32>) =
-                    if let Some(svd) = svd.as_ref().filter(|_| kept < n) {
-                        let k = kept;
-                        (
-                            (0..m).map(|i| svd.u[(i, k)]).collect(),
-                            (0..cols)
-                                .map(|c| (svd.s[k] * svd.v[(c, k)]) as f32)
-                                .collect(),
-                        )
-                    } else {
-                        let rest = thin_svd(left.as_ref()).ok_or_else(svd_error)?;
-                        (
-                            (0..m).map(|i| rest.u[(i, 0)]).collect(),
-                            (0..cols)
-                                .map(|c| (rest.s[0] * rest.v[(c, 0)]) as f32)
-                                .collect(),
-                        )
-                    };
-                let mut one = Shapes::new(bits);
-                let (scale, _) = one.push_mode(&column);
-                if refit {
-                    let q: Vec<f64> = (0..m).map(|i| one.get(i) * f64::from(scale)).collect();
-                    let qq: f64 = q.iter().map(|x| x * x).sum();
-                    for (j, w) in c.iter_mut().enumerate() {
-                        let along: f64 = (0..m).map(|i| q[i] * left[(i, j)]).sum();
-                        *w = if qq > 0.0 { (along / qq) as f32 } else { 0.0 };
-                    }
-                }
-                let mut next = left.clone();
-                for (j, &w) in c.iter().enumerate() {
-                    let w = f64::from(w) * f64::from(scale);
-                    for i in 0..m {
-                        next[(i, j)] -= w * one.get(i);
-                    }
-                }
-                let next_error = node_max(next.as_ref());
-                // A refitted mode lowers the residual's norm, not always its worst node:
-                // it stops only where it lowers nothing.
-                let stalled = match refit {
-                    true => next.norm_l2() >= left.norm_l2(),
-                    false => kept >= n && next_error >= error,
-                };
-                if stalled {
+            // Coarse steps first; where they leave a group above the tolerance (a
+            // group's refitted modes chase their own rounding), finer ones, down to
+            // the full 8 or 16 bits.
+            let mut modes =
+                group_modes(a.as_ref(), members.len(), tolerance_mm, bits, *first_share)
+                    .ok_or_else(svd_error)?;
+            for &share in finer {
+                if modes.error <= tolerance_mm {
                     break;
                 }
-                (left, error) = (next, next_error);
-                shape.push_copy(&one, 0, m);
-                shape_scale.push(scale);
-                for (k, &s) in members.iter().enumerate() {
-                    sample_coeffs[s].push(0.0f32);
-                    sample_coeffs[s].extend(&c[k * (steps - 1)..][..steps - 1]);
+                let again = group_modes(a.as_ref(), members.len(), tolerance_mm, bits, share)
+                    .ok_or_else(svd_error)?;
+                if again.error < modes.error {
+                    modes = again;
                 }
-                kept += 1;
+            }
+            let (kept, error) = (modes.scale.len(), modes.error);
+            for k in 0..kept {
+                shape.push_copy(&modes.shape, k, m);
+            }
+            shape_scale.extend(&modes.scale);
+            for (k, &s) in members.iter().enumerate() {
+                for mode in 0..kept {
+                    sample_coeffs[s].push(0.0f32);
+                    sample_coeffs[s].extend(&modes.weights[mode][k * (steps - 1)..][..steps - 1]);
+                }
             }
             // Where even that leaves more, the bound says what remains.
             rank = rank.max(kept);

@@ -108,10 +108,17 @@ impl Shapes {
     /// appends it. Returns its scale and the largest node error `max_i ‖a_i − s q_i‖`
     /// (per unit weight of the mode).
     pub fn push_mode(&mut self, a: &[f64]) -> (f32, f64) {
+        self.push_mode_coarse(a, 0.0)
+    }
+
+    /// [`Self::push_mode`] with a step of at least `min_step` (per unit weight): a mode
+    /// whose weights are small needs fewer levels for the same node error in mm, and
+    /// fewer levels deflate to fewer bytes (the entries stay `bits` wide).
+    pub fn push_mode_coarse(&mut self, a: &[f64], min_step: f64) -> (f32, f64) {
         let bits = self.bits();
         let top = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         // The scale as stored (f32), so the error is the one evaluation will see.
-        let scale = f64::from((top / bits.top()) as f32);
+        let scale = f64::from((top / bits.top()).max(min_step) as f32);
         let q: Vec<f64> = a
             .iter()
             .map(|&x| {
@@ -218,6 +225,52 @@ mod tests {
             }
             assert_eq!(errors[1].1 * 2, errors[0].1);
             assert!(errors[1].0 > 50.0 * errors[0].0, "{errors:?}");
+        }
+    }
+
+    #[test]
+    fn a_coarser_step_errs_as_stated_and_deflates_to_fewer_bytes() {
+        use std::io::Write;
+        let deflated = |s: &Shapes| {
+            let Shapes::Eight(v) = s else {
+                panic!("eight bits")
+            };
+            let bytes: Vec<u8> = v.iter().map(|&x| x as u8).collect();
+            let mut z = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::best());
+            z.write_all(&bytes).expect("deflates");
+            z.finish().expect("deflates").len()
+        };
+        for seed in 1..6 {
+            let a = random_mode(seed, 400);
+            let top = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let mut fine = Shapes::new(ShapeBits::Eight);
+            let (fine_scale, _) = fine.push_mode(&a);
+            // A step below the 8-bit one changes nothing.
+            let mut same = Shapes::new(ShapeBits::Eight);
+            assert_eq!(same.push_mode_coarse(&a, 0.5 * top / 127.0).0, fine_scale);
+            assert_eq!(same, fine);
+            let step = 8.0 * top / 127.0;
+            let mut coarse = Shapes::new(ShapeBits::Eight);
+            let (scale, stated) = coarse.push_mode_coarse(&a, step);
+            assert!((f64::from(scale) - step).abs() <= 1e-6 * step);
+            let rows: Vec<u32> = (0..400).collect();
+            let mut out = vec![0.0; 1200];
+            coarse.add_mode(0, f64::from(scale), &rows, &mut out);
+            let worst = out
+                .chunks(3)
+                .zip(a.chunks(3))
+                .map(|(o, x)| (0..3).map(|c| (o[c] - x[c]).powi(2)).sum::<f64>().sqrt())
+                .fold(0.0f64, f64::max);
+            assert!((worst - stated).abs() <= 1e-12, "{worst} vs {stated}");
+            assert!(stated <= 3f64.sqrt() * f64::from(scale) / 2.0 * (1.0 + 1e-6));
+            // Sixteen levels each side instead of 127: the same bytes, fewer deflated.
+            assert_eq!(coarse.bytes(), fine.bytes());
+            assert!(
+                deflated(&coarse) < deflated(&fine) * 2 / 3,
+                "{} vs {}",
+                deflated(&coarse),
+                deflated(&fine)
+            );
         }
     }
 
