@@ -198,6 +198,17 @@ mod tests {
         a.iter().map(|x| x / norm).collect()
     }
 
+    /// The largest node error of mode 0 of `s`, evaluated as the app does, against `a`.
+    fn evaluated_node_error(s: &Shapes, scale: f32, a: &[f64]) -> f64 {
+        let rows: Vec<u32> = (0..a.len() as u32 / 3).collect();
+        let mut out = vec![0.0; a.len()];
+        s.add_mode(0, f64::from(scale), &rows, &mut out);
+        out.chunks(3)
+            .zip(a.chunks(3))
+            .map(|(o, x)| (0..3).map(|c| (o[c] - x[c]).powi(2)).sum::<f64>().sqrt())
+            .fold(0.0f64, f64::max)
+    }
+
     #[test]
     fn the_stated_node_error_is_what_evaluation_gives_and_eight_bits_halve_the_bytes() {
         for seed in 1..6 {
@@ -206,14 +217,7 @@ mod tests {
             for bits in [ShapeBits::Sixteen, ShapeBits::Eight] {
                 let mut s = Shapes::new(bits);
                 let (scale, stated) = s.push_mode(&a);
-                let rows: Vec<u32> = (0..200).collect();
-                let mut out = vec![0.0; 600];
-                s.add_mode(0, f64::from(scale), &rows, &mut out);
-                let worst = out
-                    .chunks(3)
-                    .zip(a.chunks(3))
-                    .map(|(o, x)| (0..3).map(|c| (o[c] - x[c]).powi(2)).sum::<f64>().sqrt())
-                    .fold(0.0f64, f64::max);
+                let worst = evaluated_node_error(&s, scale, &a);
                 assert!(
                     (worst - stated).abs() <= 1e-12,
                     "{bits:?}: {worst} vs {stated}"
@@ -253,14 +257,7 @@ mod tests {
             let mut coarse = Shapes::new(ShapeBits::Eight);
             let (scale, stated) = coarse.push_mode_coarse(&a, step);
             assert!((f64::from(scale) - step).abs() <= 1e-6 * step);
-            let rows: Vec<u32> = (0..400).collect();
-            let mut out = vec![0.0; 1200];
-            coarse.add_mode(0, f64::from(scale), &rows, &mut out);
-            let worst = out
-                .chunks(3)
-                .zip(a.chunks(3))
-                .map(|(o, x)| (0..3).map(|c| (o[c] - x[c]).powi(2)).sum::<f64>().sqrt())
-                .fold(0.0f64, f64::max);
+            let worst = evaluated_node_error(&coarse, scale, &a);
             assert!((worst - stated).abs() <= 1e-12, "{worst} vs {stated}");
             assert!(stated <= 3f64.sqrt() * f64::from(scale) / 2.0 * (1.0 + 1e-6));
             // Sixteen levels each side instead of 127: the same bytes, fewer deflated.
