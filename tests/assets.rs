@@ -186,7 +186,7 @@ fn the_default_tissue_comes_from_the_current_code() {
             ..o
         },
         None,
-        &|_, _| {},
+        &|_| {},
     )
     .expect("presses");
     assert_eq!(again.samples.len(), 1);

@@ -11,7 +11,9 @@ use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
 use palpa_core::fe::series::Expander;
 use palpa_core::file;
-use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions, follow_at, organ_vertex_normals};
+use palpa_core::pgd::surfacelaw::{
+    PressCount, SurfaceLaw, SurfaceLawOptions, follow_at, organ_vertex_normals,
+};
 use palpa_core::pgd::tissue::{
     BoundTissue, Grouping, PointIndex, QUANT_SHARES, ShapeBits, TissueError, TissueLaw,
 };
@@ -35,7 +37,7 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
         within: Some((CENTRE, 12.0)),
         ..SurfaceLawOptions::default()
     };
-    let law = SurfaceLaw::build(&organ, options, None, &|_, _| {}).expect("builds");
+    let law = SurfaceLaw::build(&organ, options, None, &|_| {}).expect("builds");
     assert!(law.samples.len() >= 3, "{} samples", law.samples.len());
     // Each vertex's stored force never falls with depth, as far as its press reached
     // (the inverse bisects it): a dip within tolerance is held at the largest force.
@@ -241,16 +243,37 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
     };
     let dir = tempfile::tempdir().expect("tempdir");
     let log = dir.path().join("split.presses.log");
-    let none = &|_: usize, _: usize| {};
+    let none = &|_: PressCount| {};
     let (plain, resumed) =
         SurfaceLaw::build_logged(&organ, options, None, Some(&log), none).expect("builds");
     assert_eq!(resumed, 0);
+    // The progress tells the presses taken from the log from those computed (what an
+    // estimate of the time left divides by), while the split phase grows the total.
+    let counts = std::sync::Mutex::new(Vec::new());
+    let record = |c: PressCount| counts.lock().expect("one test thread").push(c);
     let (split, resumed) =
-        SurfaceLaw::build_logged(&organ, options, Some(0.0), Some(&log), none).expect("splits");
+        SurfaceLaw::build_logged(&organ, options, Some(0.0), Some(&log), &record).expect("splits");
     let first = plain.samples.len() + plain.edges.len();
     assert!(
         resumed >= first,
         "the plain presses come from the log: {resumed}"
+    );
+    let counts = counts.into_inner().expect("recorded");
+    let last = counts
+        .iter()
+        .max_by_key(|c| c.done)
+        .expect("progress reported");
+    assert_eq!(last.from_log, resumed, "{last:?}");
+    assert_eq!(last.done, last.total, "{last:?}");
+    assert!(
+        last.done > last.from_log,
+        "the split presses are computed: {last:?}"
+    );
+    assert!(
+        counts
+            .iter()
+            .all(|c| c.from_log <= c.done && c.done <= c.total),
+        "{counts:?}"
     );
     let r = &split.refinement;
     assert!(!r.triangles.is_empty(), "no triangle split");

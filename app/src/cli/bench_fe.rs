@@ -529,8 +529,8 @@ fn surface_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
         depth_step_mm: 0.5,
         ..SurfaceLawOptions::default()
     };
-    let law = SurfaceLaw::build(coarse, options, None, &|k, n| {
-        eprint!("\rsurface law: vertex {k}/{n}   ");
+    let law = SurfaceLaw::build(coarse, options, None, &|c| {
+        eprint!("\rsurface law: vertex {}/{}   ", c.done, c.total);
     })?;
     eprintln!();
     println!(

@@ -93,6 +93,17 @@ impl Default for SurfaceLawOptions {
     }
 }
 
+/// A build's progress: presses done of those planned so far (the split triangles'
+/// are planned once the vertices and edges are pressed, so `total` grows then), and
+/// how many of the done were taken from the log rather than computed by this run:
+/// an estimate of the time left divides by the computed ones only.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PressCount {
+    pub done: usize,
+    pub total: usize,
+    pub from_log: usize,
+}
+
 /// The built residuals.
 #[derive(Debug, Clone)]
 pub struct SurfaceLaw {
@@ -186,13 +197,13 @@ impl SurfaceLaw {
     /// palpable edge's midpoint), the presses in parallel (the expander's factorization
     /// is shared read-only); then, with `refine_above_mm`, splits into four the
     /// triangles whose largest edge surplus exceeds it and presses their quarter and
-    /// inner points (see [`Refinement`]). `progress(done, total)` from whichever thread
-    /// finishes a press.
+    /// inner points (see [`Refinement`]). `progress` from whichever thread finishes a
+    /// press (see [`PressCount`]).
     pub fn build(
         organ: &OrganMesh,
         options: SurfaceLawOptions,
         refine_above_mm: Option<f64>,
-        progress: &(dyn Fn(usize, usize) + Sync),
+        progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<SurfaceLaw, SurfaceLawBuildError> {
         Self::build_logged(organ, options, refine_above_mm, None, progress).map(|(law, _)| law)
     }
@@ -208,7 +219,7 @@ impl SurfaceLaw {
         options: SurfaceLawOptions,
         refine_above_mm: Option<f64>,
         log: Option<&Path>,
-        progress: &(dyn Fn(usize, usize) + Sync),
+        progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         Self::build_selected(organ, options, refine_above_mm, log, None, progress)
     }
@@ -227,7 +238,7 @@ impl SurfaceLaw {
         refine_above_mm: Option<f64>,
         points: &[[f64; 3]],
         log: Option<&Path>,
-        progress: &(dyn Fn(usize, usize) + Sync),
+        progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         let cover = covering_vertices(organ, points)?;
         Self::build_selected(organ, options, refine_above_mm, log, Some(&cover), progress)
@@ -241,7 +252,7 @@ impl SurfaceLaw {
         refine_above_mm: Option<f64>,
         log: Option<&Path>,
         cover: Option<&[u32]>,
-        progress: &(dyn Fn(usize, usize) + Sync),
+        progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         use rayon::prelude::*;
         use std::sync::atomic::{AtomicUsize, Ordering};
@@ -370,6 +381,7 @@ impl SurfaceLaw {
             }
         }));
         let done = AtomicUsize::new(0);
+        let from_log = AtomicUsize::new(0);
         // Presses `points` (those in the log taken from it), in parallel; `total` is
         // what the progress counts to.
         let press_all = |points: &[PressPoint],
@@ -382,7 +394,12 @@ impl SurfaceLaw {
             let mut out: Vec<Option<Result<VertexPress, String>>> =
                 points.iter().map(|p| finished.remove(&p.id)).collect();
             let resumed = out.iter().filter(|p| p.is_some()).count();
-            progress(done.fetch_add(resumed, Ordering::Relaxed) + resumed, total);
+            let logged = from_log.fetch_add(resumed, Ordering::Relaxed) + resumed;
+            progress(PressCount {
+                done: done.fetch_add(resumed, Ordering::Relaxed) + resumed,
+                total,
+                from_log: logged,
+            });
             let todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
             // One press a task: rayon otherwise hands each thread a run of presses to
             // do in turn, and a build's last run (presses of minutes on medium P2) went
@@ -399,7 +416,11 @@ impl SurfaceLaw {
                         let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
                         l.push(p.id, &press).map_err(|e| log_error(path, e))?;
                     }
-                    progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+                    progress(PressCount {
+                        done: done.fetch_add(1, Ordering::Relaxed) + 1,
+                        total,
+                        from_log: logged,
+                    });
                     Ok((k, press))
                 })
                 .collect::<Result<_, _>>()?;
