@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates the default palpation scene shipped in assets/ (what `palpa` opens):
 # the coarse-level P2 liver vademecum, its measured tradeoff table, then only what a
-# phone needs: the surface rows, f32. The asset test checks that the result's recorded
+# phone needs: the surface rows, f32, the near and far fields in sixteen bits. The asset test checks that the result's recorded
 # inputs (mesh hash, element, material, tool) match the current code.
 # With TISSUE=1 it also rebuilds the scene's hyperelastic tissue, assets/liver-coarse.tissue
 # (neo-Hookean, every palpable vertex and edge midpoint pressed to 15 mm: about two hours and

@@ -14,6 +14,7 @@ const FLOORS: &[(&str, u32)] = &[
     ("tensor", 1),
     ("disk", 1),
     ("framed", 1),
+    ("quant16", 1),
     ("axis", 1),
     ("surface_import", 1),
     ("farfield", 1),

@@ -20,7 +20,9 @@
 //!               `nearfield`), and is the version of every model with a nodal-load
 //!               axis, which older builds cannot decode. Version 4 adds the far
 //!               field's flat low-rank blocks, version 5 its nested-basis form,
-//!               version 6 that form with shared row bases (all in the header, f32)
+//!               version 6 that form with shared row bases (all in the header, f32),
+//!               version 7 a gene network's views, version 8 the near and far fields'
+//!               values in sixteen bits (`quant16`)
 //! P + len       end of file (trailing bytes are an error)
 //! ```
 //!
@@ -47,6 +49,7 @@ use crate::axis::Discretization;
 use crate::farfield::{FarBlocks, FarField, NestedFar, NestedFarV5};
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
+use crate::quant16::Q16;
 use crate::scalar::{Precision, Scalar};
 use crate::separated::{ModelError, ModelMeta, SeparatedModel};
 use crate::tensor::tt::Core;
@@ -60,8 +63,10 @@ pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
 /// ([`Layout::SeparatedNearFar`]). Version 5: the far field with nested column bases
 /// ([`Layout::SeparatedNearNested`]). Version 6: those plus shared row bases
 /// ([`Layout::SeparatedNearShared`]), what the builder writes now. Version 7: a gene
-/// network's views ([`Layout::Views`]). Each is written only for models that have it.
-pub const FORMAT_VERSION: u32 = 7;
+/// network's views ([`Layout::Views`]). Version 8: the near and far fields in sixteen
+/// bits ([`Layout::SeparatedNearQ16`], what `palpa export-scene` writes). Each is
+/// written only for models that have it.
+pub const FORMAT_VERSION: u32 = 8;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
@@ -110,6 +115,66 @@ pub enum Layout {
     /// A gene network's views over time (version 7, [`crate::cme::views`]): per view,
     /// its time factor (`nodes × rank`) then its values (`rank × m`), f64.
     Views { views: Vec<ViewShape> },
+    /// As `SeparatedNear` or `SeparatedNearShared`, with the near field's band and
+    /// compliance table and the far field's bases and factors in sixteen bits
+    /// ([`crate::quant16`], version 8): those arrays are left empty in `near` and `far`
+    /// and held in `q`. What `palpa export-scene` writes by default.
+    SeparatedNearQ16 {
+        near: Box<NearField>,
+        far: Option<Box<NestedFar>>,
+        q: Box<NearQ16>,
+    },
+}
+
+/// The sixteen-bit arrays of [`Layout::SeparatedNearQ16`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NearQ16 {
+    pub band_values: Q16,
+    pub table_values: Q16,
+    pub far_basis: Q16,
+    pub far_group_basis: Q16,
+    pub far_a: Q16,
+    pub far_b: Q16,
+}
+
+impl NearQ16 {
+    /// Moves `near`'s and `far`'s f32 arrays into sixteen bits (leaving them empty).
+    fn take(near: &mut NearField, far: Option<&mut NestedFar>) -> NearQ16 {
+        let q = |v: &mut Vec<f32>| Q16::encode(&std::mem::take(v));
+        let (band_values, table_values) = (q(&mut near.band_values), q(&mut near.table_values));
+        let (far_basis, far_group_basis, far_a, far_b) = match far {
+            Some(f) => (
+                q(&mut f.basis),
+                q(&mut f.group_basis),
+                q(&mut f.a),
+                q(&mut f.b),
+            ),
+            None => Default::default(),
+        };
+        NearQ16 {
+            band_values,
+            table_values,
+            far_basis,
+            far_group_basis,
+            far_a,
+            far_b,
+        }
+    }
+
+    /// Puts the arrays back (read back from sixteen bits), or names the one that is
+    /// inconsistent.
+    fn restore(&self, near: &mut NearField, far: Option<&mut NestedFar>) -> Result<(), String> {
+        let back = |what: &str, q: &Q16| q.decode().map_err(|e| format!("{what}: {e}"));
+        near.band_values = back("near field band", &self.band_values)?;
+        near.table_values = back("compliance table", &self.table_values)?;
+        if let Some(f) = far {
+            f.basis = back("far field bases", &self.far_basis)?;
+            f.group_basis = back("far field row bases", &self.far_group_basis)?;
+            f.a = back("far field row factors", &self.far_a)?;
+            f.b = back("far field column factors", &self.far_b)?;
+        }
+        Ok(())
+    }
 }
 
 /// One stored view's species (network indices) and rank.
@@ -138,6 +203,7 @@ impl Layout {
                 | Layout::SeparatedNearFar { .. }
                 | Layout::SeparatedNearNested { .. }
                 | Layout::SeparatedNearShared { .. }
+                | Layout::SeparatedNearQ16 { .. }
         )
     }
 }
@@ -305,17 +371,32 @@ const ZEROS: [u8; ALIGN as usize] = [0; ALIGN as usize];
 
 /// Writes `model` to `path` atomically (temp file, fsync, rename).
 pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
-    save_as(model, path, false)
+    save_as(model, path, Form::Full)
+}
+
+/// As [`save`], with the near field's band and table and a nested far field's arrays
+/// in sixteen bits (format version 8, [`crate::quant16`]): about half their bytes. A
+/// model without a near field, or with a flat far field, is written as by [`save`].
+pub fn save_q16<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
+    save_as(model, path, Form::Q16)
+}
+
+/// How [`save_as`] writes a near field.
+#[derive(Clone, Copy, PartialEq)]
+enum Form {
+    Full,
+    V5,
+    Q16,
 }
 
 /// As [`save`], but a far field with shared row bases is written out per block as
 /// format version 5, for builds that read only up to version 5 (a larger file that
 /// evaluates the same).
 pub fn save_v5<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
-    save_as(model, path, true)
+    save_as(model, path, Form::V5)
 }
 
-fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, v5: bool) -> Result<(), FileError> {
+fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, form: Form) -> Result<(), FileError> {
     let (x, axes) = model.arrays();
     let blocks: Vec<&[u8]> = std::iter::once(x)
         .chain(axes)
@@ -350,10 +431,24 @@ fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, v5: bool) -> Resul
                     .collect();
                 match near.far.take().map(|f| *f) {
                     Some(FarField::Flat(far)) => Layout::SeparatedNearFar { near, far },
-                    Some(FarField::Nested(far)) if v5 => Layout::SeparatedNearNested {
-                        near,
-                        far: Box::new(NestedFarV5::from(&*far)),
-                    },
+                    Some(FarField::Nested(far)) if form == Form::V5 => {
+                        Layout::SeparatedNearNested {
+                            near,
+                            far: Box::new(NestedFarV5::from(&*far)),
+                        }
+                    }
+                    Some(FarField::Nested(mut far)) if form == Form::Q16 => {
+                        let q = Box::new(NearQ16::take(&mut near, Some(&mut far)));
+                        Layout::SeparatedNearQ16 {
+                            near,
+                            far: Some(far),
+                            q,
+                        }
+                    }
+                    None if form == Form::Q16 => {
+                        let q = Box::new(NearQ16::take(&mut near, None));
+                        Layout::SeparatedNearQ16 { near, far: None, q }
+                    }
                     Some(FarField::Nested(far)) => Layout::SeparatedNearShared { near, far },
                     None => Layout::SeparatedNear { near },
                 }
@@ -377,6 +472,7 @@ fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, v5: bool) -> Resul
         Layout::SeparatedNearFar { .. } => 4,
         Layout::SeparatedNearNested { .. } => 5,
         Layout::SeparatedNearShared { .. } => 6,
+        Layout::SeparatedNearQ16 { .. } => 8,
         _ => 3,
     };
     write_file(path, version, &header, &blocks)
@@ -814,6 +910,14 @@ fn load_payload<T: Scalar, R: Read>(
         Layout::SeparatedNearShared { near, far } => {
             let mut near = near.as_ref().clone();
             near.far = Some(Box::new(FarField::Nested(far.clone())));
+            Some(near)
+        }
+        Layout::SeparatedNearQ16 { near, far, q } => {
+            let mut near = near.as_ref().clone();
+            let mut far = far.clone();
+            q.restore(&mut near, far.as_deref_mut())
+                .map_err(|reason| FileError::Inconsistent { path: p(), reason })?;
+            near.far = far.map(|f| Box::new(FarField::Nested(f)));
             Some(near)
         }
         _ => None,

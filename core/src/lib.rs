@@ -51,6 +51,7 @@ pub mod mesh;
 pub mod nearfield;
 pub mod organ;
 pub mod pgd;
+pub mod quant16;
 pub mod rng;
 pub mod scalar;
 pub mod scene;

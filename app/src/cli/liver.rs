@@ -724,8 +724,23 @@ pub struct ExportSceneArgs {
     /// Keep the first n modes.
     #[arg(long)]
     modes: Option<usize>,
+    /// Bits of the near and far fields' stored values: 16 (half the bytes of 32, each
+    /// within 1.5e-5 of its 256-value chunk's largest; format version 8) or 32 (f32,
+    /// as versions up to 7, for older builds).
+    #[arg(long, default_value = "16", value_parser = parse_near_bits)]
+    near_bits: u32,
     #[arg(long)]
     out: PathBuf,
+}
+
+/// `--near-bits`: 16 or 32.
+fn parse_near_bits(s: &str) -> Result<u32, String> {
+    match s.parse::<u32>() {
+        Ok(b @ (16 | 32)) => Ok(b),
+        _ => Err(format!(
+            "{s}: expected 16 or 32 (bits per stored near- and far-field value)"
+        )),
+    }
 }
 
 pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
@@ -751,9 +766,12 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
             .select_nodes(&nodes)
             .context("selecting the surface rows")?;
     }
-    match args.precision {
-        PrecisionArg::F32 => file::save(&m.convert::<f32>(), &args.out),
-        PrecisionArg::F64 => file::save(&m, &args.out),
+    let q16 = args.near_bits == 16;
+    match (args.precision, q16) {
+        (PrecisionArg::F32, false) => file::save(&m.convert::<f32>(), &args.out),
+        (PrecisionArg::F32, true) => file::save_q16(&m.convert::<f32>(), &args.out),
+        (PrecisionArg::F64, false) => file::save(&m, &args.out),
+        (PrecisionArg::F64, true) => file::save_q16(&m, &args.out),
     }
     .with_context(|| format!("writing {}", args.out.display()))?;
     let sidecars = export_sidecars(&args.file, &args.out)?;
@@ -762,7 +780,7 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
         "{}",
         json!({"out": args.out, "rows": m.rows(), "modes": m.modes(), "sidecars": sidecars,
                "precision": match args.precision { PrecisionArg::F32 => Precision::F32, PrecisionArg::F64 => Precision::F64 }.name(),
-               "bytes": bytes})
+               "near_bits": args.near_bits, "bytes": bytes})
     );
     Ok(())
 }
