@@ -466,13 +466,17 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         pr.done();
     }
 
-    pr.start("scene", "surface rows, f32");
+    pr.start(
+        "scene",
+        "surface rows, f32; near and far fields in sixteen bits",
+    );
     let nodes = organ.surface_nodes();
     let scene = model
         .select_nodes(&nodes)
         .context("selecting the surface rows")?
         .convert::<f32>();
-    file::save(&scene, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    file::save_q16(&scene, &args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
     match law {
         Some(_) => {
             let bytes = std::fs::read(dir.join("scene.law"))?;
