@@ -475,8 +475,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         .select_nodes(&nodes)
         .context("selecting the surface rows")?
         .convert::<f32>();
-    file::save_q16(&scene, &args.out)
-        .with_context(|| format!("writing {}", args.out.display()))?;
+    file::save_q16(&scene, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
     match law {
         Some(_) => {
             let bytes = std::fs::read(dir.join("scene.law"))?;
