@@ -300,6 +300,22 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
         size(&q_path)
     );
     assert!(size(&f_path) - size(&q_path) > near_bytes * 4 / 10);
+    // What `palpa info` reports of them: their bits and stored bytes.
+    let stored = |p: &std::path::Path| {
+        file::read_header(p)
+            .expect("header")
+            .layout
+            .near_field_bytes()
+            .expect("a near field")
+    };
+    assert_eq!(stored(&f_path), (32, f32_near.bytes()));
+    let (bits, q_bytes) = stored(&q_path);
+    assert_eq!(bits, 16);
+    assert!(
+        q_bytes < f32_near.bytes() * 6 / 10,
+        "{q_bytes} of {} B",
+        f32_near.bytes()
+    );
     let q16: SeparatedModel<f32> = file::load(&q_path).expect("load q16");
     let mut worst = 0.0f64;
     let palpable: Vec<usize> = (0..f32_near.table_block.len())

@@ -161,6 +161,21 @@ impl NearQ16 {
         }
     }
 
+    /// Bytes stored (scales and steps).
+    pub fn bytes(&self) -> usize {
+        [
+            &self.band_values,
+            &self.table_values,
+            &self.far_basis,
+            &self.far_group_basis,
+            &self.far_a,
+            &self.far_b,
+        ]
+        .iter()
+        .map(|q| q.bytes())
+        .sum()
+    }
+
     /// Puts the arrays back (read back from sixteen bits), or names the one that is
     /// inconsistent.
     fn restore(&self, near: &mut NearField, far: Option<&mut NestedFar>) -> Result<(), String> {
@@ -205,6 +220,26 @@ impl Layout {
                 | Layout::SeparatedNearShared { .. }
                 | Layout::SeparatedNearQ16 { .. }
         )
+    }
+
+    /// A nodal-load model's near and far fields: the bits of their stored values and
+    /// their arrays' bytes (indices counted at four bytes, as in memory; the file
+    /// stores them in variable-length integers); `None` without a near field.
+    pub fn near_field_bytes(&self) -> Option<(u32, usize)> {
+        Some(match self {
+            Layout::SeparatedNear { near } => (32, near.bytes()),
+            Layout::SeparatedNearFar { near, far } => (32, near.bytes() + far.bytes()),
+            Layout::SeparatedNearNested { near, far } => {
+                let far: NestedFar = far.as_ref().clone().into();
+                (32, near.bytes() + far.bytes())
+            }
+            Layout::SeparatedNearShared { near, far } => (32, near.bytes() + far.bytes()),
+            Layout::SeparatedNearQ16 { near, far, q } => (
+                16,
+                near.bytes() + far.as_ref().map_or(0, |f| f.bytes()) + q.bytes(),
+            ),
+            _ => return None,
+        })
     }
 }
 
