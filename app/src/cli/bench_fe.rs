@@ -38,7 +38,7 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson, series, depth_law, surface_law).
+    /// depth_poisson, series, depth_law, surface_law, reduced).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
@@ -68,6 +68,9 @@ pub struct FeBenchArgs {
     /// `surface_law` table: depths of the held-out presses (mm), comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = [4.0, 8.5])]
     surface_depths: Vec<f64>,
+    /// `reduced` table: palpable triangles measured (each about ten minutes).
+    #[arg(long, default_value_t = 2)]
+    reduced_triangles: usize,
     /// `series` table: laws (svk, neo-hookean), comma-separated.
     #[arg(long, value_delimiter = ',', default_values = ["neo-hookean", "svk"])]
     series_laws: Vec<Law>,
@@ -135,6 +138,9 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     }
     if args.wants("svk") {
         svk(&coarse);
+    }
+    if args.wants("reduced") {
+        super::bench_reduced::reduced(&coarse, args.reduced_triangles)?;
     }
     Ok(())
 }

@@ -6,6 +6,7 @@ mod bench_cme;
 mod bench_dsmts;
 mod bench_fe;
 mod bench_pgd;
+mod bench_reduced;
 mod bench_views;
 mod cme;
 mod depthlaw;

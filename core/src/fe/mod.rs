@@ -30,6 +30,7 @@ pub mod load;
 pub mod newton;
 pub mod path;
 pub mod probe;
+pub mod reduced;
 pub mod series;
 pub mod shape;
 pub mod space;
