@@ -146,7 +146,14 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
                 }
             };
             let full_s = t.elapsed().as_secs_f64();
-            let own = &full.first.u;
+            // The point's own first orders, as a reduced press would compute them:
+            // the rest series on the shared rest factor, six orders.
+            let (shape, probe) = full_shape(&space, coarse, &o, at, push)?;
+            let t = Instant::now();
+            let own = expander
+                .expand_active(&shape, &probe, 6, o.active_cutoff)?
+                .u;
+            let own_s = t.elapsed().as_secs_f64();
             // Quadratic (P2 Lagrange) weights of the six presses at `l`.
             let w: Vec<f64> = made
                 .iter()
@@ -169,7 +176,6 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
             } else {
                 &[
                     ("six presses", false, 0),
-                    ("six + own u1", false, 1),
                     ("six + own u1..u6", false, 6),
                     ("three corners + own u1..u6", true, 6),
                 ]
@@ -183,7 +189,6 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
                     1e-8,
                 );
                 let t = Instant::now();
-                let (shape, probe) = full_shape(&space, coarse, &o, at, push)?;
                 let rom = reduced_press(
                     &space,
                     o.law,
@@ -193,6 +198,7 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
                     &probe,
                     &grid,
                     0.005,
+                    3,
                 )?;
                 let rom_s = t.elapsed().as_secs_f64();
                 for &d in &COMPARED_MM {
@@ -206,7 +212,7 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
                         "at": at, "depth_mm": d, "span": label, "rank": basis.rank(),
                         "full_force_n": full.force_n[j],
                         "span_floor_mm": largest_on(&rows, &fit, exact),
-                        "reduced_seconds": rom_s, "reduced_tangents": rom.tangents,
+                        "reduced_seconds": rom_s, "own_orders_seconds": own_s, "reduced_tangents": rom.tangents,
                         "reduced_residuals": rom.residuals, "full_seconds": full_s,
                         "six_presses_seconds": six_s});
                     if let (Some(u), Some(f)) = (rom.u.get(j - 1), rom.force_n.get(j - 1)) {

@@ -15,8 +15,8 @@
 //! [ cᵀ   0 ] [ΔF] = [ d − c·a         ]
 //! ```
 //!
-//! `J` is formed once a depth, at the state predicted there, and kept while the
-//! corrections shrink (a chord in `r + 1` unknowns; refreshed when one does not).
+//! `J` is kept from depth to depth while the corrections shrink fast enough (a chord in
+//! `r + 1` unknowns) and formed again, at the current state, where they do not.
 //!
 //! Why: the tissue build follows every press to equilibrium on the full mesh (one
 //! factored tangent per segment, `fe::path`), which puts the whole coarse surface at
@@ -104,7 +104,9 @@ pub struct ReducedPress {
 /// Follows the press (load shape `shape`, probe functional `probe`: all-node, as for
 /// [`super::series::Expander::expand`]) through `depths_mm` (increasing) in the span
 /// of `basis`. A depth is accepted when the last correction moves no node by more than
-/// `tolerance_mm` and the force by less than `1e-4` of itself.
+/// `tolerance_mm` and the force by less than `1e-4` of itself. The reduced tangent is
+/// formed at the first depth and again at a depth that needs more than `refresh_after`
+/// corrections or whose corrections grow (`0`: at every depth).
 #[allow(clippy::too_many_arguments)]
 pub fn reduced_press(
     space: &Space,
@@ -115,6 +117,7 @@ pub fn reduced_press(
     probe: &[f64],
     depths_mm: &[f64],
     tolerance_mm: f64,
+    refresh_after: usize,
 ) -> Result<ReducedPress, FeError> {
     material.validate()?;
     let (lambda, mu) = material.lame_n_per_mm2();
@@ -132,15 +135,21 @@ pub fn reduced_press(
     // Coordinates and force at the last two accepted depths (rest first).
     let mut history: Vec<(f64, Vec<f64>, f64)> = vec![(0.0, vec![0.0; r], 0.0)];
     let mut kv = vec![vec![0.0; space.free_dofs]; r];
+    let mut jac: Option<Vec<f64>> = None;
     for &d in depths_mm {
         let (a, mut force) = predict(&history, d);
         let mut a = a;
-        let mut jac: Option<Vec<f64>> = None;
         let mut accepted = false;
+        let mut refreshed = false;
+        let mut last = f64::INFINITY;
         for step in 0..40 {
             let u_free = basis.lift(&a);
             let u_all = space.expand(&u_free);
-            if jac.is_none() || step % 8 == 7 {
+            // The reduced tangent is kept from depth to depth (a chord in r + 1
+            // unknowns) and formed again where a depth is slow or a correction grows,
+            // once a depth.
+            let slow = step > refresh_after || (step > 0 && last.is_infinite());
+            if jac.is_none() || (refresh_after == 0 && step == 0) || (slow && !refreshed) {
                 let kt = tangent(space, law, &pattern, &u_all, lambda, mu);
                 for (col, q) in kv.iter_mut().zip(&basis.cols) {
                     kt.mul(q, col);
@@ -152,6 +161,7 @@ pub fn reduced_press(
                     }
                 }
                 jac = Some(j);
+                refreshed = true;
                 out.tangents += 1;
             }
             let fint = internal_force(space, law, &u_all, lambda, mu);
@@ -177,15 +187,21 @@ pub fn reduced_press(
                 .chunks_exact(3)
                 .map(|n| (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt())
                 .fold(0.0, f64::max);
+            if !largest.is_finite() {
+                break;
+            }
             a.iter_mut().zip(&delta).for_each(|(x, dx)| *x += dx);
             force += delta[r];
             if largest <= tolerance_mm && delta[r].abs() <= 1e-4 * force.abs().max(1e-9) {
                 accepted = true;
                 break;
             }
-            if !largest.is_finite() {
-                break;
-            }
+            // A growing correction marks the chord as diverging: refresh next step.
+            last = if step > 0 && largest > last {
+                f64::INFINITY
+            } else {
+                largest
+            };
         }
         if !accepted {
             out.stopped = Some(format!("no reduced equilibrium at {d} mm"));
@@ -213,6 +229,82 @@ fn predict(history: &[(f64, Vec<f64>, f64)], d: f64) -> (Vec<f64>, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fe::Element;
+    use crate::mesh::TetMesh;
+
+    /// One P2 tetrahedron held at three corners, pressed at the fourth along −z: 12
+    /// free dofs, so the whole space is a basis.
+    fn held_tet() -> (Space, Vec<f64>, Vec<f64>) {
+        let mesh = TetMesh {
+            vertices: vec![
+                [0.0, 0.0, 0.0],
+                [10.0, 1.0, 0.5],
+                [1.0, 9.0, 0.0],
+                [3.0, 3.0, 11.0],
+            ],
+            tets: vec![[0, 1, 2, 3]],
+        };
+        let space = Space::new(&mesh, &[], &[true, true, true, false], Element::P2);
+        let mut push = vec![0.0; 3 * space.nodes.len()];
+        push[3 * 3 + 2] = -1.0;
+        (space, push.clone(), push)
+    }
+
+    fn identity(n: usize) -> Vec<Vec<f64>> {
+        (0..n)
+            .map(|i| (0..n).map(|k| if i == k { 1.0 } else { 0.0 }).collect())
+            .collect()
+    }
+
+    /// With the whole space as its basis the reduced press is Newton itself: each state
+    /// is an equilibrium at its depth. With the span of those states alone it gives
+    /// them back.
+    #[test]
+    fn a_press_in_a_span_holding_its_states_is_the_full_press() {
+        let (space, shape, probe) = held_tet();
+        assert_eq!(space.free_dofs, 12);
+        let material = Material::default();
+        let (lambda, mu) = material.lame_n_per_mm2();
+        let depths = [0.5, 1.0, 2.0, 3.0];
+        for law in [Law::NeoHookean, Law::Svk] {
+            let full = Basis::orthonormal(identity(12), 1e-12);
+            let press = reduced_press(
+                &space, law, material, &full, &shape, &probe, &depths, 1e-9, 3,
+            )
+            .expect("valid material");
+            assert_eq!(press.stopped, None, "{law:?}");
+            for ((u, f), d) in press.u.iter().zip(&press.force_n).zip(depths) {
+                let reached: f64 = u.iter().zip(&probe).map(|(a, b)| a * b).sum();
+                assert!((reached - d).abs() < 1e-12, "{law:?}: {reached} at {d}");
+                let fint = internal_force(&space, law, u, lambda, mu);
+                let load = space.restrict(&shape);
+                let worst = fint
+                    .iter()
+                    .zip(&load)
+                    .map(|(a, b)| (a - f * b).abs())
+                    .fold(0.0, f64::max);
+                assert!(
+                    *f > 0.0 && worst < 1e-8 * f,
+                    "{law:?} at {d}: {worst} of {f} N"
+                );
+            }
+            let span = Basis::orthonormal(press.u.iter().map(|u| space.restrict(u)), 1e-10);
+            let again = reduced_press(
+                &space, law, material, &span, &shape, &probe, &depths, 1e-9, 3,
+            )
+            .expect("valid material");
+            for (a, b) in again.u.iter().zip(&press.u) {
+                let gap = a
+                    .iter()
+                    .zip(b)
+                    .map(|(x, y)| (x - y).abs())
+                    .fold(0.0, f64::max);
+                assert!(gap < 1e-8, "{law:?}: {gap} mm");
+            }
+            let forces = again.force_n.iter().zip(&press.force_n);
+            assert!(forces.into_iter().all(|(a, b)| (a - b).abs() < 1e-8 * b));
+        }
+    }
 
     #[test]
     fn gram_schmidt_drops_dependent_vectors_and_keeps_an_orthonormal_set() {
