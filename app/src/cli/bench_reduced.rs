@@ -23,7 +23,7 @@ use palpa_core::fe::reduced::{Basis, reduced_press};
 use palpa_core::fe::series::Expander;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, follow_at, organ_vertex_normals};
+use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, follow_at, organ_vertex_normals, tool_load};
 use serde_json::json;
 
 /// Triangles near these points are measured (the first `count`).
@@ -148,7 +148,7 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
             let full_s = t.elapsed().as_secs_f64();
             // The point's own first orders, as a reduced press would compute them:
             // the rest series on the shared rest factor, six orders.
-            let (shape, probe) = full_shape(&space, coarse, &o, at, push)?;
+            let (shape, probe) = tool_load(&space, coarse, &o, at, push)?;
             let t = Instant::now();
             let own = expander
                 .expand_active(&shape, &probe, 6, o.active_cutoff)?
@@ -253,26 +253,4 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-/// The unit tool load and the probe functional at `at` along `push` (all-node).
-fn full_shape(
-    space: &palpa_core::fe::space::Space,
-    organ: &OrganMesh,
-    o: &SurfaceLawOptions,
-    at: [f64; 3],
-    push: [f64; 3],
-) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
-    let req = palpa_core::fe::probe::ProbeRequest {
-        at,
-        force_n: 1.0,
-        dir: Some(push),
-        radius_mm: o.tool_radius_mm,
-    };
-    let (probe, dir) = palpa_core::fe::probe::locate(space, organ, &req)?;
-    let shape = palpa_core::fe::load::probe_load(space, &probe, dir, 1.0, o.tool_radius_mm)?;
-    Ok((
-        shape,
-        palpa_core::fe::load::probe_functional(space, &probe, dir),
-    ))
 }

@@ -1072,8 +1072,9 @@ pub fn follow_at(
     .map(|p| (p, depths)))
 }
 
-/// The unit tool load and the probe functional of a press at `at` along `push`.
-fn tool_load(
+/// The unit tool load and the probe functional of a press at `at` along `push`
+/// (all-node).
+pub fn tool_load(
     space: &crate::fe::space::Space,
     organ: &OrganMesh,
     o: &SurfaceLawOptions,
