@@ -285,9 +285,9 @@ pub(crate) mod tests {
     use crate::mesh::TetMesh;
     use crate::rng::Rng;
 
-    /// One irregular tetrahedron, nothing fixed (element-level checks).
-    pub(crate) fn one_tet_space(element: Element) -> Space {
-        let mesh = TetMesh {
+    /// One irregular tetrahedron.
+    pub(crate) fn one_tet() -> TetMesh {
+        TetMesh {
             vertices: vec![
                 [0.0, 0.0, 0.0],
                 [10.0, 1.0, 0.5],
@@ -295,8 +295,12 @@ pub(crate) mod tests {
                 [0.5, 1.0, 11.0],
             ],
             tets: vec![[0, 1, 2, 3]],
-        };
-        Space::new(&mesh, &[], &[false; 4], element)
+        }
+    }
+
+    /// [`one_tet`], nothing fixed (element-level checks).
+    pub(crate) fn one_tet_space(element: Element) -> Space {
+        Space::new(&one_tet(), &[], &[false; 4], element)
     }
 
     /// The tangent is the derivative of the internal force: central differences agree
