@@ -71,6 +71,14 @@ pub struct FeBenchArgs {
     /// `reduced` table: palpable triangles measured (each about ten minutes).
     #[arg(long, default_value_t = 2)]
     reduced_triangles: usize,
+    /// `reduced` table: the first of the listed triangles measured (0: the anterior
+    /// lobe's, 1: mid-anterior, ...).
+    #[arg(long, default_value_t = 0)]
+    reduced_first: usize,
+    /// `reduced` table: corrections a depth may take before the reduced tangent is
+    /// formed again (between, Broyden's update keeps it).
+    #[arg(long, default_value_t = 3)]
+    reduced_refresh: usize,
     /// `series` table: laws (svk, neo-hookean), comma-separated.
     #[arg(long, value_delimiter = ',', default_values = ["neo-hookean", "svk"])]
     series_laws: Vec<Law>,
@@ -140,7 +148,12 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
         svk(&coarse);
     }
     if args.wants("reduced") {
-        super::bench_reduced::reduced(&coarse, args.reduced_triangles)?;
+        super::bench_reduced::reduced(
+            &coarse,
+            args.reduced_first,
+            args.reduced_triangles,
+            args.reduced_refresh,
+        )?;
     }
     Ok(())
 }

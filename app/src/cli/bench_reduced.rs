@@ -19,7 +19,7 @@
 use std::time::Instant;
 
 use palpa_core::fe::probe::organ_space;
-use palpa_core::fe::reduced::{Basis, reduced_press};
+use palpa_core::fe::reduced::{Basis, Check, reduced_press};
 use palpa_core::fe::series::Expander;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
@@ -74,7 +74,12 @@ fn triangle_near(organ: &OrganMesh, p: [f64; 3]) -> Option<[u32; 3]> {
         })
 }
 
-pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
+pub(super) fn reduced(
+    coarse: &OrganMesh,
+    first: usize,
+    count: usize,
+    refresh: usize,
+) -> anyhow::Result<()> {
     let o = SurfaceLawOptions {
         depth_max_mm: 15.0,
         ..SurfaceLawOptions::default()
@@ -84,7 +89,14 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
     let rows = coarse.surface_nodes();
     let normals = organ_vertex_normals(coarse);
     let grid: Vec<f64> = (1..=15).map(f64::from).collect();
-    for near in NEAR.iter().take(count) {
+    // The check a build would run: a chord step with the shared rest factor, within
+    // the full press's trust tolerance.
+    let check = Check {
+        factor: expander.rest_factor(),
+        tolerance_mm: palpa_core::fe::path::PathOptions::default().tolerance_mm,
+        max_added: 8,
+    };
+    for near in NEAR.iter().skip(first).take(count) {
         let Some(tri) = triangle_near(coarse, *near) else {
             continue;
         };
@@ -121,11 +133,11 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
             continue;
         }
         let reach = made.iter().map(|(_, p)| p.u.len()).min().unwrap_or(0);
-        // Every grid state of the six presses, or of the three corners alone.
-        let states = |corners_only: bool| -> Vec<Vec<f64>> {
-            made.iter()
-                .take(if corners_only { 3 } else { 6 })
-                .flat_map(|(_, p)| p.u.iter().skip(1).take(reach.saturating_sub(1)))
+        // Every grid state of the chosen presses (indices into the six).
+        let states = |which: &[usize]| -> Vec<Vec<f64>> {
+            which
+                .iter()
+                .flat_map(|&i| made[i].1.u.iter().skip(1).take(reach.saturating_sub(1)))
                 .map(|u| space.restrict(u))
                 .collect()
         };
@@ -154,6 +166,11 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
                 .expand_active(&shape, &probe, 6, o.active_cutoff)?
                 .u;
             let own_s = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let own12 = expander
+                .expand_active(&shape, &probe, 12, o.active_cutoff)?
+                .u;
+            let own12_s = t.elapsed().as_secs_f64();
             // Quadratic (P2 Lagrange) weights of the six presses at `l`.
             let w: Vec<f64> = made
                 .iter()
@@ -166,26 +183,34 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
                     }
                 })
                 .collect();
-            // (label, corners only, own orders); the midpoint is one of the six, so
-            // only the corners' spans say anything there.
-            let variants: &[(&str, bool, usize)] = if name == "edge midpoint" {
+            // (label, presses spanned, own orders); the midpoint is one of the six, so
+            // only spans without it say anything there.
+            let variants: &[(&str, &[usize], usize, bool)] = if name == "edge midpoint" {
                 &[
-                    ("three corners", true, 0),
-                    ("three corners + own u1..u6", true, 6),
+                    ("three corners", &[0, 1, 2], 0, false),
+                    ("three corners + own u1..u6", &[0, 1, 2], 6, false),
+                    ("own u1..u6", &[], 6, false),
+                    ("own u1..u6, checked", &[], 6, true),
+                    ("own u1..u12, checked", &[], 12, true),
                 ]
             } else {
                 &[
-                    ("six presses", false, 0),
-                    ("six + own u1..u6", false, 6),
-                    ("three corners + own u1..u6", true, 6),
+                    ("six presses", &[0, 1, 2, 3, 4, 5], 0, false),
+                    ("six + own u1..u6", &[0, 1, 2, 3, 4, 5], 6, false),
+                    ("own u1..u6", &[], 6, false),
+                    ("own u1..u6, checked", &[], 6, true),
+                    ("own u1..u12, checked", &[], 12, true),
+                    ("three corners + own u1..u6, checked", &[0, 1, 2], 6, true),
                 ]
             };
             let mut rows_out = Vec::new();
-            for &(label, corners_only, orders) in variants {
+            for &(label, which, orders, checked) in variants {
+                let corners_only = which.len() == 3;
+                let orders_from = if orders > 6 { &own12 } else { &own };
                 let basis = Basis::orthonormal(
-                    states(corners_only)
+                    states(which)
                         .into_iter()
-                        .chain(own.iter().take(orders).map(|u| space.restrict(u))),
+                        .chain(orders_from.iter().take(orders).map(|u| space.restrict(u))),
                     1e-8,
                 );
                 let t = Instant::now();
@@ -198,7 +223,8 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
                     &probe,
                     &grid,
                     0.005,
-                    3,
+                    refresh,
+                    checked.then_some(&check),
                 )?;
                 let rom_s = t.elapsed().as_secs_f64();
                 for &d in &COMPARED_MM {
@@ -212,17 +238,22 @@ pub(super) fn reduced(coarse: &OrganMesh, count: usize) -> anyhow::Result<()> {
                         "at": at, "depth_mm": d, "span": label, "rank": basis.rank(),
                         "full_force_n": full.force_n[j],
                         "span_floor_mm": largest_on(&rows, &fit, exact),
-                        "reduced_seconds": rom_s, "own_orders_seconds": own_s, "reduced_tangents": rom.tangents,
-                        "reduced_residuals": rom.residuals, "full_seconds": full_s,
+                        "reduced_seconds": rom_s,
+                        "own_orders_seconds": if orders > 6 { own12_s } else { own_s }, "reduced_tangents": rom.tangents,
+                        "reduced_residuals": rom.residuals, "reduced_tangent_seconds": rom.tangent_s,
+                        "reduced_residual_seconds": rom.residual_s, "reduced_solves": rom.solves,
+                        "reduced_check_seconds": rom.check_s, "reduced_added": rom.added,
+                        "reduced_rank": rom.rank, "full_seconds": full_s,
                         "six_presses_seconds": six_s});
                     if let (Some(u), Some(f)) = (rom.u.get(j - 1), rom.force_n.get(j - 1)) {
                         row["reduced_error_mm"] = json!(largest_on(&rows, u, exact));
+                        row["reduced_check_mm"] = json!(rom.check_mm[j - 1]);
                         row["reduced_force_rel_error"] =
                             json!((f - full.force_n[j]) / full.force_n[j]);
                     } else {
                         row["reduced_stopped"] = json!(rom.stopped);
                     }
-                    if orders == 0 {
+                    if orders == 0 && !which.is_empty() {
                         // The blend the tissue answers without these presses: the
                         // point's own linear field plus the presses' residuals, weighed
                         // quadratically over the six (linearly over the corners alone).

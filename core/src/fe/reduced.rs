@@ -27,11 +27,13 @@
 //! reduced`); each residual here is still assembled on the whole mesh, so it answers
 //! the accuracy question, not yet the cost one.
 
+use std::time::Instant;
+
 use super::hyper::Law;
 use super::newton::{internal_force, tangent};
 use super::series::solve_dense;
 use super::space::Space;
-use super::sparse::SymCsc;
+use super::sparse::{Cholesky, SymCsc};
 use super::{FeError, Material};
 
 /// An orthonormal basis on the free dofs.
@@ -94,19 +96,111 @@ pub struct ReducedPress {
     /// All-node states (mm) and forces (N) at the depths reached.
     pub u: Vec<Vec<f64>>,
     pub force_n: Vec<f64>,
-    /// Reduced tangents formed and residuals assembled, over all depths.
+    /// Per depth reached, the largest node of the last check's correction (mm; see
+    /// [`Check`]), or zero where no check was asked for.
+    pub check_mm: Vec<f64>,
+    /// Reduced tangents formed, residuals assembled, solves with the check's factor,
+    /// and vectors the check added to the basis, over all depths.
     pub tangents: usize,
     pub residuals: usize,
+    pub solves: usize,
+    pub added: usize,
+    /// Seconds spent forming reduced tangents, assembling residuals, and in the check.
+    pub tangent_s: f64,
+    pub residual_s: f64,
+    pub check_s: f64,
+    /// The basis's rank at the end (the given one plus what the check added).
+    pub rank: usize,
     /// Why it stopped before the last depth, if it did.
     pub stopped: Option<String>,
 }
 
+/// The check of a reduced state on the whole mesh: the correction a chord step with
+/// `factor` (a factored stiffness, e.g. the shared rest one) would make there,
+///
+/// ```text
+/// x = K⁻¹ R,  y = K⁻¹ f̂,  ΔF = n̂·x / n̂·y,  Δu = ΔF y − x,    R = f_int(u) − F f̂,
+/// ```
+///
+/// the bordered step that keeps the depth. A depth is accepted when `Δu` moves no node
+/// by more than `tolerance_mm` (the full press's trust rule, with this factor in place
+/// of the segment's); otherwise `Δu` joins the basis and the depth is solved again
+/// (at most `max_added` times a depth). The new column of the reduced tangent,
+/// `Vᵀ K_t q`, is the directional derivative `(f_int(u + h q) − f_int(u)) / h`: one
+/// more residual, no assembly.
+#[derive(Clone, Copy)]
+pub struct Check<'a> {
+    pub factor: &'a Cholesky,
+    pub tolerance_mm: f64,
+    pub max_added: usize,
+}
+
+impl std::fmt::Debug for Check<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Check")
+            .field("tolerance_mm", &self.tolerance_mm)
+            .field("max_added", &self.max_added)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The reduced internal force `Vᵀ f_int(V a)` and the full one on the free dofs.
+fn forces(
+    space: &Space,
+    law: Law,
+    basis: &Basis,
+    a: &[f64],
+    lame: (f64, f64),
+) -> (Vec<f64>, Vec<f64>) {
+    let u_all = space.expand(&basis.lift(a));
+    let full = internal_force(space, law, &u_all, lame.0, lame.1);
+    (basis.project(&full), full)
+}
+
+/// The reduced tangent `Vᵀ K_t(V a) V` (row-major `r × r`).
+fn reduced_tangent(
+    space: &Space,
+    law: Law,
+    pattern: &SymCsc,
+    basis: &Basis,
+    a: &[f64],
+    lame: (f64, f64),
+) -> Vec<f64> {
+    let r = basis.rank();
+    let u_all = space.expand(&basis.lift(a));
+    let kt = tangent(space, law, pattern, &u_all, lame.0, lame.1);
+    let mut kq = vec![0.0; space.free_dofs];
+    let mut j = vec![0.0; r * r];
+    for (k, q) in basis.cols.iter().enumerate() {
+        kt.mul(q, &mut kq);
+        for i in 0..r {
+            j[i * r + k] = dot(&basis.cols[i], &kq);
+        }
+    }
+    j
+}
+
+/// The largest node of a free-dof vector's all-node expansion (mm).
+fn largest_node(space: &Space, x: &[f64]) -> f64 {
+    space
+        .expand(x)
+        .chunks_exact(3)
+        .map(|n| (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt())
+        .fold(0.0, f64::max)
+}
+
 /// Follows the press (load shape `shape`, probe functional `probe`: all-node, as for
 /// [`super::series::Expander::expand`]) through `depths_mm` (increasing) in the span
-/// of `basis`. A depth is accepted when the last correction moves no node by more than
-/// `tolerance_mm` and the force by less than `1e-4` of itself. The reduced tangent is
-/// formed at the first depth and again at a depth that needs more than `refresh_after`
-/// corrections or whose corrections grow (`0`: at every depth).
+/// of `basis`. In the span, a depth is converged when the last correction moves no node
+/// by more than `tolerance_mm` and the force by less than `1e-4` of itself; with a
+/// `check`, it is then accepted only as [`Check`] says, the basis growing until it is.
+///
+/// The reduced tangent is formed at rest and then only where a depth needs more than
+/// `refresh_after` corrections or its corrections grow (`0`: at every depth); between
+/// those it is kept current by Broyden's update from every pair of residuals assembled
+/// (`J += (y − J s) sᵀ / sᵀs`, `s` the step in `a`, `y` the change of `Vᵀ f_int`; the
+/// load column and the depth row are exact and kept). Residuals cost one assembly on
+/// the mesh each; a tangent one assembly and `r` sparse products.
 #[allow(clippy::too_many_arguments)]
 pub fn reduced_press(
     space: &Space,
@@ -118,112 +212,258 @@ pub fn reduced_press(
     depths_mm: &[f64],
     tolerance_mm: f64,
     refresh_after: usize,
+    check: Option<&Check>,
 ) -> Result<ReducedPress, FeError> {
     material.validate()?;
-    let (lambda, mu) = material.lame_n_per_mm2();
-    let r = basis.rank();
+    let lame = material.lame_n_per_mm2();
+    let mut basis = basis.clone();
     let pattern = SymCsc::pattern(space);
-    let b = basis.project(&space.restrict(shape));
-    let c = basis.project(&space.restrict(probe));
+    let shape_free = space.restrict(shape);
+    let probe_free = space.restrict(probe);
+    let mut b = basis.project(&shape_free);
+    let mut c = basis.project(&probe_free);
     let mut out = ReducedPress {
         u: Vec::new(),
         force_n: Vec::new(),
+        check_mm: Vec::new(),
         tangents: 0,
         residuals: 0,
+        solves: 0,
+        added: 0,
+        tangent_s: 0.0,
+        residual_s: 0.0,
+        check_s: 0.0,
+        rank: basis.rank(),
         stopped: None,
     };
-    // Coordinates and force at the last two accepted depths (rest first).
-    let mut history: Vec<(f64, Vec<f64>, f64)> = vec![(0.0, vec![0.0; r], 0.0)];
-    let mut kv = vec![vec![0.0; space.free_dofs]; r];
+    // The check's load response `y = K⁻¹ f̂` and its probe value, once a press.
+    let y = check.map(|ch| {
+        out.solves += 1;
+        let y = ch.factor.solve(&shape_free);
+        let ny = dot(&probe_free, &y);
+        (y, ny)
+    });
+    // Accepted depths, coordinates and forces (rest first).
+    let mut history: Vec<(f64, Vec<f64>, f64)> = vec![(0.0, vec![0.0; basis.rank()], 0.0)];
     let mut jac: Option<Vec<f64>> = None;
+    // The last point where Vᵀ f_int was assembled, for Broyden's update.
+    let mut last_eval: Option<(Vec<f64>, Vec<f64>)> = None;
     for &d in depths_mm {
-        let (a, mut force) = predict(&history, d);
-        let mut a = a;
-        let mut accepted = false;
-        let mut refreshed = false;
-        let mut last = f64::INFINITY;
-        for step in 0..40 {
-            let u_free = basis.lift(&a);
-            let u_all = space.expand(&u_free);
-            // The reduced tangent is kept from depth to depth (a chord in r + 1
-            // unknowns) and formed again where a depth is slow or a correction grows,
-            // once a depth.
-            let slow = step > refresh_after || (step > 0 && last.is_infinite());
-            if jac.is_none() || (refresh_after == 0 && step == 0) || (slow && !refreshed) {
-                let kt = tangent(space, law, &pattern, &u_all, lambda, mu);
-                for (col, q) in kv.iter_mut().zip(&basis.cols) {
-                    kt.mul(q, col);
-                }
-                let mut j = vec![0.0; r * r];
-                for i in 0..r {
-                    for k in 0..r {
-                        j[i * r + k] = dot(&basis.cols[i], &kv[k]);
-                    }
-                }
-                jac = Some(j);
-                refreshed = true;
-                out.tangents += 1;
-            }
-            let fint = internal_force(space, law, &u_all, lambda, mu);
-            out.residuals += 1;
-            let mut rhs: Vec<f64> = basis.project(&fint);
-            rhs.iter_mut()
-                .zip(&b)
-                .for_each(|(x, bi)| *x = -(*x - force * bi));
-            rhs.push(d - dot(&c, &a));
-            let j = jac.as_ref().map_or(&[][..], Vec::as_slice);
-            let mut m = vec![0.0; (r + 1) * (r + 1)];
-            for i in 0..r {
-                m[i * (r + 1)..i * (r + 1) + r].copy_from_slice(&j[i * r..i * r + r]);
-                m[i * (r + 1) + r] = -b[i];
-                m[r * (r + 1) + i] = c[i];
-            }
-            let Some(delta) = solve_dense(m, rhs) else {
+        let (mut a, mut force) = predict(&history, d);
+        let mut added_here = 0;
+        let check_mm = loop {
+            let Some(converged) = in_span(
+                space,
+                law,
+                lame,
+                &pattern,
+                &basis,
+                &b,
+                &c,
+                d,
+                tolerance_mm,
+                refresh_after,
+                &mut a,
+                &mut force,
+                &mut jac,
+                &mut last_eval,
+                &mut out,
+            ) else {
                 out.stopped = Some(format!("singular reduced tangent at {d} mm"));
                 return Ok(out);
             };
-            let du = basis.lift(&delta[..r]);
-            let largest = du
-                .chunks_exact(3)
-                .map(|n| (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt())
-                .fold(0.0, f64::max);
-            if !largest.is_finite() {
-                break;
+            if !converged {
+                out.stopped = Some(format!("no reduced equilibrium at {d} mm"));
+                return Ok(out);
             }
-            a.iter_mut().zip(&delta).for_each(|(x, dx)| *x += dx);
-            force += delta[r];
-            if largest <= tolerance_mm && delta[r].abs() <= 1e-4 * force.abs().max(1e-9) {
-                accepted = true;
-                break;
-            }
-            // A growing correction marks the chord as diverging: refresh next step.
-            last = if step > 0 && largest > last {
-                f64::INFINITY
-            } else {
-                largest
+            let (Some(ch), Some((y, ny))) = (check, y.as_ref()) else {
+                break 0.0;
             };
-        }
-        if !accepted {
-            out.stopped = Some(format!("no reduced equilibrium at {d} mm"));
-            return Ok(out);
-        }
+            // The bordered chord step with the check's factor at the converged state.
+            let t = Instant::now();
+            let r = basis.rank();
+            let (_, fint) = forces(space, law, &basis, &a, lame);
+            out.residuals += 1;
+            let resid: Vec<f64> = fint
+                .iter()
+                .zip(&shape_free)
+                .map(|(f, s)| f - force * s)
+                .collect();
+            let x = ch.factor.solve(&resid);
+            out.solves += 1;
+            let df = dot(&probe_free, &x) / ny;
+            let du: Vec<f64> = y.iter().zip(&x).map(|(yi, xi)| df * yi - xi).collect();
+            let size = largest_node(space, &du);
+            out.check_s += t.elapsed().as_secs_f64();
+            if size <= ch.tolerance_mm {
+                break size;
+            }
+            if added_here == ch.max_added {
+                out.stopped = Some(format!(
+                    "the reduced state at {d} mm still moves a node by {size:.3} mm under \
+                     the check after {added_here} added vectors"
+                ));
+                return Ok(out);
+            }
+            // Enrich: the correction joins the basis; the tangent grows by its
+            // directional derivative.
+            let t = Instant::now();
+            let grown = Basis::orthonormal(basis.cols.iter().cloned().chain([du]), 1e-10);
+            if grown.rank() == r {
+                out.stopped = Some(format!("the check's correction at {d} mm is in the span"));
+                return Ok(out);
+            }
+            let q = grown.cols[r].clone();
+            let h = 1e-4;
+            let u_free = basis.lift(&a);
+            let shifted: Vec<f64> = u_free.iter().zip(&q).map(|(u, qi)| u + h * qi).collect();
+            let fint_h = internal_force(space, law, &space.expand(&shifted), lame.0, lame.1);
+            out.residuals += 1;
+            let kq: Vec<f64> = fint_h.iter().zip(&fint).map(|(p, m)| (p - m) / h).collect();
+            let col = grown.project(&kq);
+            let j_old = jac.take().unwrap_or_default();
+            let mut j = vec![0.0; (r + 1) * (r + 1)];
+            for i in 0..r {
+                j[i * (r + 1)..i * (r + 1) + r].copy_from_slice(&j_old[i * r..i * r + r]);
+                j[i * (r + 1) + r] = col[i];
+                j[r * (r + 1) + i] = col[i];
+            }
+            j[r * (r + 1) + r] = col[r];
+            jac = Some(j);
+            b.push(dot(&q, &shape_free));
+            c.push(dot(&q, &probe_free));
+            a.push(0.0);
+            last_eval = None;
+            for h in history.iter_mut() {
+                h.1.push(0.0);
+            }
+            basis = grown;
+            added_here += 1;
+            out.added += 1;
+            out.check_s += t.elapsed().as_secs_f64();
+        };
         out.u.push(space.expand(&basis.lift(&a)));
         out.force_n.push(force);
+        out.check_mm.push(check_mm);
         history.push((d, a, force));
     }
+    out.rank = basis.rank();
     Ok(out)
 }
 
-/// The state at `d` extrapolated linearly from the last two accepted ones.
+/// Newton in the span at depth `d` from `(a, force)`: `Some(converged)`, `None` where
+/// the bordered reduced tangent is singular.
+#[allow(clippy::too_many_arguments)]
+fn in_span(
+    space: &Space,
+    law: Law,
+    lame: (f64, f64),
+    pattern: &SymCsc,
+    basis: &Basis,
+    b: &[f64],
+    c: &[f64],
+    d: f64,
+    tolerance_mm: f64,
+    refresh_after: usize,
+    a: &mut Vec<f64>,
+    force: &mut f64,
+    jac: &mut Option<Vec<f64>>,
+    last_eval: &mut Option<(Vec<f64>, Vec<f64>)>,
+    out: &mut ReducedPress,
+) -> Option<bool> {
+    let r = basis.rank();
+    let mut refreshed = false;
+    let mut last = f64::INFINITY;
+    for step in 0..40 {
+        let t = Instant::now();
+        let (fa, _) = forces(space, law, basis, a, lame);
+        out.residual_s += t.elapsed().as_secs_f64();
+        out.residuals += 1;
+        let slow = step > refresh_after || (step > 0 && last.is_infinite());
+        if jac.is_none() || (refresh_after == 0 && step == 0) || (slow && !refreshed) {
+            let t = Instant::now();
+            *jac = Some(reduced_tangent(space, law, pattern, basis, a, lame));
+            out.tangent_s += t.elapsed().as_secs_f64();
+            refreshed = true;
+            out.tangents += 1;
+        } else if let (Some(j), Some((a0, f0))) = (jac.as_mut(), last_eval.as_ref()) {
+            broyden(j, a, &fa, a0, f0);
+        }
+        *last_eval = Some((a.clone(), fa.clone()));
+        let mut rhs: Vec<f64> = fa.iter().zip(b).map(|(x, bi)| -(x - *force * bi)).collect();
+        rhs.push(d - dot(c, a));
+        let j = jac.as_ref().map_or(&[][..], Vec::as_slice);
+        let mut m = vec![0.0; (r + 1) * (r + 1)];
+        for i in 0..r {
+            m[i * (r + 1)..i * (r + 1) + r].copy_from_slice(&j[i * r..i * r + r]);
+            m[i * (r + 1) + r] = -b[i];
+            m[r * (r + 1) + i] = c[i];
+        }
+        let delta = solve_dense(m, rhs)?;
+        let du = basis.lift(&delta[..r]);
+        let largest = largest_node(space, &du);
+        if !largest.is_finite() {
+            return Some(false);
+        }
+        a.iter_mut().zip(&delta).for_each(|(x, dx)| *x += dx);
+        *force += delta[r];
+        if largest <= tolerance_mm && delta[r].abs() <= 1e-4 * force.abs().max(1e-9) {
+            return Some(true);
+        }
+        // A growing correction marks the chord as diverging: refresh next step.
+        last = if step > 0 && largest > last {
+            f64::INFINITY
+        } else {
+            largest
+        };
+    }
+    Some(false)
+}
+
+/// Broyden's update of the reduced tangent `j` (row-major `r × r`) from `Vᵀ f_int`
+/// assembled at `a0` (`f0`) and at `a` (`f`). No update for a zero step.
+fn broyden(j: &mut [f64], a: &[f64], f: &[f64], a0: &[f64], f0: &[f64]) {
+    let r = a.len();
+    let s: Vec<f64> = a.iter().zip(a0).map(|(x, y)| x - y).collect();
+    let ss = dot(&s, &s);
+    if !(ss > 0.0 && ss.is_finite()) {
+        return;
+    }
+    for i in 0..r {
+        let js: f64 = (0..r).map(|k| j[i * r + k] * s[k]).sum();
+        let w = (f[i] - f0[i] - js) / ss;
+        for k in 0..r {
+            j[i * r + k] += w * s[k];
+        }
+    }
+}
+
+/// The state at `d` extrapolated from the last accepted ones: through the last three
+/// (quadratic in the depth) where there are three, else linearly.
 fn predict(history: &[(f64, Vec<f64>, f64)], d: f64) -> (Vec<f64>, f64) {
-    let (d1, a1, f1) = &history[history.len() - 1];
-    if history.len() < 2 {
+    let n = history.len();
+    let (d1, a1, f1) = &history[n - 1];
+    if n < 2 {
         return (a1.clone(), *f1);
     }
-    let (d0, a0, f0) = &history[history.len() - 2];
-    let t = (d - d1) / (d1 - d0);
-    let a = a1.iter().zip(a0).map(|(x, y)| x + t * (x - y)).collect();
-    (a, f1 + t * (f1 - f0))
+    let (d0, a0, f0) = &history[n - 2];
+    if n < 3 {
+        let t = (d - d1) / (d1 - d0);
+        let a = a1.iter().zip(a0).map(|(x, y)| x + t * (x - y)).collect();
+        return (a, f1 + t * (f1 - f0));
+    }
+    let (dm, am, fm) = &history[n - 3];
+    // Lagrange weights of the three depths at d.
+    let w1 = (d - d0) * (d - dm) / ((d1 - d0) * (d1 - dm));
+    let w0 = (d - d1) * (d - dm) / ((d0 - d1) * (d0 - dm));
+    let wm = (d - d1) * (d - d0) / ((dm - d1) * (dm - d0));
+    let a = a1
+        .iter()
+        .zip(a0)
+        .zip(am)
+        .map(|((x, y), z)| w1 * x + w0 * y + wm * z)
+        .collect();
+    (a, w1 * f1 + w0 * f0 + wm * fm)
 }
 
 #[cfg(test)]
@@ -261,7 +501,7 @@ mod tests {
         for law in [Law::NeoHookean, Law::Svk] {
             let full = Basis::orthonormal(identity(12), 1e-12);
             let press = reduced_press(
-                &space, law, material, &full, &shape, &probe, &depths, 1e-9, 3,
+                &space, law, material, &full, &shape, &probe, &depths, 1e-9, 3, None,
             )
             .expect("valid material");
             assert_eq!(press.stopped, None, "{law:?}");
@@ -282,7 +522,7 @@ mod tests {
             }
             let span = Basis::orthonormal(press.u.iter().map(|u| space.restrict(u)), 1e-10);
             let again = reduced_press(
-                &space, law, material, &span, &shape, &probe, &depths, 1e-9, 3,
+                &space, law, material, &span, &shape, &probe, &depths, 1e-9, 3, None,
             )
             .expect("valid material");
             for (a, b) in again.u.iter().zip(&press.u) {
@@ -296,6 +536,139 @@ mod tests {
             let forces = again.force_n.iter().zip(&press.force_n);
             assert!(forces.into_iter().all(|(a, b)| (a - b).abs() < 1e-8 * b));
         }
+    }
+
+    /// From a one-vector span (the first depth's state), the check with the rest
+    /// factor grows the basis until every depth is Newton's equilibrium.
+    #[test]
+    fn the_check_grows_a_poor_span_until_each_depth_is_an_equilibrium() {
+        let (space, shape, probe) = held_tet();
+        let material = Material::default();
+        let (lambda, mu) = material.lame_n_per_mm2();
+        let depths = [0.5, 1.0, 1.5, 2.0];
+        let pattern = SymCsc::pattern(&space);
+        let rest = crate::fe::newton::factor_tangent(
+            &space,
+            Law::NeoHookean,
+            &pattern,
+            &vec![0.0; 3 * space.nodes.len()],
+            lambda,
+            mu,
+        )
+        .expect("held at three corners");
+        let full = Basis::orthonormal(identity(12), 1e-12);
+        let newton = reduced_press(
+            &space,
+            Law::NeoHookean,
+            material,
+            &full,
+            &shape,
+            &probe,
+            &depths,
+            1e-10,
+            3,
+            None,
+        )
+        .expect("valid material");
+        let one = Basis::orthonormal([space.restrict(&newton.u[0])], 1e-12);
+        let check = Check {
+            factor: &rest,
+            tolerance_mm: 1e-9,
+            max_added: 12,
+        };
+        let grown = reduced_press(
+            &space,
+            Law::NeoHookean,
+            material,
+            &one,
+            &shape,
+            &probe,
+            &depths,
+            1e-10,
+            3,
+            Some(&check),
+        )
+        .expect("valid material");
+        assert_eq!(grown.stopped, None);
+        assert!(grown.added > 0 && grown.rank > 1, "{grown:?}");
+        assert!(grown.check_mm.iter().all(|&m| m <= 1e-9));
+        for (a, b) in grown.u.iter().zip(&newton.u) {
+            let gap = a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            assert!(gap < 1e-8, "{gap} mm");
+        }
+        // Without the check the one-vector span is not the press.
+        let poor = reduced_press(
+            &space,
+            Law::NeoHookean,
+            material,
+            &one,
+            &shape,
+            &probe,
+            &depths,
+            1e-10,
+            3,
+            None,
+        )
+        .expect("valid material");
+        let gap = poor
+            .u
+            .last()
+            .zip(newton.u.last())
+            .map_or(f64::INFINITY, |(a, b)| {
+                a.iter()
+                    .zip(b)
+                    .map(|(x, y)| (x - y).abs())
+                    .fold(0.0, f64::max)
+            });
+        assert!(gap > 1e-4, "{gap} mm");
+    }
+
+    /// Broyden's update makes the tangent map the last step to the last change of the
+    /// force (the secant condition) and leaves it unchanged across that step.
+    #[test]
+    fn broyden_meets_the_secant_condition_and_changes_nothing_across_the_step() {
+        let mut j = vec![2.0, 0.5, -1.0, 3.0];
+        let before = j.clone();
+        let (a0, a) = ([0.1, -0.2], [0.4, 0.3]);
+        let (f0, f) = ([1.0, 2.0], [1.7, 1.1]);
+        broyden(&mut j, &a, &f, &a0, &f0);
+        let s = [a[0] - a0[0], a[1] - a0[1]];
+        for i in 0..2 {
+            let js = j[2 * i] * s[0] + j[2 * i + 1] * s[1];
+            assert!((js - (f[i] - f0[i])).abs() < 1e-14);
+        }
+        // A direction orthogonal to the step is mapped as before.
+        let t = [-s[1], s[0]];
+        for i in 0..2 {
+            let now = j[2 * i] * t[0] + j[2 * i + 1] * t[1];
+            let was = before[2 * i] * t[0] + before[2 * i + 1] * t[1];
+            assert!((now - was).abs() < 1e-14);
+        }
+        // No step, no update.
+        let kept = j.clone();
+        broyden(&mut j, &a, &[9.0, 9.0], &a, &f);
+        assert_eq!(j, kept);
+    }
+
+    /// The predictor is exact on states quadratic in the depth once three are known.
+    #[test]
+    fn the_predictor_is_exact_for_a_quadratic_path() {
+        let state = |d: f64| (vec![d * d - 2.0 * d, 0.5 * d], 3.0 * d + d * d);
+        let history: Vec<(f64, Vec<f64>, f64)> = [0.0, 1.0, 2.5]
+            .iter()
+            .map(|&d| {
+                let (a, f) = state(d);
+                (d, a, f)
+            })
+            .collect();
+        let (a, f) = predict(&history, 4.0);
+        let (want_a, want_f) = state(4.0);
+        assert!(a.iter().zip(&want_a).all(|(x, y)| (x - y).abs() < 1e-12));
+        assert!((f - want_f).abs() < 1e-12);
     }
 
     #[test]
