@@ -15,17 +15,21 @@
 //! [ cᵀ   0 ] [ΔF] = [ d − c·a         ]
 //! ```
 //!
-//! `J` is kept from depth to depth while the corrections shrink fast enough (a chord in
-//! `r + 1` unknowns) and formed again, at the current state, where they do not.
+//! `J` is formed at rest and kept from depth to depth, Broyden's update making it agree
+//! with every pair of residuals assembled; it is formed again, at the current state,
+//! only where the corrections stop shrinking. An optional [`Check`] takes one chord
+//! step of the bordered problem on the whole mesh with a given factor and, where it
+//! moves a node by more than its tolerance, adds that step to the basis and solves the
+//! depth again.
 //!
 //! Why: the tissue build follows every press to equilibrium on the full mesh (one
 //! factored tangent per segment, `fe::path`), which puts the whole coarse surface at
-//! hours. A point between presses already made (a split triangle's quarter and inner
-//! points lie 2–6 mm from its corners and edge midpoints) may be spanned by their
-//! states and its own first orders; then its press needs no factorization at all.
-//! This module is the solver that question is measured with (`palpa bench fe --only
-//! reduced`); each residual here is still assembled on the whole mesh, so it answers
-//! the accuracy question, not yet the cost one.
+//! hours. Measured by `palpa bench fe --only reduced` (docs/methods.md §2e): a point's
+//! own first six series orders alone give its press to 6 mm within 0.03 mm for about a
+//! sixth of a full press, but not deeper (0.3–2.3 mm at 12–15 mm). The check with the
+//! rest factor brings 12–15 mm within 0.05–0.23 mm, but it understates the error there
+//! (the rest stiffness is not the tangent's action) and costs 0.6–0.8 of a full press.
+//! So the build does not use this module yet.
 
 use std::time::Instant;
 
@@ -365,7 +369,7 @@ fn in_span(
     d: f64,
     tolerance_mm: f64,
     refresh_after: usize,
-    a: &mut Vec<f64>,
+    a: &mut [f64],
     force: &mut f64,
     jac: &mut Option<Vec<f64>>,
     last_eval: &mut Option<(Vec<f64>, Vec<f64>)>,
@@ -389,7 +393,7 @@ fn in_span(
         } else if let (Some(j), Some((a0, f0))) = (jac.as_mut(), last_eval.as_ref()) {
             broyden(j, a, &fa, a0, f0);
         }
-        *last_eval = Some((a.clone(), fa.clone()));
+        *last_eval = Some((a.to_vec(), fa.clone()));
         let mut rhs: Vec<f64> = fa.iter().zip(b).map(|(x, bi)| -(x - *force * bi)).collect();
         rhs.push(d - dot(c, a));
         let j = jac.as_ref().map_or(&[][..], Vec::as_slice);
