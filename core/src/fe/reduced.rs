@@ -560,74 +560,49 @@ mod tests {
             mu,
         )
         .expect("held at three corners");
-        let full = Basis::orthonormal(identity(12), 1e-12);
-        let newton = reduced_press(
-            &space,
-            Law::NeoHookean,
-            material,
-            &full,
-            &shape,
-            &probe,
-            &depths,
-            1e-10,
-            3,
-            None,
-        )
-        .expect("valid material");
+        let press = |basis: &Basis, check: Option<&Check>| {
+            reduced_press(
+                &space,
+                Law::NeoHookean,
+                material,
+                basis,
+                &shape,
+                &probe,
+                &depths,
+                1e-10,
+                3,
+                check,
+            )
+            .expect("valid material")
+        };
+        let largest_gap = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max)
+        };
+        let newton = press(&Basis::orthonormal(identity(12), 1e-12), None);
         let one = Basis::orthonormal([space.restrict(&newton.u[0])], 1e-12);
         let check = Check {
             factor: &rest,
             tolerance_mm: 1e-9,
             max_added: 12,
         };
-        let grown = reduced_press(
-            &space,
-            Law::NeoHookean,
-            material,
-            &one,
-            &shape,
-            &probe,
-            &depths,
-            1e-10,
-            3,
-            Some(&check),
-        )
-        .expect("valid material");
+        let grown = press(&one, Some(&check));
         assert_eq!(grown.stopped, None);
         assert!(grown.added > 0 && grown.rank > 1, "{grown:?}");
         assert!(grown.check_mm.iter().all(|&m| m <= 1e-9));
         for (a, b) in grown.u.iter().zip(&newton.u) {
-            let gap = a
-                .iter()
-                .zip(b)
-                .map(|(x, y)| (x - y).abs())
-                .fold(0.0, f64::max);
+            let gap = largest_gap(a, b);
             assert!(gap < 1e-8, "{gap} mm");
         }
         // Without the check the one-vector span is not the press.
-        let poor = reduced_press(
-            &space,
-            Law::NeoHookean,
-            material,
-            &one,
-            &shape,
-            &probe,
-            &depths,
-            1e-10,
-            3,
-            None,
-        )
-        .expect("valid material");
+        let poor = press(&one, None);
         let gap = poor
             .u
             .last()
             .zip(newton.u.last())
-            .map_or(f64::INFINITY, |(a, b)| {
-                a.iter()
-                    .zip(b)
-                    .map(|(x, y)| (x - y).abs())
-                    .fold(0.0, f64::max)
-            });
+            .map_or(f64::INFINITY, |(a, b)| largest_gap(a, b));
         assert!(gap > 1e-4, "{gap} mm");
     }
 
