@@ -202,7 +202,7 @@ fn symbolic(a: &SymCsc) -> Result<Arc<SymbolicCholesky<usize>>, FeError> {
         })?,
     );
     let mut kept = ANALYSES.lock().unwrap_or_else(PoisonError::into_inner);
-    if !kept.iter().any(|e| same(e)) {
+    if !kept.iter().any(same) {
         if kept.len() == ANALYSES_KEPT {
             kept.remove(0);
         }
