@@ -9,9 +9,9 @@
 //! `P(t + Δ) = Σ_k Pois(k; qΔ) Bᵏ P(t)`. Every term is non-negative, so the result
 //! has no negative probabilities and the truncation of the sum (tail < 1e-15) is the
 //! only error besides round-off. The weights are carried as logarithms, so a step can
-//! be long (`qΔ` up to 5 000). Cost: about `q·t` sparse matrix–vector products: cheap for the gene
-//! networks here (q ~ 1–20 per unit time), expensive for stiff networks (then a Krylov
-//! or implicit method would be the choice).
+//! be long (`qΔ` up to 5 000). Cost: about `q·t` sparse matrix–vector products: cheap
+//! for the gene networks here (q ~ 1–20 per unit time), expensive for stiff networks
+//! (then a Krylov or implicit method would be the choice).
 //!
 //! Boxes beyond ~10⁷ states are refused: that is where separated (PGD) solvers take
 //! over.
