@@ -678,7 +678,9 @@ impl Local<'_> {
     /// one-species network (`r0 = r1 = 1`, a tridiagonal system) needs: GMRES with a
     /// Jacobi preconditioner took hundreds of iterations on a birth–death box of
     /// 16 384 states, whose stiffness grows with the box. `None` when the band is too
-    /// large or a pivot vanishes (the caller falls back to GMRES).
+    /// large or a pivot vanishes (the caller falls back to GMRES). `solve_local` calls
+    /// it for one-core trains only: with rank × rank blocks it was slower than GMRES
+    /// (a two-species DSMTS case, 72 s by GMRES, 476 s by the band).
     fn solve_banded(&self, f: &[f64]) -> Option<Vec<f64>> {
         let (r0, n, r1) = (self.r0, self.n, self.r1);
         let m = r0 * r1;
