@@ -47,28 +47,33 @@ impl Moments {
     }
 
     /// From the marginals, `E[z_0 z_1]` (unnormalized) and the total mass; means and
-    /// variances are those of the distribution renormalized to mass 1.
+    /// variances are those of the distribution renormalized to mass 1. Each species'
+    /// weigh its marginal divided by the marginal's own sum (the mass, up to the order
+    /// the sums were added in), so a species held at one count has exactly that mean
+    /// and variance 0 (`q/q` is 1 exactly, where `z q / q` may miss `z` by a unit in
+    /// the last place).
     pub fn from_marginals(t: f64, marginals: Vec<Vec<f64>>, e01: f64, mass: f64) -> Self {
         let d = marginals.len();
+        let own = |m: &[f64]| m.iter().sum::<f64>().max(f64::MIN_POSITIVE);
         let mean: Vec<f64> = marginals
             .iter()
             .map(|m| {
+                let s = own(m);
                 m.iter()
                     .enumerate()
-                    .map(|(z, &q)| z as f64 * q)
+                    .map(|(z, &q)| z as f64 * (q / s))
                     .sum::<f64>()
-                    / mass.max(f64::MIN_POSITIVE)
             })
             .collect();
         let var = marginals
             .iter()
             .zip(&mean)
             .map(|(m, &mu)| {
+                let s = own(m);
                 m.iter()
                     .enumerate()
-                    .map(|(z, &q)| (z as f64 - mu).powi(2) * q)
+                    .map(|(z, &q)| (z as f64 - mu).powi(2) * (q / s))
                     .sum::<f64>()
-                    / mass.max(f64::MIN_POSITIVE)
             })
             .collect();
         let cov01 = if d >= 2 {
