@@ -1,6 +1,6 @@
 //! The `palpa` binary end to end: synth → info, bench output shape, clear errors.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

@@ -2,7 +2,7 @@
 //! --gpu installs it): the compute deformation against the CPU path of palpa-core, and
 //! an offscreen render of the default scene against a reference image.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

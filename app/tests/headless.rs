@@ -1,7 +1,7 @@
 //! `palpa headless` end to end on the software adapter: the JSON report, the PNG, and
 //! clear errors for bad input.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

@@ -3,7 +3,7 @@
 //! keeps the previous output and says so. (`palpa offline --method pgd` and
 //! `palpa scene build` have their own resume tests in `cli.rs` and `scene_build.rs`.)
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

@@ -5,7 +5,7 @@
 //! frames drawn offscreen on the software adapter. The session (probe, camera, modes
 //! kept, a network's coordinates) survives all of it.
 
-mod common;
+use crate::common;
 
 use glam::Vec2;
 use palpa_app::input::{Button, InputEvent, PointerId};

@@ -2,7 +2,7 @@
 //! answers a depth with the vademecum's force, and the frame draws the linear surface
 //! at that depth plus the vademecum's residual, at the same probe point and depth.
 
-mod common;
+use crate::common;
 
 use std::time::Duration;
 

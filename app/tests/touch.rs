@@ -6,7 +6,7 @@
 //! the screen; the smallest supported screen, one below it, a 4K desktop and each
 //! density behave as documented; and two snapshots guard the view beside the panel.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
