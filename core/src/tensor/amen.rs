@@ -987,17 +987,20 @@ mod tests {
             n,
             r1: 3,
         };
-        let f: Vec<f64> = (0..local.len()).map(|_| rng.uniform() - 0.5).collect();
-        let y = local
-            .solve_banded(&f)
-            .expect("a small band is solved directly");
-        let mut my = vec![0.0; y.len()];
-        local.apply(&y, &mut my);
-        let err = my
-            .iter()
-            .zip(&f)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        // Solves `M y = f` for a random `f` and returns max |M y − f|.
+        let residual = |local: &Local, rng: &mut crate::rng::Rng| {
+            let f: Vec<f64> = (0..local.len()).map(|_| rng.uniform() - 0.5).collect();
+            let y = local
+                .solve_banded(&f)
+                .expect("a small band is solved directly");
+            let mut my = vec![0.0; y.len()];
+            local.apply(&y, &mut my);
+            my.iter()
+                .zip(&f)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max)
+        };
+        let err = residual(&local, &mut rng);
         assert!(err < 1e-10, "|M y − f| = {err:.2e}");
         // One-by-one frames (a one-core train, the band built without them): the same.
         let scalar = |rng: &mut crate::rng::Rng, shift: f64| frame(rng, 1, shift);
@@ -1011,15 +1014,7 @@ mod tests {
             n,
             r1: 1,
         };
-        let f: Vec<f64> = (0..local.len()).map(|_| rng.uniform() - 0.5).collect();
-        let y = local.solve_banded(&f).expect("a tridiagonal system");
-        let mut my = vec![0.0; y.len()];
-        local.apply(&y, &mut my);
-        let err = my
-            .iter()
-            .zip(&f)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let err = residual(&local, &mut rng);
         assert!(err < 1e-10, "one-core: |M y − f| = {err:.2e}");
         // A dense 1-D factor on a long axis is past the budget: GMRES's job.
         let wide = 3_000;
