@@ -13,5 +13,11 @@ if [[ -z "${XDG_RUNTIME_DIR:-}" || ! -d "${XDG_RUNTIME_DIR}" ]]; then
   XDG_RUNTIME_DIR=$(mktemp -d)
   export XDG_RUNTIME_DIR
 fi
+# Without incremental compilation: CI builds from a clean clone, where incremental's
+# bookkeeping only costs (17 s of our crates' 3.9 minutes). Built this way, with the
+# dependencies unoptimized (Cargo.toml), the tests ran faster, not slower: 10.4 → 9.3
+# minutes for the integration tests, 7.1 → 6.6 for the app's (fewer, larger code
+# generation units in our crates). `cargo test` by hand keeps incremental builds.
+export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
 cargo test --locked --workspace --all-targets
 cargo test --locked --workspace --doc
