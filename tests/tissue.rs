@@ -19,6 +19,7 @@ use palpa_core::pgd::surfacelaw::{
 use palpa_core::pgd::tissue::{
     BoundTissue, Grouping, PointIndex, QUANT_SHARES, ShapeBits, TissueError, TissueLaw,
 };
+use palpa_core::organ::OrganMesh;
 use palpa_core::scene::PalpationScene;
 use palpa_tests::{coarse_liver, stored_error};
 
@@ -324,6 +325,8 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
         }
     }
 
+    refined_in_place(&organ, plain, &split, &log);
+
     let compress = |law: &SurfaceLaw| {
         let t = TissueLaw::compress(&organ, law, 0.002, ShapeBits::Sixteen).expect("compresses");
         let scene = shipped_scene();
@@ -484,6 +487,112 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
             "the split changed nothing: {e_plain}"
         );
     }
+}
+
+/// The plain law compressed, read back and split in place (`tissue refine`): every
+/// split press taken from the split build's log (the two share a key), the same
+/// triangles and points split, each surplus within the blend's share of the file's
+/// bound of the split build's, the file's own samples kept unchanged; the worst
+/// triangle alone where one is asked for; a split file refused.
+fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, log: &Path) {
+    let none = &|_: PressCount| {};
+    let r = &split.refinement;
+    let first = plain.samples.len() + plain.edges.len();
+    let total = first + r.quarter_ends.len() + r.inner_corners.len();
+    let base = TissueLaw::compress(organ, plain, 0.002, ShapeBits::Sixteen).expect("compresses");
+    let bound = base.truncation_bound_mm;
+    let node_gap = |a: &[f32], b: &[f32]| {
+        a.chunks(3)
+            .zip(b.chunks(3))
+            .map(|(a, b)| {
+                (0..3)
+                    .map(|k| f64::from(a[k] - b[k]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .fold(0.0, f64::max)
+    };
+    let back = base.surface_law(organ).expect("reads back");
+    assert_eq!(back.samples, plain.samples);
+    assert_eq!(back.edges, plain.edges);
+    for s in 0..first {
+        for j in 0..plain.steps() {
+            let gap = node_gap(back.residual_at(s, j), plain.residual_at(s, j));
+            assert!(gap <= bound + 1e-6, "sample {s}, depth {j}: {gap} > {bound}");
+        }
+    }
+    let (refined, resumed, above) = back
+        .refine(organ, 0.0, None, Some(log), none)
+        .expect("refines");
+    assert_eq!(resumed, total - first, "every split press from the log");
+    assert_eq!(above, r.triangles.len());
+    assert_eq!(&refined.refinement, r);
+    // A quarter point's parent blend weighs 1.75 in all, an inner point's 2.25.
+    for s in first..total {
+        for j in 0..split.steps() {
+            let gap = node_gap(refined.residual_at(s, j), split.residual_at(s, j));
+            assert!(gap <= 2.25 * bound + 1e-5, "sample {s}, depth {j}: {gap}");
+        }
+    }
+    let file = base.refined(organ, &refined).expect("compresses the split points");
+    assert_eq!(file.refinement, *r);
+    assert!(file.truncation_bound_mm >= bound && file.truncation_bound_mm <= 0.002);
+    for s in 0..first {
+        let (modes, start) = file.sample_modes(s);
+        let (base_modes, base_start) = base.sample_modes(s);
+        let weights = modes.len() * split.steps();
+        assert_eq!(
+            file.coeffs[start..start + weights],
+            base.coeffs[base_start..base_start + weights]
+        );
+        assert_eq!(
+            file.shape_scale[modes.clone()],
+            base.shape_scale[base_modes.clone()]
+        );
+        let m = 3 * file.rows_mm.len();
+        for (k, b) in modes.zip(base_modes) {
+            for i in 0..m {
+                assert_eq!(file.shape.get(k * m + i), base.shape.get(b * m + i));
+            }
+        }
+    }
+    for s in first..total {
+        let count = file.sample_modes(s).0.len();
+        let e = stored_error(&file, s, count, |j| refined.residual_at(s, j));
+        assert!(e <= file.truncation_bound_mm + 1e-12, "sample {s}: {e}");
+    }
+    // The worst triangle alone (by its largest edge surplus as stored: within the
+    // bound of the computed one, and two triangles share their worst edge); none at
+    // all gives the file back.
+    let edge_surplus = |tri: [u32; 3]| {
+        let t = r.triangles.iter().position(|&c| c == tri).expect("split");
+        split.split_figures[t].0
+    };
+    let worst = r.triangles.iter().map(|&t| edge_surplus(t)).fold(0.0, f64::max);
+    let partial = |most| {
+        let law = base.surface_law(organ).expect("reads back");
+        law.refine(organ, 0.0, Some(most), Some(log), none)
+            .expect("refines")
+    };
+    let (one, _, above) = partial(1);
+    assert_eq!(above, r.triangles.len());
+    assert_eq!(one.refinement.triangles.len(), 1);
+    let chosen = edge_surplus(one.refinement.triangles[0]);
+    assert!(chosen >= worst - 2.0 * bound, "{chosen} of {worst}");
+    let (zero, _, _) = partial(0);
+    let same = base.refined(organ, &zero).expect("compresses");
+    assert!(same.refinement.triangles.is_empty());
+    assert_eq!(
+        (&same.shape, &same.coeffs, &same.shape_scale, &same.ratio),
+        (&base.shape, &base.coeffs, &base.shape_scale, &base.ratio)
+    );
+    assert_eq!(same.truncation_bound_mm, bound);
+    let again = file.surface_law(organ);
+    assert!(
+        matches!(&again, Err(TissueError::Refine { why }) if why.contains("split triangles")),
+        "a split file is refused: {:?}",
+        again.map(|_| ())
+    );
 }
 
 /// What each stored sample of a law is, by the mesh vertices that name it (a vertex,

@@ -24,6 +24,7 @@ pub mod samplelog;
 pub mod surfacelaw;
 pub mod tissue;
 pub mod tissue_knobs;
+mod tissue_refine;
 pub mod tissue_shapes;
 mod tissue_v7;
 pub mod tradeoff;

@@ -111,7 +111,7 @@ pub struct SurfaceLaw {
     /// The surface vertices whose rows are kept (organ mesh vertex ids).
     pub rows: Vec<u32>,
     /// Per organ mesh vertex: its sample index, or `u32::MAX` (not sampled).
-    sample_of: Vec<u32>,
+    pub(crate) sample_of: Vec<u32>,
     /// Sampled vertices (organ mesh ids), and those skipped (the tool did not move
     /// its centre: next to the fixed region).
     pub samples: Vec<u32>,
@@ -140,9 +140,9 @@ pub struct SurfaceLaw {
     /// An edge's surplus reaches as far as its midpoint and both ends.
     pub reach: Vec<u32>,
     pub stopped: Vec<String>,
-    steps: usize,
+    pub(crate) steps: usize,
     /// `residual[((sample · steps) + j) · 3·rows + 3·row + c]`, mm.
-    residual: Vec<f32>,
+    pub(crate) residual: Vec<f32>,
     /// `ratio[sample · steps + j]`: the force over the linear force at grid depth `j`.
     pub ratio: Vec<f64>,
     /// Per sample: the FE model's linear stiffness there (N/mm), the largest last
@@ -167,6 +167,11 @@ pub enum SurfaceLawBuildError {
         point_mm: [f64; 3],
         distance_mm: f64,
     },
+    #[error(
+        "the surface law already has {triangles} split triangles: a refinement starts from a \
+         law whose triangles are not split (built with --no-refine)"
+    )]
+    AlreadyRefined { triangles: usize },
     #[error("the build's press log {path}: {source}")]
     Log {
         path: std::path::PathBuf,
@@ -254,8 +259,7 @@ impl SurfaceLaw {
         cover: Option<&[u32]>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
-        use rayon::prelude::*;
-        use std::sync::atomic::{AtomicUsize, Ordering};
+        use std::sync::atomic::AtomicUsize;
         let o = options;
         let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
         if !(o.depth_max_mm > 0.0 && o.depth_step_mm > 0.0 && (2..=256).contains(&steps)) {
@@ -281,55 +285,9 @@ impl SurfaceLaw {
             .collect();
         candidates.sort_unstable();
         candidates.dedup();
-        let log_error = |path: &Path, source| SurfaceLawBuildError::Log {
-            path: path.to_path_buf(),
-            source,
-        };
         let (log, finished) = match log {
             Some(path) => {
-                let po = path_options(&o);
-                // A covering build's edge ids count its own edges, so its log is its
-                // own: the key names the covered vertices.
-                let covered = cover.map_or(String::new(), |c| {
-                    let bytes: Vec<u8> = c.iter().flat_map(|v| v.to_le_bytes()).collect();
-                    format!(
-                        " cover {} {:016x}",
-                        c.len(),
-                        xxhash_rust::xxh3::xxh3_64(&bytes)
-                    )
-                });
-                let key_of = |version: u32, path: String| {
-                    format!(
-                        "palpa tissue-build log {version} mesh {:016x} rows {} {o:?} {path}{covered}",
-                        crate::pgd::depthlaw::organ_hash(organ),
-                        rows.len(),
-                    )
-                };
-                let key = key_of(6, format!("{po:?}"));
-                // Versions 3 (before the path follower's Newton fallback), 4 (which
-                // stopped a press at any dip of its force) and 5 (no factorization
-                // budget) differ from this build only where a press stopped short, or
-                // reached every depth through a fallback longer than the budget (none
-                // seen: every fallback measured that spent past it failed): their
-                // presses that reached every depth are kept, the others pressed again.
-                let budget = PathOptions::default().max_factorizations;
-                if po.newton_fallback && po.stop_past_force_peak && po.max_factorizations == budget
-                {
-                    let v5 =
-                        format!("{po:?}").replace(&format!(", max_factorizations: {budget}"), "");
-                    let v3 = v5.replace(", newton_fallback: true", "");
-                    for previous in [key_of(3, v3), key_of(4, v5.clone()), key_of(5, v5)] {
-                        RecordLog::upgrade::<Result<VertexPress, String>>(
-                            path,
-                            &previous,
-                            &key,
-                            |p| p.as_ref().is_ok_and(|p| p.reach as usize == steps),
-                        )
-                        .map_err(|e| log_error(path, e))?;
-                    }
-                }
-                let (l, r) = RecordLog::open::<Result<VertexPress, String>>(path, &key)
-                    .map_err(|e| log_error(path, e))?;
+                let (l, r) = open_press_log(organ, &o, rows.len(), steps, cover, path)?;
                 (Some((Mutex::new(l), path)), r)
             }
             None => (None, Vec::new()),
@@ -380,59 +338,21 @@ impl SurfaceLaw {
                 id: edge_id(organ, e),
             }
         }));
-        let done = AtomicUsize::new(0);
-        let from_log = AtomicUsize::new(0);
-        // Presses `points` (those in the log taken from it), in parallel; `total` is
-        // what the progress counts to.
+        let presser = Presser {
+            space: &space,
+            organ,
+            expander: &expander,
+            o: &o,
+            rows: &rows,
+            steps,
+            log: log.as_ref().map(|(l, p)| (l, *p)),
+            done: AtomicUsize::new(0),
+            from_log: AtomicUsize::new(0),
+            progress,
+        };
         let press_all = |points: &[PressPoint],
                          finished: &mut HashMap<u32, Result<VertexPress, String>>,
-                         total: usize|
-         -> Result<
-            (Vec<Result<VertexPress, String>>, usize),
-            SurfaceLawBuildError,
-        > {
-            let mut out: Vec<Option<Result<VertexPress, String>>> =
-                points.iter().map(|p| finished.remove(&p.id)).collect();
-            let resumed = out.iter().filter(|p| p.is_some()).count();
-            let logged = from_log.fetch_add(resumed, Ordering::Relaxed) + resumed;
-            progress(PressCount {
-                done: done.fetch_add(resumed, Ordering::Relaxed) + resumed,
-                total,
-                from_log: logged,
-            });
-            let todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
-            // One press a task: rayon otherwise hands each thread a run of presses to
-            // do in turn, and a build's last run (presses of minutes on medium P2) went
-            // on on one core while the other sat idle.
-            let computed: Vec<(usize, Result<VertexPress, String>)> = todo
-                .par_iter()
-                .with_max_len(1)
-                .map(|&k| -> Result<_, SurfaceLawBuildError> {
-                    let p = &points[k];
-                    let press =
-                        point_press(&space, organ, &expander, &o, &rows, steps, p.at, p.push)?;
-                    if let Some((l, path)) = &log {
-                        // Off-line and once a press (seconds): a lock is fine here.
-                        let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
-                        l.push(p.id, &press).map_err(|e| log_error(path, e))?;
-                    }
-                    progress(PressCount {
-                        done: done.fetch_add(1, Ordering::Relaxed) + 1,
-                        total,
-                        from_log: logged,
-                    });
-                    Ok((k, press))
-                })
-                .collect::<Result<_, _>>()?;
-            for (k, press) in computed {
-                out[k] = Some(press);
-            }
-            let out = out
-                .into_iter()
-                .map(|p| p.expect("every point is pressed"))
-                .collect();
-            Ok((out, resumed))
-        };
+                         total: usize| presser.press(points, finished, total);
         let (mut presses, mut resumed) = press_all(&points, &mut finished, points.len())?;
         let edge_presses = presses.split_off(candidates.len());
         let mut sample_of = vec![u32::MAX; organ.mesh.vertices.len()];
@@ -479,47 +399,22 @@ impl SurfaceLaw {
         let mut refine_skip_reasons = Vec::new();
         let mut split_figures = Vec::new();
         if let Some(above_mm) = refine_above_mm {
-            let plan = refine_plan(organ, &sample_of, &kept_edges, &stored, n_row, above_mm);
+            let plan = refine_plan(organ, &sample_of, &kept_edges, &stored, n_row, above_mm, None);
             let first = points.len();
             let quarter_points = plan.quarters.iter().map(|q| q.point(organ, &normals));
             let inner_points = plan.inner.iter().map(|q| q.point(organ, &normals));
             let points: Vec<PressPoint> = quarter_points.chain(inner_points).collect();
             let (presses, more) = press_all(&points, &mut finished, first + points.len())?;
             resumed += more;
-            refinement.triangles = plan.triangles.clone();
-            // Per plan point: the largest node of its kept surplus (mm).
-            let mut point_peak = Vec::new();
-            for (q, press) in plan.quarters.iter().chain(&plan.inner).zip(presses) {
-                let p = match press {
-                    Ok(p) => p,
-                    Err(why) => {
-                        refine_skip_reasons.push(why);
-                        point_peak.push(0.0);
-                        continue;
-                    }
-                };
-                let (surplus, g, reach, why) = stored.surplus(&p, &q.base, steps, 3 * rows.len());
-                point_peak.push(node_peak(&surplus));
-                stored.push(&p, &surplus, &g, reach, why);
-                match q.near.len() {
-                    2 => refinement.quarter_ends.push([q.near[0], q.near[1]]),
-                    _ => refinement
-                        .inner_corners
-                        .push([q.near[0], q.near[1], q.near[2]]),
-                }
-            }
-            let n_quarters = plan.quarters.len();
-            split_figures = plan
-                .figures
-                .iter()
-                .map(|(edge, quarters, inner)| {
-                    let points = quarters
-                        .iter()
-                        .copied()
-                        .chain(inner.iter().map(|&i| n_quarters + i));
-                    (*edge, points.map(|k| point_peak[k]).fold(0.0, f64::max))
-                })
-                .collect();
+            split_figures = split_triangles(
+                &plan,
+                presses,
+                &mut stored,
+                steps,
+                3 * rows.len(),
+                &mut refinement,
+                &mut refine_skip_reasons,
+            );
         }
         let law = SurfaceLaw {
             options,
@@ -544,6 +439,99 @@ impl SurfaceLaw {
             build_s: t0.elapsed().as_secs_f64(),
         };
         Ok((law, resumed))
+    }
+
+    /// Splits the triangles of a law built without splitting (see [`Refinement`]):
+    /// those whose largest edge surplus exceeds `above_mm`, or only the `most` worst
+    /// of them, their quarter and inner points pressed (in parallel, logged at `log`
+    /// under the same key as a whole build of the same options, so either takes the
+    /// other's presses) and kept as surpluses over *this* law's quadratic blend. A law
+    /// decompressed from a tissue file ([`super::tissue::TissueLaw::surface_law`])
+    /// thus gets the split a whole build would give without pressing its vertices and
+    /// edges again, each split point's surplus measured against the blend the file
+    /// answers with. Returns the refined law, how many presses came from the log, and
+    /// how many triangles lie above the threshold (more than were split under `most`).
+    pub fn refine(
+        mut self,
+        organ: &OrganMesh,
+        above_mm: f64,
+        most: Option<usize>,
+        log: Option<&Path>,
+        progress: &(dyn Fn(PressCount) + Sync),
+    ) -> Result<(SurfaceLaw, usize, usize), SurfaceLawBuildError> {
+        use std::sync::atomic::AtomicUsize;
+        if !self.refinement.triangles.is_empty() {
+            return Err(SurfaceLawBuildError::AlreadyRefined {
+                triangles: self.refinement.triangles.len(),
+            });
+        }
+        let t0 = Instant::now();
+        let (o, steps) = (self.options, self.steps);
+        let space = organ_space(organ, o.element);
+        let expander = Expander::new(&space, o.law, o.material)?;
+        let (log, finished) = match log {
+            Some(path) => {
+                let (l, r) = open_press_log(organ, &o, self.rows.len(), steps, None, path)?;
+                (Some((Mutex::new(l), path)), r)
+            }
+            None => (None, Vec::new()),
+        };
+        let mut finished: HashMap<u32, Logged> = finished.into_iter().collect();
+        let mut stored = Stored {
+            residual: std::mem::take(&mut self.residual),
+            ratio: std::mem::take(&mut self.ratio),
+            stiffness: std::mem::take(&mut self.stiffness_n_per_mm),
+            correction: std::mem::take(&mut self.correction_mm),
+            segments: std::mem::take(&mut self.segments),
+            reach: std::mem::take(&mut self.reach),
+            stopped: std::mem::take(&mut self.stopped),
+        };
+        let n_row = steps * 3 * self.rows.len();
+        let plan = refine_plan(
+            organ,
+            &self.sample_of,
+            &self.edges,
+            &stored,
+            n_row,
+            above_mm,
+            most,
+        );
+        let normals = organ_vertex_normals(organ);
+        let quarter_points = plan.quarters.iter().map(|q| q.point(organ, &normals));
+        let inner_points = plan.inner.iter().map(|q| q.point(organ, &normals));
+        let points: Vec<PressPoint> = quarter_points.chain(inner_points).collect();
+        let presser = Presser {
+            space: &space,
+            organ,
+            expander: &expander,
+            o: &o,
+            rows: &self.rows,
+            steps,
+            log: log.as_ref().map(|(l, p)| (l, *p)),
+            done: AtomicUsize::new(0),
+            from_log: AtomicUsize::new(0),
+            progress,
+        };
+        let (presses, resumed) = presser.press(&points, &mut finished, points.len())?;
+        self.refinement.above_mm = Some(above_mm);
+        self.split_figures = split_triangles(
+            &plan,
+            presses,
+            &mut stored,
+            steps,
+            3 * self.rows.len(),
+            &mut self.refinement,
+            &mut self.refine_skip_reasons,
+        );
+        self.residual = stored.residual;
+        self.ratio = stored.ratio;
+        self.stiffness_n_per_mm = stored.stiffness;
+        self.correction_mm = stored.correction;
+        self.segments = stored.segments;
+        self.reach = stored.reach;
+        self.stopped = stored.stopped;
+        self.build_s += t0.elapsed().as_secs_f64();
+        Ok((self, resumed, plan.above))
     }
 
     pub fn steps(&self) -> usize {
@@ -681,6 +669,8 @@ impl RefinePoint {
 /// The triangles to split and the points to press.
 #[derive(Default)]
 struct RefinePlan {
+    /// Triangles above the threshold (`triangles` holds all of them or the worst).
+    above: usize,
     triangles: Vec<[u32; 3]>,
     /// Per split triangle: its largest edge surplus (mm), and its six quarter points'
     /// and three inner points' indices in `quarters` and `inner`.
@@ -759,6 +749,7 @@ fn refine_plan(
     stored: &Stored,
     n_row: usize,
     above_mm: f64,
+    most: Option<usize>,
 ) -> RefinePlan {
     let all_edges = palpable_edges(organ);
     let first_edge = sample_of.iter().filter(|&&s| s != u32::MAX).count();
@@ -769,8 +760,9 @@ fn refine_plan(
         .map(|(e, &[a, b])| ([a.min(b), a.max(b)], first_edge + e))
         .collect();
     let peak = |s: usize| node_peak(&stored.residual[s * n_row..][..n_row]);
-    let mut plan = RefinePlan::default();
-    let mut seen = HashMap::new();
+    // Per palpable triangle whose corners and edges were kept: its corner samples,
+    // edge samples and largest edge surplus.
+    let mut candidates = Vec::new();
     for (t, (tri, _)) in organ
         .boundary
         .iter()
@@ -790,9 +782,31 @@ fn refine_plan(
             continue;
         };
         let worst = e.iter().map(|&s| peak(s)).fold(0.0, f64::max);
-        if worst <= above_mm {
-            continue;
+        if worst > above_mm {
+            candidates.push((t, *tri, c, e, worst));
         }
+    }
+    let above = candidates.len();
+    // The `most` worst, kept in the mesh's order (ties to the first).
+    if let Some(most) = most.filter(|&m| m < candidates.len()) {
+        let mut order: Vec<usize> = (0..candidates.len()).collect();
+        order.sort_by(|&i, &j| candidates[j].4.total_cmp(&candidates[i].4).then(i.cmp(&j)));
+        let mut keep = vec![false; candidates.len()];
+        for &i in &order[..most] {
+            keep[i] = true;
+        }
+        let mut k = 0;
+        candidates.retain(|_| {
+            k += 1;
+            keep[k - 1]
+        });
+    }
+    let mut plan = RefinePlan {
+        above,
+        ..RefinePlan::default()
+    };
+    let mut seen = HashMap::new();
+    for (t, tri, c, e, worst) in candidates {
         plan.triangles.push(c);
         let (mut quarters, mut inner) = ([0; 6], [0; 3]);
         for k in 0..3 {
@@ -837,6 +851,191 @@ fn refine_plan(
         plan.figures.push((worst, quarters, inner));
     }
     plan
+}
+
+/// Keeps the split triangles' pressed points (`presses` in the plan's order, quarter
+/// points then inner points) as their surpluses over the parent's quadratic blend,
+/// appended to `stored` and listed in `refinement`; returns each split triangle's
+/// figures (its largest edge surplus, and its points' largest kept surplus).
+fn split_triangles(
+    plan: &RefinePlan,
+    presses: Vec<Result<VertexPress, String>>,
+    stored: &mut Stored,
+    steps: usize,
+    row: usize,
+    refinement: &mut Refinement,
+    refine_skip_reasons: &mut Vec<String>,
+) -> Vec<(f64, f64)> {
+    refinement.triangles = plan.triangles.clone();
+    // Per plan point: the largest node of its kept surplus (mm).
+    let mut point_peak = Vec::new();
+    for (q, press) in plan.quarters.iter().chain(&plan.inner).zip(presses) {
+        let p = match press {
+            Ok(p) => p,
+            Err(why) => {
+                refine_skip_reasons.push(why);
+                point_peak.push(0.0);
+                continue;
+            }
+        };
+        let (surplus, g, reach, why) = stored.surplus(&p, &q.base, steps, row);
+        point_peak.push(node_peak(&surplus));
+        stored.push(&p, &surplus, &g, reach, why);
+        match q.near.len() {
+            2 => refinement.quarter_ends.push([q.near[0], q.near[1]]),
+            _ => refinement
+                .inner_corners
+                .push([q.near[0], q.near[1], q.near[2]]),
+        }
+    }
+    let n_quarters = plan.quarters.len();
+    plan.figures
+        .iter()
+        .map(|(edge, quarters, inner)| {
+            let points = quarters
+                .iter()
+                .copied()
+                .chain(inner.iter().map(|&i| n_quarters + i));
+            (*edge, points.map(|k| point_peak[k]).fold(0.0, f64::max))
+        })
+        .collect()
+}
+
+/// A logged press: what [`point_press`] gave at one log id.
+type Logged = Result<VertexPress, String>;
+
+/// Opens a build's press log at `path` (see [`super::presslog`]) and returns it with
+/// the presses already in it. The key names everything that determines a press, so a
+/// build and a refinement of the same options share their presses (a covering build's
+/// key also names its vertices: its edge ids count its own edges).
+fn open_press_log(
+    organ: &OrganMesh,
+    o: &SurfaceLawOptions,
+    rows: usize,
+    steps: usize,
+    cover: Option<&[u32]>,
+    path: &Path,
+) -> Result<(RecordLog, Vec<(u32, Logged)>), SurfaceLawBuildError> {
+    let log_error = |source| SurfaceLawBuildError::Log {
+        path: path.to_path_buf(),
+        source,
+    };
+    let po = path_options(o);
+    let covered = cover.map_or(String::new(), |c| {
+        let bytes: Vec<u8> = c.iter().flat_map(|v| v.to_le_bytes()).collect();
+        format!(
+            " cover {} {:016x}",
+            c.len(),
+            xxhash_rust::xxh3::xxh3_64(&bytes)
+        )
+    });
+    let key_of = |version: u32, path: String| {
+        format!(
+            "palpa tissue-build log {version} mesh {:016x} rows {rows} {o:?} {path}{covered}",
+            crate::pgd::depthlaw::organ_hash(organ),
+        )
+    };
+    let key = key_of(6, format!("{po:?}"));
+    // Versions 3 (before the path follower's Newton fallback), 4 (which stopped a
+    // press at any dip of its force) and 5 (no factorization budget) differ from this
+    // build only where a press stopped short, or reached every depth through a
+    // fallback longer than the budget (none seen: every fallback measured that spent
+    // past it failed): their presses that reached every depth are kept, the others
+    // pressed again.
+    let budget = PathOptions::default().max_factorizations;
+    if po.newton_fallback && po.stop_past_force_peak && po.max_factorizations == budget {
+        let v5 = format!("{po:?}").replace(&format!(", max_factorizations: {budget}"), "");
+        let v3 = v5.replace(", newton_fallback: true", "");
+        for previous in [key_of(3, v3), key_of(4, v5.clone()), key_of(5, v5)] {
+            RecordLog::upgrade::<Logged>(path, &previous, &key, |p| {
+                p.as_ref().is_ok_and(|p| p.reach as usize == steps)
+            })
+            .map_err(log_error)?;
+        }
+    }
+    RecordLog::open::<Logged>(path, &key).map_err(log_error)
+}
+
+/// Presses surface points in parallel, logging each as it finishes and reporting
+/// progress (see [`PressCount`]).
+struct Presser<'a> {
+    space: &'a crate::fe::space::Space,
+    organ: &'a OrganMesh,
+    expander: &'a Expander<'a>,
+    o: &'a SurfaceLawOptions,
+    rows: &'a [u32],
+    steps: usize,
+    log: Option<(&'a Mutex<RecordLog>, &'a Path)>,
+    done: std::sync::atomic::AtomicUsize,
+    from_log: std::sync::atomic::AtomicUsize,
+    progress: &'a (dyn Fn(PressCount) + Sync),
+}
+
+impl Presser<'_> {
+    /// Presses `points` (those in `finished` taken from it) and returns their presses
+    /// in order and how many came from the log; `total` is what the progress counts
+    /// to.
+    fn press(
+        &self,
+        points: &[PressPoint],
+        finished: &mut HashMap<u32, Logged>,
+        total: usize,
+    ) -> Result<(Vec<Logged>, usize), SurfaceLawBuildError> {
+        use rayon::prelude::*;
+        use std::sync::atomic::Ordering;
+        let mut out: Vec<Option<Logged>> = points.iter().map(|p| finished.remove(&p.id)).collect();
+        let resumed = out.iter().filter(|p| p.is_some()).count();
+        let logged = self.from_log.fetch_add(resumed, Ordering::Relaxed) + resumed;
+        (self.progress)(PressCount {
+            done: self.done.fetch_add(resumed, Ordering::Relaxed) + resumed,
+            total,
+            from_log: logged,
+        });
+        let todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
+        // One press a task: rayon otherwise hands each thread a run of presses to do
+        // in turn, and a build's last run (presses of minutes on medium P2) went on on
+        // one core while the other sat idle.
+        let computed: Vec<(usize, Logged)> = todo
+            .par_iter()
+            .with_max_len(1)
+            .map(|&k| -> Result<_, SurfaceLawBuildError> {
+                let p = &points[k];
+                let press = point_press(
+                    self.space,
+                    self.organ,
+                    self.expander,
+                    self.o,
+                    self.rows,
+                    self.steps,
+                    p.at,
+                    p.push,
+                )?;
+                if let Some((l, path)) = self.log {
+                    // Off-line and once a press (seconds): a lock is fine here.
+                    let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
+                    l.push(p.id, &press)
+                        .map_err(|source| SurfaceLawBuildError::Log {
+                            path: path.to_path_buf(),
+                            source,
+                        })?;
+                }
+                (self.progress)(PressCount {
+                    done: self.done.fetch_add(1, Ordering::Relaxed) + 1,
+                    total,
+                    from_log: logged,
+                });
+                Ok((k, press))
+            })
+            .collect::<Result<_, _>>()?;
+        for (k, press) in computed {
+            out[k] = Some(press);
+        }
+        let out = out
+            .into_iter()
+            .map(|p| p.expect("every point is pressed"))
+            .collect();
+        Ok((out, resumed))
+    }
 }
 
 /// The per-sample arrays as the build fills them (vertices, edges, quarter points,

@@ -111,6 +111,8 @@ pub enum TissueError {
     Version { path: PathBuf, found: u32 },
     #[error("{path}: corrupt tissue law: {why}")]
     Corrupt { path: PathBuf, why: String },
+    #[error("cannot refine this tissue law: {why}")]
+    Refine { why: String },
     #[error("no palpable vertex could be pressed: the surface law is empty")]
     Empty,
     #[error("the SVD of the residual matrix ({rows} × {cols}) did not converge")]
@@ -202,11 +204,11 @@ pub const QUANT_SHARES: [f64; 3] = [0.3, 0.1, 0.0];
 
 /// One group's modes as stored: shapes, scales, each mode's weights (member after
 /// member, depths 1.. each), and the largest node error they leave.
-struct GroupModes {
-    shape: Shapes,
-    scale: Vec<f32>,
-    weights: Vec<Vec<f32>>,
-    error: f64,
+pub(super) struct GroupModes {
+    pub(super) shape: Shapes,
+    pub(super) scale: Vec<f32>,
+    pub(super) weights: Vec<Vec<f32>>,
+    pub(super) error: f64,
 }
 
 /// Compresses one group's residual columns `a` (`members` samples, depths 1.. each).
@@ -305,6 +307,42 @@ fn group_modes(
         out.weights.push(c);
     }
     Some(out)
+}
+
+/// One group's residual columns (`members` of `law`, depths 1.. each) compressed:
+/// coarse steps first (`first_share` of the tolerance); where they leave the group
+/// above the tolerance (a group's refitted modes chase their own rounding), finer
+/// ones (`finer`), down to the full 8 or 16 bits.
+fn compress_group(
+    law: &SurfaceLaw,
+    members: &[usize],
+    m: usize,
+    tolerance_mm: f64,
+    bits: ShapeBits,
+    first_share: &f64,
+    finer: &[f64],
+) -> Result<GroupModes, TissueError> {
+    let steps = law.steps();
+    // Columns j ≥ 1 only (depth 0 is exactly zero), sample after sample.
+    let cols = members.len() * (steps - 1);
+    let a = Mat::from_fn(m, cols, |i, c| {
+        let (s, j) = (members[c / (steps - 1)], c % (steps - 1) + 1);
+        f64::from(law.residual_at(s, j)[i])
+    });
+    let svd_error = || TissueError::Svd { rows: m, cols };
+    let mut modes = group_modes(a.as_ref(), members.len(), tolerance_mm, bits, *first_share)
+        .ok_or_else(svd_error)?;
+    for &share in finer {
+        if modes.error <= tolerance_mm {
+            break;
+        }
+        let again = group_modes(a.as_ref(), members.len(), tolerance_mm, bits, share)
+            .ok_or_else(svd_error)?;
+        if again.error < modes.error {
+            modes = again;
+        }
+    }
+    Ok(modes)
 }
 
 /// The largest node displacement (three rows a node) over the columns of `a`, mm.
@@ -469,6 +507,21 @@ impl TissueLaw {
         grouping: Grouping,
         shares: &[f64],
     ) -> Result<TissueLaw, TissueError> {
+        Self::compress_onto(organ, law, tolerance_mm, bits, grouping, shares, None)
+    }
+
+    /// [`Self::compress_with`], the groups of `base`'s samples (the first of `law`'s,
+    /// each its own group there and here) copied from it unchanged, not compressed
+    /// again: how a refinement keeps the file it refines ([`Self::refined`]).
+    pub(super) fn compress_onto(
+        organ: &OrganMesh,
+        law: &SurfaceLaw,
+        tolerance_mm: f64,
+        bits: ShapeBits,
+        grouping: Grouping,
+        shares: &[f64],
+        base: Option<&TissueLaw>,
+    ) -> Result<TissueLaw, TissueError> {
         let (first_share, finer) = shares.split_first().unwrap_or((&0.0, &[]));
         let t0 = Instant::now();
         let steps = law.steps();
@@ -483,29 +536,10 @@ impl TissueLaw {
         let (mut shape, mut shape_scale) = (Shapes::new(bits), Vec::new());
         let (mut rank, mut bound) = (0usize, 0.0f64);
         for (g, members) in groups.iter().enumerate() {
-            // Columns j ≥ 1 only (depth 0 is exactly zero), sample after sample.
-            let cols = members.len() * (steps - 1);
-            let a = Mat::from_fn(m, cols, |i, c| {
-                let (s, j) = (members[c / (steps - 1)], c % (steps - 1) + 1);
-                f64::from(law.residual_at(s, j)[i])
-            });
-            let svd_error = || TissueError::Svd { rows: m, cols };
-            // Coarse steps first; where they leave a group above the tolerance (a
-            // group's refitted modes chase their own rounding), finer ones, down to
-            // the full 8 or 16 bits.
-            let mut modes =
-                group_modes(a.as_ref(), members.len(), tolerance_mm, bits, *first_share)
-                    .ok_or_else(svd_error)?;
-            for &share in finer {
-                if modes.error <= tolerance_mm {
-                    break;
-                }
-                let again = group_modes(a.as_ref(), members.len(), tolerance_mm, bits, share)
-                    .ok_or_else(svd_error)?;
-                if again.error < modes.error {
-                    modes = again;
-                }
-            }
+            let modes = match base.filter(|b| members.iter().all(|&s| s < b.group.len())) {
+                Some(base) => base.group_modes_of(members, steps)?,
+                None => compress_group(law, members, m, tolerance_mm, bits, first_share, finer)?,
+            };
             let (kept, error) = (modes.scale.len(), modes.error);
             for k in 0..kept {
                 shape.push_copy(&modes.shape, k, m);
