@@ -13,13 +13,13 @@ use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
 use palpa_core::fe::series::Expander;
 use palpa_core::file;
+use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{
     PressCount, SurfaceLaw, SurfaceLawOptions, follow_at, organ_vertex_normals,
 };
 use palpa_core::pgd::tissue::{
     BoundTissue, Grouping, PointIndex, QUANT_SHARES, ShapeBits, TissueError, TissueLaw,
 };
-use palpa_core::organ::OrganMesh;
 use palpa_core::scene::PalpationScene;
 use palpa_tests::{coarse_liver, stored_error};
 
@@ -518,7 +518,10 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
     for s in 0..first {
         for j in 0..plain.steps() {
             let gap = node_gap(back.residual_at(s, j), plain.residual_at(s, j));
-            assert!(gap <= bound + 1e-6, "sample {s}, depth {j}: {gap} > {bound}");
+            assert!(
+                gap <= bound + 1e-6,
+                "sample {s}, depth {j}: {gap} > {bound}"
+            );
         }
     }
     let (refined, resumed, above) = back
@@ -534,7 +537,9 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
             assert!(gap <= 2.25 * bound + 1e-5, "sample {s}, depth {j}: {gap}");
         }
     }
-    let file = base.refined(organ, &refined).expect("compresses the split points");
+    let file = base
+        .refined(organ, &refined)
+        .expect("compresses the split points");
     assert_eq!(file.refinement, *r);
     assert!(file.truncation_bound_mm >= bound && file.truncation_bound_mm <= 0.002);
     for s in 0..first {
@@ -568,7 +573,11 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
         let t = r.triangles.iter().position(|&c| c == tri).expect("split");
         split.split_figures[t].0
     };
-    let worst = r.triangles.iter().map(|&t| edge_surplus(t)).fold(0.0, f64::max);
+    let worst = r
+        .triangles
+        .iter()
+        .map(|&t| edge_surplus(t))
+        .fold(0.0, f64::max);
     let partial = |most| {
         let law = base.surface_law(organ).expect("reads back");
         law.refine(organ, 0.0, Some(most), Some(log), none)

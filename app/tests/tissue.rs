@@ -738,6 +738,23 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         assert!(err.contains(says), "{bad:?}: {err}");
         assert!(!out.exists(), "{bad:?} wrote a file");
     }
+    // `tissue refine` likewise, and a file that is no tissue law is named.
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
+    for (input, bad, says) in [
+        (shipped, &["--refine-above-mm=-1"][..], "at least 0"),
+        (shipped, &["--jobs", "0"][..], "at least one press"),
+        (scene, &[][..], "not a palpa tissue file"),
+    ] {
+        let out_s = path(&out);
+        let mut args = vec!["tissue", "refine", input, "--out", &out_s];
+        args.extend_from_slice(bad);
+        let run = palpa(&args);
+        assert!(!run.status.success(), "{bad:?} accepted");
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(err.contains(says), "{bad:?}: {err}");
+        assert!(!out.exists(), "{bad:?} wrote a file");
+    }
 }
 
 /// One press at a time (`--jobs 1`, for a machine short of memory) gives the law that

@@ -96,6 +96,11 @@ pub struct PointsArgs {
     heldout: usize,
     #[arg(long, default_value_t = 7)]
     seed: u64,
+    /// Draw them inside the split triangles of this tissue file only: what a
+    /// refinement buys, measured where it split (`tissue check --at` on the file and
+    /// on the one it refined).
+    #[arg(long)]
+    split_of: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -240,7 +245,13 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
         TissueCommand::Check(args) => check(args),
         TissueCommand::Points(args) => {
             let organ = args.organ.mesh()?;
-            let points = surface_points(&organ, args.heldout, args.seed)?;
+            let points = match &args.split_of {
+                None => surface_points(&organ, args.heldout, args.seed)?,
+                Some(file) => {
+                    let faces = split_faces(&organ, &TissueLaw::load(file)?)?;
+                    points_in(&organ, &faces, args.heldout, args.seed)
+                }
+            };
             let text: Vec<String> = points.iter().flatten().map(|c| format!("{c:.4}")).collect();
             println!("{}", text.join(","));
             Ok(())
@@ -794,6 +805,39 @@ pub(super) fn surface_points(
         bail!("this organ has no palpable triangle clear of its fixed region");
     }
     Ok(points_in(organ, &faces, n, seed))
+}
+
+/// The organ's boundary faces that a tissue file split (by its corners' rest
+/// positions), or why there are none.
+fn split_faces(
+    organ: &palpa_core::organ::OrganMesh,
+    law: &TissueLaw,
+) -> anyhow::Result<Vec<usize>> {
+    let index = PointIndex::new(organ.mesh.vertices.iter().copied());
+    let mut split: Vec<[u32; 3]> = Vec::new();
+    for tri in &law.refinement.triangles {
+        let mut corners = [0u32; 3];
+        for (c, &s) in corners.iter_mut().zip(tri) {
+            let at = law.samples_mm[s as usize].map(f64::from);
+            *c = index
+                .find(at)
+                .with_context(|| format!("sample at {at:?} is not a vertex of this organ mesh"))?;
+        }
+        corners.sort_unstable();
+        split.push(corners);
+    }
+    split.sort_unstable();
+    let faces: Vec<usize> = (0..organ.boundary.len())
+        .filter(|&f| {
+            let mut c = organ.boundary[f];
+            c.sort_unstable();
+            split.binary_search(&c).is_ok()
+        })
+        .collect();
+    if faces.is_empty() {
+        bail!("the tissue file splits no triangle of this organ mesh");
+    }
+    Ok(faces)
 }
 
 /// Over the organ's surface nodes drawn by the scene (`vertex_of`: a node's render

@@ -350,9 +350,10 @@ impl SurfaceLaw {
             from_log: AtomicUsize::new(0),
             progress,
         };
-        let press_all = |points: &[PressPoint],
-                         finished: &mut HashMap<u32, Result<VertexPress, String>>,
-                         total: usize| presser.press(points, finished, total);
+        let press_all =
+            |points: &[PressPoint],
+             finished: &mut HashMap<u32, Result<VertexPress, String>>,
+             total: usize| presser.press(points, finished, total);
         let (mut presses, mut resumed) = press_all(&points, &mut finished, points.len())?;
         let edge_presses = presses.split_off(candidates.len());
         let mut sample_of = vec![u32::MAX; organ.mesh.vertices.len()];
@@ -399,7 +400,15 @@ impl SurfaceLaw {
         let mut refine_skip_reasons = Vec::new();
         let mut split_figures = Vec::new();
         if let Some(above_mm) = refine_above_mm {
-            let plan = refine_plan(organ, &sample_of, &kept_edges, &stored, n_row, above_mm, None);
+            let plan = refine_plan(
+                organ,
+                &sample_of,
+                &kept_edges,
+                &stored,
+                n_row,
+                above_mm,
+                None,
+            );
             let first = points.len();
             let quarter_points = plan.quarters.iter().map(|q| q.point(organ, &normals));
             let inner_points = plan.inner.iter().map(|q| q.point(organ, &normals));

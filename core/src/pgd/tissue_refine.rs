@@ -25,8 +25,7 @@
 use crate::organ::OrganMesh;
 use crate::pgd::surfacelaw::{Refinement, SurfaceLaw};
 use crate::pgd::tissue::{
-    GroupModes, Grouping, PointIndex, QUANT_SHARES, SAME_POINT_MM, Shapes, TissueError,
-    TissueLaw,
+    GroupModes, Grouping, PointIndex, QUANT_SHARES, SAME_POINT_MM, Shapes, TissueError, TissueLaw,
 };
 
 impl TissueLaw {
