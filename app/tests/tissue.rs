@@ -722,21 +722,26 @@ fn a_nearly_incompressible_tissue_meets_the_goals_on_its_own_scene() {
 fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("bad.tissue");
+    let out_s = path(&out);
+    // Runs `args` then `bad`: refused, naming `says`, with nothing written.
+    let refused = |args: &[&str], bad: &[&str], says: &str| {
+        let run = palpa(&[args, bad].concat());
+        assert!(!run.status.success(), "{bad:?} accepted");
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(err.contains(says), "{bad:?}: {err}");
+        assert!(!out.exists(), "{bad:?} wrote a file");
+    };
     for (bad, says) in [
         (&["--within", "1,2,3"][..], "X,Y,Z,R"),
         (&["--tolerance-mm=-1"][..], "positive length"),
         (&["--bits", "12"][..], "8 or 16"),
         (&["--jobs", "0"][..], "at least one press"),
     ] {
-        let mut args = vec!["tissue", "build", "--element", "p1", "--out"];
-        let out_s = path(&out);
-        args.push(&out_s);
-        args.extend_from_slice(bad);
-        let run = palpa(&args);
-        assert!(!run.status.success(), "{bad:?} accepted");
-        let err = String::from_utf8_lossy(&run.stderr);
-        assert!(err.contains(says), "{bad:?}: {err}");
-        assert!(!out.exists(), "{bad:?} wrote a file");
+        refused(
+            &["tissue", "build", "--element", "p1", "--out", &out_s],
+            bad,
+            says,
+        );
     }
     // `tissue refine` likewise, and a file that is no tissue law is named.
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
@@ -746,14 +751,7 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         (shipped, &["--jobs", "0"][..], "at least one press"),
         (scene, &[][..], "not a palpa tissue file"),
     ] {
-        let out_s = path(&out);
-        let mut args = vec!["tissue", "refine", input, "--out", &out_s];
-        args.extend_from_slice(bad);
-        let run = palpa(&args);
-        assert!(!run.status.success(), "{bad:?} accepted");
-        let err = String::from_utf8_lossy(&run.stderr);
-        assert!(err.contains(says), "{bad:?}: {err}");
-        assert!(!out.exists(), "{bad:?} wrote a file");
+        refused(&["tissue", "refine", input, "--out", &out_s], bad, says);
     }
 }
 
