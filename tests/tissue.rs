@@ -15,7 +15,8 @@ use palpa_core::fe::series::Expander;
 use palpa_core::file;
 use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{
-    PressCount, SurfaceLaw, SurfaceLawOptions, follow_at, organ_vertex_normals,
+    PressCount, SurfaceLaw, SurfaceLawBuildError, SurfaceLawOptions, follow_at,
+    organ_vertex_normals,
 };
 use palpa_core::pgd::tissue::{
     BoundTissue, Grouping, PointIndex, QUANT_SHARES, ShapeBits, TissueError, TissueLaw,
@@ -588,6 +589,7 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
     assert_eq!(one.refinement.triangles.len(), 1);
     let chosen = edge_surplus(one.refinement.triangles[0]);
     assert!(chosen >= worst - 2.0 * bound, "{chosen} of {worst}");
+    refine_previewed(organ, &base, &one, r, log);
     let (zero, _, _) = partial(0);
     let same = base.refined(organ, &zero).expect("compresses");
     assert!(same.refinement.triangles.is_empty());
@@ -601,6 +603,70 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
         matches!(&again, Err(TissueError::Refine { why }) if why.contains("split triangles")),
         "a split file is refused: {:?}",
         again.map(|_| ())
+    );
+}
+
+/// `tissue refine --plan` says what the refinement did, before it: the same counts,
+/// every press found in the shared log (none without it), the one-triangle stage's
+/// triangle ranked first and the others not split by it; a point off the surface and
+/// a split law refused.
+fn refine_previewed(
+    organ: &OrganMesh,
+    base: &TissueLaw,
+    one: &SurfaceLaw,
+    r: &palpa_core::pgd::surfacelaw::Refinement,
+    log: &Path,
+) {
+    let law = base.surface_law(organ).expect("reads back");
+    let centroid = |tri: [u32; 3]| {
+        let mut c = [0.0; 3];
+        for s in tri {
+            let p = organ.mesh.vertices[law.samples[s as usize] as usize];
+            (0..3).for_each(|k| c[k] += p[k] / 3.0);
+        }
+        c
+    };
+    let at: Vec<[f64; 3]> = r.triangles.iter().map(|&t| centroid(t)).collect();
+    let all = law
+        .refine_preview(organ, 0.0, None, Some(log), &at)
+        .expect("previews");
+    let presses = r.quarter_ends.len() + r.inner_corners.len();
+    assert_eq!(
+        (all.above, all.split),
+        (r.triangles.len(), r.triangles.len())
+    );
+    assert_eq!((all.presses, all.logged), (presses, presses));
+    assert!(all.candidates >= all.above);
+    for p in &all.at {
+        let surplus = p.edge_surplus_mm.expect("a split triangle is a candidate");
+        let by_depth = p.edge_surplus_by_depth_mm.iter().copied();
+        assert_eq!(by_depth.fold(0.0, f64::max), surplus);
+        assert_eq!(p.edge_surplus_by_depth_mm.len(), law.steps());
+        assert!(p.split && p.rank.is_some_and(|k| k <= all.above), "{p:?}");
+    }
+    let first = law
+        .refine_preview(organ, 0.0, Some(1), None, &at)
+        .expect("previews");
+    assert_eq!((first.split, first.logged), (1, 0));
+    assert_eq!(
+        first.presses,
+        6 + 3,
+        "six quarter points and three inner ones"
+    );
+    assert_eq!(first.least_split_mm, Some(first.worst_mm));
+    for (p, &t) in first.at.iter().zip(&r.triangles) {
+        let top = t == one.refinement.triangles[0];
+        assert_eq!((p.split, p.rank == Some(1)), (top, top), "{p:?}");
+    }
+    let off = law.refine_preview(organ, 0.0, None, None, &[[1e4, 0.0, 0.0]]);
+    assert!(
+        matches!(off, Err(SurfaceLawBuildError::OffSurface { .. })),
+        "{off:?}"
+    );
+    let split = one.refine_preview(organ, 0.0, None, None, &[]);
+    assert!(
+        matches!(split, Err(SurfaceLawBuildError::AlreadyRefined { .. })),
+        "{split:?}"
     );
 }
 

@@ -750,9 +750,70 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         (shipped, &["--refine-above-mm=-1"][..], "at least 0"),
         (shipped, &["--jobs", "0"][..], "at least one press"),
         (scene, &[][..], "not a palpa tissue file"),
+        (shipped, &["--at", "1,2,3"][..], "--plan"),
+        (shipped, &["--plan", "--at", "1,2"][..], "X,Y,Z triples"),
+        (
+            shipped,
+            &["--plan", "--at", "1e4,0,0"][..],
+            "palpable triangle",
+        ),
     ] {
         refused(&["tissue", "refine", input, "--out", &out_s], bad, says);
     }
+}
+
+/// `tissue refine --plan` on the shipped file: what a five-triangle stage would split
+/// and press, without pressing or writing anything, and where the triangle under a
+/// pressed vertex ranks, with its edge surplus at every grid depth (none at rest).
+#[test]
+fn a_refinement_plan_presses_nothing_and_ranks_a_point() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("refined.tissue");
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let plan = |extra: &[&str]| {
+        let args = [&["tissue", "refine", shipped, "--plan"][..], extra].concat();
+        common::json_ok(&palpa(&args))
+    };
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    let all = plan(&[]);
+    let stage = plan(&[
+        "--triangles",
+        "5",
+        "--at",
+        "-73.9546,59.5655,1.903",
+        "--out",
+        &path(&out),
+    ]);
+    assert_eq!(num(&stage, "split_triangles"), 5.0, "{stage}");
+    assert_eq!(num(&stage, "triangles_above"), num(&all, "triangles_above"));
+    assert!(
+        num(&all, "split_triangles") > 100.0
+            && num(&all, "candidates") >= num(&all, "triangles_above")
+    );
+    // Six quarter points and three inner ones a triangle, less those shared.
+    let presses = num(&stage, "presses");
+    assert!((15.0..=45.0).contains(&presses), "{stage}");
+    assert_eq!(num(&stage, "presses_logged"), 0.0);
+    assert_eq!(num(&stage, "presses_to_do"), presses);
+    assert!(all["presses_logged"].is_null(), "no --out, no log: {all}");
+    assert!(num(&stage, "least_split_edge_surplus_mm") <= num(&stage, "worst_edge_surplus_mm"));
+    let point = &stage["at"][0];
+    let by_depth: Vec<f64> = point["edge_surplus_by_depth_mm"]
+        .as_array()
+        .expect("by depth")
+        .iter()
+        .map(|x| x.as_f64().expect("mm"))
+        .collect();
+    assert_eq!(by_depth[0], 0.0, "at rest: {point}");
+    assert_eq!(
+        by_depth.iter().copied().fold(0.0, f64::max),
+        num(point, "edge_surplus_mm")
+    );
+    let rank = num(point, "rank");
+    assert!(rank >= 1.0 && rank <= num(&all, "candidates"), "{point}");
+    assert_eq!(point["split"].as_bool(), Some(rank <= 5.0), "{point}");
+    assert!(!out.exists(), "a plan writes nothing");
+    assert!(std::fs::read_dir(dir.path()).expect("dir").next().is_none());
 }
 
 /// One press at a time (`--jobs 1`, for a machine short of memory) gives the law that

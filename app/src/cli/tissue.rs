@@ -44,29 +44,7 @@ pub enum TissueCommand {
     /// quarter and inner points pressed, the file's own presses kept as stored. Presses
     /// are logged in `OUT.presses.log` under the same key as `tissue build`'s, so a
     /// killed refinement run again goes on, and a larger `--triangles` later reuses them.
-    Refine(RefineArgs),
-}
-
-#[derive(Debug, Args)]
-pub struct RefineArgs {
-    /// A tissue file built without split triangles (`palpa tissue build --no-refine`).
-    tissue: PathBuf,
-    #[command(flatten)]
-    organ: OrganArgs,
-    /// Split the triangles whose largest edge surplus (any node, any depth) exceeds
-    /// this (mm), as `tissue build` does.
-    #[arg(long, default_value_t = DEFAULT_REFINE_ABOVE_MM)]
-    refine_above_mm: f64,
-    /// Split only this many of them, the worst first (by their largest edge surplus):
-    /// a refinement in stages. Default: all.
-    #[arg(long)]
-    triangles: Option<usize>,
-    /// Presses computed at once (default: one per core).
-    #[arg(long)]
-    jobs: Option<usize>,
-    /// Where to write the refined law (atomically; it may be the input).
-    #[arg(long)]
-    out: PathBuf,
+    Refine(super::tissue_refine::RefineArgs),
 }
 
 #[derive(Debug, Args)]
@@ -257,7 +235,7 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
             Ok(())
         }
         TissueCommand::Cut(args) => cut(args),
-        TissueCommand::Refine(args) => refine(args),
+        TissueCommand::Refine(args) => super::tissue_refine::refine(args),
     }
 }
 
@@ -281,78 +259,16 @@ fn cut(args: &CutArgs) -> anyhow::Result<()> {
     super::args::print_report(&summary, false)
 }
 
-/// `palpa tissue refine`: a built file's triangles split, its own presses kept.
-fn refine(args: &RefineArgs) -> anyhow::Result<()> {
-    if !(args.refine_above_mm.is_finite() && args.refine_above_mm >= 0.0) {
-        bail!(
-            "--refine-above-mm {}: expected a length of at least 0",
-            args.refine_above_mm
-        );
-    }
-    if args.jobs == Some(0) {
-        bail!("--jobs 0: expected at least one press at a time");
-    }
-    let organ = args.organ.mesh()?;
-    let base = TissueLaw::load(&args.tissue)?;
-    let law = base
-        .surface_law(&organ)
-        .with_context(|| format!("reading back {}", args.tissue.display()))?;
-    let log = press_log(&args.out);
-    let pool = press_pool(args.jobs)?;
-    let started = Instant::now();
-    let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
-    let (law, resumed, above) = pool
-        .install(|| {
-            law.refine(
-                &organ,
-                args.refine_above_mm,
-                args.triangles,
-                Some(&log),
-                &progress,
-            )
-        })
-        .context("pressing the split triangles' points")?;
-    eprintln!();
-    let press_s = started.elapsed().as_secs_f64();
-    let refined = base.refined(&organ, &law)?;
-    refined.save(&args.out)?;
-    // A partial refinement keeps its log: a larger --triangles goes on from it.
-    let split = law.refinement.triangles.len();
-    if split == above {
-        let _ = std::fs::remove_file(&log);
-    }
-    let worst = |f: fn(&(f64, f64)) -> f64| law.split_figures.iter().map(f).fold(0.0, f64::max);
-    let least_split = law
-        .split_figures
-        .iter()
-        .map(|f| f.0)
-        .fold(f64::INFINITY, f64::min);
-    let report = json!({
-        "from": args.tissue, "out": args.out,
-        "refine_above_mm": args.refine_above_mm, "triangles_above": above,
-        "split_triangles": split,
-        "least_split_edge_surplus_mm": least_split.is_finite().then_some(least_split),
-        "worst_edge_surplus_mm": worst(|f| f.0), "worst_point_surplus_mm": worst(|f| f.1),
-        "quarter_points": law.refinement.quarter_ends.len(),
-        "inner_points": law.refinement.inner_corners.len(),
-        "refine_skipped": law.refine_skip_reasons.len(),
-        "resumed_presses": resumed, "press_s": press_s,
-        "log_kept": (split < above).then_some(&log),
-        "file": summary(&refined, &args.out),
-    });
-    super::args::print_report(&report, false)
-}
-
 /// The press log beside a build's output: an interrupted build run again with the same
 /// arguments goes on from the last finished press.
-fn press_log(out: &std::path::Path) -> PathBuf {
+pub(super) fn press_log(out: &std::path::Path) -> PathBuf {
     let mut log = out.as_os_str().to_owned();
     log.push(".presses.log");
     PathBuf::from(log)
 }
 
 /// The threads a build presses on (`--jobs`, default one per core).
-fn press_pool(jobs: Option<usize>) -> anyhow::Result<rayon::ThreadPool> {
+pub(super) fn press_pool(jobs: Option<usize>) -> anyhow::Result<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(jobs.unwrap_or(0))
         .thread_name(|i| format!("tissue-press-{i}"))
@@ -362,7 +278,7 @@ fn press_pool(jobs: Option<usize>) -> anyhow::Result<rayon::ThreadPool> {
 
 /// A build's progress line, with an estimate of what is left from the presses this run
 /// computed (not those taken from the log, which cost nothing).
-fn progress_line(c: PressCount, elapsed_s: f64) {
+pub(super) fn progress_line(c: PressCount, elapsed_s: f64) {
     eprint!(
         "\rtissue: press {}/{}, {} elapsed{}   ",
         c.done,
@@ -781,7 +697,7 @@ fn points_in(
 }
 
 /// A flag's `X,Y,Z[,X,Y,Z…]` list as points, or what was wrong with it.
-fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
+pub(super) fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
     if v.is_empty() || !v.len().is_multiple_of(3) || !v.iter().all(|x| x.is_finite()) {
         bail!("{flag}: expected X,Y,Z triples of finite numbers, got {v:?}");
     }

@@ -20,6 +20,7 @@ pub mod linear;
 pub mod nodal;
 pub mod palpation;
 pub mod presslog;
+pub mod refine_preview;
 pub mod samplelog;
 pub mod surfacelaw;
 pub mod tissue;

@@ -101,6 +101,29 @@ impl RecordLog {
         Ok(Some((kept.len(), dropped)))
     }
 
+    /// The indices of the records a log at `path` for `key` holds, read without
+    /// changing the file (a build may be appending to it): none where it is missing or
+    /// of another build.
+    pub fn finished_ids<T: DeserializeOwned>(path: &Path, key: &str) -> io::Result<Vec<u32>> {
+        let key_line = format!("{}\n", key.replace('\n', " "));
+        let bytes = match std::fs::read(path) {
+            Ok(b) => b,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(Vec::new()),
+            Err(e) => return Err(e),
+        };
+        let mut ids = Vec::new();
+        if let Some(mut at) = bytes
+            .starts_with(key_line.as_bytes())
+            .then_some(key_line.len())
+        {
+            while let Some((index, _, next)) = frame::<T>(&bytes, at) {
+                ids.push(index);
+                at = next;
+            }
+        }
+        Ok(ids)
+    }
+
     /// Appends one finished record and syncs it to disk.
     pub fn push<T: Serialize>(&mut self, index: u32, value: &T) -> io::Result<()> {
         let body = bincode::serde::encode_to_vec(value, bincode::config::standard())
@@ -175,6 +198,30 @@ mod tests {
         assert!(old.is_empty(), "another build's records are not taken");
         drop(log);
         assert_eq!(std::fs::read(&path).expect("read"), b"key b\n");
+    }
+
+    /// Listing a log's ids reads it as opening does (a torn last frame left out,
+    /// another build's log empty) and leaves the file byte for byte as it was.
+    #[test]
+    fn finished_ids_read_without_touching_the_file() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("build.presses.log");
+        let ids = |key: &str| RecordLog::finished_ids::<Vec<f32>>(&path, key).expect("ids");
+        assert!(ids("key a").is_empty(), "a missing log holds nothing");
+        assert!(!path.exists(), "and is not created");
+        let (mut log, _) = RecordLog::open::<Vec<f32>>(&path, "key a").expect("open");
+        log.push(4, &vec![1.0f32; 10]).expect("push");
+        log.push(1, &vec![2.0f32; 10]).expect("push");
+        drop(log);
+        let full = std::fs::read(&path).expect("read");
+        // A build killed in the middle of its third frame.
+        let mut torn = full.clone();
+        let first = "key a\n".len();
+        torn.extend(&full[first..first + HEAD_BYTES + 5]);
+        std::fs::write(&path, &torn).expect("write");
+        assert_eq!(ids("key a"), vec![4, 1]);
+        assert!(ids("key b").is_empty());
+        assert_eq!(std::fs::read(&path).expect("read"), torn, "left as it was");
     }
 
     #[test]

@@ -400,15 +400,9 @@ impl SurfaceLaw {
         let mut refine_skip_reasons = Vec::new();
         let mut split_figures = Vec::new();
         if let Some(above_mm) = refine_above_mm {
-            let plan = refine_plan(
-                organ,
-                &sample_of,
-                &kept_edges,
-                &stored,
-                n_row,
-                above_mm,
-                None,
-            );
+            let candidates =
+                refine_candidates(organ, &sample_of, &kept_edges, &stored.residual, n_row);
+            let plan = refine_plan(organ, candidates, above_mm, None);
             let first = points.len();
             let quarter_points = plan.quarters.iter().map(|q| q.point(organ, &normals));
             let inner_points = plan.inner.iter().map(|q| q.point(organ, &normals));
@@ -496,15 +490,9 @@ impl SurfaceLaw {
             stopped: std::mem::take(&mut self.stopped),
         };
         let n_row = steps * 3 * self.rows.len();
-        let plan = refine_plan(
-            organ,
-            &self.sample_of,
-            &self.edges,
-            &stored,
-            n_row,
-            above_mm,
-            most,
-        );
+        let candidates =
+            refine_candidates(organ, &self.sample_of, &self.edges, &stored.residual, n_row);
+        let plan = refine_plan(organ, candidates, above_mm, most);
         let normals = organ_vertex_normals(organ);
         let quarter_points = plan.quarters.iter().map(|q| q.point(organ, &normals));
         let inner_points = plan.inner.iter().map(|q| q.point(organ, &normals));
@@ -677,15 +665,22 @@ impl RefinePoint {
 
 /// The triangles to split and the points to press.
 #[derive(Default)]
-struct RefinePlan {
+pub(crate) struct RefinePlan {
     /// Triangles above the threshold (`triangles` holds all of them or the worst).
-    above: usize,
-    triangles: Vec<[u32; 3]>,
+    pub(crate) above: usize,
+    pub(crate) triangles: Vec<[u32; 3]>,
     /// Per split triangle: its largest edge surplus (mm), and its six quarter points'
     /// and three inner points' indices in `quarters` and `inner`.
-    figures: Vec<(f64, [usize; 6], [usize; 3])>,
+    pub(crate) figures: Vec<(f64, [usize; 6], [usize; 3])>,
     quarters: Vec<RefinePoint>,
     inner: Vec<RefinePoint>,
+}
+
+impl RefinePlan {
+    /// The press-log ids of the points it presses (quarter points, then inner points).
+    pub(crate) fn press_ids(&self) -> impl Iterator<Item = u32> + '_ {
+        self.quarters.iter().chain(&self.inner).map(|p| p.id)
+    }
 }
 
 /// How far a covered point may lie from the palpable surface (mm): a point drawn on a
@@ -740,37 +735,42 @@ fn palpable_edges(organ: &OrganMesh) -> Vec<[u32; 2]> {
 }
 
 /// The largest node displacement in a sample's residuals (mm; 3 entries a node).
-fn node_peak(residual: &[f32]) -> f64 {
+pub(crate) fn node_peak(residual: &[f32]) -> f64 {
     residual
         .chunks_exact(3)
         .map(|c| f64::from(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt())
         .fold(0.0, f64::max)
 }
 
-/// The split triangles of a build (see [`Refinement`]): palpable triangles whose
-/// corners and edges were all kept and whose largest edge surplus exceeds `above_mm`.
-/// Log ids come after every vertex and edge id, from the mesh alone (not from which
-/// triangles are split), so a resumed build finds them.
-fn refine_plan(
+/// A palpable triangle whose corners and edges were all kept: a split candidate.
+#[derive(Clone)]
+pub(crate) struct Candidate {
+    /// Its index in the organ's boundary, vertices and corner samples.
+    pub(crate) t: usize,
+    pub(crate) tri: [u32; 3],
+    pub(crate) c: [u32; 3],
+    /// Its edges' samples, edge `k` from corner `k` to corner `k + 1`.
+    pub(crate) e: [usize; 3],
+    /// Its largest edge surplus (mm, any node, any grid depth).
+    pub(crate) worst: f64,
+}
+
+/// Every split candidate of a law, in the mesh's order; `residual` holds `n_row`
+/// values a sample (every grid depth).
+pub(crate) fn refine_candidates(
     organ: &OrganMesh,
     sample_of: &[u32],
     kept_edges: &[[u32; 2]],
-    stored: &Stored,
+    residual: &[f32],
     n_row: usize,
-    above_mm: f64,
-    most: Option<usize>,
-) -> RefinePlan {
-    let all_edges = palpable_edges(organ);
+) -> Vec<Candidate> {
     let first_edge = sample_of.iter().filter(|&&s| s != u32::MAX).count();
-    let first_id = organ.mesh.vertices.len() + 3 * organ.boundary.len();
     let edge_sample: HashMap<[u32; 2], usize> = kept_edges
         .iter()
         .enumerate()
         .map(|(e, &[a, b])| ([a.min(b), a.max(b)], first_edge + e))
         .collect();
-    let peak = |s: usize| node_peak(&stored.residual[s * n_row..][..n_row]);
-    // Per palpable triangle whose corners and edges were kept: its corner samples,
-    // edge samples and largest edge surplus.
+    let peak = |s: usize| node_peak(&residual[s * n_row..][..n_row]);
     let mut candidates = Vec::new();
     for (t, (tri, _)) in organ
         .boundary
@@ -790,16 +790,42 @@ fn refine_plan(
         let Some(e) = e.into_iter().collect::<Option<Vec<usize>>>() else {
             continue;
         };
+        let e = [e[0], e[1], e[2]];
         let worst = e.iter().map(|&s| peak(s)).fold(0.0, f64::max);
-        if worst > above_mm {
-            candidates.push((t, *tri, c, e, worst));
-        }
+        candidates.push(Candidate {
+            t,
+            tri: *tri,
+            c,
+            e,
+            worst,
+        });
     }
+    candidates
+}
+
+/// The split triangles of a build (see [`Refinement`]): palpable triangles whose
+/// corners and edges were all kept and whose largest edge surplus exceeds `above_mm`.
+/// Log ids come after every vertex and edge id, from the mesh alone (not from which
+/// triangles are split), so a resumed build finds them.
+pub(crate) fn refine_plan(
+    organ: &OrganMesh,
+    mut candidates: Vec<Candidate>,
+    above_mm: f64,
+    most: Option<usize>,
+) -> RefinePlan {
+    let all_edges = palpable_edges(organ);
+    let first_id = organ.mesh.vertices.len() + 3 * organ.boundary.len();
+    candidates.retain(|c| c.worst > above_mm);
     let above = candidates.len();
     // The `most` worst, kept in the mesh's order (ties to the first).
     if let Some(most) = most.filter(|&m| m < candidates.len()) {
         let mut order: Vec<usize> = (0..candidates.len()).collect();
-        order.sort_by(|&i, &j| candidates[j].4.total_cmp(&candidates[i].4).then(i.cmp(&j)));
+        order.sort_by(|&i, &j| {
+            candidates[j]
+                .worst
+                .total_cmp(&candidates[i].worst)
+                .then(i.cmp(&j))
+        });
         let mut keep = vec![false; candidates.len()];
         for &i in &order[..most] {
             keep[i] = true;
@@ -815,7 +841,14 @@ fn refine_plan(
         ..RefinePlan::default()
     };
     let mut seen = HashMap::new();
-    for (t, tri, c, e, worst) in candidates {
+    for Candidate {
+        t,
+        tri,
+        c,
+        e,
+        worst,
+    } in candidates
+    {
         plan.triangles.push(c);
         let (mut quarters, mut inner) = ([0; 6], [0; 3]);
         for k in 0..3 {
@@ -929,6 +962,39 @@ fn open_press_log(
         path: path.to_path_buf(),
         source,
     };
+    let (key, previous) = press_log_key(organ, o, rows, cover);
+    for previous in previous {
+        RecordLog::upgrade::<Logged>(path, &previous, &key, |p| {
+            p.as_ref().is_ok_and(|p| p.reach as usize == steps)
+        })
+        .map_err(log_error)?;
+    }
+    RecordLog::open::<Logged>(path, &key).map_err(log_error)
+}
+
+/// The ids a build's press log at `path` already holds, read without changing it
+/// (none where it is missing or of another build).
+pub(crate) fn logged_press_ids(
+    organ: &OrganMesh,
+    o: &SurfaceLawOptions,
+    rows: usize,
+    path: &Path,
+) -> Result<Vec<u32>, SurfaceLawBuildError> {
+    let (key, _) = press_log_key(organ, o, rows, None);
+    RecordLog::finished_ids::<Logged>(path, &key).map_err(|source| SurfaceLawBuildError::Log {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// A build's press-log key (everything that determines its presses), and the keys of
+/// earlier versions whose presses that reached every depth it takes over.
+fn press_log_key(
+    organ: &OrganMesh,
+    o: &SurfaceLawOptions,
+    rows: usize,
+    cover: Option<&[u32]>,
+) -> (String, Vec<String>) {
     let po = path_options(o);
     let covered = cover.map_or(String::new(), |c| {
         let bytes: Vec<u8> = c.iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -952,17 +1018,13 @@ fn open_press_log(
     // past it failed): their presses that reached every depth are kept, the others
     // pressed again.
     let budget = PathOptions::default().max_factorizations;
+    let mut previous = Vec::new();
     if po.newton_fallback && po.stop_past_force_peak && po.max_factorizations == budget {
         let v5 = format!("{po:?}").replace(&format!(", max_factorizations: {budget}"), "");
         let v3 = v5.replace(", newton_fallback: true", "");
-        for previous in [key_of(3, v3), key_of(4, v5.clone()), key_of(5, v5)] {
-            RecordLog::upgrade::<Logged>(path, &previous, &key, |p| {
-                p.as_ref().is_ok_and(|p| p.reach as usize == steps)
-            })
-            .map_err(log_error)?;
-        }
+        previous = vec![key_of(3, v3), key_of(4, v5.clone()), key_of(5, v5)];
     }
-    RecordLog::open::<Logged>(path, &key).map_err(log_error)
+    (key, previous)
 }
 
 /// Presses surface points in parallel, logging each as it finishes and reporting

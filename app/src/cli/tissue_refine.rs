@@ -1,0 +1,149 @@
+//! `palpa tissue refine`: a built file's triangles split, its own presses kept; with
+//! `--plan`, what that would split and press, without pressing.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::Args;
+use palpa_core::pgd::surfacelaw::{DEFAULT_REFINE_ABOVE_MM, PressCount};
+use palpa_core::pgd::tissue::TissueLaw;
+use serde_json::json;
+
+use super::args::OrganArgs;
+use super::tissue::{press_log, press_pool, progress_line, summary, triples};
+
+#[derive(Debug, Args)]
+pub struct RefineArgs {
+    /// A tissue file built without split triangles (`palpa tissue build --no-refine`).
+    tissue: PathBuf,
+    #[command(flatten)]
+    organ: OrganArgs,
+    /// Split the triangles whose largest edge surplus (any node, any depth) exceeds
+    /// this (mm), as `tissue build` does.
+    #[arg(long, default_value_t = DEFAULT_REFINE_ABOVE_MM)]
+    refine_above_mm: f64,
+    /// Split only this many of them, the worst first (by their largest edge surplus):
+    /// a refinement in stages. Default: all.
+    #[arg(long)]
+    triangles: Option<usize>,
+    /// Presses computed at once (default: one per core).
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Only say what it would split and press (and how many of those presses the log
+    /// of `--out` already holds), and where the triangles at `--at` rank; press nothing.
+    #[arg(long)]
+    plan: bool,
+    /// With `--plan`: points (X,Y,Z[,X,Y,Z…], mm) whose triangles' edge surpluses,
+    /// by depth, and ranks to report.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        requires = "plan"
+    )]
+    at: Option<Vec<f64>>,
+    /// Where to write the refined law (atomically; it may be the input).
+    #[arg(long, required_unless_present = "plan")]
+    out: Option<PathBuf>,
+}
+
+/// `palpa tissue refine`.
+pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
+    if !(args.refine_above_mm.is_finite() && args.refine_above_mm >= 0.0) {
+        bail!(
+            "--refine-above-mm {}: expected a length of at least 0",
+            args.refine_above_mm
+        );
+    }
+    if args.jobs == Some(0) {
+        bail!("--jobs 0: expected at least one press at a time");
+    }
+    let at = match &args.at {
+        Some(v) => triples("--at", v)?,
+        None => Vec::new(),
+    };
+    let organ = args.organ.mesh()?;
+    let base = TissueLaw::load(&args.tissue)?;
+    let law = base
+        .surface_law(&organ)
+        .with_context(|| format!("reading back {}", args.tissue.display()))?;
+    let log = args.out.as_deref().map(press_log);
+    if args.plan {
+        let p = law.refine_preview(
+            &organ,
+            args.refine_above_mm,
+            args.triangles,
+            log.as_deref(),
+            &at,
+        )?;
+        let points: Vec<_> =
+            p.at.iter()
+                .map(|r| {
+                    json!({
+                        "at": r.point_mm, "edge_surplus_mm": r.edge_surplus_mm,
+                        "edge_surplus_by_depth_mm": r.edge_surplus_by_depth_mm,
+                        "rank": r.rank, "split": r.split,
+                    })
+                })
+                .collect();
+        let report = json!({
+            "from": args.tissue, "refine_above_mm": args.refine_above_mm,
+            "depth_step_mm": law.options.depth_step_mm,
+            "candidates": p.candidates, "triangles_above": p.above,
+            "split_triangles": p.split, "presses": p.presses,
+            "presses_logged": log.as_ref().map(|_| p.logged),
+            "presses_to_do": p.presses - p.logged,
+            "worst_edge_surplus_mm": p.worst_mm,
+            "least_split_edge_surplus_mm": p.least_split_mm,
+            "at": points,
+        });
+        return super::args::print_report(&report, false);
+    }
+    let (Some(out), Some(log)) = (&args.out, log) else {
+        bail!("--out: expected where to write the refined law");
+    };
+    let pool = press_pool(args.jobs)?;
+    let started = Instant::now();
+    let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
+    let (law, resumed, above) = pool
+        .install(|| {
+            law.refine(
+                &organ,
+                args.refine_above_mm,
+                args.triangles,
+                Some(&log),
+                &progress,
+            )
+        })
+        .context("pressing the split triangles' points")?;
+    eprintln!();
+    let press_s = started.elapsed().as_secs_f64();
+    let refined = base.refined(&organ, &law)?;
+    refined.save(out)?;
+    // A partial refinement keeps its log: a larger --triangles goes on from it.
+    let split = law.refinement.triangles.len();
+    if split == above {
+        let _ = std::fs::remove_file(&log);
+    }
+    let worst = |f: fn(&(f64, f64)) -> f64| law.split_figures.iter().map(f).fold(0.0, f64::max);
+    let least_split = law
+        .split_figures
+        .iter()
+        .map(|f| f.0)
+        .fold(f64::INFINITY, f64::min);
+    let report = json!({
+        "from": args.tissue, "out": out,
+        "refine_above_mm": args.refine_above_mm, "triangles_above": above,
+        "split_triangles": split,
+        "least_split_edge_surplus_mm": least_split.is_finite().then_some(least_split),
+        "worst_edge_surplus_mm": worst(|f| f.0), "worst_point_surplus_mm": worst(|f| f.1),
+        "quarter_points": law.refinement.quarter_ends.len(),
+        "inner_points": law.refinement.inner_corners.len(),
+        "refine_skipped": law.refine_skip_reasons.len(),
+        "resumed_presses": resumed, "press_s": press_s,
+        "log_kept": (split < above).then_some(&log),
+        "file": summary(&refined, out),
+    });
+    super::args::print_report(&report, false)
+}
