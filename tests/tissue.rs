@@ -340,6 +340,7 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
         .expect("binds")
     };
     let (bound_split, bound_plain) = (compress(&split), compress(plain));
+    blend_surplus_checked(&organ, plain, &split, &bound_plain, &bound_split);
     // Each split triangle's points share one set of modes: fewer modes than each point
     // alone, and every sample's stored error, measured, within the law's bound.
     let shared = &bound_split.law;
@@ -604,6 +605,59 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
         "a split file is refused: {:?}",
         again.map(|_| ())
     );
+}
+
+/// The finest surplus at the probe (`BoundTissue::blend_surplus_mm`), at each split
+/// triangle's centroid and near each corner: with the plain law, the triangle's edge
+/// surplus at each grid depth as the refinement plan reads it (within the compression
+/// bound); with the split law, within that triangle's largest quarter or inner surplus;
+/// none at rest.
+fn blend_surplus_checked(
+    organ: &OrganMesh,
+    plain: &SurfaceLaw,
+    split: &SurfaceLaw,
+    bound_plain: &BoundTissue,
+    bound_split: &BoundTissue,
+) {
+    let scene = shipped_scene();
+    let step = plain.options.depth_step_mm;
+    let r = &split.refinement;
+    let bound = bound_plain.law.truncation_bound_mm + bound_split.law.truncation_bound_mm;
+    for (i, tri) in r.triangles.iter().enumerate() {
+        let corner = |s: u32| organ.mesh.vertices[split.samples[s as usize] as usize];
+        let c = tri.map(corner);
+        for w in [
+            [1.0 / 3.0; 3],
+            [0.7, 0.15, 0.15],
+            [0.15, 0.7, 0.15],
+            [0.15, 0.15, 0.7],
+        ] {
+            let at: [f64; 3] = std::array::from_fn(|k| (0..3).map(|v| w[v] * c[v][k]).sum());
+            let (point, off) = scene.closest_palpable(at).expect("on the surface");
+            assert!(off < 1e-6, "{at:?}");
+            let preview = plain
+                .refine_preview(organ, 0.0, None, None, &[at])
+                .expect("previews");
+            let by_depth = &preview.at[0].edge_surplus_by_depth_mm;
+            let eta = |b: &BoundTissue, j: usize| {
+                b.blend_surplus_mm(&point, j as f64 * step)
+                    .expect("pressed corners and edges")
+            };
+            assert_eq!(eta(bound_plain, 0), 0.0);
+            assert_eq!(eta(bound_split, 0), 0.0);
+            for (j, &edges) in by_depth.iter().enumerate() {
+                let (p, q) = (eta(bound_plain, j), eta(bound_split, j));
+                assert!(
+                    (p - edges).abs() <= bound + 1e-5,
+                    "{at:?} at {j}: {p} vs {edges}"
+                );
+                assert!(
+                    q <= split.split_figures[i].1 + bound + 1e-5,
+                    "{at:?} at {j}: {q}"
+                );
+            }
+        }
+    }
 }
 
 /// `tissue refine --plan` says what the refinement did, before it: the same counts,

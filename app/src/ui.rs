@@ -122,6 +122,27 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
     }
 }
 
+/// The vademecum's finest surplus under the probe at the sample's depth: where it is
+/// large the blend between pressed points may miss the surface goal here, however
+/// shallow the press (docs/methods.md §2e).
+fn blend_surplus(ui: &mut egui::Ui, session: &Session) {
+    use palpa_core::pgd::tissue::BLEND_SURPLUS_WARN_MM;
+    let Some(eta) = session.blend_surplus_mm() else {
+        return;
+    };
+    if eta > BLEND_SURPLUS_WARN_MM {
+        ui.colored_label(
+            Color32::from_rgb(230, 160, 60),
+            format!(
+                "blend surplus {eta:.2} mm here: the surface may be more than 0.5 mm off \
+                 (refine this region: palpa tissue refine)"
+            ),
+        );
+    } else {
+        ui.label(format!("blend surplus {eta:.2} mm here"));
+    }
+}
+
 /// The force–depth curve at the probe: the tissue's law (solid) and the linear law
 /// (dashed), with the current press marked.
 fn depth_curve(
@@ -257,6 +278,7 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
             );
         }
         if let Some(law) = &session.law {
+            blend_surplus(ui, session);
             depth_curve(ui, law, &s);
         }
     } else if s.status() == crate::force::SampleStatus::Failed {

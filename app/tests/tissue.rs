@@ -310,7 +310,8 @@ fn the_default_scene_presses_with_its_tissue_both_ways() {
 /// The default scene opens with its hyperelastic tissue, and that tissue meets the
 /// goals (surface within 0.5 mm, force within 5 % of Newton) at two held-out points
 /// as deep as the scene says it does (7.3 mm, off its depth grid); a session pressed
-/// deeper flags it, one pressed shallower does not.
+/// deeper flags it, one pressed shallower does not, and both report the finest
+/// surplus under the probe, larger for the deeper press.
 #[test]
 fn the_default_tissue_meets_the_goals_at_held_out_points() {
     let loaded = scenes::built_in().expect("built-in scene");
@@ -326,14 +327,19 @@ fn the_default_tissue_meets_the_goals_at_held_out_points() {
         .expect("the built-in tissue's measured depth");
     let mut s = Session::with_law(loaded.scene, loaded.law, Box::new(NoHaptics)).expect("session");
     s.goals_to_mm = Some(goals_mm);
+    assert_eq!(s.blend_surplus_mm(), None, "lifted");
     s.controls.pressing = true;
+    let mut surplus = Vec::new();
     for (depth_mm, flagged) in [(goals_mm - 2.0, None), (goals_mm + 1.0, Some(goals_mm))] {
         s.controls.depth_mm = depth_mm;
         s.force.command(s.controls.command());
         settle(&s, Duration::from_secs(2));
         s.frame();
         assert_eq!(s.past_goals_mm(), flagged, "pressed {depth_mm} mm");
+        surplus.push(s.blend_surplus_mm().expect("pressed on the vademecum"));
     }
+    // The residual grows with the depth, and so does the finest surplus at one point.
+    assert!(0.0 < surplus[0] && surplus[0] < surplus[1], "{surplus:?}");
 
     let tissue =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.tissue");
@@ -348,6 +354,7 @@ fn the_default_tissue_meets_the_goals_at_held_out_points() {
             e("surface_max_error_mm") < e("linear_surface_max_error_mm"),
             "{p}"
         );
+        assert!(e("blend_surplus_mm") > 0.0, "{p}");
     }
 }
 

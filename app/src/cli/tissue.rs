@@ -569,6 +569,8 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             row["linear_surface_max_error_mm"] = json!(e_linear);
             row["max_displacement_mm"] = json!(top);
             row["beyond"] = json!(beyond);
+            // The finest surplus here: where the blend is likely to miss.
+            row["blend_surplus_mm"] = json!(bound.blend_surplus_mm(&point, depth));
             for (name, press, seconds) in &own {
                 let key = format!("series_{name}");
                 row[&key] = match press {

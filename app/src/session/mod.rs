@@ -127,6 +127,18 @@ impl Session {
         self.goals_to_mm.filter(|&g| pressed && s.depth_mm > g)
     }
 
+    /// The vademecum's finest surplus under the pressed probe at the frame's depth
+    /// (`BoundTissue::blend_surplus_mm`): where the blend may miss the surface goal.
+    /// `None` when lifted or without a vademecum.
+    pub fn blend_surplus_mm(&self) -> Option<f64> {
+        let s = &self.sample;
+        if s.status() != SampleStatus::Ok {
+            return None;
+        }
+        let law = self.law.as_ref()?;
+        law.blend_surplus_mm(&s.command.point(), f64::from(s.depth_mm))
+    }
+
     /// Turns the region mode on (the probe is lifted) or off.
     pub fn set_painting(&mut self, on: bool) {
         match (on, self.painter.is_some()) {

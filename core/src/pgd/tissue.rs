@@ -76,6 +76,9 @@
 //! The file is bound to a scene by the rest positions of its rows and samples, so a
 //! law built on the organ mesh serves any scene exported from the same mesh.
 
+mod surplus;
+pub use surplus::BLEND_SURPLUS_WARN_MM;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -1253,6 +1256,15 @@ impl Tissue {
         match self {
             Tissue::ForceLaw(l) => (l.options.depth_max_mm, None),
             Tissue::Vademecum(t) => t.limit_mm(p),
+        }
+    }
+
+    /// The vademecum's finest surplus at `p` and `depth_mm`
+    /// ([`BoundTissue::blend_surplus_mm`]); `None` for a force law (no surface).
+    pub fn blend_surplus_mm(&self, p: &ProbePoint, depth_mm: f64) -> Option<f64> {
+        match self {
+            Tissue::ForceLaw(_) => None,
+            Tissue::Vademecum(t) => t.blend_surplus_mm(p, depth_mm),
         }
     }
 
