@@ -139,7 +139,9 @@ fn blend_surplus(ui: &mut egui::Ui, session: &Session) {
             ),
         );
     } else {
-        ui.label(format!("blend surplus {eta:.2} mm here"));
+        ui.label(format!(
+            "blend surplus {eta:.2} mm here (warned above {BLEND_SURPLUS_WARN_MM:.1} mm)"
+        ));
     }
 }
 
