@@ -253,7 +253,7 @@ fn eval_reads_a_tissue_file_both_ways() {
 /// The default scene pressed as the app presses it: the mouse's depth (depth in, force
 /// out) and the gamepad trigger's force (force in, depth out) go through the shipped
 /// tissue, answer as `palpa eval` does on that file at the same point, and are each
-/// other's inverse.
+/// other's inverse; the panel's finest surplus is eval's.
 #[test]
 fn the_default_scene_presses_with_its_tissue_both_ways() {
     let loaded = scenes::built_in().expect("built-in scene");
@@ -305,6 +305,33 @@ fn the_default_scene_presses_with_its_tissue_both_ways() {
         (num(&cli, "probe_displacement_mm") - 6.0).abs() < 1e-3,
         "{cli}"
     );
+
+    // The panel's finest surplus is eval's at the same press. It is the triangle's
+    // (the probe starts on a vertex, which eval may place in a neighbour), so inside one.
+    let inside = palpa_core::axis::ProbePoint {
+        triangle: probe.triangle,
+        bary: [0.2, 0.5, 0.3],
+    };
+    s.controls.probe = Some(inside);
+    s.controls.mode = PressMode::Depth;
+    s.force.command(s.controls.command());
+    settle(&s, Duration::from_secs(2));
+    s.frame();
+    let surplus = s.blend_surplus_mm().expect("pressed on the vademecum");
+    let at = s.scene.frame(&inside).0.map(|x| format!("{x}")).join(",");
+    let cli = common::json_ok(&palpa(&[
+        "eval",
+        &path(&tissue),
+        "--at",
+        &at,
+        "--depth-mm",
+        "6",
+        "--json",
+    ]));
+    assert!(
+        (num(&cli, "blend_surplus_mm") - surplus).abs() <= 1e-6,
+        "{cli}: the panel's {surplus} mm"
+    );
 }
 
 /// The default scene opens with its hyperelastic tissue, and that tissue meets the
@@ -348,6 +375,8 @@ fn the_default_tissue_meets_the_goals_at_held_out_points() {
     assert_eq!(summary["presses_compared"], 2, "{summary}");
     assert_eq!(summary["goal_surface_0_5_mm"], true, "{presses:?}");
     assert_eq!(summary["goal_force_5_percent"], true, "{presses:?}");
+    assert_eq!(summary["surface_misses_unwarned"], 0, "{summary}");
+    assert_eq!(summary["surface_misses_warned"], 0, "{summary}");
     for p in presses {
         let e = |k: &str| p[k].as_f64().unwrap_or_else(|| panic!("{k}: {p}"));
         assert!(

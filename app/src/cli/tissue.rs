@@ -15,7 +15,8 @@ use palpa_core::pgd::surfacelaw::{
     DEFAULT_REFINE_ABOVE_MM, PressCount, SurfaceLaw, SurfaceLawOptions, follow_at, press_at,
 };
 use palpa_core::pgd::tissue::{
-    BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, PointIndex, ShapeBits, TissueLaw,
+    BLEND_SURPLUS_WARN_MM, BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, PointIndex,
+    ShapeBits, TissueLaw,
 };
 use palpa_core::rng::Rng;
 use serde_json::json;
@@ -466,6 +467,9 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     // Presses deeper than the vademecum answers at their point (a press of its blend
     // found no equilibrium deeper): reported, not compared.
     let mut past_limit = 0usize;
+    // Of the compared presses: those the panel warns at (finest surplus above
+    // BLEND_SURPLUS_WARN_MM), and those missing 0.5 mm with and without a warning.
+    let (mut warned, mut missed_warned, mut missed_unwarned) = (0usize, 0usize, 0usize);
     let space = organ_space(&organ, o.element);
     let expander = if args.series || args.own {
         Some(Expander::new(&space, o.law, o.material)?)
@@ -554,12 +558,22 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                 max_node_errors(&organ, &vertex_of, &sol.u, [&tissue_rows, &linear_rows]);
             let f_ref = sol.force_n;
             let force_err = (force - f_ref).abs() / f_ref;
+            let surplus = bound.blend_surplus_mm(&point, depth);
             if depth > limit {
                 past_limit += 1;
             } else {
                 worst_force = worst_force.max(force_err);
                 worst_surface = worst_surface.max(e_tissue);
                 compared += 1;
+                let warn = surplus.is_some_and(|e| e > BLEND_SURPLUS_WARN_MM);
+                warned += usize::from(warn);
+                if e_tissue > 0.5 {
+                    *(if warn {
+                        &mut missed_warned
+                    } else {
+                        &mut missed_unwarned
+                    }) += 1;
+                }
             }
             row["force_n"] = json!(force);
             row["reference_force_n"] = json!(f_ref);
@@ -570,7 +584,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             row["max_displacement_mm"] = json!(top);
             row["beyond"] = json!(beyond);
             // The finest surplus here: where the blend is likely to miss.
-            row["blend_surplus_mm"] = json!(bound.blend_surplus_mm(&point, depth));
+            row["blend_surplus_mm"] = json!(surplus);
             for (name, press, seconds) in &own {
                 let key = format!("series_{name}");
                 row[&key] = match press {
@@ -651,7 +665,10 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             "presses_compared": compared, "presses_past_limit": past_limit,
             "worst_force_rel_error": worst_force, "worst_surface_max_error_mm": worst_surface,
             "goal_force_5_percent": (compared > 0).then_some(worst_force <= 0.05),
-            "goal_surface_0_5_mm": (compared > 0).then_some(worst_surface <= 0.5)})
+            "goal_surface_0_5_mm": (compared > 0).then_some(worst_surface <= 0.5),
+            "blend_surplus_warn_mm": BLEND_SURPLUS_WARN_MM, "presses_warned": warned,
+            "surface_misses_warned": missed_warned,
+            "surface_misses_unwarned": missed_unwarned})
     );
     Ok(())
 }
@@ -920,6 +937,7 @@ pub fn eval(
         "max_displacement_mm": max, "depth_max_mm": bound.law.depth_max_mm(),
         "beyond_depth_max": beyond,
         "depth_limit_mm": bound.limit_mm(&point).0, "stopped": bound.limit_mm(&point).1,
+        "blend_surplus_mm": bound.blend_surplus_mm(&point, depth),
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
     });
     super::args::print_report(&report, json_out)
