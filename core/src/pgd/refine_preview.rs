@@ -20,8 +20,8 @@ use std::path::Path;
 
 use crate::organ::OrganMesh;
 use crate::pgd::surfacelaw::{
-    COVER_SLACK_MM, SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak,
-    refine_candidates, refine_plan,
+    SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak, palpable_at, refine_candidates,
+    refine_plan, worst_first,
 };
 
 /// What [`SurfaceLaw::refine`] would split and press with the same threshold and
@@ -80,15 +80,8 @@ impl SurfaceLaw {
         let n_row = steps * row;
         let candidates =
             refine_candidates(organ, &self.sample_of, &self.edges, &self.residual, n_row);
-        let mut order: Vec<usize> = (0..candidates.len()).collect();
-        order.sort_by(|&i, &j| {
-            candidates[j]
-                .worst
-                .total_cmp(&candidates[i].worst)
-                .then(i.cmp(&j))
-        });
         let mut rank_of = vec![0; candidates.len()];
-        for (r, &i) in order.iter().enumerate() {
+        for (r, &i) in worst_first(&candidates).iter().enumerate() {
             rank_of[i] = r + 1;
         }
         let palpable: Vec<usize> = (0..organ.boundary.len())
@@ -97,16 +90,7 @@ impl SurfaceLaw {
         let palpable_tris: Vec<[u32; 3]> = palpable.iter().map(|&t| organ.boundary[t]).collect();
         let mut hits = Vec::with_capacity(at.len());
         for &p in at {
-            let off = |distance_mm| SurfaceLawBuildError::OffSurface {
-                point_mm: p,
-                distance_mm,
-            };
-            let hit = crate::axis::closest_point(&organ.mesh.vertices, &palpable_tris, p)
-                .ok_or(off(f64::INFINITY))?;
-            if hit.distance > COVER_SLACK_MM {
-                return Err(off(hit.distance));
-            }
-            hits.push(palpable[hit.triangle as usize]);
+            hits.push(palpable[palpable_at(organ, &palpable_tris, p)?]);
         }
         let candidate_of = |t: usize| candidates.iter().position(|c| c.t == t);
         let ranks: Vec<(Option<usize>, Vec<f64>)> = hits

@@ -702,21 +702,31 @@ pub fn covering_vertices(
         .collect();
     let mut cover = Vec::with_capacity(3 * points.len());
     for &p in points {
-        let off = |distance_mm| SurfaceLawBuildError::OffSurface {
-            point_mm: p,
-            distance_mm,
-        };
-        let hit = crate::axis::closest_point(&organ.mesh.vertices, &palpable, p)
-            .ok_or(off(f64::INFINITY))?;
-        if hit.distance > COVER_SLACK_MM {
-            return Err(off(hit.distance));
-        }
-        cover.extend(palpable[hit.triangle as usize]);
+        cover.extend(palpable[palpable_at(organ, &palpable, p)?]);
     }
     cover.retain(|&v| !organ.fixed[v as usize]);
     cover.sort_unstable();
     cover.dedup();
     Ok(cover)
+}
+
+/// The index in `palpable` (triangles of `organ`) of the one closest to `p`, or that
+/// `p` lies farther than [`COVER_SLACK_MM`] from all of them.
+pub(crate) fn palpable_at(
+    organ: &OrganMesh,
+    palpable: &[[u32; 3]],
+    p: [f64; 3],
+) -> Result<usize, SurfaceLawBuildError> {
+    let off = |distance_mm| SurfaceLawBuildError::OffSurface {
+        point_mm: p,
+        distance_mm,
+    };
+    let hit =
+        crate::axis::closest_point(&organ.mesh.vertices, palpable, p).ok_or(off(f64::INFINITY))?;
+    if hit.distance > COVER_SLACK_MM {
+        return Err(off(hit.distance));
+    }
+    Ok(hit.triangle as usize)
 }
 
 /// The palpable boundary edges, as sorted vertex pairs, sorted and each once.
@@ -803,6 +813,18 @@ pub(crate) fn refine_candidates(
     candidates
 }
 
+/// The candidates' indices, the largest edge surplus first (ties in the mesh's order).
+pub(crate) fn worst_first(candidates: &[Candidate]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..candidates.len()).collect();
+    order.sort_by(|&i, &j| {
+        candidates[j]
+            .worst
+            .total_cmp(&candidates[i].worst)
+            .then(i.cmp(&j))
+    });
+    order
+}
+
 /// The split triangles of a build (see [`Refinement`]): palpable triangles whose
 /// corners and edges were all kept and whose largest edge surplus exceeds `above_mm`.
 /// Log ids come after every vertex and edge id, from the mesh alone (not from which
@@ -819,13 +841,7 @@ pub(crate) fn refine_plan(
     let above = candidates.len();
     // The `most` worst, kept in the mesh's order (ties to the first).
     if let Some(most) = most.filter(|&m| m < candidates.len()) {
-        let mut order: Vec<usize> = (0..candidates.len()).collect();
-        order.sort_by(|&i, &j| {
-            candidates[j]
-                .worst
-                .total_cmp(&candidates[i].worst)
-                .then(i.cmp(&j))
-        });
+        let order = worst_first(&candidates);
         let mut keep = vec![false; candidates.len()];
         for &i in &order[..most] {
             keep[i] = true;
