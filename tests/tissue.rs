@@ -690,6 +690,10 @@ fn refine_previewed(
         (r.triangles.len(), r.triangles.len())
     );
     assert_eq!((all.presses, all.logged), (presses, presses));
+    assert_eq!(
+        all.ready, all.split,
+        "every press logged: every triangle ready"
+    );
     assert!(all.candidates >= all.above);
     for p in &all.at {
         let surplus = p.edge_surplus_mm.expect("a split triangle is a candidate");
@@ -701,7 +705,7 @@ fn refine_previewed(
     let first = law
         .refine_preview(organ, 0.0, Some(1), None, &at)
         .expect("previews");
-    assert_eq!((first.split, first.logged), (1, 0));
+    assert_eq!((first.split, first.logged, first.ready), (1, 0, 0));
     assert_eq!(
         first.presses,
         6 + 3,

@@ -831,7 +831,9 @@ fn a_refinement_plan_presses_nothing_and_ranks_a_point() {
     assert!((15.0..=45.0).contains(&presses), "{stage}");
     assert_eq!(num(&stage, "presses_logged"), 0.0);
     assert_eq!(num(&stage, "presses_to_do"), presses);
+    assert_eq!(num(&stage, "triangles_ready"), 0.0, "an empty log: {stage}");
     assert!(all["presses_logged"].is_null(), "no --out, no log: {all}");
+    assert!(all["triangles_ready"].is_null(), "no --out, no log: {all}");
     assert!(num(&stage, "least_split_edge_surplus_mm") <= num(&stage, "worst_edge_surplus_mm"));
     let point = &stage["at"][0];
     let by_depth: Vec<f64> = point["edge_surplus_by_depth_mm"]

@@ -94,6 +94,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
             "split_triangles": p.split, "presses": p.presses,
             "presses_logged": log.as_ref().map(|_| p.logged),
             "presses_to_do": p.presses - p.logged,
+            "triangles_ready": log.as_ref().map(|_| p.ready),
             "worst_edge_surplus_mm": p.worst_mm,
             "least_split_edge_surplus_mm": p.least_split_mm,
             "at": points,

@@ -16,6 +16,7 @@
 //! the figure that decides the split; its surplus at each grid depth is reported too,
 //! since a scene that presses only so deep sees only the first of them.
 
+use std::collections::HashSet;
 use std::path::Path;
 
 use crate::organ::OrganMesh;
@@ -37,6 +38,10 @@ pub struct RefinePreview {
     pub split: usize,
     pub presses: usize,
     pub logged: usize,
+    /// How many of those triangles, worst first, the log already holds whole: a
+    /// stage of that many finishes without pressing (a stage presses its worst
+    /// triangle's points first, so a stopped one leaves them).
+    pub ready: usize,
     /// The largest edge surplus of any candidate, and the least of those it would
     /// split (mm; `None` when it splits none).
     pub worst_mm: f64,
@@ -119,14 +124,13 @@ impl SurfaceLaw {
         let least_split_mm = plan.figures.iter().map(|f| f.0).min_by(f64::total_cmp);
         let split_t: Vec<[u32; 3]> = plan.triangles.clone();
         let ids: Vec<u32> = plan.press_ids().collect();
-        let logged = match log {
-            Some(path) => {
-                let held = logged_press_ids(organ, &self.options, self.rows.len(), path)?;
-                let held: std::collections::HashSet<u32> = held.into_iter().collect();
-                ids.iter().filter(|id| held.contains(id)).count()
-            }
-            None => 0,
+        let held: HashSet<u32> = match log {
+            Some(path) => logged_press_ids(organ, &self.options, self.rows.len(), path)?
+                .into_iter()
+                .collect(),
+            None => HashSet::new(),
         };
+        let logged = ids.iter().filter(|id| held.contains(id)).count();
         let at = at
             .iter()
             .zip(ranks)
@@ -147,6 +151,7 @@ impl SurfaceLaw {
             split: plan.triangles.len(),
             presses: ids.len(),
             logged,
+            ready: plan.ready(&held),
             worst_mm,
             least_split_mm,
             at,

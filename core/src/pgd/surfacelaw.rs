@@ -35,7 +35,7 @@
 //! is held at its largest before it, so the curve never falls. An
 //! edge's surplus reaches as far as its midpoint and both its ends.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 use std::sync::Mutex;
 use std::time::Instant;
@@ -404,10 +404,10 @@ impl SurfaceLaw {
                 refine_candidates(organ, &sample_of, &kept_edges, &stored.residual, n_row);
             let plan = refine_plan(organ, candidates, above_mm, None);
             let first = points.len();
-            let quarter_points = plan.quarters.iter().map(|q| q.point(organ, &normals));
-            let inner_points = plan.inner.iter().map(|q| q.point(organ, &normals));
-            let points: Vec<PressPoint> = quarter_points.chain(inner_points).collect();
-            let (presses, more) = press_all(&points, &mut finished, first + points.len())?;
+            let order = plan.press_order();
+            let points = plan.points_in_press_order(organ, &normals, &order);
+            let (pressed, more) = press_all(&points, &mut finished, first + points.len())?;
+            let presses = in_plan_order(&order, pressed);
             resumed += more;
             split_figures = split_triangles(
                 &plan,
@@ -494,9 +494,8 @@ impl SurfaceLaw {
             refine_candidates(organ, &self.sample_of, &self.edges, &stored.residual, n_row);
         let plan = refine_plan(organ, candidates, above_mm, most);
         let normals = organ_vertex_normals(organ);
-        let quarter_points = plan.quarters.iter().map(|q| q.point(organ, &normals));
-        let inner_points = plan.inner.iter().map(|q| q.point(organ, &normals));
-        let points: Vec<PressPoint> = quarter_points.chain(inner_points).collect();
+        let order = plan.press_order();
+        let points = plan.points_in_press_order(organ, &normals, &order);
         let presser = Presser {
             space: &space,
             organ,
@@ -509,7 +508,8 @@ impl SurfaceLaw {
             from_log: AtomicUsize::new(0),
             progress,
         };
-        let (presses, resumed) = presser.press(&points, &mut finished, points.len())?;
+        let (pressed, resumed) = presser.press(&points, &mut finished, points.len())?;
+        let presses = in_plan_order(&order, pressed);
         self.refinement.above_mm = Some(above_mm);
         self.split_figures = split_triangles(
             &plan,
@@ -627,6 +627,7 @@ pub struct Refinement {
 pub const DEFAULT_REFINE_ABOVE_MM: f64 = 0.35;
 
 /// A surface point to press: where, along what, and its id in the press log.
+#[derive(Clone, Copy)]
 struct PressPoint {
     at: [f64; 3],
     push: [f64; 3],
@@ -681,6 +682,77 @@ impl RefinePlan {
     pub(crate) fn press_ids(&self) -> impl Iterator<Item = u32> + '_ {
         self.quarters.iter().chain(&self.inner).map(|p| p.id)
     }
+
+    /// The split triangles (indices in `figures`), the largest edge surplus first
+    /// (ties in the plan's order, as [`worst_first`] ranks them).
+    fn triangles_worst_first(&self) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.figures.len()).collect();
+        let f = &self.figures;
+        order.sort_by(|&i, &j| f[j].0.total_cmp(&f[i].0).then(i.cmp(&j)));
+        order
+    }
+
+    /// Split triangle `t`'s nine points as indices in [`press_ids`](Self::press_ids)'
+    /// order.
+    fn triangle_points(&self, t: usize) -> impl Iterator<Item = usize> + '_ {
+        let (_, quarters, inner) = &self.figures[t];
+        let n_quarters = self.quarters.len();
+        quarters
+            .iter()
+            .copied()
+            .chain(inner.iter().map(move |&i| n_quarters + i))
+    }
+
+    /// The plan's points (indices in [`press_ids`](Self::press_ids)' order) in the
+    /// order a stage presses them: the worst triangle's, then the next worst's not yet
+    /// listed, and so on. A stage stopped part way then leaves whole triangles in the
+    /// log, worst first, and a smaller stage finishes from the log alone.
+    pub(crate) fn press_order(&self) -> Vec<usize> {
+        let mut listed = vec![false; self.quarters.len() + self.inner.len()];
+        let mut order = Vec::with_capacity(listed.len());
+        for t in self.triangles_worst_first() {
+            for k in self.triangle_points(t) {
+                if !std::mem::replace(&mut listed[k], true) {
+                    order.push(k);
+                }
+            }
+        }
+        order
+    }
+
+    /// How many of its triangles, worst first, have every point's press among `held`
+    /// (log ids): a stage of that many is already pressed.
+    pub(crate) fn ready(&self, held: &HashSet<u32>) -> usize {
+        let ids: Vec<u32> = self.press_ids().collect();
+        self.triangles_worst_first()
+            .into_iter()
+            .take_while(|&t| self.triangle_points(t).all(|k| held.contains(&ids[k])))
+            .count()
+    }
+
+    /// The plan's points, in [`press_order`](Self::press_order).
+    fn points_in_press_order(
+        &self,
+        organ: &OrganMesh,
+        normals: &[[f32; 3]],
+        order: &[usize],
+    ) -> Vec<PressPoint> {
+        let quarter_points = self.quarters.iter().map(|q| q.point(organ, normals));
+        let inner_points = self.inner.iter().map(|q| q.point(organ, normals));
+        let points: Vec<PressPoint> = quarter_points.chain(inner_points).collect();
+        order.iter().map(|&k| points[k]).collect()
+    }
+}
+
+/// `pressed[i]`, the press of plan point `order[i]`, put back in the plan's order.
+fn in_plan_order(order: &[usize], pressed: Vec<Logged>) -> Vec<Logged> {
+    let mut out: Vec<Option<Logged>> = (0..order.len()).map(|_| None).collect();
+    for (&k, p) in order.iter().zip(pressed) {
+        out[k] = Some(p);
+    }
+    out.into_iter()
+        .map(|p| p.expect("press_order lists every point once"))
+        .collect()
 }
 
 /// How far a covered point may lie from the palpable surface (mm): a point drawn on a
@@ -1078,14 +1150,14 @@ impl Presser<'_> {
             total,
             from_log: logged,
         });
-        let todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
-        // One press a task: rayon otherwise hands each thread a run of presses to do
-        // in turn, and a build's last run (presses of minutes on medium P2) went on on
-        // one core while the other sat idle.
+        let todo = (0..points.len()).filter(|&k| out[k].is_none());
+        // One press a task, taken in `points`' order: a split range would have each
+        // thread press a run in turn (a build's last run, presses of minutes on
+        // medium P2, went on on one core while the other sat idle), and an interrupted
+        // build would leave the log holding two fronts rather than the first presses.
         let computed: Vec<(usize, Logged)> = todo
-            .par_iter()
-            .with_max_len(1)
-            .map(|&k| -> Result<_, SurfaceLawBuildError> {
+            .par_bridge()
+            .map(|k| -> Result<_, SurfaceLawBuildError> {
                 let p = &points[k];
                 let press = point_press(
                     self.space,
@@ -1532,5 +1604,56 @@ mod tests {
         assert_eq!(at([1.0, 0.0, 0.0], 9.0), [4.0, 0.0, 0.0], "held at the end");
         let mut out = [0.0; 3];
         assert!(!law.add_residual([2, 2, 2], [1.0, 0.0, 0.0], 1.0, &mut out));
+    }
+
+    /// Two split triangles sharing an edge (its two quarter points listed once), the
+    /// second the worse: a stage presses the second's nine points first, then the
+    /// first's seven others, and a log holding a prefix of that order is ready for
+    /// whole triangles only.
+    #[test]
+    fn a_stage_presses_its_worst_triangle_first() {
+        let point = |id: u32| RefinePoint {
+            at: vec![],
+            base: vec![],
+            near: vec![],
+            id,
+        };
+        let plan = RefinePlan {
+            above: 2,
+            triangles: vec![[0, 1, 2], [1, 2, 3]],
+            // Triangle 1 reuses quarter points 0 and 1 (the shared edge).
+            figures: vec![
+                (1.0, [0, 1, 2, 3, 4, 5], [0, 1, 2]),
+                (2.0, [1, 0, 6, 7, 8, 9], [3, 4, 5]),
+            ],
+            quarters: (0..10).map(|k| point(100 + k)).collect(),
+            inner: (0..6).map(|k| point(200 + k)).collect(),
+        };
+        let order = plan.press_order();
+        assert_eq!(
+            order,
+            [1, 0, 6, 7, 8, 9, 13, 14, 15, 2, 3, 4, 5, 10, 11, 12],
+            "the worse triangle's nine, then the rest of the other's"
+        );
+        let ids: Vec<u32> = plan.press_ids().collect();
+        let held = |n: usize| -> HashSet<u32> { order[..n].iter().map(|&k| ids[k]).collect() };
+        assert_eq!(plan.ready(&held(0)), 0);
+        assert_eq!(
+            plan.ready(&held(8)),
+            0,
+            "one of the worse triangle's missing"
+        );
+        assert_eq!(plan.ready(&held(9)), 1);
+        assert_eq!(plan.ready(&held(15)), 1);
+        assert_eq!(plan.ready(&held(16)), 2);
+        // The better triangle whole but not the worse: nothing is ready.
+        let better: HashSet<u32> = plan.triangle_points(0).map(|k| ids[k]).collect();
+        assert_eq!(plan.ready(&better), 0);
+        // Presses made in that order come back in the plan's.
+        let pressed: Vec<Logged> = order.iter().map(|&k| Err(format!("{k}"))).collect();
+        let back = in_plan_order(&order, pressed);
+        for (k, p) in back.iter().enumerate() {
+            assert_eq!(p.as_ref().err(), Some(&format!("{k}")));
+        }
     }
 }
