@@ -62,6 +62,11 @@ pub struct CutArgs {
     /// Keep every k-th grid depth (k must divide the grid's intervals).
     #[arg(long, default_value_t = 1)]
     depth_stride: usize,
+    /// Drop the split triangles' quarter and inner points: the quadratic blend
+    /// everywhere, as a build with `--no-refine` stores the same presses (what `palpa
+    /// tissue refine` starts from).
+    #[arg(long)]
+    unsplit: bool,
     /// Where to write the cut law (atomically; it may be the input).
     #[arg(long)]
     out: PathBuf,
@@ -243,11 +248,14 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
 /// `palpa tissue cut`: a law with fewer modes, bits or depths, saved.
 fn cut(args: &CutArgs) -> anyhow::Result<()> {
     let law = TissueLaw::load(&args.tissue)?;
+    let unsplit = args.unsplit.then(|| law.unsplit());
     let bits = match args.bits {
         None => law.shape.bits(),
         Some(b) => ShapeBits::from_count(b).context("--bits: expected 8 or 16")?,
     };
-    let cut = law
+    let cut = unsplit
+        .as_ref()
+        .unwrap_or(&law)
         .coarsened(args.modes, bits, args.depth_stride)
         .map_err(|why| anyhow::anyhow!("cutting {}: {why}", args.tissue.display()))?;
     cut.law.save(&args.out)?;

@@ -78,7 +78,7 @@
 //! number of threads in its last bits). Measured on four spread vertices of coarse P2
 //! pressed to 15 mm: the same segments (14) and chord steps (117), states within
 //! 0.0014 mm and forces within 1e-4 of the double-precision ones; the build's time
-//! is in `docs/methods.md` §2e.
+//! is in `docs/tissue-measurements.md` §4.
 
 use std::time::Instant;
 

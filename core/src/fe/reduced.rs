@@ -24,7 +24,7 @@
 //!
 //! Why: the tissue build follows every press to equilibrium on the full mesh (one
 //! factored tangent per segment, `fe::path`), which puts the whole coarse surface at
-//! hours. Measured by `palpa bench fe --only reduced` (docs/methods.md §2e): a point's
+//! hours. Measured by `palpa bench fe --only reduced` (docs/tissue-measurements.md §10): a point's
 //! own first six series orders alone give its press to 6 mm within 0.03 mm for about a
 //! sixth of a full press, but not deeper (0.3–2.3 mm at 12–15 mm). The check with the
 //! rest factor brings 12–15 mm within 0.05–0.23 mm, but it understates the error there

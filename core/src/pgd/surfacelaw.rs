@@ -169,7 +169,8 @@ pub enum SurfaceLawBuildError {
     },
     #[error(
         "the surface law already has {triangles} split triangles: a refinement starts from a \
-         law whose triangles are not split (built with --no-refine)"
+         law whose triangles are not split (built with --no-refine, or cut with `palpa tissue cut \
+         --unsplit`)"
     )]
     AlreadyRefined { triangles: usize },
     #[error("the build's press log {path}: {source}")]
@@ -603,7 +604,7 @@ impl SurfaceLaw {
 /// quarter terms depend on that edge alone, so a neighbour that was not split blends
 /// them too (with the same weights on the edge) and the surface does not jump as the
 /// probe crosses it. Measured on the anterior lobe's worst triangle (sides 8.6–12 mm)
-/// at 7 mm: 0.19–0.48 mm quadratic, 0.05–0.11 mm split (docs/methods.md §2e).
+/// at 7 mm: 0.19–0.48 mm quadratic, 0.05–0.11 mm split (docs/tissue-measurements.md §2).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Refinement {
     /// The threshold the build used (mm); `None`: no triangle is split.

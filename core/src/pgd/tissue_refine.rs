@@ -38,7 +38,8 @@ impl TissueLaw {
         let refused = |why: String| TissueError::Refine { why };
         if !self.refinement.triangles.is_empty() {
             return Err(refused(format!(
-                "it already has {} split triangles (expected a file built with --no-refine)",
+                "it already has {} split triangles (expected a file built with --no-refine, or \
+                 cut with `palpa tissue cut --unsplit`)",
                 self.refinement.triangles.len()
             )));
         }

@@ -15,7 +15,7 @@
 //! depths as the surface is. It is not a bound: on the shipped coarse file, at 16
 //! held-out points pressed 8.4 and 9.3 mm deep, the surface error ran at 0.06–1.12 of
 //! `η`, every press that missed 0.5 mm had `η` above 0.7 mm and every press with `η`
-//! up to 0.6 mm was within 0.37 mm (docs/methods.md §2e). It belongs to the triangle
+//! up to 0.6 mm was within 0.37 mm (docs/tissue-measurements.md §1). It belongs to the triangle
 //! (or quarter) holding the probe, so it steps where the probe crosses an edge, and at
 //! a vertex or on an edge it is that of the triangle the probe was located in.
 
