@@ -951,4 +951,43 @@ fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
         .unwrap_or_else(|| panic!("no row without the split: {table}"));
     assert!(num(plain, "payload_bytes") < num(sixteen, "payload_bytes"));
     assert!(num(plain, "presses_compared") >= 1.0, "{plain}");
+
+    // A split file is refused by `tissue refine`, which names the way back: `tissue cut
+    // --unsplit` drops the split points and keeps the vertex and edge samples, and the
+    // plan on that file splits the same triangles again.
+    let refine_plan = |file: &std::path::Path| palpa(&["tissue", "refine", &path(file), "--plan"]);
+    let out = refine_plan(&tissue);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("split triangles") && err.contains("--unsplit"),
+        "{err}"
+    );
+    let unsplit = dir.path().join("unsplit.tissue");
+    let cut = common::json_ok(&palpa(&[
+        "tissue",
+        "cut",
+        &path(&tissue),
+        "--unsplit",
+        "--out",
+        &path(&unsplit),
+    ]));
+    let (from, to) = (&cut["from"], &cut["out"]);
+    assert_eq!(num(from, "split_triangles"), split, "{cut}");
+    for k in ["split_triangles", "quarter_points", "inner_points"] {
+        assert_eq!(num(to, k), 0.0, "{k}: {cut}");
+    }
+    for k in ["vertices", "edges", "bits"] {
+        assert_eq!(to[k], from[k], "{k}: {cut}");
+    }
+    assert!(num(to, "presses") < num(from, "presses"), "{cut}");
+    let again = common::json_ok(&palpa(&[
+        "tissue",
+        "refine",
+        &path(&unsplit),
+        "--plan",
+        "--refine-above-mm",
+        "0",
+    ]));
+    assert_eq!(num(&again, "split_triangles"), split, "{again}");
 }
