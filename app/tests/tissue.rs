@@ -73,6 +73,19 @@ fn path(p: &std::path::Path) -> String {
     p.to_str().expect("utf-8 path").to_string()
 }
 
+/// Writes the shipped tissue's unsplit form (`tissue cut --unsplit`) to `out`.
+fn unsplit_shipped(out: &std::path::Path) {
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    common::json_ok(&palpa(&[
+        "tissue",
+        "cut",
+        shipped,
+        "--unsplit",
+        "--out",
+        &path(out),
+    ]));
+}
+
 /// `palpa eval TISSUE --scene SCENE` answers at the anterior lobe, 4 mm deep.
 fn eval_answers(tissue: &std::path::Path, scene: &std::path::Path) {
     let out = palpa(&[
@@ -780,7 +793,10 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         );
     }
     // `tissue refine` likewise, and a file that is no tissue law is named.
-    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let shipped = dir.path().join("shipped.tissue");
+    unsplit_shipped(&shipped);
+    let shipped = path(&shipped);
+    let shipped = shipped.as_str();
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
     for (input, bad, says) in [
         (shipped, &["--refine-above-mm=-1"][..], "at least 0"),
@@ -805,9 +821,14 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
 fn a_refinement_plan_presses_nothing_and_ranks_a_point() {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("refined.tissue");
-    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    // The shipped file's unsplit form (it may have split triangles: a refinement starts
+    // from the vertices and edges alone).
+    let input = tempfile::tempdir().expect("tempdir");
+    let shipped = input.path().join("shipped.tissue");
+    unsplit_shipped(&shipped);
+    let shipped = path(&shipped);
     let plan = |extra: &[&str]| {
-        let args = [&["tissue", "refine", shipped, "--plan"][..], extra].concat();
+        let args = [&["tissue", "refine", &shipped, "--plan"][..], extra].concat();
         common::json_ok(&palpa(&args))
     };
     let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
