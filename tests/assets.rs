@@ -139,8 +139,9 @@ fn the_kidney_example_matches_its_shipped_surface() {
 /// The default scene's tissue (`assets/liver-coarse.tissue`) comes from the current
 /// code: its options are the build's, every palpable vertex clear of the fixed region
 /// was pressed (or skipped with a reason), it binds to the default scene, scene and
-/// tissue fit the phone budget together, and one of its vertex presses, pressed again
-/// here, gives back its force ratio and (within the stored bound) its surface.
+/// tissue fit the phone budget together, its split triangles are the worst of its own
+/// unsplit form, and one of its vertex presses, pressed again here, gives back its
+/// force ratio and (within the stored bound) its surface.
 #[test]
 fn the_default_tissue_comes_from_the_current_code() {
     use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
@@ -177,6 +178,44 @@ fn the_default_tissue_comes_from_the_current_code() {
         .expect("the default scene's element and material");
     let bytes = |f: &str| std::fs::metadata(root.join(f)).expect("size").len();
     assert!(bytes("liver-coarse.palpa") + bytes("liver-coarse.tissue") < 20_000_000);
+
+    // Its split triangles are a refinement stage of its own vertices and edges: the
+    // worst of its unsplit form by largest edge surplus, as `tissue refine --triangles`
+    // picks them.
+    let split = law.refinement.triangles.len();
+    assert!(
+        split > 0,
+        "the default tissue is refined: see scripts/make-assets.sh"
+    );
+    let above = law
+        .refinement
+        .above_mm
+        .expect("a refined file keeps its threshold");
+    let base = law
+        .unsplit()
+        .surface_law(&organ)
+        .expect("its unsplit form reads back");
+    let centroid = |t: [u32; 3]| {
+        let mut c = [0.0; 3];
+        for s in t {
+            let p = law.samples_mm[s as usize];
+            (0..3).for_each(|k| c[k] += f64::from(p[k]) / 3.0);
+        }
+        c
+    };
+    let at: Vec<[f64; 3]> = law
+        .refinement
+        .triangles
+        .iter()
+        .map(|&t| centroid(t))
+        .collect();
+    let plan = base
+        .refine_preview(&organ, above, Some(split), None, &at)
+        .expect("a plan");
+    assert_eq!(plan.split, split);
+    for p in &plan.at {
+        assert!(p.split && p.rank.is_some_and(|r| r <= split), "{p:?}");
+    }
 
     // The vertex press nearest the anterior lobe's centre, pressed again alone.
     let centre = [-30.3f32, 70.7, 16.9];
