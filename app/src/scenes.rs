@@ -21,7 +21,8 @@ pub const BUILT_IN_TISSUE: &[u8] = include_bytes!("../../assets/liver-coarse.tis
 /// Where the built-in scene comes from, and how far its tissue is measured to meet
 /// the goals (surface within 0.5 mm, force within 5 % of Newton at held-out points: to
 /// 7.3 mm at 16 points, and at 12.7 mm the worst is 1.46 mm and 5.04 %;
-/// docs/tissue-measurements.md §1; `the_default_tissue_meets_the_goals_at_held_out_points` checks two of them).
+/// docs/tissue-measurements.md §1;
+/// `the_default_tissue_meets_the_goals_at_held_out_points` checks two of them).
 pub const BUILT_IN_SOURCE: &str = "built-in liver (assets/liver-coarse.palpa, neo-Hookean \
     tissue assets/liver-coarse.tissue: within 0.5 mm and 5 % of the full FE to 7 mm deep, \
     up to 1.5 mm and 5 % at 13 mm)";
