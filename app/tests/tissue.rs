@@ -73,17 +73,17 @@ fn path(p: &std::path::Path) -> String {
     p.to_str().expect("utf-8 path").to_string()
 }
 
+/// `palpa tissue cut INPUT FLAGS --out OUT`, which must succeed: its JSON summary.
+fn tissue_cut(input: &str, flags: &[&str], out: &std::path::Path) -> serde_json::Value {
+    let out = path(out);
+    let args = [&["tissue", "cut", input][..], flags, &["--out", &out]].concat();
+    common::json_ok(&palpa(&args))
+}
+
 /// Writes the shipped tissue's unsplit form (`tissue cut --unsplit`) to `out`.
 fn unsplit_shipped(out: &std::path::Path) {
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
-    common::json_ok(&palpa(&[
-        "tissue",
-        "cut",
-        shipped,
-        "--unsplit",
-        "--out",
-        &path(out),
-    ]));
+    tissue_cut(shipped, &["--unsplit"], out);
 }
 
 /// `palpa eval TISSUE --scene SCENE` answers at the anterior lobe, 4 mm deep.
@@ -553,17 +553,11 @@ fn tissue_check_separates_the_blend_from_the_press() {
         .sum();
     assert_eq!(num(&info, "presses"), split, "{info}");
     let cut_path = dir.path().join("cut.tissue");
-    let cut = common::json_ok(&palpa(&[
-        "tissue",
-        "cut",
+    let cut = tissue_cut(
         &path(&tissue),
-        "--modes",
-        "1",
-        "--depth-stride",
-        "2",
-        "--out",
-        &path(&cut_path),
-    ]));
+        &["--modes", "1", "--depth-stride", "2"],
+        &cut_path,
+    );
     let (from, to) = (&cut["from"], &cut["out"]);
     assert_eq!(to["rank"], 1, "{cut}");
     assert!(
@@ -985,14 +979,7 @@ fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
         "{err}"
     );
     let unsplit = dir.path().join("unsplit.tissue");
-    let cut = common::json_ok(&palpa(&[
-        "tissue",
-        "cut",
-        &path(&tissue),
-        "--unsplit",
-        "--out",
-        &path(&unsplit),
-    ]));
+    let cut = tissue_cut(&path(&tissue), &["--unsplit"], &unsplit);
     let (from, to) = (&cut["from"], &cut["out"]);
     assert_eq!(num(from, "split_triangles"), split, "{cut}");
     for k in ["split_triangles", "quarter_points", "inner_points"] {
