@@ -503,17 +503,6 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
     let total = first + r.quarter_ends.len() + r.inner_corners.len();
     let base = TissueLaw::compress(organ, plain, 0.002, ShapeBits::Sixteen).expect("compresses");
     let bound = base.truncation_bound_mm;
-    let node_gap = |a: &[f32], b: &[f32]| {
-        a.chunks(3)
-            .zip(b.chunks(3))
-            .map(|(a, b)| {
-                (0..3)
-                    .map(|k| f64::from(a[k] - b[k]).powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-            })
-            .fold(0.0, f64::max)
-    };
     let back = base.surface_law(organ).expect("reads back");
     assert_eq!(back.samples, plain.samples);
     assert_eq!(back.edges, plain.edges);
@@ -599,12 +588,92 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
         (&base.shape, &base.coeffs, &base.shape_scale, &base.ratio)
     );
     assert_eq!(same.truncation_bound_mm, bound);
-    let again = file.surface_law(organ);
-    assert!(
-        matches!(&again, Err(TissueError::Refine { why }) if why.contains("split triangles")),
-        "a split file is refused: {:?}",
-        again.map(|_| ())
+    refined_onward(organ, &base, &one, &refined, log);
+}
+
+/// A file split in two stages (the worst triangle, then all) splits what one stage
+/// of all does, pressing only the second stage's points: the first stage's samples
+/// kept as that file stores them (bit for bit), the new ones' surpluses the same as
+/// the one-stage refinement's, the first stage's within its file's bound.
+fn refined_onward(
+    organ: &OrganMesh,
+    base: &TissueLaw,
+    one: &SurfaceLaw,
+    all: &SurfaceLaw,
+    log: &Path,
+) {
+    let none = &|_: PressCount| {};
+    let first_stage = base
+        .refined(organ, one)
+        .expect("compresses the first stage");
+    let back = first_stage
+        .surface_law(organ)
+        .expect("a split file reads back");
+    assert_eq!(back.refinement.triangles, one.refinement.triangles);
+    let r = &all.refinement;
+    let (onward, resumed, _) = back
+        .clone()
+        .refine(organ, 0.0, None, Some(log), none)
+        .expect("goes on");
+    let points =
+        |r: &palpa_core::pgd::surfacelaw::Refinement| r.quarter_ends.len() + r.inner_corners.len();
+    assert_eq!(
+        resumed,
+        points(r) - points(&one.refinement),
+        "only the new points pressed (here from the log)"
     );
+    let o = &onward.refinement;
+    assert_eq!(o.triangles[0], one.refinement.triangles[0], "kept first");
+    let sorted = |t: &[[u32; 3]]| {
+        let mut t = t.to_vec();
+        t.sort_unstable();
+        t
+    };
+    assert_eq!(sorted(&o.triangles), sorted(&r.triangles));
+    let file = first_stage
+        .refined(organ, &onward)
+        .expect("compresses onward");
+    let read = file.surface_law(organ).expect("reads back");
+    let (keys_all, keys_on, keys_one) = (sample_keys(all), sample_keys(&onward), sample_keys(one));
+    assert_eq!(keys_all.len(), keys_on.len());
+    let bound = first_stage.truncation_bound_mm;
+    for (key, &s) in &keys_on {
+        let direct = keys_all[key];
+        for j in 0..onward.steps() {
+            match keys_one.get(key) {
+                // Held: as the first stage's file answers, in the new file too.
+                Some(&held) => {
+                    assert_eq!(read.residual_at(s, j), back.residual_at(held, j));
+                    let gap = node_gap(onward.residual_at(s, j), all.residual_at(direct, j));
+                    assert!(gap <= 2.25 * bound + 1e-5, "{key:?}, depth {j}: {gap}");
+                }
+                None => assert_eq!(
+                    onward.residual_at(s, j),
+                    all.residual_at(direct, j),
+                    "{key:?}, depth {j}"
+                ),
+            }
+        }
+    }
+    assert!(file.truncation_bound_mm <= first_stage.tolerance_mm);
+    let again = back.refine(organ, 0.0, Some(1), None, none);
+    assert!(
+        matches!(again, Err(SurfaceLawBuildError::AlreadyRefined { .. })),
+        "a stage of no more triangles is refused"
+    );
+}
+
+/// The largest node distance between two residual rows (3 values a node, mm).
+fn node_gap(a: &[f32], b: &[f32]) -> f64 {
+    a.chunks(3)
+        .zip(b.chunks(3))
+        .map(|(a, b)| {
+            (0..3)
+                .map(|k| f64::from(a[k] - b[k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max)
 }
 
 /// The finest surplus at the probe (`BoundTissue::blend_surplus_mm`), at each split
@@ -721,10 +790,24 @@ fn refine_previewed(
         matches!(off, Err(SurfaceLawBuildError::OffSurface { .. })),
         "{off:?}"
     );
-    let split = one.refine_preview(organ, 0.0, None, None, &[]);
+    // On the one-triangle stage: a stage of all goes on from it, its nine points
+    // held; a stage of one again is refused.
+    let onward = one
+        .refine_preview(organ, 0.0, None, None, &[])
+        .expect("previews onward");
+    assert_eq!((onward.kept, onward.split), (1, all.split));
+    assert_eq!(onward.presses + 9, all.presses, "the stage's points held");
+    assert_eq!(onward.ready, 1, "the held triangle is ready, the worst");
+    let again = one.refine_preview(organ, 0.0, Some(1), None, &[]);
     assert!(
-        matches!(split, Err(SurfaceLawBuildError::AlreadyRefined { .. })),
-        "{split:?}"
+        matches!(
+            again,
+            Err(SurfaceLawBuildError::AlreadyRefined {
+                triangles: 1,
+                asked: 1
+            })
+        ),
+        "{again:?}"
     );
 }
 

@@ -967,9 +967,10 @@ fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
     assert!(num(plain, "payload_bytes") < num(sixteen, "payload_bytes"));
     assert!(num(plain, "presses_compared") >= 1.0, "{plain}");
 
-    // A split file is refused by `tissue refine`, which names the way back: `tissue cut
-    // --unsplit` drops the split points and keeps the vertex and edge samples, and the
-    // plan on that file splits the same triangles again.
+    // A split file asked for no more triangles than it has (here every candidate is
+    // split) is refused by `tissue refine`, which names the ways on, among them the way
+    // back: `tissue cut --unsplit` drops the split points and keeps the vertex and edge
+    // samples, and the plan on that file splits the same triangles again.
     let refine_plan = |file: &std::path::Path| palpa(&["tissue", "refine", &path(file), "--plan"]);
     let out = refine_plan(&tissue);
     assert!(!out.status.success());

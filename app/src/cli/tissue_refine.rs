@@ -15,7 +15,9 @@ use super::tissue::{press_log, press_pool, progress_line, summary, triples};
 
 #[derive(Debug, Args)]
 pub struct RefineArgs {
-    /// A tissue file built without split triangles (`palpa tissue build --no-refine`).
+    /// A tissue file: built without split triangles (`palpa tissue build --no-refine`),
+    /// or split by an earlier stage, which this one goes on from (its split triangles
+    /// kept, only new ones pressed).
     tissue: PathBuf,
     #[command(flatten)]
     organ: OrganArgs,
@@ -24,7 +26,8 @@ pub struct RefineArgs {
     #[arg(long, default_value_t = DEFAULT_REFINE_ABOVE_MM)]
     refine_above_mm: f64,
     /// Split only this many of them, the worst first (by their largest edge surplus):
-    /// a refinement in stages. Default: all.
+    /// a refinement in stages. On a split file, the stage's triangles in all (those
+    /// already split among them). Default: all.
     #[arg(long)]
     triangles: Option<usize>,
     /// Presses computed at once (default: one per core).
@@ -91,7 +94,8 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
             "from": args.tissue, "refine_above_mm": args.refine_above_mm,
             "depth_step_mm": law.options.depth_step_mm,
             "candidates": p.candidates, "triangles_above": p.above,
-            "split_triangles": p.split, "presses": p.presses,
+            "split_triangles": p.split, "split_triangles_kept": p.kept,
+            "presses": p.presses,
             "presses_logged": log.as_ref().map(|_| p.logged),
             "presses_to_do": p.presses - p.logged,
             "triangles_ready": log.as_ref().map(|_| p.ready),
@@ -104,6 +108,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
     let (Some(out), Some(log)) = (&args.out, log) else {
         bail!("--out: expected where to write the refined law");
     };
+    let kept = law.refinement.triangles.len();
     let pool = press_pool(args.jobs)?;
     let started = Instant::now();
     let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
@@ -136,7 +141,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
     let report = json!({
         "from": args.tissue, "out": out,
         "refine_above_mm": args.refine_above_mm, "triangles_above": above,
-        "split_triangles": split,
+        "split_triangles": split, "split_triangles_kept": kept,
         "least_split_edge_surplus_mm": least_split.is_finite().then_some(least_split),
         "worst_edge_surplus_mm": worst(|f| f.0), "worst_point_surplus_mm": worst(|f| f.1),
         "quarter_points": law.refinement.quarter_ends.len(),

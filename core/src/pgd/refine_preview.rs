@@ -21,8 +21,8 @@ use std::path::Path;
 
 use crate::organ::OrganMesh;
 use crate::pgd::surfacelaw::{
-    SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak, palpable_at, refine_candidates,
-    refine_plan, worst_first,
+    Source, SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak, palpable_at,
+    refine_candidates, refine_plan, worst_first,
 };
 
 /// What [`SurfaceLaw::refine`] would split and press with the same threshold and
@@ -33,8 +33,11 @@ pub struct RefinePreview {
     /// refinement can split), and how many of them lie above the threshold.
     pub candidates: usize,
     pub above: usize,
-    /// Triangles it would split, points it would press, and how many of those points
-    /// the press log already holds.
+    /// Triangles the law has split already (an earlier stage: kept, and counted in
+    /// `split`), triangles it would split in all, points it would press (those the
+    /// earlier stage holds not among them), and how many of those points the press
+    /// log already holds.
+    pub kept: usize,
     pub split: usize,
     pub presses: usize,
     pub logged: usize,
@@ -76,11 +79,6 @@ impl SurfaceLaw {
         log: Option<&Path>,
         at: &[[f64; 3]],
     ) -> Result<RefinePreview, SurfaceLawBuildError> {
-        if !self.refinement.triangles.is_empty() {
-            return Err(SurfaceLawBuildError::AlreadyRefined {
-                triangles: self.refinement.triangles.len(),
-            });
-        }
         let (steps, row) = (self.steps, 3 * self.rows.len());
         let n_row = steps * row;
         let candidates =
@@ -120,17 +118,39 @@ impl SurfaceLaw {
             })
             .collect();
         let worst_mm = candidates.iter().map(|c| c.worst).fold(0.0, f64::max);
-        let plan = refine_plan(organ, candidates.clone(), above_mm, most);
+        let earlier = &self.refinement;
+        let plan = refine_plan(
+            organ,
+            candidates.clone(),
+            above_mm,
+            most,
+            &earlier.triangles,
+        );
+        plan.goes_on_from(earlier)?;
         let least_split_mm = plan.figures.iter().map(|f| f.0).min_by(f64::total_cmp);
         let split_t: Vec<[u32; 3]> = plan.triangles.clone();
         let ids: Vec<u32> = plan.press_ids().collect();
-        let held: HashSet<u32> = match log {
+        let sources = plan.sources(earlier);
+        let mut held: HashSet<u32> = match log {
             Some(path) => logged_press_ids(organ, &self.options, self.rows.len(), path)?
                 .into_iter()
                 .collect(),
             None => HashSet::new(),
         };
-        let logged = ids.iter().filter(|id| held.contains(id)).count();
+        let to_press: Vec<u32> = ids
+            .iter()
+            .zip(&sources)
+            .filter(|(_, s)| **s == Source::Press)
+            .map(|(&id, _)| id)
+            .collect();
+        let logged = to_press.iter().filter(|id| held.contains(id)).count();
+        // The earlier stage's points count as pressed.
+        held.extend(
+            ids.iter()
+                .zip(&sources)
+                .filter(|(_, s)| **s != Source::Press)
+                .map(|(&id, _)| id),
+        );
         let at = at
             .iter()
             .zip(ranks)
@@ -148,8 +168,9 @@ impl SurfaceLaw {
         Ok(RefinePreview {
             candidates: candidates.len(),
             above: plan.above,
+            kept: earlier.triangles.len(),
             split: plan.triangles.len(),
-            presses: ids.len(),
+            presses: to_press.len(),
             logged,
             ready: plan.ready(&held),
             worst_mm,

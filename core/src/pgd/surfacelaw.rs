@@ -168,11 +168,16 @@ pub enum SurfaceLawBuildError {
         distance_mm: f64,
     },
     #[error(
-        "the surface law already has {triangles} split triangles: a refinement starts from a \
-         law whose triangles are not split (built with --no-refine, or cut with `palpa tissue cut \
-         --unsplit`)"
+        "the surface law already has {triangles} split triangles and this stage would split \
+         {asked}: expected a stage of more (a larger --triangles, or a lower --refine-above-mm), \
+         or a law cut back to no split triangles first (`palpa tissue cut --unsplit`)"
     )]
-    AlreadyRefined { triangles: usize },
+    AlreadyRefined { triangles: usize, asked: usize },
+    #[error(
+        "{missing} of the law's split triangles are not split candidates on this organ mesh \
+         (their corners and edges pressed): expected the mesh the law was built on"
+    )]
+    EarlierStage { missing: usize },
     #[error("the build's press log {path}: {source}")]
     Log {
         path: std::path::PathBuf,
@@ -403,7 +408,7 @@ impl SurfaceLaw {
         if let Some(above_mm) = refine_above_mm {
             let candidates =
                 refine_candidates(organ, &sample_of, &kept_edges, &stored.residual, n_row);
-            let plan = refine_plan(organ, candidates, above_mm, None);
+            let plan = refine_plan(organ, candidates, above_mm, None, &[]);
             let first = points.len();
             let order = plan.press_order();
             let points = plan.points_in_press_order(organ, &normals, &order);
@@ -412,7 +417,8 @@ impl SurfaceLaw {
             resumed += more;
             split_figures = split_triangles(
                 &plan,
-                presses,
+                presses.into_iter().map(Got::Pressed).collect(),
+                &Stored::default(),
                 &mut stored,
                 steps,
                 3 * rows.len(),
@@ -445,16 +451,25 @@ impl SurfaceLaw {
         Ok((law, resumed))
     }
 
-    /// Splits the triangles of a law built without splitting (see [`Refinement`]):
-    /// those whose largest edge surplus exceeds `above_mm`, or only the `most` worst
-    /// of them, their quarter and inner points pressed (in parallel, logged at `log`
-    /// under the same key as a whole build of the same options, so either takes the
-    /// other's presses) and kept as surpluses over *this* law's quadratic blend. A law
-    /// decompressed from a tissue file ([`super::tissue::TissueLaw::surface_law`])
-    /// thus gets the split a whole build would give without pressing its vertices and
-    /// edges again, each split point's surplus measured against the blend the file
-    /// answers with. Returns the refined law, how many presses came from the log, and
-    /// how many triangles lie above the threshold (more than were split under `most`).
+    /// Splits the triangles of a law (see [`Refinement`]): those whose largest edge
+    /// surplus exceeds `above_mm`, or only the `most` worst of them, their quarter and
+    /// inner points pressed (in parallel, logged at `log` under the same key as a whole
+    /// build of the same options, so either takes the other's presses) and kept as
+    /// surpluses over *this* law's quadratic blend. A law decompressed from a tissue
+    /// file ([`super::tissue::TissueLaw::surface_law`]) thus gets the split a whole
+    /// build would give without pressing its vertices and edges again, each split
+    /// point's surplus measured against the blend the file answers with.
+    ///
+    /// A law that is already split goes on from its stage: its split triangles stay
+    /// (whatever their rank), listed first with their points' surpluses as they are,
+    /// and only the new triangles' points not already held are pressed; `most` counts
+    /// the stage's triangles in all. So a file split in stages, each saved, ends as
+    /// one split at once would (the same triangles), without a press log kept between
+    /// them. Asking for no more triangles than it has is refused
+    /// ([`SurfaceLawBuildError::AlreadyRefined`]).
+    ///
+    /// Returns the refined law, how many presses came from the log, and how many
+    /// triangles lie above the threshold (more than were split under `most`).
     pub fn refine(
         mut self,
         organ: &OrganMesh,
@@ -464,13 +479,27 @@ impl SurfaceLaw {
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize, usize), SurfaceLawBuildError> {
         use std::sync::atomic::AtomicUsize;
-        if !self.refinement.triangles.is_empty() {
-            return Err(SurfaceLawBuildError::AlreadyRefined {
-                triangles: self.refinement.triangles.len(),
-            });
-        }
         let t0 = Instant::now();
         let (o, steps) = (self.options, self.steps);
+        let row = 3 * self.rows.len();
+        let n_row = steps * row;
+        let earlier = std::mem::take(&mut self.refinement);
+        let first_split = self.samples.len() + self.edges.len();
+        let mut stored = Stored {
+            residual: std::mem::take(&mut self.residual),
+            ratio: std::mem::take(&mut self.ratio),
+            stiffness: std::mem::take(&mut self.stiffness_n_per_mm),
+            correction: std::mem::take(&mut self.correction_mm),
+            segments: std::mem::take(&mut self.segments),
+            reach: std::mem::take(&mut self.reach),
+            stopped: std::mem::take(&mut self.stopped),
+        };
+        let held = stored.split_off(first_split, steps, n_row);
+        let candidates =
+            refine_candidates(organ, &self.sample_of, &self.edges, &stored.residual, n_row);
+        let plan = refine_plan(organ, candidates, above_mm, most, &earlier.triangles);
+        let sources = plan.sources(&earlier);
+        plan.goes_on_from(&earlier)?;
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;
         let (log, finished) = match log {
@@ -481,21 +510,12 @@ impl SurfaceLaw {
             None => (None, Vec::new()),
         };
         let mut finished: HashMap<u32, Logged> = finished.into_iter().collect();
-        let mut stored = Stored {
-            residual: std::mem::take(&mut self.residual),
-            ratio: std::mem::take(&mut self.ratio),
-            stiffness: std::mem::take(&mut self.stiffness_n_per_mm),
-            correction: std::mem::take(&mut self.correction_mm),
-            segments: std::mem::take(&mut self.segments),
-            reach: std::mem::take(&mut self.reach),
-            stopped: std::mem::take(&mut self.stopped),
-        };
-        let n_row = steps * 3 * self.rows.len();
-        let candidates =
-            refine_candidates(organ, &self.sample_of, &self.edges, &stored.residual, n_row);
-        let plan = refine_plan(organ, candidates, above_mm, most);
         let normals = organ_vertex_normals(organ);
-        let order = plan.press_order();
+        let order: Vec<usize> = plan
+            .press_order()
+            .into_iter()
+            .filter(|&k| matches!(sources[k], Source::Press))
+            .collect();
         let points = plan.points_in_press_order(organ, &normals, &order);
         let presser = Presser {
             space: &space,
@@ -510,14 +530,29 @@ impl SurfaceLaw {
             progress,
         };
         let (pressed, resumed) = presser.press(&points, &mut finished, points.len())?;
-        let presses = in_plan_order(&order, pressed);
+        let mut by_point: Vec<Option<Logged>> = sources.iter().map(|_| None).collect();
+        for (k, press) in order.into_iter().zip(pressed) {
+            by_point[k] = Some(press);
+        }
+        let got = sources
+            .into_iter()
+            .zip(by_point)
+            .map(|(source, press)| match source {
+                Source::Press => Got::Pressed(press.expect("every point to press was pressed")),
+                Source::Held(s) => Got::Held(s),
+                Source::Skipped => Got::Pressed(Err(
+                    "not kept by the stage the law came from (its press failed there)".into(),
+                )),
+            })
+            .collect();
         self.refinement.above_mm = Some(above_mm);
         self.split_figures = split_triangles(
             &plan,
-            presses,
+            got,
+            &held,
             &mut stored,
             steps,
-            3 * self.rows.len(),
+            row,
             &mut self.refinement,
             &mut self.refine_skip_reasons,
         );
@@ -899,32 +934,44 @@ pub(crate) fn worst_first(candidates: &[Candidate]) -> Vec<usize> {
 }
 
 /// The split triangles of a build (see [`Refinement`]): palpable triangles whose
-/// corners and edges were all kept and whose largest edge surplus exceeds `above_mm`.
-/// Log ids come after every vertex and edge id, from the mesh alone (not from which
-/// triangles are split), so a resumed build finds them.
+/// corners and edges were all kept and whose largest edge surplus exceeds `above_mm`
+/// (the `most` worst of them, where given), and the `kept` triangles (corner samples)
+/// of an earlier stage whatever their rank. The kept ones come first, in their order,
+/// the others in the mesh's: a point shared with a kept triangle (a quarter point on
+/// its edge) stays that triangle's, so an onward stage leaves the earlier stage's
+/// points and their groups as they were. Log ids come after every vertex and edge id,
+/// from the mesh alone (not from which triangles are split), so a resumed build finds
+/// them.
 pub(crate) fn refine_plan(
     organ: &OrganMesh,
-    mut candidates: Vec<Candidate>,
+    candidates: Vec<Candidate>,
     above_mm: f64,
     most: Option<usize>,
+    kept: &[[u32; 3]],
 ) -> RefinePlan {
     let all_edges = palpable_edges(organ);
     let first_id = organ.mesh.vertices.len() + 3 * organ.boundary.len();
-    candidates.retain(|c| c.worst > above_mm);
-    let above = candidates.len();
-    // The `most` worst, kept in the mesh's order (ties to the first).
-    if let Some(most) = most.filter(|&m| m < candidates.len()) {
-        let order = worst_first(&candidates);
-        let mut keep = vec![false; candidates.len()];
-        for &i in &order[..most] {
-            keep[i] = true;
+    let above = candidates.iter().filter(|c| c.worst > above_mm).count();
+    // The `most` worst above the threshold (ties to the first in the mesh's order).
+    let mut chosen: Vec<bool> = vec![false; candidates.len()];
+    let mut count = 0;
+    for i in worst_first(&candidates) {
+        if candidates[i].worst > above_mm && most.is_none_or(|m| count < m) {
+            chosen[i] = true;
+            count += 1;
         }
-        let mut k = 0;
-        candidates.retain(|_| {
-            k += 1;
-            keep[k - 1]
-        });
     }
+    let mut ordered: Vec<Candidate> = kept
+        .iter()
+        .filter_map(|k| candidates.iter().find(|c| c.c == *k).cloned())
+        .collect();
+    ordered.extend(
+        candidates
+            .into_iter()
+            .zip(chosen)
+            .filter(|(c, chosen)| *chosen && !kept.contains(&c.c))
+            .map(|(c, _)| c),
+    );
     let mut plan = RefinePlan {
         above,
         ..RefinePlan::default()
@@ -936,7 +983,7 @@ pub(crate) fn refine_plan(
         c,
         e,
         worst,
-    } in candidates
+    } in ordered
     {
         plan.triangles.push(c);
         let (mut quarters, mut inner) = ([0; 6], [0; 3]);
@@ -984,13 +1031,99 @@ pub(crate) fn refine_plan(
     plan
 }
 
-/// Keeps the split triangles' pressed points (`presses` in the plan's order, quarter
-/// points then inner points) as their surpluses over the parent's quadratic blend,
-/// appended to `stored` and listed in `refinement`; returns each split triangle's
-/// figures (its largest edge surplus, and its points' largest kept surplus).
+/// Where a split point's surplus comes from in a refinement (see
+/// [`RefinePlan::sources`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Source {
+    /// Pressed now (or taken from the log).
+    Press,
+    /// Held by the earlier stage: its index among that stage's split samples.
+    Held(usize),
+    /// A point of an earlier stage's triangle that the stage did not keep.
+    Skipped,
+}
+
+/// A split point's press, or the earlier stage's sample that holds its surplus.
+enum Got {
+    Pressed(Logged),
+    Held(usize),
+}
+
+impl RefinePlan {
+    /// Checks that this plan goes on from `earlier` (a law's split so far): every
+    /// earlier triangle in it, and more besides where there were any.
+    pub(crate) fn goes_on_from(&self, earlier: &Refinement) -> Result<(), SurfaceLawBuildError> {
+        let (asked, split) = (self.triangles.len(), earlier.triangles.len());
+        let missing = earlier
+            .triangles
+            .iter()
+            .filter(|t| !self.triangles.contains(t))
+            .count();
+        if missing > 0 {
+            return Err(SurfaceLawBuildError::EarlierStage { missing });
+        }
+        if split > 0 && asked <= split {
+            return Err(SurfaceLawBuildError::AlreadyRefined {
+                triangles: split,
+                asked,
+            });
+        }
+        Ok(())
+    }
+
+    /// Per plan point (quarter points, then inner points): whether it is pressed or
+    /// held by `earlier`, a stage whose triangles the plan lists first. A point is
+    /// named by its near and far edge ends (a quarter point) or its corners, nearest
+    /// first (an inner point), as a [`Refinement`] lists it.
+    pub(crate) fn sources(&self, earlier: &Refinement) -> Vec<Source> {
+        let n_quarters = earlier.quarter_ends.len();
+        let quarter: HashMap<[u32; 2], usize> = earlier
+            .quarter_ends
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| (e, i))
+            .collect();
+        let inner: HashMap<[u32; 3], usize> = earlier
+            .inner_corners
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| (c, n_quarters + i))
+            .collect();
+        let mut earlier_point = vec![false; self.quarters.len() + self.inner.len()];
+        for t in 0..earlier.triangles.len().min(self.figures.len()) {
+            for k in self.triangle_points(t) {
+                earlier_point[k] = true;
+            }
+        }
+        self.quarters
+            .iter()
+            .map(|q| quarter.get(&[q.near[0], q.near[1]]).copied())
+            .chain(
+                self.inner
+                    .iter()
+                    .map(|q| inner.get(&[q.near[0], q.near[1], q.near[2]]).copied()),
+            )
+            .zip(earlier_point)
+            .map(|(held, earlier)| match (held, earlier) {
+                (Some(s), _) => Source::Held(s),
+                (None, true) => Source::Skipped,
+                (None, false) => Source::Press,
+            })
+            .collect()
+    }
+}
+
+/// Keeps the split triangles' points (`got` in the plan's order, quarter points then
+/// inner points) as their surpluses over the parent's quadratic blend, appended to
+/// `stored` and listed in `refinement`: a press's surplus computed, a held one copied
+/// from `held` (an earlier stage's split samples, whose parent blend is this one).
+/// Returns each split triangle's figures (its largest edge surplus, and its points'
+/// largest kept surplus).
+#[allow(clippy::too_many_arguments)]
 fn split_triangles(
     plan: &RefinePlan,
-    presses: Vec<Result<VertexPress, String>>,
+    got: Vec<Got>,
+    held: &Stored,
     stored: &mut Stored,
     steps: usize,
     row: usize,
@@ -1000,18 +1133,23 @@ fn split_triangles(
     refinement.triangles = plan.triangles.clone();
     // Per plan point: the largest node of its kept surplus (mm).
     let mut point_peak = Vec::new();
-    for (q, press) in plan.quarters.iter().chain(&plan.inner).zip(presses) {
-        let p = match press {
-            Ok(p) => p,
-            Err(why) => {
+    for (q, got) in plan.quarters.iter().chain(&plan.inner).zip(got) {
+        match got {
+            Got::Pressed(Err(why)) => {
                 refine_skip_reasons.push(why);
                 point_peak.push(0.0);
                 continue;
             }
-        };
-        let (surplus, g, reach, why) = stored.surplus(&p, &q.base, steps, row);
-        point_peak.push(node_peak(&surplus));
-        stored.push(&p, &surplus, &g, reach, why);
+            Got::Pressed(Ok(p)) => {
+                let (surplus, g, reach, why) = stored.surplus(&p, &q.base, steps, row);
+                point_peak.push(node_peak(&surplus));
+                stored.push(&p, &surplus, &g, reach, why);
+            }
+            Got::Held(s) => {
+                point_peak.push(node_peak(&held.residual[s * steps * row..][..steps * row]));
+                stored.copy(held, s, steps, row);
+            }
+        }
         match q.near.len() {
             2 => refinement.quarter_ends.push([q.near[0], q.near[1]]),
             _ => refinement
@@ -1212,6 +1350,33 @@ struct Stored {
 }
 
 impl Stored {
+    /// The samples from `first` on, taken off (`n_row` residual values a sample).
+    fn split_off(&mut self, first: usize, steps: usize, n_row: usize) -> Stored {
+        Stored {
+            residual: self.residual.split_off(first * n_row),
+            ratio: self.ratio.split_off(first * steps),
+            stiffness: self.stiffness.split_off(first),
+            correction: self.correction.split_off(first),
+            segments: self.segments.split_off(first),
+            reach: self.reach.split_off(first),
+            stopped: self.stopped.split_off(first),
+        }
+    }
+
+    /// Appends `from`'s sample `s` as it is.
+    fn copy(&mut self, from: &Stored, s: usize, steps: usize, row: usize) {
+        let n = steps * row;
+        self.residual
+            .extend_from_slice(&from.residual[s * n..][..n]);
+        self.ratio
+            .extend_from_slice(&from.ratio[s * steps..][..steps]);
+        self.stiffness.push(from.stiffness[s]);
+        self.correction.push(from.correction[s]);
+        self.segments.push(from.segments[s]);
+        self.reach.push(from.reach[s]);
+        self.stopped.push(from.stopped[s].clone());
+    }
+
     fn push(&mut self, p: &VertexPress, residual: &[f32], ratio: &[f64], reach: u32, why: String) {
         self.residual.extend_from_slice(residual);
         self.ratio.extend_from_slice(ratio);

@@ -523,7 +523,7 @@ impl TissueLaw {
         bits: ShapeBits,
         grouping: Grouping,
         shares: &[f64],
-        base: Option<&TissueLaw>,
+        base: Option<(&TissueLaw, &[Option<usize>])>,
     ) -> Result<TissueLaw, TissueError> {
         let (first_share, finer) = shares.split_first().unwrap_or((&0.0, &[]));
         let t0 = Instant::now();
@@ -539,9 +539,27 @@ impl TissueLaw {
         let (mut shape, mut shape_scale) = (Shapes::new(bits), Vec::new());
         let (mut rank, mut bound) = (0usize, 0.0f64);
         for (g, members) in groups.iter().enumerate() {
-            let modes = match base.filter(|b| members.iter().all(|&s| s < b.group.len())) {
-                Some(base) => base.group_modes_of(members, steps)?,
-                None => compress_group(law, members, m, tolerance_mm, bits, first_share, finer)?,
+            // A group the base file holds whole is copied; any other is compressed
+            // from the law's residuals. Where some of those came from the base file
+            // (decompressed: a group it held in part, which an onward refinement does
+            // not make), their error adds to the base's bound.
+            let in_base: Vec<Option<usize>> = members
+                .iter()
+                .map(|&s| base.and_then(|(_, at)| at.get(s).copied().flatten()))
+                .collect();
+            let whole: Option<Vec<usize>> = in_base.iter().copied().collect();
+            let modes = match (base, whole) {
+                (Some((b, _)), Some(whole)) if b.holds_group(&whole) => {
+                    b.group_modes_of(&whole, steps)?
+                }
+                _ => {
+                    let mut modes =
+                        compress_group(law, members, m, tolerance_mm, bits, first_share, finer)?;
+                    if let Some((b, _)) = base.filter(|_| in_base.iter().any(Option::is_some)) {
+                        modes.error += b.truncation_bound_mm;
+                    }
+                    modes
+                }
             };
             let (kept, error) = (modes.scale.len(), modes.error);
             for k in 0..kept {

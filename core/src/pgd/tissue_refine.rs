@@ -21,9 +21,15 @@
 //! threshold would store, except that its split points' surpluses are measured against
 //! the stored corners and edges rather than the computed ones (they differ by at most
 //! the file's bound).
+//!
+//! A file already split goes on from its stage: refined to more triangles, it keeps
+//! its split triangles and their points' stored modes as they are and presses only
+//! the new triangles' points. A stage saved is thus a stage kept, and refining the
+//! whole surface (about 6 000 presses on coarse P2, hours) can go on over several
+//! runs without keeping the press log between them.
 
 use crate::organ::OrganMesh;
-use crate::pgd::surfacelaw::{Refinement, SurfaceLaw};
+use crate::pgd::surfacelaw::SurfaceLaw;
 use crate::pgd::tissue::{
     GroupModes, Grouping, PointIndex, QUANT_SHARES, SAME_POINT_MM, Shapes, TissueError, TissueLaw,
 };
@@ -32,17 +38,10 @@ impl TissueLaw {
     /// The surface law this file stores, read back on `organ` (the mesh it was built
     /// on): every sample's residual at every grid depth as evaluation sees it (within
     /// the file's bound of the computed one), its force ratio (in f32), reach and
-    /// figures. Only a law with no split triangles reads back (what
-    /// [`SurfaceLaw::refine`] starts from).
+    /// figures, and its split triangles (a refinement goes on from them; their figures
+    /// are not stored, and [`SurfaceLaw::refine`] measures them again).
     pub fn surface_law(&self, organ: &OrganMesh) -> Result<SurfaceLaw, TissueError> {
         let refused = |why: String| TissueError::Refine { why };
-        if !self.refinement.triangles.is_empty() {
-            return Err(refused(format!(
-                "it already has {} split triangles (expected a file built with --no-refine, or \
-                 cut with `palpa tissue cut --unsplit`)",
-                self.refinement.triangles.len()
-            )));
-        }
         let rows = organ.surface_nodes();
         let same = |v: u32, p: [f32; 3]| {
             let q = organ.mesh.vertices[v as usize];
@@ -102,7 +101,7 @@ impl TissueLaw {
             skipped,
             edges: self.edge_ends.clone(),
             edge_skip_reasons: Vec::new(),
-            refinement: Refinement::default(),
+            refinement: self.refinement.clone(),
             refine_skip_reasons: Vec::new(),
             split_figures: Vec::new(),
             reach: self.reach.clone(),
@@ -118,21 +117,43 @@ impl TissueLaw {
     }
 
     /// This file with `law`'s split triangles added: `law` is this file's
-    /// [`surface_law`](Self::surface_law) after [`SurfaceLaw::refine`]. Its first
-    /// samples (this file's) keep their stored modes and weights unchanged; the split
-    /// points' surpluses are compressed with this file's tolerance and bits, those of
-    /// a triangle sharing their modes ([`Grouping::SplitTriangle`]). The bound is the
-    /// larger of this file's and the new surpluses'.
+    /// [`surface_law`](Self::surface_law) after [`SurfaceLaw::refine`]. Its samples
+    /// that this file holds (every vertex and edge, and an earlier stage's split
+    /// points, which the refinement lists first) keep their stored modes and weights
+    /// unchanged; the new split points' surpluses are compressed with this file's
+    /// tolerance and bits, those of a triangle sharing their modes
+    /// ([`Grouping::SplitTriangle`]). The bound is the larger of this file's and the
+    /// new surpluses'.
     pub fn refined(&self, organ: &OrganMesh, law: &SurfaceLaw) -> Result<TissueLaw, TissueError> {
+        let mine = &self.refinement;
+        let theirs = &law.refinement;
         if law.samples.len() != self.samples_mm.len()
             || law.edges != self.edge_ends
             || law.steps() != self.steps as usize
             || law.reach.len() < self.reach.len()
+            || !theirs.triangles.starts_with(&mine.triangles)
+            || !theirs.quarter_ends.starts_with(&mine.quarter_ends)
+            || !theirs.inner_corners.starts_with(&mine.inner_corners)
         {
             return Err(TissueError::Refine {
                 why: "the refined law does not start with this file's samples".into(),
             });
         }
+        // Where each of the law's samples lies in this file: the vertices, edges and
+        // quarter points at the same index, the inner points after this file's
+        // quarter points (the law's new quarter points come before them).
+        let first_quarter = law.samples.len() + law.edges.len();
+        let (old_q, new_q) = (mine.quarter_ends.len(), theirs.quarter_ends.len());
+        let in_file: Vec<Option<usize>> = (0..law.reach.len())
+            .map(|s| {
+                let i = s.checked_sub(first_quarter + new_q);
+                match i {
+                    None if s < first_quarter + old_q => Some(s),
+                    None => None,
+                    Some(i) => (i < mine.inner_corners.len()).then_some(first_quarter + old_q + i),
+                }
+            })
+            .collect();
         let mut out = Self::compress_onto(
             organ,
             law,
@@ -140,10 +161,22 @@ impl TissueLaw {
             self.shape.bits(),
             Grouping::SplitTriangle,
             &QUANT_SHARES,
-            Some(self),
+            Some((self, &in_file)),
         )?;
         out.build_s = law.build_s;
         Ok(out)
+    }
+
+    /// Whether `members` (this file's samples) are one of its groups, whole.
+    pub(super) fn holds_group(&self, members: &[usize]) -> bool {
+        let Some(&first) = members.first() else {
+            return false;
+        };
+        let Some(&g) = self.group.get(first) else {
+            return false;
+        };
+        members.iter().all(|&s| self.group.get(s) == Some(&g))
+            && self.group.iter().filter(|&&h| h == g).count() == members.len()
     }
 
     /// The stored modes of `members`, one of this file's groups whole (what
