@@ -5,9 +5,11 @@
 # inputs (mesh hash, element, material, tool) match the current code.
 # With TISSUE=1 it also rebuilds the scene's hyperelastic tissue, assets/liver-coarse.tissue:
 # neo-Hookean, every palpable vertex and edge midpoint pressed to 15 mm (2 147 presses, 2-6 h
-# on 2 cores), kept in target/assets/liver-coarse-base.tissue, then its TRIANGLES worst
-# triangles split (default 100: 730 more presses, about 4 h). Each step logs its presses
-# beside its output, so a killed run, run again, goes on from the last finished press.
+# on 2 cores), kept in target/assets/liver-coarse-base.tissue, then split in the stages of
+# STAGES, each that many worst triangles in all (default "100 163": 730 presses, about 4 h,
+# then 441 more, about 1 h 15 min), each stage going on from the last one's file. Each step
+# logs its presses beside its output, so a killed run, run again, goes on from the last
+# finished press.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # MODES overrides the nodal build's global modes; PALPA a palpa binary already built.
@@ -27,8 +29,12 @@ if [ -n "${TISSUE:-}" ]; then
   mkdir -p target/assets
   $palpa tissue build --level coarse --model neo-hookean --depth-max-mm 15 --no-refine \
     --out target/assets/liver-coarse-base.tissue
-  $palpa tissue refine target/assets/liver-coarse-base.tissue --triangles "${TRIANGLES:-100}" \
-    --out assets/liver-coarse.tissue
+  from=target/assets/liver-coarse-base.tissue
+  for k in ${STAGES:-100 163}; do
+    $palpa tissue refine "$from" --triangles "$k" --out "target/assets/liver-coarse-$k.tissue"
+    from="target/assets/liver-coarse-$k.tissue"
+  done
+  cp "$from" assets/liver-coarse.tissue
 fi
 echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"
 cat "$tmp/tradeoff.json"

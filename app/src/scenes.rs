@@ -14,8 +14,8 @@ use palpa_core::scene::PalpationScene;
 pub const BUILT_IN_LIVER: &[u8] = include_bytes!("../../assets/liver-coarse.palpa");
 
 /// Its hyperelastic tissue, `assets/liver-coarse.tissue` (neo-Hookean, every palpable
-/// vertex and edge midpoint pressed to 15 mm, its 100 worst triangles split into four
-/// and pressed more densely: docs/methods.md §2e).
+/// vertex and edge midpoint pressed to 15 mm, its 163 worst triangles split into four
+/// in two stages and pressed more densely: docs/methods.md §2e).
 pub const BUILT_IN_TISSUE: &[u8] = include_bytes!("../../assets/liver-coarse.tissue");
 
 /// Where the built-in scene comes from, and how far its tissue is measured to meet

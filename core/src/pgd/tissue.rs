@@ -63,7 +63,8 @@
 //! of what the stored ones leave, the same exact node-error rule over all members, one
 //! set of shapes `A` and a weight block `C_i` per member. A neighbour that was not split
 //! adds the quarter points of the edge they share, weighted as on the edge and fading
-//! towards its far corner, so the surface does not jump as the probe crosses the edge.
+//! out halfway to its far corner, so the surface does not jump as the probe crosses the
+//! edge.
 //! At most nine samples enter one probe's blend.
 //!
 //! A press with no equilibrium past some depth (Saint Venant–Kirchhoff losing
@@ -853,6 +854,20 @@ const TERMS: usize = 9;
 /// The samples and weights of one probe's blend.
 type Terms = [(usize, f64); TERMS];
 
+/// How much of a split neighbour's quarter-point surplus an unsplit triangle carries
+/// in from the edge they share, at a probe whose barycentric weights on that edge's
+/// two corners sum to `along` (1 on the edge, 0 at the far corner): all of it on the
+/// edge, so the surface does not jump as the probe crosses it, dying out linearly by
+/// the line halfway to the far corner, `(2·along − 1)⁺`. That is the reach the quarter
+/// point's own term has inside the split triangle (its corner quarter), and what the
+/// later stage's presses measured best: at the inner points of triangles split by a
+/// second stage beside a first stage's split edges, the first stage's blend erred
+/// less with this fade than with one reaching the far corner (`along`) or with none
+/// (docs/tissue-measurements.md §1).
+fn carried(along: f64) -> f64 {
+    (2.0 * along - 1.0).max(0.0)
+}
+
 /// A tissue law bound to one scene: its rows and samples in the scene's numbering.
 #[derive(Debug, Clone)]
 pub struct BoundTissue {
@@ -1091,20 +1106,22 @@ impl BoundTissue {
             }
         } else {
             // A split neighbour's quarter points along each edge, at `t` of the way from
-            // corner k to corner i, weighted as on the edge and fading to the far corner.
+            // corner k to corner i, weighted as on the edge and fading out by the line
+            // halfway to the far corner (see [`carried`]).
             for k in 0..3 {
                 let i = (k + 1) % 3;
                 let along = l[k] + l[i];
-                if along <= 0.0 {
+                let fade = carried(along);
+                if fade <= 0.0 {
                     continue;
                 }
                 let t = l[i] / along;
                 out[6 + k] = if t <= 0.5 {
-                    term(quarters[k][0], along * 4.0 * (1.0 - 2.0 * t) * (2.0 * t))
+                    term(quarters[k][0], fade * 4.0 * (1.0 - 2.0 * t) * (2.0 * t))
                 } else {
                     term(
                         quarters[k][1],
-                        along * 4.0 * (2.0 * t - 1.0) * (2.0 - 2.0 * t),
+                        fade * 4.0 * (2.0 * t - 1.0) * (2.0 - 2.0 * t),
                     )
                 };
             }
@@ -1662,5 +1679,20 @@ mod tests {
         };
         assert!(plain.add_surface(&p, 1.0, &mut plain.scratch(), &mut rows));
         assert!(close(rows[0], p2(l)), "{} vs {}", rows[0], p2(l));
+        // In the unsplit neighbour the split edge's quarter terms fade out by the line
+        // halfway to its far corner (3): nearer the edge the split shows, from there on
+        // the neighbour answers as it would without the split.
+        let mut plain_blend = |bary: [f64; 3]| {
+            let mut rows = [0.0; 3];
+            let p = ProbePoint { triangle: 1, bary };
+            assert!(plain.add_surface(&p, 1.0, &mut plain.scratch(), &mut rows));
+            rows[0]
+        };
+        for (far, t) in [(0.5, 0.25), (0.6, 0.3), (0.9, 0.5)] {
+            let bary = [(1.0 - far) * t, (1.0 - far) * (1.0 - t), far];
+            assert!(close(blend(1, bary), plain_blend(bary)), "{bary:?}");
+        }
+        let near = [0.6, 0.3, 0.1];
+        assert!((blend(1, near) - plain_blend(near)).abs() > 1e-3);
     }
 }
