@@ -859,10 +859,11 @@ type Terms = [(usize, f64); TERMS];
 /// two corners sum to `along` (1 on the edge, 0 at the far corner): all of it on the
 /// edge, so the surface does not jump as the probe crosses it, dying out linearly by
 /// the line halfway to the far corner, `(2·along − 1)⁺`. That is the reach the quarter
-/// point's own term has inside the split triangle (its corner quarter), and what the
-/// later stage's presses measured best: at the inner points of triangles split by a
-/// second stage beside a first stage's split edges, the first stage's blend erred
-/// less with this fade than with one reaching the far corner (`along`) or with none
+/// point's own term has inside the split triangle (its corner quarter). Measured by a
+/// later stage's presses (the inner points of triangles split by a second stage beside
+/// a first stage's split edges): the first stage's blend erred less with this fade
+/// than with one reaching the far corner (`along`), on average and at the worst point,
+/// and less on average than with none (which jumps at the edge), level with `along³`
 /// (docs/tissue-measurements.md §1).
 fn carried(along: f64) -> f64 {
     (2.0 * along - 1.0).max(0.0)
@@ -1682,7 +1683,7 @@ mod tests {
         // In the unsplit neighbour the split edge's quarter terms fade out by the line
         // halfway to its far corner (3): nearer the edge the split shows, from there on
         // the neighbour answers as it would without the split.
-        let mut plain_blend = |bary: [f64; 3]| {
+        let plain_blend = |bary: [f64; 3]| {
             let mut rows = [0.0; 3];
             let p = ProbePoint { triangle: 1, bary };
             assert!(plain.add_surface(&p, 1.0, &mut plain.scratch(), &mut rows));
