@@ -515,6 +515,49 @@ fn tissue_check_separates_the_blend_from_the_press() {
     assert!(num(row(rank, 3.0), "payload_bytes") < num(row(rank, 2.0), "payload_bytes"));
     assert!(num(row(rank, 2.0), "payload_bytes") < num(full, "payload_bytes"));
 
+    // The 2 mm step's cut answered beside the file at the same Newton solves
+    // (`--against`): its worst errors are the tradeoff's 2 mm row, a press it answers as
+    // the file does has the file's errors, and every other one is counted as changed
+    // (off the grid, 3.3 mm is blended from 2 and 4 mm instead of 3 and 4: all of them).
+    let cut = dir.path().join("two-mm.tissue");
+    tissue_cut(&path(&tissue), &["--depth-stride", "2"], &cut);
+    let rows = common::json_lines_ok(&tissue_check(
+        &tissue,
+        &path(&scene),
+        "3.3,5.6",
+        &["--against", &path(&cut)],
+    ));
+    let (both, presses) = rows.split_last().expect("rows");
+    let other = &both["against"];
+    assert_eq!(other["presses_compared"], 4, "{both}");
+    for k in ["worst_force_rel_error", "worst_surface_max_error_mm"] {
+        assert!(
+            (num(other, k) - num(row(rank, 2.0), k)).abs() < 1e-12,
+            "{other} {}",
+            row(rank, 2.0)
+        );
+        assert!((num(both, k) - num(summary, k)).abs() < 1e-12, "{both}");
+    }
+    let mut changed = 0;
+    for p in presses {
+        let a = &p["against"];
+        if a["changed"] == true {
+            changed += 1;
+        } else {
+            for k in ["force_rel_error", "surface_max_error_mm"] {
+                assert_eq!(num(a, k), num(p, k), "{p}");
+            }
+        }
+    }
+    assert_eq!(other["presses_changed"], changed, "{both}");
+    assert!(changed >= 2, "{both}");
+    // A file for another scene is refused by the flag's name.
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let out = tissue_check(&tissue, &path(&scene), "3.3", &["--against", shipped]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--against"), "{err}");
+
     let out = check("liver");
     assert!(!out.status.success(), "a P1 law on the P2 scene is refused");
     let err = String::from_utf8_lossy(&out.stderr);

@@ -21,6 +21,7 @@ mod plot;
 mod scene;
 mod synth;
 mod tissue;
+mod tissue_against;
 mod tissue_refine;
 mod tissue_tradeoff;
 mod tradeoff;

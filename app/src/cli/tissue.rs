@@ -23,6 +23,7 @@ use serde_json::json;
 
 use super::args::OrganArgs;
 use super::depthlaw::NonlinearModel;
+use super::tissue_against::{Against, Answer};
 
 #[derive(Debug, Subcommand)]
 pub enum TissueCommand {
@@ -185,6 +186,12 @@ pub struct CheckArgs {
     /// press's own, its distance from the vademecum's surface the blend's.
     #[arg(long)]
     own: bool,
+    /// Also answer every press with this tissue file (of the same model, for the same
+    /// scene) against the same Newton solves: two stages or cuts compared in one run
+    /// (`against` keys per press and in the summary; `changed` where its answer differs
+    /// from the checked file's at all).
+    #[arg(long)]
+    against: Option<PathBuf>,
 }
 
 /// A duration for a progress line: `42 s`, `17 min`, `3 h 05 min`.
@@ -484,6 +491,10 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     } else {
         None
     };
+    let mut against = match &args.against {
+        Some(file) => Some(Against::open(file, &args.scene, &bound)?),
+        None => None,
+    };
     let points = press_points(&organ, law, args.at.as_deref(), args.heldout, args.seed)?;
     for at in points {
         let (point, _) = scene
@@ -664,6 +675,17 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             );
             row["force_eval_us"] = json!(force_us);
             row["surface_eval_us"] = json!(surface_us);
+            if let Some(other) = against.as_mut() {
+                let main = Answer {
+                    point: &point,
+                    depth_mm: depth,
+                    compliance_mm_per_n: c,
+                    linear_rows: &linear_rows,
+                    tissue_rows: &tissue_rows,
+                    force_n: force,
+                };
+                row["against"] = other.press(&organ, &vertex_of, &sol.u, f_ref, &main);
+            }
             println!("{row}");
         }
     }
@@ -676,7 +698,8 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             "goal_surface_0_5_mm": (compared > 0).then_some(worst_surface <= 0.5),
             "blend_surplus_warn_mm": BLEND_SURPLUS_WARN_MM, "presses_warned": warned,
             "surface_misses_warned": missed_warned,
-            "surface_misses_unwarned": missed_unwarned})
+            "surface_misses_unwarned": missed_unwarned,
+            "against": against.as_ref().map(Against::summary)})
     );
     Ok(())
 }
