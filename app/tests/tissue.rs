@@ -557,6 +557,32 @@ fn tissue_check_separates_the_blend_from_the_press() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--against"), "{err}");
+    // A file of the same mesh but another material law is refused too, naming both
+    // models: its errors would measure another tissue, not another sampling.
+    let svk = dir.path().join("svk.tissue");
+    common::json_ok(&palpa(&[
+        "tissue",
+        "build",
+        "--element",
+        "p1",
+        "--model",
+        "svk",
+        "--depth-max-mm",
+        "3",
+        "--within=-30.3,70.7,16.9,8",
+        "--out",
+        &path(&svk),
+    ]));
+    let out = tissue_check(&tissue, &path(&scene), "3.3", &["--against", &path(&svk)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--against")
+            && err.contains("svk")
+            && err.contains("neo-hookean")
+            && err.contains("expected a file of the same model"),
+        "{err}"
+    );
 
     let out = check("liver");
     assert!(!out.status.success(), "a P1 law on the P2 scene is refused");
