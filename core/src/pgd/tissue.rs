@@ -97,9 +97,10 @@ use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (8: modes shared within groups of samples; version 7
-/// files, deflated, and 6, plain, still load, each sample its own group).
-pub const VERSION: u32 = 8;
+/// The file's format version (9: version 8's fields, the body LZMA-compressed; version
+/// 8 files, deflated, still load as they are, and 7, deflated, and 6, plain, each
+/// sample its own group).
+pub const VERSION: u32 = 9;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -750,7 +751,7 @@ impl TissueLaw {
 
     /// Writes the law atomically (a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), TissueError> {
-        crate::framed::write(path, MAGIC, (VERSION, Body::Deflated), self).map_err(|source| {
+        crate::framed::write(path, MAGIC, (VERSION, Body::Lzma), self).map_err(|source| {
             TissueError::Io {
                 path: path.to_path_buf(),
                 source,
@@ -775,7 +776,8 @@ impl TissueLaw {
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
         };
-        let law: TissueLaw = match crate::framed::read(bytes, MAGIC, &[(VERSION, Body::Deflated)]) {
+        let reads = [(VERSION, Body::Lzma), (8, Body::Deflated)];
+        let law: TissueLaw = match crate::framed::read(bytes, MAGIC, &reads) {
             Err(FramedError::Version(7 | 6)) => {
                 let reads = [(7, Body::Deflated), (6, Body::Plain)];
                 let old: super::tissue_v7::TissueLawV7 =
