@@ -97,9 +97,10 @@ use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (9: version 8's fields, the body LZMA-compressed; version
-/// 8 files, deflated, still load as they are, and 7, deflated, and 6, plain, each
-/// sample its own group).
+/// The file's format version (9: version 8's fields, the shapes stored by coordinate
+/// plane ([`Shapes::to_planes`]) and the body LZMA-compressed; version 8 files,
+/// deflated, still load as they are, and 7, deflated, and 6, plain, each sample its
+/// own group).
 pub const VERSION: u32 = 9;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
@@ -751,7 +752,9 @@ impl TissueLaw {
 
     /// Writes the law atomically (a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), TissueError> {
-        crate::framed::write(path, MAGIC, (VERSION, Body::Lzma), self).map_err(|source| {
+        let mut stored = self.clone();
+        stored.shape = self.shape.to_planes();
+        crate::framed::write(path, MAGIC, (VERSION, Body::Lzma), &stored).map_err(|source| {
             TissueError::Io {
                 path: path.to_path_buf(),
                 source,
@@ -776,16 +779,23 @@ impl TissueLaw {
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
         };
-        let reads = [(VERSION, Body::Lzma), (8, Body::Deflated)];
-        let law: TissueLaw = match crate::framed::read(bytes, MAGIC, &reads) {
-            Err(FramedError::Version(7 | 6)) => {
-                let reads = [(7, Body::Deflated), (6, Body::Plain)];
-                let old: super::tissue_v7::TissueLawV7 =
-                    crate::framed::read(bytes, MAGIC, &reads).map_err(named)?;
-                old.into()
-            }
-            read => read.map_err(named)?,
-        };
+        let law: TissueLaw =
+            match crate::framed::read::<TissueLaw>(bytes, MAGIC, &[(VERSION, Body::Lzma)]) {
+                Ok(mut law) => {
+                    law.shape = law.shape.from_planes();
+                    law
+                }
+                Err(FramedError::Version(8)) => {
+                    crate::framed::read(bytes, MAGIC, &[(8, Body::Deflated)]).map_err(named)?
+                }
+                Err(FramedError::Version(7 | 6)) => {
+                    let reads = [(7, Body::Deflated), (6, Body::Plain)];
+                    let old: super::tissue_v7::TissueLawV7 =
+                        crate::framed::read(bytes, MAGIC, &reads).map_err(named)?;
+                    old.into()
+                }
+                Err(e) => return Err(named(e)),
+            };
         law.check()
             .map_err(|why| TissueError::Corrupt { path: p(), why })?;
         Ok(law)

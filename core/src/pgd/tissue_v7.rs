@@ -122,10 +122,16 @@ mod tests {
         assert_eq!(TissueLaw::load(&path).expect("loads"), law);
         let path = dir.path().join("v9.tissue");
         law.save(&path).expect("saves");
+        let bytes = std::fs::read(&path).expect("reads");
+        assert_eq!(&bytes[8..12], &9u32.to_le_bytes());
+        let stored: TissueLaw =
+            crate::framed::read(&bytes, MAGIC, &[(9, Body::Lzma)]).expect("raw");
         assert_eq!(
-            &std::fs::read(&path).expect("reads")[8..12],
-            &9u32.to_le_bytes()
+            stored.shape,
+            law.shape.to_planes(),
+            "shapes by coordinate plane"
         );
+        assert_ne!(stored.shape, law.shape);
         assert_eq!(TissueLaw::load(&path).expect("loads"), law);
         crate::framed::write(&path, MAGIC, (10, Body::Lzma), &law).expect("writes");
         let e = TissueLaw::load(&path).expect_err("version 10");
