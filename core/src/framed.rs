@@ -34,11 +34,11 @@ pub enum Body {
     Deflated,
     /// An `.lzma` stream (LZMA with its 13-byte header: properties, dictionary size,
     /// length), the dictionary as large as the body (up to [`LZMA_DICT_MAX`]). Lossless
-    /// like deflate, and 15 % smaller on the shipped tissue law (8.09 → 6.89 MB: LZMA's
+    /// like deflate, and 15 % smaller on a 27 MB tissue law (8.09 → 6.89 MB: LZMA's
     /// range coder with literal contexts models the 8-bit shapes' skewed values where
     /// deflate's Huffman codes spend whole bits, and its window spans the whole body
-    /// where deflate's spans 32 KB). Writing is slower (the shipped law's 27 MB body:
-    /// about 18 s and 0.4 GB, deflate 4 s), reading about 0.3 s slower.
+    /// where deflate's spans 32 KB). Writing it is slower (about 18 s and 0.4 GB,
+    /// deflate 4 s), reading it about 0.3 s slower.
     Lzma,
 }
 
