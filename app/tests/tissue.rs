@@ -149,6 +149,24 @@ fn p1_scene_with_tissue(scene: &std::path::Path, model: &str, within: &str) -> s
     ]))
 }
 
+/// `palpa tissue build` of a small anterior region on coarse P1 to 3 mm, with `extra`
+/// flags, into `out`: its JSON.
+fn p1_tissue(out: &std::path::Path, extra: &[&str]) -> serde_json::Value {
+    let out = path(out);
+    let args = [
+        "tissue",
+        "build",
+        "--element",
+        "p1",
+        "--depth-max-mm",
+        "3",
+        "--within=-30.3,70.7,16.9,8",
+        "--out",
+        &out,
+    ];
+    common::json_ok(&palpa(&[&args[..], extra].concat()))
+}
+
 /// A session pressing 5 mm at its starting probe point, once the loop has answered.
 fn pressed(tissue: Option<Tissue>) -> Session {
     let loaded = scenes::built_in().expect("built-in scene");
@@ -560,19 +578,7 @@ fn tissue_check_separates_the_blend_from_the_press() {
     // A file of the same mesh but another material law is refused too, naming both
     // models: its errors would measure another tissue, not another sampling.
     let svk = dir.path().join("svk.tissue");
-    common::json_ok(&palpa(&[
-        "tissue",
-        "build",
-        "--element",
-        "p1",
-        "--model",
-        "svk",
-        "--depth-max-mm",
-        "3",
-        "--within=-30.3,70.7,16.9,8",
-        "--out",
-        &path(&svk),
-    ]));
+    p1_tissue(&svk, &["--model", "svk"]);
     let out = tissue_check(&tissue, &path(&scene), "3.3", &["--against", &path(&svk)]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
@@ -945,20 +951,7 @@ fn pressing_one_at_a_time_gives_the_same_law() {
     let dir = tempfile::tempdir().expect("tempdir");
     let build = |name: &str, extra: &[&str]| {
         let out = dir.path().join(name);
-        let out_s = path(&out);
-        let mut args = vec![
-            "tissue",
-            "build",
-            "--element",
-            "p1",
-            "--depth-max-mm",
-            "3",
-            "--within=-30.3,70.7,16.9,8",
-            "--out",
-            &out_s,
-        ];
-        args.extend_from_slice(extra);
-        common::json_ok(&palpa(&args));
+        p1_tissue(&out, extra);
         let mut law = TissueLaw::load(&out).expect("loads");
         (law.build_s, law.compress_s) = (0.0, 0.0);
         law
