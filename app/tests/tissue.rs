@@ -648,6 +648,18 @@ fn tissue_check_separates_the_blend_from_the_press() {
         "{cut}"
     );
     eval_answers(&cut_path, &scene);
+    // A build stores its weights in halves already: rounding them moves nothing.
+    let halved = tissue_cut(
+        &path(&tissue),
+        &["--half-weights"],
+        &dir.path().join("half.tissue"),
+    );
+    assert_eq!(num(&halved, "weights_halved_mm"), 0.0, "{halved}");
+    assert_eq!(
+        num(&halved["out"], "file_bytes"),
+        num(&halved["from"], "file_bytes"),
+        "{halved}"
+    );
     // A stride that does not divide the grid is refused by name, and writes nothing.
     let refused = dir.path().join("refused.tissue");
     let out = palpa(&[

@@ -28,4 +28,5 @@ pub mod tissue_knobs;
 mod tissue_refine;
 pub mod tissue_shapes;
 mod tissue_v7;
+pub mod tissue_weights;
 pub mod tradeoff;

@@ -93,15 +93,17 @@ use crate::organ::OrganMesh;
 use crate::pgd::depthlaw::DepthLaw;
 use crate::pgd::surfacelaw::{Refinement, SurfaceLaw, SurfaceLawOptions};
 pub use crate::pgd::tissue_shapes::{ShapeBits, Shapes};
+use crate::pgd::tissue_weights::{Weights, to_half};
 use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (9: version 8's fields, the shapes stored by coordinate
-/// plane ([`Shapes::to_planes`]) and the body LZMA-compressed; version 8 files,
-/// deflated, still load as they are, and 7, deflated, and 6, plain, each sample its
-/// own group).
-pub const VERSION: u32 = 9;
+/// The file's format version (10: version 9's, the weights stored after the other
+/// fields, in halves where every one is a half ([`super::tissue_weights`]); 9: version
+/// 8's fields, the shapes stored by coordinate plane ([`Shapes::to_planes`]) and the
+/// body LZMA-compressed. Versions 9 and 8 (deflated) still load as they are, and 7,
+/// deflated, and 6, plain, each sample its own group).
+pub const VERSION: u32 = 10;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -219,11 +221,12 @@ pub(super) struct GroupModes {
 
 /// Compresses one group's residual columns `a` (`members` samples, depths 1.. each).
 ///
-/// The modes as stored (shape in `bits` with an f32 scale, weights in f32) are added
-/// one by one until no node of any grid depth of any member errs by more than the
-/// tolerance: the error measured exactly, as evaluation will see it, not bounded by
-/// `σ_{q+1}` plus each mode's quantization (that bound is loose by the spread of the
-/// error over nodes and modes: on coarse P2 it kept about half as many modes again).
+/// The modes as stored (shape in `bits` with an f32 scale, weights in halves: see
+/// [`super::tissue_weights`]) are added one by one until no node of any grid depth of
+/// any member errs by more than the tolerance: the error measured exactly, as
+/// evaluation will see it, not bounded by `σ_{q+1}` plus each mode's quantization
+/// (that bound is loose by the spread of the error over nodes and modes: on coarse P2
+/// it kept about half as many modes again).
 /// Past the SVD's own modes (where the stored ones still leave more than the
 /// tolerance: 8-bit quantization's floor at a large press), each further mode is the
 /// leading singular pair of what the stored modes leave, while that lowers the error.
@@ -289,6 +292,10 @@ fn group_modes(
                 let along: f64 = (0..m).map(|i| q[i] * left[(i, j)]).sum();
                 *w = if qq > 0.0 { (along / qq) as f32 } else { 0.0 };
             }
+        }
+        // The weights as stored: the error below is the one evaluation will see.
+        for w in &mut c {
+            *w = to_half(*w);
         }
         let mut next = left.clone();
         for (j, &w) in c.iter().enumerate() {
@@ -754,12 +761,13 @@ impl TissueLaw {
     pub fn save(&self, path: &Path) -> Result<(), TissueError> {
         let mut stored = self.clone();
         stored.shape = self.shape.to_planes();
-        crate::framed::write(path, MAGIC, (VERSION, Body::Lzma), &stored).map_err(|source| {
-            TissueError::Io {
+        let weights = Weights::pack(&std::mem::take(&mut stored.coeffs));
+        crate::framed::write(path, MAGIC, (VERSION, Body::Lzma), &(&stored, &weights)).map_err(
+            |source| TissueError::Io {
                 path: path.to_path_buf(),
                 source,
-            }
-        })
+            },
+        )
     }
 
     pub fn load(path: &Path) -> Result<TissueLaw, TissueError> {
@@ -779,23 +787,33 @@ impl TissueLaw {
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
         };
-        let law: TissueLaw =
-            match crate::framed::read::<TissueLaw>(bytes, MAGIC, &[(VERSION, Body::Lzma)]) {
-                Ok(mut law) => {
-                    law.shape = law.shape.from_planes();
-                    law
-                }
-                Err(FramedError::Version(8)) => {
-                    crate::framed::read(bytes, MAGIC, &[(8, Body::Deflated)]).map_err(named)?
-                }
-                Err(FramedError::Version(7 | 6)) => {
-                    let reads = [(7, Body::Deflated), (6, Body::Plain)];
-                    let old: super::tissue_v7::TissueLawV7 =
-                        crate::framed::read(bytes, MAGIC, &reads).map_err(named)?;
-                    old.into()
-                }
-                Err(e) => return Err(named(e)),
-            };
+        let read =
+            crate::framed::read::<(TissueLaw, Weights)>(bytes, MAGIC, &[(VERSION, Body::Lzma)]);
+        let law: TissueLaw = match read {
+            Ok((mut law, weights)) => {
+                law.shape = law.shape.from_planes();
+                law.coeffs = weights
+                    .unpack()
+                    .map_err(|why| TissueError::Corrupt { path: p(), why })?;
+                law
+            }
+            Err(FramedError::Version(9)) => {
+                let mut law: TissueLaw =
+                    crate::framed::read(bytes, MAGIC, &[(9, Body::Lzma)]).map_err(named)?;
+                law.shape = law.shape.from_planes();
+                law
+            }
+            Err(FramedError::Version(8)) => {
+                crate::framed::read(bytes, MAGIC, &[(8, Body::Deflated)]).map_err(named)?
+            }
+            Err(FramedError::Version(7 | 6)) => {
+                let reads = [(7, Body::Deflated), (6, Body::Plain)];
+                let old: super::tissue_v7::TissueLawV7 =
+                    crate::framed::read(bytes, MAGIC, &reads).map_err(named)?;
+                old.into()
+            }
+            Err(e) => return Err(named(e)),
+        };
         law.check()
             .map_err(|why| TissueError::Corrupt { path: p(), why })?;
         Ok(law)

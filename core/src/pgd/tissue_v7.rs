@@ -75,6 +75,7 @@ mod tests {
     use super::*;
     use crate::framed::Body;
     use crate::pgd::tissue::MAGIC;
+    use crate::pgd::tissue_weights::Weights;
 
     /// A law of one group per sample, as format 7 wrote it.
     fn as_v7(l: &TissueLaw) -> TissueLawV7 {
@@ -115,26 +116,36 @@ mod tests {
             assert_eq!(back, law, "version {version}");
             assert_eq!(back.group, vec![0, 1, 2]);
         }
-        // Version 8 (today's fields, deflated) loads as it is; today's files are
-        // version 9, and a version this palpa does not know is named.
+        // Version 8 (today's fields, deflated) and 9 (LZMA, shapes by plane) load as
+        // they are; today's files are version 10, and a version this palpa does not
+        // know is named.
         let path = dir.path().join("v8.tissue");
         crate::framed::write(&path, MAGIC, (8, Body::Deflated), &law).expect("writes");
         assert_eq!(TissueLaw::load(&path).expect("loads"), law);
         let path = dir.path().join("v9.tissue");
-        law.save(&path).expect("saves");
-        let bytes = std::fs::read(&path).expect("reads");
-        assert_eq!(&bytes[8..12], &9u32.to_le_bytes());
-        let stored: TissueLaw =
-            crate::framed::read(&bytes, MAGIC, &[(9, Body::Lzma)]).expect("raw");
-        assert_eq!(
-            stored.shape,
-            law.shape.to_planes(),
-            "shapes by coordinate plane"
-        );
-        assert_ne!(stored.shape, law.shape);
+        let planes = TissueLaw {
+            shape: law.shape.to_planes(),
+            ..law.clone()
+        };
+        crate::framed::write(&path, MAGIC, (9, Body::Lzma), &planes).expect("writes");
         assert_eq!(TissueLaw::load(&path).expect("loads"), law);
-        crate::framed::write(&path, MAGIC, (10, Body::Lzma), &law).expect("writes");
-        let e = TissueLaw::load(&path).expect_err("version 10");
-        assert!(e.to_string().contains("version 10"), "{e}");
+        // Weights that are not all halves are stored in f32, halves in sixteen bits.
+        let (half, _) = law.with_half_weights();
+        for (law, single) in [(&law, true), (&half, false)] {
+            let path = dir.path().join("v10.tissue");
+            law.save(&path).expect("saves");
+            let bytes = std::fs::read(&path).expect("reads");
+            assert_eq!(&bytes[8..12], &10u32.to_le_bytes());
+            let (stored, weights): (TissueLaw, Weights) =
+                crate::framed::read(&bytes, MAGIC, &[(10, Body::Lzma)]).expect("raw");
+            assert_eq!(stored.shape, law.shape.to_planes(), "shapes by plane");
+            assert_ne!(stored.shape, law.shape);
+            assert!(stored.coeffs.is_empty(), "weights stored after the law");
+            assert_eq!(matches!(weights, Weights::Single(_)), single);
+            assert_eq!(&TissueLaw::load(&path).expect("loads"), law);
+        }
+        crate::framed::write(&path, MAGIC, (11, Body::Lzma), &law).expect("writes");
+        let e = TissueLaw::load(&path).expect_err("version 11");
+        assert!(e.to_string().contains("version 11"), "{e}");
     }
 }
