@@ -6,10 +6,10 @@
 # With TISSUE=1 it also rebuilds the scene's hyperelastic tissue, assets/liver-coarse.tissue:
 # neo-Hookean, every palpable vertex and edge midpoint pressed to 15 mm (2 147 presses, 2-6 h
 # on 2 cores), kept in target/assets/liver-coarse-base.tissue, then split in the stages of
-# STAGES, each that many worst triangles in all (default "100 163 260 430 540 830": 730
+# STAGES, each that many worst triangles in all (default "100 163 260 430 540 760": 730
 # presses, about 4 h, then 441 more, about 1 h 15 min, then 627 more, about 1 h, then
-# 1 002 more, about 1 h 25 min, then 690 more, about 45 min, then 1 736 more, about
-# 1 h 45 min), each stage going on from the last one's file. The shipped file's weights
+# 1 002 more, about 1 h 25 min, then 690 more, about 45 min, then 1 326 more, about
+# 1 h 10 min), each stage going on from the last one's file. The shipped file's weights
 # were rounded to halves between the fifth and sixth stages (`palpa tissue cut
 # --half-weights`, its bound 0.1 → 0.107 mm); a rebuild stores halves from the start,
 # within 0.1 mm. Each step
@@ -35,7 +35,7 @@ if [ -n "${TISSUE:-}" ]; then
   $palpa tissue build --level coarse --model neo-hookean --depth-max-mm 15 --no-refine \
     --out target/assets/liver-coarse-base.tissue
   from=target/assets/liver-coarse-base.tissue
-  for k in ${STAGES:-100 163 260 430 540 830}; do
+  for k in ${STAGES:-100 163 260 430 540 760}; do
     $palpa tissue refine "$from" --triangles "$k" --out "target/assets/liver-coarse-$k.tissue"
     from="target/assets/liver-coarse-$k.tissue"
   done
