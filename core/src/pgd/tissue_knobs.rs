@@ -269,7 +269,8 @@ pub(super) mod tests {
         }
     }
 
-    fn surface(law: TissueLaw, bary: [f64; 3], depth_mm: f64) -> [f64; 3] {
+    /// The surface row of `law` evaluated on its one triangle at `bary` and a depth.
+    pub(in crate::pgd) fn surface(law: TissueLaw, bary: [f64; 3], depth_mm: f64) -> [f64; 3] {
         let axis = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
         let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &[[0, 1, 2]]).expect("binds");
         let mut rows = [0.0; 3];

@@ -133,8 +133,7 @@ impl TissueLaw {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::axis::ProbePoint;
-    use crate::pgd::tissue::BoundTissue;
+    use crate::pgd::tissue_knobs::tests::surface;
 
     #[test]
     fn a_half_reads_back_within_its_eleven_bits() {
@@ -177,15 +176,6 @@ mod tests {
             why.contains("3 high bytes") && why.contains("2 low bytes"),
             "{why}"
         );
-    }
-
-    fn surface(law: TissueLaw, bary: [f64; 3], depth_mm: f64) -> [f64; 3] {
-        let axis = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
-        let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &[[0, 1, 2]]).expect("binds");
-        let mut rows = [0.0; 3];
-        let p = ProbePoint { triangle: 0, bary };
-        assert!(bound.add_surface(&p, depth_mm, &mut bound.scratch(), &mut rows));
-        rows
     }
 
     #[test]
