@@ -24,6 +24,8 @@ use palpa_core::pgd::tissue::{
 use palpa_core::scene::PalpationScene;
 use palpa_tests::{coarse_liver, stored_error};
 
+mod subsplit;
+
 fn shipped_scene() -> PalpationScene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/liver-coarse.palpa");
     PalpationScene::new(file::load_any(&path).expect("the shipped scene loads")).expect("scene")
@@ -557,6 +559,7 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
         let e = stored_error(&file, s, count, |j| refined.residual_at(s, j));
         assert!(e <= file.truncation_bound_mm + 1e-12, "sample {s}: {e}");
     }
+    subsplit::sub_split_in_place(organ, plain.options, &file, log);
     // The worst triangle alone (by its largest edge surplus as stored: within the
     // bound of the computed one, and two triangles share their worst edge); none at
     // all gives the file back.

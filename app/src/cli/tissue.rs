@@ -339,6 +339,8 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
         "split_triangles": law.refinement.triangles.len(),
         "quarter_points": law.refinement.quarter_ends.len(),
         "inner_points": law.refinement.inner_corners.len(),
+        "sub_triangles_split": law.refinement.sub.sub_triangles.len(),
+        "second_level_points": law.refinement.sub.points.len(),
         "presses": law.reach.len(),
         "stopped_short": stopped_short, "shallowest_reach_mm": shallowest,
         "rows": law.rows_mm.len(), "rank": law.rank, "modes": modes,

@@ -18,9 +18,9 @@ pub struct RefineArgs {
     /// A tissue file: built without split triangles (`palpa tissue build --no-refine`),
     /// or split by an earlier stage, which this one goes on from (its split triangles
     /// kept, only new ones pressed).
-    tissue: PathBuf,
+    pub(super) tissue: PathBuf,
     #[command(flatten)]
-    organ: OrganArgs,
+    pub(super) organ: OrganArgs,
     /// Split the triangles whose largest edge surplus (any node, any depth) exceeds
     /// this (mm), as `tissue build` does.
     #[arg(long, default_value_t = DEFAULT_REFINE_ABOVE_MM)]
@@ -28,15 +28,21 @@ pub struct RefineArgs {
     /// Split only this many of them, the worst first (by their largest edge surplus):
     /// a refinement in stages. On a split file, the stage's triangles in all (those
     /// already split among them). Default: all.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "sub_triangles")]
     triangles: Option<usize>,
+    /// Split this many of the split triangles' sub-triangles again, the worst first
+    /// (by the largest surplus at their edge midpoints): the second level of
+    /// refinement, on a file split by earlier stages. Its points are pressed and kept
+    /// as surpluses over the file's blend; the file's own samples are kept as they are.
+    #[arg(long)]
+    sub_triangles: Option<usize>,
     /// Presses computed at once (default: one per core).
     #[arg(long)]
-    jobs: Option<usize>,
+    pub(super) jobs: Option<usize>,
     /// Only say what it would split and press (and how many of those presses the log
     /// of `--out` already holds), and where the triangles at `--at` rank; press nothing.
     #[arg(long)]
-    plan: bool,
+    pub(super) plan: bool,
     /// With `--plan`: points (X,Y,Z[,X,Y,Z…], mm) whose triangles' edge surpluses,
     /// by depth, and ranks to report.
     #[arg(
@@ -45,14 +51,17 @@ pub struct RefineArgs {
         allow_hyphen_values = true,
         requires = "plan"
     )]
-    at: Option<Vec<f64>>,
+    pub(super) at: Option<Vec<f64>>,
     /// Where to write the refined law (atomically; it may be the input).
     #[arg(long, required_unless_present = "plan")]
-    out: Option<PathBuf>,
+    pub(super) out: Option<PathBuf>,
 }
 
 /// `palpa tissue refine`.
 pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
+    if let Some(most) = args.sub_triangles {
+        return super::tissue_subsplit::refine_sub(args, most);
+    }
     if !(args.refine_above_mm.is_finite() && args.refine_above_mm >= 0.0) {
         bail!(
             "--refine-above-mm {}: expected a length of at least 0",

@@ -48,6 +48,7 @@ use crate::fe::series::{Continued, Expander, SplitTangent, continued_from};
 use crate::fe::{Element, FeError, Material};
 use crate::organ::OrganMesh;
 use crate::pgd::presslog::RecordLog;
+use crate::pgd::subsplit::SubSplit;
 
 /// How the surface law is built.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -178,6 +179,12 @@ pub enum SurfaceLawBuildError {
          (their corners and edges pressed): expected the mesh the law was built on"
     )]
     EarlierStage { missing: usize },
+    #[error(
+        "the surface law has {sub_triangles} sub-triangles split again, and a stage of split \
+         triangles would change the blend their surpluses were measured against: expected the \
+         file they were split from (refine that, then split sub-triangles again)"
+    )]
+    SubSplitFirst { sub_triangles: usize },
     #[error("the build's press log {path}: {source}")]
     Log {
         path: std::path::PathBuf,
@@ -480,6 +487,11 @@ impl SurfaceLaw {
     ) -> Result<(SurfaceLaw, usize, usize), SurfaceLawBuildError> {
         use std::sync::atomic::AtomicUsize;
         let t0 = Instant::now();
+        if !self.refinement.sub.is_empty() {
+            return Err(SurfaceLawBuildError::SubSplitFirst {
+                sub_triangles: self.refinement.sub.sub_triangles.len(),
+            });
+        }
         let (o, steps) = (self.options, self.steps);
         let row = 3 * self.rows.len();
         let n_row = steps * row;
@@ -571,6 +583,81 @@ impl SurfaceLaw {
         self.steps
     }
 
+    /// Presses `points` (in parallel, logged at `log` under a build's key, as
+    /// [`Self::refine`] does) and appends each as a sample holding its surplus over its
+    /// blend `bases[i]` of this law's samples, up to the depth all of them reached.
+    /// Returns per point whether it was kept (or why its press failed) and how many
+    /// presses came from the log. The refinement's lists are the caller's to extend.
+    pub(crate) fn press_surpluses(
+        &mut self,
+        organ: &OrganMesh,
+        points: &[PressPoint],
+        bases: &[Vec<(usize, f64)>],
+        log: Option<&Path>,
+        progress: &(dyn Fn(PressCount) + Sync),
+    ) -> Result<(Vec<Result<(), String>>, usize), SurfaceLawBuildError> {
+        use std::sync::atomic::AtomicUsize;
+        let t0 = Instant::now();
+        let (o, steps) = (self.options, self.steps);
+        let row = 3 * self.rows.len();
+        let space = organ_space(organ, o.element);
+        let expander = Expander::new(&space, o.law, o.material)?;
+        let (log, finished) = match log {
+            Some(path) => {
+                let (l, r) = open_press_log(organ, &o, self.rows.len(), steps, None, path)?;
+                (Some((Mutex::new(l), path)), r)
+            }
+            None => (None, Vec::new()),
+        };
+        let mut finished: HashMap<u32, Logged> = finished.into_iter().collect();
+        let presser = Presser {
+            space: &space,
+            organ,
+            expander: &expander,
+            o: &o,
+            rows: &self.rows,
+            steps,
+            log: log.as_ref().map(|(l, p)| (l, *p)),
+            done: AtomicUsize::new(0),
+            from_log: AtomicUsize::new(0),
+            progress,
+        };
+        let (pressed, resumed) = presser.press(points, &mut finished, points.len())?;
+        let mut stored = Stored {
+            residual: std::mem::take(&mut self.residual),
+            ratio: std::mem::take(&mut self.ratio),
+            stiffness: std::mem::take(&mut self.stiffness_n_per_mm),
+            correction: std::mem::take(&mut self.correction_mm),
+            segments: std::mem::take(&mut self.segments),
+            reach: std::mem::take(&mut self.reach),
+            stopped: std::mem::take(&mut self.stopped),
+        };
+        let kept = pressed
+            .into_iter()
+            .zip(bases)
+            .map(|(press, base)| {
+                let p = press?;
+                let (surplus, g, reach, why) = stored.surplus(&p, base, steps, row);
+                stored.push(&p, &surplus, &g, reach, why);
+                Ok(())
+            })
+            .collect();
+        self.residual = stored.residual;
+        self.ratio = stored.ratio;
+        self.stiffness_n_per_mm = stored.stiffness;
+        self.correction_mm = stored.correction;
+        self.segments = stored.segments;
+        self.reach = stored.reach;
+        self.stopped = stored.stopped;
+        self.build_s += t0.elapsed().as_secs_f64();
+        Ok((kept, resumed))
+    }
+
+    /// The per-sample residual array (`steps × 3·rows` a sample).
+    pub(crate) fn residuals(&self) -> &[f32] {
+        &self.residual
+    }
+
     /// Sample `s`'s residual at grid depth `j` (3 per kept row, mm).
     pub fn residual_at(&self, s: usize, j: usize) -> &[f32] {
         let n = 3 * self.rows.len();
@@ -651,6 +738,10 @@ pub struct Refinement {
     /// Per kept inner point, after the quarter points: its triangle's corners, the
     /// one it lies nearest first, the others in the triangle's order.
     pub inner_corners: Vec<[u32; 3]>,
+    /// Sub-triangles split again, their points' samples after the inner points'.
+    /// Stored apart in a tissue file (format 11), after the weights.
+    #[serde(skip)]
+    pub sub: SubSplit,
 }
 
 /// The default split threshold of a build (mm): see [`Refinement`]. The quadratic
@@ -663,11 +754,11 @@ pub struct Refinement {
 pub const DEFAULT_REFINE_ABOVE_MM: f64 = 0.35;
 
 /// A surface point to press: where, along what, and its id in the press log.
-#[derive(Clone, Copy)]
-struct PressPoint {
-    at: [f64; 3],
-    push: [f64; 3],
-    id: u32,
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PressPoint {
+    pub(crate) at: [f64; 3],
+    pub(crate) push: [f64; 3],
+    pub(crate) id: u32,
 }
 
 /// A quarter or inner point of a split triangle (see [`Refinement`]).
@@ -838,7 +929,7 @@ pub(crate) fn palpable_at(
 }
 
 /// The palpable boundary edges, as sorted vertex pairs, sorted and each once.
-fn palpable_edges(organ: &OrganMesh) -> Vec<[u32; 2]> {
+pub(crate) fn palpable_edges(organ: &OrganMesh) -> Vec<[u32; 2]> {
     let mut e: Vec<[u32; 2]> = organ
         .boundary
         .iter()

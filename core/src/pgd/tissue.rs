@@ -91,6 +91,10 @@ use crate::axis::ProbePoint;
 use crate::framed::Body;
 use crate::organ::OrganMesh;
 use crate::pgd::depthlaw::DepthLaw;
+use crate::pgd::subsplit::{
+    EighthPoint, LevelSamples, SubSplit, edge_eighth_terms, level_terms, split_points, sub_corners,
+    sub_name, sub_of, sub_triangle_keys,
+};
 use crate::pgd::surfacelaw::{Refinement, SurfaceLaw, SurfaceLawOptions};
 pub use crate::pgd::tissue_shapes::{ShapeBits, Shapes};
 use crate::pgd::tissue_weights::{Weights, to_half};
@@ -98,12 +102,13 @@ use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (10: version 9's, the weights stored after the other
+/// The file's format version (11: version 10's, then the sub-triangles split again
+/// ([`SubSplit`]); 10: version 9's, the weights stored after the other
 /// fields, in halves where every one is a half ([`super::tissue_weights`]); 9: version
 /// 8's fields, the shapes stored by coordinate plane ([`Shapes::to_planes`]) and the
 /// body LZMA-compressed. Versions 9 and 8 (deflated) still load as they are, and 7,
 /// deflated, and 6, plain, each sample its own group).
-pub const VERSION: u32 = 10;
+pub const VERSION: u32 = 11;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -401,7 +406,8 @@ impl Grouping {
         let r = &law.refinement;
         let first_quarter = law.samples.len() + law.edges.len();
         let first_inner = first_quarter + r.quarter_ends.len();
-        let n = first_inner + r.inner_corners.len();
+        let first_sub = first_inner + r.inner_corners.len();
+        let n = first_sub + r.sub.points.len();
         if self == Grouping::Sample || r.triangles.is_empty() {
             return (0..n).map(|s| vec![s]).collect();
         }
@@ -432,7 +438,26 @@ impl Grouping {
                 groups.push(members);
             }
         }
-        groups.extend((first_quarter..n).filter(|&s| !taken[s]).map(|s| vec![s]));
+        groups.extend(
+            (first_quarter..first_sub)
+                .filter(|&s| !taken[s])
+                .map(|s| vec![s]),
+        );
+        // The second level's points, a sub-triangle's together (one on an edge between
+        // two goes with the first).
+        let by_key = r.sub.samples_by_key(first_sub);
+        for &name in &r.sub.sub_triangles {
+            let mut members: Vec<usize> = sub_triangle_keys(name)
+                .iter()
+                .filter_map(|k| by_key.get(k).map(|&s| s as usize))
+                .filter(|&s| !std::mem::replace(&mut taken[s], true))
+                .collect();
+            members.sort_unstable();
+            if !members.is_empty() {
+                groups.push(members);
+            }
+        }
+        groups.extend((first_sub..n).filter(|&s| !taken[s]).map(|s| vec![s]));
         groups
     }
 }
@@ -648,7 +673,8 @@ impl TissueLaw {
             vertices
                 + self.edge_ends.len()
                 + refined.quarter_ends.len()
-                + refined.inner_corners.len(),
+                + refined.inner_corners.len()
+                + refined.sub.points.len(),
             self.rank as usize,
             3 * self.rows_mm.len(),
         );
@@ -749,6 +775,22 @@ impl TissueLaw {
         {
             return Err("a sample's press at depth 0 is not the rest state".into());
         }
+        let sub = &refined.sub;
+        let n_corners = vertices as u32;
+        if sub.points.iter().any(|p| {
+            p.eighths.iter().map(|&e| u32::from(e)).sum::<u32>() != 8
+                || p.corners.iter().any(|&c| c >= n_corners)
+        }) || sub.sub_triangles.iter().any(|(c, at)| {
+            !c.is_sorted()
+                || c.iter().any(|&c| c >= n_corners)
+                || !(*at == u32::MAX || c.contains(at))
+        }) {
+            return Err(
+                "a second-level point's weights are not eighths of its triangle's corner \
+                 samples, or a sub-triangle is named by no triangle's corners"
+                    .into(),
+            );
+        }
         Ok(())
     }
 
@@ -762,12 +804,17 @@ impl TissueLaw {
         let mut stored = self.clone();
         stored.shape = self.shape.to_planes();
         let weights = Weights::pack(&std::mem::take(&mut stored.coeffs));
-        crate::framed::write(path, MAGIC, (VERSION, Body::Lzma), &(&stored, &weights)).map_err(
-            |source| TissueError::Io {
-                path: path.to_path_buf(),
-                source,
-            },
+        let sub = &self.refinement.sub;
+        crate::framed::write(
+            path,
+            MAGIC,
+            (VERSION, Body::Lzma),
+            &(&stored, &weights, sub),
         )
+        .map_err(|source| TissueError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
     }
 
     pub fn load(path: &Path) -> Result<TissueLaw, TissueError> {
@@ -787,15 +834,29 @@ impl TissueLaw {
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
         };
-        let read =
-            crate::framed::read::<(TissueLaw, Weights)>(bytes, MAGIC, &[(VERSION, Body::Lzma)]);
+        let read = crate::framed::read::<(TissueLaw, Weights, SubSplit)>(
+            bytes,
+            MAGIC,
+            &[(VERSION, Body::Lzma)],
+        );
+        let with_weights = |mut law: TissueLaw, weights: Weights| {
+            law.shape = law.shape.from_planes();
+            law.coeffs = weights
+                .unpack()
+                .map_err(|why| TissueError::Corrupt { path: p(), why })?;
+            Ok::<_, TissueError>(law)
+        };
         let law: TissueLaw = match read {
-            Ok((mut law, weights)) => {
-                law.shape = law.shape.from_planes();
-                law.coeffs = weights
-                    .unpack()
-                    .map_err(|why| TissueError::Corrupt { path: p(), why })?;
+            Ok((law, weights, sub)) => {
+                let mut law = with_weights(law, weights)?;
+                law.refinement.sub = sub;
                 law
+            }
+            Err(FramedError::Version(10)) => {
+                let (law, weights) =
+                    crate::framed::read::<(TissueLaw, Weights)>(bytes, MAGIC, &[(10, Body::Lzma)])
+                        .map_err(named)?;
+                with_weights(law, weights)?
             }
             Err(FramedError::Version(9)) => {
                 let mut law: TissueLaw =
@@ -878,25 +939,67 @@ fn cell(p: [f64; 3]) -> [i64; 3] {
 }
 
 /// Most samples one probe's blend uses: three corners, three edges, three surpluses of
-/// a split triangle's quarter or of split edges (see [`BoundTissue::terms`]).
-const TERMS: usize = 9;
+/// a split triangle's quarter or of split edges, and three of the second level's (see
+/// [`BoundTissue::terms`]).
+const TERMS: usize = 12;
 
 /// The samples and weights of one probe's blend.
-type Terms = [(usize, f64); TERMS];
+pub(in crate::pgd) type Terms = [(usize, f64); TERMS];
 
-/// How much of a split neighbour's quarter-point surplus an unsplit triangle carries
-/// in from the edge they share, at a probe whose barycentric weights on that edge's
-/// two corners sum to `along` (1 on the edge, 0 at the far corner): all of it on the
-/// edge, so the surface does not jump as the probe crosses it, dying out linearly by
-/// the line halfway to the far corner, `(2·along − 1)⁺`. That is the reach the quarter
-/// point's own term has inside the split triangle (its corner quarter). Measured by a
-/// later stage's presses (the inner points of triangles split by a second stage beside
-/// a first stage's split edges): the first stage's blend erred less with this fade
-/// than with one reaching the far corner (`along`), on average and at the worst point,
-/// and less on average than with none (which jumps at the edge), level with `along³`
-/// (docs/tissue-measurements.md §1).
-fn carried(along: f64) -> f64 {
-    (2.0 * along - 1.0).max(0.0)
+/// The second level's samples per palpable triangle (see [`BoundTissue`]'s
+/// `sub_samples` and `edge_eighths`): points found by their keys among `sub`'s, whose
+/// first sample is `first`.
+#[allow(clippy::type_complexity)]
+fn second_level(
+    sub: &SubSplit,
+    first: usize,
+    corner_samples: &[[u32; 3]],
+    split: &[bool],
+) -> (
+    Vec<Option<Box<[LevelSamples; 4]>>>,
+    Vec<Option<Box<[[u32; 4]; 3]>>>,
+) {
+    let n = corner_samples.len();
+    if sub.points.is_empty() && sub.sub_triangles.is_empty() {
+        return (vec![None; n], vec![None; n]);
+    }
+    let by_key = sub.samples_by_key(first);
+    let split_again: std::collections::HashSet<([u32; 3], u32)> =
+        sub.sub_triangles.iter().copied().collect();
+    let mut subs = Vec::with_capacity(n);
+    let mut edges = Vec::with_capacity(n);
+    for (&corners, &is_split) in corner_samples.iter().zip(split) {
+        let find = |eighths: [u8; 3]| {
+            let key = EighthPoint { corners, eighths }.key();
+            by_key.get(&key).copied().unwrap_or(u32::MAX)
+        };
+        if is_split {
+            let tables: [LevelSamples; 4] = std::array::from_fn(|s| {
+                let (quarters, inner) = split_points(sub_corners(s));
+                LevelSamples {
+                    split: split_again.contains(&sub_name(corners, s)),
+                    quarters: quarters.map(|q| q.map(find)),
+                    inner: inner.map(find),
+                }
+            });
+            let any = tables.iter().any(|t| t.split || t.any());
+            subs.push(any.then(|| Box::new(tables)));
+            edges.push(None);
+        } else {
+            let on_edges: [[u32; 4]; 3] = std::array::from_fn(|k| {
+                std::array::from_fn(|m| {
+                    let mut e = [0u8; 3];
+                    e[k] = 7 - 2 * m as u8;
+                    e[(k + 1) % 3] = 1 + 2 * m as u8;
+                    find(e)
+                })
+            });
+            let any = on_edges.iter().flatten().any(|&s| s != u32::MAX);
+            subs.push(None);
+            edges.push(any.then(|| Box::new(on_edges)));
+        }
+    }
+    (subs, edges)
 }
 
 /// A tissue law bound to one scene: its rows and samples in the scene's numbering.
@@ -918,6 +1021,12 @@ pub struct BoundTissue {
     /// Per palpable triangle: the surplus sample of its inner point near each corner,
     /// or `u32::MAX`.
     inner_samples: Vec<[u32; 3]>,
+    /// Per split palpable triangle with second-level samples: each sub-triangle's (in
+    /// [`sub_corners`]' order; see [`SubSplit`]).
+    sub_samples: Vec<Option<Box<[LevelSamples; 4]>>>,
+    /// Per palpable triangle not split with second-level quarter points on its edges:
+    /// per edge `k`, those at 1/8, 3/8, 5/8, 7/8 of the way from corner `k`.
+    edge_eighths: Vec<Option<Box<[[u32; 4]; 3]>>>,
     /// Render vertices the law has no row for (kept for the report).
     pub unmatched_vertices: usize,
 }
@@ -1005,7 +1114,7 @@ impl BoundTissue {
             .enumerate()
             .map(|(i, &c)| ((sorted(c), c[0]), (first_inner + i) as u32))
             .collect();
-        let split = corner_samples
+        let split: Vec<bool> = corner_samples
             .iter()
             .map(|&c| !c.contains(&u32::MAX) && split_set.contains(&sorted(c)))
             .collect();
@@ -1030,6 +1139,8 @@ impl BoundTissue {
                 })
             })
             .collect();
+        let first_sub = first_inner + r.inner_corners.len();
+        let (sub_samples, edge_eighths) = second_level(&r.sub, first_sub, &corner_samples, &split);
         Ok(BoundTissue {
             law,
             vertex_of_row,
@@ -1038,8 +1149,27 @@ impl BoundTissue {
             split,
             quarter_samples,
             inner_samples,
+            sub_samples,
+            edge_eighths,
             unmatched_vertices,
         })
+    }
+
+    /// Palpable triangle `t`'s corner samples and, where it was split, its first
+    /// level's samples.
+    pub(in crate::pgd) fn first_level(&self, t: usize) -> ([u32; 3], Option<LevelSamples>) {
+        let split = LevelSamples {
+            split: true,
+            quarters: self.quarter_samples[t],
+            inner: self.inner_samples[t],
+        };
+        (self.corner_samples[t], self.split[t].then_some(split))
+    }
+
+    /// Sub-triangle `sub` of palpable triangle `t`'s second-level samples, where it
+    /// has any.
+    pub(in crate::pgd) fn second_level(&self, t: usize, sub: usize) -> Option<LevelSamples> {
+        self.sub_samples[t].as_ref().map(|s| s[sub])
     }
 
     pub fn scratch(&self) -> TissueScratch {
@@ -1086,9 +1216,10 @@ impl BoundTissue {
     /// corners with their barycentric weights renormalized, the pressed edges'
     /// surpluses with `4 λ_a λ_b` (the quadratic hierarchical blend), then the split
     /// triangle's sub-triangle surpluses with `4 μ_i μ_j`, or, in a triangle not split,
-    /// the quarter points of its split edges (see [`Refinement`]); unused entries have
-    /// weight 0. `None` when no corner was sampled.
-    fn terms(&self, p: &ProbePoint) -> Option<Terms> {
+    /// the quarter points of its split edges (see [`Refinement`]), then the same again
+    /// one level down ([`SubSplit`]); unused entries have weight 0. `None` when no
+    /// corner was sampled.
+    pub(in crate::pgd) fn terms(&self, p: &ProbePoint) -> Option<Terms> {
         let t = p.triangle as usize;
         let samples = self.corner_samples.get(t)?;
         let total: f64 = (0..3)
@@ -1114,48 +1245,27 @@ impl BoundTissue {
             // An edge is pressed only where both its ends were: no renormalizing.
             out[3 + k] = term(edges[k], 4.0 * l[k] * l[(k + 1) % 3]);
         }
-        let quarters = self.quarter_samples[t];
-        if self.split[t] {
-            let inner = self.inner_samples[t];
-            // All corners were pressed: λ sums to one.
-            match (0..3).find(|&k| l[k] >= 0.5) {
-                // The quarter at corner k: μ_k = 2λ_k − 1, μ_i = 2λ_i, μ_j = 2λ_j.
-                Some(k) => {
-                    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-                    let (mk, mi, mj) = (2.0 * l[k] - 1.0, 2.0 * l[i], 2.0 * l[j]);
-                    out[6] = term(quarters[k][0], 4.0 * mk * mi);
-                    out[7] = term(quarters[j][1], 4.0 * mj * mk);
-                    out[8] = term(inner[k], 4.0 * mi * mj);
-                }
-                // The middle quarter, corners the edge midpoints: μ(m_ki) = 1 − 2λ_j.
-                None => {
-                    for k in 0..3 {
-                        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-                        out[6 + k] = term(inner[k], 4.0 * (1.0 - 2.0 * l[j]) * (1.0 - 2.0 * l[i]));
-                    }
-                }
-            }
+        let first = LevelSamples {
+            split: self.split[t],
+            quarters: self.quarter_samples[t],
+            inner: self.inner_samples[t],
+        };
+        // `λ` sums to one in a split triangle (all its corners were pressed).
+        for (k, (s, w)) in level_terms(l, &first).into_iter().enumerate() {
+            out[6 + k] = term(s, w);
+        }
+        let second = if self.split[t] {
+            self.sub_samples[t].as_ref().map(|subs| {
+                let (sub, mu) = sub_of(l);
+                level_terms(mu, &subs[sub])
+            })
         } else {
-            // A split neighbour's quarter points along each edge, at `t` of the way from
-            // corner k to corner i, weighted as on the edge and fading out by the line
-            // halfway to the far corner (see [`carried`]).
-            for k in 0..3 {
-                let i = (k + 1) % 3;
-                let along = l[k] + l[i];
-                let fade = carried(along);
-                if fade <= 0.0 {
-                    continue;
-                }
-                let t = l[i] / along;
-                out[6 + k] = if t <= 0.5 {
-                    term(quarters[k][0], fade * 4.0 * (1.0 - 2.0 * t) * (2.0 * t))
-                } else {
-                    term(
-                        quarters[k][1],
-                        fade * 4.0 * (2.0 * t - 1.0) * (2.0 - 2.0 * t),
-                    )
-                };
-            }
+            self.edge_eighths[t]
+                .as_ref()
+                .map(|e| edge_eighth_terms(l, e))
+        };
+        for (k, (s, w)) in second.into_iter().flatten().enumerate() {
+            out[9 + k] = term(s, w);
         }
         Some(out)
     }
@@ -1379,8 +1489,58 @@ impl Tissue {
 }
 
 #[cfg(test)]
-mod tests {
+pub(in crate::pgd) mod tests {
     use super::*;
+
+    /// A law of one row and depths 0 and 1 mm whose samples (vertices at `corners`,
+    /// in the plane z = 0, then `edge_ends`' and `refinement`'s) each hold one mode:
+    /// the row's x residual `x[s]` at 1 mm, force ratio 0.5 there.
+    pub(in crate::pgd) fn one_row_law(
+        corners: &[[f64; 2]],
+        edge_ends: Vec<[u32; 2]>,
+        refinement: Refinement,
+        x: &[f64],
+    ) -> TissueLaw {
+        let n = x.len();
+        let vertices = corners.len();
+        let law = TissueLaw {
+            options: SurfaceLawOptions {
+                depth_max_mm: 1.0,
+                depth_step_mm: 1.0,
+                ..SurfaceLawOptions::default()
+            },
+            rows_mm: vec![[0.0, 0.0, 5.0]],
+            samples_mm: corners
+                .iter()
+                .map(|p| [p[0] as f32, p[1] as f32, 0.0])
+                .collect(),
+            skipped_mm: vec![],
+            edge_ends,
+            refinement,
+            steps: 2,
+            ratio: (0..n)
+                .flat_map(|s| [if s < vertices { 1.0 } else { 0.0 }, 0.5])
+                .collect(),
+            stiffness_n_per_mm: vec![1.0; n],
+            correction_mm: vec![0.0; n],
+            segments: vec![1; n],
+            reach: vec![2; n],
+            stopped: vec![String::new(); n],
+            rank: 1,
+            mode_start: (0..=n as u32).collect(),
+            group: (0..n as u32).collect(),
+            coeff_start: (0..=n as u32).map(|s| 2 * s).collect(),
+            shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(n)),
+            shape_scale: vec![1.0 / f32::from(i16::MAX); n],
+            coeffs: x.iter().flat_map(|&v| [0.0, v as f32]).collect(),
+            truncation_bound_mm: 0.0,
+            tolerance_mm: 0.05,
+            build_s: 0.0,
+            compress_s: 0.0,
+        };
+        law.check().expect("consistent");
+        law
+    }
 
     /// One triangle (samples 0, 1, 2 at its corners), one row, depths 0 and 1 mm, and
     /// edge 0–1 pressed: the blend is exact at corners and at that edge's midpoint
@@ -1590,48 +1750,14 @@ mod tests {
             x.push(f(at(l)) - p2(l));
             inner_corners.push([k, i, j]);
         }
-        let n = x.len();
-        let law = TissueLaw {
-            options: SurfaceLawOptions {
-                depth_max_mm: 1.0,
-                depth_step_mm: 1.0,
-                ..SurfaceLawOptions::default()
-            },
-            rows_mm: vec![[0.0, 0.0, 5.0]],
-            samples_mm: corners
-                .iter()
-                .map(|p| [p[0] as f32, p[1] as f32, 0.0])
-                .collect(),
-            skipped_mm: vec![],
-            edge_ends,
-            refinement: Refinement {
-                above_mm: Some(0.0),
-                triangles: vec![[0, 1, 2]],
-                quarter_ends,
-                inner_corners,
-            },
-            steps: 2,
-            ratio: (0..n)
-                .flat_map(|s| [if s < 4 { 1.0 } else { 0.0 }, 0.5])
-                .collect(),
-            stiffness_n_per_mm: vec![1.0; n],
-            correction_mm: vec![0.0; n],
-            segments: vec![1; n],
-            reach: vec![2; n],
-            stopped: vec![String::new(); n],
-            rank: 1,
-            mode_start: (0..=n as u32).collect(),
-            group: (0..n as u32).collect(),
-            coeff_start: (0..=n as u32).map(|s| 2 * s).collect(),
-            shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(n)),
-            shape_scale: vec![1.0 / f32::from(i16::MAX); n],
-            coeffs: x.iter().flat_map(|&v| [0.0, v as f32]).collect(),
-            truncation_bound_mm: 0.0,
-            tolerance_mm: 0.05,
-            build_s: 0.0,
-            compress_s: 0.0,
+        let refinement = Refinement {
+            above_mm: Some(0.0),
+            triangles: vec![[0, 1, 2]],
+            quarter_ends,
+            inner_corners,
+            ..Refinement::default()
         };
-        law.check().expect("consistent");
+        let law = one_row_law(&corners, edge_ends, refinement, &x);
         let axis: Vec<[f64; 3]> = corners.iter().map(|p| [p[0], p[1], 0.0]).collect();
         let triangles = [[0, 1, 2], [1, 0, 3]];
         let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds");

@@ -76,6 +76,7 @@ mod tests {
     use crate::framed::Body;
     use crate::pgd::tissue::MAGIC;
     use crate::pgd::tissue_weights::Weights;
+    use crate::pgd::subsplit::SubSplit;
 
     /// A law of one group per sample, as format 7 wrote it.
     fn as_v7(l: &TissueLaw) -> TissueLawV7 {
@@ -117,7 +118,7 @@ mod tests {
             assert_eq!(back.group, vec![0, 1, 2]);
         }
         // Version 8 (today's fields, deflated) and 9 (LZMA, shapes by plane) load as
-        // they are; today's files are version 10, and a version this palpa does not
+        // they are; today's files are version 11, and a version this palpa does not
         // know is named.
         let path = dir.path().join("v8.tissue");
         crate::framed::write(&path, MAGIC, (8, Body::Deflated), &law).expect("writes");
@@ -131,21 +132,29 @@ mod tests {
         assert_eq!(TissueLaw::load(&path).expect("loads"), law);
         // Weights that are not all halves are stored in f32, halves in sixteen bits.
         let (half, _) = law.with_half_weights();
+        // Version 10 is today's without the second level ([`SubSplit`]), which comes
+        // after the weights.
         for (law, single) in [(&law, true), (&half, false)] {
-            let path = dir.path().join("v10.tissue");
+            let path = dir.path().join("v11.tissue");
             law.save(&path).expect("saves");
             let bytes = std::fs::read(&path).expect("reads");
-            assert_eq!(&bytes[8..12], &10u32.to_le_bytes());
-            let (stored, weights): (TissueLaw, Weights) =
-                crate::framed::read(&bytes, MAGIC, &[(10, Body::Lzma)]).expect("raw");
+            assert_eq!(&bytes[8..12], &11u32.to_le_bytes());
+            let (stored, weights, sub): (TissueLaw, Weights, SubSplit) =
+                crate::framed::read(&bytes, MAGIC, &[(11, Body::Lzma)]).expect("raw");
             assert_eq!(stored.shape, law.shape.to_planes(), "shapes by plane");
             assert_ne!(stored.shape, law.shape);
             assert!(stored.coeffs.is_empty(), "weights stored after the law");
             assert_eq!(matches!(weights, Weights::Single(_)), single);
+            assert!(sub.is_empty());
             assert_eq!(&TissueLaw::load(&path).expect("loads"), law);
+            let v10 = dir.path().join("v10.tissue");
+            crate::framed::write(&v10, MAGIC, (10, Body::Lzma), &(&stored, &weights))
+                .expect("writes");
+            assert_eq!(&TissueLaw::load(&v10).expect("loads"), law);
         }
-        crate::framed::write(&path, MAGIC, (11, Body::Lzma), &law).expect("writes");
-        let e = TissueLaw::load(&path).expect_err("version 11");
-        assert!(e.to_string().contains("version 11"), "{e}");
+        let path = dir.path().join("v12.tissue");
+        crate::framed::write(&path, MAGIC, (12, Body::Lzma), &law).expect("writes");
+        let e = TissueLaw::load(&path).expect_err("version 12");
+        assert!(e.to_string().contains("version 12"), "{e}");
     }
 }

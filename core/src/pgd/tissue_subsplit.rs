@@ -1,0 +1,279 @@
+//! Splitting a built file's sub-triangles again (the second level of
+//! [`super::subsplit`]): which ones, the points to press, and the file with their
+//! surpluses.
+//!
+//! A sub-triangle's *edge surplus* is the largest node of the first-level samples at
+//! its edge midpoints (the triangle's quarter and inner points), any depth: how far
+//! the parent triangle's quadratic blend was from the presses there. It ranks
+//! sub-triangles as a triangle's edge surpluses rank triangles for the first split, and
+//! the worst `most` are split again. Each of their points is pressed once (a point on
+//! an edge shared by two split sub-triangles, or by two triangles, is one press) and
+//! kept as its surplus over the blend the file answers with there, so at that point
+//! the new file gives the point's own press back, up to the surplus's compression.
+//! The file's own samples keep their stored modes and weights unchanged.
+//!
+//! Log ids continue after the first level's (see `surfacelaw`'s `refine_plan`) and
+//! depend on the mesh alone: a point on a palpable edge `g` (in the sorted list of
+//! palpable edges) at `e` eighths from its lower vertex is `8 g + e` past them, one
+//! inside boundary triangle `t` at eighths `(e₀, e₁, ·)` is `8 E + 64 t + 8 e₀ + e₁`.
+//! A killed run resumes from the log, and a larger `most` from the same file presses
+//! only the new points.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use crate::axis::ProbePoint;
+use crate::organ::OrganMesh;
+use crate::pgd::subsplit::{
+    EighthPoint, PointKey, SubSplit, quarter_midpoints, split_points, sub_corners, sub_name,
+};
+use crate::pgd::surfacelaw::{
+    PressCount, PressPoint, SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak,
+    organ_vertex_normals, palpable_edges,
+};
+use crate::pgd::tissue::{BoundTissue, Grouping, QUANT_SHARES, TissueError, TissueLaw};
+
+/// A sub-triangle that could be split again.
+#[derive(Debug, Clone)]
+pub struct SubCandidate {
+    /// Its triangle (index in the organ's boundary) and which sub-triangle (0–2 at that
+    /// boundary triangle's corner, 3 the middle one).
+    pub triangle: usize,
+    pub sub: usize,
+    /// Its largest edge surplus (mm; see the module docs).
+    pub edge_surplus_mm: f64,
+}
+
+/// The sub-triangles to split again and the points to press.
+#[derive(Debug)]
+pub struct SubSplitPlan {
+    /// Every candidate, the largest edge surplus first (ties in the mesh's order).
+    pub candidates: Vec<SubCandidate>,
+    /// How many of them, from the first, are split.
+    pub chosen: usize,
+    names: Vec<([u32; 3], u32)>,
+    points: Vec<PressPoint>,
+    bases: Vec<Vec<(usize, f64)>>,
+    eighths: Vec<EighthPoint>,
+}
+
+impl SubSplitPlan {
+    /// Points to press (each once).
+    pub fn presses(&self) -> usize {
+        self.points.len()
+    }
+
+    /// The press-log ids of its points.
+    pub fn press_ids(&self) -> impl Iterator<Item = u32> + '_ {
+        self.points.iter().map(|p| p.id)
+    }
+
+    /// The candidate holding the organ's surface point closest to `p_mm`, and its rank
+    /// (0: the worst); `None` where that point's triangle was not split.
+    pub fn rank_at(&self, organ: &OrganMesh, p_mm: [f64; 3]) -> Option<(usize, &SubCandidate)> {
+        let hit = crate::axis::closest_point(&organ.mesh.vertices, &organ.boundary, p_mm)?;
+        let (sub, _) = crate::pgd::subsplit::sub_of(hit.bary);
+        self.candidates
+            .iter()
+            .enumerate()
+            .find(|(_, c)| c.triangle == hit.triangle as usize && c.sub == sub)
+    }
+}
+
+impl TissueLaw {
+    /// Plans splitting the `most` worst sub-triangles of this file's split triangles
+    /// again. `law` is this file's [`surface_law`](Self::surface_law) on `organ`.
+    pub fn sub_split_plan(
+        &self,
+        organ: &OrganMesh,
+        law: &SurfaceLaw,
+        most: usize,
+    ) -> Result<SubSplitPlan, TissueError> {
+        let refused = |why: String| TissueError::Refine { why };
+        if !self.refinement.sub.is_empty() {
+            return Err(refused(format!(
+                "it already has {} sub-triangles split again: split more from the file they \
+                 were split from, with a larger count (its press log keeps their presses)",
+                self.refinement.sub.sub_triangles.len()
+            )));
+        }
+        if self.refinement.triangles.is_empty() {
+            return Err(refused(
+                "it has no split triangles (expected a file refined by `palpa tissue refine`)"
+                    .into(),
+            ));
+        }
+        let vertices: Vec<[f64; 3]> = organ.mesh.vertices.clone();
+        let bound = BoundTissue::bind(self.clone(), &[], &vertices, &organ.boundary)?;
+        let n_row = law.steps() * 3 * law.rows.len();
+        let peak = |s: u32| {
+            if s == u32::MAX {
+                0.0
+            } else {
+                node_peak(&law.residuals()[s as usize * n_row..][..n_row])
+            }
+        };
+        let mut candidates = Vec::new();
+        for t in 0..organ.boundary.len() {
+            let (_, Some(first)) = bound.first_level(t) else {
+                continue;
+            };
+            for sub in 0..4 {
+                let edge_surplus_mm = quarter_midpoints(&first, sub)
+                    .into_iter()
+                    .map(peak)
+                    .fold(0.0, f64::max);
+                candidates.push(SubCandidate {
+                    triangle: t,
+                    sub,
+                    edge_surplus_mm,
+                });
+            }
+        }
+        candidates.sort_by(|a, b| {
+            b.edge_surplus_mm
+                .total_cmp(&a.edge_surplus_mm)
+                .then((a.triangle, a.sub).cmp(&(b.triangle, b.sub)))
+        });
+        let chosen = most.min(candidates.len());
+        let normals = organ_vertex_normals(organ);
+        let edges = palpable_edges(organ);
+        let first_id = organ.mesh.vertices.len() + 3 * organ.boundary.len();
+        let level_two = first_id + 2 * edges.len() + 3 * organ.boundary.len();
+        let mut plan = SubSplitPlan {
+            candidates,
+            chosen,
+            names: Vec::new(),
+            points: Vec::new(),
+            bases: Vec::new(),
+            eighths: Vec::new(),
+        };
+        let mut seen: HashMap<PointKey, usize> = HashMap::new();
+        for c in &plan.candidates[..chosen] {
+            let (t, tri) = (c.triangle, organ.boundary[c.triangle]);
+            let (corners, _) = bound.first_level(t);
+            plan.names.push(sub_name(corners, c.sub));
+            let (quarters, inner) = split_points(sub_corners(c.sub));
+            for &eighths in quarters.iter().flatten().chain(&inner) {
+                let point = EighthPoint { corners, eighths };
+                if seen.insert(point.key(), plan.points.len()).is_some() {
+                    continue;
+                }
+                let w = point.bary();
+                let (mut at, mut push) = ([0.0; 3], [0.0; 3]);
+                for k in 0..3 {
+                    let v = tri[k] as usize;
+                    for x in 0..3 {
+                        at[x] += w[k] * organ.mesh.vertices[v][x];
+                        push[x] -= w[k] * f64::from(normals[v][x]);
+                    }
+                }
+                let id = match (0..3).find(|&k| eighths[k] == 0) {
+                    Some(k) => {
+                        let (a, b) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                        let (lo, e) = if a < b {
+                            (a, eighths[(k + 1) % 3])
+                        } else {
+                            (b, eighths[(k + 2) % 3])
+                        };
+                        let g = edges
+                            .binary_search(&[lo, a.max(b)])
+                            .map_err(|_| refused(format!("triangle {t}'s edge is not palpable")))?;
+                        level_two + 8 * g + usize::from(e)
+                    }
+                    None => {
+                        level_two
+                            + 8 * edges.len()
+                            + 64 * t
+                            + 8 * usize::from(eighths[0])
+                            + usize::from(eighths[1])
+                    }
+                };
+                let probe = ProbePoint {
+                    triangle: t as u32,
+                    bary: w,
+                };
+                let terms = bound.terms(&probe).ok_or_else(|| {
+                    refused(format!("split triangle {t} blends no pressed corner"))
+                })?;
+                plan.bases
+                    .push(terms.into_iter().filter(|&(_, w)| w != 0.0).collect());
+                plan.points.push(PressPoint {
+                    at,
+                    push,
+                    id: id as u32,
+                });
+                plan.eighths.push(point);
+            }
+        }
+        Ok(plan)
+    }
+
+    /// This file with `plan`'s sub-triangles split again: `law` is this file's
+    /// [`surface_law`](Self::surface_law) after [`SurfaceLaw::press_sub_split`] gave
+    /// `kept`. The new surpluses are compressed with this file's tolerance and bits, a
+    /// sub-triangle's sharing their modes; the bound is the larger of this file's and
+    /// theirs.
+    pub fn sub_split(
+        &self,
+        organ: &OrganMesh,
+        mut law: SurfaceLaw,
+        plan: &SubSplitPlan,
+        kept: &[Result<(), String>],
+    ) -> Result<TissueLaw, TissueError> {
+        let old = self.reach.len();
+        let new = kept.iter().filter(|k| k.is_ok()).count();
+        if law.reach.len() != old + new || kept.len() != plan.eighths.len() {
+            return Err(TissueError::Refine {
+                why: "the pressed law does not hold this file's samples and the plan's".into(),
+            });
+        }
+        law.refinement.sub = SubSplit {
+            sub_triangles: plan.names.clone(),
+            points: plan
+                .eighths
+                .iter()
+                .zip(kept)
+                .filter(|(_, k)| k.is_ok())
+                .map(|(p, _)| *p)
+                .collect(),
+        };
+        let in_file: Vec<Option<usize>> = (0..old + new).map(|s| (s < old).then_some(s)).collect();
+        let mut out = Self::compress_onto(
+            organ,
+            &law,
+            self.tolerance_mm,
+            self.shape.bits(),
+            Grouping::SplitTriangle,
+            &QUANT_SHARES,
+            Some((self, &in_file)),
+        )?;
+        out.build_s = law.build_s;
+        Ok(out)
+    }
+}
+
+impl SurfaceLaw {
+    /// The press-log ids the log at `path` (of a build with this law's options)
+    /// already holds.
+    pub fn logged_ids(
+        &self,
+        organ: &OrganMesh,
+        path: &Path,
+    ) -> Result<Vec<u32>, SurfaceLawBuildError> {
+        logged_press_ids(organ, &self.options, self.rows.len(), path)
+    }
+
+    /// Presses `plan`'s points (in parallel, logged at `log`) and appends their
+    /// surpluses: per point, whether it was kept (or why its press failed), and how
+    /// many presses came from the log.
+    pub fn press_sub_split(
+        &mut self,
+        organ: &OrganMesh,
+        plan: &SubSplitPlan,
+        log: Option<&Path>,
+        progress: &(dyn Fn(PressCount) + Sync),
+    ) -> Result<(Vec<Result<(), String>>, usize), SurfaceLawBuildError> {
+        self.press_surpluses(organ, &plan.points, &plan.bases, log, progress)
+    }
+}

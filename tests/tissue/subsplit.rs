@@ -1,0 +1,132 @@
+//! Sub-triangles split again (`palpa_core::pgd::subsplit`) through the whole chain:
+//! plan, presses, surpluses over the file's blend, compression, file and blend.
+
+use std::path::Path;
+
+use palpa_core::fe::probe::organ_space;
+use palpa_core::fe::series::Expander;
+use palpa_core::organ::OrganMesh;
+use palpa_core::pgd::surfacelaw::{
+    PressCount, SurfaceLawBuildError, SurfaceLawOptions, follow_at, organ_vertex_normals,
+};
+use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueLaw};
+
+use super::shipped_scene;
+
+/// `file` (split in a small region, its presses in `log`) with its worst sub-triangle
+/// split again: the file's own samples kept as they are (weights, modes), the new
+/// points pressed once each and stored within the file's tolerance, the file written
+/// and read back whole; at the sub-triangle's inner point the new file gives back the
+/// press computed there alone, closer than the file did. A file with sub-triangles
+/// split refuses a first-level stage and another second-level one.
+pub(super) fn sub_split_in_place(
+    organ: &OrganMesh,
+    options: SurfaceLawOptions,
+    file: &TissueLaw,
+    log: &Path,
+) {
+    let none = &|_: PressCount| {};
+    let mut law = file.surface_law(organ).expect("reads back");
+    let plan = file.sub_split_plan(organ, &law, 1).expect("plans");
+    assert_eq!(plan.chosen, 1);
+    assert_eq!(plan.candidates.len(), 4 * file.refinement.triangles.len());
+    assert!(
+        plan.candidates
+            .windows(2)
+            .all(|w| w[0].edge_surplus_mm >= w[1].edge_surplus_mm)
+    );
+    assert_eq!(
+        plan.presses(),
+        9,
+        "one sub-triangle: six quarter and three inner points"
+    );
+    let (kept, resumed) = law
+        .press_sub_split(organ, &plan, Some(log), none)
+        .expect("presses");
+    assert_eq!(resumed, 0);
+    assert!(kept.iter().all(Result::is_ok), "{kept:?}");
+    let new = file
+        .sub_split(organ, law, &plan, &kept)
+        .expect("compresses");
+    let sub = &new.refinement.sub;
+    assert_eq!((sub.sub_triangles.len(), sub.points.len()), (1, 9));
+    let old = file.reach.len();
+    assert_eq!(new.reach.len(), old + 9);
+    assert_eq!(new.coeffs[..file.coeffs.len()], file.coeffs[..]);
+    assert_eq!(
+        new.shape_scale[..file.shape_scale.len()],
+        file.shape_scale[..]
+    );
+    assert!(new.truncation_bound_mm <= file.tolerance_mm.max(file.truncation_bound_mm));
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("sub.tissue");
+    new.save(&path).expect("saves");
+    assert_eq!(TissueLaw::load(&path).expect("loads"), new);
+
+    // The inner point nearest the sub-triangle's first corner, pressed alone.
+    let p = sub.points[6];
+    let back = file.surface_law(organ).expect("reads back");
+    let w = p.bary();
+    let normals = organ_vertex_normals(organ);
+    let (mut at, mut push) = ([0.0; 3], [0.0; 3]);
+    for k in 0..3 {
+        let v = back.samples[p.corners[k] as usize] as usize;
+        for d in 0..3 {
+            at[d] += w[k] * organ.mesh.vertices[v][d];
+            push[d] -= w[k] * f64::from(normals[v][d]);
+        }
+    }
+    assert!(w.iter().all(|&x| x > 0.0), "an inner point: {w:?}");
+    let space = organ_space(organ, options.element);
+    let expander = Expander::new(&space, options.law, options.material).expect("rest factor");
+    let (press, _) = follow_at(&space, organ, &expander, &options, at, push, &[])
+        .expect("fe")
+        .expect("the press reaches the grid's end");
+    let depth = options.depth_max_mm;
+    let (u, unit) = (press.u.last().expect("states"), &press.first.u[0]);
+    let scene = shipped_scene();
+    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
+    let (probe, _) = scene.closest_palpable(at).expect("palpable");
+    let error = |law: &TissueLaw| {
+        let bound = BoundTissue::bind(
+            law.clone(),
+            scene.vertices_mm(),
+            scene.axis_vertices_mm(),
+            scene.axis_triangles(),
+        )
+        .expect("binds");
+        let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
+        assert!(bound.add_surface(&probe, depth, &mut bound.scratch(), &mut rows));
+        organ
+            .surface_nodes()
+            .into_iter()
+            .map(|v| {
+                let row = vertex_of
+                    .find(organ.mesh.vertices[v as usize])
+                    .expect("row");
+                (0..3)
+                    .map(|d| {
+                        let i = 3 * v as usize + d;
+                        (rows[3 * row as usize + d] - (u[i] - depth * unit[i])).powi(2)
+                    })
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .fold(0.0, f64::max)
+    };
+    let (e_new, e_file) = (error(&new), error(file));
+    // Every blended sample errs by at most the bound; here the weights sum to at most
+    // 1 + 1.25 + 1.25 + 1 (corners, edges, first-level surpluses, the point's own).
+    let allowed = 4.5 * new.truncation_bound_mm + 1e-4;
+    eprintln!("sub-triangle inner point at {depth} mm: {e_new:.4} mm, before {e_file:.4} mm");
+    assert!(e_new <= allowed, "{e_new} > {allowed}");
+    assert!(e_new < e_file, "{e_new} vs {e_file}");
+
+    let again = new.surface_law(organ).expect("reads back");
+    assert!(matches!(
+        again.clone().refine(organ, 0.0, None, None, none),
+        Err(SurfaceLawBuildError::SubSplitFirst { sub_triangles: 1 })
+    ));
+    let refused = new.sub_split_plan(organ, &again, 2).expect_err("refused");
+    assert!(refused.to_string().contains("already has 1"), "{refused}");
+}
