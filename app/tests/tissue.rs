@@ -956,6 +956,65 @@ fn a_refinement_plan_presses_nothing_and_ranks_a_point() {
     assert!(std::fs::read_dir(dir.path()).expect("dir").next().is_none());
 }
 
+/// `tissue refine --sub-triangles N --plan` on the shipped file's first level: four
+/// candidates a split triangle, nine points a sub-triangle less those shared, the
+/// sub-triangle under a point ranked (from 1, the worst), nothing pressed or written;
+/// on the file's unsplit form, refused by name.
+#[test]
+fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("sub.tissue");
+    // The shipped file's first level (it may have sub-triangles split already).
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let law = TissueLaw::load(std::path::Path::new(shipped))
+        .expect("the shipped tissue loads")
+        .without_sub_split();
+    let input = tempfile::tempdir().expect("tempdir");
+    let first_level = input.path().join("first-level.tissue");
+    law.save(&first_level).expect("saves");
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    let plan = common::json_ok(&palpa(&[
+        "tissue",
+        "refine",
+        &path(&first_level),
+        "--plan",
+        "--sub-triangles",
+        "5",
+        "--at",
+        "-73.9546,59.5655,1.903",
+        "--out",
+        &path(&out),
+    ]));
+    assert_eq!(
+        num(&plan, "candidates"),
+        4.0 * law.refinement.triangles.len() as f64
+    );
+    assert_eq!(num(&plan, "sub_triangles"), 5.0);
+    let presses = num(&plan, "presses");
+    assert!((20.0..=45.0).contains(&presses), "{plan}");
+    assert_eq!(num(&plan, "presses_logged"), 0.0);
+    assert!(num(&plan, "least_split_edge_surplus_mm") <= num(&plan, "worst_edge_surplus_mm"));
+    assert!(num(&plan, "first_left_edge_surplus_mm") <= num(&plan, "least_split_edge_surplus_mm"));
+    let point = &plan["at"][0];
+    let rank = num(point, "rank");
+    assert!(rank >= 1.0 && rank <= num(&plan, "candidates"), "{point}");
+    assert_eq!(point["split"].as_bool(), Some(rank <= 5.0), "{point}");
+    assert!(std::fs::read_dir(dir.path()).expect("dir").next().is_none());
+    let unsplit = input.path().join("unsplit.tissue");
+    unsplit_shipped(&unsplit);
+    let refused = palpa(&[
+        "tissue",
+        "refine",
+        &path(&unsplit),
+        "--plan",
+        "--sub-triangles",
+        "5",
+    ]);
+    assert!(!refused.status.success());
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("no split triangles"), "{err}");
+}
+
 /// One press at a time (`--jobs 1`, for a machine short of memory) gives the law that
 /// pressing on every core gives, bit for bit: each press is computed alone.
 #[test]

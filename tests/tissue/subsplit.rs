@@ -14,7 +14,8 @@ use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueLaw};
 use super::shipped_scene;
 
 /// `file` (split in a small region, its presses in `log`) with its worst sub-triangle
-/// split again: the file's own samples kept as they are (weights, modes), the new
+/// split again: the file's own samples kept as they are (weights, modes; cut off
+/// again, the file itself), the new
 /// points pressed once each and stored within the file's tolerance, the file written
 /// and read back whole; at the sub-triangle's inner point the new file gives back the
 /// press computed there alone, closer than the file did. A file with sub-triangles
@@ -58,6 +59,13 @@ pub(super) fn sub_split_in_place(
         file.shape_scale[..]
     );
     assert!(new.truncation_bound_mm <= file.tolerance_mm.max(file.truncation_bound_mm));
+    let first_level = new.without_sub_split();
+    assert_eq!(
+        (&first_level.coeffs, &first_level.shape, &first_level.group),
+        (&file.coeffs, &file.shape, &file.group),
+        "the file it was split from"
+    );
+    assert_eq!(first_level.refinement, file.refinement);
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("sub.tissue");
     new.save(&path).expect("saves");

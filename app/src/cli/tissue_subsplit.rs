@@ -43,7 +43,7 @@ pub fn refine_sub(args: &RefineArgs, most: usize) -> anyhow::Result<()> {
                 let found = plan.rank_at(&organ, p);
                 json!({
                     "at": p,
-                    "rank": found.map(|(r, _)| r),
+                    "rank": found.map(|(r, _)| r + 1),
                     "edge_surplus_mm": found.map(|(_, c)| c.edge_surplus_mm),
                     "split": found.is_some_and(|(r, _)| r < plan.chosen),
                 })

@@ -171,9 +171,29 @@ impl TissueLaw {
     /// blend everywhere, what a build with `--no-refine` stores from the same presses
     /// (the split points' samples come last, so the others keep their indices).
     pub fn unsplit(&self) -> TissueLaw {
-        let (steps, m) = (self.steps as usize, 3 * self.rows_mm.len());
         let n = self.samples_mm.len() + self.edge_ends.len();
-        // Vertices' and edges' groups come first (see `Grouping`).
+        self.first_samples(n, super::surfacelaw::Refinement::default())
+    }
+
+    /// The law without its second level ([`super::subsplit::SubSplit`]): the file its
+    /// sub-triangles were split from (their samples come last).
+    pub fn without_sub_split(&self) -> TissueLaw {
+        let r = &self.refinement;
+        let n = self.samples_mm.len()
+            + self.edge_ends.len()
+            + r.quarter_ends.len()
+            + r.inner_corners.len();
+        let refinement = super::surfacelaw::Refinement {
+            sub: Default::default(),
+            ..r.clone()
+        };
+        self.first_samples(n, refinement)
+    }
+
+    /// The law of its first `n` samples (whose groups of modes come first, see
+    /// `Grouping`), with `refinement` listing what they hold.
+    fn first_samples(&self, n: usize, refinement: super::surfacelaw::Refinement) -> TissueLaw {
+        let (steps, m) = (self.steps as usize, 3 * self.rows_mm.len());
         let groups = self.group[..n]
             .iter()
             .map(|&g| g as usize + 1)
@@ -186,7 +206,7 @@ impl TissueLaw {
             .max()
             .unwrap_or(0);
         TissueLaw {
-            refinement: super::surfacelaw::Refinement::default(),
+            refinement,
             ratio: self.ratio[..n * steps].to_vec(),
             stiffness_n_per_mm: self.stiffness_n_per_mm[..n].to_vec(),
             correction_mm: self.correction_mm[..n].to_vec(),

@@ -74,9 +74,9 @@ impl From<TissueLawV7> for TissueLaw {
 mod tests {
     use super::*;
     use crate::framed::Body;
+    use crate::pgd::subsplit::SubSplit;
     use crate::pgd::tissue::MAGIC;
     use crate::pgd::tissue_weights::Weights;
-    use crate::pgd::subsplit::SubSplit;
 
     /// A law of one group per sample, as format 7 wrote it.
     fn as_v7(l: &TissueLaw) -> TissueLawV7 {
