@@ -958,7 +958,8 @@ fn a_refinement_plan_presses_nothing_and_ranks_a_point() {
 
 /// `tissue refine --sub-triangles N --plan` on the shipped file's first level: four
 /// candidates a split triangle, nine points a sub-triangle less those shared, the
-/// sub-triangle under a point ranked (from 1, the worst), nothing pressed or written;
+/// sub-triangle under a point ranked (from 1, the worst), the chosen ones' corners
+/// listed, nothing pressed or written;
 /// on the file's unsplit form, refused by name.
 #[test]
 fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
@@ -999,6 +1000,8 @@ fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
     let rank = num(point, "rank");
     assert!(rank >= 1.0 && rank <= num(&plan, "candidates"), "{point}");
     assert_eq!(point["split"].as_bool(), Some(rank <= 5.0), "{point}");
+    let corners = plan["sub_triangles_mm"].as_array().expect("corners");
+    assert_eq!(corners.len(), 5, "{plan}");
     assert!(std::fs::read_dir(dir.path()).expect("dir").next().is_none());
     let unsplit = input.path().join("unsplit.tissue");
     unsplit_shipped(&unsplit);

@@ -58,6 +58,9 @@ pub fn refine_sub(args: &RefineArgs, most: usize) -> anyhow::Result<()> {
             "least_split_edge_surplus_mm": plan.chosen.checked_sub(1).and_then(surplus),
             "first_left_edge_surplus_mm": surplus(plan.chosen),
             "at": points,
+            "sub_triangles_mm": (0..plan.chosen)
+                .map(|i| plan.corners_mm(&organ, i))
+                .collect::<Vec<_>>(),
         });
         return super::args::print_report(&report, false);
     }

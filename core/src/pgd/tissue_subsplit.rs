@@ -58,6 +58,11 @@ pub struct SubSplitPlan {
 }
 
 impl SubSplitPlan {
+    /// The chosen sub-triangles, named as [`SubSplit::sub_triangles`] names them.
+    pub fn names(&self) -> &[([u32; 3], u32)] {
+        &self.names
+    }
+
     /// Points to press (each once).
     pub fn presses(&self) -> usize {
         self.points.len()
@@ -66,6 +71,19 @@ impl SubSplitPlan {
     /// The press-log ids of its points.
     pub fn press_ids(&self) -> impl Iterator<Item = u32> + '_ {
         self.points.iter().map(|p| p.id)
+    }
+
+    /// Candidate `i`'s corners on the organ's surface (mm).
+    pub fn corners_mm(&self, organ: &OrganMesh, i: usize) -> [[f64; 3]; 3] {
+        let c = &self.candidates[i];
+        let tri = organ.boundary[c.triangle];
+        sub_corners(c.sub).map(|e| {
+            std::array::from_fn(|x| {
+                (0..3)
+                    .map(|k| f64::from(e[k]) / 8.0 * organ.mesh.vertices[tri[k] as usize][x])
+                    .sum()
+            })
+        })
     }
 
     /// The candidate holding the organ's surface point closest to `p_mm`, and its rank
