@@ -12,7 +12,8 @@
 # 1 h 10 min), each stage going on from the last one's file. The shipped file's weights
 # were rounded to halves between the fifth and sixth stages (`palpa tissue cut
 # --half-weights`, its bound 0.1 → 0.107 mm); a rebuild stores halves from the start,
-# within 0.1 mm. Each step
+# within 0.1 mm. Then the SUB worst of their sub-triangles are split again (the second
+# level, docs/methods.md §2e). Each step
 # logs its presses beside its output, so a killed run, run again, goes on from the last
 # finished press.
 set -euo pipefail
@@ -39,6 +40,11 @@ if [ -n "${TISSUE:-}" ]; then
     $palpa tissue refine "$from" --triangles "$k" --out "target/assets/liver-coarse-$k.tissue"
     from="target/assets/liver-coarse-$k.tissue"
   done
+  # The second level: the SUB worst sub-triangles of those split again (default 50:
+  # 360 presses, about 1 h).
+  $palpa tissue refine "$from" --sub-triangles "${SUB:-50}" \
+    --out "target/assets/liver-coarse-sub${SUB:-50}.tissue"
+  from="target/assets/liver-coarse-sub${SUB:-50}.tissue"
   cp "$from" assets/liver-coarse.tissue
 fi
 echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"

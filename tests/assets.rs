@@ -140,7 +140,8 @@ fn the_kidney_example_matches_its_shipped_surface() {
 /// code: its options are the build's, every palpable vertex clear of the fixed region
 /// was pressed (or skipped with a reason), it binds to the default scene, scene and
 /// tissue fit the phone budget together, its split triangles are the worst of its own
-/// unsplit form, and one of its vertex presses, pressed again here, gives back its
+/// unsplit form and its sub-triangles split again the worst of its first level, and one
+/// of its vertex presses, pressed again here, gives back its
 /// force ratio and (within the stored bound) its surface.
 #[test]
 fn the_default_tissue_comes_from_the_current_code() {
@@ -216,6 +217,23 @@ fn the_default_tissue_comes_from_the_current_code() {
     for p in &plan.at {
         assert!(p.split && p.rank.is_some_and(|r| r <= split), "{p:?}");
     }
+
+    // Its sub-triangles split again are the worst of its first level's, as `tissue
+    // refine --sub-triangles` picks them.
+    let sub = &law.refinement.sub;
+    assert!(
+        !sub.is_empty(),
+        "the default tissue has a second level: see scripts/make-assets.sh"
+    );
+    let first = law.without_sub_split();
+    let plan = first
+        .sub_split_plan(
+            &organ,
+            &first.surface_law(&organ).expect("reads back"),
+            sub.sub_triangles.len(),
+        )
+        .expect("a plan");
+    assert_eq!(plan.names(), &sub.sub_triangles[..]);
 
     // The vertex press nearest the anterior lobe's centre, pressed again alone.
     let centre = [-30.3f32, 70.7, 16.9];
