@@ -26,8 +26,9 @@ pub const BUILT_IN_TISSUE: &[u8] = include_bytes!("../../assets/liver-coarse.tis
 /// docs/tissue-measurements.md §1;
 /// `the_default_tissue_meets_the_goals_at_held_out_points` checks two of them).
 pub const BUILT_IN_SOURCE: &str = "built-in liver (assets/liver-coarse.palpa, neo-Hookean \
-    tissue assets/liver-coarse.tissue: within 0.5 mm and 5 % of the full FE to 9 mm deep, \
-    up to 0.62 mm and 3.6 % at 12.7 mm)";
+    tissue assets/liver-coarse.tissue: within 0.5 mm and 5 % of the full FE to 9 mm deep \
+    at 80 random points, up to 0.62 mm and 3.6 % at 12.7 mm; the panel warns where the \
+    blend may miss)";
 
 /// The depth to which the built-in tissue meets the goals at all 80 held-out points
 /// measured (`palpa tissue points --seed 7` to `--seed 11`, 16 each;
