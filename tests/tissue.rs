@@ -404,7 +404,6 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
     let space = organ_space(&organ, options.element);
     let expander = Expander::new(&space, options.law, options.material).expect("rest factor");
     let normals = organ_vertex_normals(&organ);
-    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let c = r.inner_corners[0];
     let depth = options.depth_max_mm;
     let point = |weights: [f64; 3]| {
@@ -453,26 +452,8 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
         assert_eq!(press.u.len(), depths.len());
         let (u, unit) = (press.u.last().expect("states"), &press.first.u[0]);
         let (point, _) = scene.closest_palpable(at).expect("palpable");
-        let error = |bound: &BoundTissue| {
-            let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
-            assert!(bound.add_surface(&point, depth, &mut bound.scratch(), &mut rows));
-            organ
-                .surface_nodes()
-                .into_iter()
-                .map(|v| {
-                    let row = vertex_of
-                        .find(organ.mesh.vertices[v as usize])
-                        .expect("row");
-                    (0..3)
-                        .map(|d| {
-                            let i = 3 * v as usize + d;
-                            (rows[3 * row as usize + d] - (u[i] - depth * unit[i])).powi(2)
-                        })
-                        .sum::<f64>()
-                        .sqrt()
-                })
-                .fold(0.0, f64::max)
-        };
+        let error =
+            |bound: &BoundTissue| blend_error(&organ, &scene, bound, &point, depth, u, unit);
         let (e_split, e_plain) = (error(&bound_split), error(&bound_plain));
         // Each sample's compression errs by at most its bound; the blend's weights sum
         // to at most 3.25 here (corners 1, edges 1.25, the point's own surplus 1).
@@ -664,6 +645,38 @@ fn refined_onward(
         matches!(again, Err(SurfaceLawBuildError::AlreadyRefined { .. })),
         "a stage of no more triangles is refused"
     );
+}
+
+/// The largest surface-node distance (mm) between `bound`'s blend at `probe` pressed
+/// `depth` deep and a press's state there, `u − depth · unit` (`unit` its first order).
+fn blend_error(
+    organ: &OrganMesh,
+    scene: &PalpationScene,
+    bound: &BoundTissue,
+    probe: &palpa_core::axis::ProbePoint,
+    depth: f64,
+    u: &[f64],
+    unit: &[f64],
+) -> f64 {
+    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
+    let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
+    assert!(bound.add_surface(probe, depth, &mut bound.scratch(), &mut rows));
+    organ
+        .surface_nodes()
+        .into_iter()
+        .map(|v| {
+            let row = vertex_of
+                .find(organ.mesh.vertices[v as usize])
+                .expect("row");
+            (0..3)
+                .map(|d| {
+                    let i = 3 * v as usize + d;
+                    (rows[3 * row as usize + d] - (u[i] - depth * unit[i])).powi(2)
+                })
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max)
 }
 
 /// The largest node distance between two residual rows (3 values a node, mm).

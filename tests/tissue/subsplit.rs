@@ -9,9 +9,9 @@ use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{
     PressCount, SurfaceLawBuildError, SurfaceLawOptions, follow_at, organ_vertex_normals,
 };
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueLaw};
+use palpa_core::pgd::tissue::{BoundTissue, TissueLaw};
 
-use super::shipped_scene;
+use super::{blend_error, shipped_scene};
 
 /// `file` (split in a small region, its presses in `log`) with its worst sub-triangle
 /// split again: the file's own samples kept as they are (weights, modes; cut off
@@ -93,7 +93,6 @@ pub(super) fn sub_split_in_place(
     let depth = options.depth_max_mm;
     let (u, unit) = (press.u.last().expect("states"), &press.first.u[0]);
     let scene = shipped_scene();
-    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let (probe, _) = scene.closest_palpable(at).expect("palpable");
     let error = |law: &TissueLaw| {
         let bound = BoundTissue::bind(
@@ -103,24 +102,7 @@ pub(super) fn sub_split_in_place(
             scene.axis_triangles(),
         )
         .expect("binds");
-        let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
-        assert!(bound.add_surface(&probe, depth, &mut bound.scratch(), &mut rows));
-        organ
-            .surface_nodes()
-            .into_iter()
-            .map(|v| {
-                let row = vertex_of
-                    .find(organ.mesh.vertices[v as usize])
-                    .expect("row");
-                (0..3)
-                    .map(|d| {
-                        let i = 3 * v as usize + d;
-                        (rows[3 * row as usize + d] - (u[i] - depth * unit[i])).powi(2)
-                    })
-                    .sum::<f64>()
-                    .sqrt()
-            })
-            .fold(0.0, f64::max)
+        blend_error(organ, &scene, &bound, &probe, depth, u, unit)
     };
     let (e_new, e_file) = (error(&new), error(file));
     // Every blended sample errs by at most the bound; here the weights sum to at most

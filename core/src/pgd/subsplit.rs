@@ -268,23 +268,31 @@ pub fn level_terms(l: [f64; 3], s: &LevelSamples) -> [(u32, f64); 3] {
             }
         }
     } else {
-        for k in 0..3 {
-            let i = (k + 1) % 3;
-            let along = l[k] + l[i];
-            let fade = carried(along);
-            if fade <= 0.0 {
-                continue;
-            }
-            let t = l[i] / along;
-            out[k] = if t <= 0.5 {
-                (s.quarters[k][0], fade * 4.0 * (1.0 - 2.0 * t) * (2.0 * t))
+        out = carried_terms(l, |k, t| {
+            if t <= 0.5 {
+                (s.quarters[k][0], 4.0 * (1.0 - 2.0 * t) * (2.0 * t))
             } else {
-                (
-                    s.quarters[k][1],
-                    fade * 4.0 * (2.0 * t - 1.0) * (2.0 - 2.0 * t),
-                )
-            };
+                (s.quarters[k][1], 4.0 * (2.0 * t - 1.0) * (2.0 - 2.0 * t))
+            }
+        });
+    }
+    out
+}
+
+/// Per edge `k` of a triangle not split, at barycentric weights `l`: the sample and
+/// weight `on_edge(k, t)` gives at `t` of the way from corner `k` to corner `k + 1`
+/// (the split side's weight there), faded by [`carried`] off the edge.
+fn carried_terms(l: [f64; 3], on_edge: impl Fn(usize, f64) -> (u32, f64)) -> [(u32, f64); 3] {
+    let mut out = [(u32::MAX, 0.0); 3];
+    for k in 0..3 {
+        let i = (k + 1) % 3;
+        let along = l[k] + l[i];
+        let fade = carried(along);
+        if fade <= 0.0 {
+            continue;
         }
+        let (s, w) = on_edge(k, (l[i] / along).clamp(0.0, 1.0));
+        out[k] = (s, fade * w);
     }
     out
 }
@@ -295,20 +303,11 @@ pub fn level_terms(l: [f64; 3], s: &LevelSamples) -> [(u32, f64); 3] {
 /// the quarter of the edge that holds it (`ν` the position there), faded by
 /// [`carried`] as the first level's are.
 pub fn edge_eighth_terms(l: [f64; 3], edges: &[[u32; 4]; 3]) -> [(u32, f64); 3] {
-    let mut out = [(u32::MAX, 0.0); 3];
-    for k in 0..3 {
-        let i = (k + 1) % 3;
-        let along = l[k] + l[i];
-        let fade = carried(along);
-        if fade <= 0.0 {
-            continue;
-        }
-        let t = (l[i] / along).clamp(0.0, 1.0);
+    carried_terms(l, |k, t| {
         let m = ((4.0 * t).floor() as usize).min(3);
         let nu = 4.0 * t - m as f64;
-        out[k] = (edges[k][m], fade * 4.0 * nu * (1.0 - nu));
-    }
-    out
+        (edges[k][m], 4.0 * nu * (1.0 - nu))
+    })
 }
 
 #[cfg(test)]

@@ -485,43 +485,24 @@ impl SurfaceLaw {
         log: Option<&Path>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize, usize), SurfaceLawBuildError> {
-        use std::sync::atomic::AtomicUsize;
         let t0 = Instant::now();
         if !self.refinement.sub.is_empty() {
             return Err(SurfaceLawBuildError::SubSplitFirst {
                 sub_triangles: self.refinement.sub.sub_triangles.len(),
             });
         }
-        let (o, steps) = (self.options, self.steps);
+        let steps = self.steps;
         let row = 3 * self.rows.len();
         let n_row = steps * row;
         let earlier = std::mem::take(&mut self.refinement);
         let first_split = self.samples.len() + self.edges.len();
-        let mut stored = Stored {
-            residual: std::mem::take(&mut self.residual),
-            ratio: std::mem::take(&mut self.ratio),
-            stiffness: std::mem::take(&mut self.stiffness_n_per_mm),
-            correction: std::mem::take(&mut self.correction_mm),
-            segments: std::mem::take(&mut self.segments),
-            reach: std::mem::take(&mut self.reach),
-            stopped: std::mem::take(&mut self.stopped),
-        };
+        let mut stored = self.take_stored();
         let held = stored.split_off(first_split, steps, n_row);
         let candidates =
             refine_candidates(organ, &self.sample_of, &self.edges, &stored.residual, n_row);
         let plan = refine_plan(organ, candidates, above_mm, most, &earlier.triangles);
         let sources = plan.sources(&earlier);
         plan.goes_on_from(&earlier)?;
-        let space = organ_space(organ, o.element);
-        let expander = Expander::new(&space, o.law, o.material)?;
-        let (log, finished) = match log {
-            Some(path) => {
-                let (l, r) = open_press_log(organ, &o, self.rows.len(), steps, None, path)?;
-                (Some((Mutex::new(l), path)), r)
-            }
-            None => (None, Vec::new()),
-        };
-        let mut finished: HashMap<u32, Logged> = finished.into_iter().collect();
         let normals = organ_vertex_normals(organ);
         let order: Vec<usize> = plan
             .press_order()
@@ -529,19 +510,7 @@ impl SurfaceLaw {
             .filter(|&k| matches!(sources[k], Source::Press))
             .collect();
         let points = plan.points_in_press_order(organ, &normals, &order);
-        let presser = Presser {
-            space: &space,
-            organ,
-            expander: &expander,
-            o: &o,
-            rows: &self.rows,
-            steps,
-            log: log.as_ref().map(|(l, p)| (l, *p)),
-            done: AtomicUsize::new(0),
-            from_log: AtomicUsize::new(0),
-            progress,
-        };
-        let (pressed, resumed) = presser.press(&points, &mut finished, points.len())?;
+        let (pressed, resumed) = self.press_logged(organ, &points, log, progress)?;
         let mut by_point: Vec<Option<Logged>> = sources.iter().map(|_| None).collect();
         for (k, press) in order.into_iter().zip(pressed) {
             by_point[k] = Some(press);
@@ -568,13 +537,7 @@ impl SurfaceLaw {
             &mut self.refinement,
             &mut self.refine_skip_reasons,
         );
-        self.residual = stored.residual;
-        self.ratio = stored.ratio;
-        self.stiffness_n_per_mm = stored.stiffness;
-        self.correction_mm = stored.correction;
-        self.segments = stored.segments;
-        self.reach = stored.reach;
-        self.stopped = stored.stopped;
+        self.put_stored(stored);
         self.build_s += t0.elapsed().as_secs_f64();
         Ok((self, resumed, plan.above))
     }
@@ -596,10 +559,37 @@ impl SurfaceLaw {
         log: Option<&Path>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(Vec<Result<(), String>>, usize), SurfaceLawBuildError> {
-        use std::sync::atomic::AtomicUsize;
         let t0 = Instant::now();
+        let (steps, row) = (self.steps, 3 * self.rows.len());
+        let (pressed, resumed) = self.press_logged(organ, points, log, progress)?;
+        let mut stored = self.take_stored();
+        let kept = pressed
+            .into_iter()
+            .zip(bases)
+            .map(|(press, base)| {
+                let p = press?;
+                let (surplus, g, reach, why) = stored.surplus(&p, base, steps, row);
+                stored.push(&p, &surplus, &g, reach, why);
+                Ok(())
+            })
+            .collect();
+        self.put_stored(stored);
+        self.build_s += t0.elapsed().as_secs_f64();
+        Ok((kept, resumed))
+    }
+
+    /// Presses `points` with this law's options (in parallel; logged at `log` under a
+    /// build's key, those it already holds taken from it): each press in order, and
+    /// how many came from the log.
+    fn press_logged(
+        &self,
+        organ: &OrganMesh,
+        points: &[PressPoint],
+        log: Option<&Path>,
+        progress: &(dyn Fn(PressCount) + Sync),
+    ) -> Result<(Vec<Logged>, usize), SurfaceLawBuildError> {
+        use std::sync::atomic::AtomicUsize;
         let (o, steps) = (self.options, self.steps);
-        let row = 3 * self.rows.len();
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;
         let (log, finished) = match log {
@@ -622,8 +612,12 @@ impl SurfaceLaw {
             from_log: AtomicUsize::new(0),
             progress,
         };
-        let (pressed, resumed) = presser.press(points, &mut finished, points.len())?;
-        let mut stored = Stored {
+        presser.press(points, &mut finished, points.len())
+    }
+
+    /// The per-sample arrays, taken out to be extended.
+    fn take_stored(&mut self) -> Stored {
+        Stored {
             residual: std::mem::take(&mut self.residual),
             ratio: std::mem::take(&mut self.ratio),
             stiffness: std::mem::take(&mut self.stiffness_n_per_mm),
@@ -631,17 +625,11 @@ impl SurfaceLaw {
             segments: std::mem::take(&mut self.segments),
             reach: std::mem::take(&mut self.reach),
             stopped: std::mem::take(&mut self.stopped),
-        };
-        let kept = pressed
-            .into_iter()
-            .zip(bases)
-            .map(|(press, base)| {
-                let p = press?;
-                let (surplus, g, reach, why) = stored.surplus(&p, base, steps, row);
-                stored.push(&p, &surplus, &g, reach, why);
-                Ok(())
-            })
-            .collect();
+        }
+    }
+
+    /// Puts back what [`Self::take_stored`] took.
+    fn put_stored(&mut self, stored: Stored) {
         self.residual = stored.residual;
         self.ratio = stored.ratio;
         self.stiffness_n_per_mm = stored.stiffness;
@@ -649,8 +637,6 @@ impl SurfaceLaw {
         self.segments = stored.segments;
         self.reach = stored.reach;
         self.stopped = stored.stopped;
-        self.build_s += t0.elapsed().as_secs_f64();
-        Ok((kept, resumed))
     }
 
     /// The per-sample residual array (`steps × 3·rows` a sample).
