@@ -6,7 +6,8 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::Args;
-use palpa_core::pgd::surfacelaw::{DEFAULT_REFINE_ABOVE_MM, PressCount};
+use palpa_core::organ::OrganMesh;
+use palpa_core::pgd::surfacelaw::{DEFAULT_REFINE_ABOVE_MM, PressCount, SurfaceLaw};
 use palpa_core::pgd::tissue::TissueLaw;
 use serde_json::json;
 
@@ -57,17 +58,11 @@ pub struct RefineArgs {
     pub(super) out: Option<PathBuf>,
 }
 
-/// `palpa tissue refine`.
-pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
-    if let Some(most) = args.sub_triangles {
-        return super::tissue_subsplit::refine_sub(args, most);
-    }
-    if !(args.refine_above_mm.is_finite() && args.refine_above_mm >= 0.0) {
-        bail!(
-            "--refine-above-mm {}: expected a length of at least 0",
-            args.refine_above_mm
-        );
-    }
+/// The `--at` points, the organ mesh, the file and its surface law read back on it,
+/// after checking `--jobs`.
+pub(super) fn read_back(
+    args: &RefineArgs,
+) -> anyhow::Result<(Vec<[f64; 3]>, OrganMesh, TissueLaw, SurfaceLaw)> {
     if args.jobs == Some(0) {
         bail!("--jobs 0: expected at least one press at a time");
     }
@@ -80,6 +75,21 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
     let law = base
         .surface_law(&organ)
         .with_context(|| format!("reading back {}", args.tissue.display()))?;
+    Ok((at, organ, base, law))
+}
+
+/// `palpa tissue refine`.
+pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
+    if let Some(most) = args.sub_triangles {
+        return super::tissue_subsplit::refine_sub(args, most);
+    }
+    if !(args.refine_above_mm.is_finite() && args.refine_above_mm >= 0.0) {
+        bail!(
+            "--refine-above-mm {}: expected a length of at least 0",
+            args.refine_above_mm
+        );
+    }
+    let (at, organ, base, law) = read_back(args)?;
     let log = args.out.as_deref().map(press_log);
     if args.plan {
         let p = law.refine_preview(

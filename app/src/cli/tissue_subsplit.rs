@@ -6,26 +6,14 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use palpa_core::pgd::surfacelaw::PressCount;
-use palpa_core::pgd::tissue::TissueLaw;
 use serde_json::json;
 
-use super::tissue::{press_log, press_pool, progress_line, summary, triples};
+use super::tissue::{press_log, press_pool, progress_line, summary};
 use super::tissue_refine::RefineArgs;
 
 /// `palpa tissue refine --sub-triangles most`.
 pub fn refine_sub(args: &RefineArgs, most: usize) -> anyhow::Result<()> {
-    if args.jobs == Some(0) {
-        bail!("--jobs 0: expected at least one press at a time");
-    }
-    let at = match &args.at {
-        Some(v) => triples("--at", v)?,
-        None => Vec::new(),
-    };
-    let organ = args.organ.mesh()?;
-    let base = TissueLaw::load(&args.tissue)?;
-    let mut law = base
-        .surface_law(&organ)
-        .with_context(|| format!("reading back {}", args.tissue.display()))?;
+    let (at, organ, base, mut law) = super::tissue_refine::read_back(args)?;
     let plan = base
         .sub_split_plan(&organ, &law, most)
         .with_context(|| format!("splitting sub-triangles of {}", args.tissue.display()))?;

@@ -313,10 +313,8 @@ pub fn edge_eighth_terms(l: [f64; 3], edges: &[[u32; 4]; 3]) -> [(u32, f64); 3] 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::axis::ProbePoint;
     use crate::pgd::surfacelaw::Refinement;
-    use crate::pgd::tissue::BoundTissue;
-    use crate::pgd::tissue::tests::one_row_law;
+    use crate::pgd::tissue::tests::{bind_two, one_row_law, row_x};
 
     /// A smooth field over the plane, sampled by the presses below.
     fn f(p: [f64; 2]) -> f64 {
@@ -340,6 +338,16 @@ mod tests {
                 + 4.0 * mu[k] * mu[i] * f(at(point(m)));
         }
         v
+    }
+
+    /// Two barycentric weights drawn uniformly over a triangle (the third `1 − a − b`).
+    fn draw(rng: &mut crate::rng::Rng) -> (f64, f64) {
+        let (a, b) = (rng.uniform(), rng.uniform());
+        if a + b > 1.0 {
+            (1.0 - a, 1.0 - b)
+        } else {
+            (a, b)
+        }
     }
 
     fn eighths(e: [u8; 3]) -> [f64; 3] {
@@ -407,16 +415,9 @@ mod tests {
             });
         }
         let law = one_row_law(&corners, edge_ends, refinement, &x);
-        let axis: Vec<[f64; 3]> = corners.iter().map(|p| [p[0], p[1], 0.0]).collect();
-        let triangles = [[0, 1, 2], [1, 0, 3]];
-        let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds");
+        let bound = bind_two(law, &corners);
         let mut scratch = bound.scratch();
-        let mut blend = |triangle: u32, bary: [f64; 3]| {
-            let mut rows = [0.0; 3];
-            let p = ProbePoint { triangle, bary };
-            assert!(bound.add_surface(&p, 1.0, &mut scratch, &mut rows));
-            rows[0]
-        };
+        let mut blend = |triangle, bary| row_x(&bound, &mut scratch, triangle, bary);
         // f32 coefficients: about 1e-7 of values of order one.
         let close = |a: f64, b: f64| (a - b).abs() < 2e-5;
         let sub = sub_corners(0).map(eighths);
@@ -425,12 +426,7 @@ mod tests {
         };
         let mut rng = crate::rng::Rng::seed(5);
         for _ in 0..200 {
-            let (a, b) = (rng.uniform(), rng.uniform());
-            let (a, b) = if a + b > 1.0 {
-                (1.0 - a, 1.0 - b)
-            } else {
-                (a, b)
-            };
+            let (a, b) = draw(&mut rng);
             let mu = [1.0 - a - b, a, b];
             // The quarter of the sub-triangle holding the probe, in the triangle's λ.
             let (g, nu) = sub_of(mu);
@@ -469,12 +465,7 @@ mod tests {
     fn sub_triangles_tile_the_triangle_and_their_weights_give_the_point_back() {
         let mut rng = crate::rng::Rng::seed(3);
         for _ in 0..200 {
-            let (a, b) = (rng.uniform(), rng.uniform());
-            let (a, b) = if a + b > 1.0 {
-                (1.0 - a, 1.0 - b)
-            } else {
-                (a, b)
-            };
+            let (a, b) = draw(&mut rng);
             let l = [1.0 - a - b, a, b];
             let (s, mu) = sub_of(l);
             assert!(mu.iter().all(|&m| m >= -1e-12), "{l:?} → {s} {mu:?}");

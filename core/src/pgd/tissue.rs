@@ -1492,6 +1492,27 @@ impl Tissue {
 pub(in crate::pgd) mod tests {
     use super::*;
 
+    /// `law` (its vertices at `corners`) bound to the triangles `[0, 1, 2]` and
+    /// `[1, 0, 3]`, which share the edge 0–1.
+    pub(in crate::pgd) fn bind_two(law: TissueLaw, corners: &[[f64; 2]]) -> BoundTissue {
+        let axis: Vec<[f64; 3]> = corners.iter().map(|p| [p[0], p[1], 0.0]).collect();
+        let triangles = [[0, 1, 2], [1, 0, 3]];
+        BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds")
+    }
+
+    /// The one row's x at 1 mm, pressed at `bary` of `triangle`.
+    pub(in crate::pgd) fn row_x(
+        bound: &BoundTissue,
+        scratch: &mut TissueScratch,
+        triangle: u32,
+        bary: [f64; 3],
+    ) -> f64 {
+        let mut rows = [0.0; 3];
+        let p = ProbePoint { triangle, bary };
+        assert!(bound.add_surface(&p, 1.0, scratch, &mut rows));
+        rows[0]
+    }
+
     /// A law of one row and depths 0 and 1 mm whose samples (vertices at `corners`,
     /// in the plane z = 0, then `edge_ends`' and `refinement`'s) each hold one mode:
     /// the row's x residual `x[s]` at 1 mm, force ratio 0.5 there.
@@ -1758,16 +1779,9 @@ pub(in crate::pgd) mod tests {
             ..Refinement::default()
         };
         let law = one_row_law(&corners, edge_ends, refinement, &x);
-        let axis: Vec<[f64; 3]> = corners.iter().map(|p| [p[0], p[1], 0.0]).collect();
-        let triangles = [[0, 1, 2], [1, 0, 3]];
-        let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds");
+        let bound = bind_two(law, &corners);
         let mut scratch = bound.scratch();
-        let mut blend = |triangle: u32, bary: [f64; 3]| {
-            let mut rows = [0.0; 3];
-            let p = ProbePoint { triangle, bary };
-            assert!(bound.add_surface(&p, 1.0, &mut scratch, &mut rows));
-            rows[0]
-        };
+        let mut blend = |triangle, bary| row_x(&bound, &mut scratch, triangle, bary);
         // f32 coefficients: about 1e-7 of values of order one.
         let close = |a: f64, b: f64| (a - b).abs() < 1e-5;
         // The four quarters as barycentric corners in the big triangle.
@@ -1828,23 +1842,13 @@ pub(in crate::pgd) mod tests {
         plain.check().expect("consistent");
         assert_eq!(plain.reach.len(), 7);
         assert!(plain.payload_bytes() < bound.law.payload_bytes());
-        let plain = BoundTissue::bind(plain, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds");
-        let mut rows = [0.0; 3];
-        let p = ProbePoint {
-            triangle: 0,
-            bary: l,
-        };
-        assert!(plain.add_surface(&p, 1.0, &mut plain.scratch(), &mut rows));
-        assert!(close(rows[0], p2(l)), "{} vs {}", rows[0], p2(l));
+        let plain = bind_two(plain, &corners);
+        let x = row_x(&plain, &mut plain.scratch(), 0, l);
+        assert!(close(x, p2(l)), "{x} vs {}", p2(l));
         // In the unsplit neighbour the split edge's quarter terms fade out by the line
         // halfway to its far corner (3): nearer the edge the split shows, from there on
         // the neighbour answers as it would without the split.
-        let plain_blend = |bary: [f64; 3]| {
-            let mut rows = [0.0; 3];
-            let p = ProbePoint { triangle: 1, bary };
-            assert!(plain.add_surface(&p, 1.0, &mut plain.scratch(), &mut rows));
-            rows[0]
-        };
+        let plain_blend = |bary: [f64; 3]| row_x(&plain, &mut plain.scratch(), 1, bary);
         for (far, t) in [(0.5, 0.25), (0.6, 0.3), (0.9, 0.5)] {
             let bary = [(1.0 - far) * t, (1.0 - far) * (1.0 - t), far];
             assert!(close(blend(1, bary), plain_blend(bary)), "{bary:?}");

@@ -154,6 +154,19 @@ impl TissueLaw {
                 }
             })
             .collect();
+        self.compress_after(organ, law, &in_file)
+    }
+
+    /// `law` compressed with this file's tolerance and bits, a split triangle's (or
+    /// sub-triangle's) new points sharing their modes; each of `law`'s samples that
+    /// `in_file` places in this file keeps its stored modes where its group is whole
+    /// there.
+    pub(super) fn compress_after(
+        &self,
+        organ: &OrganMesh,
+        law: &SurfaceLaw,
+        in_file: &[Option<usize>],
+    ) -> Result<TissueLaw, TissueError> {
         let mut out = Self::compress_onto(
             organ,
             law,
@@ -161,7 +174,7 @@ impl TissueLaw {
             self.shape.bits(),
             Grouping::SplitTriangle,
             &QUANT_SHARES,
-            Some((self, &in_file)),
+            Some((self, in_file)),
         )?;
         out.build_s = law.build_s;
         Ok(out)

@@ -31,7 +31,7 @@ use crate::pgd::surfacelaw::{
     PressCount, PressPoint, SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak,
     organ_vertex_normals, palpable_edges,
 };
-use crate::pgd::tissue::{BoundTissue, Grouping, QUANT_SHARES, TissueError, TissueLaw};
+use crate::pgd::tissue::{BoundTissue, TissueError, TissueLaw};
 
 /// A sub-triangle that could be split again.
 #[derive(Debug, Clone)]
@@ -257,17 +257,7 @@ impl TissueLaw {
                 .collect(),
         };
         let in_file: Vec<Option<usize>> = (0..old + new).map(|s| (s < old).then_some(s)).collect();
-        let mut out = Self::compress_onto(
-            organ,
-            &law,
-            self.tolerance_mm,
-            self.shape.bits(),
-            Grouping::SplitTriangle,
-            &QUANT_SHARES,
-            Some((self, &in_file)),
-        )?;
-        out.build_s = law.build_s;
-        Ok(out)
+        self.compress_after(organ, &law, &in_file)
     }
 }
 
