@@ -1522,6 +1522,17 @@ pub(in crate::pgd) mod tests {
         refinement: Refinement,
         x: &[f64],
     ) -> TissueLaw {
+        one_row_law_with_ratio(corners, edge_ends, refinement, x, &vec![0.5; x.len()])
+    }
+
+    /// [`one_row_law`] with sample `s`'s force ratio `g[s]` at 1 mm.
+    pub(in crate::pgd) fn one_row_law_with_ratio(
+        corners: &[[f64; 2]],
+        edge_ends: Vec<[u32; 2]>,
+        refinement: Refinement,
+        x: &[f64],
+        g: &[f64],
+    ) -> TissueLaw {
         let n = x.len();
         let vertices = corners.len();
         let law = TissueLaw {
@@ -1540,7 +1551,7 @@ pub(in crate::pgd) mod tests {
             refinement,
             steps: 2,
             ratio: (0..n)
-                .flat_map(|s| [if s < vertices { 1.0 } else { 0.0 }, 0.5])
+                .flat_map(|s| [if s < vertices { 1.0 } else { 0.0 }, g[s] as f32])
                 .collect(),
             stiffness_n_per_mm: vec![1.0; n],
             correction_mm: vec![0.0; n],
@@ -1569,46 +1580,13 @@ pub(in crate::pgd) mod tests {
     /// surplus weighs `4 λ_a λ_b` inside.
     #[test]
     fn the_quadratic_blend_is_exact_at_corners_and_pressed_midpoints() {
-        let corners = [[0.0f32, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
+        let corners = [[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]];
         // Per sample: g at depth 1, and the residual's x at depth 1 (one mode each).
-        let g1 = [0.9f32, 0.7, 0.8, 0.05];
-        let x1 = [1.0f32, 3.0, 5.0, -0.5];
-        let law = TissueLaw {
-            options: SurfaceLawOptions {
-                depth_max_mm: 1.0,
-                depth_step_mm: 1.0,
-                ..SurfaceLawOptions::default()
-            },
-            rows_mm: vec![[0.0, 0.0, 5.0]],
-            samples_mm: corners.to_vec(),
-            skipped_mm: vec![],
-            edge_ends: vec![[0, 1]],
-            refinement: Refinement::default(),
-            steps: 2,
-            ratio: g1
-                .iter()
-                .enumerate()
-                .flat_map(|(s, &g)| [if s < 3 { 1.0 } else { 0.0 }, g])
-                .collect(),
-            stiffness_n_per_mm: vec![1.0; 4],
-            correction_mm: vec![0.0; 4],
-            segments: vec![1; 4],
-            reach: vec![2; 4],
-            stopped: vec![String::new(); 4],
-            rank: 1,
-            mode_start: (0..=4).collect(),
-            group: (0..4).collect(),
-            coeff_start: (0..=4).map(|s| 2 * s).collect(),
-            shape: Shapes::Sixteen([i16::MAX, 0, 0].repeat(4)),
-            shape_scale: vec![1.0 / f32::from(i16::MAX); 4],
-            coeffs: x1.iter().flat_map(|&x| [0.0, x]).collect(),
-            truncation_bound_mm: 0.0,
-            tolerance_mm: 0.05,
-            build_s: 0.0,
-            compress_s: 0.0,
-        };
-        law.check().expect("consistent");
-        let axis: Vec<[f64; 3]> = corners.iter().map(|p| p.map(f64::from)).collect();
+        let g1 = [0.9, 0.7, 0.8, 0.05];
+        let x1 = [1.0, 3.0, 5.0, -0.5];
+        let refinement = Refinement::default();
+        let law = one_row_law_with_ratio(&corners, vec![[0, 1]], refinement, &x1, &g1);
+        let axis: Vec<[f64; 3]> = corners.iter().map(|p| [p[0], p[1], 0.0]).collect();
         let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &[[0, 1, 2]]).expect("binds");
         let mut scratch = bound.scratch();
         let mut at = |bary: [f64; 3]| {
