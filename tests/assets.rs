@@ -231,6 +231,7 @@ fn the_default_tissue_comes_from_the_current_code() {
             &organ,
             &first.surface_law(&organ).expect("reads back"),
             sub.sub_triangles.len(),
+            None,
         )
         .expect("a plan");
     assert_eq!(plan.names(), &sub.sub_triangles[..]);

@@ -28,7 +28,7 @@ pub(super) fn sub_split_in_place(
 ) {
     let none = &|_: PressCount| {};
     let mut law = file.surface_law(organ).expect("reads back");
-    let plan = file.sub_split_plan(organ, &law, 1).expect("plans");
+    let plan = file.sub_split_plan(organ, &law, 1, None).expect("plans");
     assert_eq!(plan.chosen, 1);
     assert_eq!(plan.candidates.len(), 4 * file.refinement.triangles.len());
     assert!(
@@ -36,6 +36,36 @@ pub(super) fn sub_split_in_place(
             .windows(2)
             .all(|w| w[0].edge_surplus_mm >= w[1].edge_surplus_mm)
     );
+    // Ranked to a shallower depth, each candidate's surplus is at most its surplus
+    // over every depth, and smaller somewhere (the residual grows with depth); ranked
+    // to the deepest grid depth, the same ranking; at zero depth nothing is missed.
+    let surplus_of = |p: &palpa_core::pgd::tissue_subsplit::SubSplitPlan| {
+        let mut v: Vec<_> = p
+            .candidates
+            .iter()
+            .map(|c| ((c.triangle, c.sub), c.edge_surplus_mm))
+            .collect();
+        v.sort_by_key(|x| x.0);
+        v
+    };
+    let ranked = |d: f64| file.sub_split_plan(organ, &law, 1, Some(d));
+    let every = surplus_of(&plan);
+    let deepest = ranked(options.depth_max_mm).expect("plans");
+    assert_eq!(surplus_of(&deepest), every);
+    let shallow = surplus_of(&ranked(2.0).expect("plans"));
+    assert!(shallow.iter().zip(&every).all(|(s, e)| s.1 <= e.1));
+    assert!(shallow.iter().zip(&every).any(|(s, e)| s.1 < 0.5 * e.1));
+    assert!(
+        surplus_of(&ranked(0.0).expect("plans"))
+            .iter()
+            .all(|s| s.1 == 0.0)
+    );
+    for bad in [-1.0, f64::NAN] {
+        let err = ranked(bad)
+            .expect_err("a depth below zero is refused")
+            .to_string();
+        assert!(err.contains("ranking depth"), "{err}");
+    }
     assert_eq!(
         plan.presses(),
         9,
@@ -117,6 +147,8 @@ pub(super) fn sub_split_in_place(
         again.clone().refine(organ, 0.0, None, None, none),
         Err(SurfaceLawBuildError::SubSplitFirst { sub_triangles: 1 })
     ));
-    let refused = new.sub_split_plan(organ, &again, 2).expect_err("refused");
+    let refused = new
+        .sub_split_plan(organ, &again, 2, None)
+        .expect_err("refused");
     assert!(refused.to_string().contains("already has 1"), "{refused}");
 }

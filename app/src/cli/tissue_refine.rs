@@ -37,6 +37,10 @@ pub struct RefineArgs {
     /// as surpluses over the file's blend; the file's own samples are kept as they are.
     #[arg(long)]
     sub_triangles: Option<usize>,
+    /// With `--sub-triangles`: rank them by their surpluses at depths up to this one
+    /// (mm) only, for a scene that presses no deeper. Default: every grid depth.
+    #[arg(long, requires = "sub_triangles")]
+    pub(super) rank_to_mm: Option<f64>,
     /// Presses computed at once (default: one per core).
     #[arg(long)]
     pub(super) jobs: Option<usize>,

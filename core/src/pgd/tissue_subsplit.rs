@@ -101,11 +101,14 @@ impl SubSplitPlan {
 impl TissueLaw {
     /// Plans splitting the `most` worst sub-triangles of this file's split triangles
     /// again. `law` is this file's [`surface_law`](Self::surface_law) on `organ`.
+    /// `rank_to_mm`: rank by the surpluses at the grid depths up to the first at or
+    /// past it (a scene that presses only so deep); `None`: every grid depth.
     pub fn sub_split_plan(
         &self,
         organ: &OrganMesh,
         law: &SurfaceLaw,
         most: usize,
+        rank_to_mm: Option<f64>,
     ) -> Result<SubSplitPlan, TissueError> {
         let refused = |why: String| TissueError::Refine { why };
         if !self.refinement.sub.is_empty() {
@@ -124,11 +127,23 @@ impl TissueLaw {
         let vertices: Vec<[f64; 3]> = organ.mesh.vertices.clone();
         let bound = BoundTissue::bind(self.clone(), &[], &vertices, &organ.boundary)?;
         let n_row = law.steps() * 3 * law.rows.len();
+        let ranked_steps = match rank_to_mm {
+            Some(d) if d.is_finite() && d >= 0.0 => {
+                ((d / law.options.depth_step_mm).ceil() as usize + 1).min(law.steps())
+            }
+            Some(d) => {
+                return Err(refused(format!(
+                    "the ranking depth {d} mm: expected a depth of zero or more"
+                )));
+            }
+            None => law.steps(),
+        };
+        let ranked = ranked_steps * 3 * law.rows.len();
         let peak = |s: u32| {
             if s == u32::MAX {
                 0.0
             } else {
-                node_peak(&law.residuals()[s as usize * n_row..][..n_row])
+                node_peak(&law.residuals()[s as usize * n_row..][..ranked])
             }
         };
         let mut candidates = Vec::new();
