@@ -151,4 +151,32 @@ pub(super) fn sub_split_in_place(
         .sub_split_plan(organ, &again, 2, None)
         .expect_err("refused");
     assert!(refused.to_string().contains("already has 1"), "{refused}");
+
+    // A stage on the file split again is planned from the file it was split from: the
+    // same sub-triangle, its presses all from the log, the same file; a stage that
+    // would leave its sub-triangle out is refused.
+    let (first, law, again) = new.second_level_plan(organ, 1, None).expect("plans");
+    assert_eq!(again.names(), plan.names());
+    let mut law = law;
+    let (kept, resumed) = law
+        .press_sub_split(organ, &again, Some(log), none)
+        .expect("from the log");
+    assert_eq!(resumed, 9);
+    let mut same = first
+        .sub_split(organ, law, &again, &kept)
+        .expect("compresses");
+    // The same file but for the times it records.
+    (same.build_s, same.compress_s) = (new.build_s, new.compress_s);
+    assert!(
+        same == new,
+        "a stage of the same sub-triangle changed the file"
+    );
+    let (_, _, more) = new.second_level_plan(organ, 3, None).expect("plans");
+    assert_eq!(more.names()[..1], plan.names()[..]);
+    assert!(more.presses() > 9);
+    let left_out = new
+        .second_level_plan(organ, 0, None)
+        .expect_err("leaves its sub-triangle out")
+        .to_string();
+    assert!(left_out.contains("1 of its 1 sub-triangles"), "{left_out}");
 }

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::Args;
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{DEFAULT_REFINE_ABOVE_MM, PressCount, SurfaceLaw};
+use palpa_core::pgd::surfacelaw::{DEFAULT_REFINE_ABOVE_MM, PressCount};
 use palpa_core::pgd::tissue::TissueLaw;
 use serde_json::json;
 
@@ -35,6 +35,8 @@ pub struct RefineArgs {
     /// (by the largest surplus at their edge midpoints): the second level of
     /// refinement, on a file split by earlier stages. Its points are pressed and kept
     /// as surpluses over the file's blend; the file's own samples are kept as they are.
+    /// On a file whose sub-triangles were split again: a larger stage (this many in
+    /// all, its own among them), planned from the file they were split from.
     #[arg(long)]
     sub_triangles: Option<usize>,
     /// With `--sub-triangles`: rank them by their surpluses at depths up to this one
@@ -62,11 +64,10 @@ pub struct RefineArgs {
     pub(super) out: Option<PathBuf>,
 }
 
-/// The `--at` points, the organ mesh, the file and its surface law read back on it,
-/// after checking `--jobs`.
+/// The `--at` points, the organ mesh and the file, after checking `--jobs`.
 pub(super) fn read_back(
     args: &RefineArgs,
-) -> anyhow::Result<(Vec<[f64; 3]>, OrganMesh, TissueLaw, SurfaceLaw)> {
+) -> anyhow::Result<(Vec<[f64; 3]>, OrganMesh, TissueLaw)> {
     if args.jobs == Some(0) {
         bail!("--jobs 0: expected at least one press at a time");
     }
@@ -76,10 +77,7 @@ pub(super) fn read_back(
     };
     let organ = args.organ.mesh()?;
     let base = TissueLaw::load(&args.tissue)?;
-    let law = base
-        .surface_law(&organ)
-        .with_context(|| format!("reading back {}", args.tissue.display()))?;
-    Ok((at, organ, base, law))
+    Ok((at, organ, base))
 }
 
 /// `palpa tissue refine`.
@@ -93,7 +91,10 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
             args.refine_above_mm
         );
     }
-    let (at, organ, base, law) = read_back(args)?;
+    let (at, organ, base) = read_back(args)?;
+    let law = base
+        .surface_law(&organ)
+        .with_context(|| format!("reading back {}", args.tissue.display()))?;
     let log = args.out.as_deref().map(press_log);
     if args.plan {
         let p = law.refine_preview(

@@ -13,9 +13,9 @@ use super::tissue_refine::RefineArgs;
 
 /// `palpa tissue refine --sub-triangles most`.
 pub fn refine_sub(args: &RefineArgs, most: usize) -> anyhow::Result<()> {
-    let (at, organ, base, mut law) = super::tissue_refine::read_back(args)?;
-    let plan = base
-        .sub_split_plan(&organ, &law, most, args.rank_to_mm)
+    let (at, organ, file) = super::tissue_refine::read_back(args)?;
+    let (base, mut law, plan) = file
+        .second_level_plan(&organ, most, args.rank_to_mm)
         .with_context(|| format!("splitting sub-triangles of {}", args.tissue.display()))?;
     let log = args.out.as_deref().map(press_log);
     let surplus = |k: usize| plan.candidates.get(k).map(|c| c.edge_surplus_mm);

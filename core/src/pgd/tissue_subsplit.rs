@@ -16,7 +16,8 @@
 //! depend on the mesh alone: a point on a palpable edge `g` (in the sorted list of
 //! palpable edges) at `e` eighths from its lower vertex is `8 g + e` past them, one
 //! inside boundary triangle `t` at eighths `(e₀, e₁, ·)` is `8 E + 64 t + 8 e₀ + e₁`.
-//! A killed run resumes from the log, and a larger `most` from the same file presses
+//! A killed run resumes from the log, and a larger `most` from the same file (or from
+//! the file split again, which is planned from the file it was split from) presses
 //! only the new points.
 
 use std::collections::HashMap;
@@ -240,6 +241,43 @@ impl TissueLaw {
             }
         }
         Ok(plan)
+    }
+
+    /// The second level planned from this file, whether its sub-triangles were split
+    /// again already or not: a file split again is planned from the file it was split
+    /// from ([`Self::without_sub_split`]), and its own sub-triangles must be among the
+    /// `most` chosen, so the new file holds them and more (a larger stage; their
+    /// presses come from the log where it holds them, or are made again). Returns the
+    /// file to split, its surface law and the plan, for [`SurfaceLaw::press_sub_split`]
+    /// and [`Self::sub_split`].
+    pub fn second_level_plan(
+        &self,
+        organ: &OrganMesh,
+        most: usize,
+        rank_to_mm: Option<f64>,
+    ) -> Result<(TissueLaw, SurfaceLaw, SubSplitPlan), TissueError> {
+        let had = &self.refinement.sub.sub_triangles;
+        let first = if had.is_empty() {
+            self.clone()
+        } else {
+            self.without_sub_split()
+        };
+        let law = first.surface_law(organ)?;
+        let plan = first.sub_split_plan(organ, &law, most, rank_to_mm)?;
+        let chosen: std::collections::HashSet<_> = plan.names.iter().collect();
+        let left = had.iter().filter(|n| !chosen.contains(n)).count();
+        if left > 0 {
+            return Err(TissueError::Refine {
+                why: format!(
+                    "{left} of its {} sub-triangles split again are not among the {} worst \
+                     by this ranking{}: ask for more, ranked as the file was",
+                    had.len(),
+                    plan.chosen,
+                    rank_to_mm.map_or(String::new(), |d| format!(" (to {d} mm)")),
+                ),
+            });
+        }
+        Ok((first, law, plan))
     }
 
     /// This file with `plan`'s sub-triangles split again: `law` is this file's
