@@ -1016,6 +1016,40 @@ fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
     assert!(!refused.status.success());
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(err.contains("no split triangles"), "{err}");
+
+    // The shipped file itself, its sub-triangles split already: a larger stage is
+    // planned from its first level, so five more give the first level's plan of that
+    // many; fewer than it has are refused by name.
+    let had = TissueLaw::load(std::path::Path::new(shipped))
+        .expect("loads")
+        .refinement
+        .sub
+        .sub_triangles
+        .len();
+    let more = (had + 5).to_string();
+    let plan_of = |file: &std::path::Path, n: &str| {
+        palpa(&[
+            "tissue",
+            "refine",
+            &path(file),
+            "--plan",
+            "--sub-triangles",
+            n,
+        ])
+    };
+    let from_first = common::json_ok(&plan_of(&first_level, &more));
+    let mut from_shipped = common::json_ok(&plan_of(std::path::Path::new(shipped), &more));
+    from_shipped["from"] = from_first["from"].clone();
+    assert_eq!(from_shipped, from_first);
+    if had > 0 {
+        let fewer = plan_of(std::path::Path::new(shipped), &(had - 1).to_string());
+        assert!(!fewer.status.success());
+        let err = String::from_utf8_lossy(&fewer.stderr);
+        assert!(
+            err.contains(&format!("1 of its {had} sub-triangles")),
+            "{err}"
+        );
+    }
 }
 
 /// One press at a time (`--jobs 1`, for a machine short of memory) gives the law that
