@@ -1041,6 +1041,19 @@ fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
     let mut from_shipped = common::json_ok(&plan_of(std::path::Path::new(shipped), &more));
     from_shipped["from"] = from_first["from"].clone();
     assert_eq!(from_shipped, from_first);
+    assert!(from_first["rank_to_mm"].is_null(), "every depth by default");
+    let shallow = common::json_ok(&palpa(&[
+        "tissue",
+        "refine",
+        &path(&first_level),
+        "--plan",
+        "--sub-triangles",
+        &more,
+        "--rank-to-mm",
+        "9.3",
+    ]));
+    assert_eq!(shallow["rank_to_mm"].as_f64(), Some(9.3));
+    assert!(num(&shallow, "worst_edge_surplus_mm") <= num(&from_first, "worst_edge_surplus_mm"));
     if had > 0 {
         let fewer = plan_of(std::path::Path::new(shipped), &(had - 1).to_string());
         assert!(!fewer.status.success());

@@ -39,6 +39,7 @@ pub fn refine_sub(args: &RefineArgs, most: usize) -> anyhow::Result<()> {
             .collect();
         let report = json!({
             "from": args.tissue, "candidates": plan.candidates.len(),
+            "rank_to_mm": args.rank_to_mm,
             "sub_triangles": plan.chosen, "presses": plan.presses(),
             "presses_logged": log.as_ref().map(|_| held),
             "presses_to_do": plan.presses() - held,
@@ -68,7 +69,8 @@ pub fn refine_sub(args: &RefineArgs, most: usize) -> anyhow::Result<()> {
     refined.save(out)?;
     let report = json!({
         "from": args.tissue, "out": out,
-        "candidates": plan.candidates.len(), "sub_triangles": plan.chosen,
+        "candidates": plan.candidates.len(), "rank_to_mm": args.rank_to_mm,
+        "sub_triangles": plan.chosen,
         "worst_edge_surplus_mm": surplus(0),
         "least_split_edge_surplus_mm": plan.chosen.checked_sub(1).and_then(surplus),
         "first_left_edge_surplus_mm": surplus(plan.chosen),
