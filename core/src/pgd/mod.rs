@@ -26,6 +26,7 @@ pub mod subsplit;
 pub mod surfacelaw;
 pub mod tissue;
 pub mod tissue_knobs;
+pub mod tissue_predict;
 mod tissue_refine;
 pub mod tissue_shapes;
 pub mod tissue_subsplit;

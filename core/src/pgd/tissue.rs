@@ -96,19 +96,21 @@ use crate::pgd::subsplit::{
     sub_name, sub_of, sub_triangle_keys,
 };
 use crate::pgd::surfacelaw::{Refinement, SurfaceLaw, SurfaceLawOptions};
+use crate::pgd::tissue_predict::RowPrediction;
 pub use crate::pgd::tissue_shapes::{ShapeBits, Shapes};
 use crate::pgd::tissue_weights::{Weights, to_half};
 use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (11: version 10's, then the sub-triangles split again
-/// ([`SubSplit`]); 10: version 9's, the weights stored after the other
+/// The file's format version (12: version 11's, the shapes stored as what their
+/// neighbours do not predict ([`super::tissue_predict`]); 11: version 10's, then the
+/// sub-triangles split again ([`SubSplit`]); 10: version 9's, the weights stored after the other
 /// fields, in halves where every one is a half ([`super::tissue_weights`]); 9: version
 /// 8's fields, the shapes stored by coordinate plane ([`Shapes::to_planes`]) and the
 /// body LZMA-compressed. Versions 9 and 8 (deflated) still load as they are, and 7,
 /// deflated, and 6, plain, each sample its own group).
-pub const VERSION: u32 = 11;
+pub const VERSION: u32 = 12;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -802,7 +804,12 @@ impl TissueLaw {
     /// Writes the law atomically (a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), TissueError> {
         let mut stored = self.clone();
-        stored.shape = self.shape.to_planes();
+        stored.shape = RowPrediction::new(&self.rows_mm)
+            .encode(&self.shape)
+            .ok_or_else(|| TissueError::Corrupt {
+                path: path.to_path_buf(),
+                why: shape_length_why(&self.shape, self.rows_mm.len()),
+            })?;
         let weights = Weights::pack(&std::mem::take(&mut stored.coeffs));
         let sub = &self.refinement.sub;
         crate::framed::write(
@@ -840,7 +847,6 @@ impl TissueLaw {
             &[(VERSION, Body::Lzma)],
         );
         let with_weights = |mut law: TissueLaw, weights: Weights| {
-            law.shape = law.shape.from_planes();
             law.coeffs = weights
                 .unpack()
                 .map_err(|why| TissueError::Corrupt { path: p(), why })?;
@@ -849,6 +855,24 @@ impl TissueLaw {
         let law: TissueLaw = match read {
             Ok((law, weights, sub)) => {
                 let mut law = with_weights(law, weights)?;
+                law.shape = RowPrediction::new(&law.rows_mm)
+                    .decode(&law.shape)
+                    .ok_or_else(|| TissueError::Corrupt {
+                        path: p(),
+                        why: shape_length_why(&law.shape, law.rows_mm.len()),
+                    })?;
+                law.refinement.sub = sub;
+                law
+            }
+            Err(FramedError::Version(11)) => {
+                let (law, weights, sub) = crate::framed::read::<(TissueLaw, Weights, SubSplit)>(
+                    bytes,
+                    MAGIC,
+                    &[(11, Body::Lzma)],
+                )
+                .map_err(named)?;
+                let mut law = with_weights(law, weights)?;
+                law.shape = law.shape.from_planes();
                 law.refinement.sub = sub;
                 law
             }
@@ -856,7 +880,9 @@ impl TissueLaw {
                 let (law, weights) =
                     crate::framed::read::<(TissueLaw, Weights)>(bytes, MAGIC, &[(10, Body::Lzma)])
                         .map_err(named)?;
-                with_weights(law, weights)?
+                let mut law = with_weights(law, weights)?;
+                law.shape = law.shape.from_planes();
+                law
             }
             Err(FramedError::Version(9)) => {
                 let mut law: TissueLaw =
@@ -879,6 +905,16 @@ impl TissueLaw {
             .map_err(|why| TissueError::Corrupt { path: p(), why })?;
         Ok(law)
     }
+}
+
+/// Why `shape` is no whole number of modes over `rows` surface rows.
+fn shape_length_why(shape: &Shapes, rows: usize) -> String {
+    format!(
+        "{} shape entries over {rows} surface rows: expected a whole number of modes of {} \
+         entries each",
+        shape.len(),
+        3 * rows
+    )
 }
 
 /// Whether `path` starts with a tissue file's magic (an unreadable path is not one;

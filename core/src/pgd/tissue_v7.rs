@@ -76,6 +76,7 @@ mod tests {
     use crate::framed::Body;
     use crate::pgd::subsplit::SubSplit;
     use crate::pgd::tissue::MAGIC;
+    use crate::pgd::tissue_predict::RowPrediction;
     use crate::pgd::tissue_weights::Weights;
 
     /// A law of one group per sample, as format 7 wrote it.
@@ -118,7 +119,7 @@ mod tests {
             assert_eq!(back.group, vec![0, 1, 2]);
         }
         // Version 8 (today's fields, deflated) and 9 (LZMA, shapes by plane) load as
-        // they are; today's files are version 11, and a version this palpa does not
+        // they are; today's files are version 12, and a version this palpa does not
         // know is named.
         let path = dir.path().join("v8.tissue");
         crate::framed::write(&path, MAGIC, (8, Body::Deflated), &law).expect("writes");
@@ -132,29 +133,48 @@ mod tests {
         assert_eq!(TissueLaw::load(&path).expect("loads"), law);
         // Weights that are not all halves are stored in f32, halves in sixteen bits.
         let (half, _) = law.with_half_weights();
-        // Version 10 is today's without the second level ([`SubSplit`]), which comes
-        // after the weights.
+        // Version 11 is today's with the shapes by plane; version 10 is 11 without the
+        // second level ([`SubSplit`]), which comes after the weights.
         for (law, single) in [(&law, true), (&half, false)] {
-            let path = dir.path().join("v11.tissue");
+            let path = dir.path().join("v12.tissue");
             law.save(&path).expect("saves");
             let bytes = std::fs::read(&path).expect("reads");
-            assert_eq!(&bytes[8..12], &11u32.to_le_bytes());
+            assert_eq!(&bytes[8..12], &12u32.to_le_bytes());
             let (stored, weights, sub): (TissueLaw, Weights, SubSplit) =
-                crate::framed::read(&bytes, MAGIC, &[(11, Body::Lzma)]).expect("raw");
-            assert_eq!(stored.shape, law.shape.to_planes(), "shapes by plane");
+                crate::framed::read(&bytes, MAGIC, &[(12, Body::Lzma)]).expect("raw");
+            let predicted = RowPrediction::new(&law.rows_mm).encode(&law.shape);
+            assert_eq!(Some(&stored.shape), predicted.as_ref(), "shapes as misses");
             assert_ne!(stored.shape, law.shape);
             assert!(stored.coeffs.is_empty(), "weights stored after the law");
             assert_eq!(matches!(weights, Weights::Single(_)), single);
             assert!(sub.is_empty());
             assert_eq!(&TissueLaw::load(&path).expect("loads"), law);
+            let by_plane = TissueLaw {
+                shape: law.shape.to_planes(),
+                ..stored.clone()
+            };
+            let v11 = dir.path().join("v11.tissue");
+            crate::framed::write(&v11, MAGIC, (11, Body::Lzma), &(&by_plane, &weights, &sub))
+                .expect("writes");
+            assert_eq!(&TissueLaw::load(&v11).expect("loads"), law);
             let v10 = dir.path().join("v10.tissue");
-            crate::framed::write(&v10, MAGIC, (10, Body::Lzma), &(&stored, &weights))
+            crate::framed::write(&v10, MAGIC, (10, Body::Lzma), &(&by_plane, &weights))
                 .expect("writes");
             assert_eq!(&TissueLaw::load(&v10).expect("loads"), law);
         }
-        let path = dir.path().join("v12.tissue");
-        crate::framed::write(&path, MAGIC, (12, Body::Lzma), &law).expect("writes");
-        let e = TissueLaw::load(&path).expect_err("version 12");
-        assert!(e.to_string().contains("version 12"), "{e}");
+        // A version 12 body whose shapes are no whole number of modes is named.
+        let bytes = std::fs::read(dir.path().join("v12.tissue")).expect("reads");
+        let (mut stored, weights, sub): (TissueLaw, Weights, SubSplit) =
+            crate::framed::read(&bytes, MAGIC, &[(12, Body::Lzma)]).expect("raw");
+        stored.shape = stored.shape.prefix(stored.shape.len() - 1);
+        let torn = dir.path().join("torn.tissue");
+        crate::framed::write(&torn, MAGIC, (12, Body::Lzma), &(&stored, &weights, &sub))
+            .expect("writes");
+        let e = TissueLaw::load(&torn).expect_err("a torn shape");
+        assert!(e.to_string().contains("whole number of modes"), "{e}");
+        let path = dir.path().join("v13.tissue");
+        crate::framed::write(&path, MAGIC, (13, Body::Lzma), &law).expect("writes");
+        let e = TissueLaw::load(&path).expect_err("version 13");
+        assert!(e.to_string().contains("version 13"), "{e}");
     }
 }
