@@ -15,7 +15,7 @@ pub const BUILT_IN_LIVER: &[u8] = include_bytes!("../../assets/liver-coarse.palp
 
 /// Its hyperelastic tissue, `assets/liver-coarse.tissue` (neo-Hookean, every palpable
 /// vertex and edge midpoint pressed to 15 mm, its 760 worst triangles split into four
-/// in six stages and pressed more densely, and the 50 worst of their quarters split
+/// in six stages and pressed more densely, and the 150 worst of their quarters split
 /// again: docs/methods.md §2e).
 pub const BUILT_IN_TISSUE: &[u8] = include_bytes!("../../assets/liver-coarse.tissue");
 
