@@ -80,8 +80,14 @@ impl RowPrediction {
                     .iter()
                     .map(|&j| (dist2(x, at(j as usize)), j))
                     .collect();
-                near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                near.truncate(NEIGHBOURS);
+                // The nearest few, ties to the lower index: a partial selection, then
+                // those few sorted (a full sort of every earlier row was O(n² log n)).
+                let by = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+                if near.len() > NEIGHBOURS {
+                    near.select_nth_unstable_by(NEIGHBOURS, by);
+                    near.truncate(NEIGHBOURS);
+                }
+                near.sort_by(by);
                 integer_weights(&near)
             })
             .collect();
