@@ -108,26 +108,23 @@ impl RowPrediction {
     /// plane, each mode's rows in storage order, each entry its prediction's miss.
     /// `None` where the length is not a whole number of modes over these rows.
     pub fn encode(&self, shapes: &Shapes) -> Option<Shapes> {
-        match shapes {
-            Shapes::Eight(v) => self
-                .code(v.len(), |i| i32::from(v[i]), 8, true)
-                .map(|r| Shapes::Eight(r.into_iter().map(|x| x as i8).collect())),
-            Shapes::Sixteen(v) => self
-                .code(v.len(), |i| i32::from(v[i]), 16, true)
-                .map(|r| Shapes::Sixteen(r.into_iter().map(|x| x as i16).collect())),
-        }
+        self.transform(shapes, true)
     }
 
     /// The inverse of [`encode`](Self::encode); `None` where the length is not a
     /// whole number of modes over these rows.
     pub fn decode(&self, stored: &Shapes) -> Option<Shapes> {
-        match stored {
+        self.transform(stored, false)
+    }
+
+    fn transform(&self, shapes: &Shapes, encode: bool) -> Option<Shapes> {
+        match shapes {
             Shapes::Eight(v) => self
-                .code(v.len(), |i| i32::from(v[i]), 8, false)
-                .map(|q| Shapes::Eight(q.into_iter().map(|x| x as i8).collect())),
+                .code(v.len(), |i| i32::from(v[i]), 8, encode)
+                .map(|r| Shapes::Eight(r.into_iter().map(|x| x as i8).collect())),
             Shapes::Sixteen(v) => self
-                .code(v.len(), |i| i32::from(v[i]), 16, false)
-                .map(|q| Shapes::Sixteen(q.into_iter().map(|x| x as i16).collect())),
+                .code(v.len(), |i| i32::from(v[i]), 16, encode)
+                .map(|r| Shapes::Sixteen(r.into_iter().map(|x| x as i16).collect())),
         }
     }
 
