@@ -264,20 +264,21 @@ mod tests {
             let p = RowPrediction::new(&rows);
             let mut rng = Rng::seed(100 + seed);
             let n3 = 3 * rows.len();
-            // Any integer the type holds, the extremes included, in random places.
-            let eight: Vec<i8> = (0..5 * n3)
-                .map(|i| match i % 7 {
-                    0 => i8::MIN,
-                    1 => i8::MAX,
-                    _ => (rng.uniform() * 256.0 - 128.0).floor() as i8,
-                })
-                .collect();
-            let sixteen: Vec<i16> = (0..3 * n3)
-                .map(|i| match i % 5 {
-                    0 => i16::MIN,
-                    1 => i16::MAX,
-                    _ => (rng.uniform() * 65536.0 - 32768.0).floor() as i16,
-                })
+            // Any integer a type of `bits` holds, the extremes included, in random places.
+            let mut values = |len: usize, every: usize, bits: u32| -> Vec<i32> {
+                let half = 1i32 << (bits - 1);
+                (0..len)
+                    .map(|i| match i % every {
+                        0 => -half,
+                        1 => half - 1,
+                        _ => (rng.uniform() * f64::from(2 * half)).floor() as i32 - half,
+                    })
+                    .collect()
+            };
+            let eight: Vec<i8> = values(5 * n3, 7, 8).into_iter().map(|x| x as i8).collect();
+            let sixteen: Vec<i16> = values(3 * n3, 5, 16)
+                .into_iter()
+                .map(|x| x as i16)
                 .collect();
             for s in [Shapes::Eight(eight), Shapes::Sixteen(sixteen)] {
                 let stored = p.encode(&s).expect("whole modes");
