@@ -124,17 +124,18 @@ pub(super) fn sub_split_in_place(
     let (u, unit) = (press.u.last().expect("states"), &press.first.u[0]);
     let scene = shipped_scene();
     let (probe, _) = scene.closest_palpable(at).expect("palpable");
-    let error = |law: &TissueLaw| {
-        let bound = BoundTissue::bind(
+    let bind = |law: &TissueLaw| {
+        BoundTissue::bind(
             law.clone(),
             scene.vertices_mm(),
             scene.axis_vertices_mm(),
             scene.axis_triangles(),
         )
-        .expect("binds");
-        blend_error(organ, &scene, &bound, &probe, depth, u, unit)
+        .expect("binds")
     };
+    let error = |law: &TissueLaw| blend_error(organ, &scene, &bind(law), &probe, depth, u, unit);
     let (e_new, e_file) = (error(&new), error(file));
+    blend_surplus_decays(&bind(&new), &bind(file), &probe, options.depth_step_mm);
     // Every blended sample errs by at most the bound; here the weights sum to at most
     // 1 + 1.25 + 1.25 + 1 (corners, edges, first-level surpluses, the point's own).
     let allowed = 4.5 * new.truncation_bound_mm + 1e-4;
@@ -179,4 +180,30 @@ pub(super) fn sub_split_in_place(
         .expect_err("leaves its sub-triangle out")
         .to_string();
     assert!(left_out.contains("1 of its 1 sub-triangles"), "{left_out}");
+}
+
+/// In a sub-triangle split again, `η` is made of its own quarter's surplus and the
+/// first level's, which is the file's `η` before the split (its samples kept as they
+/// are): zero at rest, and at each grid depth at most either of the two.
+fn blend_surplus_decays(
+    new: &BoundTissue,
+    file: &BoundTissue,
+    probe: &palpa_core::axis::ProbePoint,
+    step_mm: f64,
+) {
+    let steps = new.law.steps as usize;
+    for j in 0..steps {
+        let d = j as f64 * step_mm;
+        let (fine, above) = new.blend_surplus_levels_mm(probe, d).expect("pressed");
+        let before = file.blend_surplus_mm(probe, d).expect("pressed");
+        assert_eq!(above, Some(before), "the first level's surplus at {d} mm");
+        let eta = new.blend_surplus_mm(probe, d).expect("pressed");
+        if j == 0 {
+            assert_eq!((eta, fine, before), (0.0, 0.0, 0.0), "at rest");
+        }
+        assert!(
+            eta <= fine && eta <= before,
+            "{eta} vs {fine}, {before} at {d} mm"
+        );
+    }
 }
