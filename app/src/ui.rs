@@ -271,13 +271,7 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
             ui.colored_label(Color32::from_rgb(230, 160, 60), text);
         }
         if let Some(g) = session.past_goals_mm() {
-            ui.colored_label(
-                Color32::from_rgb(230, 160, 60),
-                format!(
-                    "deeper than {g:.1} mm: this tissue is measured within 0.5 mm and 5 % \
-                     of the full FE only to there"
-                ),
-            );
+            ui.colored_label(Color32::from_rgb(230, 160, 60), g.past_text(s.depth_mm));
         }
         if let Some(law) = &session.law {
             blend_surplus(ui, session);

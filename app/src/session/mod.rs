@@ -29,6 +29,34 @@ use paint::Painter;
 /// Radius of the probe tool, mm (the load radius the vademecum was computed with).
 pub const TOOL_RADIUS_MM: f32 = 5.0;
 
+/// How deep a tissue is measured within the goals at held-out points against the
+/// full FE: the surface within 0.5 mm and the force within 5 % to `both_mm`, the
+/// force alone (what the hand and the haptic thread feel) to `force_mm`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GoalDepths {
+    pub both_mm: f32,
+    /// At least `both_mm`.
+    pub force_mm: f32,
+}
+
+impl GoalDepths {
+    /// The panel's line for a press `depth_mm` deep, past `both_mm`.
+    pub fn past_text(&self, depth_mm: f32) -> String {
+        let (both, force) = (self.both_mm, self.force_mm);
+        if depth_mm > force {
+            format!(
+                "deeper than {force:.1} mm: this tissue is measured within 0.5 mm and 5 % of \
+                 the full FE to {both:.1} mm, its force within 5 % to {force:.1} mm"
+            )
+        } else {
+            format!(
+                "deeper than {both:.1} mm: the surface is measured within 0.5 mm of the \
+                 full FE only to there; the force within 5 % to {force:.1} mm"
+            )
+        }
+    }
+}
+
 /// A scene being palpated.
 #[derive(Debug)]
 pub struct Session {
@@ -51,9 +79,9 @@ pub struct Session {
     /// Region painting (`Some` while the region mode is on): the pointer paints
     /// instead of pressing.
     pub painter: Option<Painter>,
-    /// The depth (mm) to which the tissue is measured within the goals, where known
+    /// The depths to which the tissue is measured within the goals, where known
     /// (see `scenes::LoadedScene::goals_to_mm`).
-    pub goals_to_mm: Option<f32>,
+    pub goals_to_mm: Option<GoalDepths>,
     region_values: (Vec<f32>, u64),
     started: Instant,
     deformation: Deformation,
@@ -119,12 +147,13 @@ impl Session {
         })
     }
 
-    /// The depth to which the tissue is measured within the goals, when the sample the
-    /// frame shows presses deeper.
-    pub fn past_goals_mm(&self) -> Option<f32> {
+    /// The tissue's measured depths, when the sample the frame shows presses deeper
+    /// than the surface goal's (and so perhaps than the force goal's too).
+    pub fn past_goals_mm(&self) -> Option<GoalDepths> {
         let s = &self.sample;
         let pressed = s.status() == SampleStatus::Ok;
-        self.goals_to_mm.filter(|&g| pressed && s.depth_mm > g)
+        self.goals_to_mm
+            .filter(|g| pressed && s.depth_mm > g.both_mm)
     }
 
     /// The vademecum's finest surplus under the pressed probe at the frame's depth
