@@ -232,7 +232,7 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     ui.heading("Probe");
     match &session.law {
         Some(law) => ui.label(format!(
-            "tissue: {} (E {:.0} kPa, ν {}), {} to {:.0} mm from {} positions",
+            "tissue: {} (E {:.0} kPa, ν {}), {} to {:.0} mm from {} presses",
             law.law().name(),
             law.material().young_kpa,
             law.material().poisson,

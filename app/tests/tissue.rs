@@ -381,6 +381,10 @@ fn the_default_tissue_meets_the_goals_at_held_out_points() {
     };
     assert_eq!(law.law.options.law.name(), "neo-hookean");
     assert!(loaded.source.contains("to 9 mm deep"), "{}", loaded.source);
+    // The panel counts every press (vertices, edge midpoints, split points), not the
+    // vertices alone: a closed surface has three edges a vertex.
+    let presses = loaded.law.as_ref().map_or(0, |t| t.samples());
+    assert!(presses > 3 * law.law.samples_mm.len(), "{presses} presses");
     let goals = loaded
         .goals_to_mm
         .expect("the built-in tissue's measured depths");

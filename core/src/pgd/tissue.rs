@@ -1480,11 +1480,12 @@ impl Tissue {
         }
     }
 
-    /// How many positions were pressed off-line.
+    /// How many positions were pressed off-line: a vademecum's vertices, edge
+    /// midpoints and split triangles' points all count (one reach each).
     pub fn samples(&self) -> usize {
         match self {
             Tissue::ForceLaw(l) => l.samples.len(),
-            Tissue::Vademecum(t) => t.law.samples_mm.len(),
+            Tissue::Vademecum(t) => t.law.reach.len(),
         }
     }
 
