@@ -467,7 +467,7 @@ mod hyperelastic {
         // that: tight, and at the build's defaults with a new segment after every
         // depth (each one's tangent factored at the last accepted state).
         use palpa_core::fe::load::{probe_functional, probe_load};
-        use palpa_core::fe::path::{PathOptions, PressLoad, follow};
+        use palpa_core::fe::path::{PathOptions, PressLoad, StopKind, follow};
         let (probe, dir) = locate(&space, &organ, &press(POINTS[0], 1.0)).expect("locates");
         let shape = probe_load(&space, &probe, dir, 1.0, options.tool_radius_mm).expect("load");
         let functional = probe_functional(&space, &probe, dir);
@@ -531,7 +531,11 @@ mod hyperelastic {
         assert!(
             given_up
                 .as_ref()
-                .is_err_and(|why| why.contains("no equilibrium")),
+                .is_err_and(|why| why.contains("no equilibrium")
+                    && StopKind::of(why)
+                        == Some(StopKind::NoEquilibrium {
+                            budget_spent: false
+                        })),
             "{:?}",
             given_up.map(|p| p.u.len())
         );
@@ -588,6 +592,11 @@ mod hyperelastic {
         .expect("reaches the first depth");
         let why = bounded.stopped.as_deref().unwrap_or_default();
         assert!(why.contains("budget of 30"), "{why}");
+        assert_eq!(
+            StopKind::of(why),
+            Some(StopKind::NoEquilibrium { budget_spent: true }),
+            "{why}"
+        );
         assert!(bounded.factorizations <= 30, "{}", bounded.factorizations);
         assert!(
             unbounded.factorizations > 30,

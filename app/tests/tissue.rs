@@ -755,6 +755,16 @@ fn svk_presses_stop_where_the_tissue_loses_stability() {
         num(&built["tissue"], "shallowest_reach_mm") < 6.0,
         "{built}"
     );
+    // `palpa info` counts the stopped presses by why they stopped, each once.
+    let info = common::json_ok(&palpa(&["info", &path(&tissue), "--json"]));
+    let by = &info["stopped_by"];
+    let counted: f64 = ["force_peak", "no_equilibrium"]
+        .iter()
+        .map(|k| num(by, k))
+        .sum();
+    assert_eq!(counted, num(&info, "stopped_short"), "{info}");
+    assert!(counted >= 1.0, "{info}");
+    assert!(num(by, "no_equilibrium_budget_spent") <= num(by, "no_equilibrium"));
 
     let at = "-30.3,70.7,16.9";
     let eval = |depth: &str| {

@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
 use palpa_core::fe::newton::NewtonSettings;
+use palpa_core::fe::path::StopKind;
 use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::fe::{Element, Material};
@@ -322,6 +323,21 @@ fn reach_figures(reach: &[u32], steps: u32, step_mm: f64) -> (usize, Option<f64>
     (stopped_short, shallowest)
 }
 
+/// How many stored samples stopped short for each reason ([`StopKind`]), and how many
+/// of those that found no equilibrium ran out of their factorization budget: a surplus
+/// keeps the reason of whichever of its press and its bases stopped first, so one
+/// press that stopped counts once for itself and once for each sample it holds back.
+fn stopped_by(stopped: &[String]) -> serde_json::Value {
+    let kinds: Vec<StopKind> = stopped.iter().filter_map(|w| StopKind::of(w)).collect();
+    let count = |f: fn(&StopKind) -> bool| kinds.iter().filter(|k| f(k)).count();
+    json!({
+        "force_peak": count(|k| *k == StopKind::ForcePeak),
+        "no_equilibrium": count(|k| matches!(k, StopKind::NoEquilibrium { .. })),
+        "no_equilibrium_budget_spent":
+            count(|k| *k == StopKind::NoEquilibrium { budget_spent: true }),
+    })
+}
+
 /// What a tissue file holds: its samples, how far its presses reach, its bytes and
 /// bound (`palpa info X.tissue`, `palpa tissue cut`).
 pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
@@ -342,7 +358,8 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
         "sub_triangles_split": law.refinement.sub.sub_triangles.len(),
         "second_level_points": law.refinement.sub.points.len(),
         "presses": law.reach.len(),
-        "stopped_short": stopped_short, "shallowest_reach_mm": shallowest,
+        "stopped_short": stopped_short, "stopped_by": stopped_by(&law.stopped),
+        "shallowest_reach_mm": shallowest,
         "rows": law.rows_mm.len(), "rank": law.rank, "modes": modes,
         "mode_groups": law.mode_start.len() - 1,
         "bits": law.shape.bits().count(),

@@ -574,6 +574,40 @@ pub fn follow(
     Ok(Ok(out))
 }
 
+/// Why a press stopped short of its grid, read from the message it stored (a tissue
+/// file keeps the message, not a code): what `palpa info` counts, so that a user sees
+/// how many presses the tissue ends at a force peak and how many found no equilibrium.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopKind {
+    /// Its force fell past a peak ([`PathOptions::stop_past_force_peak`], or the
+    /// vademecum's own check of a press's forces).
+    ForcePeak,
+    /// No equilibrium was found at the next depth (or the first series failed).
+    /// `budget_spent`: the press's factorizations ran out on the way, mostly in the
+    /// fallback from rest, which gets what the chord and Newton from the last state
+    /// left of [`PathOptions::max_factorizations`].
+    NoEquilibrium { budget_spent: bool },
+}
+
+impl StopKind {
+    /// Every message `follow` writes that says the budget is spent contains this.
+    const BUDGET: &'static str = "tangent factorizations is spent";
+    /// How the force-peak messages start: `follow`'s, and the vademecum's where it
+    /// cuts a press at a dip `follow` let through.
+    const FORCE_PEAK: [&'static str; 2] = ["the force fell from", "the force peaks at"];
+
+    /// The kind of a stored stop message; `None` for the empty one (no stop).
+    pub fn of(why: &str) -> Option<StopKind> {
+        Some(match why {
+            "" => return None,
+            w if Self::FORCE_PEAK.iter().any(|p| w.starts_with(p)) => StopKind::ForcePeak,
+            w => StopKind::NoEquilibrium {
+                budget_spent: w.contains(Self::BUDGET),
+            },
+        })
+    }
+}
+
 /// Where the last of `force_n` has fallen below the largest before it by more than
 /// `tolerance` of that largest: the index of the largest. `None` while the curve still
 /// rises, or dips by no more than its states' force tolerance. A negative tolerance
@@ -886,7 +920,53 @@ fn least_squares(a: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::force_peak_passed;
+    use super::{StopKind, force_peak_passed};
+
+    /// The messages `follow` and the vademecum write, as a tissue file stores them,
+    /// are told apart, and a budget spent anywhere on the way is seen.
+    #[test]
+    fn a_stop_message_is_read_back_as_its_kind() {
+        let no_equilibrium = "no equilibrium at 13.62 mm: neither the chord from the tangent \
+            at 13.00 mm nor Newton from there converged, with the step halved 3 times";
+        let cases = [
+            ("", None),
+            (
+                "the force fell from 2.17 N at 2.00 mm to 2.05 N at 3.00 mm",
+                Some(StopKind::ForcePeak),
+            ),
+            (
+                "the force peaks at 20.87 N near 14.00 mm (20.41 N at 15.00 mm): past it the \
+                 tissue snaps through under a pressing hand",
+                Some(StopKind::ForcePeak),
+            ),
+            (
+                no_equilibrium,
+                Some(StopKind::NoEquilibrium {
+                    budget_spent: false,
+                }),
+            ),
+            (
+                "first series: the probe did not move",
+                Some(StopKind::NoEquilibrium {
+                    budget_spent: false,
+                }),
+            ),
+            (
+                "gave up at 13.25 mm: the press's budget of 40 tangent factorizations is spent",
+                Some(StopKind::NoEquilibrium { budget_spent: true }),
+            ),
+            (
+                &format!(
+                    "{no_equilibrium}; nor Newton from 13.00 mm: its budget of 40 tangent \
+                     factorizations is spent"
+                ),
+                Some(StopKind::NoEquilibrium { budget_spent: true }),
+            ),
+        ];
+        for (why, kind) in cases {
+            assert_eq!(StopKind::of(why), kind, "{why}");
+        }
+    }
 
     /// A rising curve and a dip within the tolerance go on; a fall past it names the
     /// largest force's index, also where the fall came slowly over several depths.
