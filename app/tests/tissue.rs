@@ -794,6 +794,12 @@ fn svk_presses_stop_where_the_tissue_loses_stability() {
         why.contains("force peaks") || why.contains("no equilibrium"),
         "{why}"
     );
+    // The reason the probe is held is among those `palpa info` counted.
+    let kind = match why.contains("force peaks") {
+        true => "force_peak",
+        false => "no_equilibrium",
+    };
+    assert!(num(by, kind) >= 1.0, "{why}: {info}");
     // At the limit itself: the same force, not flagged.
     let at_limit = eval(&limit.to_string());
     assert_eq!(at_limit["beyond_depth_max"], false, "{at_limit}");
