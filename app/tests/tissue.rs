@@ -367,7 +367,7 @@ fn the_default_scene_presses_with_its_tissue_both_ways() {
 
 /// The default scene opens with its hyperelastic tissue, and that tissue meets the
 /// goals (surface within 0.5 mm, force within 5 % of Newton) at two held-out points
-/// as deep as the scene says it does (9.3 mm, off its depth grid), and the force goal
+/// as deep as the scene says it does (11.5 mm, off its depth grid), and the force goal
 /// as deep as it says that one holds (14.6 mm) wherever the press reaches there; a
 /// session pressed deeper flags it, one pressed shallower does not, and both report
 /// the finest surplus under the probe, larger for the deeper press.
@@ -380,7 +380,7 @@ fn the_default_tissue_meets_the_goals_at_held_out_points() {
         None => panic!("the default scene has no tissue"),
     };
     assert_eq!(law.law.options.law.name(), "neo-hookean");
-    assert!(loaded.source.contains("to 9 mm deep"), "{}", loaded.source);
+    assert!(loaded.source.contains("to 11.5 mm deep"), "{}", loaded.source);
     // The panel counts every press (vertices, edge midpoints, split points), not the
     // vertices alone: a closed surface has three edges a vertex.
     let presses = loaded.law.as_ref().map_or(0, |t| t.samples());
