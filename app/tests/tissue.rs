@@ -380,7 +380,11 @@ fn the_default_tissue_meets_the_goals_at_held_out_points() {
         None => panic!("the default scene has no tissue"),
     };
     assert_eq!(law.law.options.law.name(), "neo-hookean");
-    assert!(loaded.source.contains("to 11.5 mm deep"), "{}", loaded.source);
+    assert!(
+        loaded.source.contains("to 11.5 mm deep"),
+        "{}",
+        loaded.source
+    );
     // The panel counts every press (vertices, edge midpoints, split points), not the
     // vertices alone: a closed surface has three edges a vertex.
     let presses = loaded.law.as_ref().map_or(0, |t| t.samples());
