@@ -108,7 +108,7 @@ pub fn write<T: Serialize>(
     })
 }
 
-/// Reads a value framed by [`write`] from `bytes`, in any of the format versions
+/// Reads a value framed by [`write()`] from `bytes`, in any of the format versions
 /// `reads` (each with how it stores its body).
 pub fn read<T: DeserializeOwned>(
     bytes: &[u8],

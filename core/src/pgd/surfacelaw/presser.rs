@@ -1,0 +1,279 @@
+//! The build's presses: logged as each finishes, so a killed build goes on.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Mutex;
+
+use super::press::{path_options, point_press};
+use super::refine::{Logged, PressPoint};
+use super::{PressCount, SurfaceLawBuildError, SurfaceLawOptions, VertexPress};
+use crate::fe::path::PathOptions;
+use crate::fe::series::Expander;
+use crate::organ::OrganMesh;
+use crate::pgd::presslog::RecordLog;
+
+/// Opens a build's press log at `path` (see [`crate::pgd::presslog`]) and returns it with
+/// the presses already in it. The key names everything that determines a press, so a
+/// build and a refinement of the same options share their presses (a covering build's
+/// key also names its vertices: its edge ids count its own edges).
+pub(super) fn open_press_log(
+    organ: &OrganMesh,
+    o: &SurfaceLawOptions,
+    rows: usize,
+    steps: usize,
+    cover: Option<&[u32]>,
+    path: &Path,
+) -> Result<(RecordLog, Vec<(u32, Logged)>), SurfaceLawBuildError> {
+    let log_error = |source| SurfaceLawBuildError::Log {
+        path: path.to_path_buf(),
+        source,
+    };
+    let (key, previous) = press_log_key(organ, o, rows, cover);
+    for previous in previous {
+        RecordLog::upgrade::<Logged>(path, &previous, &key, |p| {
+            p.as_ref().is_ok_and(|p| p.reach as usize == steps)
+        })
+        .map_err(log_error)?;
+    }
+    RecordLog::open::<Logged>(path, &key).map_err(log_error)
+}
+
+/// The ids a build's press log at `path` already holds, read without changing it
+/// (none where it is missing or of another build).
+pub(crate) fn logged_press_ids(
+    organ: &OrganMesh,
+    o: &SurfaceLawOptions,
+    rows: usize,
+    path: &Path,
+) -> Result<Vec<u32>, SurfaceLawBuildError> {
+    let (key, _) = press_log_key(organ, o, rows, None);
+    RecordLog::finished_ids::<Logged>(path, &key).map_err(|source| SurfaceLawBuildError::Log {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// A build's press-log key (everything that determines its presses), and the keys of
+/// earlier versions whose presses that reached every depth it takes over.
+fn press_log_key(
+    organ: &OrganMesh,
+    o: &SurfaceLawOptions,
+    rows: usize,
+    cover: Option<&[u32]>,
+) -> (String, Vec<String>) {
+    let po = path_options(o);
+    let covered = cover.map_or(String::new(), |c| {
+        let bytes: Vec<u8> = c.iter().flat_map(|v| v.to_le_bytes()).collect();
+        format!(
+            " cover {} {:016x}",
+            c.len(),
+            xxhash_rust::xxh3::xxh3_64(&bytes)
+        )
+    });
+    let key_of = |version: u32, path: String| {
+        format!(
+            "palpa tissue-build log {version} mesh {:016x} rows {rows} {o:?} {path}{covered}",
+            crate::pgd::depthlaw::organ_hash(organ),
+        )
+    };
+    let key = key_of(6, format!("{po:?}"));
+    // Versions 3 (before the path follower's Newton fallback), 4 (which stopped a
+    // press at any dip of its force) and 5 (no factorization budget) differ from this
+    // build only where a press stopped short, or reached every depth through a
+    // fallback longer than the budget (none seen: every fallback measured that spent
+    // past it failed): their presses that reached every depth are kept, the others
+    // pressed again.
+    let budget = PathOptions::default().max_factorizations;
+    let mut previous = Vec::new();
+    if po.newton_fallback && po.stop_past_force_peak && po.max_factorizations == budget {
+        let v5 = format!("{po:?}").replace(&format!(", max_factorizations: {budget}"), "");
+        let v3 = v5.replace(", newton_fallback: true", "");
+        previous = vec![key_of(3, v3), key_of(4, v5.clone()), key_of(5, v5)];
+    }
+    (key, previous)
+}
+
+/// Presses surface points in parallel, logging each as it finishes and reporting
+/// progress (see [`PressCount`]).
+pub(super) struct Presser<'a> {
+    pub(super) space: &'a crate::fe::space::Space,
+    pub(super) organ: &'a OrganMesh,
+    pub(super) expander: &'a Expander<'a>,
+    pub(super) o: &'a SurfaceLawOptions,
+    pub(super) rows: &'a [u32],
+    pub(super) steps: usize,
+    pub(super) log: Option<(&'a Mutex<RecordLog>, &'a Path)>,
+    pub(super) done: std::sync::atomic::AtomicUsize,
+    pub(super) from_log: std::sync::atomic::AtomicUsize,
+    pub(super) progress: &'a (dyn Fn(PressCount) + Sync),
+}
+
+impl Presser<'_> {
+    /// Presses `points` (those in `finished` taken from it) and returns their presses
+    /// in order and how many came from the log; `total` is what the progress counts
+    /// to.
+    pub(super) fn press(
+        &self,
+        points: &[PressPoint],
+        finished: &mut HashMap<u32, Logged>,
+        total: usize,
+    ) -> Result<(Vec<Logged>, usize), SurfaceLawBuildError> {
+        use rayon::prelude::*;
+        use std::sync::atomic::Ordering;
+        let mut out: Vec<Option<Logged>> = points.iter().map(|p| finished.remove(&p.id)).collect();
+        let resumed = out.iter().filter(|p| p.is_some()).count();
+        let logged = self.from_log.fetch_add(resumed, Ordering::Relaxed) + resumed;
+        (self.progress)(PressCount {
+            done: self.done.fetch_add(resumed, Ordering::Relaxed) + resumed,
+            total,
+            from_log: logged,
+        });
+        let todo = (0..points.len()).filter(|&k| out[k].is_none());
+        // One press a task, taken in `points`' order: a split range would have each
+        // thread press a run in turn (a build's last run, presses of minutes on
+        // medium P2, went on on one core while the other sat idle), and an interrupted
+        // build would leave the log holding two fronts rather than the first presses.
+        let computed: Vec<(usize, Logged)> = todo
+            .par_bridge()
+            .map(|k| -> Result<_, SurfaceLawBuildError> {
+                let p = &points[k];
+                let press = point_press(
+                    self.space,
+                    self.organ,
+                    self.expander,
+                    self.o,
+                    self.rows,
+                    self.steps,
+                    p.at,
+                    p.push,
+                )?;
+                if let Some((l, path)) = self.log {
+                    // Off-line and once a press (seconds): a lock is fine here.
+                    let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
+                    l.push(p.id, &press)
+                        .map_err(|source| SurfaceLawBuildError::Log {
+                            path: path.to_path_buf(),
+                            source,
+                        })?;
+                }
+                (self.progress)(PressCount {
+                    done: self.done.fetch_add(1, Ordering::Relaxed) + 1,
+                    total,
+                    from_log: logged,
+                });
+                Ok((k, press))
+            })
+            .collect::<Result<_, _>>()?;
+        for (k, press) in computed {
+            out[k] = Some(press);
+        }
+        let out = out
+            .into_iter()
+            .map(|p| p.expect("every point is pressed"))
+            .collect();
+        Ok((out, resumed))
+    }
+}
+
+/// The per-sample arrays as the build fills them (vertices, edges, quarter points,
+/// inner points).
+#[derive(Default)]
+pub(super) struct Stored {
+    pub(super) residual: Vec<f32>,
+    pub(super) ratio: Vec<f64>,
+    pub(super) stiffness: Vec<f64>,
+    pub(super) correction: Vec<f64>,
+    pub(super) segments: Vec<u32>,
+    pub(super) reach: Vec<u32>,
+    pub(super) stopped: Vec<String>,
+}
+
+impl Stored {
+    /// The samples from `first` on, taken off (`n_row` residual values a sample).
+    pub(super) fn split_off(&mut self, first: usize, steps: usize, n_row: usize) -> Stored {
+        Stored {
+            residual: self.residual.split_off(first * n_row),
+            ratio: self.ratio.split_off(first * steps),
+            stiffness: self.stiffness.split_off(first),
+            correction: self.correction.split_off(first),
+            segments: self.segments.split_off(first),
+            reach: self.reach.split_off(first),
+            stopped: self.stopped.split_off(first),
+        }
+    }
+
+    /// Appends `from`'s sample `s` as it is.
+    pub(super) fn copy(&mut self, from: &Stored, s: usize, steps: usize, row: usize) {
+        let n = steps * row;
+        self.residual
+            .extend_from_slice(&from.residual[s * n..][..n]);
+        self.ratio
+            .extend_from_slice(&from.ratio[s * steps..][..steps]);
+        self.stiffness.push(from.stiffness[s]);
+        self.correction.push(from.correction[s]);
+        self.segments.push(from.segments[s]);
+        self.reach.push(from.reach[s]);
+        self.stopped.push(from.stopped[s].clone());
+    }
+
+    pub(super) fn push(
+        &mut self,
+        p: &VertexPress,
+        residual: &[f32],
+        ratio: &[f64],
+        reach: u32,
+        why: String,
+    ) {
+        self.residual.extend_from_slice(residual);
+        self.ratio.extend_from_slice(ratio);
+        self.stiffness.push(p.stiffness_n_per_mm);
+        self.correction.push(p.correction_mm);
+        self.segments.push(p.segments);
+        self.reach.push(reach);
+        self.stopped.push(why);
+    }
+
+    /// The reason of whichever of `p` and the stored samples `others` stopped first
+    /// (empty where none stopped short).
+    fn first_stop(&self, p: &VertexPress, others: &[usize]) -> String {
+        std::iter::once((p.reach, &p.stopped))
+            .chain(others.iter().map(|&s| (self.reach[s], &self.stopped[s])))
+            .min_by_key(|(r, _)| *r)
+            .map_or(String::new(), |(_, w)| w.clone())
+    }
+
+    /// `p`'s surplus over the blend `base` of stored samples, up to the depth all of
+    /// them reached and held there: residual, ratio, reach and why it stopped.
+    pub(super) fn surplus(
+        &self,
+        p: &VertexPress,
+        base: &[(usize, f64)],
+        steps: usize,
+        row: usize,
+    ) -> (Vec<f32>, Vec<f64>, u32, String) {
+        let r = base.iter().fold(p.reach, |r, &(s, _)| r.min(self.reach[s])) as usize;
+        let n = steps * row;
+        let residual = (0..n)
+            .map(|i| {
+                let i = (i / row).min(r - 1) * row + i % row;
+                let b: f64 = base
+                    .iter()
+                    .map(|&(s, w)| w * f64::from(self.residual[s * n + i]))
+                    .sum();
+                (f64::from(p.residual[i]) - b) as f32
+            })
+            .collect();
+        let ratio = (0..steps)
+            .map(|j| {
+                let j = j.min(r - 1);
+                let b: f64 = base
+                    .iter()
+                    .map(|&(s, w)| w * self.ratio[s * steps + j])
+                    .sum();
+                p.ratio[j] - b
+            })
+            .collect();
+        let others: Vec<usize> = base.iter().map(|b| b.0).collect();
+        (residual, ratio, r as u32, self.first_stop(p, &others))
+    }
+}
