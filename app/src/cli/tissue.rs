@@ -8,10 +8,11 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
 use palpa_core::fe::newton::NewtonSettings;
-use palpa_core::fe::path::StopKind;
+use palpa_core::fe::path::{StopKind, press_memory_bytes};
 use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::fe::{Element, Material};
+use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{
     DEFAULT_REFINE_ABOVE_MM, PressCount, SurfaceLaw, SurfaceLawOptions, follow_at, press_at,
 };
@@ -294,13 +295,56 @@ pub(super) fn press_log(out: &std::path::Path) -> PathBuf {
     PathBuf::from(log)
 }
 
-/// The threads a build presses on (`--jobs`, default one per core).
-pub(super) fn press_pool(jobs: Option<usize>) -> anyhow::Result<rayon::ThreadPool> {
+/// The threads a build presses on: `--jobs`, else one per core, fewer where the memory
+/// available would not hold them ([`default_jobs`]).
+pub(super) fn press_pool(
+    jobs: Option<usize>,
+    organ: &OrganMesh,
+    element: Element,
+) -> anyhow::Result<rayon::ThreadPool> {
+    let jobs = match jobs {
+        Some(0) => bail!("--jobs 0: expected at least one press at a time"),
+        Some(n) => n,
+        None => default_jobs(organ, element)?,
+    };
     rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs.unwrap_or(0))
+        .num_threads(jobs)
         .thread_name(|i| format!("tissue-press-{i}"))
         .build()
         .context("starting the press threads")
+}
+
+/// Presses at once without `--jobs`: one per core, but no more than the memory
+/// available holds beside the shared rest factor, each press at its peak
+/// (`fe::path::press_memory_bytes`); at least one. Said on stderr with its figures.
+fn default_jobs(organ: &OrganMesh, element: Element) -> anyhow::Result<usize> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let Some(available) = super::memory::available_bytes() else {
+        return Ok(cores);
+    };
+    let (shared, each) = press_memory_bytes(&organ_space(organ, element))
+        .context("estimating the memory a press needs")?;
+    let fit = jobs_that_fit(available, shared, each);
+    let jobs = fit.clamp(1, cores);
+    let gb = |b: u64| b as f64 / 1e9;
+    eprintln!(
+        "tissue: {jobs} press(es) at a time ({cores} cores; about {:.1} GB shared and {:.1} GB \
+         a press, {:.1} GB available){}",
+        gb(shared),
+        gb(each),
+        gb(available),
+        if fit == 0 {
+            ": even one may not fit, and a factorization beyond the memory is refused"
+        } else {
+            ""
+        }
+    );
+    Ok(jobs)
+}
+
+/// How many presses of `each` bytes fit in `available` beside `shared` (0 where not one).
+fn jobs_that_fit(available: u64, shared: u64, each: u64) -> usize {
+    (available.saturating_sub(shared) / each.max(1)) as usize
 }
 
 /// A build's progress line, with an estimate of what is left from the presses this run
@@ -410,10 +454,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         );
     }
     let refine = (!args.no_refine && !args.no_edges).then_some(args.refine_above_mm);
-    if args.jobs == Some(0) {
-        bail!("--jobs 0: expected at least one press at a time");
-    }
-    let pool = press_pool(args.jobs)?;
+    let pool = press_pool(args.jobs, &organ, options.element)?;
     let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
     let cover = args
         .cover
@@ -737,7 +778,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
 /// seeded random points inside organ triangles whose three corners were pressed
 /// (never a sample itself).
 pub(super) fn press_points(
-    organ: &palpa_core::organ::OrganMesh,
+    organ: &OrganMesh,
     law: &TissueLaw,
     at: Option<&[f64]>,
     heldout: usize,
@@ -763,12 +804,7 @@ pub(super) fn press_points(
 
 /// `n` seeded random points in `faces`: a face drawn uniformly, then a point uniformly
 /// inside it.
-fn points_in(
-    organ: &palpa_core::organ::OrganMesh,
-    faces: &[usize],
-    n: usize,
-    seed: u64,
-) -> Vec<[f64; 3]> {
+fn points_in(organ: &OrganMesh, faces: &[usize], n: usize, seed: u64) -> Vec<[f64; 3]> {
     let mut rng = Rng::seed(seed);
     (0..n)
         .map(|_| super::bench_fe::heldout_point(organ, faces, &mut rng).0)
@@ -787,7 +823,7 @@ pub(super) fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
 /// uniformly among the palpable ones with no fixed corner (those a whole build
 /// presses), then a point uniformly inside it.
 pub(super) fn surface_points(
-    organ: &palpa_core::organ::OrganMesh,
+    organ: &OrganMesh,
     n: usize,
     seed: u64,
 ) -> anyhow::Result<Vec<[f64; 3]>> {
@@ -804,10 +840,7 @@ pub(super) fn surface_points(
 
 /// The organ's boundary faces that a tissue file split (by its corners' rest
 /// positions), or why there are none.
-fn split_faces(
-    organ: &palpa_core::organ::OrganMesh,
-    law: &TissueLaw,
-) -> anyhow::Result<Vec<usize>> {
+fn split_faces(organ: &OrganMesh, law: &TissueLaw) -> anyhow::Result<Vec<usize>> {
     let index = PointIndex::new(organ.mesh.vertices.iter().copied());
     let mut split: Vec<[u32; 3]> = Vec::new();
     for tri in &law.refinement.triangles {
@@ -840,7 +873,7 @@ fn split_faces(
 /// reference field `reference` (organ node order; candidates in the scene's row
 /// order), and the reference's largest displacement (mm).
 pub(super) fn max_node_errors<const N: usize>(
-    organ: &palpa_core::organ::OrganMesh,
+    organ: &OrganMesh,
     vertex_of: &PointIndex,
     reference: &[f64],
     candidates: [&[f64]; N],
@@ -871,7 +904,7 @@ pub(super) fn max_node_errors<const N: usize>(
 /// under the tool), and the largest error in shells 0–1, 1–2, 2–4, 4–8 and past 8 tool
 /// radii from the probe.
 fn worst_node(
-    organ: &palpa_core::organ::OrganMesh,
+    organ: &OrganMesh,
     vertex_of: &PointIndex,
     reference: &[f64],
     rows: &[f64],
@@ -1042,5 +1075,18 @@ mod tests {
         assert_eq!(parse_bits("16"), Ok(16));
         let e = parse_bits("12").expect_err("12 bits");
         assert!(e.contains("8 or 16"), "{e}");
+    }
+
+    /// Medium P2's estimate (6.2 GB shared, 8.3 GB a press): two at once on this
+    /// 24 GB machine when idle (23.3 GB available), one under a compile's load; none
+    /// fits in 12 GB, which the caller turns into one press and a warning.
+    #[test]
+    fn presses_at_once_are_what_the_memory_holds() {
+        let gb = |x: f64| (x * 1e9) as u64;
+        assert_eq!(jobs_that_fit(gb(23.3), gb(6.2), gb(8.3)), 2);
+        assert_eq!(jobs_that_fit(gb(15.3), gb(6.2), gb(8.3)), 1);
+        assert_eq!(jobs_that_fit(gb(12.0), gb(6.2), gb(8.3)), 0);
+        assert_eq!(jobs_that_fit(gb(4.0), gb(6.2), gb(8.3)), 0);
+        assert_eq!(jobs_that_fit(gb(100.0), 0, 0), 100_000_000_000);
     }
 }

@@ -133,7 +133,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
         bail!("--out: expected where to write the refined law");
     };
     let kept = law.refinement.triangles.len();
-    let pool = press_pool(args.jobs)?;
+    let pool = press_pool(args.jobs, &organ, law.options.element)?;
     let started = Instant::now();
     let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
     let (law, resumed, above) = pool

@@ -56,7 +56,7 @@ pub fn refine_sub(args: &RefineArgs, most: usize) -> anyhow::Result<()> {
     let (Some(out), Some(log)) = (&args.out, log) else {
         bail!("--out: expected where to write the refined law");
     };
-    let pool = press_pool(args.jobs)?;
+    let pool = press_pool(args.jobs, &organ, law.options.element)?;
     let started = Instant::now();
     let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
     let (kept, resumed) = pool

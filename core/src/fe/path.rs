@@ -608,6 +608,31 @@ impl StopKind {
     }
 }
 
+/// Bytes a build of presses needs on `space`'s mesh, `(shared, each)`: the rest
+/// stiffness factor all presses share (double precision), and what one press holds at
+/// its peak. A press keeps its segment's single-precision factor and, where it falls
+/// back on Newton ([`PathOptions::newton_fallback`]), factors a double-precision
+/// tangent beside it; its vectors (series orders, chord history) are small beside
+/// those. Both scale with the factor's entries `L` ([`super::sparse::factor_entries`]):
+/// `shared = SHARED_BYTES_PER_ENTRY · L`, `each = PRESS_BYTES_PER_ENTRY · L`. Measured
+/// (peak resident memory of builds pressing one and two at a time): coarse P2
+/// (`L` = 41.5 million) 0.87 and 1.28 GB, medium P2 (517 million) 8.9 and 13.8 GB, so
+/// 8–11 bytes an entry shared and about 10 a press; two medium presses falling back
+/// on Newton at once peaked at 21.7 GB (about 17 a press). The constants (12 and 16)
+/// put two medium presses at 22.8 GB (docs/tissue-measurements.md §5).
+pub fn press_memory_bytes(space: &Space) -> Result<(u64, u64), FeError> {
+    let entries = super::sparse::factor_entries(&SymCsc::pattern(space))?;
+    Ok((
+        SHARED_BYTES_PER_ENTRY * entries,
+        PRESS_BYTES_PER_ENTRY * entries,
+    ))
+}
+
+/// See [`press_memory_bytes`].
+pub const SHARED_BYTES_PER_ENTRY: u64 = 12;
+/// See [`press_memory_bytes`].
+pub const PRESS_BYTES_PER_ENTRY: u64 = 16;
+
 /// Where the last of `force_n` has fallen below the largest before it by more than
 /// `tolerance` of that largest: the index of the largest. `None` while the curve still
 /// rises, or dips by no more than its states' force tolerance. A negative tolerance

@@ -162,6 +162,12 @@ pub fn factor_bytes_estimate(a: &SymCsc) -> Result<u64, FeError> {
     Ok(2 * 8 * symbolic(a)?.len_val() as u64)
 }
 
+/// Entries of the Cholesky factor of `a` (its fill-in under the ordering the numeric
+/// factorization uses): what a factor's memory scales with.
+pub fn factor_entries(a: &SymCsc) -> Result<u64, FeError> {
+    Ok(symbolic(a)?.len_val() as u64)
+}
+
 /// Symbolic analyses already made, newest last. A press factors the tangent of one
 /// pattern many times; its ordering and fill-in (about 3 % of a tissue build's time when
 /// recomputed at each factorization) depend on the pattern only, so they are kept. The
