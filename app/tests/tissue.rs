@@ -903,7 +903,10 @@ fn a_nearly_incompressible_tissue_meets_the_goals_on_its_own_scene() {
 }
 
 /// Bad build options are named before any press: a region that is not X,Y,Z,R, a
-/// bound that is not a length, bits other than 8 or 16, no press threads.
+/// bound that is not a length, bits other than 8 or 16, no press threads, a depth grid
+/// of no step (it once said "depth 0 mm is not finite", after starting the presses).
+/// `tissue check` and `tissue points` likewise refuse depths that do not press (one
+/// of −1 mm once ran Newton for minutes) and no points at all.
 #[test]
 fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -922,12 +925,31 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         (&["--tolerance-mm=-1"][..], "positive length"),
         (&["--bits", "12"][..], "8 or 16"),
         (&["--jobs", "0"][..], "at least one press"),
+        (&["--depth-max-mm", "0"][..], "invalid depth grid"),
+        (&["--depth-max-mm", "inf"][..], "--depth-max-mm"),
+        (
+            &["--depth-step-mm", "nan"][..],
+            "expected both finite and positive",
+        ),
     ] {
         refused(
             &["tissue", "build", "--element", "p1", "--out", &out_s],
             bad,
             says,
         );
+    }
+    for (args, says) in [
+        (
+            &["check", "--depths=-1"][..],
+            "expected finite depths above 0 mm",
+        ),
+        (&["check", "--depths", "2,nan"][..], "NaN mm"),
+        (&["check", "--heldout", "0"][..], "at least one point"),
+        (&["points", "--heldout", "0"][..], "at least one point"),
+    ] {
+        let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+        let file: &[&str] = if args[0] == "check" { &[shipped] } else { &[] };
+        refused(&["tissue"], &[args, file].concat(), says);
     }
     // `tissue refine` likewise, and a file that is no tissue law is named.
     let shipped = dir.path().join("shipped.tissue");

@@ -242,6 +242,9 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
         TissueCommand::Build(args) => build(args).map(|(_, summary)| println!("{summary}")),
         TissueCommand::Check(args) => check(args),
         TissueCommand::Points(args) => {
+            if args.heldout == 0 {
+                bail!("--heldout 0: expected at least one point");
+            }
             let organ = args.organ.mesh()?;
             let points = match &args.split_of {
                 None => surface_points(&organ, args.heldout, args.seed)?,
@@ -430,6 +433,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             args.tolerance_mm
         );
     }
+    palpa_core::fe::depth_grid_points(args.depth_max_mm, args.depth_step_mm, 256)
+        .context("--depth-max-mm, --depth-step-mm")?;
     let options = SurfaceLawOptions {
         law: args.model.law(),
         material: Material {
@@ -535,6 +540,13 @@ pub(super) fn bound_to_scene(
 }
 
 fn check(args: &CheckArgs) -> anyhow::Result<()> {
+    // A check compares forces relative to Newton's: a press must push.
+    if let Some(d) = args.depths.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
+        bail!("--depths: {d} mm: expected finite depths above 0 mm (presses into the tissue)");
+    }
+    if args.at.is_none() && args.heldout == 0 {
+        bail!("--heldout 0: expected at least one point (or points given by --at)");
+    }
     let (bound, scene) = bound_to_scene(&args.tissue, &args.scene)?;
     let o = bound.law.options;
     let organ = args.organ.mesh()?;

@@ -121,6 +121,32 @@ impl Material {
     }
 }
 
+/// The number of points (depth 0 included) of a depth grid `0, step, 2 step, …, max`,
+/// checked: both finite and positive, and at least one and at most `max_points − 1`
+/// steps.
+pub fn depth_grid_points(
+    depth_max_mm: f64,
+    step_mm: f64,
+    max_points: usize,
+) -> Result<usize, FeError> {
+    let steps = (depth_max_mm / step_mm).round();
+    if depth_max_mm.is_finite()
+        && depth_max_mm > 0.0
+        && step_mm.is_finite()
+        && step_mm > 0.0
+        && steps >= 1.0
+        && steps < max_points as f64
+    {
+        Ok(steps as usize + 1)
+    } else {
+        Err(FeError::DepthGrid {
+            depth_max_mm,
+            step_mm,
+            max_steps: max_points.saturating_sub(1),
+        })
+    }
+}
+
 /// Why one Newton step (from the last converged state to the next target) failed.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum StepFailure {
@@ -165,6 +191,15 @@ pub enum FeError {
     ToolRadius { radius_mm: f64 },
     #[error("invalid press: depth {depth_mm} mm is not finite")]
     DepthNotFinite { depth_mm: f64 },
+    #[error(
+        "invalid depth grid: deepest press {depth_max_mm} mm in steps of {step_mm} mm; \
+         expected both finite and positive, with 1 to {max_steps} steps"
+    )]
+    DepthGrid {
+        depth_max_mm: f64,
+        step_mm: f64,
+        max_steps: usize,
+    },
     #[error("invalid press: the load does not move the probe point along the tool axis")]
     ProbeNotMoved,
     #[error(

@@ -466,10 +466,11 @@ impl<'a> Problem<'a> {
         let mut rn = self.merit(&r, g);
         let mut history = vec![rn];
         // Force scale: the target load, or under depth control the linear estimate of
-        // the force at this depth (the current force once it is larger).
+        // the force at this depth (the current force once it is larger). Magnitudes: a
+        // negative depth is a pull, whose force is as large as a push's.
         let scale = match self.probe {
-            None => self.shape_norm * target,
-            Some(_) => (self.depth_weight * target).max(self.shape_norm * st.force.abs()),
+            None => self.shape_norm * target.abs(),
+            Some(_) => (self.depth_weight * target.abs()).max(self.shape_norm * st.force.abs()),
         }
         .max(f64::MIN_POSITIVE);
         let tol = settings.rel_tol * scale;

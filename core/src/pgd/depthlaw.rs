@@ -157,6 +157,8 @@ pub enum DepthLawBuildError {
         /// The smallest relative change, or "no pole-free form".
         best_change: String,
     },
+    #[error("no samples asked for: expected at least one palpable point to press")]
+    NoSamples,
     #[error("the build's sample log {path}: {source}")]
     Log {
         path: std::path::PathBuf,
@@ -260,13 +262,9 @@ impl DepthLaw {
         progress: &mut dyn FnMut(usize, usize),
     ) -> Result<(DepthLaw, usize), DepthLawBuildError> {
         let o = options;
-        let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
-        if !(o.depth_max_mm > 0.0 && o.depth_step_mm > 0.0 && steps <= MAX_DEPTHS && o.samples > 0)
-        {
-            return Err(FeError::DepthNotFinite {
-                depth_mm: o.depth_max_mm,
-            }
-            .into());
+        let steps = crate::fe::depth_grid_points(o.depth_max_mm, o.depth_step_mm, MAX_DEPTHS)?;
+        if o.samples == 0 {
+            return Err(DepthLawBuildError::NoSamples);
         }
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);

@@ -286,13 +286,7 @@ impl SurfaceLaw {
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         use std::sync::atomic::AtomicUsize;
         let o = options;
-        let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
-        if !(o.depth_max_mm > 0.0 && o.depth_step_mm > 0.0 && (2..=256).contains(&steps)) {
-            return Err(FeError::DepthNotFinite {
-                depth_mm: o.depth_max_mm,
-            }
-            .into());
-        }
+        let steps = crate::fe::depth_grid_points(o.depth_max_mm, o.depth_step_mm, 256)?;
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;

@@ -51,8 +51,8 @@ impl TissueLaw {
         let (steps, k) = (self.steps as usize, depth_stride);
         if modes_max == 0 || k == 0 || !(steps - 1).is_multiple_of(k) {
             return Err(format!(
-                "{modes_max} modes, every {k}th depth: expected at least one mode and a \
-                 stride dividing the grid's {} intervals",
+                "at most {modes_max} modes a sample, a depth stride of {k}: expected at least \
+                 one mode and a stride dividing the grid's {} intervals",
                 steps - 1
             ));
         }
