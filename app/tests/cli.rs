@@ -326,6 +326,55 @@ fn eval_on_the_default_scene() {
     assert!(text.starts_with("<?xml") && text.contains("Name=\"displacement\""));
 }
 
+/// What cannot be pressed or measured is refused before any work, naming the flag: an
+/// infinite force (it once printed nulls and succeeded), a tissue depth grid of no
+/// step under `offline --model` (once refused only after the scene's build), a
+/// tradeoff at no held-out point (once ran on); a missing file is named once, its
+/// cause not repeated.
+#[test]
+fn what_cannot_be_pressed_is_refused_by_flag() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("o.palpa");
+    let out_s = out.to_str().expect("utf-8");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
+    let tissue = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let missing = dir.path().join("missing.palpa");
+    let missing = missing.to_str().expect("utf-8");
+    for (args, want) in [
+        (
+            vec!["eval", scene, "--at=-30,90,25", "--force-n", "inf"],
+            "--force-n inf: expected a finite force",
+        ),
+        (
+            vec![
+                "offline",
+                "liver",
+                "--model",
+                "neo-hookean",
+                "--depth-max-mm",
+                "0",
+                "--out",
+                out_s,
+            ],
+            "--depth-max-mm: invalid depth grid",
+        ),
+        (
+            vec!["tradeoff", tissue, "--held-out", "0"],
+            "expected at least one point",
+        ),
+        (vec!["cme", "eval", missing, "--t", "1"], "missing.palpa"),
+    ] {
+        let run = palpa(&args);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !run.status.success() && err.contains(want),
+            "{args:?}: {err}"
+        );
+        assert!(err.matches("os error").count() <= 1, "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?} wrote {out_s}");
+    }
+}
+
 /// Depth control: `eval --depth-mm` on the default scene and `fe solve --depth-mm`
 /// (linear, and the neo-Hookean law on coarse P1) move the probe point by the depth and
 /// report the force it takes under the same keys; the linear force matches the full FE

@@ -157,6 +157,10 @@ fn journal_path(out: &Path) -> PathBuf {
 }
 
 pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
+    if args.model != TissueModel::Linear {
+        // Refused before the scene's minutes of work, not after them.
+        palpa_core::fe::depth_grid_points(args.depth_max_mm, 1.0, 256).context("--depth-max-mm")?;
+    }
     if args.method == MethodArg::Nodal {
         return offline_nodal(args);
     }
@@ -566,6 +570,7 @@ fn eval_nodal<T: Scalar>(
 /// displacement per newton).
 fn press_force(probe: &ProbeArgs, compliance_mm_per_n: Option<f64>) -> anyhow::Result<f64> {
     match (probe.force_n, probe.depth_mm) {
+        (Some(f), _) if !f.is_finite() => bail!("--force-n {f}: expected a finite force (N)"),
         (Some(f), _) => Ok(f),
         (None, Some(d)) => {
             if !d.is_finite() {

@@ -100,9 +100,44 @@ pub fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// An error and its causes joined by ": ", as `{:#}` joins them, but without a cause
+/// whose text the message before it already ends with (core errors such as
+/// `"{path}: {source}"` show their source themselves, and it would print twice).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if out.is_empty() {
+            out = text;
+        } else if !out.ends_with(&text) {
+            out.push_str(": ");
+            out.push_str(&text);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::error_chain;
+
+    #[test]
+    fn a_cause_already_in_its_message_prints_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        let e = anyhow::Error::new(io).context("model.palpa: no such file");
+        let e = e.context("loading model.palpa");
+        assert_eq!(
+            error_chain(&e),
+            "loading model.palpa: model.palpa: no such file"
+        );
+        let plain = anyhow::anyhow!("bad flag").context("parsing");
+        assert_eq!(error_chain(&plain), "parsing: bad flag");
     }
 }
 
