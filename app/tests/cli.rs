@@ -329,8 +329,9 @@ fn eval_on_the_default_scene() {
 /// What cannot be pressed or measured is refused before any work, naming the flag: an
 /// infinite force (it once printed nulls and succeeded), a tissue depth grid of no
 /// step under `offline --model` (once refused only after the scene's build), a
-/// tradeoff at no held-out point (once ran on); a missing file is named once, its
-/// cause not repeated.
+/// tradeoff at no held-out point (once ran on), a synthetic model of no rows or one
+/// larger than memory (once an abort); a missing file is named once, its cause not
+/// repeated.
 #[test]
 fn what_cannot_be_pressed_is_refused_by_flag() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -363,6 +364,23 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             "expected at least one point",
         ),
         (vec!["cme", "eval", missing, "--t", "1"], "missing.palpa"),
+        (
+            vec!["synth", "--rows", "0", "--out", out_s],
+            "at least one row and one mode",
+        ),
+        // Once an aborted allocation (80 PB).
+        (
+            vec![
+                "synth",
+                "--rows",
+                "100000000000",
+                "--modes",
+                "100000",
+                "--out",
+                out_s,
+            ],
+            "memory available",
+        ),
     ] {
         let run = palpa(&args);
         let err = String::from_utf8_lossy(&run.stderr);

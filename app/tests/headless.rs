@@ -62,6 +62,11 @@ fn headless_bad_input_gets_clear_errors() {
         (vec!["--size".into(), "big".into()], "WIDTHxHEIGHT"),
         (vec!["--frames".into(), "0".into()], "at least one frame"),
         (vec!["--fps".into(), "NaN".into()], "frame rate"),
+        (vec!["--modes".into(), "0".into()], "at least one mode"),
+        (
+            vec!["--colormap-mm=-1".into()],
+            "expected a positive displacement",
+        ),
         (
             vec![
                 "--scene".into(),

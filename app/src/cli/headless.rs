@@ -109,6 +109,12 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
             args.fps
         );
     }
+    if args.modes == Some(0) {
+        bail!("--modes 0: expected at least one mode");
+    }
+    if let Some(mm) = args.colormap_mm.filter(|mm| !(mm.is_finite() && *mm > 0.0)) {
+        bail!("--colormap-mm {mm}: expected a positive displacement (mm) for the colormap's top");
+    }
     if palpa_app::scenes::is_network(&args.scene) {
         return run_network(args, size);
     }

@@ -24,6 +24,27 @@ pub struct SynthArgs {
 }
 
 pub fn run(args: &SynthArgs) -> anyhow::Result<()> {
+    if args.rows == 0 || args.modes == 0 {
+        anyhow::bail!(
+            "--rows {} --modes {}: expected at least one row and one mode",
+            args.rows,
+            args.modes
+        );
+    }
+    // The spatial block alone is rows × modes values: refuse what memory cannot hold
+    // rather than abort on a failed allocation.
+    let bytes = (args.rows as f64) * (args.modes as f64) * args.precision.bytes() as f64;
+    let available = super::memory::available_bytes().map_or(f64::INFINITY, |b| b as f64);
+    if bytes > available / 2.0 {
+        anyhow::bail!(
+            "--rows {} --modes {}: {:.1} GB of values, {:.1} GB of memory available: expected a \
+             model that fits in half of it",
+            args.rows,
+            args.modes,
+            bytes / 1e9,
+            available / 1e9
+        );
+    }
     let save = |r: Result<(), palpa_core::FileError>| {
         r.with_context(|| format!("writing {}", args.out.display()))
     };
