@@ -329,9 +329,9 @@ fn eval_on_the_default_scene() {
 /// What cannot be pressed or measured is refused before any work, naming the flag: an
 /// infinite force (it once printed nulls and succeeded), a tissue depth grid of no
 /// step under `offline --model` (once refused only after the scene's build), a
-/// tradeoff at no held-out point (once ran on), a synthetic model of no rows or one
-/// larger than memory (once an abort); a missing file is named once, its cause not
-/// repeated.
+/// tradeoff at no held-out point (once ran on), an exported scene of no modes (once
+/// written), a synthetic model of no rows or one larger than memory (once an abort);
+/// a missing file is named once, its cause not repeated.
 #[test]
 fn what_cannot_be_pressed_is_refused_by_flag() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -364,6 +364,10 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             "expected at least one point",
         ),
         (vec!["cme", "eval", missing, "--t", "1"], "missing.palpa"),
+        (
+            vec!["export-scene", scene, "--modes", "0", "--out", out_s],
+            "at least one mode",
+        ),
         (
             vec!["synth", "--rows", "0", "--out", out_s],
             "at least one row and one mode",

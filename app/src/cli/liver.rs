@@ -749,6 +749,9 @@ fn parse_near_bits(s: &str) -> Result<u32, String> {
 }
 
 pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
+    if args.modes == Some(0) {
+        bail!("--modes 0: expected at least one mode to keep");
+    }
     let m = file::load_any(&args.file)
         .with_context(|| format!("loading {}", args.file.display()))?
         .into_f64();
