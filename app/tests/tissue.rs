@@ -904,7 +904,7 @@ fn a_nearly_incompressible_tissue_meets_the_goals_on_its_own_scene() {
 
 /// Bad build options are named before any press: a region that is not X,Y,Z,R, a
 /// bound that is not a length, bits other than 8 or 16, no press threads, a depth grid
-/// of no step (it once said "depth 0 mm is not finite", after starting the presses).
+/// of no step (it once said "depth 0 mm is not finite").
 /// `tissue check` and `tissue points` likewise refuse depths that do not press (one
 /// of −1 mm once ran Newton for minutes) and no points at all.
 #[test]
