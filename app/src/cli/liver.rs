@@ -159,7 +159,12 @@ fn journal_path(out: &Path) -> PathBuf {
 pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     if args.model != TissueModel::Linear {
         // Refused before the scene's minutes of work, not after them.
-        palpa_core::fe::depth_grid_points(args.depth_max_mm, 1.0, 256).context("--depth-max-mm")?;
+        palpa_core::fe::depth_grid_points(
+            args.depth_max_mm,
+            1.0,
+            palpa_core::pgd::surfacelaw::MAX_GRID_POINTS,
+        )
+        .context("--depth-max-mm")?;
     }
     if args.method == MethodArg::Nodal {
         return offline_nodal(args);

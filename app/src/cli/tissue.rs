@@ -14,7 +14,8 @@ use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{
-    DEFAULT_REFINE_ABOVE_MM, PressCount, SurfaceLaw, SurfaceLawOptions, follow_at, press_at,
+    DEFAULT_REFINE_ABOVE_MM, MAX_GRID_POINTS, PressCount, SurfaceLaw, SurfaceLawOptions, follow_at,
+    press_at,
 };
 use palpa_core::pgd::tissue::{
     BLEND_SURPLUS_WARN_MM, BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, PointIndex,
@@ -433,7 +434,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             args.tolerance_mm
         );
     }
-    palpa_core::fe::depth_grid_points(args.depth_max_mm, args.depth_step_mm, 256)
+    palpa_core::fe::depth_grid_points(args.depth_max_mm, args.depth_step_mm, MAX_GRID_POINTS)
         .context("--depth-max-mm, --depth-step-mm")?;
     let options = SurfaceLawOptions {
         law: args.model.law(),

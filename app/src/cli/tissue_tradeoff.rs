@@ -85,9 +85,6 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
     if s.depths_mm.is_empty() || s.depths_mm.iter().any(|d| !(d.is_finite() && *d > 0.0)) {
         anyhow::bail!("--depths {:?}: expected positive depths (mm)", s.depths_mm);
     }
-    if s.heldout == 0 {
-        anyhow::bail!("--held-out 0: expected at least one point to measure at");
-    }
     let (bound, scene) = bound_to_scene(file, s.scene)?;
     let organ = s.organ.mesh()?;
     let law = bound.law;

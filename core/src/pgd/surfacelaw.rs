@@ -42,6 +42,9 @@ mod refine;
 pub use press::{PointPress, follow_at, organ_vertex_normals, path_options, press_at, tool_load};
 pub(crate) use presser::logged_press_ids;
 pub use refine::{COVER_SLACK_MM, DEFAULT_REFINE_ABOVE_MM, Refinement, covering_vertices};
+
+/// The most points (depth 0 included) of a press's depth grid.
+pub const MAX_GRID_POINTS: usize = 256;
 pub(crate) use refine::{
     PressPoint, Source, node_peak, palpable_at, palpable_edges, refine_candidates, refine_plan,
     worst_first,
@@ -286,7 +289,7 @@ impl SurfaceLaw {
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         use std::sync::atomic::AtomicUsize;
         let o = options;
-        let steps = crate::fe::depth_grid_points(o.depth_max_mm, o.depth_step_mm, 256)?;
+        let steps = crate::fe::depth_grid_points(o.depth_max_mm, o.depth_step_mm, MAX_GRID_POINTS)?;
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;
