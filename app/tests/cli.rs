@@ -513,6 +513,38 @@ fn cme_errors_are_clear() {
             "increasing order",
         ),
         (
+            vec!["cme", "solve", "toggle", "--method", "fsp", "--t", "-1"],
+            "expected finite times ≥ 0",
+        ),
+        (
+            vec![
+                "cme",
+                "solve",
+                "toggle",
+                "--method",
+                "fsp",
+                "--t",
+                "1",
+                "--max-leak",
+                "nan",
+            ],
+            "--max-leak NaN: expected a probability",
+        ),
+        (
+            vec![
+                "cme",
+                "solve",
+                "toggle",
+                "--method",
+                "fsp",
+                "--t",
+                "1",
+                "--max-leak",
+                "-1",
+            ],
+            "--max-leak -1: expected a probability",
+        ),
+        (
             vec![
                 "cme", "solve", "toggle", "--method", "fsp", "--param", "delta", "--t", "1",
             ],
@@ -531,6 +563,27 @@ fn cme_errors_are_clear() {
             "{args:?}: {err}"
         );
     }
+}
+
+/// The exact solve to t = 10¹² (days of stepping) stops where the toggle's law settles
+/// and says so; the answer is the one at t = 10⁴ (2 500 relaxation times).
+#[test]
+fn fsp_at_a_very_long_time_says_where_it_settled() {
+    let out = palpa(&[
+        "cme", "solve", "toggle", "--method", "fsp", "--t", "1e4,1e12", "--json",
+    ]);
+    let v = common::json_ok(&out);
+    let settled = v["settled_at"].as_f64().expect("settled_at");
+    assert!(settled > 0.0 && settled < 1e4, "settled at {settled}");
+    let mean = |j: usize| v["mean"][j][0].as_f64().expect("mean");
+    assert!(
+        (mean(0) - mean(1)).abs() < 1e-9,
+        "{} vs {}",
+        mean(0),
+        mean(1)
+    );
+    let leak = v["leaked"][1].as_f64().expect("leak");
+    assert!(leak < 1e-6, "leak {leak}");
 }
 
 #[test]

@@ -328,7 +328,12 @@ pub struct SolveArgs {
     #[arg(long = "param")]
     params: Vec<String>,
     /// Output times, comma-separated.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required = true,
+        allow_hyphen_values = true
+    )]
     t: Vec<f64>,
     /// SSA trajectories.
     #[arg(long, default_value_t = 10_000)]
@@ -340,7 +345,7 @@ pub struct SolveArgs {
     #[arg(long)]
     auto_box: bool,
     /// FSP: the leak above which the box is reported as too small.
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, default_value_t = 1e-6, allow_hyphen_values = true)]
     max_leak: f64,
     /// Print one JSON object.
     #[arg(long)]
@@ -368,6 +373,10 @@ struct Report {
     leaked: Option<Vec<f64>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     box_sizes: Option<Vec<usize>>,
+    /// FSP: the time from which the solution kept its shape; later times were not
+    /// stepped to (`fsp::Settling`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    settled_at: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     trajectories: Option<usize>,
     /// `palpa cme eval --check-fsp`: L1 distance of the joint to FSP's at each time.
@@ -507,7 +516,14 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
             args.t
         );
     }
+    if !(args.max_leak > 0.0 && args.max_leak < 1.0) {
+        bail!(
+            "--max-leak {}: expected a probability between 0 and 1",
+            args.max_leak
+        );
+    }
     let start = Instant::now();
+    let mut settled_at = None;
     let (method, moments, leaked, box_sizes, trajectories): (_, Vec<Moments>, _, _, _) = match args
         .method
     {
@@ -526,6 +542,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
                     sol.sizes, args.max_leak
                 ));
             }
+            settled_at = sol.settled_at;
             ("fsp", sol.moments, Some(sol.leak), Some(sol.sizes), None)
         }
         Method::Ssa => {
@@ -597,6 +614,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         var_se: moments.iter().map(|m| m.var_se.clone()).collect(),
         leaked,
         box_sizes,
+        settled_at,
         trajectories,
         l1_joint_vs_fsp: None,
         most_negative: None,
@@ -634,6 +652,13 @@ fn print_report(report: &Report, json: bool) -> anyhow::Result<()> {
                 })
                 .collect();
             println!("t = {t}: {}", parts.join(" · "));
+        }
+        if let Some(at) = report.settled_at {
+            println!(
+                "settled at t ≈ {at:.4e}: its shape no longer changed (L1 < {:.0e} a step), \
+                 so later times keep it, their mass decaying at its leak rate",
+                fsp::SETTLE_L1
+            );
         }
     }
     Ok(())
@@ -754,6 +779,7 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
         var_se: None,
         leaked: Some(moments.iter().map(|m| 1.0 - m.mass).collect()),
         box_sizes: None,
+        settled_at: None,
         trajectories: None,
         l1_joint_vs_fsp: None,
         most_negative: Some(negatives),

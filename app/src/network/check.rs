@@ -9,7 +9,7 @@
 use std::time::Instant;
 
 use anyhow::Context;
-use palpa_core::cme::fsp::Generator;
+use palpa_core::cme::fsp::{Generator, Settling};
 use palpa_core::cme::network::Network;
 use palpa_core::cme::ssa;
 
@@ -61,12 +61,14 @@ pub fn start_exact(
         let mut prob = vec![0.0; generator.states()];
         prob[start] = 1.0;
         let dt = t.max(0.0) / SLICES as f64;
+        // Kept across slices: once the law settles, the rest of a long time is free.
+        let mut settling = Settling::default();
         for k in 0..SLICES {
             if ctx.cancelled() {
                 return Err("cancelled".into());
             }
             if dt > 0.0 {
-                generator.advance(&mut prob, dt);
+                generator.advance_settling(&mut prob, dt, &mut settling);
             }
             ctx.progress((k + 1) as f64 / SLICES as f64);
         }

@@ -77,6 +77,8 @@ pub struct Generator {
     cols: Vec<u32>,
     vals: Vec<f64>,
     diag: Vec<f64>,
+    /// Each state's rate of leaving the box (reactions that would carry it out).
+    exit: Vec<f64>,
     /// The box index of each state, when only the states reachable from a start are
     /// kept ([`Generator::reachable`]); `None`: every state of the box, in box order.
     index: Option<Vec<usize>>,
@@ -97,6 +99,7 @@ impl Generator {
         let mut cols = Vec::with_capacity(n * network.reactions.len());
         let mut vals = Vec::with_capacity(n * network.reactions.len());
         let mut diag = vec![0.0; n];
+        let mut exit = vec![0.0; n];
         let mut z = vec![0i64; d];
         let mut src = vec![0i64; d];
         row_start.push(0);
@@ -107,7 +110,15 @@ impl Generator {
                 rem /= sizes[i];
             }
             for (r, re) in network.reactions.iter().enumerate() {
-                diag[row] -= network.propensity(r, &z, p);
+                let out = network.propensity(r, &z, p);
+                diag[row] -= out;
+                let leaves = re.change.iter().enumerate().any(|(i, &c)| {
+                    let y = z[i] + i64::from(c);
+                    y < 0 || y >= sizes[i] as i64
+                });
+                if leaves {
+                    exit[row] += out;
+                }
                 // Inflow from z − ν_r, when that state is in the box.
                 let mut inside = true;
                 let mut col = 0usize;
@@ -135,6 +146,7 @@ impl Generator {
             cols,
             vals,
             diag,
+            exit,
             index: None,
         })
     }
@@ -204,6 +216,7 @@ impl Generator {
         // Rows are targets: gather each state's inflows.
         let mut triplets: Vec<(u32, u32, f64)> = Vec::new();
         let mut diag = vec![0.0; queue.len()];
+        let mut exit = vec![0.0; queue.len()];
         for (k, &b) in queue.iter().enumerate() {
             decode(b, &mut z);
             for (r, re) in network.reactions.iter().enumerate() {
@@ -212,8 +225,9 @@ impl Generator {
                 if a == 0.0 || re.change.iter().all(|&c| c == 0) {
                     continue;
                 }
-                if let Some(to) = target(&z, re) {
-                    triplets.push((local[to], k as u32, a));
+                match target(&z, re) {
+                    Some(to) => triplets.push((local[to], k as u32, a)),
+                    None => exit[k] += a,
                 }
             }
         }
@@ -233,6 +247,7 @@ impl Generator {
             cols: triplets.iter().map(|t| t.1).collect(),
             vals: triplets.iter().map(|t| t.2).collect(),
             diag,
+            exit,
             index: Some(queue),
         })
     }
@@ -363,7 +378,15 @@ impl Generator {
         }
     }
 
-    /// Advances `p` by `dt` (exact up to a 1e-15 tail and round-off).
+    /// Advances `p` by `dt` (exact up to a 1e-15 tail and round-off), stepping all the
+    /// way (see [`Self::advance_settling`] for what stepping costs and how).
+    pub fn advance(&self, p: &mut Vec<f64>, dt: f64) {
+        self.step(p, dt, None);
+    }
+
+    /// Advances `p` by `dt`, remembering in `settling` whether the distribution has
+    /// stopped changing shape (see [`Settling`]); once it has, the rest of the time
+    /// costs nothing: `p` keeps its shape and its mass decays at the rate measured.
     ///
     /// The Poisson weights are carried as logarithms, `ln w_k = −λ + Σ_{j≤k} ln(λ/j)`,
     /// so a step can be long (`λ = qΔ` up to [`MAX_STEP_LAMBDA`]) without `e^{−λ}`
@@ -374,17 +397,26 @@ impl Generator {
     /// `Bᵏ p` has L1 norm at most that of `p`, so that bounds the truncation in L1. The
     /// sum is divided by the weights' own sum, which removes the rounding the log
     /// sums share.
-    pub fn advance(&self, p: &mut Vec<f64>, dt: f64) {
+    pub fn advance_settling(&self, p: &mut Vec<f64>, dt: f64, settling: &mut Settling) {
+        self.step(p, dt, Some(settling));
+    }
+
+    fn step(&self, p: &mut Vec<f64>, dt: f64, mut settling: Option<&mut Settling>) {
         if dt.is_nan() || dt <= 0.0 {
+            return;
+        }
+        if let Some(settled) = settling.as_ref().and_then(|s| s.settled) {
+            settled.decay(p, dt);
             return;
         }
         let q = self.diag.iter().fold(0.0f64, |m, d| m.max(-d)) * 1.02 + 1e-12;
         let steps = (q * dt / MAX_STEP_LAMBDA).ceil().max(1.0);
         let lambda = q * dt / steps;
+        let step_dt = dt / steps;
         let mut term = vec![0.0; p.len()];
         let mut next = vec![0.0; p.len()];
         let mut acc = vec![0.0; p.len()];
-        for _ in 0..steps as usize {
+        for step in 0..steps as usize {
             term.copy_from_slice(p);
             let mut log_w = -lambda;
             let w0 = log_w.exp();
@@ -409,10 +441,99 @@ impl Generator {
             // times, unnormalized) is divided out.
             let norm = 1.0 / weight_sum;
             acc.iter_mut().for_each(|a| *a *= norm);
+            let settled = settling.as_mut().and_then(|s| {
+                s.observe(p, &acc, lambda, step_dt, &self.exit);
+                s.settled
+            });
             std::mem::swap(p, &mut acc);
+            if let Some(settled) = settled {
+                settled.decay(p, step_dt * (steps - 1.0 - step as f64));
+                return;
+            }
         }
     }
 }
+
+/// Whether an FSP solution has stopped changing shape, judged step by step.
+///
+/// A long uniformization step (`qΔ ≥` [`SETTLE_MIN_LAMBDA`]: at least 2 500 jumps of
+/// the fastest state) that moves the normalized distribution `P/ΣP` by less than
+/// [`SETTLE_L1`] in L1, twice in a row, marks it settled: from then on `P` keeps its
+/// shape and its mass decays as `e^{−μ t}`, `μ = Σ_z exit(z) P(z) / Σ P` the rate at
+/// which its probability leaves the box (`exit(z)`: the propensities that carry `z`
+/// out). That is exact for a box at its quasi-stationary law (the generator's leading
+/// eigenvector, which a leaking box decays along) and for a closed box at its
+/// stationary law (`μ = 0`). It is a judgement, not a bound: a mode slower than the
+/// step by a factor `τ/Δ` whose amplitude is below `SETTLE_L1 · τ/Δ` passes unseen
+/// (a switch between the wells of a bistable network rarer than that), so a solution
+/// says where it settled ([`FspSolution::settled_at`]). Why: uniformization costs
+/// `q·t` products, which made a reference at `t = 10⁶` take minutes and `10¹²` days.
+#[derive(Debug, Clone, Default)]
+pub struct Settling {
+    /// Long steps in a row whose shape change was below [`SETTLE_L1`].
+    calm_steps: usize,
+    /// Time stepped so far (the settled time is read from it).
+    elapsed: f64,
+    /// Once settled: the leak rate `μ` (per unit time) the rest decays at.
+    pub settled: Option<Settled>,
+}
+
+/// A settled FSP solution: its mass decays at `decay_per_time`, its shape is kept.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settled {
+    pub decay_per_time: f64,
+    /// Time stepped, from the first call on the same [`Settling`], when it settled.
+    pub at_t: f64,
+}
+
+impl Settled {
+    fn decay(self, p: &mut [f64], dt: f64) {
+        if self.decay_per_time > 0.0 && dt > 0.0 {
+            let f = (-self.decay_per_time * dt).exp();
+            p.iter_mut().for_each(|v| *v *= f);
+        }
+    }
+}
+
+impl Settling {
+    /// Takes one step's `before` and `after` (of length `dt`, `λ = qΔ`); `exit` is
+    /// each state's rate of leaving the box.
+    fn observe(&mut self, before: &[f64], after: &[f64], lambda: f64, dt: f64, exit: &[f64]) {
+        self.elapsed += dt;
+        let m0: f64 = before.iter().sum();
+        let m1: f64 = after.iter().sum();
+        if lambda < SETTLE_MIN_LAMBDA || !(m0 > 0.0 && m1 > 0.0) {
+            self.calm_steps = 0;
+            return;
+        }
+        let change: f64 = before
+            .iter()
+            .zip(after)
+            .map(|(b, a)| (a / m1 - b / m0).abs())
+            .sum();
+        self.calm_steps = if change < SETTLE_L1 {
+            self.calm_steps + 1
+        } else {
+            0
+        };
+        if self.calm_steps >= 2 {
+            // The leak rate of the settled law, `Σ exit·P / ΣP`: read from the
+            // generator, not from two masses (their difference is rounding where the
+            // box barely leaks, and 10⁹ steps of it would be a leak that is not there).
+            let leaving: f64 = after.iter().zip(exit).map(|(p, e)| p * e).sum();
+            self.settled = Some(Settled {
+                decay_per_time: leaving / m1,
+                at_t: self.elapsed,
+            });
+        }
+    }
+}
+
+/// The shape change in L1 below which a long step counts as calm ([`Settling`]).
+pub const SETTLE_L1: f64 = 1e-13;
+
+/// The shortest step (`qΔ`) that can show a distribution settled ([`Settling`]).
+pub const SETTLE_MIN_LAMBDA: f64 = MAX_STEP_LAMBDA / 2.0;
 
 /// The largest `qΔ` of one uniformization step: the log-weights' rounding (about
 /// `k · 1e-16` after `k` terms) stays below 1e-12.
@@ -425,6 +546,9 @@ pub struct FspSolution {
     pub moments: Vec<Moments>,
     /// `1 − Σ P` at each output time.
     pub leak: Vec<f64>,
+    /// The time from which the solution kept its shape ([`Settling`]): later output
+    /// times were not stepped to but decayed there. `None`: stepped all the way.
+    pub settled_at: Option<f64>,
     /// Joint distributions at each output time (species 0 fastest); empty from
     /// [`solve_auto`] and [`solve_kept`] without joints.
     pub joint: Vec<Vec<f64>>,
@@ -460,6 +584,17 @@ pub fn solve_on(
     solve_kept(network, p, sizes, times, true)
 }
 
+/// As [`solve`], but stepped all the way to every time, never judged settled
+/// ([`Settling`]): `q·t` products, for checking a settled solution.
+pub fn solve_stepped(network: &Network, p: &[f64], times: &[f64]) -> Result<FspSolution, FspError> {
+    let sizes = network
+        .species
+        .iter()
+        .map(|s| s.max.ok_or_else(|| FspError::AutoBox(s.name.clone())))
+        .collect::<Result<Vec<_>, _>>()?;
+    solve_box(network, p, &sizes, times, true, false)
+}
+
 /// As [`solve_on`]; the joints are kept only with `keep_joint` (a box of 10⁷ states
 /// at 50 times is 4 GB).
 pub fn solve_kept(
@@ -468,6 +603,18 @@ pub fn solve_kept(
     sizes: &[usize],
     times: &[f64],
     keep_joint: bool,
+) -> Result<FspSolution, FspError> {
+    solve_box(network, p, sizes, times, keep_joint, true)
+}
+
+/// As [`solve_kept`]; with `settle`, the stepping stops where the law settles.
+fn solve_box(
+    network: &Network,
+    p: &[f64],
+    sizes: &[usize],
+    times: &[f64],
+    keep_joint: bool,
+    settle: bool,
 ) -> Result<FspSolution, FspError> {
     check_times(times)?;
     let start: Vec<usize> = network.species.iter().map(|s| s.initial).collect();
@@ -487,9 +634,15 @@ pub fn solve_kept(
         moments: Vec::new(),
         leak: Vec::new(),
         joint: Vec::new(),
+        settled_at: None,
     };
+    let mut settling = Settling::default();
     for &t in times {
-        g.advance(&mut prob, t - now);
+        if settle {
+            g.advance_settling(&mut prob, t - now, &mut settling);
+        } else {
+            g.advance(&mut prob, t - now);
+        }
         now = t;
         let m = g.moments(t, &prob);
         out.leak.push((1.0 - m.mass).max(0.0));
@@ -498,6 +651,7 @@ pub fn solve_kept(
             out.joint.push(g.to_box(&prob));
         }
     }
+    out.settled_at = settling.settled.map(|s| s.at_t);
     Ok(out)
 }
 
@@ -558,8 +712,11 @@ pub fn solve_auto(
         moments: Vec::new(),
         leak: Vec::new(),
         joint: Vec::new(),
+        settled_at: None,
     };
     let mut next_output = 0;
+    // Kept across stretches; a new box starts judging afresh.
+    let mut settling = Settling::default();
     for &t in &stops {
         let allowed = if t_end > 0.0 {
             max_leak * t / t_end
@@ -568,10 +725,12 @@ pub fn solve_auto(
         };
         loop {
             let mut trial = prob.clone();
-            g.advance(&mut trial, t - now);
+            let mut trial_settling = settling.clone();
+            g.advance_settling(&mut trial, t - now, &mut trial_settling);
             let leak = 1.0 - trial.iter().sum::<f64>();
             if leak <= allowed || !met {
                 prob = trial;
+                settling = trial_settling;
                 break;
             }
             let m = g.moments(t, &trial);
@@ -616,6 +775,10 @@ pub fn solve_auto(
             let wider = Generator::reachable(network, p, &grown, &start)?;
             prob = g.embed(&prob, &wider);
             (g, sizes) = (wider, grown);
+            settling = Settling {
+                elapsed: now,
+                ..Settling::default()
+            };
         }
         now = t;
         while next_output < times.len() && times[next_output] == t {
@@ -631,6 +794,7 @@ pub fn solve_auto(
         }
     }
     out.sizes = sizes;
+    out.settled_at = settling.settled.map(|s| s.at_t);
     Ok((out, met))
 }
 
