@@ -132,6 +132,21 @@ fn a_settled_fsp_solution_is_what_stepping_gives() {
     }
 }
 
+/// Rates of 10⁹: the box of 60 empties within a fraction of the time (every count
+/// is carried past its top), and the exact solve says so: leak 1, settled at once,
+/// where stepping on would take 10⁹/5 000 steps of nothing.
+#[test]
+fn huge_rates_empty_the_box_and_the_exact_solve_says_so() {
+    let net = Network::from_toml(IMMIGRATION_DEATH, "test").expect("parses");
+    let (p, _) = net.parameter_values(&[("k".into(), 1e9)]).expect("values");
+    let sol = fsp::solve(&net, &p, &[1.0]).expect("solves");
+    let settled = sol.settled_at.expect("settles");
+    println!("leak {:e}, settled at {settled:e}", sol.leak[0]);
+    assert!(settled < 1e-3, "settled at {settled}");
+    assert!(sol.leak[0] > 1.0 - 1e-12, "leak {}", sol.leak[0]);
+    assert!(sol.moments[0].marginals[0].iter().all(|v| v.is_finite()));
+}
+
 /// Rates of 10⁻¹² per unit time: over t = 100 nothing happens (the point mass stays,
 /// to 1e-9) in the exact solve and in every simulated path, with nothing non-finite.
 #[test]

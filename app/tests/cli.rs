@@ -546,6 +546,20 @@ fn cme_errors_are_clear() {
         ),
         (
             vec![
+                "cme",
+                "solve",
+                "toggle",
+                "--method",
+                "ssa",
+                "--t",
+                "1",
+                "--trajectories",
+                "100000000000",
+            ],
+            "expected a run that fits in half of it",
+        ),
+        (
+            vec![
                 "cme", "solve", "toggle", "--method", "fsp", "--param", "delta", "--t", "1",
             ],
             "NAME=VALUE",

@@ -549,11 +549,30 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
             if args.trajectories < 2 {
                 bail!("--trajectories {}: expected at least 2", args.trajectories);
             }
+            // Each path keeps its state at every output time (and the moments a copy).
+            let bytes =
+                args.trajectories as f64 * (args.t.len() * network.species.len()) as f64 * 16.0;
+            let available = super::memory::available_bytes().map_or(f64::INFINITY, |b| b as f64);
+            if bytes > 0.5 * available {
+                bail!(
+                    "--trajectories {}: {:.1} GB of recorded states, {:.1} GB of memory available: \
+                     expected a run that fits in half of it",
+                    args.trajectories,
+                    bytes / 1e9,
+                    available / 1e9
+                );
+            }
             let sol = ssa::simulate(&network, &p, &args.t, args.trajectories, args.seed);
             if sol.truncated > 0 {
                 warnings.push(format!(
-                    "{} trajectories hit the event limit",
-                    sol.truncated
+                    "{} of {} trajectories were stopped by the event limit ({:.0e} reactions a \
+                     path, {:.0e} a run) and hold the state where they stopped: these moments \
+                     are not the CME's; the rates times the time are too large for SSA (use \
+                     --method fsp or pgd)",
+                    sol.truncated,
+                    sol.trajectories,
+                    ssa::MAX_EVENTS as f64,
+                    ssa::MAX_RUN_EVENTS as f64
                 ));
             }
             ("ssa", sol.moments, None, None, Some(sol.trajectories))

@@ -502,6 +502,14 @@ impl Settling {
         self.elapsed += dt;
         let m0: f64 = before.iter().sum();
         let m1: f64 = after.iter().sum();
+        if m1 <= 0.0 {
+            // Everything has left the box: nothing is left to move.
+            self.settled = Some(Settled {
+                decay_per_time: 0.0,
+                at_t: self.elapsed,
+            });
+            return;
+        }
         if lambda < SETTLE_MIN_LAMBDA || !(m0 > 0.0 && m1 > 0.0) {
             self.calm_steps = 0;
             return;
