@@ -569,6 +569,12 @@ fn cme_errors_are_clear() {
             vec!["cme", "offline", "toggle", "--t-end=-1", "--out", "x.palpa"],
             "invalid time grid",
         ),
+        (
+            vec![
+                "cme", "offline", "toggle", "--t-end", "1e9", "--out", "x.palpa",
+            ],
+            "needs at least 2.000e8 steps",
+        ),
     ] {
         let out = palpa(&args);
         let err = String::from_utf8_lossy(&out.stderr);

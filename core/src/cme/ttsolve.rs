@@ -442,8 +442,10 @@ fn run(
             sweeps: r.sweeps,
             history_rank: store.as_ref().map_or(0, |s| s.max_rank()),
         });
-        if k > 200_000 {
-            return Err(CmePgdError::TimeGrid("more than 200 000 time steps".into()));
+        if k > MAX_STEPS {
+            return Err(CmePgdError::TimeGrid(format!(
+                "more than {MAX_STEPS} time steps"
+            )));
         }
     }
     report.steps = k;
@@ -504,8 +506,21 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
             options.max_rank
         )));
     }
+    // No step is longer than the largest: refuse before stepping what cannot end.
+    let fewest = options.t_end / options.h_max;
+    if fewest > MAX_STEPS as f64 {
+        return Err(CmePgdError::TimeGrid(format!(
+            "t_end {} in steps of at most {} needs at least {fewest:.3e} steps; expected at \
+             most {MAX_STEPS}: raise the largest step or shorten the time",
+            options.t_end, options.h_max
+        )));
+    }
     Ok(())
 }
+
+/// The most BDF2 steps a solve takes: about 5 minutes for the toggle switch here
+/// (1.4 ms a step to t = 10⁴), one stored state a step.
+const MAX_STEPS: usize = 200_000;
 
 /// The generator in the solver's axis order, as local terms and as an operator, and
 /// the initial state.
