@@ -363,6 +363,11 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             vec!["tradeoff", tissue, "--held-out", "0"],
             "expected at least one point",
         ),
+        // Once 22 s of building, then a stencil's capacity.
+        (
+            vec!["offline", "liver", "--radius-mm", "300", "--out", out_s],
+            "the tool (radius 300 mm) covers more than 1024 load nodes",
+        ),
         (vec!["cme", "eval", missing, "--t", "1"], "missing.palpa"),
         (
             vec!["export-scene", scene, "--modes", "0", "--out", out_s],

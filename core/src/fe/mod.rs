@@ -189,6 +189,16 @@ pub enum FeError {
     PointNotFinite { point: [f64; 3] },
     #[error("invalid load: tool radius {radius_mm} mm must be finite and positive")]
     ToolRadius { radius_mm: f64 },
+    #[error(
+        "the tool (radius {radius_mm} mm) covers more than {most} load nodes of an organ \
+         {across_mm:.1} mm across: expected a tool a few times smaller than the organ (check \
+         the tool radius, or the surface file's units)"
+    )]
+    ToolTooLarge {
+        radius_mm: f64,
+        most: usize,
+        across_mm: f64,
+    },
     #[error("invalid press: depth {depth_mm} mm is not finite")]
     DepthNotFinite { depth_mm: f64 },
     #[error(

@@ -218,6 +218,23 @@ pub fn setup(
         field_nodes: load_nodes.clone(),
         radius_mm,
     };
+    // A tool as large as the organ would fail deep in the build (the compliance table's
+    // stencils hold MAX_LOAD_NODES): refuse it here, at each palpable face's centroid.
+    let full = (0..load_faces.len()).into_par_iter().any(|f| {
+        let mut shares = vec![(0u32, 0.0f64); MAX_LOAD_NODES];
+        matches!(
+            axis.load_shares(f as u32, [1.0 / 3.0; 3], &mut shares),
+            Err(AxisError::StencilFull { .. })
+        )
+    });
+    if full {
+        let (lo, hi) = crate::mesh::bounds_of(&space.nodes);
+        return Err(FeError::ToolTooLarge {
+            radius_mm,
+            most: MAX_LOAD_NODES,
+            across_mm: norm(sub(hi, lo)),
+        });
+    }
     let surface_nodes = organ.surface_nodes();
     Ok(NodalSetup {
         space,
