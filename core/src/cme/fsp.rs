@@ -474,7 +474,7 @@ pub struct Settling {
     calm_steps: usize,
     /// Time stepped so far (the settled time is read from it).
     elapsed: f64,
-    /// Once settled: the leak rate `μ` (per unit time) the rest decays at.
+    /// Once settled: when, and the rate the rest decays at.
     pub settled: Option<Settled>,
 }
 
@@ -510,7 +510,7 @@ impl Settling {
             });
             return;
         }
-        if lambda < SETTLE_MIN_LAMBDA || !(m0 > 0.0 && m1 > 0.0) {
+        if lambda < SETTLE_MIN_LAMBDA || !(m0 > 0.0) {
             self.calm_steps = 0;
             return;
         }
@@ -574,12 +574,16 @@ fn check_times(times: &[f64]) -> Result<(), FspError> {
 
 /// Solves on the network's own box from its initial point mass.
 pub fn solve(network: &Network, p: &[f64], times: &[f64]) -> Result<FspSolution, FspError> {
-    let sizes = network
+    solve_on(network, p, &own_box(network)?, times)
+}
+
+/// The network's own box: every species' `max`.
+fn own_box(network: &Network) -> Result<Vec<usize>, FspError> {
+    network
         .species
         .iter()
         .map(|s| s.max.ok_or_else(|| FspError::AutoBox(s.name.clone())))
-        .collect::<Result<Vec<_>, _>>()?;
-    solve_on(network, p, &sizes, times)
+        .collect()
 }
 
 /// Solves on the box `sizes` (on the states reachable from the initial one).
@@ -595,12 +599,7 @@ pub fn solve_on(
 /// As [`solve`], but stepped all the way to every time, never judged settled
 /// ([`Settling`]): `q·t` products, for checking a settled solution.
 pub fn solve_stepped(network: &Network, p: &[f64], times: &[f64]) -> Result<FspSolution, FspError> {
-    let sizes = network
-        .species
-        .iter()
-        .map(|s| s.max.ok_or_else(|| FspError::AutoBox(s.name.clone())))
-        .collect::<Result<Vec<_>, _>>()?;
-    solve_box(network, p, &sizes, times, true, false)
+    solve_box(network, p, &own_box(network)?, times, true, false)
 }
 
 /// As [`solve_on`]; the joints are kept only with `keep_joint` (a box of 10⁷ states
