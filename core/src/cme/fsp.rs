@@ -510,7 +510,7 @@ impl Settling {
             });
             return;
         }
-        if lambda < SETTLE_MIN_LAMBDA || !(m0 > 0.0) {
+        if lambda < SETTLE_MIN_LAMBDA || m0 <= 0.0 {
             self.calm_steps = 0;
             return;
         }
