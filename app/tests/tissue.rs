@@ -944,6 +944,10 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
             "expected finite depths above 0 mm",
         ),
         (&["check", "--depths", "2,nan"][..], "NaN mm"),
+        (
+            &["check", "--depths", "1e9"][..],
+            "expected depths up to 30 mm, twice the vademecum's deepest (15 mm)",
+        ),
         (&["check", "--heldout", "0"][..], "at least one point"),
         (&["points", "--heldout", "0"][..], "at least one point"),
     ] {

@@ -550,6 +550,16 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     }
     let (bound, scene) = bound_to_scene(&args.tissue, &args.scene)?;
     let o = bound.law.options;
+    // Past its deepest depth the vademecum holds and flags; a check a little beyond
+    // shows that, but Newton far beyond pushes the tool through the organ for hours.
+    let deepest_check_mm = 2.0 * o.depth_max_mm;
+    if let Some(d) = args.depths.iter().find(|d| **d > deepest_check_mm) {
+        bail!(
+            "--depths: {d} mm: expected depths up to {deepest_check_mm} mm, twice the \
+             vademecum's deepest ({} mm)",
+            o.depth_max_mm
+        );
+    }
     let organ = args.organ.mesh()?;
     let law = &bound.law;
     let mut scratch = bound.scratch();
