@@ -551,7 +551,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     let (bound, scene) = bound_to_scene(&args.tissue, &args.scene)?;
     let o = bound.law.options;
     // Past its deepest depth the vademecum holds and flags; a check a little beyond
-    // shows that, but Newton far beyond pushes the tool through the organ for hours.
+    // shows that, but Newton far beyond would push the tool through the organ.
     let deepest_check_mm = 2.0 * o.depth_max_mm;
     if let Some(d) = args.depths.iter().find(|d| **d > deepest_check_mm) {
         bail!(
