@@ -29,6 +29,30 @@ rate = ["g"]
 factors = [{ species = "x", kind = "linear" }]
 "#;
 
+/// Rates of 10⁹ to t = 1 would be 10⁹ reactions a path: a run's budget stops every
+/// path soon after it is spent, and says so; an ordinary run under the same budget
+/// is the unbounded run, path for path.
+#[test]
+fn an_ssa_run_stops_at_its_event_budget_and_says_so() {
+    let net = Network::from_toml(IMMIGRATION_DEATH, "test").expect("parses");
+    let (fast, _) = net.parameter_values(&[("k".into(), 1e9)]).expect("values");
+    let budget = 1_000_000;
+    let sol = ssa::simulate_within(&net, &fast, &[1.0], 50, 3, budget);
+    assert_eq!(sol.truncated, 50);
+    assert!(
+        sol.events <= budget + 2 * 50 * 4_096,
+        "{} events",
+        sol.events
+    );
+
+    let (p, _) = net.parameter_values(&[]).expect("defaults");
+    let bounded = ssa::simulate_within(&net, &p, &[10.0], 100, 3, budget);
+    let free = ssa::simulate(&net, &p, &[10.0], 100, 3);
+    assert_eq!(bounded.truncated, 0);
+    assert_eq!(bounded.events, free.events);
+    assert_eq!(bounded.moments[0].marginals, free.moments[0].marginals);
+}
+
 #[test]
 fn fsp_reproduces_the_immigration_death_closed_form() {
     // From 0 copies the law at time t is Poisson with mean (k/g)(1 − e^{−g t}).
