@@ -93,11 +93,69 @@ fn bench_eval_prints_one_json_object_per_configuration() {
     assert_eq!(lines[1]["rows"], 600);
 }
 
+/// Every benchmark refuses, before it measures anything, what would abort it or make
+/// its table meaningless (some tables take an hour), naming the flag.
 #[test]
-fn bench_eval_rejects_zero_sizes() {
-    let out = palpa(&["bench", "eval", "--rows", "0", "--min-time-ms", "1"]);
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("must be positive"));
+fn benchmarks_refuse_bad_options_up_front() {
+    let cases: [(&[&str], &str); 8] = [
+        (
+            &["bench", "eval", "--rows", "0", "--min-time-ms", "1"],
+            "must be positive",
+        ),
+        // 1.6 TB of values: refused rather than an allocation failure.
+        (
+            &["bench", "eval", "--rows", "1000000000", "--modes", "400"],
+            "memory available",
+        ),
+        (
+            &["bench", "fe", "--only", "dept"],
+            "--only dept: no such table",
+        ),
+        (&["bench", "fe", "--depth-mm", "nan"], "--depth-mm NaN"),
+        (&["bench", "fe", "--series-positions", "11"], "at most 10"),
+        (
+            &[
+                "bench",
+                "fe",
+                "--reduced-first",
+                "3",
+                "--reduced-triangles",
+                "2",
+            ],
+            "only 4",
+        ),
+        (&["bench", "offline", "--modes", "0"], "--modes 0"),
+        (&["bench", "offline", "--block", "4,0"], "--block [4, 0]"),
+    ];
+    for (args, expected) in cases {
+        let out = palpa(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+    // A zero minimum time still measures each quantity once (no `inf`).
+    let out = palpa(&[
+        "bench",
+        "eval",
+        "--rows",
+        "30",
+        "--modes",
+        "4",
+        "--precision",
+        "f32",
+        "--min-time-ms",
+        "0",
+        "--json",
+    ]);
+    assert!(out.status.success());
+    let row: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in ["particularize_ns", "contact_ns"] {
+        assert!(
+            row[key].as_f64().is_some_and(f64::is_finite),
+            "{key}: {row}"
+        );
+    }
 }
 
 /// `palpa offline` killed with SIGKILL mid-run resumes from its journal, loses at most

@@ -89,6 +89,25 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     if args.rows.iter().chain(&args.modes).any(|&v| v == 0) {
         bail!("--rows and --modes must be positive");
     }
+    // Each measured model holds rows × modes values: refuse what memory cannot hold
+    // before the table starts, rather than abort on a failed allocation halfway.
+    let available = super::memory::available_bytes().map_or(f64::INFINITY, |b| b as f64);
+    for &p in &args.precision {
+        for &rows in &args.rows {
+            for &modes in &args.modes {
+                let bytes = rows as f64 * modes as f64 * p.bytes() as f64;
+                if bytes > available / 2.0 {
+                    bail!(
+                        "--rows {rows} --modes {modes} ({}): {:.1} GB of values, {:.1} GB of \
+                         memory available: expected a model that fits in half of it",
+                        p.name(),
+                        bytes / 1e9,
+                        available / 1e9
+                    );
+                }
+            }
+        }
+    }
     if !args.json {
         println!(
             "{:>7} {:>5} {:>4} {:>10} {:>12} {:>12} {:>6} {:>8} {:>8} {:>10} {:>10}",
@@ -220,11 +239,15 @@ fn measure<T: Scalar>(rows: usize, modes: usize, min_time: Duration) -> EvalRow 
 fn mean_ns_per_call(min_time: Duration, n: usize, mut f: impl FnMut(usize)) -> f64 {
     let start = Instant::now();
     let mut calls = 0usize;
-    while start.elapsed() < min_time {
+    // At least one pass, so a zero minimum time still measures something.
+    loop {
         for i in 0..n {
             f(i);
         }
         calls += n;
+        if start.elapsed() >= min_time {
+            break;
+        }
     }
     start.elapsed().as_nanos() as f64 / calls as f64
 }

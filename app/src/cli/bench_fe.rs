@@ -15,6 +15,7 @@
 
 use std::time::Instant;
 
+use anyhow::bail;
 use clap::Args;
 use palpa_core::fe::hyper::Law;
 use palpa_core::fe::newton::NewtonSettings;
@@ -84,7 +85,73 @@ pub struct FeBenchArgs {
     series_laws: Vec<Law>,
 }
 
+/// The tables `--only` may name.
+const TABLES: [&str; 11] = [
+    "cost",
+    "poisson",
+    "positions",
+    "svk",
+    "svk_limit",
+    "depth",
+    "depth_poisson",
+    "series",
+    "depth_law",
+    "surface_law",
+    "reduced",
+];
+
 impl FeBenchArgs {
+    /// Refuses what would make a table meaningless before any table runs (some take
+    /// an hour): a misspelt table name would otherwise run nothing and say nothing.
+    fn validate(&self) -> anyhow::Result<()> {
+        if let Some(t) = self.only.iter().find(|t| !TABLES.contains(&t.as_str())) {
+            bail!(
+                "--only {t}: no such table; expected some of {}",
+                TABLES.join(", ")
+            );
+        }
+        if !(self.depth_mm.is_finite() && self.depth_mm > 0.0) {
+            bail!("--depth-mm {}: expected a finite depth > 0", self.depth_mm);
+        }
+        for (flag, depths) in [
+            ("--series-depths", &self.series_depths),
+            ("--surface-depths", &self.surface_depths),
+        ] {
+            if depths.is_empty() || depths.iter().any(|d| !(d.is_finite() && *d > 0.0)) {
+                bail!("{flag} {depths:?}: expected finite depths > 0 (mm)");
+            }
+        }
+        for (flag, n) in [
+            ("--series-orders", self.series_orders),
+            ("--series-positions", self.series_positions),
+            ("--law-samples", self.law_samples),
+            ("--law-heldout", self.law_heldout),
+            ("--surface-heldout", self.surface_heldout),
+            ("--reduced-triangles", self.reduced_triangles),
+            ("--reduced-refresh", self.reduced_refresh),
+        ] {
+            if n == 0 {
+                bail!("{flag} 0: expected at least 1");
+            }
+        }
+        if self.series_positions > DEPTH_POSITIONS.len() {
+            bail!(
+                "--series-positions {}: expected at most {} (the listed positions)",
+                self.series_positions,
+                DEPTH_POSITIONS.len()
+            );
+        }
+        let near = super::bench_reduced::NEAR.len();
+        if self.reduced_first + self.reduced_triangles > near {
+            bail!(
+                "--reduced-first {} --reduced-triangles {}: only {near} triangles are listed",
+                self.reduced_first,
+                self.reduced_triangles
+            );
+        }
+        Ok(())
+    }
+
     fn wants(&self, table: &str) -> bool {
         let svk = table.starts_with("svk");
         (self.only.is_empty() || self.only.iter().any(|t| t == table)) && !(svk && self.no_svk)
@@ -115,6 +182,7 @@ const DEPTH_POSITIONS: [(&str, [f64; 3]); 10] = [
 ];
 
 pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
+    args.validate()?;
     let levels = [LevelArg::Coarse, LevelArg::Medium, LevelArg::Fine];
     if args.wants("cost") {
         cost(args, &levels)?;

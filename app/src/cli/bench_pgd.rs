@@ -31,8 +31,23 @@ pub struct OfflineBenchArgs {
 }
 
 pub fn run(args: &OfflineBenchArgs) -> anyhow::Result<()> {
+    if args.modes == 0 {
+        anyhow::bail!("--modes 0: expected at least one mode");
+    }
+    if args.block.is_empty() || args.block.contains(&0) {
+        anyhow::bail!("--block {:?}: expected block sizes ≥ 1", args.block);
+    }
     let organ = mesh_organ(OrganName::Liver, args.level)?;
     let s = setup(&organ, args.element, Material::default(), args.radius_mm)?;
+    // The parametric space has one load case a column: no more modes than that.
+    if args.modes > s.f.cols.len() {
+        anyhow::bail!(
+            "--modes {}: the {} level has {} load cases, so at most that many modes",
+            args.modes,
+            format!("{:?}", args.level).to_lowercase(),
+            s.f.cols.len()
+        );
+    }
     let ops = s.ops();
     // The brute-force terms are the optimum: their map error is the reference each
     // PGD is compared with.
@@ -43,7 +58,7 @@ pub fn run(args: &OfflineBenchArgs) -> anyhow::Result<()> {
         let settings = Settings {
             max_modes: args.modes,
             tol: 0.0,
-            block: b.max(1),
+            block: b,
             ..Settings::default()
         };
         let t0 = Instant::now();

@@ -30,7 +30,7 @@ use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, follow_at, organ_vertex_nor
 use serde_json::json;
 
 /// Triangles near these points are measured (the first `count`).
-const NEAR: [[f64; 3]; 4] = [
+pub const NEAR: [[f64; 3]; 4] = [
     [-30.3, 70.7, 16.9],
     [10.0, 80.0, 20.0],
     [60.0, 40.0, 20.0],
