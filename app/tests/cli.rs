@@ -149,7 +149,7 @@ fn benchmarks_refuse_bad_options_up_front() {
         "--json",
     ]);
     assert!(out.status.success());
-    let row: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let row: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON row");
     for key in ["particularize_ns", "contact_ns"] {
         assert!(
             row[key].as_f64().is_some_and(f64::is_finite),
