@@ -427,6 +427,23 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             "the tool (radius 300 mm) covers more than 1024 load nodes",
         ),
         (vec!["cme", "eval", missing, "--t", "1"], "missing.palpa"),
+        // Once silently one order (0), or minutes of orders (200).
+        (
+            vec![
+                "fe",
+                "solve",
+                "--at=-30,90,25",
+                "--model",
+                "neo-hookean",
+                "--method",
+                "series",
+                "--orders",
+                "0",
+                "--depth-mm",
+                "5",
+            ],
+            "a depth series of 0 orders: expected 1 to 30",
+        ),
         (
             vec!["export-scene", scene, "--modes", "0", "--out", out_s],
             "at least one mode",

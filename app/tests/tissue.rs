@@ -919,12 +919,16 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         let err = String::from_utf8_lossy(&run.stderr);
         assert!(err.contains(says), "{bad:?}: {err}");
         assert!(!out.exists(), "{bad:?} wrote a file");
+        let log = dir.path().join("bad.tissue.presses.log");
+        assert!(!log.exists(), "{bad:?} left a press log");
     };
     for (bad, says) in [
         (&["--within", "1,2,3"][..], "X,Y,Z,R"),
         (&["--tolerance-mm=-1"][..], "positive length"),
         (&["--bits", "12"][..], "8 or 16"),
         (&["--jobs", "0"][..], "at least one press"),
+        (&["--orders", "0"][..], "0 orders: expected 1 to 30"),
+        (&["--orders", "31"][..], "31 orders: expected 1 to 30"),
         (&["--depth-max-mm", "0"][..], "invalid depth grid"),
         (&["--depth-max-mm", "inf"][..], "--depth-max-mm"),
         (
@@ -955,6 +959,13 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         let file: &[&str] = if args[0] == "check" { &[shipped] } else { &[] };
         refused(&["tissue"], &[args, file].concat(), says);
     }
+    // The force law keeps a sample by the change between its last two Padé forms, so
+    // it needs five orders: refused before any sample is pressed.
+    refused(
+        &["depth-law", "build", "--element", "p1", "--out", &out_s],
+        &["--orders", "4"],
+        "4 orders: expected 5 to 30",
+    );
     // `tissue refine` likewise, and a file that is no tissue law is named.
     let shipped = dir.path().join("shipped.tissue");
     unsplit_shipped(&shipped);

@@ -210,6 +210,15 @@ pub enum FeError {
         step_mm: f64,
         max_steps: usize,
     },
+    #[error(
+        "a depth series of {orders} orders: expected {min} to {max} (each order is a \
+         linear solve, and its right-hand side grows with the square of the order)"
+    )]
+    SeriesOrders {
+        orders: usize,
+        min: usize,
+        max: usize,
+    },
     #[error("invalid press: the load does not move the probe point along the tool axis")]
     ProbeNotMoved,
     #[error(

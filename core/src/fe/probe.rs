@@ -230,6 +230,7 @@ pub fn solve_series(
     if !depth_mm.is_finite() {
         return Err(FeError::DepthNotFinite { depth_mm });
     }
+    super::series::check_orders(orders, 1)?;
     let space = organ_space(organ, element);
     let (probe, dir) = locate(&space, organ, req)?;
     let shape = probe_load(&space, &probe, dir, 1.0, req.radius_mm)?;
@@ -244,13 +245,13 @@ pub fn solve_series(
             &shape,
             &functional,
             0.55 * depth_mm,
-            orders.max(1),
+            orders,
         )?;
         let (f, u) = c.evaluate(depth_mm, depth_mm);
         (c.first, f, u, Some(c.split_mm))
     } else {
         let series =
-            super::series::depth_series(&space, law, material, &shape, &functional, orders.max(1))?;
+            super::series::depth_series(&space, law, material, &shape, &functional, orders)?;
         let rational = series.rational(depth_mm);
         let (f, u) = series.evaluate(&rational, depth_mm);
         (series, f, u, None)

@@ -650,6 +650,23 @@ impl<'a> Expander<'a> {
 /// The orders `1..=orders` about `base` (`None`: the rest state) with `chol` the
 /// factored tangent there (see the module doc).
 #[allow(clippy::too_many_arguments)]
+/// The most orders a depth series may ask for: past some twenty orders the Padé forms
+/// stop improving in double precision and each order costs more than the last.
+pub const MAX_ORDERS: usize = 30;
+
+/// Checks that a series may have `orders` orders, at least `min`.
+pub fn check_orders(orders: usize, min: usize) -> Result<(), FeError> {
+    if (min.max(1)..=MAX_ORDERS).contains(&orders) {
+        Ok(())
+    } else {
+        Err(FeError::SeriesOrders {
+            orders,
+            min: min.max(1),
+            max: MAX_ORDERS,
+        })
+    }
+}
+
 pub(crate) fn orders_about(
     space: &Space,
     law: Law,
@@ -663,6 +680,7 @@ pub(crate) fn orders_about(
     cutoff: f64,
     augment: Option<(f64, &[f64])>,
 ) -> Result<DepthSeries, FeError> {
+    check_orders(orders, 1)?;
     let shape = space.restrict(shape);
     let probe = space.restrict(probe);
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
@@ -674,7 +692,7 @@ pub(crate) fn orders_about(
     let mut force = Vec::with_capacity(orders);
     let mut lower: Vec<Vec<f64>> = Vec::with_capacity(orders);
     let mut cells = Vec::new();
-    for p in 1..=orders.max(1) {
+    for p in 1..=orders {
         if p == 2 {
             cells = active_cells(space, &lower[0], cutoff);
         }

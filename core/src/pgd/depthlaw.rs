@@ -65,6 +65,9 @@ pub enum DepthLawFileError {
 /// with force errors below 0.6 %.)
 pub const PADE_CHANGE_MAX: f64 = 0.1;
 
+/// The fewest series orders a law may be built from: two Padé forms to compare.
+pub const MIN_ORDERS: usize = 5;
+
 /// Most depth-grid points (the inverse keeps one curve on the stack).
 pub const MAX_DEPTHS: usize = 256;
 
@@ -266,6 +269,9 @@ impl DepthLaw {
         if o.samples == 0 {
             return Err(DepthLawBuildError::NoSamples);
         }
+        // A sample is kept by the change between its last two Padé forms; the second
+        // ([2/2]) needs five orders.
+        crate::fe::series::check_orders(o.orders, MIN_ORDERS)?;
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;

@@ -290,6 +290,8 @@ impl SurfaceLaw {
         use std::sync::atomic::AtomicUsize;
         let o = options;
         let steps = crate::fe::depth_grid_points(o.depth_max_mm, o.depth_step_mm, MAX_GRID_POINTS)?;
+        // Refused before the log is opened: a bad option leaves nothing behind.
+        crate::fe::series::check_orders(o.orders, 1)?;
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;
