@@ -647,11 +647,9 @@ impl<'a> Expander<'a> {
     }
 }
 
-/// The orders `1..=orders` about `base` (`None`: the rest state) with `chol` the
-/// factored tangent there (see the module doc).
-#[allow(clippy::too_many_arguments)]
-/// The most orders a depth series may ask for: past some twenty orders the Padé forms
-/// stop improving in double precision and each order costs more than the last.
+/// The most orders a depth series may ask for. The builds use 12–15; order `p`'s
+/// right-hand side costs `O(p²)` products a quadrature point, so 30 orders already cost
+/// several times the default series (200 ran for minutes on coarse P2).
 pub const MAX_ORDERS: usize = 30;
 
 /// Checks that a series may have `orders` orders, at least `min`.
@@ -667,6 +665,9 @@ pub fn check_orders(orders: usize, min: usize) -> Result<(), FeError> {
     }
 }
 
+/// The orders `1..=orders` about `base` (`None`: the rest state) with `chol` the
+/// factored tangent there (see the module doc).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn orders_about(
     space: &Space,
     law: Law,
