@@ -427,6 +427,11 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             "the tool (radius 300 mm) covers more than 1024 load nodes",
         ),
         (vec!["cme", "eval", missing, "--t", "1"], "missing.palpa"),
+        // Once a null distance (its square overflowed).
+        (
+            vec!["eval", scene, "--at=1e300,0,0", "--force-n", "1"],
+            "--at needs three finite comma-separated numbers of magnitude at most 1e6",
+        ),
         // Once silently one order (0), or minutes of orders (200).
         (
             vec![
@@ -485,9 +490,17 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
 fn depth_control_in_eval_and_fe_solve() {
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
     let at = "--at=-30,90,25";
-    let eval = common::json_ok(&palpa(&["eval", scene, at, "--depth-mm", "5", "--json"]));
+    let run = palpa(&["eval", scene, at, "--depth-mm", "5", "--json"]);
+    let eval = common::json_ok(&run);
     assert_eq!(eval["control"], "depth");
     assert!((eval["probe_displacement_mm"].as_f64().expect("number") - 5.0).abs() < 1e-9);
+    // 5 mm is past where the linear tissue agrees with the nonlinear one: flagged, and
+    // said; 2 mm is not.
+    assert_eq!(eval["beyond_linear_range"], true);
+    assert!(String::from_utf8_lossy(&run.stderr).contains("a linear press of 5.000 mm"));
+    let run = palpa(&["eval", scene, at, "--depth-mm", "2", "--json"]);
+    assert_eq!(common::json_ok(&run)["beyond_linear_range"], false);
+    assert!(!String::from_utf8_lossy(&run.stderr).contains("warning"));
     let lin = common::json_ok(&palpa(&[
         "fe",
         "solve",

@@ -155,8 +155,11 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
             args.at.len()
         );
     };
-    if ![x, y, z].iter().all(|v| v.is_finite()) {
-        bail!("--at {x},{y},{z}: expected finite coordinates");
+    if ![x, y, z].iter().all(|&v| super::args::coordinate_ok(v)) {
+        bail!(
+            "--at {x},{y},{z}: expected finite coordinates of magnitude at most {:e}",
+            super::args::COORDINATE_MAX
+        );
     }
     let loaded = palpa_app::scenes::load(&args.scene)?;
     let scene = loaded.scene;

@@ -836,8 +836,12 @@ fn points_in(organ: &OrganMesh, faces: &[usize], n: usize, seed: u64) -> Vec<[f6
 
 /// A flag's `X,Y,Z[,X,Y,Z…]` list as points, or what was wrong with it.
 pub(super) fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
-    if v.is_empty() || !v.len().is_multiple_of(3) || !v.iter().all(|x| x.is_finite()) {
-        bail!("{flag}: expected X,Y,Z triples of finite numbers, got {v:?}");
+    use super::args::{COORDINATE_MAX, coordinate_ok};
+    if v.is_empty() || !v.len().is_multiple_of(3) || !v.iter().all(|&x| coordinate_ok(x)) {
+        bail!(
+            "{flag}: expected X,Y,Z triples of finite numbers of magnitude at most \
+             {COORDINATE_MAX:e}, got {v:?}"
+        );
     }
     Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
