@@ -688,6 +688,37 @@ fn fsp_at_a_very_long_time_says_where_it_settled() {
     assert!(leak < 1e-6, "leak {leak}");
 }
 
+/// The extremes of time as a user types them: t = 0 alone by PGD (once refused: its
+/// time grid needs an end), and tiny or huge times printed as numbers a person reads
+/// (1e-300 was once three hundred zeros).
+#[test]
+fn cme_times_at_the_extremes_are_answered_and_printed_readably() {
+    let v = common::json_ok(&palpa(&[
+        "cme", "solve", "toggle", "--method", "pgd", "--t", "0", "--json",
+    ]));
+    for i in 0..2 {
+        let mean = v["mean"][0][i].as_f64().expect("mean");
+        assert!(
+            (mean - 15.0).abs() < 1e-6,
+            "species {i}: mean {mean} at t = 0"
+        );
+    }
+    let out = palpa(&[
+        "cme",
+        "solve",
+        "toggle",
+        "--method",
+        "fsp",
+        "--t",
+        "1e-300,0.5,1e12",
+    ]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    for line in ["t = 1e-300: ", "t = 0.5: ", "t = 1e12: "] {
+        assert!(text.contains(line), "{line:?} missing from {text}");
+    }
+}
+
 #[test]
 fn cme_offline_then_eval_reproduces_fsp_and_solve_by_pgd_prints_the_same_json() {
     let dir = tempfile::tempdir().expect("tempdir");

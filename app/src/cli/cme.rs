@@ -591,9 +591,12 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
                 );
             }
             let solved = reduced.as_ref().map_or(&network, |r| &r.network);
+            // Output times steer the time grid; asked only at t = 0 (the initial law),
+            // any grid answers it.
+            let steer = args.t.last().is_some_and(|&t| t > 0.0);
             let model = args
                 .pgd
-                .build_for(solved, t_end, Some(&args.t))?
+                .build_for(solved, t_end, steer.then_some(&args.t[..]))?
                 .built
                 .model;
             let set = model_coordinates(&model, &network, &p);
@@ -602,7 +605,8 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
                 let e = model.evaluate(t, &set, usize::MAX)?;
                 if e.most_negative < -1e-8 {
                     warnings.push(format!(
-                        "t = {t}: most negative probability {:.2e}",
+                        "t = {}: most negative probability {:.2e}",
+                        time_text(t),
                         e.most_negative
                     ));
                 }
@@ -670,7 +674,7 @@ fn print_report(report: &Report, json: bool) -> anyhow::Result<()> {
                     )
                 })
                 .collect();
-            println!("t = {t}: {}", parts.join(" · "));
+            println!("t = {}: {}", time_text(*t), parts.join(" · "));
         }
         if let Some(at) = report.settled_at {
             println!(
@@ -750,7 +754,8 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     for &t in &args.t {
         if t > model.t_end() {
             warnings.push(format!(
-                "t = {t} is past the model's time range [0, {}]: clamped to its end",
+                "t = {} is past the model's time range [0, {}]: clamped to its end",
+                time_text(t),
                 model.t_end()
             ));
         }
@@ -762,7 +767,8 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
         }
         if e.most_negative < -1e-8 {
             warnings.push(format!(
-                "t = {t}: most negative probability {:.2e}",
+                "t = {}: most negative probability {:.2e}",
+                time_text(t),
                 e.most_negative
             ));
         }
@@ -855,4 +861,14 @@ fn check_fsp(
             Ok(palpa_core::cme::moments::l1(&joint, q))
         })
         .collect()
+}
+
+/// A time as people read it: plain where it is, scientific when tiny or huge (a time of
+/// 1e-300 printed plainly is three hundred zeros).
+fn time_text(t: f64) -> String {
+    if t == 0.0 || (1e-4..1e7).contains(&t.abs()) {
+        format!("{t}")
+    } else {
+        format!("{t:e}")
+    }
 }
