@@ -665,6 +665,28 @@ fn cme_errors_are_clear() {
             "{args:?}: {err}"
         );
     }
+    // A file named as SBML that is not XML, and XML that is not SBML: said so, not a
+    // TOML parser's complaint about the first line.
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, text, want) in [
+        ("notes.xml", "rate = 1\n", "not an SBML document"),
+        ("page.toml", "<html><body/></html>", "root is not <sbml>"),
+    ] {
+        let file = dir.path().join(name);
+        std::fs::write(&file, text).expect("write");
+        let file = file.to_str().expect("utf-8");
+        for cmd in [
+            vec!["cme", "convert", file],
+            vec!["cme", "solve", file, "--method", "fsp", "--t", "1"],
+        ] {
+            let out = palpa(&cmd);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(
+                !out.status.success() && err.contains(want),
+                "{cmd:?}: {err}"
+            );
+        }
+    }
 }
 
 /// The exact solve to t = 10¹² (days of stepping) stops where the toggle's law settles

@@ -398,11 +398,22 @@ pub fn load_network(model: &str) -> anyhow::Result<Network> {
         .iter()
         .any(|e| model.ends_with(e));
     if is_file || path.exists() {
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {model}"))?;
-        Ok(Network::from_text(&text, model)?)
+        network_file(path)
     } else {
         Ok(Network::built_in(model)?)
     }
+}
+
+/// A network file, SBML or TOML by its content; a file named `.xml` or `.sbml` must be
+/// SBML (a TOML parser's complaint about its first line would mislead).
+fn network_file(path: &Path) -> anyhow::Result<Network> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {name}"))?;
+    let sbml_name = [".xml", ".sbml"].iter().any(|e| name.ends_with(e));
+    if sbml_name && !palpa_core::cme::sbml::looks_like_sbml(&text) {
+        bail!("{name}: not an SBML document (expected XML whose root element is <sbml>)");
+    }
+    Ok(Network::from_text(&text, &name)?)
 }
 
 /// `network` with a box for every species (an FSP pre-pass sizes the automatic ones),
@@ -494,8 +505,7 @@ pub fn run(cmd: &CmeCommand) -> anyhow::Result<()> {
 
 fn convert(args: &ConvertArgs) -> anyhow::Result<()> {
     let name = args.file.display().to_string();
-    let text = std::fs::read_to_string(&args.file).with_context(|| format!("reading {name}"))?;
-    let network = Network::from_text(&text, &name)?;
+    let network = network_file(&args.file)?;
     let toml = format!("# converted by palpa from {name}\n{}", network.to_toml());
     match &args.out {
         Some(out) => palpa_core::fsutil::atomic_write(out, |w| w.write_all(toml.as_bytes()))

@@ -431,6 +431,14 @@ impl Network {
     pub fn from_text(text: &str, source_name: &str) -> Result<Self, NetworkError> {
         if super::sbml::looks_like_sbml(text) {
             super::sbml::from_sbml(text, source_name)
+        } else if text.trim_start().starts_with('<') {
+            // XML but not SBML: a TOML parser's complaint about `<` would mislead.
+            Err(NetworkError::Invalid {
+                source_name: source_name.to_string(),
+                what: "an XML document whose root is not <sbml>: expected an SBML model or \
+                       a TOML network"
+                    .to_string(),
+            })
         } else {
             Self::from_toml(text, source_name)
         }
