@@ -321,6 +321,49 @@ mod hyperelastic {
         assert!((lin.force_n * unit.probe_displacement_mm - 4.0).abs() < 1e-9);
     }
 
+    /// A press far below a micrometre is the linear press: its residual stalls at the
+    /// internal forces' round-off (about 1e-12 N here, whatever the depth), which
+    /// counts as converged. Every nonlinear press under about 0.1 mN once failed its
+    /// line search, and a force of 1e-12 N was then answered by the rest state.
+    #[test]
+    fn presses_down_to_round_off_are_the_linear_press() {
+        let organ = coarse_liver();
+        let settings = NewtonSettings::default();
+        let req = press(POINTS[0], f64::NAN);
+        let lin = solve_linear_depth(&organ, Element::P1, Material::default(), &req, 1.0)
+            .expect("linear depth");
+        for law in [Law::Svk, Law::NeoHookean] {
+            for depth in [1e-15, 1e-12, 1e-9, 1e-6, -1e-9] {
+                let (s, _) = solve_hyperelastic(
+                    &organ,
+                    Element::P1,
+                    Material::default(),
+                    law,
+                    &req,
+                    Some(depth),
+                    settings,
+                )
+                .unwrap_or_else(|e| panic!("{law:?} at {depth} mm: {e}"));
+                let ratio = s.force_n / (lin.force_n * depth);
+                assert!((ratio - 1.0).abs() < 1e-3, "{law:?} {depth} mm: {ratio}");
+            }
+            for force in [1e-14, 1e-12] {
+                let (s, _) = solve_hyperelastic(
+                    &organ,
+                    Element::P1,
+                    Material::default(),
+                    law,
+                    &press(POINTS[0], force),
+                    None,
+                    settings,
+                )
+                .unwrap_or_else(|e| panic!("{law:?} at {force} N: {e}"));
+                let ratio = s.probe_displacement_mm / (force / lin.force_n);
+                assert!((ratio - 1.0).abs() < 1e-3, "{law:?} {force} N: {ratio}");
+            }
+        }
+    }
+
     /// A negative depth is a pull (the tool glued to the surface): Newton converges to
     /// it as to a push, the force negative and, half a millimetre out, within a tenth
     /// of the linear one. (Its tolerance once scaled with the signed depth, and

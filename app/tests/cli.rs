@@ -432,6 +432,19 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             vec!["eval", scene, "--at=1e300,0,0", "--force-n", "1"],
             "--at needs three finite comma-separated numbers of magnitude at most 1e6",
         ),
+        // Once 71 s of factoring subnormal numbers, then an overflowed displacement.
+        (
+            vec![
+                "fe",
+                "solve",
+                "--at=-30,90,25",
+                "--force-n",
+                "1",
+                "--young-kpa",
+                "1e-300",
+            ],
+            "Young's modulus 1e-300 kPa: expected 1e-3 to 1e9 kPa",
+        ),
         // Once silently one order (0), or minutes of orders (200).
         (
             vec![

@@ -164,6 +164,14 @@ pub struct NewtonReport {
 /// assembly of the internal forces (stiff, nearly incompressible elements cancel).
 const ROUNDOFF_REL: f64 = 1e-8;
 
+/// The residual's absolute round-off floor, in units of `(λ + 2μ) ε L²` (`ε` the
+/// machine epsilon, `L` the body's extent). The stresses' rounding does not shrink with
+/// the strain (`I − C⁻¹` and `ln J` cancel to about `ε`), so however small a press, its
+/// residual stalls near a fixed force: measured 1e-15 to 1e-12 N on coarse P1 at
+/// depths from 1e-12 to 1e-5 mm, where `(λ + 2μ) ε L²` is about 2e-11 N. Without this
+/// floor every press under about 0.1 mN failed its line search.
+const ROUNDOFF_ABS: f64 = 10.0;
+
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -207,6 +215,8 @@ struct Problem<'a> {
     probe: Option<Vec<f64>>,
     /// Force per mm of depth error in the merit (the linear stiffness at the probe).
     depth_weight: f64,
+    /// Below this residual (N) no press can go, however small (see [`ROUNDOFF_ABS`]).
+    roundoff_floor_n: f64,
     settings: NewtonSettings,
 }
 
@@ -361,6 +371,10 @@ impl<'a> Problem<'a> {
             shape,
             probe,
             depth_weight: 0.0,
+            roundoff_floor_n: ROUNDOFF_ABS
+                * (lambda + 2.0 * mu)
+                * f64::EPSILON
+                * extent_mm(space).powi(2),
             settings,
         }
     }
@@ -474,6 +488,9 @@ impl<'a> Problem<'a> {
         }
         .max(f64::MIN_POSITIVE);
         let tol = settings.rel_tol * scale;
+        // Where the residual may stall and still count as converged: round-off in the
+        // internal forces, relative for a large press, absolute for a tiny one.
+        let floor = (ROUNDOFF_REL * scale).max(self.roundoff_floor_n);
         for _ in 0..settings.max_iterations_per_step {
             if rn <= tol {
                 return Ok((st, history));
@@ -540,12 +557,21 @@ impl<'a> Problem<'a> {
                     (r, g, rn) = (rt, gt, mt);
                     break;
                 }
+                if alpha == 1.0 && mt <= self.roundoff_floor_n {
+                    // The full Newton step lands within the absolute round-off floor:
+                    // converged as far as arithmetic can tell. For a press so small that
+                    // its load is itself near the floor this is the linear answer, exact
+                    // to round-off; a backtracking search there would take whichever
+                    // partial step the noise favours.
+                    history.push(mt);
+                    return Ok((trial, history));
+                }
                 alpha *= 0.5;
                 if alpha < 1.0 / 64.0 {
                     // No decrease possible: either we sit at the round-off floor of the
                     // residual (cancellation among stiff element forces), which counts
                     // as converged, or Newton is lost.
-                    if rn <= ROUNDOFF_REL * scale {
+                    if rn <= floor {
                         return Ok((st, history));
                     }
                     return Err(StepFailure::LineSearch { residual_n: rn });
@@ -554,7 +580,7 @@ impl<'a> Problem<'a> {
             let previous = history[history.len() - 1];
             history.push(rn);
             // Stagnation at the round-off floor: converged as far as arithmetic allows.
-            if rn > 0.5 * previous && rn <= ROUNDOFF_REL * scale {
+            if rn > 0.5 * previous && rn <= floor {
                 return Ok((st, history));
             }
         }
@@ -567,4 +593,18 @@ impl<'a> Problem<'a> {
             })
         }
     }
+}
+
+/// The diagonal of the nodes' bounding box (mm).
+fn extent_mm(space: &Space) -> f64 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in &space.nodes {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let d2: f64 = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum();
+    if d2.is_finite() { d2.sqrt() } else { 0.0 }
 }
