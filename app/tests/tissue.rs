@@ -267,6 +267,18 @@ fn eval_reads_a_tissue_file_both_ways() {
     let (v, e) = eval(&["--depth-mm", "12"]);
     let v = v.unwrap_or_else(|| panic!("{e}"));
     assert_eq!(v["beyond_depth_max"], true);
+    // A force no press reaches is held at the limit and answers the force there,
+    // the one asked for beside it.
+    let held = v["force_n"].as_f64().expect("force");
+    let (v, e) = eval(&["--force-n", "1e6"]);
+    let v = v.unwrap_or_else(|| panic!("{e}"));
+    assert_eq!(v["beyond_depth_max"], true);
+    assert_eq!(v["requested_force_n"], 1e6);
+    let at_limit = v["force_n"].as_f64().expect("force");
+    assert!(
+        (at_limit - held).abs() < 1e-9 * held,
+        "{at_limit} N, {held} N at 12 mm"
+    );
 
     let (v, e) = eval(&["--depth-mm", "0"]);
     let v = v.unwrap_or_else(|| panic!("{e}"));

@@ -1007,6 +1007,13 @@ pub fn eval(
                 bail!("--force-n {f}: expected a finite force ≥ 0 N");
             }
             let (d, beyond) = bound.depth_mm(&point, f, c);
+            // Held at the limit, the press is the one there: its force, not the one
+            // asked for (that is `requested_force_n`).
+            let f = if beyond {
+                bound.force_n(&point, d, c).0
+            } else {
+                f
+            };
             (d, f, beyond)
         }
         (None, None) => bail!("give --depth-mm or --force-n"),
@@ -1054,6 +1061,7 @@ pub fn eval(
         "element": bound.law.options.element.name(),
         "at": scene.frame(&point).0, "projected_distance_mm": distance_mm,
         "probe_displacement_mm": depth, "force_n": force, "linear_force_n": depth / c,
+        "requested_force_n": probe.force_n,
         "max_displacement_mm": max, "depth_max_mm": bound.law.depth_max_mm(),
         "beyond_depth_max": beyond,
         "depth_limit_mm": bound.limit_mm(&point).0, "stopped": bound.limit_mm(&point).1,

@@ -397,6 +397,23 @@ impl BoundTissue {
         if f(top) < force_n {
             return (top, true);
         }
+        // Bisection on [0, top] resolves the depth to top / 2⁴⁸ (about 4e-14 mm), which
+        // is no answer for a force whose depth is smaller still (1e-300 N once gave
+        // 1.8e-14 mm). So deep within the first millionth of the range, where the ratio
+        // is its value at the linear depth to about that fraction, one fixed-point
+        // step from the linear depth answers to round-off.
+        let linear_mm = force_n * compliance_mm_per_n;
+        if linear_mm < 1e-6 * top {
+            // d = F c / g(d_lin) = d_lin · F / f(d_lin), in that order so nothing
+            // underflows.
+            let at = f(linear_mm);
+            let d = if at > 0.0 {
+                linear_mm * (force_n / at)
+            } else {
+                linear_mm
+            };
+            return (d, false);
+        }
         let (mut lo, mut hi) = (0.0, top);
         for _ in 0..48 {
             let mid = 0.5 * (lo + hi);

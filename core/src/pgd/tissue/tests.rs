@@ -190,6 +190,16 @@ fn a_press_that_stopped_short_limits_only_the_probes_that_blend_it() {
     let (d, flagged) = bound.depth_mm(&inside, 0.45, 1.0);
     let want = (1.0 - 0.82f64.sqrt()) / 0.2;
     assert!((d - want).abs() < 1e-6 && !flagged, "{d}");
+    // Tiny forces to relative round-off, below bisection's 4e-14 mm resolution too
+    // (1e-300 N was once answered 1.8e-14 mm): d ≈ F (1 + 0.1 F).
+    for force in [1e-300, 1e-12, 1e-7, 1e-4] {
+        let (d, flagged) = bound.depth_mm(&inside, force, 1.0);
+        let want = force * (1.0 + 0.1 * force);
+        assert!(
+            (d / want - 1.0).abs() < 1e-9 && !flagged,
+            "{force} N: {d} mm"
+        );
+    }
     let mut rows = [0.0; 3];
     assert!(bound.add_surface(&inside, 1.7, &mut scratch, &mut rows));
     assert!((rows[0] - 1.0).abs() < 1e-6, "held at 1 mm: {rows:?}");
