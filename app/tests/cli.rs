@@ -432,6 +432,24 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             vec!["eval", scene, "--at=1e300,0,0", "--force-n", "1"],
             "--at needs three finite comma-separated numbers of magnitude at most 1e6",
         ),
+        // Once ignored by the nodal build (the default), a NaN tolerance too.
+        (
+            vec!["offline", "liver", "--tol", "nan", "--out", out_s],
+            "--tol NaN: expected a finite relative norm",
+        ),
+        (
+            vec!["offline", "liver", "--block", "4", "--out", out_s],
+            "--block tunes the PGD solver",
+        ),
+        // An exported scene (f32) once failed with an internal API's words.
+        (
+            vec!["tradeoff", scene],
+            "the tradeoff is measured on the full vademecum",
+        ),
+        (
+            vec!["tradeoff", tissue, "--depths", "31"],
+            "expected depths up to 30 mm",
+        ),
         // Once 71 s of factoring subnormal numbers, then an overflowed displacement.
         (
             vec![

@@ -150,6 +150,42 @@ fn describe_run(
     )
 }
 
+/// The PGD solver's own options: finite and positive, and refused with the nodal
+/// build (the default), which has no fixed point to tune (they were once ignored there,
+/// a NaN tolerance too).
+fn check_pgd_options(args: &OfflineArgs) -> anyhow::Result<()> {
+    if !(args.tol.is_finite() && args.tol >= 0.0) {
+        bail!("--tol {}: expected a finite relative norm ≥ 0", args.tol);
+    }
+    if !(args.fp_tol.is_finite() && args.fp_tol > 0.0) {
+        bail!(
+            "--fp-tol {}: expected a finite relative change > 0",
+            args.fp_tol
+        );
+    }
+    if args.fp_max_iter == 0 || args.block == 0 {
+        bail!(
+            "--fp-max-iter {} --block {}: expected at least 1 each",
+            args.fp_max_iter,
+            args.block
+        );
+    }
+    let d = Settings::default();
+    let tuned = [
+        ("--tol", args.tol != 1e-4),
+        ("--no-update", args.no_update),
+        ("--fp-tol", args.fp_tol != d.fixed_point_tol),
+        ("--fp-max-iter", args.fp_max_iter != d.fixed_point_max_iter),
+        ("--block", args.block != 16),
+    ];
+    if args.method == MethodArg::Nodal
+        && let Some((flag, _)) = tuned.iter().find(|(_, set)| *set)
+    {
+        bail!("{flag} tunes the PGD solver: it applies with --method pgd, not the nodal build");
+    }
+    Ok(())
+}
+
 fn journal_path(out: &Path) -> PathBuf {
     let mut p = out.as_os_str().to_owned();
     p.push(".journal");
@@ -157,6 +193,7 @@ fn journal_path(out: &Path) -> PathBuf {
 }
 
 pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
+    check_pgd_options(args)?;
     if args.model != TissueModel::Linear {
         // Refused before the scene's minutes of work, not after them.
         palpa_core::fe::depth_grid_points(
@@ -185,8 +222,8 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
         tol: args.tol,
         update: !args.no_update,
         fixed_point_tol: args.fp_tol,
-        fixed_point_max_iter: args.fp_max_iter.max(1),
-        block: args.block.max(1),
+        fixed_point_max_iter: args.fp_max_iter,
+        block: args.block,
         ..Settings::default()
     };
     let jpath = journal_path(&args.out);

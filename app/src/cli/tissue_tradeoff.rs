@@ -86,9 +86,19 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
         anyhow::bail!("--depths {:?}: expected positive depths (mm)", s.depths_mm);
     }
     let (bound, scene) = bound_to_scene(file, s.scene)?;
-    let organ = s.organ.mesh()?;
     let law = bound.law;
     let o = law.options;
+    // As `tissue check`: a little past the deepest depth shows the hold and the flag,
+    // but Newton far beyond would push the tool through the organ.
+    let deepest_mm = 2.0 * o.depth_max_mm;
+    if let Some(d) = s.depths_mm.iter().find(|d| **d > deepest_mm) {
+        anyhow::bail!(
+            "--depths: {d} mm: expected depths up to {deepest_mm} mm, twice the vademecum's \
+             deepest ({} mm)",
+            o.depth_max_mm
+        );
+    }
+    let organ = s.organ.mesh()?;
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let mut contact_scratch = scene.contact_scratch();
     let mut coeffs = vec![0.0; scene.modes()];

@@ -82,6 +82,15 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
             args.file.display()
         );
     }
+    if header.precision != palpa_core::Precision::F64 {
+        bail!(
+            "{}: stored in {}, as `palpa export-scene` ships a scene; the tradeoff is measured \
+             on the full vademecum `palpa offline` writes (f64), before export (`palpa info` \
+             shows the table it measured then)",
+            args.file.display(),
+            header.precision.name()
+        );
+    }
     let model = file::load::<f64>(&args.file)
         .with_context(|| format!("loading {}", args.file.display()))?;
     let desc = model.provenance().mesh.clone();
