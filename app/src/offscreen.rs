@@ -92,6 +92,13 @@ impl ProbePath {
             {
                 bail!("keyframe {i} has a non-finite value");
             }
+            if !k.at_mm.iter().all(|&c| crate::pick::coordinate_ok(c)) {
+                bail!(
+                    "keyframe {i}: at_mm = {:?} (expected coordinates within ±{:e} mm)",
+                    k.at_mm,
+                    crate::pick::COORDINATE_MAX
+                );
+            }
             if k.depth_mm < 0.0 {
                 bail!("keyframe {i}: depth_mm = {} (expected ≥ 0)", k.depth_mm);
             }

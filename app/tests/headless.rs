@@ -184,3 +184,19 @@ fn mutated_paths_never_panic() {
         "{read} mutated paths read: the test reaches past the parser"
     );
 }
+
+/// A probe path's point is bounded as the command line's `--at` is (a kilometre): at
+/// 1e300 mm every distance to the surface overflowed and the closest point was
+/// arbitrary.
+#[test]
+fn a_probe_path_far_off_the_organ_is_refused() {
+    use palpa_app::offscreen::ProbePath;
+    let path = |x: &str| {
+        ProbePath::from_json(&format!(
+            r#"{{"keyframes": [{{"t_s": 0, "at_mm": [{x}, 40, 0], "depth_mm": 1}}]}}"#
+        ))
+    };
+    assert!(path("1e6").is_ok());
+    let e = path("1e300").expect_err("1e300 mm refused");
+    assert!(e.to_string().contains("within ±1e6 mm"), "{e}");
+}

@@ -90,15 +90,7 @@ impl ProbeArgs {
     }
 }
 
-/// The largest coordinate or direction component a command takes (mm): a kilometre.
-/// Larger values are no organ's, and their squares (distances, lengths) overflow to
-/// infinity long before `f64::MAX`.
-pub const COORDINATE_MAX: f64 = 1e6;
-
-/// Whether `c` is a coordinate a command can work with (see [`COORDINATE_MAX`]).
-pub fn coordinate_ok(c: f64) -> bool {
-    c.is_finite() && c.abs() <= COORDINATE_MAX
-}
+pub use palpa_app::pick::{COORDINATE_MAX, coordinate_ok};
 
 /// Three finite numbers from a comma-separated argument (`--at`, `--dir`).
 pub fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
