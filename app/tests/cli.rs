@@ -819,6 +819,22 @@ fn cme_offline_then_eval_reproduces_fsp_and_solve_by_pgd_prints_the_same_json() 
         let l1 = l1.as_f64().expect("number");
         assert!(l1 < 1e-2, "joint L1 {l1}");
     }
+    // A rate the model was not built over, and no terms: said so (the first once ended
+    // "the model's parameters are " and nothing; the second answered as if unasked).
+    for (extra, want) in [
+        (
+            ["--param", "alpha=2"],
+            "every rate was fixed when it was built",
+        ),
+        (["--modes", "0"], "--modes 0: expected at least one term"),
+    ] {
+        let out = palpa(&[&["cme", "eval", f, "--t", "1"][..], &extra[..]].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(want),
+            "{extra:?}: {err}"
+        );
+    }
     // Past the trained range: a warning, not an extrapolation.
     let out = palpa(&["cme", "eval", f, "--t", "5"]);
     assert!(out.status.success());

@@ -756,6 +756,9 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     let model =
         model::load(&args.file).with_context(|| format!("loading {}", args.file.display()))?;
     let set = parse_params(&args.params)?;
+    if args.modes == Some(0) {
+        bail!("--modes 0: expected at least one term");
+    }
     let n = args.modes.unwrap_or(usize::MAX);
     let start = Instant::now();
     let mut moments = Vec::new();

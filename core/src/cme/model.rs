@@ -441,13 +441,21 @@ impl CmeModel {
         let params = self.parameters();
         for (name, value) in set {
             if !params.iter().any(|(p, _, _)| p == name) {
-                return Err(CmeModelError::UnknownParameter {
-                    name: name.clone(),
-                    known: params
+                let known = if params.is_empty() {
+                    // An empty list would read as a cut-off message.
+                    "none: every rate was fixed when it was built (a parameter given a \
+                     `range` in the network file becomes a coordinate)"
+                        .to_string()
+                } else {
+                    params
                         .iter()
                         .map(|p| p.0.as_str())
                         .collect::<Vec<_>>()
-                        .join(", "),
+                        .join(", ")
+                };
+                return Err(CmeModelError::UnknownParameter {
+                    name: name.clone(),
+                    known,
                 });
             }
             if !value.is_finite() {
