@@ -96,6 +96,18 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
         return built_in();
     }
     let path = Path::new(spec);
+    if !path.exists() {
+        anyhow::bail!(
+            "cannot open the scene {spec}: no such file, nor a built-in scene (liver, toggle, \
+             cascade, signaling-cascade-D)"
+        );
+    }
+    if palpa_core::pgd::tissue::is_tissue_file(path) {
+        anyhow::bail!(
+            "cannot open the scene {spec}: a tissue vademecum, which travels beside its scene \
+             (open the X.palpa it sits next to)"
+        );
+    }
     let model = palpa_core::file::load_any(path)
         .with_context(|| format!("cannot open the scene {spec}"))?;
     let scene =

@@ -72,7 +72,15 @@ fn headless_bad_input_gets_clear_errors() {
                 "--scene".into(),
                 dir.path().join("nope.palpa").display().to_string(),
             ],
-            "cannot open the scene",
+            "no such file, nor a built-in scene (liver, toggle",
+        ),
+        // A tissue file is no scene: said so (it once failed on its magic bytes).
+        (
+            vec![
+                "--scene".into(),
+                concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue").into(),
+            ],
+            "a tissue vademecum, which travels beside its scene",
         ),
         (
             vec!["--probe-path".into(), {
