@@ -966,6 +966,11 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         ),
         (&["check", "--heldout", "0"][..], "at least one point"),
         (&["points", "--heldout", "0"][..], "at least one point"),
+        // Once still drawing after 30 s (24 GB of points).
+        (
+            &["points", "--heldout", "1000000000"][..],
+            "expected at most 10000",
+        ),
     ] {
         let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
         let file: &[&str] = if args[0] == "check" { &[shipped] } else { &[] };

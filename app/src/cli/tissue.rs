@@ -251,7 +251,7 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
                 None => surface_points(&organ, args.heldout, args.seed)?,
                 Some(file) => {
                     let faces = split_faces(&organ, &TissueLaw::load(file)?)?;
-                    points_in(&organ, &faces, args.heldout, args.seed)
+                    points_in(&organ, &faces, args.heldout, args.seed)?
                 }
             };
             let text: Vec<String> = points.iter().flatten().map(|c| format!("{c:.4}")).collect();
@@ -822,16 +822,35 @@ pub(super) fn press_points(
     if faces.is_empty() {
         bail!("no palpable triangle of this organ has all three corners pressed in the file");
     }
-    Ok(points_in(organ, &faces, heldout, seed))
+    points_in(organ, &faces, heldout, seed)
 }
 
 /// `n` seeded random points in `faces`: a face drawn uniformly, then a point uniformly
 /// inside it.
-fn points_in(organ: &OrganMesh, faces: &[usize], n: usize, seed: u64) -> Vec<[f64; 3]> {
+fn points_in(
+    organ: &OrganMesh,
+    faces: &[usize],
+    n: usize,
+    seed: u64,
+) -> anyhow::Result<Vec<[f64; 3]>> {
+    check_heldout(n)?;
     let mut rng = Rng::seed(seed);
-    (0..n)
+    Ok((0..n)
         .map(|_| super::bench_fe::heldout_point(organ, faces, &mut rng).0)
-        .collect()
+        .collect())
+}
+
+/// The most held-out points a command draws. Each is checked with a full FE solve
+/// (seconds to minutes), so more is no run anyone waits for; 10⁹ points would need
+/// 24 GB for the points alone (`tissue points` was still drawing them after 30 s).
+pub(super) const MAX_HELDOUT: usize = 10_000;
+
+/// Refuses more held-out points than [`MAX_HELDOUT`].
+pub(super) fn check_heldout(n: usize) -> anyhow::Result<()> {
+    if n > MAX_HELDOUT {
+        bail!("{n} held-out points: expected at most {MAX_HELDOUT} (each is a full FE solve)");
+    }
+    Ok(())
 }
 
 /// A flag's `X,Y,Z[,X,Y,Z…]` list as points, or what was wrong with it.
@@ -862,7 +881,7 @@ pub(super) fn surface_points(
     if faces.is_empty() {
         bail!("this organ has no palpable triangle clear of its fixed region");
     }
-    Ok(points_in(organ, &faces, n, seed))
+    points_in(organ, &faces, n, seed)
 }
 
 /// The organ's boundary faces that a tissue file split (by its corners' rest

@@ -62,6 +62,9 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     if args.held_out == Some(0) {
         bail!("--held-out 0: expected at least one point to measure at");
     }
+    if let Some(n) = args.held_out {
+        super::tissue::check_heldout(n)?;
+    }
     if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
         let settings = super::tissue_tradeoff::Settings {
             organ: &args.organ,
