@@ -65,7 +65,7 @@ pub struct OfflineArgs {
     #[arg(long)]
     modes: Option<usize>,
     /// Stop when a new term's relative norm falls below this.
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, default_value_t = PGD_TOL)]
     tol: f64,
     #[arg(long, default_value_t = 5.0)]
     radius_mm: f64,
@@ -86,7 +86,7 @@ pub struct OfflineArgs {
     fp_max_iter: usize,
     /// Terms found together per fixed point (their spatial solves share one pass
     /// over the factored stiffness); 1 is the paper's one-term enrichment.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = PGD_BLOCK)]
     block: usize,
     #[arg(long)]
     out: PathBuf,
@@ -150,6 +150,10 @@ fn describe_run(
     )
 }
 
+/// `--method pgd`'s defaults: a new term's relative norm to stop at, and terms a block.
+const PGD_TOL: f64 = 1e-4;
+const PGD_BLOCK: usize = 16;
+
 /// The PGD solver's own options: finite and positive, and refused with the nodal
 /// build (the default), which has no fixed point to tune (they were once ignored there,
 /// a NaN tolerance too).
@@ -172,11 +176,11 @@ fn check_pgd_options(args: &OfflineArgs) -> anyhow::Result<()> {
     }
     let d = Settings::default();
     let tuned = [
-        ("--tol", args.tol != 1e-4),
+        ("--tol", args.tol != PGD_TOL),
         ("--no-update", args.no_update),
         ("--fp-tol", args.fp_tol != d.fixed_point_tol),
         ("--fp-max-iter", args.fp_max_iter != d.fixed_point_max_iter),
-        ("--block", args.block != 16),
+        ("--block", args.block != PGD_BLOCK),
     ];
     if args.method == MethodArg::Nodal
         && let Some((flag, _)) = tuned.iter().find(|(_, set)| *set)
@@ -689,14 +693,14 @@ impl<'a> Evaluated<'a> {
     }
 }
 
-/// Builds the report (the common keys, then `extra`'s), adds the maximum
-/// displacement, writes `--out`, prints it.
 /// The deepest press (mm) a linear model's answer is reported without a flag. At 2.6 mm
 /// the linear tissue's force was within 5.8 % and its surface within 0.21 mm of the
 /// neo-Hookean tissue's at 16 held-out points of coarse P2, at 7.3 mm 18.8 % and
 /// 1.53 mm (docs/tissue-measurements.md §1).
 const LINEAR_AGREES_MM: f64 = 2.6;
 
+/// Builds the report (the common keys, then `extra`'s), adds the maximum
+/// displacement, writes `--out`, prints it.
 fn report_eval<T: Scalar>(
     m: &SeparatedModel<T>,
     args: &EvalArgs,
