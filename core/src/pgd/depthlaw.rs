@@ -270,7 +270,7 @@ impl DepthLaw {
             return Err(DepthLawBuildError::NoSamples);
         }
         // A sample is kept by the change between its last two Padé forms; the second
-        // ([2/2]) needs five orders.
+        // form (`DepthSeries::pade(2, ..)`) needs five orders.
         crate::fe::series::check_orders(o.orders, MIN_ORDERS)?;
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);
