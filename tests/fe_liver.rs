@@ -324,7 +324,8 @@ mod hyperelastic {
     /// A press far below a micrometre is the linear press: its residual stalls at the
     /// internal forces' round-off (about 1e-12 N here, whatever the depth), which
     /// counts as converged. Every nonlinear press under about 0.1 mN once failed its
-    /// line search, and a force of 1e-12 N was then answered by the rest state.
+    /// line search. (A floor without the full step's acceptance answered 1e-12 N with
+    /// the rest state: hence the force cases.)
     #[test]
     fn presses_down_to_round_off_are_the_linear_press() {
         let organ = coarse_liver();
