@@ -155,6 +155,31 @@ mod hyperelastic {
     use palpa_core::fe::newton::NewtonSettings;
     use palpa_core::fe::probe::{solve_hyperelastic, solve_linear_depth};
 
+    /// A press on coarse P1 of the default material, as most tests here make it.
+    fn p1_press(
+        organ: &palpa_core::organ::OrganMesh,
+        law: Law,
+        req: &ProbeRequest,
+        depth_mm: Option<f64>,
+        settings: NewtonSettings,
+    ) -> Result<
+        (
+            palpa_core::fe::probe::ProbeSolution,
+            palpa_core::fe::newton::NewtonReport,
+        ),
+        palpa_core::fe::FeError,
+    > {
+        solve_hyperelastic(
+            organ,
+            Element::P1,
+            Material::default(),
+            law,
+            req,
+            depth_mm,
+            settings,
+        )
+    }
+
     /// At small loads the nonlinear model reduces to the linear one: the difference is
     /// second order in the load (relative difference ∝ F).
     #[test]
@@ -175,16 +200,8 @@ mod hyperelastic {
                 radius_mm: 5.0,
             };
             let lin = solve_linear(&organ, Element::P1, Material::default(), &req).expect("linear");
-            let (nl, _) = solve_hyperelastic(
-                &organ,
-                Element::P1,
-                Material::default(),
-                law,
-                &req,
-                None,
-                NewtonSettings::default(),
-            )
-            .expect("converges");
+            let (nl, _) =
+                p1_press(&organ, law, &req, None, NewtonSettings::default()).expect("converges");
             rel.push(
                 (nl.probe_displacement_mm - lin.probe_displacement_mm).abs()
                     / lin.probe_displacement_mm,
@@ -203,16 +220,8 @@ mod hyperelastic {
     fn newton_converges_quadratically() {
         let organ = coarse_liver();
         let req = press(POINTS[0], 0.5);
-        let (_, rep) = solve_hyperelastic(
-            &organ,
-            Element::P1,
-            Material::default(),
-            Law::Svk,
-            &req,
-            None,
-            NewtonSettings::default(),
-        )
-        .expect("svk");
+        let (_, rep) =
+            p1_press(&organ, Law::Svk, &req, None, NewtonSettings::default()).expect("svk");
         let r = &rep.last_step_residuals;
         eprintln!("residuals of the last load step: {r:?}");
         assert!(r.len() >= 3, "{r:?}");
@@ -239,16 +248,7 @@ mod hyperelastic {
             min_step: 1.0 / 64.0,
             ..NewtonSettings::default()
         };
-        let e = solve_hyperelastic(
-            &organ,
-            Element::P1,
-            Material::default(),
-            Law::Svk,
-            &req,
-            None,
-            settings,
-        )
-        .expect_err("must not converge");
+        let e = p1_press(&organ, Law::Svk, &req, None, settings).expect_err("must not converge");
         assert!(e.to_string().contains("% of the load"), "{e}");
     }
 
@@ -262,16 +262,8 @@ mod hyperelastic {
         let settings = NewtonSettings::default();
         let req = press(POINTS[0], f64::NAN);
         for law in [Law::Svk, Law::NeoHookean] {
-            let (by_depth, _) = solve_hyperelastic(
-                &organ,
-                Element::P1,
-                Material::default(),
-                law,
-                &req,
-                Some(4.0),
-                settings,
-            )
-            .expect("depth control");
+            let (by_depth, _) =
+                p1_press(&organ, law, &req, Some(4.0), settings).expect("depth control");
             assert!((by_depth.probe_displacement_mm - 4.0).abs() < 1e-8);
             assert!(by_depth.force_n > 0.0);
             let (by_force, _) = solve_hyperelastic(
@@ -295,16 +287,7 @@ mod hyperelastic {
                 .zip(&by_force.u)
                 .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
             assert!(worst < 1e-6, "{worst}");
-            let (rest, _) = solve_hyperelastic(
-                &organ,
-                Element::P1,
-                Material::default(),
-                law,
-                &req,
-                Some(0.0),
-                settings,
-            )
-            .expect("zero depth");
+            let (rest, _) = p1_press(&organ, law, &req, Some(0.0), settings).expect("zero depth");
             assert_eq!(rest.force_n, 0.0);
             assert!(rest.u.iter().all(|&v| v == 0.0));
         }
@@ -335,16 +318,8 @@ mod hyperelastic {
             .expect("linear depth");
         for law in [Law::Svk, Law::NeoHookean] {
             for depth in [1e-15, 1e-12, 1e-9, 1e-6, -1e-9] {
-                let (s, _) = solve_hyperelastic(
-                    &organ,
-                    Element::P1,
-                    Material::default(),
-                    law,
-                    &req,
-                    Some(depth),
-                    settings,
-                )
-                .unwrap_or_else(|e| panic!("{law:?} at {depth} mm: {e}"));
+                let (s, _) = p1_press(&organ, law, &req, Some(depth), settings)
+                    .unwrap_or_else(|e| panic!("{law:?} at {depth} mm: {e}"));
                 let ratio = s.force_n / (lin.force_n * depth);
                 assert!((ratio - 1.0).abs() < 1e-3, "{law:?} {depth} mm: {ratio}");
             }
@@ -376,16 +351,8 @@ mod hyperelastic {
         let lin = solve_linear_depth(&organ, Element::P1, Material::default(), &req, -0.5)
             .expect("linear pull");
         for law in [Law::Svk, Law::NeoHookean] {
-            let (pull, report) = solve_hyperelastic(
-                &organ,
-                Element::P1,
-                Material::default(),
-                law,
-                &req,
-                Some(-0.5),
-                NewtonSettings::default(),
-            )
-            .expect("a pull converges");
+            let (pull, report) = p1_press(&organ, law, &req, Some(-0.5), NewtonSettings::default())
+                .expect("a pull converges");
             eprintln!(
                 "{law:?}: −0.5 mm needs {:.5} N (linear {:.5} N), {} iterations",
                 pull.force_n, lin.force_n, report.iterations
@@ -431,16 +398,9 @@ mod hyperelastic {
             for depth in depths {
                 let rational = series.rational(depth);
                 let (force, u) = series.evaluate(&rational, depth);
-                let (newton, _) = solve_hyperelastic(
-                    &organ,
-                    Element::P1,
-                    Material::default(),
-                    law,
-                    &req,
-                    Some(depth),
-                    NewtonSettings::default(),
-                )
-                .expect("newton");
+                let (newton, _) =
+                    p1_press(&organ, law, &req, Some(depth), NewtonSettings::default())
+                        .expect("newton");
                 let worst = u
                     .iter()
                     .zip(&newton.u)
@@ -706,10 +666,8 @@ mod hyperelastic {
             let unit = solve_linear(&organ, Element::P1, Material::default(), &press(at, 1.0))
                 .expect("linear");
             let c = unit.probe_displacement_mm;
-            let (newton, _) = solve_hyperelastic(
+            let (newton, _) = p1_press(
                 &organ,
-                Element::P1,
-                Material::default(),
                 Law::NeoHookean,
                 &req,
                 Some(depth),
@@ -738,10 +696,8 @@ mod hyperelastic {
     fn a_non_finite_depth_is_refused() {
         let organ = coarse_liver();
         let req = press(POINTS[0], 1.0);
-        let e = solve_hyperelastic(
+        let e = p1_press(
             &organ,
-            Element::P1,
-            Material::default(),
             Law::NeoHookean,
             &req,
             Some(f64::INFINITY),
