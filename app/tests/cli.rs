@@ -745,15 +745,8 @@ fn cme_times_at_the_extremes_are_answered_and_printed_readably() {
             "species {i}: mean {mean} at t = 0"
         );
     }
-    let out = palpa(&[
-        "cme",
-        "solve",
-        "toggle",
-        "--method",
-        "fsp",
-        "--t",
-        "1e-300,0.5,1e12",
-    ]);
+    let args = "cme solve toggle --method fsp --t 1e-300,0.5,1e12";
+    let out = palpa(&args.split(' ').collect::<Vec<_>>());
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     for line in ["t = 1e-300: ", "t = 0.5: ", "t = 1e12: "] {
