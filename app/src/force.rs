@@ -154,7 +154,9 @@ pub struct ForceSample {
     /// The linear tissue's force at the same depth, N (equal to `magnitude_n` without
     /// a depth law): the surface drawn is the one at the sample's depth.
     pub linear_n: f32,
-    /// 1 if the depth lay beyond the depth law's range (clamped to its end).
+    /// 1 if the depth asked, or the depth the force asked needs, lay beyond the law's
+    /// range: depth and force are both held at its end (the asked value stays in
+    /// `command.target`).
     pub beyond_law: u32,
     /// The contact point at rest, mm.
     pub point_mm: [f32; 3],
@@ -489,10 +491,18 @@ impl Worker {
                         let (f, beyond) = law.force_n(&cmd.point(), c.point_mm, target, comp);
                         (f, target.min(law.limit_mm(&cmd.point()).0), beyond)
                     }
-                    // The trigger's force in, the depth that needs it out.
+                    // The trigger's force in, the depth that needs it out. Past the
+                    // law's limit the depth is held there, and so is the force: the
+                    // tissue's at the held depth, not the trigger's (the asked force
+                    // stays in the sample's command), so the sample lies on the curve.
                     (Some(law), PressMode::Force) => {
                         let (d, beyond) = law.depth_mm(&cmd.point(), c.point_mm, target, comp);
-                        (target, d, beyond)
+                        let force = if beyond {
+                            law.force_n(&cmd.point(), c.point_mm, d, comp).0
+                        } else {
+                            target
+                        };
+                        (force, d, beyond)
                     }
                 };
                 s.linear_n = (depth / comp) as f32;

@@ -268,6 +268,12 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
                 }
                 _ => "deeper than the force law covers: held at its last depth".to_string(),
             };
+            // The trigger asked for more than the tissue gives at its limit.
+            let text = if s.command.mode() == PressMode::Force {
+                format!("{text} (asked {:.1} N)", s.command.target)
+            } else {
+                text
+            };
             ui.colored_label(Color32::from_rgb(230, 160, 60), text);
         }
         if let Some(g) = session.past_goals_mm() {

@@ -349,6 +349,24 @@ fn the_default_scene_presses_with_its_tissue_both_ways() {
         "{cli}"
     );
 
+    // The trigger past what the tissue gives here: depth and force are both held at
+    // the limit, the force being the tissue's there (eval's), not the 1 kN asked.
+    s.controls.force_n = 1000.0;
+    s.force.command(s.controls.command());
+    settle(&s, Duration::from_secs(2));
+    let held = s.force.latest();
+    assert_eq!(held.beyond_law, 1, "{held:?}");
+    assert_eq!(held.command.target, 1000.0);
+    let cli = eval("--force-n", 1000.0);
+    assert_eq!(cli["beyond_depth_max"], true, "{cli}");
+    let held_n = num(&cli, "force_n");
+    assert!(held_n < 1000.0, "{cli}");
+    assert!(
+        (f64::from(held.magnitude_n) - held_n).abs() <= 1e-4 * held_n
+            && (f64::from(held.depth_mm) - num(&cli, "probe_displacement_mm")).abs() < 1e-3,
+        "the loop's {held:?} against eval's {cli}"
+    );
+
     // The panel's finest surplus is eval's at the same press. It is the triangle's
     // (the probe starts on a vertex, which eval may place in a neighbour), so inside one.
     let inside = palpa_core::axis::ProbePoint {
