@@ -1001,6 +1001,12 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         &["--orders", "4"],
         "4 orders: expected 5 to 30",
     );
+    // More samples than palpable vertices: said before pressing (each vertex once).
+    refused(
+        &["depth-law", "build", "--element", "p1", "--out", &out_s],
+        &["--orders", "4", "--samples", "100000"],
+        "the palpable surface has 559 vertices; pressing each of them",
+    );
     // `tissue refine` likewise, and a file that is no tissue law is named.
     let shipped = dir.path().join("shipped.tissue");
     unsplit_shipped(&shipped);

@@ -114,6 +114,14 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         orders: args.orders,
         ..DepthLawOptions::default()
     };
+    // A sample is a palpable vertex; asking for more presses each once.
+    let vertices = organ.pressable_vertices().len();
+    if args.samples > vertices && vertices > 0 {
+        eprintln!(
+            "warning: --samples {}: the palpable surface has {vertices} vertices; pressing each of them",
+            args.samples
+        );
+    }
     // Finished samples are logged beside the output: an interrupted build run again
     // with the same arguments goes on from the last one.
     let mut log = args.out.as_os_str().to_owned();
@@ -139,7 +147,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     println!(
         "{}",
         json!({"out": args.out, "law": options.law.name(), "samples": law.samples.len(),
-            "orders": options.orders, "depth_max_mm": options.depth_max_mm,
+            "samples_asked": args.samples, "orders": options.orders, "depth_max_mm": options.depth_max_mm,
             "sigma_mm": law.sigma_mm, "build_s": law.build_s, "resumed_samples": resumed,
             "worst_pade_change": law.pade_change.iter().copied().filter(|c| c.is_finite()).fold(0.0, f64::max),
             "bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0)})
