@@ -356,6 +356,14 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
         eprintln!("palpa: {stage} ({:.1} s)", t0.elapsed().as_secs_f64());
     })
     .context("computing the nodal vademecum")?;
+    if model.modes() < modes {
+        // The surface map has no more independent directions than its smaller side.
+        eprintln!(
+            "palpa: warning: --modes {modes}: the surface map holds {} independent modes; kept {}",
+            model.modes(),
+            model.modes()
+        );
+    }
     let mut prov = model.provenance().clone();
     prov.input_hash = format!("{:016x}", xxhash_rust::xxh3::xxh3_64(desc.as_bytes()));
     model.set_provenance(prov);
@@ -368,6 +376,7 @@ fn offline_nodal(args: &OfflineArgs) -> anyhow::Result<()> {
             "tissue": tissue,
             "method": "nodal",
             "modes": model.modes(),
+            "modes_asked": modes,
             "load_nodes": report.load_nodes,
             "solves": report.solves,
             "free_dofs": s.space.free_dofs,
