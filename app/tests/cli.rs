@@ -51,6 +51,38 @@ fn info_on_a_foreign_file_fails_with_a_clear_message() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("not a palpa meta-model file"), "{err}");
     assert!(err.contains("notes.txt"), "the file is named: {err}");
+    assert!(
+        !err.contains("note:"),
+        "no kind is guessed for plain text: {err}"
+    );
+
+    // A file of another palpa kind, or a surface mesh, is named as what it is.
+    let assets = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets");
+    let (scene, tissue) = (
+        format!("{assets}/liver-coarse.palpa"),
+        format!("{assets}/liver-coarse.tissue"),
+    );
+    let ply = dir.path().join("organ.ply");
+    std::fs::write(&ply, "ply\nformat ascii 1.0\n").expect("write");
+    let ply = ply.to_str().expect("utf-8");
+    let at = ["--at", "0,0,0", "--depth-mm", "1"];
+    for (args, says) in [
+        (vec!["tissue", "check", &scene], "is a palpa meta-model"),
+        (
+            [&["depth-law", "eval", &tissue][..], &at[..]].concat(),
+            "is a tissue vademecum",
+        ),
+        (
+            vec!["cme", "eval", &tissue, "--t", "1"],
+            "is a tissue vademecum",
+        ),
+        ([&["eval", ply][..], &at[..]].concat(), "is a surface mesh"),
+    ] {
+        let out = palpa(&args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
 }
 
 #[test]

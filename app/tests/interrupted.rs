@@ -100,6 +100,22 @@ fn depth_law_resumes_from_its_sample_log() {
     assert_eq!(bits(&x.ratio), bits(&y.ratio));
     assert_eq!(bits(&x.pade_change), bits(&y.pade_change));
     assert_eq!(bits(&x.stiffness_n_per_mm), bits(&y.stiffness_n_per_mm));
+
+    // `palpa info` describes a force law; a scene's command handed one names it.
+    let full_s = full.to_str().expect("utf-8");
+    let run = |a: &[&str]| palpa(&a.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+    let info = common::json_ok(&run(&["info", full_s, "--json"]));
+    assert_eq!(info["samples"], a["samples"], "{info}");
+    assert_eq!(info["samples_asked"], 24, "{info}");
+    assert_eq!(info["orders"], 10, "{info}");
+    assert_eq!(info["law"], "neo-hookean", "{info}");
+    let out = run(&["eval", full_s, "--at", "0,0,0", "--depth-mm", "1"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("is a force law: `palpa depth-law eval`"),
+        "{err}"
+    );
 }
 
 /// The tissue build (every vertex's press followed to equilibrium): killed after a

@@ -9,7 +9,8 @@ use serde_json::json;
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The meta-model file (a `.palpa` scene or network, or a `.tissue` vademecum).
+    /// The meta-model file (a `.palpa` scene or network, a `.tissue` vademecum or a
+    /// force law).
     file: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -21,6 +22,22 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
         let law = palpa_core::pgd::tissue::TissueLaw::load(&args.file)?;
         let summary = super::tissue::summary(&law, &args.file);
+        return super::args::print_report(&summary, args.json);
+    }
+    // A force law (`palpa depth-law build`) too.
+    if super::kinds::head(&args.file).starts_with(palpa_core::pgd::depthlaw::MAGIC) {
+        let law = palpa_core::pgd::depthlaw::DepthLaw::load(&args.file)?;
+        let o = &law.options;
+        let kept = law.pade_change.iter().copied().filter(|c| c.is_finite());
+        let summary = json!({
+            "file": args.file, "kind": "force law (depth-law)", "law": o.law.name(),
+            "element": o.element.name(), "young_kpa": o.material.young_kpa,
+            "poisson": o.material.poisson, "samples": law.samples.len(),
+            "samples_asked": o.samples, "depth_max_mm": o.depth_max_mm,
+            "depth_step_mm": o.depth_step_mm, "orders": o.orders,
+            "tool_radius_mm": o.tool_radius_mm, "sigma_mm": law.sigma_mm,
+            "worst_pade_change": kept.fold(0.0, f64::max), "build_s": law.build_s,
+        });
         return super::args::print_report(&summary, args.json);
     }
     let h = file::read_header(&args.file)

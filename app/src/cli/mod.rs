@@ -13,6 +13,7 @@ mod depthlaw;
 mod fe;
 mod headless;
 mod info;
+mod kinds;
 mod liver;
 mod memory;
 mod mesh;
@@ -101,6 +102,9 @@ pub fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", error_chain(&e));
+            if let Some(what) = kinds::hint(&e) {
+                eprintln!("note: {what}");
+            }
             ExitCode::FAILURE
         }
     }

@@ -17,7 +17,8 @@ use xxhash_rust::xxh3::xxh3_64;
 
 use super::linear::Terms;
 
-const MAGIC: &[u8; 8] = b"PALPAJR1";
+/// The first bytes of a journal.
+pub const MAGIC: &[u8; 8] = b"PALPAJR1";
 
 /// An open journal, positioned for appending.
 #[derive(Debug)]
