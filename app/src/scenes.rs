@@ -193,6 +193,9 @@ pub fn open(spec: &str) -> anyhow::Result<Opened> {
     load(spec).map(|s| Opened::Palpation(Box::new(s)))
 }
 
+/// How [`open_or_default`]'s message ends: what the app shows instead.
+pub const SHOWING_BUILT_IN: &str = "; showing the built-in liver instead";
+
 /// Opens `spec`; on failure, the built-in scene and the message saying why (the app
 /// opens anyway and shows it).
 pub fn open_or_default(spec: &str) -> anyhow::Result<(Opened, Option<String>)> {
@@ -200,7 +203,7 @@ pub fn open_or_default(spec: &str) -> anyhow::Result<(Opened, Option<String>)> {
         Ok(s) => Ok((s, None)),
         Err(e) => Ok((
             Opened::Palpation(Box::new(built_in()?)),
-            Some(format!("{e:#}; showing the built-in liver instead")),
+            Some(format!("{e:#}{SHOWING_BUILT_IN}")),
         )),
     }
 }

@@ -415,7 +415,10 @@ impl App {
 
 /// Runs the app on `event_loop` until the window closes.
 pub fn run_on(event_loop: EventLoop<()>, scene: &str) -> anyhow::Result<()> {
-    let mut app = App::new(scene)?;
+    run_app(event_loop, App::new(scene)?)
+}
+
+fn run_app(event_loop: EventLoop<()>, mut app: App) -> anyhow::Result<()> {
     event_loop
         .run_app(&mut app)
         .context("the event loop failed")?;
@@ -427,11 +430,21 @@ pub fn run_on(event_loop: EventLoop<()>, scene: &str) -> anyhow::Result<()> {
 
 /// The desktop app: opens a window on `scene`.
 pub fn run(scene: &str) -> anyhow::Result<()> {
+    // The scene first: a window shows why a scene did not open (and the built-in one
+    // instead), and without a window that reason goes in the error.
+    let app = App::new(scene)?;
     let event_loop = EventLoop::new().map_err(|e| {
+        let scene = match &app.shell.hud.message {
+            Some(why) => format!(
+                " The scene did not open either: {}.",
+                why.trim_end_matches(crate::scenes::SHOWING_BUILT_IN)
+            ),
+            None => String::new(),
+        };
         anyhow::anyhow!(
             "cannot open a window ({e}): no display found. Set DISPLAY or WAYLAND_DISPLAY, \
-             run under `xvfb-run`, or use `palpa headless` to render offscreen"
+             run under `xvfb-run`, or use `palpa headless` to render offscreen.{scene}"
         )
     })?;
-    run_on(event_loop, scene)
+    run_app(event_loop, app)
 }

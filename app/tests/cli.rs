@@ -85,6 +85,30 @@ fn info_on_a_foreign_file_fails_with_a_clear_message() {
     }
 }
 
+/// Without a display, `palpa open` on a scene that does not open says both: the app
+/// would have shown the built-in liver and the reason, which nothing shows here.
+#[test]
+fn open_without_a_display_names_the_scene_that_did_not_open() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let f = dir.path().join("broken.palpa");
+    std::fs::write(&f, "not a scene").expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(["open", "--scene", f.to_str().expect("utf-8")])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("WAYLAND_SOCKET")
+        .output()
+        .expect("palpa runs");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no display found"), "{err}");
+    assert!(
+        err.contains("The scene did not open either") && err.contains("broken.palpa"),
+        "{err}"
+    );
+    assert!(!err.contains("showing the built-in"), "{err}");
+}
+
 #[test]
 fn bench_eval_prints_one_json_object_per_configuration() {
     let out = palpa(&[
