@@ -247,4 +247,21 @@ fn regions_come_from_selectors_and_region_files() {
     let out = build(&["--fixed", "none"], "e.palpa");
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("free to move"));
+    // So is a held-out count no table needs (each point is a full FE solve).
+    let out = palpa(&[
+        "scene",
+        "build",
+        "--surface",
+        s(&surface),
+        "--units",
+        "mm",
+        "--held-out",
+        "100000000",
+        "--out",
+        s(&dir.path().join("f.palpa")),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("expected at most 10000"), "{err}");
+    assert!(!err.contains("[2/6]"), "refused before meshing: {err}");
 }

@@ -275,6 +275,8 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     if !(args.radius_mm.is_finite() && args.radius_mm > 0.0) {
         bail!("--radius-mm {} must be a positive length", args.radius_mm);
     }
+    // Before any stage: a build once meshed and solved for minutes, then drew 10⁸ points.
+    super::tissue::check_heldout(args.held_out)?;
 
     pr.start("surface", &args.surface.display().to_string());
     let axes = axes_of(args)?;
