@@ -766,7 +766,8 @@ fn cme_errors_are_clear() {
 }
 
 /// The exact solve to t = 10¹² (days of stepping) stops where the toggle's law settles
-/// and says so; the answer is the one at t = 10⁴ (2 500 relaxation times).
+/// and says so; the answer is the one at t = 10⁴ (2 500 relaxation times), and at
+/// 10²⁰ too once `--auto-box` has grown the box that leaks by then.
 #[test]
 fn fsp_at_a_very_long_time_says_where_it_settled() {
     let out = palpa(&[
@@ -784,6 +785,29 @@ fn fsp_at_a_very_long_time_says_where_it_settled() {
     );
     let leak = v["leaked"][1].as_f64().expect("leak");
     assert!(leak < 1e-6, "leak {leak}");
+
+    // Settled, the box still leaks at its law's exit rate: by 10²⁰ the toggle's
+    // declared 80 × 80 box has lost more than the target and says what to do, and
+    // `--auto-box` (once a no-op on declared maxima, and still suggesting itself)
+    // grows it until the same answer keeps its mass.
+    let solve = |extra: &[&str]| {
+        let base = ["cme", "solve", "toggle", "--method", "fsp", "--t", "1e20"];
+        common::json_ok(&palpa(&[&base[..], extra, &["--json"]].concat()))
+    };
+    let fixed = solve(&[]);
+    let warned = fixed["warnings"].to_string();
+    assert!(warned.contains("use --auto-box"), "{fixed}");
+    let grown = solve(&["--auto-box"]);
+    assert_eq!(grown["warnings"], serde_json::json!([]), "{grown}");
+    let sizes = grown["box_sizes"].as_array().expect("sizes");
+    assert!(sizes.iter().all(|m| m.as_u64() > Some(80)), "{grown}");
+    let leak = grown["leaked"][0].as_f64().expect("leak");
+    assert!(leak < 1e-6, "{grown}");
+    let mean = grown["mean"][0][0].as_f64().expect("mean");
+    assert!(
+        (mean - v["mean"][0][0].as_f64().expect("mean")).abs() < 1e-6,
+        "{grown}"
+    );
 }
 
 /// The extremes of time as a user types them: t = 0 alone by PGD (once refused: its

@@ -341,7 +341,8 @@ pub struct SolveArgs {
     /// SSA seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// FSP: grow boxes (doubling) until the leak is below --max-leak.
+    /// FSP: choose every species' box, declared maxima too, growing it as the
+    /// distribution spreads until the leak stays below --max-leak.
     #[arg(long)]
     auto_box: bool,
     /// FSP: the leak above which the box is reported as too small.
@@ -539,16 +540,29 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
     {
         Method::Fsp => {
             let auto = network.species.iter().any(|s| s.max.is_none());
-            let (sol, met) = if args.auto_box || auto {
+            let (sol, met) = if args.auto_box {
+                // A declared max is a box too: --auto-box chooses them all.
+                let mut open = network.clone();
+                open.species.iter_mut().for_each(|s| s.max = None);
+                fsp::solve_auto(&open, &p, &args.t, args.max_leak)?
+            } else if auto {
                 fsp::solve_auto(&network, &p, &args.t, args.max_leak)?
             } else {
                 (fsp::solve(&network, &p, &args.t)?, true)
             };
             let worst = sol.leak.iter().copied().fold(0.0, f64::max);
             if worst > args.max_leak || !met {
+                let what_next = if args.auto_box || auto {
+                    format!(
+                        "the box could grow no further (at most {} states)",
+                        fsp::MAX_STATES
+                    )
+                } else {
+                    "enlarge the species' max or use --auto-box".to_string()
+                };
                 warnings.push(format!(
-                    "the box {:?} leaks {worst:.2e} of the probability (> {:.0e}): results are truncated; \
-                     enlarge the species' max or use --auto-box",
+                    "the box {:?} leaks {worst:.2e} of the probability (> {:.0e}): results are \
+                     truncated; {what_next}",
                     sol.sizes, args.max_leak
                 ));
             }
