@@ -832,6 +832,18 @@ fn cme_times_at_the_extremes_are_answered_and_printed_readably() {
     for line in ["t = 1e-300: ", "t = 0.5: ", "t = 1e12: "] {
         assert!(text.contains(line), "{line:?} missing from {text}");
     }
+    // And in the time grid's refusals, for both PGD solvers.
+    for solver in ["tt", "greedy"] {
+        let args =
+            format!("cme solve toggle --method pgd --solver {solver} --t 1 --max-step 1e-300");
+        let out = palpa(&args.split(' ').collect::<Vec<_>>());
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("largest step 1e-300") && err.len() < 400,
+            "{solver}: {err}"
+        );
+    }
 }
 
 #[test]

@@ -116,7 +116,7 @@ impl Options {
             && (1.0..=1.5).contains(&self.growth);
         if !ok {
             return Err(CmePgdError::TimeGrid(format!(
-                "t_end {}, first step {}, largest step {}, growth {}: expected t_end > 0, \
+                "t_end {:?}, first step {:?}, largest step {:?}, growth {:?}: expected t_end > 0, \
                  0 < first ≤ largest, growth in [1, 1.5]",
                 self.t_end, self.h_first, self.h_max, self.growth
             )));

@@ -493,8 +493,9 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
         && options.max_rank >= 1;
     if !ok {
         return Err(CmePgdError::TimeGrid(format!(
-            "t_end {}, first step {}, largest step {}, growth {}, eps {}, compress eps {}, \
-             weight floor {}, max rank {}: expected t_end > 0, 0 < first ≤ largest, growth \
+            // Debug prints 1e-300 as such, where Display writes 300 zeros.
+            "t_end {:?}, first step {:?}, largest step {:?}, growth {:?}, eps {:?}, compress \
+             eps {:?}, weight floor {:?}, max rank {}: expected t_end > 0, 0 < first ≤ largest, growth \
              in [1, 1.5], eps ≥ 0, compress eps ≥ 0, 0 < floor < ∞, rank ≥ 1",
             options.t_end,
             options.h_first,
@@ -510,7 +511,7 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
     let fewest = options.t_end / options.h_max;
     if fewest > MAX_STEPS as f64 {
         return Err(CmePgdError::TimeGrid(format!(
-            "t_end {} in steps of at most {} needs at least {fewest:.3e} steps; expected at \
+            "t_end {:?} in steps of at most {:?} needs at least {fewest:.3e} steps; expected at \
              most {MAX_STEPS}: raise the largest step or shorten the time",
             options.t_end, options.h_max
         )));
