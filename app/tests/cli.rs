@@ -810,6 +810,44 @@ fn fsp_at_a_very_long_time_says_where_it_settled() {
     );
 }
 
+/// PGD flags that would change nothing, or the wrong thing: an end before the last
+/// output time (the greedy solver once answered t = 1 with its law at 0.5), a species
+/// name that does not exist, and the stored model's flags given to a solve or to a
+/// model that keeps its history.
+#[test]
+fn cme_pgd_flags_that_do_not_apply_are_said() {
+    let run = |args: &str| {
+        let out = palpa(&args.split(' ').collect::<Vec<_>>());
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        (out.status.success(), err)
+    };
+    let solve = "cme solve toggle --method pgd --t 1";
+    for solver in ["tt", "greedy"] {
+        let (ok, err) = run(&format!("{solve} --solver {solver} --t-end 0.5"));
+        assert!(
+            !ok && err.contains("must reach the last output time 1"),
+            "{err}"
+        );
+    }
+    let (ok, err) = run(&format!("{solve} --pairs z1:X"));
+    assert!(!ok && err.contains("no species \"X\""), "{err}");
+    let (ok, err) = run(&format!("{solve} --pairs z1:z2"));
+    assert!(
+        ok && err.contains("a solve keeps the states at its output times only"),
+        "{err}"
+    );
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("t.palpa");
+    let offline = format!("cme offline toggle --t-end 1 --out {}", out.display());
+    let (ok, err) = run(&format!("{offline} --views-eps 1e-4"));
+    assert!(
+        ok && err.contains("this one keeps the whole history"),
+        "{err}"
+    );
+    let (ok, err) = run(&format!("{offline} --keep views --views-eps nan"));
+    assert!(!ok && err.contains("--views-eps NaN"), "{err}");
+}
+
 /// The extremes of time as a user types them: t = 0 alone by PGD (once refused: its
 /// time grid needs an end), and tiny or huge times printed as numbers a person reads
 /// (1e-300 was once three hundred zeros).

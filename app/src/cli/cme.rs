@@ -78,11 +78,12 @@ pub struct PgdArgs {
     /// views: the joints kept, "neighbours" (each species with the next), "none", or
     /// pairs of species names A:B, comma-separated (the first two species' joint is
     /// always kept: it gives their covariance).
-    #[arg(long, default_value = "neighbours")]
-    pairs: String,
-    /// views: root-mean-square relative error of a stored time row.
-    #[arg(long, default_value_t = build::VIEWS_EPS)]
-    views_eps: f64,
+    /// [default: neighbours]
+    #[arg(long)]
+    pairs: Option<String>,
+    /// views: root-mean-square relative error of a stored time row [default: 1e-5].
+    #[arg(long)]
+    views_eps: Option<f64>,
     /// tt: relative truncation of each stored state in the history.
     #[arg(long, default_value_t = ttsolve::Options::default().compress_eps)]
     compress_eps: f64,
@@ -139,7 +140,13 @@ impl PgdArgs {
 
     /// The tensor-train build: the recipe's defaults for `network` (see
     /// [`build::Recipe::default_for`]), `--keep` and the flags given over them.
-    pub fn recipe(&self, network: &Network, t_default: f64) -> anyhow::Result<build::Recipe> {
+    /// `stored`: the model is kept (`cme offline`), so the views flags apply to it.
+    pub fn recipe(
+        &self,
+        network: &Network,
+        t_default: f64,
+        stored: bool,
+    ) -> anyhow::Result<build::Recipe> {
         let t_end = self.t_end.unwrap_or(t_default);
         let auto = build::Recipe::default_for(network, t_end);
         let views = match self.keep {
@@ -168,12 +175,21 @@ impl PgdArgs {
             max_rank: self.max_rank,
             ..d
         };
+        // Named species are checked either way: a typo is an error, not a no-op.
+        let pairs = parse_pairs(self.pairs.as_deref().unwrap_or("neighbours"), network)?;
+        let eps = self.views_eps.unwrap_or(build::VIEWS_EPS);
+        if !(eps.is_finite() && eps > 0.0) {
+            bail!("--views-eps {eps}: expected a positive relative error");
+        }
         let views = if views {
-            Some(build::ViewOptions {
-                pairs: parse_pairs(&self.pairs, network)?,
-                eps: self.views_eps,
-            })
+            Some(build::ViewOptions { pairs, eps })
         } else {
+            if stored && (self.pairs.is_some() || self.views_eps.is_some()) {
+                eprintln!(
+                    "warning: --pairs and --views-eps shape a views model; this one keeps the \
+                     whole history (--keep views keeps views)"
+                );
+            }
             None
         };
         Ok(build::Recipe { options, views })
@@ -197,7 +213,15 @@ impl PgdArgs {
         let built = match self.solver {
             Solver::Greedy => run_pgd(network, &self.options(network, t_default))?,
             Solver::Tt => {
-                let recipe = self.recipe(network, t_default)?;
+                let shaping =
+                    self.pairs.is_some() || self.views_eps.is_some() || self.keep != Keep::Auto;
+                if times.is_some() && shaping {
+                    eprintln!(
+                        "warning: --keep, --pairs and --views-eps shape a stored model (`palpa \
+                         cme offline`); a solve keeps the states at its output times only"
+                    );
+                }
+                let recipe = self.recipe(network, t_default, times.is_none())?;
                 let o = recipe.options;
                 let mut shown = Instant::now();
                 let mut progress = |s: ttsolve::Step| {
@@ -603,6 +627,16 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         }
         Method::Pgd => {
             let t_end = args.t.last().copied().unwrap_or(1.0).max(1e-3);
+            if let Some(end) = args.pgd.t_end
+                && end < t_end
+            {
+                // The model would be clamped at its end: answers at the wrong time.
+                bail!(
+                    "--t-end {end}: the solve must reach the last output time {}; leave \
+                     --t-end out (it defaults to that time)",
+                    time_text(t_end)
+                );
+            }
             // A conserved pair is solved with one species less and expanded back.
             let reduced = conservation::reduce(&network);
             if let Some(r) = &reduced {
