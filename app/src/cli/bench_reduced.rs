@@ -22,7 +22,7 @@
 use std::time::Instant;
 
 use palpa_core::fe::probe::organ_space;
-use palpa_core::fe::reduced::{Basis, Check, reduced_press};
+use palpa_core::fe::reduced::{Basis, Check, krylov_correction, reduced_press};
 use palpa_core::fe::series::Expander;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
@@ -38,6 +38,9 @@ pub const NEAR: [[f64; 3]; 4] = [
 ];
 
 const COMPARED_MM: [f64; 5] = [3.0, 6.0, 9.0, 12.0, 15.0];
+
+/// Conjugate-gradient steps after which the Krylov correction is reported.
+const KRYLOV_STEPS: [usize; 5] = [1, 2, 4, 8, 16];
 
 fn largest_on(rows: &[u32], a: &[f64], b: &[f64]) -> f64 {
     rows.iter()
@@ -250,6 +253,40 @@ pub(super) fn reduced(
                         "six_presses_seconds": six_s});
                     if let (Some(u), Some(f)) = (rom.u.get(j - 1), rom.force_n.get(j - 1)) {
                         row["reduced_error_mm"] = json!(largest_on(&rows, u, exact));
+                        if label == "own u1..u6" {
+                            // What Newton's correction there is, seen through a few
+                            // conjugate-gradient steps on the tangent's action with
+                            // the rest factor: an error estimate, and a corrector.
+                            let k = krylov_correction(
+                                &space,
+                                o.law,
+                                Material::default(),
+                                expander.rest_factor(),
+                                &shape,
+                                &probe,
+                                u,
+                                *f,
+                                KRYLOV_STEPS[KRYLOV_STEPS.len() - 1],
+                            )?;
+                            let zero = vec![0.0; u.len()];
+                            let (mut estimate, mut corrected) = (Vec::new(), Vec::new());
+                            for &n in &KRYLOV_STEPS {
+                                let Some(delta) = k.steps.get(n - 1) else {
+                                    break;
+                                };
+                                let delta = space.expand(delta);
+                                estimate.push(largest_on(&rows, &delta, &zero));
+                                let moved: Vec<f64> =
+                                    u.iter().zip(&delta).map(|(a, b)| a + b).collect();
+                                corrected.push(largest_on(&rows, &moved, exact));
+                            }
+                            row["krylov_steps"] = json!(KRYLOV_STEPS);
+                            row["krylov_estimate_mm"] = json!(estimate);
+                            row["krylov_corrected_error_mm"] = json!(corrected);
+                            row["krylov_indefinite"] = json!(k.indefinite);
+                            row["krylov_seconds"] = json!(k.seconds);
+                            row["krylov_load_probe_cosine"] = json!(k.load_probe_cosine);
+                        }
                         row["reduced_check_mm"] = json!(rom.check_mm[j - 1]);
                         row["reduced_force_rel_error"] =
                             json!((f - full.force_n[j]) / full.force_n[j]);

@@ -424,6 +424,133 @@ fn in_span(
     Some(false)
 }
 
+/// The correction Newton would make to a state on the whole mesh, approached by a
+/// few steps of conjugate gradients on the tangent's action with a factored stiffness
+/// (`factor`, e.g. the shared rest one) as preconditioner: what [`Check`]'s single
+/// chord step understates where the tangent is softer than that stiffness.
+///
+/// At the state `u` (all nodes) with force `F`, the bordered Newton step solves
+///
+/// ```text
+/// K_t δ − ΔF f̂ = −R,   n̂·δ = 0,        R = f_int(u) − F f̂.
+/// ```
+///
+/// With the load shape along the probe functional (`f̂ ∥ n̂`, as the tool's disk gives
+/// both) that is a symmetric problem on the subspace `n̂·δ = 0`, and conjugate
+/// gradients with the constraint preconditioner
+///
+/// ```text
+/// P(r) = K⁻¹ r + μ K⁻¹ f̂,   μ = −n̂·K⁻¹r / n̂·K⁻¹f̂   (so n̂·P(r) = 0)
+/// ```
+///
+/// keep every iterate on it (projected PCG). The tangent's action `K_t p` is the
+/// directional derivative `(f_int(u + h p) − f_int(u)) / h`: one residual a step,
+/// plus one solve with `factor`. Step one is the check's chord step; each further step
+/// adds what the rest stiffness misses, from below in the tangent's energy norm.
+#[derive(Debug, Clone)]
+pub struct KrylovCorrection {
+    /// The correction (free dofs) after each step.
+    pub steps: Vec<Vec<f64>>,
+    /// Where a direction had `pᵀ K_t p ≤ 0` (the tangent not positive definite on the
+    /// constraint's subspace): the steps stop there.
+    pub indefinite: bool,
+    /// The cosine between the load shape and the probe functional (1 when the
+    /// preconditioned problem is symmetric).
+    pub load_probe_cosine: f64,
+    /// Residuals assembled, solves with `factor`, and seconds.
+    pub residuals: usize,
+    pub solves: usize,
+    pub seconds: f64,
+}
+
+/// `steps` steps of [`KrylovCorrection`] at the all-node state `u` with force
+/// `force_n` (load shape `shape`, probe functional `probe`, all-node).
+#[allow(clippy::too_many_arguments)]
+pub fn krylov_correction(
+    space: &Space,
+    law: Law,
+    material: Material,
+    factor: &Cholesky,
+    shape: &[f64],
+    probe: &[f64],
+    u: &[f64],
+    force_n: f64,
+    steps: usize,
+) -> Result<KrylovCorrection, FeError> {
+    material.validate()?;
+    let t0 = Instant::now();
+    let (lambda, mu) = material.lame_n_per_mm2();
+    let shape_free = space.restrict(shape);
+    let probe_free = space.restrict(probe);
+    let cosine = dot(&shape_free, &probe_free)
+        / (dot(&shape_free, &shape_free) * dot(&probe_free, &probe_free)).sqrt();
+    let fint = internal_force(space, law, u, lambda, mu);
+    let u_free = space.restrict(u);
+    let mut out = KrylovCorrection {
+        steps: Vec::new(),
+        indefinite: false,
+        load_probe_cosine: cosine,
+        residuals: 1,
+        solves: 1,
+        seconds: 0.0,
+    };
+    let y = factor.solve(&shape_free);
+    let ny = dot(&probe_free, &y);
+    let precondition = |r: &[f64], solves: &mut usize| -> Vec<f64> {
+        *solves += 1;
+        let x = factor.solve(r);
+        let m = -dot(&probe_free, &x) / ny;
+        x.iter().zip(&y).map(|(xi, yi)| xi + m * yi).collect()
+    };
+    let mut r: Vec<f64> = fint
+        .iter()
+        .zip(&shape_free)
+        .map(|(f, s)| -(f - force_n * s))
+        .collect();
+    let mut z = precondition(&r, &mut out.solves);
+    let mut p = z.clone();
+    let mut rz = dot(&r, &z);
+    let mut delta = vec![0.0; u_free.len()];
+    for _ in 0..steps {
+        let size = p.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        if !(size > 0.0 && size.is_finite()) {
+            break;
+        }
+        // A step of 1e-4 mm at the largest dof: well inside the tangent's validity,
+        // well above the residual's round-off.
+        let h = 1e-4 / size;
+        let shifted: Vec<f64> = u_free.iter().zip(&p).map(|(a, b)| a + h * b).collect();
+        let fint_h = internal_force(space, law, &space.expand(&shifted), lambda, mu);
+        out.residuals += 1;
+        let q: Vec<f64> = fint_h.iter().zip(&fint).map(|(a, b)| (a - b) / h).collect();
+        let pq = dot(&p, &q);
+        if !(pq > 0.0) {
+            out.indefinite = true;
+            break;
+        }
+        let alpha = rz / pq;
+        delta
+            .iter_mut()
+            .zip(&p)
+            .for_each(|(d, pi)| *d += alpha * pi);
+        r.iter_mut().zip(&q).for_each(|(ri, qi)| *ri -= alpha * qi);
+        out.steps.push(delta.clone());
+        z = precondition(&r, &mut out.solves);
+        let rz_new = dot(&r, &z);
+        if !(rz_new > 0.0) {
+            // Converged to round-off: nothing left to correct.
+            break;
+        }
+        let beta = rz_new / rz;
+        rz = rz_new;
+        p.iter_mut()
+            .zip(&z)
+            .for_each(|(pi, zi)| *pi = zi + beta * *pi);
+    }
+    out.seconds = t0.elapsed().as_secs_f64();
+    Ok(out)
+}
+
 /// Broyden's update of the reduced tangent `j` (row-major `r × r`) from `Vᵀ f_int`
 /// assembled at `a0` (`f0`) and at `a` (`f`). No update for a zero step.
 fn broyden(j: &mut [f64], a: &[f64], f: &[f64], a0: &[f64], f0: &[f64]) {
@@ -631,6 +758,87 @@ mod tests {
         let kept = j.clone();
         broyden(&mut j, &a, &[9.0, 9.0], &a, &f);
         assert_eq!(j, kept);
+    }
+
+    /// Off an equilibrium by a small `e` that keeps the depth, the Krylov correction
+    /// with the rest stiffness as preconditioner reaches Newton's step, `−e` to second
+    /// order, within the 11 dimensions the depth leaves free; its first step (the
+    /// check's chord step) is farther off, where the tangent differs from the rest.
+    #[test]
+    fn the_krylov_correction_reaches_the_newton_step() {
+        let (space, shape, probe) = held_tet();
+        let material = Material::default();
+        let (lambda, mu) = material.lame_n_per_mm2();
+        let pattern = SymCsc::pattern(&space);
+        let zero = vec![0.0; 3 * space.nodes.len()];
+        let rest = tangent(&space, Law::NeoHookean, &pattern, &zero, lambda, mu);
+        let factor = Cholesky::factor(&rest, space.fixed_count()).expect("SPD at rest");
+        let full = Basis::orthonormal(identity(12), 1e-12);
+        let press = reduced_press(
+            &space,
+            Law::NeoHookean,
+            material,
+            &full,
+            &shape,
+            &probe,
+            &[0.5, 1.0, 1.5],
+            1e-12,
+            3,
+            None,
+        )
+        .expect("valid material");
+        let (u, force) = (&press.u[2], press.force_n[2]);
+        // A perturbation of every free dof but the probed one (so n̂·e = 0).
+        let probe_free = space.restrict(&probe);
+        let e: Vec<f64> = (0..12)
+            .map(|i| {
+                if probe_free[i] == 0.0 {
+                    1e-4 * ((i as f64) * 0.7).sin()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let moved: Vec<f64> = space
+            .restrict(u)
+            .iter()
+            .zip(&e)
+            .map(|(a, b)| a + b)
+            .collect();
+        let k = krylov_correction(
+            &space,
+            Law::NeoHookean,
+            material,
+            &factor,
+            &shape,
+            &probe,
+            &space.expand(&moved),
+            force,
+            11,
+        )
+        .expect("valid material");
+        assert!((k.load_probe_cosine - 1.0).abs() < 1e-12);
+        assert!(!k.indefinite);
+        let miss = |d: &[f64]| {
+            d.iter()
+                .zip(&e)
+                .map(|(a, b)| (a + b).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let size = dot(&e, &e).sqrt();
+        let last = miss(k.steps.last().expect("steps"));
+        assert!(last < 1e-3 * size, "{last} of {size}");
+        assert!(
+            miss(&k.steps[0]) > 10.0 * last,
+            "{} {last}",
+            miss(&k.steps[0])
+        );
+        assert!(
+            k.steps
+                .iter()
+                .all(|d| dot(d, &probe_free).abs() < 1e-12 * size)
+        );
     }
 
     /// The predictor is exact on states quadratic in the depth once three are known.
