@@ -39,8 +39,9 @@ pub const NEAR: [[f64; 3]; 4] = [
 
 const COMPARED_MM: [f64; 5] = [3.0, 6.0, 9.0, 12.0, 15.0];
 
-/// Conjugate-gradient steps after which the Krylov correction is reported.
-const KRYLOV_STEPS: [usize; 5] = [1, 2, 4, 8, 16];
+/// Conjugate-gradient steps after which the Krylov correction is reported (0: the
+/// check's chord step).
+const KRYLOV_STEPS: [usize; 6] = [0, 1, 2, 4, 8, 16];
 
 fn largest_on(rows: &[u32], a: &[f64], b: &[f64]) -> f64 {
     rows.iter()
@@ -271,7 +272,7 @@ pub(super) fn reduced(
                             let zero = vec![0.0; u.len()];
                             let (mut estimate, mut corrected) = (Vec::new(), Vec::new());
                             for &n in &KRYLOV_STEPS {
-                                let Some(delta) = k.steps.get(n - 1) else {
+                                let Some(delta) = k.steps.get(n) else {
                                     break;
                                 };
                                 let delta = space.expand(delta);
@@ -285,6 +286,8 @@ pub(super) fn reduced(
                             row["krylov_corrected_error_mm"] = json!(corrected);
                             row["krylov_indefinite"] = json!(k.indefinite);
                             row["krylov_seconds"] = json!(k.seconds);
+                            row["krylov_residuals"] = json!(k.residuals);
+                            row["krylov_solves"] = json!(k.solves);
                             row["krylov_load_probe_cosine"] = json!(k.load_probe_cosine);
                         }
                         row["reduced_check_mm"] = json!(rom.check_mm[j - 1]);
