@@ -389,7 +389,7 @@ impl Generator {
     /// costs nothing: `p` keeps its shape and its mass decays at the rate measured.
     ///
     /// The Poisson weights are carried as logarithms, `ln w_k = −λ + Σ_{j≤k} ln(λ/j)`,
-    /// so a step can be long (`λ = qΔ` up to [`MAX_STEP_LAMBDA`]) without `e^{−λ}`
+    /// so a step can be long (`λ = qΔ` up to `MAX_STEP_LAMBDA`) without `e^{−λ}`
     /// underflowing: a sum costs about `λ + 8√λ` products, so long steps waste less
     /// on each step's tails than the earlier `λ ≤ 50` (about twice `q·t`). The sum
     /// stops past the mode once the tail's geometric bound,
@@ -664,7 +664,7 @@ fn solve_box(
 
 /// Solves with automatic boxes for species marked `auto`, growing them *as the
 /// distribution spreads*: the time axis is cut at the output times and at
-/// [`AUTO_CHECKPOINTS`] even steps to the last, and a stretch whose leak would take the
+/// `AUTO_CHECKPOINTS` even steps to the last, and a stretch whose leak would take the
 /// cumulative leak past `max_leak · t / t_end` is run again from its start in a larger
 /// box (the state there embedded; its lost mass kept as lost). So the leak stays below
 /// `max_leak` at every output time, and each stretch runs in a box about as large as

@@ -28,7 +28,7 @@
 //! neo-Hookean, ν = 0.48) the plain chord *diverges* from a tangent 2–4 mm old: the
 //! second correction is 2–4 times the first, the force correction flips sign. Those
 //! are a few large eigenvalues (the tangent changed near the tool only), which
-//! Anderson acceleration ([`PathOptions::anderson`], see [`accelerated`]) removes the
+//! Anderson acceleration ([`PathOptions::anderson`], see `accelerated`) removes the
 //! way GMRES would, at the chord's cost a step. A depth that needs more than
 //! [`PathOptions::refresh_after`] steps (three) still starts a new segment after it:
 //! its tangent is factored at the accepted state and a short series
@@ -46,7 +46,7 @@
 //! grid step; the intermediate states are accepted like grid ones but not stored) and
 //! doubled back after a success. A tangent that is not positive definite (past a
 //! force limit point, where depth control is still stable) is factored augmented,
-//! `K + α n̂n̂ᵀ`, which gives the same depth-controlled corrections (see [`Augment`]).
+//! `K + α n̂n̂ᵀ`, which gives the same depth-controlled corrections (see `Augment`).
 //! Near the liver's sharp inferior
 //! border this is what carries a press to 15 mm: without it two of eleven vertices
 //! there were given up, at 9 and 14 mm. Where the halved steps fail too, the next grid
@@ -113,7 +113,7 @@ pub struct PathOptions {
     pub active_cutoff: f64,
     /// Corrections kept by the Anderson acceleration of the chord (0: the plain chord).
     pub anderson: usize,
-    /// Factor every later segment's tangent augmented (`K + α n̂n̂ᵀ`, see [`Augment`]),
+    /// Factor every later segment's tangent augmented (`K + α n̂n̂ᵀ`, see `Augment`),
     /// not only where `K` alone is not positive definite: the same corrections, for
     /// tests and comparisons.
     pub always_augment: bool,

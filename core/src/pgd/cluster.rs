@@ -24,7 +24,7 @@
 //!
 //! Last, the blocks of one row cluster (a row group) share a row basis where that
 //! saves numbers: the left singular basis `U_ρ` of `[A_b …]` over the group's blocks,
-//! with each block keeping `U_ρᵀ A_b` ([`share_row_bases`]).
+//! with each block keeping `U_ρᵀ A_b` (`share_row_bases`).
 
 use faer::{Mat, MatRef};
 
