@@ -490,7 +490,8 @@ impl Pcg {
     /// One step with `q = A p`; then `precondition(r)`. `false` where `pᵀAp ≤ 0`.
     fn step(&mut self, q: &[f64], precondition: &mut dyn FnMut(&[f64]) -> Vec<f64>) -> bool {
         let pq = dot(&self.p, q);
-        if !(pq > 0.0) {
+        // Not positive (or not a number): the tangent is not positive definite along p.
+        if !(pq > 0.0 && pq.is_finite()) {
             return false;
         }
         let alpha = self.rz / pq;
