@@ -107,6 +107,9 @@ impl OrbitCamera {
 
     /// Orbits by angles in radians (pitch kept short of the poles).
     pub fn orbit(&mut self, d_yaw: f32, d_pitch: f32) {
+        if !(d_yaw.is_finite() && d_pitch.is_finite()) {
+            return;
+        }
         self.yaw = (self.yaw + d_yaw).rem_euclid(std::f32::consts::TAU);
         self.pitch = (self.pitch + d_pitch).clamp(-PITCH_LIMIT, PITCH_LIMIT);
     }
@@ -116,7 +119,12 @@ impl OrbitCamera {
         let fov = self.fov_y_for(viewport_px.x / viewport_px.y.max(1.0));
         let mm_per_px = 2.0 * self.distance_mm * (0.5 * fov).tan() / viewport_px.y.max(1.0);
         let (right, up) = self.screen_axes();
-        self.target_mm += (-delta_px.x * right + delta_px.y * up) * mm_per_px;
+        let moved = self.target_mm + (-delta_px.x * right + delta_px.y * up) * mm_per_px;
+        // Within the probe coordinates' bound: far past the organ, never infinite.
+        if moved.is_finite() {
+            let bound = crate::pick::COORDINATE_MAX as f32;
+            self.target_mm = moved.clamp(Vec3::splat(-bound), Vec3::splat(bound));
+        }
     }
 
     /// Multiplies the distance by `factor` (< 1 zooms in), within sane limits.

@@ -195,6 +195,12 @@ impl Controls {
     }
 
     pub fn handle(&mut self, ev: InputEvent, picker: &dyn Picker, viewport_px: Vec2) {
+        // A position a driver lost (NaN, infinite) is no place to press or drag from.
+        if let InputEvent::PointerDown { pos_px, .. } | InputEvent::PointerMove { pos_px, .. } = ev
+            && !pos_px.is_finite()
+        {
+            return;
+        }
         match ev {
             InputEvent::PointerDown {
                 id,

@@ -417,3 +417,127 @@ fn the_force_loop_uses_the_tissue_law_both_ways() {
     std::thread::sleep(Duration::from_millis(100));
     assert_eq!(fl.latest().beyond_law, 1);
 }
+
+/// A seeded stream of random input (mouse, touch, wheel and gamepad; positions,
+/// sticks, times and scroll amounts now and then NaN, infinite or huge, times out of
+/// order) on the built-in scene with real picking: the camera, the depth, the force
+/// and the command stay finite and in range after every event, and nothing panics.
+#[test]
+fn random_and_non_finite_input_never_leaves_the_controls_out_of_range() {
+    let s = scene();
+    let mut c = Controls::new(camera(&s), s.modes() as u32);
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        // xorshift64*: a fixed seed, the same stream every run.
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        (state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30, -1e30, 0.0];
+    let mut value = |scale: f32| -> f32 {
+        let u = next();
+        if u < 0.1 {
+            odd[(next() * odd.len() as f64) as usize % odd.len()]
+        } else {
+            (next() as f32 * 2.0 - 1.0) * scale
+        }
+    };
+    let mut t = 0.0f64;
+    let (mut pressed, mut moved) = (0, 0);
+    // Now and then the camera is framed again and a visible palpable pixel pressed, so
+    // the stream presses as well as orbits.
+    let framed = c.camera;
+    let (_, on_organ) = visible_palpable(&s, &framed, &rest_picker(&s, &framed))[0];
+    for step in 0..4000 {
+        let kind = (value(1.0).abs() * 7.0) as usize % 7;
+        t += 0.016;
+        let time_s = if step % 97 == 0 {
+            f64::NAN
+        } else if step % 89 == 0 {
+            t - 5.0
+        } else {
+            t
+        };
+        let id = if kind % 2 == 0 {
+            PointerId::Mouse
+        } else {
+            PointerId::Touch((step % 3) as u64)
+        };
+        let pos = Vec2::new(400.0 + value(600.0), 300.0 + value(500.0));
+        let ev = match kind {
+            _ if step % 200 == 0 => {
+                c.release_probe();
+                c.camera = framed;
+                InputEvent::PointerDown {
+                    id: PointerId::Mouse,
+                    button: Button::Primary,
+                    pos_px: on_organ,
+                    time_s,
+                }
+            }
+            0 | 1 => InputEvent::PointerDown {
+                id,
+                button: if step % 5 == 0 {
+                    Button::Secondary
+                } else {
+                    Button::Primary
+                },
+                pos_px: pos,
+                time_s,
+            },
+            2 | 3 => InputEvent::PointerMove {
+                id,
+                pos_px: pos,
+                time_s,
+            },
+            4 => InputEvent::PointerUp { id, time_s },
+            5 => InputEvent::Wheel { lines: value(20.0) },
+            _ => InputEvent::Gamepad {
+                left: Vec2::new(value(1.5), value(1.5)),
+                right: Vec2::new(value(1.5), value(1.5)),
+                trigger: value(1.5),
+                dt_s: value(0.1),
+            },
+        };
+        let cam = c.camera;
+        let picker = ScenePicker {
+            scene: &s,
+            camera: &cam,
+            viewport_px: VIEW,
+            deformed_mm: s.vertices_mm(),
+        };
+        c.handle(ev, &picker, VIEW);
+        pressed += usize::from(c.pressing && c.probe.is_some());
+        moved += usize::from(c.camera != cam);
+        let k = &c.camera;
+        assert!(
+            k.target_mm.is_finite()
+                && k.yaw.is_finite()
+                && k.pitch.is_finite()
+                && k.distance_mm.is_finite()
+                && k.distance_mm > 0.0,
+            "step {step}, {ev:?}: {k:?}"
+        );
+        assert!(
+            (0.0..=c.mapping.max_depth_mm).contains(&c.depth_mm),
+            "step {step}, {ev:?}: depth {}",
+            c.depth_mm
+        );
+        assert!(
+            (0.0..=c.mapping.max_force_n).contains(&c.force_n),
+            "step {step}, {ev:?}: force {}",
+            c.force_n
+        );
+        let cmd = c.command();
+        assert!(cmd.target.is_finite(), "step {step}, {ev:?}: {cmd:?}");
+        if let Some(p) = c.probe {
+            assert!(p.bary.iter().all(|b| b.is_finite()), "step {step}: {p:?}");
+        }
+    }
+    // The stream did press and did move the camera (so the checks saw both).
+    assert!(
+        pressed > 100 && moved > 100,
+        "{pressed} pressing, {moved} camera moves"
+    );
+}
