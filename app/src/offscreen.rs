@@ -176,6 +176,9 @@ pub struct HeadlessReport {
     /// The linear tissue's force at the final depth (equal to `final_force_n` without a
     /// force law).
     pub final_linear_force_n: f32,
+    /// The final depth asked lay past what the tissue answers at that point: depth and
+    /// force are held at its limit (as the panel and `palpa eval` flag it).
+    pub final_beyond_range: bool,
     /// `linear elastic`, or the force law's material.
     pub tissue: String,
     /// Resident memory after the warm-up (a tenth of the frames, at least 5) and at
@@ -343,6 +346,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         final_force_n: session.sample.magnitude_n,
         final_depth_mm: session.sample.depth_mm,
         final_linear_force_n: session.sample.linear_n,
+        final_beyond_range: session.sample.beyond_law != 0,
         tissue: session.law.as_ref().map_or_else(
             || "linear elastic".to_string(),
             |l| {

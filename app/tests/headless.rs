@@ -193,6 +193,48 @@ fn mutated_paths_never_panic() {
     );
 }
 
+/// A scripted press deeper than the default tissue answers is held at its limit and
+/// flagged in the report, as the panel and `palpa eval` flag it; a shallow one is not.
+#[test]
+fn a_scripted_press_past_the_tissue_is_held_and_flagged() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |depth_mm: &str| {
+        let path = dir.path().join("deep.json");
+        std::fs::write(
+            &path,
+            format!(
+                r#"{{"keyframes": [{{"t_s": 0, "at_mm": [-30, 70, 17], "depth_mm": {depth_mm}}},
+                    {{"t_s": 1, "at_mm": [-30, 70, 17], "depth_mm": {depth_mm}}}]}}"#
+            ),
+        )
+        .expect("write");
+        let path = path.to_str().expect("utf-8").to_string();
+        common::json_ok(&palpa(&[
+            "headless",
+            "--frames",
+            "3",
+            "--size",
+            "64x48",
+            "--no-ui",
+            "--probe-path",
+            &path,
+            "--json",
+        ]))
+    };
+    let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    let deep = run("1e300");
+    assert_eq!(deep["final_beyond_range"], true, "{deep}");
+    let held = num(&deep, "final_depth_mm");
+    assert!(held > 5.0 && held <= 15.0, "{deep}");
+    assert!(num(&deep, "final_force_n") > 0.0, "{deep}");
+    let shallow = run("3");
+    assert_eq!(shallow["final_beyond_range"], false, "{shallow}");
+    assert!(
+        (num(&shallow, "final_depth_mm") - 3.0).abs() < 1e-4,
+        "{shallow}"
+    );
+}
+
 /// A probe path's point is bounded as the command line's `--at` is (a kilometre): at
 /// 1e300 mm every distance to the surface overflowed and the closest point was
 /// arbitrary.
