@@ -449,24 +449,24 @@ fn random_and_non_finite_input_never_leaves_the_controls_out_of_range() {
     // the stream presses as well as orbits.
     let framed = c.camera;
     let (_, on_organ) = visible_palpable(&s, &framed, &rest_picker(&s, &framed))[0];
-    for step in 0..4000 {
+    for step in 0..4000u64 {
         let kind = (value(1.0).abs() * 7.0) as usize % 7;
         t += 0.016;
-        let time_s = if step % 97 == 0 {
+        let time_s = if step.is_multiple_of(97) {
             f64::NAN
-        } else if step % 89 == 0 {
+        } else if step.is_multiple_of(89) {
             t - 5.0
         } else {
             t
         };
-        let id = if kind % 2 == 0 {
+        let id = if kind.is_multiple_of(2) {
             PointerId::Mouse
         } else {
-            PointerId::Touch((step % 3) as u64)
+            PointerId::Touch(step % 3)
         };
         let pos = Vec2::new(400.0 + value(600.0), 300.0 + value(500.0));
         let ev = match kind {
-            _ if step % 200 == 0 => {
+            _ if step.is_multiple_of(200) => {
                 c.release_probe();
                 c.camera = framed;
                 InputEvent::PointerDown {
@@ -478,7 +478,7 @@ fn random_and_non_finite_input_never_leaves_the_controls_out_of_range() {
             }
             0 | 1 => InputEvent::PointerDown {
                 id,
-                button: if step % 5 == 0 {
+                button: if step.is_multiple_of(5) {
                     Button::Secondary
                 } else {
                     Button::Primary
