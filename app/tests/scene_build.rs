@@ -248,18 +248,12 @@ fn regions_come_from_selectors_and_region_files() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("free to move"));
     // So is a held-out count no table needs (each point is a full FE solve).
-    let out = palpa(&[
-        "scene",
-        "build",
-        "--surface",
-        s(&surface),
-        "--units",
-        "mm",
-        "--held-out",
-        "100000000",
-        "--out",
-        s(&dir.path().join("f.palpa")),
-    ]);
+    let out = dir.path().join("f.palpa");
+    let mut args: Vec<&str> = "scene build --units mm --held-out 100000000 --out"
+        .split(' ')
+        .collect();
+    args.extend([s(&out), "--surface", s(&surface)]);
+    let out = palpa(&args);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("expected at most 10000"), "{err}");
