@@ -281,14 +281,15 @@ pub(super) fn reduced(
                                     u.iter().zip(&delta).map(|(a, b)| a + b).collect();
                                 corrected.push(largest_on(&rows, &moved, exact));
                             }
-                            row["krylov_steps"] = json!(KRYLOV_STEPS);
-                            row["krylov_estimate_mm"] = json!(estimate);
-                            row["krylov_corrected_error_mm"] = json!(corrected);
-                            row["krylov_indefinite"] = json!(k.indefinite);
-                            row["krylov_seconds"] = json!(k.seconds);
-                            row["krylov_residuals"] = json!(k.residuals);
-                            row["krylov_solves"] = json!(k.solves);
-                            row["krylov_load_probe_cosine"] = json!(k.load_probe_cosine);
+                            let krylov = json!({"krylov_steps": KRYLOV_STEPS,
+                                "krylov_estimate_mm": estimate,
+                                "krylov_corrected_error_mm": corrected,
+                                "krylov_indefinite": k.indefinite, "krylov_seconds": k.seconds,
+                                "krylov_residuals": k.residuals, "krylov_solves": k.solves,
+                                "krylov_load_probe_cosine": k.load_probe_cosine});
+                            if let (Some(r), Some(f)) = (row.as_object_mut(), krylov.as_object()) {
+                                r.extend(f.clone());
+                            }
                         }
                         row["reduced_check_mm"] = json!(rom.check_mm[j - 1]);
                         row["reduced_force_rel_error"] =
