@@ -151,6 +151,16 @@ fn sbml_that_cannot_be_read_as_a_cme_is_refused_naming_why() {
         (sbml(time, "", "10"), "time"),
         (sbml("<ci>S</ci>", "fast=\"true\"", "10"), "fast"),
         (sbml("<ci>S</ci>", "", "2.5"), "whole number"),
+        // Numbers past f64 read as infinity; a count past usize saturated to 2⁶⁴ − 1.
+        (
+            sbml("<ci>S</ci>", "", "1e30"),
+            "at most 1073741824 molecules",
+        ),
+        (
+            sbml("<apply><times/><ci>V</ci><ci>S</ci></apply>", "", "10")
+                .replace("value=\"3\"", "value=\"1e400\""),
+            "parameter V: value inf: expected a finite value",
+        ),
         (sbml("<ci>Q</ci>", "", "10"), "unknown identifier"),
         (sbml("<apply><exp/><ci>S</ci></apply>", "", "10"), "<exp>"),
         (sbml("<ci>V</ci>", "", "10"), "below zero"),
@@ -193,6 +203,23 @@ change = { x = -1 }
 rate = [1.0]
 factors = [{ species = "x", kind = "linear" }]
 "#;
+
+#[test]
+fn a_toml_count_past_the_largest_initial_is_refused() {
+    let huge = TWO.replace("initial = 3", "initial = 18446744073709551615");
+    let err = Network::from_toml(&huge, "huge.toml")
+        .expect_err("refused")
+        .to_string();
+    assert!(
+        err.contains("huge.toml") && err.contains("species y") && err.contains("at most"),
+        "{err}"
+    );
+    let most = TWO.replace(
+        "initial = 3",
+        &format!("initial = {}", palpa_core::cme::network::MAX_INITIAL),
+    );
+    Network::from_toml(&most, "most.toml").expect("the largest initial is accepted");
+}
 
 #[test]
 fn automatic_boxes_grow_only_where_probability_leaks() {

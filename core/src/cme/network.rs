@@ -62,6 +62,11 @@ pub enum NetworkError {
     UnknownBuiltIn(String),
 }
 
+/// The largest initial copy number a network may declare (2³⁰): far past any box
+/// the FSP or PGD solvers hold (10⁷ states), and small enough that a path of the
+/// stochastic simulation keeps exact integer counts.
+pub const MAX_INITIAL: usize = 1 << 30;
+
 /// One species.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Species {
@@ -323,6 +328,32 @@ impl Network {
         }
         if reactions.is_empty() {
             return Err(bad("a network needs at least one reaction".into()));
+        }
+        // Every reader ends here, so what one reader lets through (an SBML amount of
+        // 1e30, a value of 1e400 read as infinity) is refused as a TOML file's is.
+        for s in &species {
+            if s.initial > MAX_INITIAL {
+                return Err(bad(format!(
+                    "species {}: initial {}: expected at most {MAX_INITIAL} molecules",
+                    s.name, s.initial
+                )));
+            }
+        }
+        for p in &parameters {
+            if !(p.value.is_finite() && p.value >= 0.0) {
+                return Err(bad(format!(
+                    "parameter {}: value {}: expected a finite value ≥ 0",
+                    p.name, p.value
+                )));
+            }
+        }
+        for r in &reactions {
+            if !(r.constant.is_finite() && r.constant >= 0.0) {
+                return Err(bad(format!(
+                    "{}: rate constant {}: expected a finite value ≥ 0",
+                    r.name, r.constant
+                )));
+            }
         }
         let network = Network {
             name,

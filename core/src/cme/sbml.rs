@@ -27,7 +27,9 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use roxmltree::{Document, Node};
 
-use super::network::{Factor, Network, NetworkError, Parameter, Reaction, Spacing, Species};
+use super::network::{
+    Factor, MAX_INITIAL, Network, NetworkError, Parameter, Reaction, Spacing, Species,
+};
 
 /// Whether `text` looks like SBML (an XML document whose root is `sbml`).
 pub fn looks_like_sbml(text: &str) -> bool {
@@ -252,6 +254,12 @@ pub fn from_sbml(text: &str, source_name: &str) -> Result<Network, NetworkError>
         {
             return Err(bad(format!(
                 "species {}: initial amount {}: expected a whole number of molecules ≥ 0",
+                s.id, s.amount
+            )));
+        }
+        if whole > MAX_INITIAL as f64 {
+            return Err(bad(format!(
+                "species {}: initial amount {}: expected at most {MAX_INITIAL} molecules",
                 s.id, s.amount
             )));
         }
