@@ -151,6 +151,14 @@ fn sbml_that_cannot_be_read_as_a_cme_is_refused_naming_why() {
         (sbml(time, "", "10"), "time"),
         (sbml("<ci>S</ci>", "fast=\"true\"", "10"), "fast"),
         (sbml("<ci>S</ci>", "", "2.5"), "whole number"),
+        (
+            sbml("<ci>S</ci>", "", "10").replace("stoichiometry=\"1\"", "stoichiometry=\"0\""),
+            "no reaction changes a species' count",
+        ),
+        (
+            sbml("<ci>S</ci>", "", "10").replace("stoichiometry=\"1\"", "stoichiometry=\"1e10\""),
+            "from 0 to 1000000",
+        ),
         // Numbers past f64 read as infinity; a count past usize saturated to 2⁶⁴ − 1.
         (
             sbml("<ci>S</ci>", "", "1e30"),

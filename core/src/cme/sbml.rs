@@ -192,7 +192,8 @@ pub fn from_sbml(text: &str, source_name: &str) -> Result<Network, NetworkError>
                 let st = number(sr, "stoichiometry")?.unwrap_or(1.0);
                 if !(st.is_finite() && st >= 0.0 && st.fract() == 0.0 && st <= 1e6) {
                     return Err(bad(format!(
-                        "reaction {name}: stoichiometry {st} of {sp}: expected a whole number"
+                        "reaction {name}: stoichiometry {st} of {sp}: expected a whole number \
+                         from 0 to 1000000"
                     )));
                 }
                 *change.entry(sp).or_default() += sign * st as i64;
@@ -347,6 +348,13 @@ pub fn from_sbml(text: &str, source_name: &str) -> Result<Network, NetworkError>
         .or(model.attribute("name"))
         .unwrap_or(source_name)
         .to_string();
+    if species.is_empty() {
+        return Err(bad(
+            "no reaction changes a species' count (boundary, constant or balanced species \
+             are held fixed): there is no chemical master equation to solve"
+                .into(),
+        ));
+    }
     let mut network = Network::from_parts(name, species, parameters, reactions, source_name)?;
     network.fixed = fixed;
     Ok(network)
