@@ -232,6 +232,10 @@ fn regions_come_from_selectors_and_region_files() {
     let out = palpa(&["mesh", "--surface", s(&surface), "--json"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--units"));
+    // And a unit without a surface is not silently ignored on the built-in organ.
+    let out = palpa(&["mesh", "--units", "cm", "--json"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--surface"));
     let m = ok(&palpa(&[
         "mesh",
         "--surface",

@@ -20,7 +20,7 @@ pub struct OrganArgs {
     #[arg(long, requires = "units")]
     pub surface: Option<PathBuf>,
     /// The surface file's length unit: mm, cm or m.
-    #[arg(long)]
+    #[arg(long, requires = "surface")]
     pub units: Option<palpa_core::surface_import::frame::Units>,
     /// The surface file's axes that become the patient's x, y, z (e.g. `x,-z,y`).
     #[arg(long, requires = "surface")]
