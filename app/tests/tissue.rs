@@ -983,6 +983,30 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
             "expected depths up to 30 mm, twice the vademecum's deepest (15 mm)",
         ),
         (&["check", "--heldout", "0"][..], "at least one point"),
+        (&["check", "--depths", "3,3"][..], "3.0 mm given twice"),
+        (
+            &["check", "--depths", "1e300"][..],
+            "--depths: 1e300 mm: expected depths up to 30 mm",
+        ),
+        (
+            &["check", "--at", "0,0,0", "--heldout", "3"][..],
+            "cannot be used",
+        ),
+        // Another level's mesh is named as such, not as "no triangle pressed".
+        (
+            &["check", "--level", "medium"][..],
+            "does not fit this organ mesh: 14 of its 858 surface rows",
+        ),
+        (
+            &[
+                "points",
+                "--level",
+                "medium",
+                "--split-of",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue"),
+            ][..],
+            "does not fit this organ mesh",
+        ),
         (&["points", "--heldout", "0"][..], "at least one point"),
         // Once still drawing after 30 s (24 GB of points).
         (

@@ -172,12 +172,13 @@ pub struct CheckArgs {
     #[arg(long, default_value = "liver")]
     scene: String,
     /// Held-out random points (inside palpable triangles whose corners were pressed).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, conflicts_with = "at")]
     heldout: usize,
     /// Depths of each held-out press (mm), off the depth grid.
-    #[arg(long, value_delimiter = ',', default_values_t = [2.6, 7.3, 12.7])]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [2.6, 7.3, 12.7])]
     depths: Vec<f64>,
-    #[arg(long, default_value_t = 7)]
+    #[arg(long, default_value_t = 7, conflicts_with = "at")]
     seed: u64,
     /// Press at these points (X,Y,Z[,X,Y,Z…], mm) instead of random ones: compare two
     /// files at the same presses.
@@ -250,7 +251,9 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
             let points = match &args.split_of {
                 None => surface_points(&organ, args.heldout, args.seed)?,
                 Some(file) => {
-                    let faces = split_faces(&organ, &TissueLaw::load(file)?)?;
+                    let law = TissueLaw::load(file)?;
+                    law.check_organ(&organ.mesh.vertices)?;
+                    let faces = split_faces(&organ, &law)?;
                     points_in(&organ, &faces, args.heldout, args.seed)?
                 }
             };
@@ -543,7 +546,19 @@ pub(super) fn bound_to_scene(
 fn check(args: &CheckArgs) -> anyhow::Result<()> {
     // A check compares forces relative to Newton's: a press must push.
     if let Some(d) = args.depths.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
-        bail!("--depths: {d} mm: expected finite depths above 0 mm (presses into the tissue)");
+        bail!("--depths: {d:?} mm: expected finite depths above 0 mm (presses into the tissue)");
+    }
+    // The same press twice is the same Newton solve twice (minutes on medium).
+    if let Some(w) = args
+        .depths
+        .iter()
+        .enumerate()
+        .find(|(i, d)| args.depths[..*i].contains(d))
+    {
+        bail!(
+            "--depths: {:?} mm given twice: expected distinct depths",
+            w.1
+        );
     }
     if args.at.is_none() && args.heldout == 0 {
         bail!("--heldout 0: expected at least one point (or points given by --at)");
@@ -555,12 +570,13 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     let deepest_check_mm = 2.0 * o.depth_max_mm;
     if let Some(d) = args.depths.iter().find(|d| **d > deepest_check_mm) {
         bail!(
-            "--depths: {d} mm: expected depths up to {deepest_check_mm} mm, twice the \
+            "--depths: {d:?} mm: expected depths up to {deepest_check_mm} mm, twice the \
              vademecum's deepest ({} mm)",
             o.depth_max_mm
         );
     }
     let organ = args.organ.mesh()?;
+    bound.law.check_organ(&organ.mesh.vertices)?;
     let law = &bound.law;
     let mut scratch = bound.scratch();
     let mut contact_scratch = scene.contact_scratch();

@@ -77,6 +77,7 @@ pub(super) fn read_back(
     };
     let organ = args.organ.mesh()?;
     let base = TissueLaw::load(&args.tissue)?;
+    base.check_organ(&organ.mesh.vertices)?;
     Ok((at, organ, base))
 }
 

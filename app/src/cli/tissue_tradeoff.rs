@@ -93,12 +93,13 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
     let deepest_mm = 2.0 * o.depth_max_mm;
     if let Some(d) = s.depths_mm.iter().find(|d| **d > deepest_mm) {
         anyhow::bail!(
-            "--depths: {d} mm: expected depths up to {deepest_mm} mm, twice the vademecum's \
+            "--depths: {d:?} mm: expected depths up to {deepest_mm} mm, twice the vademecum's \
              deepest ({} mm)",
             o.depth_max_mm
         );
     }
     let organ = s.organ.mesh()?;
+    law.check_organ(&organ.mesh.vertices)?;
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let mut contact_scratch = scene.contact_scratch();
     let mut coeffs = vec![0.0; scene.modes()];

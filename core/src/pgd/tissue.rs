@@ -137,6 +137,16 @@ pub enum TissueError {
     )]
     Mismatch { matched: usize, total: usize },
     #[error(
+        "the tissue law does not fit this organ mesh: {matched} of its {total} surface rows \
+         sit on the mesh's {vertices} vertices (expected all; give the --level, or the \
+         --surface, --units and --axes, it was built with)"
+    )]
+    Organ {
+        matched: usize,
+        total: usize,
+        vertices: usize,
+    },
+    #[error(
         "the tissue law was built with {law} and the scene's linear model with {scene}: the \
          vademecum adds its residual to the scene's linear answer, so both must come from \
          the same element and material (rebuild the tissue with matching --element, \
@@ -475,6 +485,28 @@ pub const DEFAULT_TOLERANCE_MM: f64 = 0.1;
 pub const DEFAULT_BITS: ShapeBits = ShapeBits::Eight;
 
 impl TissueLaw {
+    /// Checks that the organ mesh a command rebuilt (`--level`, `--surface`) is the one
+    /// this law was built on: every row (surface vertex) must be one of its vertices.
+    /// Another level's mesh would otherwise show only as "no triangle pressed", or
+    /// as Newton references on a different surface.
+    pub fn check_organ(&self, vertices_mm: &[[f64; 3]]) -> Result<(), TissueError> {
+        let index = PointIndex::new(vertices_mm.iter().copied());
+        let matched = self
+            .rows_mm
+            .iter()
+            .filter(|p| index.find(p.map(f64::from)).is_some())
+            .count();
+        if matched == self.rows_mm.len() {
+            Ok(())
+        } else {
+            Err(TissueError::Organ {
+                matched,
+                total: self.rows_mm.len(),
+                vertices: vertices_mm.len(),
+            })
+        }
+    }
+
     /// Checks that the scene's linear model (its provenance's `mesh` line, e.g.
     /// `... element=p2 young_kpa=160 poisson=0.48 ...`) used this law's element and
     /// material: a residual of P1 added to a linear answer of P2 is neither model
