@@ -525,6 +525,35 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             ],
             "a depth series of 0 orders: expected 1 to 30",
         ),
+        // Once silently ignored by Newton.
+        (
+            vec![
+                "fe",
+                "solve",
+                "--at=-30,90,25",
+                "--model",
+                "neo-hookean",
+                "--orders",
+                "3",
+                "--depth-mm",
+                "5",
+            ],
+            "--orders 3: only --method series keeps orders",
+        ),
+        // A negative Poisson's ratio is a value, not a flag (it reaches the material's check).
+        (
+            vec![
+                "fe",
+                "solve",
+                "--at",
+                "-30,90,25",
+                "--force-n",
+                "1",
+                "--poisson",
+                "-1",
+            ],
+            "Poisson's ratio -1 must lie in (−1, 0.5)",
+        ),
         (
             vec!["export-scene", scene, "--modes", "0", "--out", out_s],
             "at least one mode",

@@ -48,6 +48,7 @@ impl Model {
 }
 
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SolveArgs {
     #[command(flatten)]
     organ: OrganArgs,
@@ -62,9 +63,9 @@ pub struct SolveArgs {
     /// series (one linear solve per order with the rest stiffness).
     #[arg(long, value_enum, default_value = "newton")]
     method: Method,
-    /// Series: orders kept.
-    #[arg(long, default_value_t = 12)]
-    orders: usize,
+    /// Series: orders kept (default 12).
+    #[arg(long)]
+    orders: Option<usize>,
     #[arg(long, default_value = "p2")]
     element: Element,
     #[arg(long, default_value_t = 160.0)]
@@ -107,11 +108,25 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
              svk|neo-hookean and --depth-mm"
         );
     }
+    if args.method != Method::Series
+        && let Some(n) = args.orders
+    {
+        anyhow::bail!(
+            "--orders {n}: only --method series keeps orders (Newton solves to the depth)"
+        );
+    }
     let (sol, newton_iterations, load_steps) = match (args.model.law(), depth) {
         (Some(law), Some(d)) if args.method == Method::Series => {
-            let (sol, series, continued_at) =
-                solve_series(&organ, args.element, material, law, &req, d, args.orders)
-                    .with_context(|| format!("expanding the press ({})", law.name()))?;
+            let (sol, series, continued_at) = solve_series(
+                &organ,
+                args.element,
+                material,
+                law,
+                &req,
+                d,
+                args.orders.unwrap_or(12),
+            )
+            .with_context(|| format!("expanding the press ({})", law.name()))?;
             let r = series.rational(d);
             let pade = json!({"numerator_degree": r.degree, "denominator": r.q, "scale_mm": r.scale_mm, "relative_change": r.change});
             series_report = json!({
