@@ -449,6 +449,15 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             vec!["eval", scene, "--at=-30,90,25", "--force-n", "inf"],
             "--force-n inf: expected a finite force",
         ),
+        // Once a glued probe pulling the surface out (the tissue file refused it).
+        (
+            vec!["eval", scene, "--at", "-30,90,25", "--depth-mm", "-1"],
+            "--depth-mm -1: expected a finite depth ≥ 0 mm (the tool presses; it cannot pull)",
+        ),
+        (
+            vec!["fe", "solve", "--at=-30,90,25", "--force-n", "-1"],
+            "--force-n -1: expected a finite force ≥ 0 N",
+        ),
         (
             vec![
                 "offline",

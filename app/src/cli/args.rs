@@ -88,6 +88,26 @@ impl ProbeArgs {
     pub fn dir(&self) -> anyhow::Result<Option<[f64; 3]>> {
         self.dir.as_deref().map(|d| to3(d, "--dir")).transpose()
     }
+    /// Refuses a pull: the tool presses into the tissue and cannot hold it, so a
+    /// negative force or depth is no palpation (the linear models would answer it as
+    /// a glued probe, the tissue law not at all).
+    pub fn check_press(&self) -> anyhow::Result<()> {
+        if let Some(d) = self.depth_mm
+            && !(d.is_finite() && d >= 0.0)
+        {
+            bail!(
+                "--depth-mm {d}: expected a finite depth ≥ 0 mm (the tool presses; it cannot pull)"
+            );
+        }
+        if let Some(f) = self.force_n
+            && !(f.is_finite() && f >= 0.0)
+        {
+            bail!(
+                "--force-n {f}: expected a finite force ≥ 0 N (the tool presses; it cannot pull)"
+            );
+        }
+        Ok(())
+    }
 }
 
 pub use palpa_app::pick::{COORDINATE_MAX, coordinate_ok};

@@ -48,7 +48,6 @@ impl Model {
 }
 
 #[derive(Debug, Args)]
-#[command(allow_negative_numbers = true)]
 pub struct SolveArgs {
     #[command(flatten)]
     organ: OrganArgs,
@@ -88,6 +87,7 @@ pub fn run(cmd: &FeCommand) -> anyhow::Result<()> {
 fn solve(args: &SolveArgs) -> anyhow::Result<()> {
     let t = Instant::now();
     let at = args.probe.at()?;
+    args.probe.check_press()?;
     let dir = args.probe.dir()?;
     let material = Material {
         young_kpa: args.young_kpa,

@@ -440,6 +440,7 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
 
 fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Result<()> {
     let at = args.probe.at()?;
+    args.probe.check_press()?;
     if let Some(Discretization::SurfaceLoad { .. }) =
         m.axes().first().map(|a| &a.info.discretization)
     {
@@ -624,20 +625,15 @@ fn eval_nodal<T: Scalar>(
 /// moves the probe point that far, `d / c` (the model is linear; `c` the probe
 /// displacement per newton).
 fn press_force(probe: &ProbeArgs, compliance_mm_per_n: Option<f64>) -> anyhow::Result<f64> {
+    probe.check_press()?;
     match (probe.force_n, probe.depth_mm) {
-        (Some(f), _) if !f.is_finite() => bail!("--force-n {f}: expected a finite force (N)"),
         (Some(f), _) => Ok(f),
-        (None, Some(d)) => {
-            if !d.is_finite() {
-                bail!("--depth-mm {d} is not finite");
-            }
-            match compliance_mm_per_n {
-                Some(c) if c.is_finite() && c.abs() > 0.0 => Ok(d / c),
-                _ => bail!(
-                    "--depth-mm needs the probe displacement at this point, which this model does not give; use --force-n"
-                ),
-            }
-        }
+        (None, Some(d)) => match compliance_mm_per_n {
+            Some(c) if c.is_finite() && c.abs() > 0.0 => Ok(d / c),
+            _ => bail!(
+                "--depth-mm needs the probe displacement at this point, which this model does not give; use --force-n"
+            ),
+        },
         (None, None) => bail!("give --force-n (N) or --depth-mm (mm)"),
     }
 }

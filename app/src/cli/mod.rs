@@ -30,7 +30,7 @@ mod tradeoff;
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{FromArgMatches, Parser, Subcommand};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -93,7 +93,8 @@ pub fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    let cli = Cli::parse();
+    let matches = command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     if let Some(bytes) = memory::available_bytes() {
         // Leave a quarter for everything else the process holds.
         palpa_core::fe::sparse::set_factor_budget_bytes(bytes / 4 * 3);
@@ -108,6 +109,18 @@ pub fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// The command line, every subcommand reading `-1` as a value: depths, forces,
+/// coordinates and ratios are numbers a user may give negative, and each command's own
+/// check then says what it expects (without this, clap took `--poisson -1` for a flag
+/// and suggested `-- -1`).
+pub fn command() -> clap::Command {
+    fn negative_numbers(c: clap::Command) -> clap::Command {
+        c.allow_negative_numbers(true)
+            .mut_subcommands(negative_numbers)
+    }
+    negative_numbers(<Cli as clap::CommandFactory>::command())
 }
 
 /// An error and its causes joined by ": ", as `{:#}` joins them, but without a cause

@@ -1020,6 +1020,7 @@ pub fn eval(
         );
     }
     let at = probe.at()?;
+    probe.check_press()?;
     let (bound, scene) = bound_to_scene(file, scene)?;
     let (point, distance_mm) = scene
         .closest_palpable(at)
@@ -1030,17 +1031,11 @@ pub fn eval(
     let t = Instant::now();
     let (depth, force, beyond) = match (probe.depth_mm, probe.force_n) {
         (Some(d), _) => {
-            if !(d.is_finite() && d >= 0.0) {
-                bail!("--depth-mm {d}: expected a finite depth ≥ 0 mm");
-            }
             // Past the limit both the force and the surface are held at it.
             let (f, beyond) = bound.force_n(&point, d, c);
             (d.min(bound.limit_mm(&point).0), f, beyond)
         }
         (None, Some(f)) => {
-            if !(f.is_finite() && f >= 0.0) {
-                bail!("--force-n {f}: expected a finite force ≥ 0 N");
-            }
             let (d, beyond) = bound.depth_mm(&point, f, c);
             // Held at the limit, the press is the one there: its force, not the one
             // asked for (that is `requested_force_n`).
