@@ -884,6 +884,34 @@ fn cme_pgd_flags_that_do_not_apply_are_said() {
     );
     let (ok, err) = run(&format!("{offline} --keep views --views-eps nan"));
     assert!(!ok && err.contains("--views-eps NaN"), "{err}");
+    // One solver's flags given to the other, or any of them to FSP or SSA: said.
+    let (ok, err) = run(&format!("{solve} --tol 1e-3"));
+    assert!(
+        ok && err.contains("--tol shapes the greedy solver only"),
+        "{err}"
+    );
+    let (ok, err) = run(&format!("{solve} --solver greedy --eps 1e-3 --max-rank 3"));
+    assert!(
+        ok && err.contains("--eps, --max-rank shape the tt solver only"),
+        "{err}"
+    );
+    let (ok, err) = run("cme solve toggle --method fsp --t 1 --max-step 2 --solver tt");
+    assert!(
+        ok && err.contains("--solver, --max-step shape the PGD solver only"),
+        "{err}"
+    );
+    // Tolerances a solver would misread (a negative one was taken as given).
+    for (solver, flag) in [
+        ("tt", "--step-error"),
+        ("greedy", "--tol"),
+        ("greedy", "--step-tol"),
+    ] {
+        let (ok, err) = run(&format!("{solve} --solver {solver} {flag} -1"));
+        assert!(
+            !ok && err.contains("invalid solver setting") && err.contains("-1.0"),
+            "{solver} {flag}: {err}"
+        );
+    }
 }
 
 /// The extremes of time as a user types them: t = 0 alone by PGD (once refused: its

@@ -51,8 +51,9 @@ pub enum Keep {
 /// `bench cme`.
 #[derive(Debug, Args)]
 pub struct PgdArgs {
-    #[arg(long, value_enum, default_value = "tt")]
-    solver: Solver,
+    /// [default: tt]
+    #[arg(long, value_enum)]
+    solver: Option<Solver>,
     /// End of the time axis (the model is valid on [0, T]).
     #[arg(long = "t-end")]
     t_end: Option<f64>,
@@ -84,26 +85,37 @@ pub struct PgdArgs {
     /// views: root-mean-square relative error of a stored time row [default: 1e-5].
     #[arg(long)]
     views_eps: Option<f64>,
-    /// tt: relative truncation of each stored state in the history.
-    #[arg(long, default_value_t = ttsolve::Options::default().compress_eps)]
-    compress_eps: f64,
+    /// tt: relative truncation of each stored state in the history [default: 1e-6].
+    #[arg(long)]
+    compress_eps: Option<f64>,
     /// tt: floor of the history's probability weights, relative to each marginal's
     /// peak: small weighs the tails as much as the bulk (mass exact, ranks high),
-    /// large approaches plain L2 (ranks low).
-    #[arg(long, default_value_t = ttsolve::Options::default().weight_floor)]
-    weight_floor: f64,
-    /// tt: largest rank of a step's state.
-    #[arg(long, default_value_t = ttsolve::Options::default().max_rank)]
-    max_rank: usize,
-    /// greedy: most terms of the final model.
-    #[arg(long, default_value_t = greedy::Options::default().max_modes)]
-    modes: usize,
-    /// greedy: relative L2 error of the compressed time history.
-    #[arg(long, default_value_t = greedy::Options::default().compress_tol)]
-    tol: f64,
-    /// greedy: relative residual of each implicit time step.
-    #[arg(long, default_value_t = greedy::Options::default().step_tol)]
-    step_tol: f64,
+    /// large approaches plain L2 (ranks low) [default: 0.01].
+    #[arg(long)]
+    weight_floor: Option<f64>,
+    /// tt: largest rank of a step's state [default: 120].
+    #[arg(long)]
+    max_rank: Option<usize>,
+    /// greedy: most terms of the final model [default: 400].
+    #[arg(long)]
+    modes: Option<usize>,
+    /// greedy: relative L2 error of the compressed time history [default: 1e-5].
+    #[arg(long)]
+    tol: Option<f64>,
+    /// greedy: relative residual of each implicit time step [default: 1e-6].
+    #[arg(long)]
+    step_tol: Option<f64>,
+}
+
+/// "--a shapes" or "--a, --b shape".
+fn shape(flags: &[&str]) -> String {
+    let verb = if flags.len() == 1 { "shapes" } else { "shape" };
+    format!("{} {verb}", flags.join(", "))
+}
+
+/// The names of the flags marked given.
+fn given(flags: &[(&'static str, bool)]) -> Vec<&'static str> {
+    flags.iter().filter(|(_, g)| *g).map(|(n, _)| *n).collect()
 }
 
 /// A built meta-model and the solver's figures.
@@ -121,6 +133,42 @@ impl Built {
 }
 
 impl PgdArgs {
+    /// The flags given that only the greedy solver reads.
+    fn greedy_flags(&self) -> Vec<&'static str> {
+        given(&[
+            ("--modes", self.modes.is_some()),
+            ("--tol", self.tol.is_some()),
+            ("--step-tol", self.step_tol.is_some()),
+        ])
+    }
+
+    /// The flags given that only the tensor-train solver reads.
+    fn tt_flags(&self) -> Vec<&'static str> {
+        given(&[
+            ("--eps", self.eps.is_some()),
+            ("--keep", self.keep != Keep::Auto),
+            ("--pairs", self.pairs.is_some()),
+            ("--views-eps", self.views_eps.is_some()),
+            ("--compress-eps", self.compress_eps.is_some()),
+            ("--weight-floor", self.weight_floor.is_some()),
+            ("--max-rank", self.max_rank.is_some()),
+        ])
+    }
+
+    /// Every solver flag given: none of them shapes an FSP or SSA solve.
+    pub fn all_flags(&self) -> Vec<&'static str> {
+        let mut all = given(&[
+            ("--solver", self.solver.is_some()),
+            ("--t-end", self.t_end.is_some()),
+            ("--first-step", self.first_step.is_some()),
+            ("--max-step", self.max_step.is_some()),
+            ("--step-error", self.step_error.is_some()),
+        ]);
+        all.extend(self.tt_flags());
+        all.extend(self.greedy_flags());
+        all
+    }
+
     pub fn options(&self, network: &Network, t_default: f64) -> greedy::Options {
         // The solver's own defaults are the one source; flags only override them.
         let d = greedy::Options::default();
@@ -130,9 +178,9 @@ impl PgdArgs {
                 .first_step
                 .unwrap_or_else(|| sizing::first_step(network, d.h_first)),
             h_max: self.max_step.unwrap_or(d.h_max),
-            max_modes: self.modes,
-            compress_tol: self.tol,
-            step_tol: self.step_tol,
+            max_modes: self.modes.unwrap_or(d.max_modes),
+            compress_tol: self.tol.unwrap_or(d.compress_tol),
+            step_tol: self.step_tol.unwrap_or(d.step_tol),
             step_error_tol: self.step_error.unwrap_or(d.step_error_tol),
             ..d
         }
@@ -170,9 +218,9 @@ impl PgdArgs {
             h_max: self.max_step.unwrap_or(d.h_max),
             step_error_tol: self.step_error.unwrap_or(d.step_error_tol),
             eps: self.eps.unwrap_or(d.eps),
-            compress_eps: self.compress_eps,
-            weight_floor: self.weight_floor,
-            max_rank: self.max_rank,
+            compress_eps: self.compress_eps.unwrap_or(d.compress_eps),
+            weight_floor: self.weight_floor.unwrap_or(d.weight_floor),
+            max_rank: self.max_rank.unwrap_or(d.max_rank),
             ..d
         };
         // Named species are checked either way: a typo is an error, not a no-op.
@@ -210,7 +258,19 @@ impl PgdArgs {
     ) -> anyhow::Result<Built> {
         let start = Instant::now();
         let network = &sized(network, self.t_end.unwrap_or(t_default))?;
-        let built = match self.solver {
+        let solver = self.solver.unwrap_or(Solver::Tt);
+        let (ignored, other) = match solver {
+            Solver::Tt => (self.greedy_flags(), "greedy"),
+            Solver::Greedy => (self.tt_flags(), "tt"),
+        };
+        if !ignored.is_empty() {
+            eprintln!(
+                "warning: {} the {other} solver only (--solver {other}); this build \
+                 ignores it",
+                shape(&ignored)
+            );
+        }
+        let built = match solver {
             Solver::Greedy => run_pgd(network, &self.options(network, t_default))?,
             Solver::Tt => {
                 let shaping =
@@ -556,6 +616,15 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
             "--max-leak {}: expected a probability between 0 and 1",
             args.max_leak
         );
+    }
+    if args.method != Method::Pgd {
+        let ignored = args.pgd.all_flags();
+        if !ignored.is_empty() {
+            warnings.push(format!(
+                "{} the PGD solver only (--method pgd); this solve ignores it",
+                shape(&ignored)
+            ));
+        }
     }
     let start = Instant::now();
     let mut settled_at = None;

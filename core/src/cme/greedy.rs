@@ -54,6 +54,8 @@ pub enum CmePgdError {
     AutoBox(String),
     #[error("invalid time grid: {0}")]
     TimeGrid(String),
+    #[error("invalid solver setting: {0}")]
+    Setting(String),
     #[error("the network has {0} species and range parameters; a model holds at most 62")]
     TooManyAxes(usize),
     #[error("building the model: {0}")]
@@ -109,6 +111,18 @@ impl Default for Options {
 impl Options {
     /// Time nodes `t_0 = 0 … t_n = t_end`.
     pub fn time_nodes(&self) -> Result<Vec<f64>, CmePgdError> {
+        // Every greedy solve lays out its times first: its tolerances are checked here.
+        for (name, v) in [
+            ("step tolerance", self.step_tol),
+            ("step error tolerance", self.step_error_tol),
+            ("compression tolerance", self.compress_tol),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(CmePgdError::Setting(format!(
+                    "{name} {v:?}: expected a finite relative error ≥ 0"
+                )));
+            }
+        }
         let ok = self.t_end.is_finite()
             && self.t_end > 0.0
             && self.h_first > 0.0

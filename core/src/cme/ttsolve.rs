@@ -486,7 +486,9 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
         && options.h_first > 0.0
         && options.h_max >= options.h_first
         && (1.0..=1.5).contains(&options.growth)
+        && options.eps.is_finite()
         && options.eps >= 0.0
+        && options.compress_eps.is_finite()
         && options.compress_eps >= 0.0
         && options.weight_floor > 0.0
         && options.weight_floor.is_finite()
@@ -496,7 +498,7 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
             // Debug prints 1e-300 as such, where Display writes 300 zeros.
             "t_end {:?}, first step {:?}, largest step {:?}, growth {:?}, eps {:?}, compress \
              eps {:?}, weight floor {:?}, max rank {}: expected t_end > 0, 0 < first ≤ largest, growth \
-             in [1, 1.5], eps ≥ 0, compress eps ≥ 0, 0 < floor < ∞, rank ≥ 1",
+             in [1, 1.5], finite eps ≥ 0 and compress eps ≥ 0, 0 < floor < ∞, rank ≥ 1",
             options.t_end,
             options.h_first,
             options.h_max,
@@ -505,6 +507,14 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
             options.compress_eps,
             options.weight_floor,
             options.max_rank
+        )));
+    }
+    // The step rule aims each step's local error at this: zero or less would shrink
+    // every step to the first, and NaN compares false everywhere.
+    if !(options.step_error_tol.is_finite() && options.step_error_tol > 0.0) {
+        return Err(CmePgdError::Setting(format!(
+            "step error tolerance {:?}: expected a finite relative error > 0",
+            options.step_error_tol
         )));
     }
     // No step is longer than the largest: refuse before stepping what cannot end.
