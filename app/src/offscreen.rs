@@ -324,6 +324,13 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
     if let Some(out) = &opts.out {
         image.save_png(out)?;
     }
+    // The force thread publishes its statistics every 50 ticks (50 ms): a run of a
+    // frame or two ends before the first, and would report a loop at 0 Hz. Wait for
+    // it (the loop keeps running meanwhile), at most a second.
+    let waited = Instant::now();
+    while session.force.stats().ticks == 0 && waited.elapsed().as_secs_f64() < 1.0 {
+        std::thread::sleep(Duration::from_millis(5));
+    }
     let stats = session.force.stats();
     let report = HeadlessReport {
         frames: opts.frames,

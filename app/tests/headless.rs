@@ -102,6 +102,24 @@ fn headless_bad_input_gets_clear_errors() {
             }],
             "expected {\"keyframes\"",
         ),
+        // Another kind of scene's flags were once ignored without a word.
+        (
+            vec![
+                "--coordinate-path".into(),
+                "path.json".into(),
+                "--exact-check".into(),
+            ],
+            "--coordinate-path, --exact-check drive a network scene; liver is a palpation scene",
+        ),
+        (
+            vec![
+                "--scene".into(),
+                "toggle".into(),
+                "--colormap-mm".into(),
+                "3".into(),
+            ],
+            "--colormap-mm drives a palpation scene; toggle is a network scene",
+        ),
     ];
     for (args, want) in cases {
         let mut all = vec!["headless".to_string()];
@@ -116,6 +134,18 @@ fn headless_bad_input_gets_clear_errors() {
         assert!(err.contains(want), "{args:?}: expected {want:?} in: {err}");
         assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
     }
+}
+
+/// A run of one frame ends before the force thread's first statistics (every 50
+/// ticks): it once reported the loop at 0 Hz.
+#[test]
+fn a_one_frame_run_reports_the_force_loop_it_ran() {
+    let v = common::json_ok(&palpa(&[
+        "headless", "--frames", "1", "--size", "64x48", "--no-ui", "--json",
+    ]));
+    let hz = v["force_hz"].as_f64().expect("force_hz");
+    assert!(v["force_ticks"].as_u64().expect("ticks") > 0, "{v}");
+    assert!(hz > 0.0, "{hz} Hz");
 }
 
 #[test]

@@ -115,8 +115,44 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
     if let Some(mm) = args.colormap_mm.filter(|mm| !(mm.is_finite() && *mm > 0.0)) {
         bail!("--colormap-mm {mm}: expected a positive displacement (mm) for the colormap's top");
     }
+    // A flag of the other kind of scene would be ignored without a word.
+    let (network, palpation) = (
+        [
+            ("--coordinate-path", args.coordinate_path.is_some()),
+            ("--exact-check", args.exact_check),
+        ],
+        [
+            ("--probe-path", args.probe_path != "default"),
+            ("--modes", args.modes.is_some()),
+            ("--colormap-mm", args.colormap_mm.is_some()),
+        ],
+    );
+    let given = |flags: &[(&str, bool)]| -> Vec<String> {
+        flags
+            .iter()
+            .filter(|f| f.1)
+            .map(|f| f.0.to_string())
+            .collect()
+    };
     if palpa_app::scenes::is_network(&args.scene) {
+        let wrong = given(&palpation);
+        if !wrong.is_empty() {
+            bail!(
+                "{} a palpation scene; {} is a network scene (--coordinate-path drives \
+                 it, --exact-check checks it)",
+                drive(&wrong),
+                args.scene
+            );
+        }
         return run_network(args, size);
+    }
+    let wrong = given(&network);
+    if !wrong.is_empty() {
+        bail!(
+            "{} a network scene; {} is a palpation scene (--probe-path drives it)",
+            drive(&wrong),
+            args.scene
+        );
     }
     let (report, _) = run(&opts)?;
     if !print_json(args.json, &report)? {
@@ -177,6 +213,12 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// "--a drives" or "--a, --b drive".
+fn drive(flags: &[String]) -> String {
+    let verb = if flags.len() == 1 { "drives" } else { "drive" };
+    format!("{} {verb}", flags.join(", "))
 }
 
 /// Prints `report` as pretty JSON when `json` is set; returns whether it did.
