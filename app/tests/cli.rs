@@ -471,6 +471,11 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             ],
             "--depth-max-mm: invalid depth grid",
         ),
+        // Once ignored: the linear scene has no depth axis.
+        (
+            vec!["offline", "liver", "--depth-max-mm", "3", "--out", out_s],
+            "--depth-max-mm shapes the hyperelastic vademecum",
+        ),
         (
             vec!["tradeoff", tissue, "--held-out", "0"],
             "expected at least one point",

@@ -959,6 +959,11 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         (&["--jobs", "0"][..], "at least one press"),
         (&["--orders", "0"][..], "0 orders: expected 1 to 30"),
         (&["--orders", "31"][..], "31 orders: expected 1 to 30"),
+        // Above 1 no cell was active: the series silently linear.
+        (
+            &["--active-cutoff", "2"][..],
+            "active-cell cutoff 2.0: expected a fraction",
+        ),
         (&["--depth-max-mm", "0"][..], "invalid depth grid"),
         (&["--depth-max-mm", "inf"][..], "--depth-max-mm"),
         (

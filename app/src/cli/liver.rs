@@ -98,9 +98,9 @@ pub struct OfflineArgs {
     /// with its defaults would), so the scene opens with it.
     #[arg(long, value_enum, default_value = "linear")]
     model: TissueModel,
-    /// With a hyperelastic `--model`: the deepest press it covers (mm).
-    #[arg(long, default_value_t = 15.0)]
-    depth_max_mm: f64,
+    /// With a hyperelastic `--model`: the deepest press it covers (mm) [default: 15].
+    #[arg(long)]
+    depth_max_mm: Option<f64>,
     /// With a hyperelastic `--model`: press only the palpable surface within X,Y,Z,R
     /// (mm), the region a scene shows.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
@@ -108,6 +108,11 @@ pub struct OfflineArgs {
 }
 
 impl OfflineArgs {
+    /// The deepest press of the hyperelastic vademecum (mm).
+    fn depth_max_mm(&self) -> f64 {
+        self.depth_max_mm.unwrap_or(15.0)
+    }
+
     /// The material asked for, checked (a finite positive modulus, `-1 < ν < 0.5`).
     fn material(&self) -> anyhow::Result<Material> {
         let (e, nu) = (self.young_kpa, self.poisson);
@@ -198,10 +203,23 @@ fn journal_path(out: &Path) -> PathBuf {
 
 pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     check_pgd_options(args)?;
+    if args.model == TissueModel::Linear
+        && let Some(flag) = [
+            ("--depth-max-mm", args.depth_max_mm.is_some()),
+            ("--within", args.within.is_some()),
+        ]
+        .iter()
+        .find_map(|(flag, given)| given.then_some(flag))
+    {
+        bail!(
+            "{flag} shapes the hyperelastic vademecum: it applies with --model neo-hookean \
+             or svk, not the linear scene alone"
+        );
+    }
     if args.model != TissueModel::Linear {
         // Refused before the scene's minutes of work, not after them.
         palpa_core::fe::depth_grid_points(
-            args.depth_max_mm,
+            args.depth_max_mm(),
             1.0,
             palpa_core::pgd::surfacelaw::MAX_GRID_POINTS,
         )
@@ -884,7 +902,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         },
         model,
         element: args.element,
-        depth_max_mm: args.depth_max_mm,
+        depth_max_mm: args.depth_max_mm(),
         depth_step_mm: 1.0,
         orders: defaults.orders,
         tolerance_mm: palpa_core::pgd::tissue::DEFAULT_TOLERANCE_MM,

@@ -228,6 +228,12 @@ pub enum FeError {
         min: usize,
         max: usize,
     },
+    #[error(
+        "active-cell cutoff {cutoff:?}: expected a fraction from 0 (every cell) to below 1 \
+         of the first order's largest variation (above, no cell is active and the series \
+         stays linear)"
+    )]
+    ActiveCutoff { cutoff: f64 },
     #[error("invalid press: the load does not move the probe point along the tool axis")]
     ProbeNotMoved,
     #[error(

@@ -665,6 +665,15 @@ pub fn check_orders(orders: usize, min: usize) -> Result<(), FeError> {
     }
 }
 
+/// Checks an [`active_cells`] cutoff: a fraction in `[0, 1)`.
+pub fn check_cutoff(cutoff: f64) -> Result<(), FeError> {
+    if (0.0..1.0).contains(&cutoff) {
+        Ok(())
+    } else {
+        Err(FeError::ActiveCutoff { cutoff })
+    }
+}
+
 /// The orders `1..=orders` about `base` (`None`: the rest state) with `chol` the
 /// factored tangent there (see the module doc).
 #[allow(clippy::too_many_arguments)]

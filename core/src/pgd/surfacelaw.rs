@@ -292,6 +292,7 @@ impl SurfaceLaw {
         let steps = crate::fe::depth_grid_points(o.depth_max_mm, o.depth_step_mm, MAX_GRID_POINTS)?;
         // Refused before the log is opened: a bad option leaves nothing behind.
         crate::fe::series::check_orders(o.orders, 1)?;
+        crate::fe::series::check_cutoff(o.active_cutoff)?;
         let t0 = Instant::now();
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;
