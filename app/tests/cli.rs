@@ -872,6 +872,12 @@ fn cme_pgd_flags_that_do_not_apply_are_said() {
             "{err}"
         );
     }
+    // NaN compared false with the last output time, and the solve went on.
+    let (ok, err) = run(&format!("{solve} --t-end nan"));
+    assert!(
+        !ok && err.contains("--t-end NaN: expected a finite end time"),
+        "{err}"
+    );
     let (ok, err) = run(&format!("{solve} --pairs z1:X"));
     assert!(!ok && err.contains("no species \"X\""), "{err}");
     let (ok, err) = run(&format!("{solve} --pairs z1:z2"));

@@ -226,8 +226,8 @@ impl PgdArgs {
         // Named species are checked either way: a typo is an error, not a no-op.
         let pairs = parse_pairs(self.pairs.as_deref().unwrap_or("neighbours"), network)?;
         let eps = self.views_eps.unwrap_or(build::VIEWS_EPS);
-        if !(eps.is_finite() && eps > 0.0) {
-            bail!("--views-eps {eps}: expected a positive relative error");
+        if !(eps > 0.0 && eps < 1.0) {
+            bail!("--views-eps {eps}: expected a relative error above 0 and below 1");
         }
         let views = if views {
             Some(build::ViewOptions { pairs, eps })
@@ -696,6 +696,11 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         }
         Method::Pgd => {
             let t_end = args.t.last().copied().unwrap_or(1.0).max(1e-3);
+            if let Some(end) = args.pgd.t_end
+                && !end.is_finite()
+            {
+                bail!("--t-end {end}: expected a finite end time");
+            }
             if let Some(end) = args.pgd.t_end
                 && end < t_end
             {

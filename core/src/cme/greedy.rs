@@ -117,9 +117,9 @@ impl Options {
             ("step error tolerance", self.step_error_tol),
             ("compression tolerance", self.compress_tol),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
+            if !(0.0..1.0).contains(&v) {
                 return Err(CmePgdError::Setting(format!(
-                    "{name} {v:?}: expected a finite relative error ≥ 0"
+                    "{name} {v:?}: expected a relative error from 0 to below 1"
                 )));
             }
         }

@@ -486,10 +486,8 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
         && options.h_first > 0.0
         && options.h_max >= options.h_first
         && (1.0..=1.5).contains(&options.growth)
-        && options.eps.is_finite()
-        && options.eps >= 0.0
-        && options.compress_eps.is_finite()
-        && options.compress_eps >= 0.0
+        && (0.0..1.0).contains(&options.eps)
+        && (0.0..1.0).contains(&options.compress_eps)
         && options.weight_floor > 0.0
         && options.weight_floor.is_finite()
         && options.max_rank >= 1;
@@ -498,7 +496,7 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
             // Debug prints 1e-300 as such, where Display writes 300 zeros.
             "t_end {:?}, first step {:?}, largest step {:?}, growth {:?}, eps {:?}, compress \
              eps {:?}, weight floor {:?}, max rank {}: expected t_end > 0, 0 < first ≤ largest, growth \
-             in [1, 1.5], finite eps ≥ 0 and compress eps ≥ 0, 0 < floor < ∞, rank ≥ 1",
+             in [1, 1.5], eps and compress eps in [0, 1) (relative), 0 < floor < ∞, rank ≥ 1",
             options.t_end,
             options.h_first,
             options.h_max,
@@ -511,9 +509,9 @@ fn check(options: &Options) -> Result<(), CmePgdError> {
     }
     // The step rule aims each step's local error at this: zero or less would shrink
     // every step to the first, and NaN compares false everywhere.
-    if !(options.step_error_tol.is_finite() && options.step_error_tol > 0.0) {
+    if !(options.step_error_tol > 0.0 && options.step_error_tol < 1.0) {
         return Err(CmePgdError::Setting(format!(
-            "step error tolerance {:?}: expected a finite relative error > 0",
+            "step error tolerance {:?}: expected a relative error above 0 and below 1",
             options.step_error_tol
         )));
     }
