@@ -483,7 +483,21 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
         // Once 22 s of building, then a stencil's capacity.
         (
             vec!["offline", "liver", "--radius-mm", "300", "--out", out_s],
-            "the tool (radius 300 mm) covers more than 1024 load nodes",
+            "the tool (radius 300.0 mm) covers more than 1024 load nodes",
+        ),
+        // The full FE solve once took it as a plate over the whole surface, fixed
+        // region included.
+        (
+            vec![
+                "fe",
+                "solve",
+                "--at=-30,90,25",
+                "--force-n",
+                "1",
+                "--radius-mm",
+                "1e300",
+            ],
+            "the tool (radius 1e300 mm) covers more than 1024 load nodes",
         ),
         (vec!["cme", "eval", missing, "--t", "1"], "missing.palpa"),
         // Once a null distance (its square overflowed).

@@ -117,6 +117,16 @@ pub fn probe_weights(
             _ => merged.push((n, w)),
         }
     }
+    // A tool as large as the organ is a plate, not a probe: refused by the same bound
+    // as the scenes' load stencils (a huge radius once loaded the fixed region too).
+    if merged.len() > crate::axis::MAX_LOAD_NODES {
+        let (lo, hi) = crate::mesh::bounds_of(&space.nodes);
+        return Err(FeError::ToolTooLarge {
+            radius_mm,
+            most: crate::axis::MAX_LOAD_NODES,
+            across_mm: norm(sub(hi, lo)),
+        });
+    }
     let total: f64 = merged.iter().map(|w| w.1).sum();
     if total > 0.0 {
         Ok(merged.into_iter().map(|(n, w)| (n, w / total)).collect())

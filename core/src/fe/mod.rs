@@ -196,10 +196,10 @@ pub enum FeError {
     NoDirection { dir: [f64; 3] },
     #[error("invalid load: probe point {point:?} is not finite")]
     PointNotFinite { point: [f64; 3] },
-    #[error("invalid load: tool radius {radius_mm} mm must be finite and positive")]
+    #[error("invalid load: tool radius {radius_mm:?} mm must be finite and positive")]
     ToolRadius { radius_mm: f64 },
     #[error(
-        "the tool (radius {radius_mm} mm) covers more than {most} load nodes of an organ \
+        "the tool (radius {radius_mm:?} mm) covers more than {most} load nodes of an organ \
          {across_mm:.1} mm across: expected a tool a few times smaller than the organ (check \
          the tool radius, or the surface file's units)"
     )]
