@@ -77,6 +77,17 @@ fn info_on_a_foreign_file_fails_with_a_clear_message() {
             "is a tissue vademecum",
         ),
         ([&["eval", ply][..], &at[..]].concat(), "is a surface mesh"),
+        // A network in TOML has no magic bytes: named by its extension.
+        (
+            vec![
+                "info",
+                concat!(
+                    env!("CARGO_MANIFEST_DIR"),
+                    "/../assets/networks/toggle.toml"
+                ),
+            ],
+            "is a TOML file: `palpa cme solve|offline|convert` and `palpa open --scene` read",
+        ),
     ] {
         let out = palpa(&args);
         assert!(!out.status.success(), "{args:?}");

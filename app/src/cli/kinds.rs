@@ -84,8 +84,29 @@ pub fn hint(e: &anyhow::Error) -> Option<String> {
         }
         None
     })?;
-    let what = describe(&head(&path))?;
+    let what = describe(&head(&path)).or_else(|| by_extension(&path))?;
     Some(format!("{} is {what}", path.display()))
+}
+
+/// What a file whose first bytes say nothing is, by its name's extension: text formats
+/// palpa reads that have no magic of their own (a TOML network, OBJ or binary STL
+/// surfaces, JSON paths).
+pub fn by_extension(path: &Path) -> Option<&'static str> {
+    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+    match ext.as_str() {
+        "toml" => Some(
+            "a TOML file: `palpa cme solve|offline|convert` and `palpa open --scene` read \
+                 gene networks written in it",
+        ),
+        "obj" | "stl" => {
+            Some("a surface mesh: `palpa mesh --surface` and `palpa scene build --surface` read it")
+        }
+        "json" => Some(
+            "a JSON file: `palpa headless --probe-path` and `--coordinate-path` read scripted \
+             paths written in it",
+        ),
+        _ => None,
+    }
 }
 
 #[cfg(test)]
@@ -101,5 +122,8 @@ mod tests {
         assert!(describe(b"ply\nform").is_some_and(|d| d.contains("surface")));
         assert_eq!(describe(b"PALPAXYZ"), None);
         assert_eq!(describe(b""), None);
+        assert!(by_extension(Path::new("net.TOML")).is_some_and(|d| d.contains("cme solve")));
+        assert!(by_extension(Path::new("liver.stl")).is_some_and(|d| d.contains("surface")));
+        assert_eq!(by_extension(Path::new("notes.txt")), None);
     }
 }
