@@ -460,6 +460,31 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             vec!["eval", scene, "--at=-30,90,25", "--force-n", "inf"],
             "--force-n inf: expected a finite force",
         ),
+        // Flags of the other kind of file were once ignored.
+        (
+            vec![
+                "eval",
+                scene,
+                "--at=-30,90,25",
+                "--force-n",
+                "1",
+                "--scene",
+                "liver",
+            ],
+            "--scene liver: names the scene a tissue file serves",
+        ),
+        (
+            vec![
+                "eval",
+                tissue,
+                "--at=-30,90,25",
+                "--force-n",
+                "1",
+                "--modes",
+                "2",
+            ],
+            "--modes 2: a tissue vademecum answers with the modes each press kept",
+        ),
         // Once a glued probe pulling the surface out (the tissue file refused it).
         (
             vec!["eval", scene, "--at", "-30,90,25", "--depth-mm", "-1"],

@@ -433,21 +433,34 @@ pub struct EvalArgs {
     #[arg(long)]
     out: Option<PathBuf>,
     /// For a tissue file (`palpa tissue build`): the scene it serves, `liver` (built
-    /// in) or a `.palpa` file of the same mesh.
-    #[arg(long, default_value = "liver")]
-    scene: String,
+    /// in) or a `.palpa` file of the same mesh [default: liver].
+    #[arg(long)]
+    scene: Option<String>,
     #[arg(long)]
     json: bool,
 }
 
 pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
+        if let Some(k) = args.modes {
+            bail!(
+                "--modes {k}: a tissue vademecum answers with the modes each press kept; \
+                 `palpa tissue cut --modes` cuts them (and `palpa tradeoff` measures the cut)"
+            );
+        }
         return super::tissue::eval(
             &args.file,
             &args.probe,
-            &args.scene,
+            args.scene.as_deref().unwrap_or("liver"),
             args.out.as_deref(),
             args.json,
+        );
+    }
+    if let Some(scene) = &args.scene {
+        bail!(
+            "--scene {scene}: names the scene a tissue file serves; {} is no tissue file \
+             (a scene is evaluated as itself)",
+            args.file.display()
         );
     }
     match file::load_any(&args.file).with_context(|| format!("loading {}", args.file.display()))? {
