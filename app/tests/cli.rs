@@ -462,6 +462,14 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
         ),
         // Flags of the other kind of file were once ignored.
         (
+            vec!["tradeoff", scene, "--seed", "3"],
+            "--seed applies to a tissue file's table",
+        ),
+        (
+            vec!["tradeoff", tissue, "--svd"],
+            "--svd applies to a scene's table",
+        ),
+        (
             vec![
                 "eval",
                 scene,

@@ -12,7 +12,8 @@
 //!
 //! A tissue file (`X.tissue`) gets its own table, over its modes and depth step with
 //! errors at held-out points and depths against Newton (`tissue_tradeoff`); `--depths`,
-//! `--scene`, `--seed` and the organ options apply to it only.
+//! `--scene`, `--seed` and the organ options apply to it only, `--svd` and `--plot` to a
+//! scene only; either given to the other kind is refused, not ignored.
 
 use std::path::PathBuf;
 
@@ -36,15 +37,16 @@ pub struct TradeoffArgs {
     /// file: 4, each pressed at every `--depths`).
     #[arg(long)]
     held_out: Option<usize>,
-    /// A tissue file's held-out depths (mm), off its depth grids.
-    #[arg(long, value_delimiter = ',', default_values_t = [2.6, 7.3, 12.7])]
-    depths: Vec<f64>,
-    /// A tissue file's scene: `liver` (built in) or a `.palpa` file of its mesh.
-    #[arg(long, default_value = "liver")]
-    scene: String,
-    /// Seed of the held-out points (tissue files).
-    #[arg(long, default_value_t = 7)]
-    seed: u64,
+    /// A tissue file's held-out depths (mm), off its depth grids [default: 2.6,7.3,12.7].
+    #[arg(long, value_delimiter = ',')]
+    depths: Option<Vec<f64>>,
+    /// A tissue file's scene: `liver` (built in) or a `.palpa` file of its mesh
+    /// [default: liver].
+    #[arg(long)]
+    scene: Option<String>,
+    /// Seed of the held-out points (tissue files) [default: 7].
+    #[arg(long)]
+    seed: Option<u64>,
     /// The organ a tissue file was built on (a vademecum's own file names it).
     #[command(flatten)]
     organ: super::args::OrganArgs,
@@ -65,15 +67,42 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
     if let Some(n) = args.held_out {
         super::tissue::check_heldout(n)?;
     }
+    let o = &args.organ;
+    let (tissue_only, scene_only) = (
+        [
+            ("--depths", args.depths.is_some()),
+            ("--scene", args.scene.is_some()),
+            ("--seed", args.seed.is_some()),
+            ("--surface", o.surface.is_some()),
+            ("--units", o.units.is_some()),
+            ("--axes", o.axes.is_some()),
+        ],
+        [("--svd", args.svd), ("--plot", args.plot.is_some())],
+    );
+    let first = |flags: &[(&'static str, bool)]| flags.iter().find(|f| f.1).map(|f| f.0);
     if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
+        if let Some(flag) = first(&scene_only) {
+            bail!(
+                "{flag} applies to a scene's table (modes against the linear FE); {} is a \
+                 tissue file, whose table is measured against Newton at held-out depths",
+                args.file.display()
+            );
+        }
         let settings = super::tissue_tradeoff::Settings {
             organ: &args.organ,
-            scene: &args.scene,
+            scene: args.scene.as_deref().unwrap_or("liver"),
             heldout: args.held_out.unwrap_or(4),
-            depths_mm: &args.depths,
-            seed: args.seed,
+            depths_mm: args.depths.as_deref().unwrap_or(&[2.6, 7.3, 12.7]),
+            seed: args.seed.unwrap_or(7),
         };
         return super::tissue_tradeoff::run(&args.file, &settings, args.json);
+    }
+    if let Some(flag) = first(&tissue_only) {
+        bail!(
+            "{flag} applies to a tissue file's table; {} is a scene, whose table needs \
+             no more than the file (its level, material and held-out points are its own)",
+            args.file.display()
+        );
     }
     let held_out = args.held_out.unwrap_or(24);
     let header = file::read_header(&args.file)
