@@ -71,9 +71,11 @@ pub fn sidecar_tissue(scene_path: &Path, scene: &PalpationScene) -> anyhow::Resu
     if !path.exists() {
         return Ok(None);
     }
-    DepthLaw::load(&path)
-        .map(|l| Some(Tissue::ForceLaw(l)))
-        .with_context(|| format!("the force law beside {}", scene_path.display()))
+    let law = DepthLaw::load(&path)
+        .with_context(|| format!("the force law beside {}", scene_path.display()))?;
+    law.check_scene(scene.vertices_mm(), &scene.model().provenance().mesh)
+        .with_context(|| format!("binding {} to its scene", path.display()))?;
+    Ok(Some(Tissue::ForceLaw(law)))
 }
 
 /// `law` bound to `scene` (the same mesh, element and material), named `name` in errors.

@@ -116,6 +116,35 @@ fn depth_law_resumes_from_its_sample_log() {
         err.contains("is a force law: `palpa depth-law eval`"),
         "{err}"
     );
+    // A law of another element, or of another organ, is refused by the scene it would
+    // scale (a liver's law once answered on the kidney).
+    let kidney = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../assets/kidney/kidney-coarse.palpa"
+    );
+    for (scene, says) in [
+        ("liver", "the force law was built with p1, E = 160 kPa"),
+        (kidney, "the force law does not fit this scene: 0 of its"),
+    ] {
+        let at = ["--at=-30,90,25", "--depth-mm", "1", "--scene", scene];
+        let out = run(&[&["depth-law", "eval", full_s][..], &at[..]].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(says),
+            "{scene}: {err}"
+        );
+    }
+    // The same beside a scene: opening it says so, never presses linearly instead.
+    let k = dir.path().join("k.palpa");
+    std::fs::copy(kidney, &k).expect("copy");
+    std::fs::copy(&full, dir.path().join("k.law")).expect("copy");
+    let k = k.to_str().expect("utf-8");
+    let out = run(&["headless", "--scene", k, "--frames", "1", "--size", "64x48"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("does not fit this scene"),
+        "{err}"
+    );
 }
 
 /// The tissue build (every vertex's press followed to equilibrium): killed after a

@@ -171,6 +171,8 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     }
     let loaded = palpa_app::scenes::load(&args.scene)?;
     let scene = loaded.scene;
+    law.check_scene(scene.vertices_mm(), &scene.model().provenance().mesh)
+        .with_context(|| format!("{} with the scene {}", args.law.display(), args.scene))?;
     let (point, distance) = scene
         .closest_palpable([x, y, z])
         .context("the scene has no palpable surface")?;

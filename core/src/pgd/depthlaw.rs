@@ -59,6 +59,23 @@ pub enum DepthLawFileError {
     },
 }
 
+/// Why a force law does not fit the scene it is asked to correct.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DepthLawFitError {
+    #[error(
+        "the force law does not fit this scene: {matched} of its {total} samples sit on the \
+         scene's surface vertices (expected all; was it built on another organ or level?)"
+    )]
+    Samples { matched: usize, total: usize },
+    #[error(
+        "the force law was built with {law} and the scene's linear model with {scene}: the \
+         law scales the scene's linear force by its own ratio, so both must come from the \
+         same element and material (rebuild the law with matching --element, --young-kpa, \
+         --poisson)"
+    )]
+    LinearModel { law: String, scene: String },
+}
+
 /// The largest relative change of a sample's Padé force at the deepest point from the
 /// next lower form (its error indicator) for the sample to be kept.
 /// (The indicator is pessimistic: at the ten bench positions changes up to 8.5 % went
@@ -441,6 +458,34 @@ impl DepthLaw {
                 source,
             }
         })
+    }
+
+    /// Checks that this law was built on the scene's mesh (every sample one of its
+    /// surface vertices) with the element and material of its linear model (its
+    /// provenance `mesh` line): a liver's law once scaled a kidney scene's forces.
+    pub fn check_scene(
+        &self,
+        vertices_mm: &[[f32; 3]],
+        scene_mesh_line: &str,
+    ) -> Result<(), DepthLawFitError> {
+        let index =
+            crate::pgd::tissue::PointIndex::new(vertices_mm.iter().map(|p| p.map(f64::from)));
+        let matched = self
+            .samples
+            .iter()
+            .filter(|&&p| index.find(p).is_some())
+            .count();
+        if matched < self.samples.len() {
+            return Err(DepthLawFitError::Samples {
+                matched,
+                total: self.samples.len(),
+            });
+        }
+        let o = &self.options;
+        match crate::pgd::tissue::linear_model_mismatch(o.element, &o.material, scene_mesh_line) {
+            Some((law, scene)) => Err(DepthLawFitError::LinearModel { law, scene }),
+            None => Ok(()),
+        }
     }
 
     pub fn load(path: &Path) -> Result<DepthLaw, DepthLawFileError> {

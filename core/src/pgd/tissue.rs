@@ -90,6 +90,7 @@ use faer::Mat;
 use serde::{Deserialize, Serialize};
 
 use crate::axis::ProbePoint;
+use crate::fe::{Element, Material};
 use crate::framed::Body;
 use crate::organ::OrganMesh;
 use crate::pgd::depthlaw::DepthLaw;
@@ -513,36 +514,10 @@ impl TissueLaw {
     /// (measured: forces 30–40 % off). Keys the line does not name are not compared.
     pub fn check_linear_model(&self, scene_mesh_line: &str) -> Result<(), TissueError> {
         let o = &self.options;
-        let value = |key: &str| {
-            scene_mesh_line
-                .split_whitespace()
-                .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
-        };
-        let number_differs = |key: &str, ours: f64| {
-            value(key)
-                .and_then(|v| v.parse::<f64>().ok())
-                .is_some_and(|v| (v - ours).abs() > 1e-9 * ours.abs().max(1.0))
-        };
-        let element_differs = value("element").is_some_and(|e| e != o.element.name());
-        if element_differs
-            || number_differs("young_kpa", o.material.young_kpa)
-            || number_differs("poisson", o.material.poisson)
-        {
-            let describe = |e: &str, y: String, p: String| format!("{e}, E = {y} kPa, ν = {p}");
-            return Err(TissueError::LinearModel {
-                law: describe(
-                    o.element.name(),
-                    o.material.young_kpa.to_string(),
-                    o.material.poisson.to_string(),
-                ),
-                scene: describe(
-                    value("element").unwrap_or("?"),
-                    value("young_kpa").unwrap_or("?").to_string(),
-                    value("poisson").unwrap_or("?").to_string(),
-                ),
-            });
+        match linear_model_mismatch(o.element, &o.material, scene_mesh_line) {
+            Some((law, scene)) => Err(TissueError::LinearModel { law, scene }),
+            None => Ok(()),
         }
-        Ok(())
     }
 
     /// Compresses a built surface law to `tolerance_mm`, its shapes stored in `bits`
@@ -938,6 +913,47 @@ impl TissueLaw {
     }
 }
 
+/// Where a scene's linear model (its provenance's `mesh` line, e.g. `... element=p2
+/// young_kpa=160 poisson=0.48 ...`) used another element or material than a nonlinear
+/// law built with `element` and `material`: the two descriptions, the law's first.
+/// Keys the line does not name are not compared.
+pub fn linear_model_mismatch(
+    element: Element,
+    material: &Material,
+    scene_mesh_line: &str,
+) -> Option<(String, String)> {
+    let value = |key: &str| {
+        scene_mesh_line
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
+    };
+    let number_differs = |key: &str, ours: f64| {
+        value(key)
+            .and_then(|v| v.parse::<f64>().ok())
+            .is_some_and(|v| (v - ours).abs() > 1e-9 * ours.abs().max(1.0))
+    };
+    let element_differs = value("element").is_some_and(|e| e != element.name());
+    if !(element_differs
+        || number_differs("young_kpa", material.young_kpa)
+        || number_differs("poisson", material.poisson))
+    {
+        return None;
+    }
+    let describe = |e: &str, y: String, p: String| format!("{e}, E = {y} kPa, ν = {p}");
+    Some((
+        describe(
+            element.name(),
+            material.young_kpa.to_string(),
+            material.poisson.to_string(),
+        ),
+        describe(
+            value("element").unwrap_or("?"),
+            value("young_kpa").unwrap_or("?").to_string(),
+            value("poisson").unwrap_or("?").to_string(),
+        ),
+    ))
+}
+
 /// Why `shape` is no whole number of modes over `rows` surface rows.
 fn shape_length_why(shape: &Shapes, rows: usize) -> String {
     format!(
@@ -1022,7 +1038,7 @@ impl Tissue {
         }
     }
 
-    pub fn material(&self) -> crate::fe::Material {
+    pub fn material(&self) -> Material {
         match self {
             Tissue::ForceLaw(l) => l.options.material,
             Tissue::Vademecum(t) => t.law.options.material,
