@@ -247,6 +247,23 @@ fn regions_come_from_selectors_and_region_files() {
     let ml = m["volume_ml"].as_f64().expect("volume");
     let exact = 4.0 / 3.0 * std::f64::consts::PI * 40f64.powi(3) / 1000.0;
     assert!((ml - exact).abs() / exact < 0.03, "{ml} ml vs {exact}");
+    // The force law's depth: said where it shapes nothing, checked before meshing.
+    let out = build(&["--depth-max-mm", "3"], "g.palpa");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("shapes the force law"),
+        "{err}"
+    );
+    let out = build(
+        &["--model", "neo-hookean", "--depth-max-mm", "nan"],
+        "h.palpa",
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("invalid depth grid"),
+        "{err}"
+    );
+    assert!(!err.contains("[2/6]"), "refused before meshing: {err}");
     // Selecting nothing to fix is refused before any solving.
     let out = build(&["--fixed", "none"], "e.palpa");
     assert!(!out.status.success());

@@ -139,9 +139,10 @@ pub struct BuildArgs {
     element: Element,
     #[arg(long, value_enum, default_value = "linear")]
     model: TissueModel,
-    /// Deepest press the force law covers (mm), with `--model neo-hookean|svk`.
-    #[arg(long, default_value_t = DepthLawOptions::default().depth_max_mm)]
-    depth_max_mm: f64,
+    /// Deepest press the force law covers (mm), with `--model neo-hookean|svk`
+    /// [default: 15].
+    #[arg(long)]
+    depth_max_mm: Option<f64>,
     /// Probe tool radius (mm).
     #[arg(long, default_value_t = 5.0)]
     radius_mm: f64,
@@ -277,6 +278,22 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     }
     // Before any stage: a build once meshed and solved for minutes, then drew 10⁸ points.
     super::tissue::check_heldout(args.held_out)?;
+    // Likewise the force law's depth grid (once NaN built the whole scene and no law).
+    let depth_max_mm = match (args.model, args.depth_max_mm) {
+        (TissueModel::Linear, Some(_)) => bail!(
+            "--depth-max-mm shapes the force law: it applies with --model neo-hookean or svk, \
+             not the linear tissue"
+        ),
+        (_, d) => d.unwrap_or(DepthLawOptions::default().depth_max_mm),
+    };
+    if args.model != TissueModel::Linear {
+        palpa_core::fe::depth_grid_points(
+            depth_max_mm,
+            DepthLawOptions::default().depth_step_mm,
+            palpa_core::pgd::depthlaw::MAX_DEPTHS,
+        )
+        .context("--depth-max-mm")?;
+    }
 
     pr.start("surface", &args.surface.display().to_string());
     let axes = axes_of(args)?;
@@ -413,11 +430,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     if let Some(law) = law {
         let lpath = dir.join("scene.law");
         let key_path = dir.join("law.key");
-        let key = format!(
-            "{desc} law={} depth_max_mm={}",
-            law.name(),
-            args.depth_max_mm
-        );
+        let key = format!("{desc} law={} depth_max_mm={}", law.name(), depth_max_mm);
         let cached = std::fs::read_to_string(&key_path).ok().as_deref() == Some(key.as_str())
             && DepthLaw::load(&lpath).is_ok();
         pr.start(
@@ -434,7 +447,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
                 material,
                 element: args.element,
                 tool_radius_mm: args.radius_mm,
-                depth_max_mm: args.depth_max_mm,
+                depth_max_mm,
                 ..DepthLawOptions::default()
             };
             let log = dir.join("law-samples.log");
