@@ -558,6 +558,20 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             vec!["offline", "liver", "--block", "4", "--out", out_s],
             "--block tunes the PGD solver",
         ),
+        // And the other way round: the nodal build's options were ignored by the PGD.
+        (
+            vec![
+                "offline",
+                "liver",
+                "--method",
+                "pgd",
+                "--table-degree",
+                "4",
+                "--out",
+                out_s,
+            ],
+            "--table-degree shapes the nodal build",
+        ),
         // An exported scene (f32) once failed with an internal API's words.
         (
             vec!["tradeoff", scene],

@@ -192,6 +192,26 @@ fn check_pgd_options(args: &OfflineArgs) -> anyhow::Result<()> {
     {
         bail!("{flag} tunes the PGD solver: it applies with --method pgd, not the nodal build");
     }
+    // And the nodal build's own options, with the PGD solver.
+    let nodal = [
+        (
+            "--band-radius-mm",
+            args.band_radius_mm != NodalSettings::default().band_radius_mm,
+        ),
+        ("--table-degree", args.table_degree.is_some()),
+        (
+            "--far-tolerance",
+            !matches!(args.far_tolerance, FarTolerance::Auto),
+        ),
+    ];
+    if args.method == MethodArg::Pgd
+        && let Some((flag, _)) = nodal.iter().find(|(_, set)| *set)
+    {
+        bail!(
+            "{flag} shapes the nodal build: it applies with --method nodal (the default), not \
+             the PGD solver"
+        );
+    }
     Ok(())
 }
 
