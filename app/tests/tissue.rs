@@ -954,6 +954,24 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
     };
     for (bad, says) in [
         (&["--within", "1,2,3"][..], "X,Y,Z,R"),
+        // A ball without a vertex once ended in "the surface law is empty".
+        (
+            &["--within=-30,70,16,3"][..],
+            "no palpable vertex lies within 3 mm of that point (the nearest is 3.2 mm away)",
+        ),
+        // Options that shape nothing together were once ignored.
+        (
+            &["--within=-30,70,16,9", "--cover=-30,70,16"][..],
+            "cannot be used with",
+        ),
+        (
+            &["--no-refine", "--refine-above-mm", "0.3"][..],
+            "cannot be used with",
+        ),
+        (
+            &["--no-edges", "--separate-modes"][..],
+            "cannot be used with",
+        ),
         (&["--tolerance-mm=-1"][..], "positive length"),
         (&["--bits", "12"][..], "8 or 16"),
         (&["--jobs", "0"][..], "at least one press"),

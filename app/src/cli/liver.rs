@@ -946,7 +946,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         young_kpa: material.young_kpa,
         poisson: material.poisson,
         no_edges: false,
-        refine_above_mm: palpa_core::pgd::surfacelaw::DEFAULT_REFINE_ABOVE_MM,
+        refine_above_mm: None,
         no_refine: false,
         separate_modes: false,
         jobs: None,

@@ -126,7 +126,12 @@ pub struct BuildArgs {
     pub active_cutoff: f64,
     /// Press only the palpable vertices within X,Y,Z,R (mm): model only the region a
     /// scene shows.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        conflicts_with = "cover"
+    )]
     pub within: Option<Vec<f64>>,
     /// Press only what answers at these points (X,Y,Z[,X,Y,Z…], mm, on the palpable
     /// surface): the triangles holding them, split as the whole build would split
@@ -144,15 +149,16 @@ pub struct BuildArgs {
     pub no_edges: bool,
     /// Split into four the triangles whose largest edge surplus (the midpoint's press
     /// off its ends' mean, any node, any depth) exceeds this (mm), and press their
-    /// quarter and inner points: a denser blend where the response turns quickly.
-    #[arg(long, default_value_t = DEFAULT_REFINE_ABOVE_MM)]
-    pub refine_above_mm: f64,
+    /// quarter and inner points: a denser blend where the response turns quickly
+    /// [default: 0.35].
+    #[arg(long, conflicts_with_all = ["no_refine", "no_edges"])]
+    pub refine_above_mm: Option<f64>,
     /// Split no triangle: the quadratic blend everywhere.
     #[arg(long)]
     pub no_refine: bool,
     /// Give each split triangle's quarter and inner points modes of their own, not one
     /// set shared by the triangle's points (measured: about three times the modes).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["no_refine", "no_edges"])]
     pub separate_modes: bool,
     /// Presses computed at once. Each holds its own factored tangent: on medium P2
     /// two at once peaked at 21.7 GB. Default: one per core.
@@ -431,6 +437,26 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         }
         Some(v) => bail!("--within: expected X,Y,Z,R (finite, R > 0), got {v:?}"),
     };
+    // A ball that holds no palpable vertex would end in "the surface law is empty".
+    if let Some((c, r)) = within {
+        let nearest = organ
+            .pressable_vertices()
+            .iter()
+            .map(|&v| {
+                let p = organ.mesh.vertices[v as usize];
+                (0..3).map(|k| (p[k] - c[k]).powi(2)).sum::<f64>().sqrt()
+            })
+            .fold(f64::INFINITY, f64::min);
+        if nearest > r {
+            bail!(
+                "--within {},{},{},{r}: no palpable vertex lies within {r} mm of that point (the \
+                 nearest is {nearest:.1} mm away); expected a ball that holds some",
+                c[0],
+                c[1],
+                c[2]
+            );
+        }
+    }
     if !(args.tolerance_mm.is_finite() && args.tolerance_mm > 0.0) {
         bail!(
             "--tolerance-mm {}: expected a positive length",
@@ -456,13 +482,11 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     };
     let log = press_log(&args.out);
     let started = Instant::now();
-    if !(args.refine_above_mm.is_finite() && args.refine_above_mm >= 0.0) {
-        bail!(
-            "--refine-above-mm {}: expected a length of at least 0",
-            args.refine_above_mm
-        );
+    let refine_above_mm = args.refine_above_mm.unwrap_or(DEFAULT_REFINE_ABOVE_MM);
+    if !(refine_above_mm.is_finite() && refine_above_mm >= 0.0) {
+        bail!("--refine-above-mm {refine_above_mm}: expected a length of at least 0");
     }
-    let refine = (!args.no_refine && !args.no_edges).then_some(args.refine_above_mm);
+    let refine = (!args.no_refine && !args.no_edges).then_some(refine_above_mm);
     let pool = press_pool(args.jobs, &organ, options.element)?;
     let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
     let cover = args
