@@ -1063,6 +1063,11 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
     for (input, bad, says) in [
         (shipped, &["--refine-above-mm=-1"][..], "at least 0"),
         (shipped, &["--jobs", "0"][..], "at least one press"),
+        (
+            shipped,
+            &["--sub-triangles", "5", "--refine-above-mm", "0.3"][..],
+            "cannot be used with",
+        ),
         (scene, &[][..], "not a palpa tissue file"),
         (shipped, &["--at", "1,2,3"][..], "--plan"),
         (shipped, &["--plan", "--at", "1,2"][..], "X,Y,Z triples"),

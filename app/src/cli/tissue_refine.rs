@@ -23,9 +23,10 @@ pub struct RefineArgs {
     #[command(flatten)]
     pub(super) organ: OrganArgs,
     /// Split the triangles whose largest edge surplus (any node, any depth) exceeds
-    /// this (mm), as `tissue build` does.
-    #[arg(long, default_value_t = DEFAULT_REFINE_ABOVE_MM)]
-    refine_above_mm: f64,
+    /// this (mm), as `tissue build` does [default: 0.35]. (Sub-triangles are ranked by
+    /// their own surpluses: not with `--sub-triangles`.)
+    #[arg(long, conflicts_with = "sub_triangles")]
+    refine_above_mm: Option<f64>,
     /// Split only this many of them, the worst first (by their largest edge surplus):
     /// a refinement in stages. On a split file, the stage's triangles in all (those
     /// already split among them). Default: all.
@@ -86,10 +87,11 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
     if let Some(most) = args.sub_triangles {
         return super::tissue_subsplit::refine_sub(args, most);
     }
-    if !(args.refine_above_mm.is_finite() && args.refine_above_mm >= 0.0) {
+    let refine_above_mm = args.refine_above_mm.unwrap_or(DEFAULT_REFINE_ABOVE_MM);
+    if !(refine_above_mm.is_finite() && refine_above_mm >= 0.0) {
         bail!(
             "--refine-above-mm {}: expected a length of at least 0",
-            args.refine_above_mm
+            refine_above_mm
         );
     }
     let (at, organ, base) = read_back(args)?;
@@ -98,13 +100,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
         .with_context(|| format!("reading back {}", args.tissue.display()))?;
     let log = args.out.as_deref().map(press_log);
     if args.plan {
-        let p = law.refine_preview(
-            &organ,
-            args.refine_above_mm,
-            args.triangles,
-            log.as_deref(),
-            &at,
-        )?;
+        let p = law.refine_preview(&organ, refine_above_mm, args.triangles, log.as_deref(), &at)?;
         let points: Vec<_> =
             p.at.iter()
                 .map(|r| {
@@ -116,7 +112,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
                 })
                 .collect();
         let report = json!({
-            "from": args.tissue, "refine_above_mm": args.refine_above_mm,
+            "from": args.tissue, "refine_above_mm": refine_above_mm,
             "depth_step_mm": law.options.depth_step_mm,
             "candidates": p.candidates, "triangles_above": p.above,
             "split_triangles": p.split, "split_triangles_kept": p.kept,
@@ -141,7 +137,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
         .install(|| {
             law.refine(
                 &organ,
-                args.refine_above_mm,
+                refine_above_mm,
                 args.triangles,
                 Some(&log),
                 &progress,
@@ -165,7 +161,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
         .fold(f64::INFINITY, f64::min);
     let report = json!({
         "from": args.tissue, "out": out,
-        "refine_above_mm": args.refine_above_mm, "triangles_above": above,
+        "refine_above_mm": refine_above_mm, "triangles_above": above,
         "split_triangles": split, "split_triangles_kept": kept,
         "least_split_edge_surplus_mm": least_split.is_finite().then_some(least_split),
         "worst_edge_surplus_mm": worst(|f| f.0), "worst_point_surplus_mm": worst(|f| f.1),
