@@ -965,6 +965,16 @@ fn cme_pgd_flags_that_do_not_apply_are_said() {
         ok && err.contains("this one keeps the whole history"),
         "{err}"
     );
+    // Once filed under "invalid time grid".
+    let cascade = format!(
+        "cme offline cascade --t-end 2 --keep views --out {}",
+        out.display()
+    );
+    let (ok, err) = run(&cascade);
+    assert!(
+        !ok && err.contains("invalid solver setting: a views model is a function of time only"),
+        "{err}"
+    );
     let (ok, err) = run(&format!("{offline} --keep views --views-eps nan"));
     assert!(!ok && err.contains("--views-eps NaN"), "{err}");
     // One solver's flags given to the other, or any of them to FSP or SSA: said.

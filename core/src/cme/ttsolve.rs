@@ -209,7 +209,7 @@ pub fn solve_views(
         .map(|p| p.name.as_str())
         .collect();
     if !ranged.is_empty() {
-        return Err(CmePgdError::TimeGrid(format!(
+        return Err(CmePgdError::Setting(format!(
             "a views model is a function of time only, but {} has range parameters {}: \
              build the full tensor train instead",
             network.name,
@@ -218,7 +218,7 @@ pub fn solve_views(
     }
     let d = network.species.len();
     if let Some(&(a, b)) = pairs.iter().find(|(a, b)| a >= b || *b >= d) {
-        return Err(CmePgdError::TimeGrid(format!(
+        return Err(CmePgdError::Setting(format!(
             "pair ({a}, {b}): expected two species indices a < b < {d}"
         )));
     }
