@@ -499,7 +499,7 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             "--depth-mm -1: expected a finite depth ≥ 0 mm (the tool presses; it cannot pull)",
         ),
         (
-            vec!["fe", "solve", "--at=-30,90,25", "--force-n", "-1"],
+            vec!["eval", scene, "--at=-30,90,25", "--force-n", "-1"],
             "--force-n -1: expected a finite force ≥ 0 N",
         ),
         (

@@ -89,8 +89,9 @@ impl ProbeArgs {
         self.dir.as_deref().map(|d| to3(d, "--dir")).transpose()
     }
     /// Refuses a pull: the tool presses into the tissue and cannot hold it, so a
-    /// negative force or depth is no palpation (the linear models would answer it as
-    /// a glued probe, the tissue law not at all).
+    /// negative force or depth is no palpation (a linear scene would answer it as a
+    /// glued probe, the tissue law not at all). `palpa fe solve`, the reference,
+    /// answers pulls.
     pub fn check_press(&self) -> anyhow::Result<()> {
         if let Some(d) = self.depth_mm
             && !(d.is_finite() && d >= 0.0)
