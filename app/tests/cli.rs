@@ -1412,6 +1412,34 @@ fn a_coordinate_path_drives_the_network_scene() {
     ]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("\"gamma\""));
+    // A network's model is no scene to export (a tensor train once failed with the
+    // loader's words, a greedy model would have been written as a scene).
+    let shipped = dir.path().join("shipped.palpa");
+    let out = palpa(&["export-scene", f, "--out", shipped.to_str().expect("utf-8")]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("a gene-network meta-model"),
+        "{err}"
+    );
+    assert!(!shipped.exists());
+    // A scene exported with more modes than it holds keeps them all, and says so.
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
+    let out = palpa(&[
+        "export-scene",
+        scene,
+        "--modes",
+        "1000",
+        "--out",
+        shipped.to_str().expect("utf-8"),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    let v = common::json_ok(&out);
+    assert_eq!(v["modes_asked"], 1000);
+    assert!(
+        err.contains("--modes 1000: the file holds")
+            && err.contains(&format!("kept {}", v["modes"])),
+        "{err}"
+    );
 }
 
 /// An SBML model (the DSMTS dimerisation, vendored) through every network command:

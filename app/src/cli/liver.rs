@@ -873,11 +873,35 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
     if args.modes == Some(0) {
         bail!("--modes 0: expected at least one mode to keep");
     }
+    // A network's model is shipped as `cme offline` wrote it: it has no surface rows.
+    // (A greedy one would otherwise be written as if it were a scene.)
+    let header = file::read_header(&args.file)
+        .with_context(|| format!("reading the header of {}", args.file.display()))?;
+    let network_kinds = [
+        palpa_core::cme::greedy::KIND,
+        palpa_core::cme::model::TRAIN_KIND,
+        palpa_core::cme::model::VIEWS_KIND,
+    ];
+    if network_kinds.contains(&header.meta.kind.as_str()) {
+        bail!(
+            "{}: a gene-network meta-model; `palpa export-scene` ships palpation scenes \
+             (a network's file opens as it is: `palpa open --scene`, `palpa cme eval`)",
+            args.file.display()
+        );
+    }
     let m = file::load_any(&args.file)
         .with_context(|| format!("loading {}", args.file.display()))?
         .into_f64();
+    let available = m.modes();
     let mut m = match args.modes {
-        Some(n) => m.truncated(n.min(m.modes())).context("truncating")?,
+        Some(n) => {
+            if n > available {
+                eprintln!(
+                    "palpa: warning: --modes {n}: the file holds {available}; kept {available}"
+                );
+            }
+            m.truncated(n.min(available)).context("truncating")?
+        }
         None => m,
     };
     if args.surface_only {
@@ -907,7 +931,7 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
     let bytes = std::fs::metadata(&args.out).map(|x| x.len()).unwrap_or(0);
     println!(
         "{}",
-        json!({"out": args.out, "rows": m.rows(), "modes": m.modes(), "sidecars": sidecars,
+        json!({"out": args.out, "rows": m.rows(), "modes": m.modes(), "modes_asked": args.modes, "sidecars": sidecars,
                "precision": match args.precision { PrecisionArg::F32 => Precision::F32, PrecisionArg::F64 => Precision::F64 }.name(),
                "near_bits": args.near_bits, "bytes": bytes})
     );
