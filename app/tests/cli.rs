@@ -455,7 +455,28 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
     let tissue = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
     let missing = dir.path().join("missing.palpa");
     let missing = missing.to_str().expect("utf-8");
+    let nowhere = dir.path().join("no-such-folder/o.palpa");
+    let nowhere = nowhere.to_str().expect("utf-8");
     for (args, want) in [
+        // Once 45 s of building, then a failed write.
+        (
+            vec!["offline", "liver", "--out", nowhere],
+            "no-such-folder does not exist (expected an existing folder to write into)",
+        ),
+        (
+            vec!["cme", "offline", "toggle", "--out", nowhere],
+            "no-such-folder does not exist",
+        ),
+        (
+            vec![
+                "headless",
+                "--frames",
+                "1",
+                "--out",
+                dir.path().to_str().expect("utf-8"),
+            ],
+            "a folder (expected a file to write)",
+        ),
         (
             vec!["eval", scene, "--at=-30,90,25", "--force-n", "inf"],
             "--force-n inf: expected a finite force",

@@ -124,6 +124,30 @@ pub fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
     }
 }
 
+/// Checks before any work that `--out` can be written: its folder exists and it is no
+/// folder itself. (`offline liver --out /missing/x.palpa` once built for 45 s, then
+/// failed to write.)
+pub fn check_out(out: &std::path::Path) -> anyhow::Result<()> {
+    let folder = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => std::path::Path::new("."),
+    };
+    if !folder.is_dir() {
+        bail!(
+            "--out {}: the folder {} does not exist (expected an existing folder to write into)",
+            out.display(),
+            folder.display()
+        );
+    }
+    if out.is_dir() {
+        bail!(
+            "--out {}: a folder (expected a file to write)",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
 /// Mean time of `f` over `reps` calls, in nanoseconds (stops at the first error).
 pub fn mean_ns(reps: u32, f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<f64> {
     palpa_core::timing::mean_ns(reps, f)

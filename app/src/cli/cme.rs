@@ -862,6 +862,7 @@ fn run_pgd(network: &Network, options: &greedy::Options) -> anyhow::Result<build
 }
 
 fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
+    super::args::check_out(&args.out)?;
     let network = load_network(&args.model)?;
     let built = args.pgd.build(&network, 300.0)?;
     built.save(&network, &args.out)?;

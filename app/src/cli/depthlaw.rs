@@ -101,6 +101,7 @@ pub fn run(cmd: &DepthLawCommand) -> anyhow::Result<()> {
 }
 
 fn build(args: &BuildArgs) -> anyhow::Result<()> {
+    super::args::check_out(&args.out)?;
     let organ = args.organ.mesh()?;
     let options = DepthLawOptions {
         law: args.model.law(),

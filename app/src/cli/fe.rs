@@ -89,6 +89,9 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
     // No `check_press`: the reference answers a pull too (the tool glued to the
     // surface), which the scenes and tissue files do not.
     let at = args.probe.at()?;
+    if let Some(out) = &args.out {
+        super::args::check_out(out)?;
+    }
     let dir = args.probe.dir()?;
     let material = Material {
         young_kpa: args.young_kpa,

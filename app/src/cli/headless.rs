@@ -90,6 +90,9 @@ impl HeadlessArgs {
 }
 
 pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
+    if let Some(out) = &args.out {
+        super::args::check_out(out)?;
+    }
     let size = parse_size(&args.size)?;
     let opts = HeadlessOptions {
         scene: args.scene.clone(),

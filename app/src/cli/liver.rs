@@ -222,6 +222,7 @@ fn journal_path(out: &Path) -> PathBuf {
 }
 
 pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
+    super::args::check_out(&args.out)?;
     check_pgd_options(args)?;
     if args.model == TissueModel::Linear
         && let Some(flag) = [

@@ -429,6 +429,7 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
 
 /// Builds, compresses and saves; returns the law and a JSON summary.
 pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)> {
+    super::args::check_out(&args.out)?;
     let organ = args.organ.mesh()?;
     let within = match args.within.as_deref() {
         None => None,

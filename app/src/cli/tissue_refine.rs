@@ -84,6 +84,9 @@ pub(super) fn read_back(
 
 /// `palpa tissue refine`.
 pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
+    if let Some(out) = &args.out {
+        super::args::check_out(out)?;
+    }
     if let Some(most) = args.sub_triangles {
         return super::tissue_subsplit::refine_sub(args, most);
     }
