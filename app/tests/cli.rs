@@ -448,6 +448,7 @@ fn eval_on_the_default_scene() {
 /// a missing file is named once, its cause not repeated.
 #[test]
 fn what_cannot_be_pressed_is_refused_by_flag() {
+    let words = |line: &'static str| line.split(' ').collect::<Vec<_>>();
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("o.palpa");
     let out_s = out.to_str().expect("utf-8");
@@ -553,15 +554,7 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
         // The full FE solve once took it as a plate over the whole surface, fixed
         // region included.
         (
-            vec![
-                "fe",
-                "solve",
-                "--at=-30,90,25",
-                "--force-n",
-                "1",
-                "--radius-mm",
-                "1e300",
-            ],
+            words("fe solve --at=-30,90,25 --force-n 1 --radius-mm 1e300"),
             "the tool (radius 1e300 mm) covers more than 1024 load nodes",
         ),
         (vec!["cme", "eval", missing, "--t", "1"], "missing.palpa"),
@@ -634,31 +627,12 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
         ),
         // Once silently ignored by Newton.
         (
-            vec![
-                "fe",
-                "solve",
-                "--at=-30,90,25",
-                "--model",
-                "neo-hookean",
-                "--orders",
-                "3",
-                "--depth-mm",
-                "5",
-            ],
+            words("fe solve --at=-30,90,25 --model neo-hookean --orders 3 --depth-mm 5"),
             "--orders 3: only --method series keeps orders",
         ),
         // A negative Poisson's ratio is a value, not a flag (it reaches the material's check).
         (
-            vec![
-                "fe",
-                "solve",
-                "--at",
-                "-30,90,25",
-                "--force-n",
-                "1",
-                "--poisson",
-                "-1",
-            ],
+            words("fe solve --at -30,90,25 --force-n 1 --poisson -1"),
             "Poisson's ratio -1 must lie in (−1, 0.5)",
         ),
         (
