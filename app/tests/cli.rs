@@ -1418,15 +1418,11 @@ fn a_coordinate_path_drives_the_network_scene() {
     );
     assert!(!shipped.exists());
     // A scene exported with more modes than it holds keeps them all, and says so.
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
-    let out = palpa(&[
-        "export-scene",
-        scene,
-        "--modes",
-        "1000",
-        "--out",
-        shipped.to_str().expect("utf-8"),
-    ]);
+    let assets = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets");
+    let export = format!("export-scene {assets}/liver-coarse.palpa --modes 1000 --out");
+    let mut args: Vec<&str> = export.split(' ').collect();
+    args.push(shipped.to_str().expect("utf-8"));
+    let out = palpa(&args);
     let err = String::from_utf8_lossy(&out.stderr).to_string();
     let v = common::json_ok(&out);
     assert_eq!(v["modes_asked"], 1000);
