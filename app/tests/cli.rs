@@ -1501,3 +1501,40 @@ fn an_sbml_model_converts_and_solves_with_automatic_boxes() {
         "{err}"
     );
 }
+
+/// `PALPA_MEMORY_GB` caps what a solve may plan with: a factorization beyond it is
+/// refused by name, for the linear and the nonlinear solve alike (the nonlinear one once
+/// called the refusal "the stiffness is not positive definite"), and a cap that is not a
+/// positive number is refused before any work.
+#[test]
+fn a_memory_cap_refuses_the_factorization_by_name() {
+    let with_cap = |cap: &str, args: &str| {
+        Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args(args.split_whitespace())
+            .env("PALPA_MEMORY_GB", cap)
+            .output()
+            .expect("palpa runs")
+    };
+    for model in ["linear", "neo-hookean"] {
+        let out = with_cap(
+            "0.1",
+            &format!("fe solve --at=-30,90,25 --model {model} --depth-mm 3"),
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{model}: {err}");
+        assert!(
+            err.contains("GB are available: use a coarser level") && err.contains("needs about"),
+            "{model}: {err}"
+        );
+        assert!(!err.contains("not positive definite"), "{model}: {err}");
+    }
+    for cap in ["nan", "-1", "0", "lots"] {
+        let out = with_cap(cap, "fe solve --at=-30,90,25 --depth-mm 3");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{cap}: {err}");
+        assert!(
+            err.contains("PALPA_MEMORY_GB") && err.contains("expected a positive number"),
+            "{cap}: {err}"
+        );
+    }
+}

@@ -95,6 +95,10 @@ pub fn main() -> ExitCode {
         .init();
     let matches = command().get_matches();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    if let Err(why) = memory::memory_cap_bytes() {
+        eprintln!("error: {why}");
+        return ExitCode::FAILURE;
+    }
     if let Some(bytes) = memory::available_bytes() {
         // Leave a quarter for everything else the process holds.
         palpa_core::fe::sparse::set_factor_budget_bytes(bytes / 4 * 3);

@@ -115,10 +115,9 @@ pub fn factor_tangent(
     mu: f64,
 ) -> Result<Cholesky, FeError> {
     let k = tangent(space, law, pattern, u, lambda, mu);
-    Cholesky::factor(&k, space.fixed_count()).map_err(|e| FeError::NotPositiveDefinite {
-        fixed_nodes: space.fixed_count(),
-        detail: e.to_string(),
-    })
+    // `factor` names a failed factorization itself; wrapping its error again would
+    // call a refusal for want of memory "not positive definite".
+    Cholesky::factor(&k, space.fixed_count())
 }
 
 /// Newton settings.
