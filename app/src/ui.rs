@@ -453,6 +453,10 @@ fn force_plot(ui: &mut egui::Ui, session: &Session) {
         .allow_axis_zoom_drag(false)
         .allow_double_click_reset(false)
         .allow_boxed_zoom(false)
+        // A plot without units reads as a second force-depth curve. The time axis
+        // (seconds before now) stays unlabelled: a label's line would push the last
+        // controls of a tablet's panel under the 48-point touch size.
+        .y_axis_label("|F|, N")
         .show(ui, |plot| {
             plot.line(egui_plot::Line::new("|F| (N) over the last 10 s", points));
         });
