@@ -279,6 +279,12 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
         if let Some(g) = session.past_goals_mm() {
             ui.colored_label(Color32::from_rgb(230, 160, 60), g.past_text(s.depth_mm));
         }
+        if let Some(n) = session.unpressed_corners().filter(|&n| n > 0) {
+            ui.colored_label(
+                Color32::from_rgb(230, 160, 60),
+                crate::session::next_to_fixed_text(n),
+            );
+        }
         if let Some(law) = &session.law {
             blend_surplus(ui, session);
             depth_curve(ui, law, &s);

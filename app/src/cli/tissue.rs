@@ -94,6 +94,11 @@ pub struct PointsArgs {
     /// on the one it refined).
     #[arg(long)]
     split_of: Option<PathBuf>,
+    /// Draw them inside the palpable triangles that touch the fixed region only (a
+    /// corner fixed, so never pressed: the blend there renormalizes over the pressed
+    /// corners). The default draw leaves this band out.
+    #[arg(long, conflicts_with = "split_of")]
+    next_to_fixed: bool,
 }
 
 #[derive(Debug, Args)]
@@ -255,6 +260,22 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
             }
             let organ = args.organ.mesh()?;
             let points = match &args.split_of {
+                None if args.next_to_fixed => {
+                    let faces = faces_next_to_fixed(&organ);
+                    if faces.is_empty() {
+                        bail!("this organ has no palpable triangle with a fixed corner");
+                    }
+                    let palpable: Vec<usize> = (0..organ.boundary.len())
+                        .filter(|&f| organ.palpable[f])
+                        .collect();
+                    eprintln!(
+                        "tissue points: {} triangles touch the fixed region, {:.1} % of the \
+                         palpable surface's area",
+                        faces.len(),
+                        100.0 * faces_area(&organ, &faces) / faces_area(&organ, &palpable)
+                    );
+                    points_in(&organ, &faces, args.heldout, args.seed)?
+                }
                 None => surface_points(&organ, args.heldout, args.seed)?,
                 Some(file) => {
                     let law = TissueLaw::load(file)?;
@@ -617,7 +638,8 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     // found no equilibrium deeper): reported, not compared.
     let mut past_limit = 0usize;
     // Of the compared presses: those the panel warns at (finest surplus above
-    // BLEND_SURPLUS_WARN_MM), and those missing 0.5 mm with and without a warning.
+    // BLEND_SURPLUS_WARN_MM, or a corner never pressed), and those missing 0.5 mm
+    // with and without a warning.
     let (mut warned, mut missed_warned, mut missed_unwarned) = (0usize, 0usize, 0usize);
     let space = organ_space(&organ, o.element);
     let expander = if args.series || args.own {
@@ -718,7 +740,10 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
                 worst_force = worst_force.max(force_err);
                 worst_surface = worst_surface.max(e_tissue);
                 compared += 1;
-                let warn = surplus.is_some_and(|e| e > BLEND_SURPLUS_WARN_MM);
+                // The panel warns where the surplus is large and next to the fixed
+                // region (a corner never pressed).
+                let warn = surplus.is_some_and(|e| e > BLEND_SURPLUS_WARN_MM)
+                    || bound.unpressed_corners(&point) > 0;
                 warned += usize::from(warn);
                 if e_tissue > 0.5 {
                     *(if warn {
@@ -738,6 +763,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
             row["beyond"] = json!(beyond);
             // The finest surplus here: where the blend is likely to miss.
             row["blend_surplus_mm"] = json!(surplus);
+            row["unpressed_corners"] = json!(bound.unpressed_corners(&point));
             for (name, press, seconds) in &own {
                 let key = format!("series_{name}");
                 row[&key] = match press {
@@ -923,6 +949,28 @@ pub(super) fn surface_points(
         bail!("this organ has no palpable triangle clear of its fixed region");
     }
     points_in(organ, &faces, n, seed)
+}
+
+/// The palpable boundary faces with at least one fixed corner: the band along the
+/// fixed region, where a probe's blend has a corner that was never pressed.
+fn faces_next_to_fixed(organ: &OrganMesh) -> Vec<usize> {
+    (0..organ.boundary.len())
+        .filter(|&f| {
+            organ.palpable[f] && organ.boundary[f].iter().any(|&v| organ.fixed[v as usize])
+        })
+        .collect()
+}
+
+/// The total area of some boundary faces (mm²).
+fn faces_area(organ: &OrganMesh, faces: &[usize]) -> f64 {
+    let v = |i: u32| glam::DVec3::from_array(organ.mesh.vertices[i as usize]);
+    faces
+        .iter()
+        .map(|&f| {
+            let [a, b, c] = organ.boundary[f];
+            0.5 * (v(b) - v(a)).cross(v(c) - v(a)).length()
+        })
+        .sum()
 }
 
 /// The organ's boundary faces that a tissue file split (by its corners' rest
@@ -1111,6 +1159,13 @@ pub fn eval(
         write_surface_vtu(out, &nodes, scene.triangles(), &fields, &meta)
             .with_context(|| format!("writing {}", out.display()))?;
     }
+    let unpressed = bound.unpressed_corners(&point);
+    if unpressed > 0 {
+        eprintln!(
+            "warning: {}",
+            palpa_app::session::next_to_fixed_text(unpressed)
+        );
+    }
     let report = json!({
         "model": "tissue", "law": bound.law.options.law.name(),
         "element": bound.law.options.element.name(),
@@ -1121,6 +1176,7 @@ pub fn eval(
         "beyond_depth_max": beyond,
         "depth_limit_mm": bound.limit_mm(&point).0, "stopped": bound.limit_mm(&point).1,
         "blend_surplus_mm": bound.blend_surplus_mm(&point, depth),
+        "unpressed_corners": unpressed,
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
     });
     super::args::print_report(&report, json_out)

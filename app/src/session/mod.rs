@@ -39,6 +39,22 @@ pub struct GoalDepths {
     pub force_mm: f32,
 }
 
+/// What the panel and `palpa eval` say of a press in a triangle with `unpressed`
+/// corners on the fixed region: the measured tables leave that band out, and
+/// measured on its own it misses the goals even shallow.
+pub fn next_to_fixed_text(unpressed: usize) -> String {
+    format!(
+        "next to the fixed region: {unpressed} corner{} of this triangle lie{} on the \
+         attachment and {} never pressed; the tool bears on the attachment here and the \
+         tissue stiffens faster than the presses it blends (at 8 points of this band, \
+         2.6 mm deep, 3 miss the goals by up to 1.8 mm and 14 % of the force, as the \
+         linear model does; 7.3 mm deep, 4 of 6 by up to 2.0 mm and 22 %)",
+        if unpressed == 1 { "" } else { "s" },
+        if unpressed == 1 { "s" } else { "" },
+        if unpressed == 1 { "was" } else { "were" },
+    )
+}
+
 impl GoalDepths {
     /// The panel's line for a press `depth_mm` deep, past `both_mm`.
     pub fn past_text(&self, depth_mm: f32) -> String {
@@ -166,6 +182,17 @@ impl Session {
         }
         let law = self.law.as_ref()?;
         law.blend_surplus_mm(&s.command.point(), f64::from(s.depth_mm))
+    }
+
+    /// The corners of the pressed probe's triangle the vademecum never pressed (on the
+    /// fixed region; see [`next_to_fixed_text`]). `None` when lifted or without a
+    /// vademecum.
+    pub fn unpressed_corners(&self) -> Option<usize> {
+        let s = &self.sample;
+        if s.status() != SampleStatus::Ok {
+            return None;
+        }
+        self.law.as_ref()?.unpressed_corners(&s.command.point())
     }
 
     /// Turns the region mode on (the probe is lifted) or off.

@@ -1061,6 +1061,15 @@ impl Tissue {
         }
     }
 
+    /// The corners of `p`'s triangle a vademecum never pressed
+    /// ([`BoundTissue::unpressed_corners`]); `None` for a force law.
+    pub fn unpressed_corners(&self, p: &ProbePoint) -> Option<usize> {
+        match self {
+            Tissue::ForceLaw(_) => None,
+            Tissue::Vademecum(t) => Some(t.unpressed_corners(p)),
+        }
+    }
+
     /// The vademecum's finest surplus at `p` and `depth_mm`
     /// ([`BoundTissue::blend_surplus_mm`]); `None` for a force law (no surface).
     pub fn blend_surplus_mm(&self, p: &ProbePoint, depth_mm: f64) -> Option<f64> {

@@ -273,6 +273,17 @@ impl BoundTissue {
         )
     }
 
+    /// How many corners of the probe's triangle were never pressed (0 to 3): corners
+    /// on the fixed region, where a press would push a held node. The blend there
+    /// leans on the other corners alone, and the band it covers, where the tool also
+    /// bears on the attachment, stiffens faster than any pressed point says
+    /// (docs/tissue-measurements.md §11). `3` off the palpable surface. Allocation-free.
+    pub fn unpressed_corners(&self, p: &ProbePoint) -> usize {
+        self.corner_samples
+            .get(p.triangle as usize)
+            .map_or(3, |c| c.iter().filter(|&&s| s == u32::MAX).count())
+    }
+
     /// The deepest press the vademecum answers at `p` (mm): the grid's end, or less
     /// where a press its blend uses found no equilibrium deeper, with that press's
     /// reason (naming the depth it failed at).
