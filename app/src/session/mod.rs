@@ -46,8 +46,8 @@ pub fn next_to_fixed_text(unpressed: usize) -> String {
     format!(
         "next to the fixed region: {unpressed} corner{} of this triangle lie{} on the \
          attachment and {} never pressed; the tool bears on the attachment here and the \
-         tissue stiffens faster than the presses it blends (at 8 points of this band, \
-         2.6 mm deep, 3 miss the goals by up to 1.8 mm and 14 % of the force, as the \
+         tissue stiffens faster than the presses it blends (on the built-in liver, at 8 \
+         points of this band, 2.6 mm deep, 3 miss the goals by up to 1.8 mm and 14 % of the force, as the \
          linear model does; 7.3 mm deep, 4 of 6 by up to 2.0 mm and 22 %)",
         if unpressed == 1 { "" } else { "s" },
         if unpressed == 1 { "s" } else { "" },
