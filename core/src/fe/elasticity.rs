@@ -107,6 +107,8 @@ impl LinearProblem {
         let t = Instant::now();
         let (lambda, mu) = material.lame_n_per_mm2();
         let mut k = SymCsc::pattern(space);
+        // A factor beyond the memory is refused before the assembly, not after it.
+        Cholesky::check_budget(&k)?;
         assemble(space, &mut k, |c, ke| {
             element_stiffness(space, c, lambda, mu, ke);
         });

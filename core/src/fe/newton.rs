@@ -270,6 +270,8 @@ pub fn solve(
         });
     }
     let mut pb = Problem::new(space, law, (lambda, mu), shape, probe, settings);
+    // A tangent beyond the memory is refused before any assembly.
+    Cholesky::check_budget(&pb.pattern)?;
     if let Some(n) = &pb.probe {
         // Linear compliance at the probe: n̂·K₀⁻¹f̂ (mm per unit force).
         let chol = factor_tangent(

@@ -239,17 +239,7 @@ enum Factor {
 
 impl Cholesky {
     pub fn factor(a: &SymCsc, fixed_nodes: usize) -> Result<Cholesky, FeError> {
-        let budget = FACTOR_BUDGET_BYTES.load(Ordering::Relaxed);
-        if budget != u64::MAX {
-            let need = factor_bytes_estimate(a)?;
-            if need > budget {
-                return Err(FeError::TooLarge {
-                    dofs: a.n,
-                    need_gb: need as f64 / 1e9,
-                    budget_gb: budget as f64 / 1e9,
-                });
-            }
-        }
+        Cholesky::check_budget(a)?;
         let m = a.to_faer();
         let err = |e: String| FeError::NotPositiveDefinite {
             fixed_nodes,
@@ -263,6 +253,24 @@ impl Cholesky {
             llt: Factor::Double(llt),
             n: a.n,
         })
+    }
+
+    /// Refuses, as [`FeError::TooLarge`], a double-precision factor of `a`'s pattern
+    /// larger than the budget: called on the bare pattern, it refuses before any
+    /// assembly (its symbolic analysis is kept for the factorization that follows).
+    pub fn check_budget(a: &SymCsc) -> Result<(), FeError> {
+        let budget = FACTOR_BUDGET_BYTES.load(Ordering::Relaxed);
+        if budget != u64::MAX {
+            let need = factor_bytes_estimate(a)?;
+            if need > budget {
+                return Err(FeError::TooLarge {
+                    dofs: a.n,
+                    need_gb: need as f64 / 1e9,
+                    budget_gb: budget as f64 / 1e9,
+                });
+            }
+        }
+        Ok(())
     }
 
     /// [`factor`](Self::factor) in single precision: half the memory traffic of the
