@@ -941,9 +941,7 @@ pub(super) fn surface_points(
     seed: u64,
 ) -> anyhow::Result<Vec<[f64; 3]>> {
     let faces: Vec<usize> = (0..organ.boundary.len())
-        .filter(|&f| {
-            organ.palpable[f] && organ.boundary[f].iter().all(|&v| !organ.fixed[v as usize])
-        })
+        .filter(|&f| organ.palpable[f] && !touches_fixed(organ, f))
         .collect();
     if faces.is_empty() {
         bail!("this organ has no palpable triangle clear of its fixed region");
@@ -955,10 +953,13 @@ pub(super) fn surface_points(
 /// fixed region, where a probe's blend has a corner that was never pressed.
 fn faces_next_to_fixed(organ: &OrganMesh) -> Vec<usize> {
     (0..organ.boundary.len())
-        .filter(|&f| {
-            organ.palpable[f] && organ.boundary[f].iter().any(|&v| organ.fixed[v as usize])
-        })
+        .filter(|&f| organ.palpable[f] && touches_fixed(organ, f))
         .collect()
+}
+
+/// Whether boundary face `f` has a corner on the fixed region.
+fn touches_fixed(organ: &OrganMesh, f: usize) -> bool {
+    organ.boundary[f].iter().any(|&v| organ.fixed[v as usize])
 }
 
 /// The total area of some boundary faces (mm²).
