@@ -668,6 +668,55 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
     }
 }
 
+/// One press by default: `palpa eval` on the default scene, `palpa eval` on its tissue
+/// and `palpa fe solve` push along the same direction (the scene's smoothed normal, the
+/// app's push) and report it as `direction`. The point lies next to the fixed region,
+/// where a face's own normal is far from it: the scene's answer along the face normal
+/// was 24.3 N where the app pressed, and the FE reference answered, 26.8 N. If any of
+/// the three went back to the face normal, the directions would part here.
+#[test]
+fn eval_and_fe_solve_press_along_the_same_direction_by_default() {
+    let assets = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/");
+    let (scene, tissue) = (
+        format!("{assets}liver-coarse.palpa"),
+        format!("{assets}liver-coarse.tissue"),
+    );
+    let at = "--at=-21.7741,-50.4586,-36.2721";
+    let press = ["--depth-mm", "2.6", "--json"];
+    let linear = common::json_ok(&palpa(&[&["eval", &scene, at][..], &press].concat()));
+    let run = palpa(&[&["eval", &tissue, at][..], &press].concat());
+    let nonlinear = common::json_ok(&run);
+    let fe = common::json_ok(&palpa(&[&["fe", "solve", at][..], &press].concat()));
+    let dir = |v: &serde_json::Value| -> [f64; 3] {
+        std::array::from_fn(|k| v["direction"][k].as_f64().expect("direction"))
+    };
+    let (d_fe, d_scene, d_tissue) = (dir(&fe), dir(&linear), dir(&nonlinear));
+    // Both are the same f32 normals interpolated in f64: round-off apart.
+    for d in [d_scene, d_tissue] {
+        let gap = (0..3).map(|k| (d[k] - d_fe[k]).abs()).fold(0.0, f64::max);
+        assert!(gap < 1e-9, "{d:?} against fe solve's {d_fe:?}");
+    }
+    // The same press: the scene's linear force within its compliance accuracy of the
+    // FE's (2 %, as `depth_control_in_eval_and_fe_solve` holds elsewhere), and the
+    // tissue's linear force is the scene's.
+    let (f_scene, f_fe) = (
+        linear["force_n"].as_f64().expect("force"),
+        fe["force_n"].as_f64().expect("force"),
+    );
+    assert!(
+        (f_scene - f_fe).abs() < 0.02 * f_fe,
+        "scene {f_scene} N, FE {f_fe} N"
+    );
+    let f_tissue_linear = nonlinear["linear_force_n"].as_f64().expect("force");
+    assert!((f_tissue_linear - f_scene).abs() < 1e-9 * f_scene);
+    assert_eq!(nonlinear["probe_point"], nonlinear["at"]);
+    // `--dir` still chooses the direction.
+    let turned = common::json_ok(&palpa(
+        &[&["fe", "solve", at, "--dir", "0,0,-1"][..], &press].concat(),
+    ));
+    assert_eq!(turned["direction"][2], -1.0);
+}
+
 /// Depth control: `eval --depth-mm` on the default scene and `fe solve --depth-mm`
 /// (linear, and the neo-Hookean law on coarse P1) move the probe point by the depth and
 /// report the force it takes under the same keys; the linear force matches the full FE

@@ -76,7 +76,9 @@ pub struct ProbeArgs {
     /// Tool depth (mm): depth control, the force is the result.
     #[arg(long)]
     pub depth_mm: Option<f64>,
-    /// Load direction NX,NY,NZ (default: the inward surface normal at the probe).
+    /// Load direction NX,NY,NZ (default: the inward normal at the probe, smoothed across
+    /// edges: the surface's area-weighted vertex normals interpolated, the direction the
+    /// app presses along and `palpa eval` and `palpa fe solve` both default to).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub dir: Option<Vec<f64>>,
 }

@@ -9,7 +9,8 @@ use palpa_core::export::{FieldValue, PointField, write_by_extension};
 use palpa_core::fe::hyper::Law;
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{
-    ProbeRequest, organ_space, solve_hyperelastic, solve_linear, solve_linear_depth, solve_series,
+    ProbeRequest, organ_space, smooth_inward_dir, solve_hyperelastic, solve_linear,
+    solve_linear_depth, solve_series,
 };
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
@@ -98,6 +99,11 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         poisson: args.poisson,
     };
     let organ = args.organ.mesh()?;
+    // Unless told otherwise, along the direction the app and the tissue press.
+    let dir = match dir {
+        Some(d) => Some(d),
+        None => Some(smooth_inward_dir(&organ, at).context("placing the probe")?),
+    };
     let req = ProbeRequest {
         at,
         force_n: args.probe.force_n.unwrap_or(f64::NAN),

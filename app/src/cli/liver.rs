@@ -484,19 +484,50 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
             args.file.display()
         );
     }
-    match file::load_any(&args.file).with_context(|| format!("loading {}", args.file.display()))? {
-        palpa_core::AnyModel::F32(m) => eval_model(&m, args),
-        palpa_core::AnyModel::F64(m) => eval_model(&m, args),
+    let model =
+        file::load_any(&args.file).with_context(|| format!("loading {}", args.file.display()))?;
+    let push = scene_push(&model, args.probe.at()?);
+    match model {
+        palpa_core::AnyModel::F32(m) => eval_model(&m, args, push),
+        palpa_core::AnyModel::F64(m) => eval_model(&m, args, push),
     }
 }
 
-fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Result<()> {
+/// The direction the app presses along at the palpable point closest to `at`: the
+/// scene's smoothed inward normal (`PalpationScene::frame`), which `palpa fe solve`
+/// and a tissue file press along too. `None` where the file makes no scene; the face's
+/// normal is the default there.
+fn scene_push(model: &palpa_core::AnyModel, at: [f64; 3]) -> Option<[f64; 3]> {
+    let scene = palpa_core::scene::PalpationScene::new(model.clone()).ok()?;
+    let (point, _) = scene.closest_palpable(at)?;
+    Some(scene.frame(&point).1.map(|c| -c))
+}
+
+/// `--dir` made a unit vector, or `default` where it was not given.
+fn unit_dir(given: Option<[f64; 3]>, default: [f64; 3]) -> anyhow::Result<[f64; 3]> {
+    match given {
+        Some(d) => {
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if !(l.is_finite() && l > 0.0) {
+                bail!("--dir has no length");
+            }
+            Ok(d.map(|v| v / l))
+        }
+        None => Ok(default),
+    }
+}
+
+fn eval_model<T: Scalar>(
+    m: &SeparatedModel<T>,
+    args: &EvalArgs,
+    push: Option<[f64; 3]>,
+) -> anyhow::Result<()> {
     let at = args.probe.at()?;
     args.probe.check_press()?;
     if let Some(Discretization::SurfaceLoad { .. }) =
         m.axes().first().map(|a| &a.info.discretization)
     {
-        return eval_nodal(m, args, at);
+        return eval_nodal(m, args, at, push);
     }
     let Some(Discretization::SurfaceVector {
         vertices,
@@ -519,17 +550,8 @@ fn eval_model<T: Scalar>(m: &SeparatedModel<T>, args: &EvalArgs) -> anyhow::Resu
     let hit = closest_point(vertices, triangles, at).context("the probe surface is empty")?;
     let tri = triangles[hit.triangle as usize];
     let [a, b, c] = tri.map(|i| vertices[i as usize]);
-    let n = triangle_normal(a, b, c);
-    let dir = match args.probe.dir()? {
-        Some(d) => {
-            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            if !(l.is_finite() && l > 0.0) {
-                bail!("--dir has no length");
-            }
-            d.map(|v| v / l)
-        }
-        None => n.map(|v| -v),
-    };
+    let face_inward = triangle_normal(a, b, c).map(|v| -v);
+    let dir = unit_dir(args.probe.dir()?, push.unwrap_or(face_inward))?;
     let available = m.modes();
     let used = ModesUsed::of(args.modes, available)?;
     let modes = used.used;
@@ -579,6 +601,7 @@ fn eval_nodal<T: Scalar>(
     m: &SeparatedModel<T>,
     args: &EvalArgs,
     at: [f64; 3],
+    push: Option<[f64; 3]>,
 ) -> anyhow::Result<()> {
     let Some(Discretization::SurfaceLoad {
         positions,
@@ -603,16 +626,8 @@ fn eval_nodal<T: Scalar>(
     let hit = closest_point(positions, &tris, at).context("the probe surface is empty")?;
     let face = pal[hit.triangle as usize];
     let [a, b, c] = tris[hit.triangle as usize].map(|i| positions[i as usize]);
-    let dir = match args.probe.dir()? {
-        Some(d) => {
-            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            if !(l.is_finite() && l > 0.0) {
-                bail!("--dir has no length");
-            }
-            d.map(|v| v / l)
-        }
-        None => triangle_normal(a, b, c).map(|v| -v),
-    };
+    let face_inward = triangle_normal(a, b, c).map(|v| -v);
+    let dir = unit_dir(args.probe.dir()?, push.unwrap_or(face_inward))?;
     let available = m.modes();
     let used = ModesUsed::of(args.modes, available)?;
     let modes = used.used;

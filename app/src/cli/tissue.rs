@@ -1171,6 +1171,8 @@ pub fn eval(
         "model": "tissue", "law": bound.law.options.law.name(),
         "element": bound.law.options.element.name(),
         "at": scene.frame(&point).0, "projected_distance_mm": distance_mm,
+        // The keys of `palpa fe solve`, which presses along the same direction by default.
+        "probe_point": scene.frame(&point).0, "direction": contact.push_dir,
         "probe_displacement_mm": depth, "force_n": force, "linear_force_n": depth / c,
         "requested_force_n": probe.force_n,
         "max_displacement_mm": max, "depth_max_mm": bound.law.depth_max_mm(),

@@ -74,6 +74,46 @@ pub fn locate(
     Ok((probe, dir))
 }
 
+/// The inward direction the app presses along at `at`: the boundary's area-weighted
+/// vertex normals (from `f32` positions, as a scene computes them) interpolated with
+/// the probe point's barycentric weights and normalized; the direction of a scene's
+/// contact law (`PalpationScene::frame`) and of every press a tissue build makes. It
+/// is smooth across edges, where a face's own normal (`locate`'s default) jumps by
+/// the dihedral angle: next to the fixed region the two differ enough to change the
+/// force by 15 % (docs/tissue-measurements.md §11). `at` is projected as `locate`
+/// projects it.
+pub fn smooth_inward_dir(organ: &OrganMesh, at: [f64; 3]) -> Result<[f64; 3], FeError> {
+    let space = organ_space(organ, Element::P1);
+    let req = ProbeRequest {
+        at,
+        force_n: f64::NAN,
+        dir: None,
+        radius_mm: 0.0,
+    };
+    let (probe, face_inward) = locate(&space, organ, &req)?;
+    let vertices: Vec<[f32; 3]> = organ
+        .mesh
+        .vertices
+        .iter()
+        .map(|p| p.map(|x| x as f32))
+        .collect();
+    let normals = crate::mesh::vertex_normals(&vertices, &organ.boundary);
+    let corners = organ.boundary[probe.face];
+    let mut n = [0.0; 3];
+    for (k, &v) in corners.iter().enumerate() {
+        for (c, x) in n.iter_mut().enumerate() {
+            *x -= probe.bary[k] * f64::from(normals[v as usize][c]);
+        }
+    }
+    let len = dot(n, n).sqrt();
+    // Opposite corner normals could cancel on a degenerate surface: keep the face's.
+    Ok(if len > 1e-12 {
+        n.map(|c| c / len)
+    } else {
+        face_inward
+    })
+}
+
 /// Linear-elastic solve of one probe request.
 pub fn solve_linear(
     organ: &OrganMesh,
