@@ -23,6 +23,7 @@ mod scene;
 mod synth;
 mod tissue;
 mod tissue_against;
+mod tissue_band;
 mod tissue_refine;
 mod tissue_subsplit;
 mod tissue_tradeoff;

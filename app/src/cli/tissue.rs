@@ -50,6 +50,12 @@ pub enum TissueCommand {
     /// are logged in `OUT.presses.log` under the same key as `tissue build`'s, so a
     /// killed refinement run again goes on, and a larger `--triangles` later reuses them.
     Refine(super::tissue_refine::RefineArgs),
+    /// Press the band next to the fixed region: the midpoint of every palpable edge from
+    /// a pressed vertex to one on the fixed region (which no press may push), each kept
+    /// as its surplus over its pressed end; the file's own presses kept as stored. The
+    /// last stage: a file with a band is not split further. Presses are logged in
+    /// `OUT.presses.log`, so a killed run again goes on.
+    Band(super::tissue_band::BandArgs),
 }
 
 #[derive(Debug, Args)]
@@ -71,6 +77,10 @@ pub struct CutArgs {
     /// tissue refine` starts from).
     #[arg(long)]
     unsplit: bool,
+    /// Drop the band next to the fixed region (`palpa tissue band`): the file it was
+    /// pressed on. (`--unsplit` drops it too.)
+    #[arg(long)]
+    no_band: bool,
     /// Round every weight to sixteen bits (IEEE half): what a build stores now (the
     /// fifth-stage shipped law: 7.65 → 6.18 MB). The bound grows by the most that
     /// moves a node (`weights_halved_mm`).
@@ -290,13 +300,18 @@ pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
         }
         TissueCommand::Cut(args) => cut(args),
         TissueCommand::Refine(args) => super::tissue_refine::refine(args),
+        TissueCommand::Band(args) => super::tissue_band::band(args),
     }
 }
 
 /// `palpa tissue cut`: a law with fewer modes, bits or depths, saved.
 fn cut(args: &CutArgs) -> anyhow::Result<()> {
     let law = TissueLaw::load(&args.tissue)?;
-    let unsplit = args.unsplit.then(|| law.unsplit());
+    let without = args.no_band.then(|| law.without_band());
+    let unsplit = args
+        .unsplit
+        .then(|| without.as_ref().unwrap_or(&law).unsplit())
+        .or(without);
     let bits = match args.bits {
         None => law.shape.bits(),
         Some(b) => ShapeBits::from_count(b).context("--bits: expected 8 or 16")?,

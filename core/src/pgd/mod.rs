@@ -25,6 +25,7 @@ pub mod samplelog;
 pub mod subsplit;
 pub mod surfacelaw;
 pub mod tissue;
+mod tissue_band;
 pub mod tissue_knobs;
 pub mod tissue_predict;
 mod tissue_refine;

@@ -35,13 +35,17 @@
 //! is held at its largest before it, so the curve never falls. An
 //! edge's surplus reaches as far as its midpoint and both its ends.
 
+mod band;
+pub use band::BandReport;
 mod press;
 mod presser;
 mod refine;
 
 pub use press::{PointPress, follow_at, organ_vertex_normals, path_options, press_at, tool_load};
 pub(crate) use presser::logged_press_ids;
-pub use refine::{COVER_SLACK_MM, DEFAULT_REFINE_ABOVE_MM, Refinement, covering_vertices};
+pub use refine::{
+    BandEdge, COVER_SLACK_MM, DEFAULT_REFINE_ABOVE_MM, Refinement, covering_vertices,
+};
 
 /// The most points (depth 0 included) of a press's depth grid.
 pub const MAX_GRID_POINTS: usize = 256;
@@ -200,6 +204,12 @@ pub enum SurfaceLawBuildError {
          file they were split from (refine that, then split sub-triangles again)"
     )]
     SubSplitFirst { sub_triangles: usize },
+    #[error(
+        "the surface law holds a band next to the fixed region, pressed last: {what} would \
+         not keep its samples last: expected the file the band was pressed on (`palpa tissue \
+         cut --no-band` gives it back)"
+    )]
+    BandLast { what: &'static str },
     #[error("the build's press log {path}: {source}")]
     Log {
         path: std::path::PathBuf,
@@ -498,6 +508,11 @@ impl SurfaceLaw {
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize, usize), SurfaceLawBuildError> {
         let t0 = Instant::now();
+        if !self.refinement.band.is_empty() {
+            return Err(SurfaceLawBuildError::BandLast {
+                what: "a stage of split triangles",
+            });
+        }
         if !self.refinement.sub.is_empty() {
             return Err(SurfaceLawBuildError::SubSplitFirst {
                 sub_triangles: self.refinement.sub.sub_triangles.len(),

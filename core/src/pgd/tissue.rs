@@ -95,7 +95,7 @@ use crate::framed::Body;
 use crate::organ::OrganMesh;
 use crate::pgd::depthlaw::DepthLaw;
 use crate::pgd::subsplit::{SubSplit, sub_triangle_keys};
-use crate::pgd::surfacelaw::{Refinement, SurfaceLaw, SurfaceLawOptions};
+use crate::pgd::surfacelaw::{BandEdge, Refinement, SurfaceLaw, SurfaceLawOptions};
 use crate::pgd::tissue_predict::RowPrediction;
 pub use crate::pgd::tissue_shapes::{ShapeBits, Shapes};
 use crate::pgd::tissue_weights::{Weights, to_half};
@@ -103,14 +103,15 @@ use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (12: version 11's, the shapes stored as what their
+/// The file's format version (13: version 12's, then the band next to the fixed region
+/// ([`BandEdge`]); 12: version 11's, the shapes stored as what their
 /// neighbours do not predict ([`super::tissue_predict`]); 11: version 10's, then the
 /// sub-triangles split again ([`SubSplit`]); 10: version 9's, the weights stored after the other
 /// fields, in halves where every one is a half ([`super::tissue_weights`]); 9: version
 /// 8's fields, the shapes stored by coordinate plane ([`Shapes::to_planes`]) and the
 /// body LZMA-compressed. Versions 9 and 8 (deflated) still load as they are, and 7,
 /// deflated, and 6, plain, each sample its own group).
-pub const VERSION: u32 = 12;
+pub const VERSION: u32 = 13;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -120,6 +121,11 @@ pub enum TissueError {
         path: PathBuf,
         source: std::io::Error,
     },
+    #[error(
+        "the tissue's band next to the fixed region ends at {at_mm:?} mm, which is no palpable \
+         vertex of the scene: expected the scene of the mesh the tissue was built on"
+    )]
+    BandOffScene { at_mm: [f32; 3] },
     #[error("{path}: not a palpa tissue file (expected the magic bytes \"PALPATIS\")")]
     Foreign { path: PathBuf },
     #[error("{path}: tissue format version {found}, this palpa reads versions 6 to {VERSION}")]
@@ -420,8 +426,10 @@ impl Grouping {
         let first_inner = first_quarter + r.quarter_ends.len();
         let first_sub = first_inner + r.inner_corners.len();
         let n = first_sub + r.sub.points.len();
+        // The band's samples come last, each alone: its presses lie 8–12 mm apart.
+        let band = (n..n + r.band.len()).map(|s| vec![s]);
         if self == Grouping::Sample || r.triangles.is_empty() {
-            return (0..n).map(|s| vec![s]).collect();
+            return (0..n).map(|s| vec![s]).chain(band).collect();
         }
         let mut groups: Vec<Vec<usize>> = (0..first_quarter).map(|s| vec![s]).collect();
         let mut taken = vec![false; n];
@@ -470,6 +478,7 @@ impl Grouping {
             }
         }
         groups.extend((first_sub..n).filter(|&s| !taken[s]).map(|s| vec![s]));
+        groups.extend(band);
         groups
     }
 }
@@ -682,7 +691,8 @@ impl TissueLaw {
                 + self.edge_ends.len()
                 + refined.quarter_ends.len()
                 + refined.inner_corners.len()
-                + refined.sub.points.len(),
+                + refined.sub.points.len()
+                + refined.band.len(),
             self.rank as usize,
             3 * self.rows_mm.len(),
         );
@@ -769,6 +779,16 @@ impl TissueLaw {
                  samples of the {vertices}, or the split threshold is not a length"
             ));
         }
+        if refined.band.iter().any(|b| {
+            b.end as usize >= vertices
+                || !finite(&b.other_mm)
+                || self.samples_mm.iter().any(|p| p == &b.other_mm)
+        }) {
+            return Err(format!(
+                "a band edge's pressed end is not one of the {vertices} samples, or its other \
+                 end is not a finite point apart from them"
+            ));
+        }
         if self.reach.iter().zip(&self.stopped).any(|(&r, why)| {
             !(2..=steps as u32).contains(&r) || (r < steps as u32) == why.is_empty()
         }) {
@@ -822,7 +842,7 @@ impl TissueLaw {
             path,
             MAGIC,
             (VERSION, Body::Lzma),
-            &(&stored, &weights, sub),
+            &(&stored, &weights, sub, &self.refinement.band),
         )
         .map_err(|source| TissueError::Io {
             path: path.to_path_buf(),
@@ -847,7 +867,7 @@ impl TissueLaw {
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
         };
-        let read = crate::framed::read::<(TissueLaw, Weights, SubSplit)>(
+        let read = crate::framed::read::<(TissueLaw, Weights, SubSplit, Vec<BandEdge>)>(
             bytes,
             MAGIC,
             &[(VERSION, Body::Lzma)],
@@ -858,17 +878,29 @@ impl TissueLaw {
                 .map_err(|why| TissueError::Corrupt { path: p(), why })?;
             Ok::<_, TissueError>(law)
         };
+        // Formats 12 and 13: the shapes stored as what their neighbours do not predict.
+        let predicted = |law: TissueLaw, weights: Weights, sub: SubSplit, band: Vec<BandEdge>| {
+            let mut law = with_weights(law, weights)?;
+            law.shape = RowPrediction::new(&law.rows_mm)
+                .decode(&law.shape)
+                .ok_or_else(|| TissueError::Corrupt {
+                    path: p(),
+                    why: shape_length_why(&law.shape, law.rows_mm.len()),
+                })?;
+            law.refinement.sub = sub;
+            law.refinement.band = band;
+            Ok::<_, TissueError>(law)
+        };
         let law: TissueLaw = match read {
-            Ok((law, weights, sub)) => {
-                let mut law = with_weights(law, weights)?;
-                law.shape = RowPrediction::new(&law.rows_mm)
-                    .decode(&law.shape)
-                    .ok_or_else(|| TissueError::Corrupt {
-                        path: p(),
-                        why: shape_length_why(&law.shape, law.rows_mm.len()),
-                    })?;
-                law.refinement.sub = sub;
-                law
+            Ok((law, weights, sub, band)) => predicted(law, weights, sub, band)?,
+            Err(FramedError::Version(12)) => {
+                let (law, weights, sub) = crate::framed::read::<(TissueLaw, Weights, SubSplit)>(
+                    bytes,
+                    MAGIC,
+                    &[(12, Body::Lzma)],
+                )
+                .map_err(named)?;
+                predicted(law, weights, sub, Vec::new())?
             }
             Err(FramedError::Version(11)) => {
                 let (law, weights, sub) = crate::framed::read::<(TissueLaw, Weights, SubSplit)>(

@@ -185,9 +185,22 @@ impl TissueLaw {
             + r.inner_corners.len();
         let refinement = super::surfacelaw::Refinement {
             sub: Default::default(),
+            band: Vec::new(),
             ..r.clone()
         };
         self.first_samples(n, refinement)
+    }
+
+    /// The law without its band next to the fixed region
+    /// ([`super::surfacelaw::BandEdge`]): the file the band was pressed on (its samples
+    /// come last).
+    pub fn without_band(&self) -> TissueLaw {
+        let r = &self.refinement;
+        let refinement = super::surfacelaw::Refinement {
+            band: Vec::new(),
+            ..r.clone()
+        };
+        self.first_samples(self.reach.len() - r.band.len(), refinement)
     }
 
     /// The law of its first `n` samples (whose groups of modes come first, see

@@ -112,6 +112,14 @@ impl TissueLaw {
         rank_to_mm: Option<f64>,
     ) -> Result<SubSplitPlan, TissueError> {
         let refused = |why: String| TissueError::Refine { why };
+        if !self.refinement.band.is_empty() {
+            return Err(refused(
+                "it holds a band next to the fixed region, pressed last: split its \
+                 sub-triangles in the file the band was pressed on (`palpa tissue cut \
+                 --no-band` gives it back), then press the band again"
+                    .into(),
+            ));
+        }
         if !self.refinement.sub.is_empty() {
             return Err(refused(format!(
                 "it already has {} sub-triangles split again: split more from the file they \

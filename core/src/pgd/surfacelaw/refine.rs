@@ -42,6 +42,31 @@ pub struct Refinement {
     /// Stored apart in a tissue file (format 11), after the weights.
     #[serde(skip)]
     pub sub: SubSplit,
+    /// Edges from a pressed vertex to one never pressed (on the fixed region), pressed
+    /// at their midpoints: their samples come last, after every other stage's (see
+    /// [`BandEdge`]). Stored apart in a tissue file (format 13), after the second level.
+    #[serde(skip)]
+    pub band: Vec<BandEdge>,
+}
+
+/// A palpable edge next to the fixed region, pressed at its midpoint: one end was
+/// pressed (sample `end`), the other never was (a press there would push a held node).
+/// Its sample holds the midpoint's surplus over the pressed end,
+///
+/// ```text
+/// b = r(midpoint) − r_end,
+/// ```
+///
+/// which the blend adds with `4 λ_end λ_other`, as it adds an edge's surplus. Next to
+/// the fixed region the blend renormalizes the corners it has (`r_end` alone at the
+/// midpoint), so there it gives the midpoint's own press, and along the edge it is the
+/// same from both triangles that share it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BandEdge {
+    /// The pressed end's sample.
+    pub end: u32,
+    /// The other end's rest position, mm (a palpable vertex with no sample).
+    pub other_mm: [f32; 3],
 }
 
 /// The default split threshold of a build (mm): see [`Refinement`]. The quadratic

@@ -152,15 +152,31 @@ impl BoundTissue {
             .enumerate()
             .map(|(e, &[a, b])| ([a.min(b), a.max(b)], (first_edge + e) as u32))
             .collect();
+        // The band's samples come last: each by its pressed end's sample and its other
+        // end's palpable vertex.
+        let band = &law.refinement.band;
+        let first_band = law.reach.len() - band.len();
+        let axis = PointIndex::new(axis_vertices_mm.iter().copied());
+        let mut band_of: HashMap<(u32, u32), u32> = HashMap::with_capacity(band.len());
+        for (i, b) in band.iter().enumerate() {
+            let other = axis
+                .find(b.other_mm.map(f64::from))
+                .ok_or(TissueError::BandOffScene { at_mm: b.other_mm })?;
+            band_of.insert((b.end, other), (first_band + i) as u32);
+        }
         let edge_samples = corner_samples
             .iter()
-            .map(|c| {
+            .zip(axis_triangles)
+            .map(|(c, tri)| {
                 std::array::from_fn(|k| {
                     let (a, b) = (c[k], c[(k + 1) % 3]);
-                    edge_of
-                        .get(&[a.min(b), a.max(b)])
-                        .copied()
-                        .unwrap_or(u32::MAX)
+                    match (a == u32::MAX, b == u32::MAX) {
+                        (false, false) => edge_of.get(&[a.min(b), a.max(b)]).copied(),
+                        (false, true) => band_of.get(&(a, tri[(k + 1) % 3])).copied(),
+                        (true, false) => band_of.get(&(b, tri[k])).copied(),
+                        (true, true) => None,
+                    }
+                    .unwrap_or(u32::MAX)
                 })
             })
             .collect();

@@ -351,3 +351,113 @@ fn a_split_triangle_blends_each_quarter_quadratically_and_its_neighbour_agrees()
     let near = [0.6, 0.3, 0.1];
     assert!((blend(1, near) - plain_blend(near)).abs() > 1e-3);
 }
+
+/// The band next to the fixed region: corners 0 and 1 pressed, the vertex at
+/// (0, 10) never (held), its two edges pressed at their midpoints and stored as
+/// surpluses over their pressed ends. At a band midpoint the blend is that press; along
+/// a band edge two triangles that share it agree; without the band the blend leans on
+/// the pressed corner alone, as before; a saved file keeps the band.
+#[test]
+fn the_band_next_to_the_fixed_region_blends_its_midpoints() {
+    use crate::pgd::surfacelaw::BandEdge;
+    let corners = [[0.0, 0.0], [10.0, 0.0]];
+    // Samples: two vertices, edge 0–1's surplus, then the band edges from 0 and 1.
+    let g1 = [0.9, 0.7, 0.05, 0.2, 0.3];
+    let x1 = [1.0, 3.0, -0.5, 2.0, -1.0];
+    let held = [0.0f32, 10.0, 0.0];
+    let refinement = Refinement {
+        band: vec![
+            BandEdge {
+                end: 0,
+                other_mm: held,
+            },
+            BandEdge {
+                end: 1,
+                other_mm: held,
+            },
+        ],
+        ..Refinement::default()
+    };
+    let law = one_row_law_with_ratio(&corners, vec![[0, 1]], refinement, &x1, &g1);
+    // Axis vertices 0, 1 pressed, 2 held, 3 another held one; triangles 0–1–2 and
+    // 2–0–3 share the band edge 0–2.
+    let axis = [
+        [0.0, 0.0, 0.0],
+        [10.0, 0.0, 0.0],
+        [0.0, 10.0, 0.0],
+        [-10.0, 5.0, 0.0],
+    ];
+    let triangles = [[0, 1, 2], [2, 0, 3]];
+    let bind = |law: TissueLaw| {
+        BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds")
+    };
+    let at = |bound: &BoundTissue, triangle: u32, bary: [f64; 3]| {
+        let p = ProbePoint { triangle, bary };
+        let mut rows = [0.0; 3];
+        let mut scratch = bound.scratch();
+        assert!(bound.add_surface(&p, 1.0, &mut scratch, &mut rows));
+        (bound.ratio(&p, 1.0).0, rows[0])
+    };
+    let close = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).abs() < 1e-6 && (a.1 - b.1).abs() < 1e-6;
+    let bound = bind(law.clone());
+    // The band midpoints: the pressed end plus the whole surplus.
+    let m02 = at(&bound, 0, [0.5, 0.0, 0.5]);
+    assert!(close(m02, (0.9 + 0.2, 1.0 + 2.0)), "{m02:?}");
+    let m12 = at(&bound, 0, [0.0, 0.5, 0.5]);
+    assert!(close(m12, (0.7 + 0.3, 3.0 - 1.0)), "{m12:?}");
+    // Edge 0–1 as before: its ends' mean and its surplus.
+    assert!(close(
+        at(&bound, 0, [0.5, 0.5, 0.0]),
+        (0.8 + 0.05, 2.0 - 0.5)
+    ));
+    // A point on the band edge 0–2 from either triangle.
+    let w = 4.0 * 0.7 * 0.3;
+    let a = at(&bound, 0, [0.7, 0.0, 0.3]);
+    let b = at(&bound, 1, [0.3, 0.7, 0.0]);
+    assert!(close(a, (0.9 + w * 0.2, 1.0 + w * 2.0)), "{a:?}");
+    assert!(close(a, b), "{a:?} against {b:?}");
+    // The corners it has are still renormalized: the held corner counts as unpressed.
+    assert_eq!(
+        bound.unpressed_corners(&ProbePoint {
+            triangle: 0,
+            bary: [0.5, 0.0, 0.5]
+        }),
+        1
+    );
+    // Without the band: the pressed corner alone at the band midpoint.
+    let without = law.without_band();
+    assert!(without.refinement.band.is_empty() && without.reach.len() == 3);
+    assert!(close(at(&bind(without), 0, [0.5, 0.0, 0.5]), (0.9, 1.0)));
+    // Saved and loaded, the band stays.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("band.tissue");
+    law.save(&path).expect("saves");
+    let back = TissueLaw::load(&path).expect("loads");
+    assert_eq!(back.refinement.band, law.refinement.band);
+    assert!(close(at(&bind(back), 0, [0.5, 0.0, 0.5]), m02));
+}
+
+/// A band edge whose other end is no vertex of the scene is refused by name.
+#[test]
+fn a_band_off_the_scene_is_refused() {
+    use crate::pgd::surfacelaw::BandEdge;
+    let refinement = Refinement {
+        band: vec![BandEdge {
+            end: 0,
+            other_mm: [3.0, 3.0, 0.0],
+        }],
+        ..Refinement::default()
+    };
+    let law = one_row_law(
+        &[[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]],
+        vec![],
+        refinement,
+        &[1.0, 2.0, 3.0, 0.5],
+    );
+    let axis = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
+    let err = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &[[0, 1, 2]]).expect_err("refused");
+    assert!(
+        err.to_string().contains("no palpable vertex of the scene"),
+        "{err}"
+    );
+}
