@@ -140,7 +140,8 @@ fn the_kidney_example_matches_its_shipped_surface() {
 /// code: its options are the build's, every palpable vertex clear of the fixed region
 /// was pressed (or skipped with a reason), it binds to the default scene, scene and
 /// tissue fit the phone budget together, its split triangles are the worst of its own
-/// unsplit form and its sub-triangles split again the worst of its first level, and one
+/// unsplit form and its sub-triangles split again the worst of its first level, its band
+/// next to the fixed region every band edge, and one
 /// of its vertex presses, pressed again here, gives back its
 /// force ratio and (within the stored bound) its surface.
 #[test]
@@ -235,6 +236,45 @@ fn the_default_tissue_comes_from_the_current_code() {
         )
         .expect("a plan");
     assert_eq!(plan.names(), &sub.sub_triangles[..]);
+
+    // Its band next to the fixed region (`palpa tissue band`, the last stage): every
+    // palpable edge from a pressed vertex to one on the fixed region, pressed at its
+    // midpoint, its other end held.
+    let key = |p: [f64; 3]| p.map(|c| (c as f32).to_bits());
+    let pressed: std::collections::HashSet<[u32; 3]> =
+        law.samples_mm.iter().map(|p| p.map(f32::to_bits)).collect();
+    let mut edges: Vec<[u32; 2]> = organ
+        .boundary
+        .iter()
+        .zip(&organ.palpable)
+        .filter(|(_, p)| **p)
+        .flat_map(|(t, _)| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+        .map(|[a, b]| [a.min(b), a.max(b)])
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    let at = |v: u32| organ.mesh.vertices[v as usize];
+    let band: Vec<([u32; 3], [u32; 3])> = edges
+        .iter()
+        .filter_map(|&[a, b]| {
+            let (fa, fb) = (organ.fixed[a as usize], organ.fixed[b as usize]);
+            match (fa, fb) {
+                (false, true) if pressed.contains(&key(at(a))) => Some((key(at(a)), key(at(b)))),
+                (true, false) if pressed.contains(&key(at(b))) => Some((key(at(b)), key(at(a)))),
+                _ => None,
+            }
+        })
+        .collect();
+    assert_eq!(
+        law.refinement.band.len(),
+        band.len(),
+        "the default tissue's band is every band edge: see scripts/make-assets.sh"
+    );
+    for b in &law.refinement.band {
+        let end = law.samples_mm[b.end as usize].map(f32::to_bits);
+        let other = b.other_mm.map(f32::to_bits);
+        assert!(band.contains(&(end, other)), "{b:?}");
+    }
 
     // The vertex press nearest the anterior lobe's centre, pressed again alone.
     let centre = [-30.3f32, 70.7, 16.9];

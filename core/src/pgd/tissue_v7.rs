@@ -107,6 +107,14 @@ mod tests {
         }
     }
 
+    /// A version 13 file's body: the law, its weights, the second level, the band.
+    type Raw = (
+        TissueLaw,
+        Weights,
+        SubSplit,
+        Vec<crate::pgd::surfacelaw::BandEdge>,
+    );
+
     #[test]
     fn version_6_and_7_files_load_with_each_sample_its_own_group() {
         let law = crate::pgd::tissue_knobs::tests::law();
@@ -119,7 +127,7 @@ mod tests {
             assert_eq!(back.group, vec![0, 1, 2]);
         }
         // Version 8 (today's fields, deflated) and 9 (LZMA, shapes by plane) load as
-        // they are; today's files are version 12, and a version this palpa does not
+        // they are; today's files are version 13, and a version this palpa does not
         // know is named.
         let path = dir.path().join("v8.tissue");
         crate::framed::write(&path, MAGIC, (8, Body::Deflated), &law).expect("writes");
@@ -133,15 +141,17 @@ mod tests {
         assert_eq!(TissueLaw::load(&path).expect("loads"), law);
         // Weights that are not all halves are stored in f32, halves in sixteen bits.
         let (half, _) = law.with_half_weights();
-        // Version 11 is today's with the shapes by plane; version 10 is 11 without the
-        // second level ([`SubSplit`]), which comes after the weights.
+        // Version 12 is today's without the band ([`BandEdge`]), which comes last;
+        // version 11 is 12 with the shapes by plane; version 10 is 11 without the second
+        // level ([`SubSplit`]), which comes after the weights.
         for (law, single) in [(&law, true), (&half, false)] {
-            let path = dir.path().join("v12.tissue");
+            let path = dir.path().join("v13.tissue");
             law.save(&path).expect("saves");
             let bytes = std::fs::read(&path).expect("reads");
-            assert_eq!(&bytes[8..12], &12u32.to_le_bytes());
-            let (stored, weights, sub): (TissueLaw, Weights, SubSplit) =
-                crate::framed::read(&bytes, MAGIC, &[(12, Body::Lzma)]).expect("raw");
+            assert_eq!(&bytes[8..12], &13u32.to_le_bytes());
+            let (stored, weights, sub, band): Raw =
+                crate::framed::read(&bytes, MAGIC, &[(13, Body::Lzma)]).expect("raw");
+            assert!(band.is_empty());
             let predicted = RowPrediction::new(&law.rows_mm).encode(&law.shape);
             assert_eq!(Some(&stored.shape), predicted.as_ref(), "shapes as misses");
             assert_ne!(stored.shape, law.shape);
@@ -149,6 +159,10 @@ mod tests {
             assert_eq!(matches!(weights, Weights::Single(_)), single);
             assert!(sub.is_empty());
             assert_eq!(&TissueLaw::load(&path).expect("loads"), law);
+            let v12 = dir.path().join("v12.tissue");
+            crate::framed::write(&v12, MAGIC, (12, Body::Lzma), &(&stored, &weights, &sub))
+                .expect("writes");
+            assert_eq!(&TissueLaw::load(&v12).expect("loads"), law);
             let by_plane = TissueLaw {
                 shape: law.shape.to_planes(),
                 ..stored.clone()
@@ -162,19 +176,24 @@ mod tests {
                 .expect("writes");
             assert_eq!(&TissueLaw::load(&v10).expect("loads"), law);
         }
-        // A version 12 body whose shapes are no whole number of modes is named.
-        let bytes = std::fs::read(dir.path().join("v12.tissue")).expect("reads");
-        let (mut stored, weights, sub): (TissueLaw, Weights, SubSplit) =
-            crate::framed::read(&bytes, MAGIC, &[(12, Body::Lzma)]).expect("raw");
+        // A version 13 body whose shapes are no whole number of modes is named.
+        let bytes = std::fs::read(dir.path().join("v13.tissue")).expect("reads");
+        let (mut stored, weights, sub, band): Raw =
+            crate::framed::read(&bytes, MAGIC, &[(13, Body::Lzma)]).expect("raw");
         stored.shape = stored.shape.prefix(stored.shape.len() - 1);
         let torn = dir.path().join("torn.tissue");
-        crate::framed::write(&torn, MAGIC, (12, Body::Lzma), &(&stored, &weights, &sub))
-            .expect("writes");
+        crate::framed::write(
+            &torn,
+            MAGIC,
+            (13, Body::Lzma),
+            &(&stored, &weights, &sub, &band),
+        )
+        .expect("writes");
         let e = TissueLaw::load(&torn).expect_err("a torn shape");
         assert!(e.to_string().contains("whole number of modes"), "{e}");
-        let path = dir.path().join("v13.tissue");
-        crate::framed::write(&path, MAGIC, (13, Body::Lzma), &law).expect("writes");
-        let e = TissueLaw::load(&path).expect_err("version 13");
-        assert!(e.to_string().contains("version 13"), "{e}");
+        let path = dir.path().join("v14.tissue");
+        crate::framed::write(&path, MAGIC, (14, Body::Lzma), &law).expect("writes");
+        let e = TissueLaw::load(&path).expect_err("version 14");
+        assert!(e.to_string().contains("version 14"), "{e}");
     }
 }
