@@ -41,12 +41,13 @@ pub struct GoalDepths {
 
 /// What the panel and `palpa eval` say of a press in a triangle with `unpressed`
 /// corners on the fixed region: the measured tables leave that band out, and
-/// measured on its own it misses the goals even shallow.
+/// measured on its own, its edges pressed, it still misses the goals nearest the
+/// attachment, even shallow.
 pub fn next_to_fixed_text(unpressed: usize) -> String {
     format!(
         "next to the fixed region ({unpressed} corner{} never pressed): the tool bears on \
-         the attachment, and here the built-in liver's tissue was measured up to 14 % and \
-         1.8 mm off at 2.6 mm, as the linear model is (docs/tissue-measurements.md §11)",
+         the attachment, and here the built-in liver's tissue was measured up to 13 % and \
+         1.6 mm off at 2.6 mm, nearest the attachment (docs/tissue-measurements.md §11)",
         if unpressed == 1 { "" } else { "s" },
     )
 }
