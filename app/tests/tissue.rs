@@ -1474,3 +1474,29 @@ fn the_band_next_to_the_fixed_region_is_pressed_and_answers_there() {
     assert!(!again.status.success());
     assert!(String::from_utf8_lossy(&again.stderr).contains("already holds a band"));
 }
+
+/// A point of a palpable triangle whose corners are all held (on the fixed region, as
+/// `tissue points --next-to-fixed` may draw) does not move: `palpa eval` says so by
+/// name (it once said "too few modes", of a table that has none), and `tissue check`
+/// reports the point as held and goes on (it once stopped the whole check there).
+#[test]
+fn a_point_on_the_fixed_region_is_named_held() {
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let held = "--at=11.6337,-51.8696,-15.3203";
+    let out = palpa(&["eval", shipped, held, "--depth-mm", "2.6", "--json"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("lies on the fixed region"), "{err}");
+    assert!(!err.contains("too few modes"), "{err}");
+    let out = palpa(&["tissue", "check", shipped, held, "--depths", "2.6"]);
+    let lines = common::json_lines_ok(&out);
+    assert!(
+        lines[0]["held"]
+            .as_str()
+            .is_some_and(|s| s.contains("fixed region")),
+        "{lines:?}"
+    );
+    let summary = lines.last().expect("a summary");
+    assert_eq!(summary["points_held"], 1, "{summary}");
+    assert_eq!(summary["presses_compared"], 0, "{summary}");
+}

@@ -59,6 +59,15 @@ pub enum ContactError {
     #[error(transparent)]
     Eval(#[from] EvalError),
     #[error(
+        "the probe point {point_mm:?} mm does not move under a push (its exact compliance \
+         along the push is {compliance_mm_per_n:.3e} mm/N): it lies on the fixed region, \
+         its triangle held; expected a palpable point off the attachment"
+    )]
+    Held {
+        point_mm: [f64; 3],
+        compliance_mm_per_n: f64,
+    },
+    #[error(
         "the compliance along the push is {compliance_mm_per_n:.3e} mm/N (expected > 0): \
          too few modes ({modes}) to represent the local stiffness here"
     )]
@@ -377,10 +386,11 @@ impl PalpationScene {
                 c[d][0] * push_dir[0] + c[d][1] * push_dir[1] + c[d][2] * push_dir[2]
             });
             let compliance = w[0] * push_dir[0] + w[1] * push_dir[1] + w[2] * push_dir[2];
+            // The table is exact (no modes): only a held surface has none.
             if compliance.is_nan() || compliance <= 0.0 {
-                return Err(ContactError::NonPositiveCompliance {
+                return Err(ContactError::Held {
+                    point_mm,
                     compliance_mm_per_n: compliance,
-                    modes: n,
                 });
             }
             return Ok(Contact {
