@@ -46,8 +46,8 @@ if [ -n "${TISSUE:-}" ]; then
   $palpa tissue refine "$from" --sub-triangles "${SUB:-190}" \
     --out "target/assets/liver-coarse-sub${SUB:-190}.tissue"
   from="target/assets/liver-coarse-sub${SUB:-190}.tissue"
-  # The band next to the fixed region, last (25 presses; format 13, 8.00 MB: with the
-  # scene 11.5 MB of the 20 MB phone budget).
+  # The band next to the fixed region, last (25 presses; format 13, 7.91 MB: with the
+  # scene 11.4 MB of the 20 MB phone budget).
   $palpa tissue band "$from" --out target/assets/liver-coarse-band.tissue
   from=target/assets/liver-coarse-band.tissue
   cp "$from" assets/liver-coarse.tissue

@@ -47,11 +47,14 @@ pub enum Body {
 pub const LZMA_DICT_MAX: u32 = 64 << 20;
 
 /// The LZMA encoder's settings for a body of `len` bytes: preset 9 (normal mode,
-/// binary-tree match finder), its dictionary cut to the smallest power of two that
-/// holds the body (a larger one finds nothing more and costs the encoder about ten
-/// times its size in memory).
+/// binary-tree match finder) with the longest match the format allows searched for
+/// (273 bytes, where the preset stops at 64: the shipped tissue, 38.7 MB of body, 8.00
+/// → 7.92 MB, the stream the same to any LZMA reader), its dictionary cut to the
+/// smallest power of two that holds the body (a larger one finds nothing more and
+/// costs the encoder about ten times its size in memory).
 fn lzma_options(len: usize) -> lzma_rust2::LzmaOptions {
     let mut options = lzma_rust2::LzmaOptions::with_preset(9);
+    options.nice_len = lzma_rust2::LzmaOptions::NICE_LEN_MAX;
     let fits = u32::try_from(len.max(1 << 16))
         .map_or(LZMA_DICT_MAX, |n| n.next_power_of_two().min(LZMA_DICT_MAX));
     options.dict_size = fits;

@@ -91,13 +91,7 @@ pub fn smooth_inward_dir(organ: &OrganMesh, at: [f64; 3]) -> Result<[f64; 3], Fe
         radius_mm: 0.0,
     };
     let (probe, face_inward) = locate(&space, organ, &req)?;
-    let vertices: Vec<[f32; 3]> = organ
-        .mesh
-        .vertices
-        .iter()
-        .map(|p| p.map(|x| x as f32))
-        .collect();
-    let normals = crate::mesh::vertex_normals(&vertices, &organ.boundary);
+    let normals = organ_vertex_normals(organ);
     let corners = organ.boundary[probe.face];
     let mut n = [0.0; 3];
     for (k, &v) in corners.iter().enumerate() {
@@ -112,6 +106,18 @@ pub fn smooth_inward_dir(organ: &OrganMesh, at: [f64; 3]) -> Result<[f64; 3], Fe
     } else {
         face_inward
     })
+}
+
+/// The area-weighted outward vertex normals of the organ's boundary, from `f32`
+/// positions (as a scene computes them from its stored vertices).
+pub fn organ_vertex_normals(organ: &OrganMesh) -> Vec<[f32; 3]> {
+    let vertices: Vec<[f32; 3]> = organ
+        .mesh
+        .vertices
+        .iter()
+        .map(|p| p.map(|x| x as f32))
+        .collect();
+    crate::mesh::vertex_normals(&vertices, &organ.boundary)
 }
 
 /// Linear-elastic solve of one probe request.

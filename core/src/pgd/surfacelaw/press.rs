@@ -8,17 +8,7 @@ use crate::fe::probe::{ProbeRequest, locate};
 use crate::fe::series::{Continued, Expander, SplitTangent, continued_from};
 use crate::organ::OrganMesh;
 
-/// Outward area-weighted normals of the organ's boundary, per mesh vertex (zero off
-/// the boundary): the same normals a scene computes for its render vertices.
-pub fn organ_vertex_normals(organ: &OrganMesh) -> Vec<[f32; 3]> {
-    let vertices: Vec<[f32; 3]> = organ
-        .mesh
-        .vertices
-        .iter()
-        .map(|p| p.map(|x| x as f32))
-        .collect();
-    crate::mesh::vertex_normals(&vertices, &organ.boundary)
-}
+pub use crate::fe::probe::organ_vertex_normals;
 
 /// A continued press with what says how far to trust it.
 #[derive(Debug, Clone)]
