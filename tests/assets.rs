@@ -243,16 +243,7 @@ fn the_default_tissue_comes_from_the_current_code() {
     let key = |p: [f64; 3]| p.map(|c| (c as f32).to_bits());
     let pressed: std::collections::HashSet<[u32; 3]> =
         law.samples_mm.iter().map(|p| p.map(f32::to_bits)).collect();
-    let mut edges: Vec<[u32; 2]> = organ
-        .boundary
-        .iter()
-        .zip(&organ.palpable)
-        .filter(|(_, p)| **p)
-        .flat_map(|(t, _)| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
-        .map(|[a, b]| [a.min(b), a.max(b)])
-        .collect();
-    edges.sort_unstable();
-    edges.dedup();
+    let edges = organ.palpable_edges();
     let at = |v: u32| organ.mesh.vertices[v as usize];
     let band: Vec<([u32; 3], [u32; 3])> = edges
         .iter()

@@ -80,6 +80,21 @@ impl OrganMesh {
         v
     }
 
+    /// The palpable boundary edges, as sorted vertex pairs, sorted and each once.
+    pub fn palpable_edges(&self) -> Vec<[u32; 2]> {
+        let mut e: Vec<[u32; 2]> = self
+            .boundary
+            .iter()
+            .zip(&self.palpable)
+            .filter(|(_, p)| **p)
+            .flat_map(|(t, _)| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+            .map(|[a, b]| [a.min(b), a.max(b)])
+            .collect();
+        e.sort_unstable();
+        e.dedup();
+        e
+    }
+
     /// The boundary's vertices, sorted, each once (the rows a palpation scene keeps).
     pub fn surface_nodes(&self) -> Vec<u32> {
         let mut v: Vec<u32> = self.boundary.iter().flatten().copied().collect();

@@ -50,8 +50,7 @@ pub use refine::{
 /// The most points (depth 0 included) of a press's depth grid.
 pub const MAX_GRID_POINTS: usize = 256;
 pub(crate) use refine::{
-    PressPoint, Source, node_peak, palpable_at, palpable_edges, refine_candidates, refine_plan,
-    worst_first,
+    PressPoint, Source, node_peak, palpable_at, refine_candidates, refine_plan, worst_first,
 };
 
 use press::edge_id;
@@ -341,7 +340,8 @@ impl SurfaceLaw {
             .collect();
         // The palpable edges whose ends are both candidates (sorted, deduplicated).
         let edges: Vec<[u32; 2]> = if o.edges {
-            palpable_edges(organ)
+            organ
+                .palpable_edges()
                 .into_iter()
                 .filter(|e| e.iter().all(|v| candidates.binary_search(v).is_ok()))
                 .collect()

@@ -30,7 +30,7 @@ use crate::pgd::subsplit::{
 };
 use crate::pgd::surfacelaw::{
     PressCount, PressPoint, SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak,
-    organ_vertex_normals, palpable_edges,
+    organ_vertex_normals,
 };
 use crate::pgd::tissue::{BoundTissue, TissueError, TissueLaw};
 
@@ -179,7 +179,7 @@ impl TissueLaw {
         });
         let chosen = most.min(candidates.len());
         let normals = organ_vertex_normals(organ);
-        let edges = palpable_edges(organ);
+        let edges = organ.palpable_edges();
         let first_id = organ.mesh.vertices.len() + 3 * organ.boundary.len();
         let level_two = first_id + 2 * edges.len() + 3 * organ.boundary.len();
         let mut plan = SubSplitPlan {

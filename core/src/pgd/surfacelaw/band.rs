@@ -13,7 +13,7 @@
 
 use std::path::Path;
 
-use super::refine::{BandEdge, palpable_edges};
+use super::refine::BandEdge;
 use super::{PressCount, PressPoint, SurfaceLaw, SurfaceLawBuildError, organ_vertex_normals};
 use crate::organ::OrganMesh;
 
@@ -39,7 +39,8 @@ pub(crate) fn band_edges(
     skipped: &[u32],
 ) -> Vec<(u32, u32, usize)> {
     let unpressable = |v: u32| organ.fixed[v as usize] || skipped.contains(&v);
-    palpable_edges(organ)
+    organ
+        .palpable_edges()
         .into_iter()
         .enumerate()
         .filter_map(|(g, [a, b])| {
@@ -79,7 +80,7 @@ impl SurfaceLaw {
                 what: "a band pressed again",
             });
         }
-        let all = palpable_edges(organ).len();
+        let all = organ.palpable_edges().len();
         let normals = organ_vertex_normals(organ);
         let at = |v: u32| organ.mesh.vertices[v as usize];
         let inside = |p: [f64; 3]| {

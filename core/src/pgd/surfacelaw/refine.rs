@@ -253,21 +253,6 @@ pub(crate) fn palpable_at(
     Ok(hit.triangle as usize)
 }
 
-/// The palpable boundary edges, as sorted vertex pairs, sorted and each once.
-pub(crate) fn palpable_edges(organ: &OrganMesh) -> Vec<[u32; 2]> {
-    let mut e: Vec<[u32; 2]> = organ
-        .boundary
-        .iter()
-        .zip(&organ.palpable)
-        .filter(|(_, p)| **p)
-        .flat_map(|(t, _)| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
-        .map(|[a, b]| [a.min(b), a.max(b)])
-        .collect();
-    e.sort_unstable();
-    e.dedup();
-    e
-}
-
 /// The largest node displacement in a sample's residuals (mm; 3 entries a node).
 pub(crate) fn node_peak(residual: &[f32]) -> f64 {
     residual
@@ -365,7 +350,7 @@ pub(crate) fn refine_plan(
     most: Option<usize>,
     kept: &[[u32; 3]],
 ) -> RefinePlan {
-    let all_edges = palpable_edges(organ);
+    let all_edges = organ.palpable_edges();
     let first_id = organ.mesh.vertices.len() + 3 * organ.boundary.len();
     let above = candidates.iter().filter(|c| c.worst > above_mm).count();
     // The `most` worst above the threshold (ties to the first in the mesh's order).
