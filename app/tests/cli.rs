@@ -164,7 +164,7 @@ fn bench_eval_prints_one_json_object_per_configuration() {
 /// its table meaningless (some tables take an hour), naming the flag.
 #[test]
 fn benchmarks_refuse_bad_options_up_front() {
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 10] = [
         (
             &["bench", "eval", "--rows", "0", "--min-time-ms", "1"],
             "must be positive",
@@ -180,6 +180,8 @@ fn benchmarks_refuse_bad_options_up_front() {
         ),
         (&["bench", "fe", "--depth-mm", "nan"], "--depth-mm NaN"),
         (&["bench", "fe", "--series-positions", "11"], "at most 10"),
+        (&["bench", "fe", "--build-positions", "11"], "at most 10"),
+        (&["bench", "fe", "--build-positions", "0"], "at least 1"),
         (
             &[
                 "bench",

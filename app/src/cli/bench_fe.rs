@@ -39,7 +39,7 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson, series, depth_law, surface_law, reduced).
+    /// depth_poisson, series, depth_law, surface_law, reduced, build_cost).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
@@ -80,13 +80,20 @@ pub struct FeBenchArgs {
     /// formed again (between, Broyden's update keeps it).
     #[arg(long, default_value_t = 3)]
     reduced_refresh: usize,
+    /// `build_cost` table: the first N of the ten positions (each a few minutes).
+    #[arg(long, default_value_t = 3)]
+    build_positions: usize,
+    /// `build_cost` table: also solve every depth from rest (the literal brute force,
+    /// as `palpa fe solve --depth-mm` does; several minutes more a position).
+    #[arg(long)]
+    build_from_rest: bool,
     /// `series` table: laws (svk, neo-hookean), comma-separated.
     #[arg(long, value_delimiter = ',', default_values = ["neo-hookean", "svk"])]
     series_laws: Vec<Law>,
 }
 
 /// The tables `--only` may name.
-const TABLES: [&str; 11] = [
+const TABLES: [&str; 12] = [
     "cost",
     "poisson",
     "positions",
@@ -98,6 +105,7 @@ const TABLES: [&str; 11] = [
     "depth_law",
     "surface_law",
     "reduced",
+    "build_cost",
 ];
 
 impl FeBenchArgs {
@@ -129,17 +137,22 @@ impl FeBenchArgs {
             ("--surface-heldout", self.surface_heldout),
             ("--reduced-triangles", self.reduced_triangles),
             ("--reduced-refresh", self.reduced_refresh),
+            ("--build-positions", self.build_positions),
         ] {
             if n == 0 {
                 bail!("{flag} 0: expected at least 1");
             }
         }
-        if self.series_positions > DEPTH_POSITIONS.len() {
-            bail!(
-                "--series-positions {}: expected at most {} (the listed positions)",
-                self.series_positions,
-                DEPTH_POSITIONS.len()
-            );
+        for (flag, n) in [
+            ("--series-positions", self.series_positions),
+            ("--build-positions", self.build_positions),
+        ] {
+            if n > DEPTH_POSITIONS.len() {
+                bail!(
+                    "{flag} {n}: expected at most {} (the listed positions)",
+                    DEPTH_POSITIONS.len()
+                );
+            }
         }
         let near = super::bench_reduced::NEAR.len();
         if self.reduced_first + self.reduced_triangles > near {
@@ -221,6 +234,13 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
             args.reduced_first,
             args.reduced_triangles,
             args.reduced_refresh,
+        )?;
+    }
+    if args.wants("build_cost") {
+        super::bench_build::build_cost(
+            &coarse,
+            &DEPTH_POSITIONS[..args.build_positions],
+            args.build_from_rest,
         )?;
     }
     Ok(())

@@ -2,6 +2,7 @@
 
 mod args;
 mod bench;
+mod bench_build;
 mod bench_cme;
 mod bench_dsmts;
 mod bench_fe;
