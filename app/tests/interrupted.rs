@@ -197,6 +197,62 @@ fn tissue_build_resumes_from_its_press_log() {
     assert!(x == y, "the resumed law differs from the uninterrupted one");
 }
 
+/// The band next to the fixed region (`palpa tissue band`), a stage of its own: killed
+/// after its first press is logged, run again it takes that press from its log, presses
+/// the rest and writes the same law as an uninterrupted run (all but the timings); the
+/// log is removed.
+#[test]
+fn tissue_band_resumes_from_its_press_log() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let base = dir.path().join("base.tissue");
+    let (full, cut) = (
+        dir.path().join("full.tissue"),
+        dir.path().join("cut.tissue"),
+    );
+    let log = dir.path().join("cut.tissue.presses.log");
+    // A few vertices of coarse P1 next to the fixed region, to 8 mm: seconds.
+    let within = "--within=4.06,-39.49,-34.90,15";
+    let build = [
+        "tissue",
+        "build",
+        "--element",
+        "p1",
+        "--depth-max-mm",
+        "8",
+        "--no-refine",
+        within,
+    ];
+    common::json_ok(&palpa(&args(&build, &base)));
+    let b = base.to_str().expect("utf-8 path");
+    // One press at a time, so the kill lands between presses of the same run.
+    let band = ["tissue", "band", b, within, "--jobs", "1"];
+    let a = common::json_ok(&palpa(&args(&band, &full)));
+    let presses = a["band_edges"].as_u64().expect("band edges");
+    assert!(presses >= 3, "{a}");
+    assert_eq!(a["band_kept"], presses, "{a}");
+    // A press of 9 depths × 858 rows × 3 f32 is 93 kB: kill after the first.
+    let size = || std::fs::metadata(&log).map(|m| m.len()).unwrap_or(0);
+    run_and_kill(&args(&band, &cut), || size() > 93_000);
+    assert!(
+        !cut.exists(),
+        "no law is written before every press is done"
+    );
+    let c = common::json_ok(&palpa(&args(&band, &cut)));
+    let resumed = c["resumed_presses"].as_u64().expect("count");
+    assert!(
+        (1..presses).contains(&resumed),
+        "{resumed} of {presses} band presses taken from the log"
+    );
+    assert!(!log.exists(), "the log is removed once the law is saved");
+    let x = palpa_core::pgd::tissue::TissueLaw::load(&full).expect("uninterrupted");
+    let mut y = palpa_core::pgd::tissue::TissueLaw::load(&cut).expect("resumed");
+    (y.build_s, y.compress_s) = (x.build_s, x.compress_s);
+    assert!(
+        x == y,
+        "the resumed band differs from the uninterrupted one"
+    );
+}
+
 /// The builders that finish in seconds to a few minutes at their defaults and start
 /// again from the beginning (the nodal-load vademecum, the CME tensor train and the
 /// greedy PGD): a kill mid-run leaves no output and no temporary file once the next
