@@ -197,19 +197,15 @@ fn tissue_build_resumes_from_its_press_log() {
     assert!(x == y, "the resumed law differs from the uninterrupted one");
 }
 
-/// The band next to the fixed region (`palpa tissue band`), a stage of its own: killed
-/// after its first press is logged, run again it takes that press from its log, presses
-/// the rest and writes the same law as an uninterrupted run (all but the timings); the
-/// log is removed.
+/// The stages that press on a built file (`tissue refine` splitting triangles, the
+/// same splitting sub-triangles, `tissue band`), each killed after its first press is
+/// logged: run again it takes that press from its log, presses the rest and writes the
+/// same law as an uninterrupted run (all but the timings). The band's log is removed
+/// then; a refinement's is kept, for a later, larger stage to reuse.
 #[test]
-fn tissue_band_resumes_from_its_press_log() {
+fn tissue_stages_resume_from_their_press_logs() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let base = dir.path().join("base.tissue");
-    let (full, cut) = (
-        dir.path().join("full.tissue"),
-        dir.path().join("cut.tissue"),
-    );
-    let log = dir.path().join("cut.tissue.presses.log");
+    let path = |name: &str| dir.path().join(name);
     // A few vertices of coarse P1 next to the fixed region, to 8 mm: seconds.
     let within = "--within=4.06,-39.49,-34.90,15";
     let build = [
@@ -222,35 +218,65 @@ fn tissue_band_resumes_from_its_press_log() {
         "--no-refine",
         within,
     ];
-    common::json_ok(&palpa(&args(&build, &base)));
-    let b = base.to_str().expect("utf-8 path");
+    common::json_ok(&palpa(&args(&build, &path("base.tissue"))));
+    let (base, split) = (path("base.tissue"), path("split.tissue"));
+    let (base, split) = (
+        base.to_str().expect("utf-8"),
+        split.to_str().expect("utf-8"),
+    );
     // One press at a time, so the kill lands between presses of the same run.
-    let band = ["tissue", "band", b, within, "--jobs", "1"];
-    let a = common::json_ok(&palpa(&args(&band, &full)));
-    let presses = a["band_edges"].as_u64().expect("band edges");
-    assert!(presses >= 3, "{a}");
-    assert_eq!(a["band_kept"], presses, "{a}");
-    // A press of 9 depths × 858 rows × 3 f32 is 93 kB: kill after the first.
-    let size = || std::fs::metadata(&log).map(|m| m.len()).unwrap_or(0);
-    run_and_kill(&args(&band, &cut), || size() > 93_000);
-    assert!(
-        !cut.exists(),
-        "no law is written before every press is done"
-    );
-    let c = common::json_ok(&palpa(&args(&band, &cut)));
-    let resumed = c["resumed_presses"].as_u64().expect("count");
-    assert!(
-        (1..presses).contains(&resumed),
-        "{resumed} of {presses} band presses taken from the log"
-    );
-    assert!(!log.exists(), "the log is removed once the law is saved");
-    let x = palpa_core::pgd::tissue::TissueLaw::load(&full).expect("uninterrupted");
-    let mut y = palpa_core::pgd::tissue::TissueLaw::load(&cut).expect("resumed");
-    (y.build_s, y.compress_s) = (x.build_s, x.compress_s);
-    assert!(
-        x == y,
-        "the resumed band differs from the uninterrupted one"
-    );
+    let stages: [(&str, Vec<&str>, &[&str]); 3] = [
+        (
+            "split",
+            vec!["refine", base, "--triangles", "2"],
+            &["quarter_points", "inner_points"],
+        ),
+        (
+            "subsplit",
+            vec!["refine", split, "--sub-triangles", "1"],
+            &["presses"],
+        ),
+        ("band", vec!["band", base, within], &["band_edges"]),
+    ];
+    for (name, stage, counts) in stages {
+        let stage: Vec<&str> = ["tissue"]
+            .into_iter()
+            .chain(stage)
+            .chain(["--jobs", "1"])
+            .collect();
+        let (full, cut) = (path(&format!("{name}.tissue")), path("cut.tissue"));
+        let log = path("cut.tissue.presses.log");
+        let a = common::json_ok(&palpa(&args(&stage, &full)));
+        let presses: u64 = counts.iter().map(|k| a[k].as_u64().expect("presses")).sum();
+        assert!(presses >= 3, "{name}: {a}");
+        // A press of 9 depths × 858 rows × 3 f32 is 93 kB: kill after the first.
+        let size = || std::fs::metadata(&log).map(|m| m.len()).unwrap_or(0);
+        run_and_kill(&args(&stage, &cut), || size() > 93_000);
+        assert!(
+            !cut.exists(),
+            "{name}: a law written before every press is done"
+        );
+        let c = common::json_ok(&palpa(&args(&stage, &cut)));
+        let resumed = c["resumed_presses"].as_u64().expect("count");
+        assert!(
+            (1..presses).contains(&resumed),
+            "{name}: {resumed} of {presses} presses taken from the log"
+        );
+        assert_eq!(
+            log.exists(),
+            name != "band",
+            "{name}: the log kept once the law is saved"
+        );
+        let x = palpa_core::pgd::tissue::TissueLaw::load(&full).expect("uninterrupted");
+        let mut y = palpa_core::pgd::tissue::TissueLaw::load(&cut).expect("resumed");
+        (y.build_s, y.compress_s) = (x.build_s, x.compress_s);
+        assert!(
+            x == y,
+            "{name}: the resumed law differs from the uninterrupted one"
+        );
+        std::fs::remove_file(&cut).expect("rm");
+        let _ = std::fs::remove_file(&log);
+    }
 }
 
 /// The builders that finish in seconds to a few minutes at their defaults and start
