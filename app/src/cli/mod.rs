@@ -25,6 +25,8 @@ mod synth;
 mod tissue;
 mod tissue_against;
 mod tissue_band;
+mod tissue_check;
+mod tissue_points;
 mod tissue_refine;
 mod tissue_subsplit;
 mod tissue_tradeoff;

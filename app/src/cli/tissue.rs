@@ -1,32 +1,29 @@
 //! `palpa tissue …`: the hyperelastic vademecum of a palpation scene (see
 //! `palpa_core::pgd::tissue`): build it off-line from every palpable vertex's depth
-//! series, and check it against the full nonlinear FE at held-out presses.
+//! series, cut it, and what the other stages share (the press log, the pool, the
+//! progress line, the file's summary). Checking it against the full nonlinear FE is
+//! `tissue_check`, drawing held-out points `tissue_points`.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
-use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::path::{StopKind, press_memory_bytes};
-use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
-use palpa_core::fe::series::{Expander, SplitTangent};
+use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{
-    DEFAULT_REFINE_ABOVE_MM, MAX_GRID_POINTS, PressCount, SurfaceLaw, SurfaceLawOptions, follow_at,
-    press_at,
+    DEFAULT_REFINE_ABOVE_MM, MAX_GRID_POINTS, PressCount, SurfaceLaw, SurfaceLawOptions,
 };
 use palpa_core::pgd::tissue::{
-    BLEND_SURPLUS_WARN_MM, BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, PointIndex,
-    ShapeBits, TissueLaw,
+    BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits, TissueLaw,
 };
-use palpa_core::rng::Rng;
 use serde_json::json;
 
 use super::args::OrganArgs;
 use super::depthlaw::NonlinearModel;
-use super::tissue_against::{Against, Answer};
+use super::tissue_points::triples;
 
 #[derive(Debug, Subcommand)]
 pub enum TissueCommand {
@@ -36,11 +33,11 @@ pub enum TissueCommand {
     Build(BuildArgs),
     /// Compare a built vademecum with the full nonlinear FE (Newton) at held-out
     /// random points and depths, through a scene (what the app shows).
-    Check(CheckArgs),
+    Check(super::tissue_check::CheckArgs),
     /// Draw held-out points over the whole palpable surface (seeded) and print them as
     /// `X,Y,Z,…` for `tissue build --cover` and `tissue check --at`: a whole-surface
     /// accuracy table from the few triangles that hold them.
-    Points(PointsArgs),
+    Points(super::tissue_points::PointsArgs),
     /// Cut a built vademecum to fewer modes per sample (or per group of samples that
     /// share them), fewer bits or a longer depth step (what `palpa tradeoff` measures)
     /// and save it: a scene ships only what it shows. The stored bound grows by what the cut drops.
@@ -89,26 +86,6 @@ pub struct CutArgs {
     /// Where to write the cut law (atomically; it may be the input).
     #[arg(long)]
     out: PathBuf,
-}
-
-#[derive(Debug, Args)]
-pub struct PointsArgs {
-    #[command(flatten)]
-    organ: OrganArgs,
-    #[arg(long, default_value_t = 16)]
-    heldout: usize,
-    #[arg(long, default_value_t = 7)]
-    seed: u64,
-    /// Draw them inside the split triangles of this tissue file only: what a
-    /// refinement buys, measured where it split (`tissue check --at` on the file and
-    /// on the one it refined).
-    #[arg(long)]
-    split_of: Option<PathBuf>,
-    /// Draw them inside the palpable triangles that touch the fixed region only (a
-    /// corner fixed, so never pressed: the blend there renormalizes over the pressed
-    /// corners). The default draw leaves this band out.
-    #[arg(long, conflicts_with = "split_of")]
-    next_to_fixed: bool,
 }
 
 #[derive(Debug, Args)]
@@ -183,47 +160,6 @@ pub struct BuildArgs {
     pub out: PathBuf,
 }
 
-#[derive(Debug, Args)]
-pub struct CheckArgs {
-    /// A tissue file (from `palpa tissue build`).
-    tissue: PathBuf,
-    #[command(flatten)]
-    organ: OrganArgs,
-    /// The scene it serves: `liver` (built in) or a `.palpa` file of the same mesh.
-    #[arg(long, default_value = "liver")]
-    scene: String,
-    /// Held-out random points (inside palpable triangles whose corners were pressed).
-    #[arg(long, default_value_t = 4, conflicts_with = "at")]
-    heldout: usize,
-    /// Depths of each held-out press (mm), off the depth grid.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
-          default_values_t = [2.6, 7.3, 12.7])]
-    depths: Vec<f64>,
-    #[arg(long, default_value_t = 7, conflicts_with = "at")]
-    seed: u64,
-    /// Press at these points (X,Y,Z[,X,Y,Z…], mm) instead of random ones: compare two
-    /// files at the same presses.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    at: Option<Vec<f64>>,
-    /// Also expand the press at each held-out point itself by the two-segment series
-    /// (one factorization at the split, and the exact two): what an uncorrected
-    /// series gives there, apart from the blend between vertices. (The build now
-    /// corrects each vertex's states to equilibrium; see `fe::path`.)
-    #[arg(long)]
-    series: bool,
-    /// Also follow the press at each held-out point itself to equilibrium, as the
-    /// build follows a vertex's (`own_*` keys): its error against Newton is the
-    /// press's own, its distance from the vademecum's surface the blend's.
-    #[arg(long)]
-    own: bool,
-    /// Also answer every press with this tissue file (of the same model, for the same
-    /// scene) against the same Newton solves: two stages or cuts compared in one run
-    /// (`against` keys per press and in the summary; `changed` where its answer differs
-    /// from the checked file's at all).
-    #[arg(long)]
-    against: Option<PathBuf>,
-}
-
 /// A duration for a progress line: `42 s`, `17 min`, `3 h 05 min`.
 fn minutes(seconds: f64) -> String {
     let s = seconds.max(0.0).round() as u64;
@@ -263,41 +199,8 @@ pub fn parse_bits(s: &str) -> Result<u32, String> {
 pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
     match cmd {
         TissueCommand::Build(args) => build(args).map(|(_, summary)| println!("{summary}")),
-        TissueCommand::Check(args) => check(args),
-        TissueCommand::Points(args) => {
-            if args.heldout == 0 {
-                bail!("--heldout 0: expected at least one point");
-            }
-            let organ = args.organ.mesh()?;
-            let points = match &args.split_of {
-                None if args.next_to_fixed => {
-                    let faces = faces_next_to_fixed(&organ);
-                    if faces.is_empty() {
-                        bail!("this organ has no palpable triangle with a fixed corner");
-                    }
-                    let palpable: Vec<usize> = (0..organ.boundary.len())
-                        .filter(|&f| organ.palpable[f])
-                        .collect();
-                    eprintln!(
-                        "tissue points: {} triangles touch the fixed region, {:.1} % of the \
-                         palpable surface's area",
-                        faces.len(),
-                        100.0 * faces_area(&organ, &faces) / faces_area(&organ, &palpable)
-                    );
-                    points_in(&organ, &faces, args.heldout, args.seed)?
-                }
-                None => surface_points(&organ, args.heldout, args.seed)?,
-                Some(file) => {
-                    let law = TissueLaw::load(file)?;
-                    law.check_organ(&organ.mesh.vertices)?;
-                    let faces = split_faces(&organ, &law)?;
-                    points_in(&organ, &faces, args.heldout, args.seed)?
-                }
-            };
-            let text: Vec<String> = points.iter().flatten().map(|c| format!("{c:.4}")).collect();
-            println!("{}", text.join(","));
-            Ok(())
-        }
+        TissueCommand::Check(args) => super::tissue_check::check(args),
+        TissueCommand::Points(args) => super::tissue_points::points(args),
         TissueCommand::Cut(args) => cut(args),
         TissueCommand::Refine(args) => super::tissue_refine::refine(args),
         TissueCommand::Band(args) => super::tissue_band::band(args),
@@ -602,505 +505,6 @@ pub(super) fn bound_to_scene(
         scene.axis_triangles(),
     )?;
     Ok((bound, scene))
-}
-
-fn check(args: &CheckArgs) -> anyhow::Result<()> {
-    // A check compares forces relative to Newton's: a press must push.
-    if let Some(d) = args.depths.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
-        bail!("--depths: {d:?} mm: expected finite depths above 0 mm (presses into the tissue)");
-    }
-    // The same press twice is the same Newton solve twice (minutes on medium).
-    if let Some(w) = args
-        .depths
-        .iter()
-        .enumerate()
-        .find(|(i, d)| args.depths[..*i].contains(d))
-    {
-        bail!(
-            "--depths: {:?} mm given twice: expected distinct depths",
-            w.1
-        );
-    }
-    if args.at.is_none() && args.heldout == 0 {
-        bail!("--heldout 0: expected at least one point (or points given by --at)");
-    }
-    let (bound, scene) = bound_to_scene(&args.tissue, &args.scene)?;
-    let o = bound.law.options;
-    // Past its deepest depth the vademecum holds and flags; a check a little beyond
-    // shows that, but Newton far beyond would push the tool through the organ.
-    let deepest_check_mm = 2.0 * o.depth_max_mm;
-    if let Some(d) = args.depths.iter().find(|d| **d > deepest_check_mm) {
-        bail!(
-            "--depths: {d:?} mm: expected depths up to {deepest_check_mm} mm, twice the \
-             vademecum's deepest ({} mm)",
-            o.depth_max_mm
-        );
-    }
-    let organ = args.organ.mesh()?;
-    bound.law.check_organ(&organ.mesh.vertices)?;
-    let law = &bound.law;
-    let mut scratch = bound.scratch();
-    let mut contact_scratch = scene.contact_scratch();
-    let mut coeffs = vec![0.0; scene.modes()];
-    let rows = 3 * scene.vertices_mm().len();
-    let (mut linear_rows, mut tissue_rows) = (vec![0.0; rows], vec![0.0; rows]);
-    // The scene's render vertex of each organ vertex (by rest position).
-    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
-    let (mut worst_force, mut worst_surface) = (0.0f64, 0.0f64);
-    // Presses Newton answered: with none, no goal is met or missed.
-    let mut compared = 0usize;
-    // Presses deeper than the vademecum answers at their point (a press of its blend
-    // found no equilibrium deeper): reported, not compared.
-    let mut past_limit = 0usize;
-    // Of the compared presses: those the panel warns at (finest surplus above
-    // BLEND_SURPLUS_WARN_MM, or a corner never pressed), and those missing 0.5 mm
-    // with and without a warning.
-    let (mut warned, mut missed_warned, mut missed_unwarned) = (0usize, 0usize, 0usize);
-    let space = organ_space(&organ, o.element);
-    let expander = if args.series || args.own {
-        Some(Expander::new(&space, o.law, o.material)?)
-    } else {
-        None
-    };
-    let mut against = match &args.against {
-        Some(file) => Some(Against::open(file, &args.scene, &bound)?),
-        None => None,
-    };
-    let points = press_points(&organ, law, args.at.as_deref(), args.heldout, args.seed)?;
-    // Points on the fixed region (a palpable triangle whose corners are all held):
-    // nothing there moves, so there is no press to compare.
-    let mut held_points = 0usize;
-    for at in points {
-        let (point, _) = scene
-            .closest_palpable(at)
-            .context("the scene has no palpable surface")?;
-        let contact = match scene.contact(&point, scene.modes(), &mut contact_scratch) {
-            Ok(c) => c,
-            Err(e @ palpa_core::scene::ContactError::Held { .. }) => {
-                println!("{}", json!({"at": at, "held": e.to_string()}));
-                held_points += 1;
-                continue;
-            }
-            Err(e) => return Err(e.into()),
-        };
-        let c = contact.compliance_mm_per_n;
-        // The method at this very point: (name, press) for each tangent.
-        let mut own = Vec::new();
-        if let Some(expander) = &expander {
-            for (name, tangent) in [
-                ("shared", SplitTangent::Shared),
-                ("exact", SplitTangent::Exact),
-            ] {
-                let t = Instant::now();
-                let press = press_at(&space, &organ, expander, &o, at, contact.push_dir, tangent)?;
-                own.push((name, press, t.elapsed().as_secs_f64()));
-            }
-        }
-        let followed = match (&expander, args.own) {
-            (Some(expander), true) => {
-                let t = Instant::now();
-                let p = follow_at(
-                    &space,
-                    &organ,
-                    expander,
-                    &o,
-                    at,
-                    contact.push_dir,
-                    &args.depths,
-                )?;
-                Some((p, t.elapsed().as_secs_f64()))
-            }
-            _ => None,
-        };
-        for &depth in &args.depths {
-            let t = Instant::now();
-            let reference = solve_hyperelastic(
-                &organ,
-                o.element,
-                o.material,
-                o.law,
-                // Along the scene's push (the interpolated vertex normal), as the app
-                // presses.
-                &ProbeRequest {
-                    at,
-                    force_n: f64::NAN,
-                    dir: Some(contact.push_dir),
-                    radius_mm: o.tool_radius_mm,
-                },
-                Some(depth),
-                NewtonSettings::default(),
-            );
-            let newton_s = t.elapsed().as_secs_f64();
-            let mut row = json!({"at": at, "depth_mm": depth, "newton_s": newton_s});
-            let (limit, stopped) = bound.limit_mm(&point);
-            if depth > limit {
-                row["vademecum_limit_mm"] = json!(limit);
-                row["vademecum_stopped"] = json!(stopped);
-            }
-            let (sol, _) = match reference {
-                Ok(r) => r,
-                Err(e) => {
-                    row["newton_error"] = json!(e.to_string());
-                    past_limit += usize::from(depth > limit);
-                    println!("{row}");
-                    continue;
-                }
-            };
-            let t = Instant::now();
-            let (force, beyond) = bound.force_n(&point, depth, c);
-            let force_us = t.elapsed().as_secs_f64() * 1e6;
-            let push = contact.push_dir.map(|d| d * depth / c);
-            scene.displacement(&point, push, &mut coeffs, &mut linear_rows)?;
-            tissue_rows.copy_from_slice(&linear_rows);
-            let t = Instant::now();
-            bound.add_surface(&point, depth, &mut scratch, &mut tissue_rows);
-            let surface_us = t.elapsed().as_secs_f64() * 1e6;
-            let ([e_tissue, e_linear], top) =
-                max_node_errors(&organ, &vertex_of, &sol.u, [&tissue_rows, &linear_rows]);
-            let f_ref = sol.force_n;
-            let force_err = (force - f_ref).abs() / f_ref;
-            let surplus = bound.blend_surplus_mm(&point, depth);
-            if depth > limit {
-                past_limit += 1;
-            } else {
-                worst_force = worst_force.max(force_err);
-                worst_surface = worst_surface.max(e_tissue);
-                compared += 1;
-                // The panel warns where the surplus is large and next to the fixed
-                // region (a corner never pressed).
-                let warn = surplus.is_some_and(|e| e > BLEND_SURPLUS_WARN_MM)
-                    || bound.unpressed_corners(&point) > 0;
-                warned += usize::from(warn);
-                if e_tissue > 0.5 {
-                    *(if warn {
-                        &mut missed_warned
-                    } else {
-                        &mut missed_unwarned
-                    }) += 1;
-                }
-            }
-            row["force_n"] = json!(force);
-            row["reference_force_n"] = json!(f_ref);
-            row["force_rel_error"] = json!(force_err);
-            row["linear_force_rel_error"] = json!((depth / c - f_ref).abs() / f_ref);
-            row["surface_max_error_mm"] = json!(e_tissue);
-            row["linear_surface_max_error_mm"] = json!(e_linear);
-            row["max_displacement_mm"] = json!(top);
-            row["beyond"] = json!(beyond);
-            // The finest surplus here: where the blend is likely to miss.
-            row["blend_surplus_mm"] = json!(surplus);
-            row["unpressed_corners"] = json!(bound.unpressed_corners(&point));
-            for (name, press, seconds) in &own {
-                let key = format!("series_{name}");
-                row[&key] = match press {
-                    Err(why) => json!({"skipped": why}),
-                    Ok(p) => {
-                        let (press, change) = (&p.press, p.pade_change);
-                        let (f, u) = press.evaluate(depth, o.depth_max_mm);
-                        let e = organ
-                            .surface_nodes()
-                            .iter()
-                            .map(|&v| {
-                                (0..3)
-                                    .map(|k| {
-                                        (u[3 * v as usize + k] - sol.u[3 * v as usize + k]).powi(2)
-                                    })
-                                    .sum::<f64>()
-                                    .sqrt()
-                            })
-                            .fold(0.0, f64::max);
-                        json!({"force_rel_error": (f - f_ref).abs() / f_ref,
-                            "surface_max_error_mm": e, "split_mm": press.split_mm,
-                            "pade_change": change, "expand_s": seconds,
-                            "correction_rel": press.correction_rel,
-                            "residual_rel": p.residual_rel(&space, &o, o.depth_max_mm)})
-                    }
-                };
-            }
-            if let Some((p, seconds)) = &followed {
-                row["own"] = match p {
-                    Err(why) => json!({"skipped": why}),
-                    Ok((p, depths)) => match depths.iter().position(|&d| d == depth) {
-                        None => json!({"skipped": "past the grid's largest depth"}),
-                        Some(j) if j >= p.u.len() => {
-                            json!({"skipped": p.stopped.as_deref().unwrap_or("stopped")})
-                        }
-                        Some(j) => {
-                            let (mut own, mut blend) = (0.0f64, 0.0f64);
-                            for v in organ.surface_nodes() {
-                                let i = 3 * v as usize;
-                                let Some(r) = vertex_of.find(organ.mesh.vertices[v as usize])
-                                else {
-                                    continue;
-                                };
-                                let (mut a, mut b) = (0.0, 0.0);
-                                for k in 0..3 {
-                                    a += (p.u[j][i + k] - sol.u[i + k]).powi(2);
-                                    b += (tissue_rows[3 * r as usize + k] - p.u[j][i + k]).powi(2);
-                                }
-                                own = own.max(a.sqrt());
-                                blend = blend.max(b.sqrt());
-                            }
-                            json!({"force_rel_error": (p.force_n[j] - f_ref).abs() / f_ref,
-                                "surface_max_error_mm": own,
-                                "blend_surface_max_mm": blend,
-                                "blend_force_rel": (force - p.force_n[j]).abs() / p.force_n[j],
-                                "segments": p.segment_starts_mm.len(), "follow_s": seconds})
-                        }
-                    },
-                };
-            }
-            row["worst_node"] = worst_node(
-                &organ,
-                &vertex_of,
-                &sol.u,
-                &tissue_rows,
-                at,
-                contact.push_dir,
-                o.tool_radius_mm,
-            );
-            row["force_eval_us"] = json!(force_us);
-            row["surface_eval_us"] = json!(surface_us);
-            if let Some(other) = against.as_mut() {
-                let main = Answer {
-                    point: &point,
-                    depth_mm: depth,
-                    compliance_mm_per_n: c,
-                    linear_rows: &linear_rows,
-                    tissue_rows: &tissue_rows,
-                    force_n: force,
-                };
-                row["against"] = other.press(&organ, &vertex_of, &sol.u, f_ref, &main);
-            }
-            println!("{row}");
-        }
-    }
-    println!(
-        "{}",
-        json!({"summary": true, "law": o.law.name(), "element": o.element.name(),
-            "presses_compared": compared, "presses_past_limit": past_limit,
-            "points_held": held_points,
-            "worst_force_rel_error": worst_force, "worst_surface_max_error_mm": worst_surface,
-            "goal_force_5_percent": (compared > 0).then_some(worst_force <= 0.05),
-            "goal_surface_0_5_mm": (compared > 0).then_some(worst_surface <= 0.5),
-            "blend_surplus_warn_mm": BLEND_SURPLUS_WARN_MM, "presses_warned": warned,
-            "surface_misses_warned": missed_warned,
-            "surface_misses_unwarned": missed_unwarned,
-            "against": against.as_ref().map(Against::summary)})
-    );
-    Ok(())
-}
-
-/// The points a check presses at: `at` (X,Y,Z triples) where given, else `heldout`
-/// seeded random points inside organ triangles whose three corners were pressed
-/// (never a sample itself).
-pub(super) fn press_points(
-    organ: &OrganMesh,
-    law: &TissueLaw,
-    at: Option<&[f64]>,
-    heldout: usize,
-    seed: u64,
-) -> anyhow::Result<Vec<[f64; 3]>> {
-    if let Some(v) = at {
-        return triples("--at", v);
-    }
-    let pressed = PointIndex::new(law.samples_mm.iter().map(|p| p.map(f64::from)));
-    let faces: Vec<usize> = (0..organ.boundary.len())
-        .filter(|&f| {
-            organ.palpable[f]
-                && organ.boundary[f]
-                    .iter()
-                    .all(|&v| pressed.find(organ.mesh.vertices[v as usize]).is_some())
-        })
-        .collect();
-    if faces.is_empty() {
-        bail!("no palpable triangle of this organ has all three corners pressed in the file");
-    }
-    points_in(organ, &faces, heldout, seed)
-}
-
-/// `n` seeded random points in `faces`: a face drawn uniformly, then a point uniformly
-/// inside it.
-fn points_in(
-    organ: &OrganMesh,
-    faces: &[usize],
-    n: usize,
-    seed: u64,
-) -> anyhow::Result<Vec<[f64; 3]>> {
-    check_heldout(n)?;
-    let mut rng = Rng::seed(seed);
-    Ok((0..n)
-        .map(|_| super::bench_fe::heldout_point(organ, faces, &mut rng).0)
-        .collect())
-}
-
-/// The most held-out points a command draws. Each is checked with a full FE solve
-/// (seconds to minutes), so more is no run anyone waits for; 10⁹ points would need
-/// 24 GB for the points alone (`tissue points` was still drawing them after 30 s).
-pub(super) const MAX_HELDOUT: usize = 10_000;
-
-/// Refuses more held-out points than [`MAX_HELDOUT`].
-pub(super) fn check_heldout(n: usize) -> anyhow::Result<()> {
-    if n > MAX_HELDOUT {
-        bail!("{n} held-out points: expected at most {MAX_HELDOUT} (each is a full FE solve)");
-    }
-    Ok(())
-}
-
-/// A flag's `X,Y,Z[,X,Y,Z…]` list as points, or what was wrong with it.
-pub(super) fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
-    use super::args::{COORDINATE_MAX, coordinate_ok};
-    if v.is_empty() || !v.len().is_multiple_of(3) || !v.iter().all(|&x| coordinate_ok(x)) {
-        bail!(
-            "{flag}: expected X,Y,Z triples of finite numbers of magnitude at most \
-             {COORDINATE_MAX:e}, got {v:?}"
-        );
-    }
-    Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
-}
-
-/// `n` seeded random points over the whole palpable surface: a triangle drawn
-/// uniformly among the palpable ones with no fixed corner (those a whole build
-/// presses), then a point uniformly inside it.
-pub(super) fn surface_points(
-    organ: &OrganMesh,
-    n: usize,
-    seed: u64,
-) -> anyhow::Result<Vec<[f64; 3]>> {
-    let faces: Vec<usize> = (0..organ.boundary.len())
-        .filter(|&f| organ.palpable[f] && !touches_fixed(organ, f))
-        .collect();
-    if faces.is_empty() {
-        bail!("this organ has no palpable triangle clear of its fixed region");
-    }
-    points_in(organ, &faces, n, seed)
-}
-
-/// The palpable boundary faces with at least one fixed corner: the band along the
-/// fixed region, where a probe's blend has a corner that was never pressed.
-fn faces_next_to_fixed(organ: &OrganMesh) -> Vec<usize> {
-    (0..organ.boundary.len())
-        .filter(|&f| organ.palpable[f] && touches_fixed(organ, f))
-        .collect()
-}
-
-/// Whether boundary face `f` has a corner on the fixed region.
-fn touches_fixed(organ: &OrganMesh, f: usize) -> bool {
-    organ.boundary[f].iter().any(|&v| organ.fixed[v as usize])
-}
-
-/// The total area of some boundary faces (mm²).
-fn faces_area(organ: &OrganMesh, faces: &[usize]) -> f64 {
-    let v = |i: u32| glam::DVec3::from_array(organ.mesh.vertices[i as usize]);
-    faces
-        .iter()
-        .map(|&f| {
-            let [a, b, c] = organ.boundary[f];
-            0.5 * (v(b) - v(a)).cross(v(c) - v(a)).length()
-        })
-        .sum()
-}
-
-/// The organ's boundary faces that a tissue file split (by its corners' rest
-/// positions), or why there are none.
-fn split_faces(organ: &OrganMesh, law: &TissueLaw) -> anyhow::Result<Vec<usize>> {
-    let index = PointIndex::new(organ.mesh.vertices.iter().copied());
-    let mut split: Vec<[u32; 3]> = Vec::new();
-    for tri in &law.refinement.triangles {
-        let mut corners = [0u32; 3];
-        for (c, &s) in corners.iter_mut().zip(tri) {
-            let at = law.samples_mm[s as usize].map(f64::from);
-            *c = index
-                .find(at)
-                .with_context(|| format!("sample at {at:?} is not a vertex of this organ mesh"))?;
-        }
-        corners.sort_unstable();
-        split.push(corners);
-    }
-    split.sort_unstable();
-    let faces: Vec<usize> = (0..organ.boundary.len())
-        .filter(|&f| {
-            let mut c = organ.boundary[f];
-            c.sort_unstable();
-            split.binary_search(&c).is_ok()
-        })
-        .collect();
-    if faces.is_empty() {
-        bail!("the tissue file splits no triangle of this organ mesh");
-    }
-    Ok(faces)
-}
-
-/// Over the organ's surface nodes drawn by the scene (`vertex_of`: a node's render
-/// vertex by rest position): each candidate's largest nodal distance from the
-/// reference field `reference` (organ node order; candidates in the scene's row
-/// order), and the reference's largest displacement (mm).
-pub(super) fn max_node_errors<const N: usize>(
-    organ: &OrganMesh,
-    vertex_of: &PointIndex,
-    reference: &[f64],
-    candidates: [&[f64]; N],
-) -> ([f64; N], f64) {
-    let (mut worst, mut top) = ([0.0f64; N], 0.0f64);
-    for v in organ.surface_nodes() {
-        let Some(r) = vertex_of.find(organ.mesh.vertices[v as usize]) else {
-            continue;
-        };
-        let (i, r) = (3 * v as usize, 3 * r as usize);
-        let dist = |rows: &[f64]| {
-            (0..3)
-                .map(|k| (rows[r + k] - reference[i + k]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-        };
-        for (w, rows) in worst.iter_mut().zip(candidates) {
-            *w = w.max(dist(rows));
-        }
-        top = top.max((0..3).map(|k| reference[i + k].powi(2)).sum::<f64>().sqrt());
-    }
-    (worst, top)
-}
-
-/// Where the vademecum's surface errs most at one press, and how the error falls off
-/// away from the tool: the worst node's distance from the probe and the part of its
-/// error along the push (a depth error) against the rest (tissue sliding sideways
-/// under the tool), and the largest error in shells 0–1, 1–2, 2–4, 4–8 and past 8 tool
-/// radii from the probe.
-fn worst_node(
-    organ: &OrganMesh,
-    vertex_of: &PointIndex,
-    reference: &[f64],
-    rows: &[f64],
-    at: [f64; 3],
-    push: [f64; 3],
-    tool_radius_mm: f64,
-) -> serde_json::Value {
-    const RINGS: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
-    let mut ring_max = [0.0f64; RINGS.len() + 1];
-    let (mut worst, mut from_probe, mut along) = (0.0f64, 0.0, 0.0);
-    for v in organ.surface_nodes() {
-        let x = organ.mesh.vertices[v as usize];
-        let Some(r) = vertex_of.find(x) else {
-            continue;
-        };
-        let (i, r) = (3 * v as usize, 3 * r as usize);
-        let e = [0, 1, 2].map(|k| rows[r + k] - reference[i + k]);
-        let size = e.iter().map(|c| c * c).sum::<f64>().sqrt();
-        let dist = (0..3).map(|k| (x[k] - at[k]).powi(2)).sum::<f64>().sqrt();
-        let ring = RINGS
-            .iter()
-            .position(|&m| dist <= m * tool_radius_mm)
-            .unwrap_or(RINGS.len());
-        ring_max[ring] = ring_max[ring].max(size);
-        if size > worst {
-            worst = size;
-            from_probe = dist;
-            along = (0..3).map(|k| e[k] * push[k]).sum();
-        }
-    }
-    json!({"error_mm": worst, "from_probe_mm": from_probe, "along_push_mm": along,
-        "max_error_mm_by_tool_radii": {"0-1": ring_max[0], "1-2": ring_max[1],
-            "2-4": ring_max[2], "4-8": ring_max[3], "8-": ring_max[4]}})
 }
 
 /// `palpa eval` on a tissue file: the press at the palpable point closest to `--at`,

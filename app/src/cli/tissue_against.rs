@@ -17,7 +17,8 @@ use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueScratch};
 use palpa_core::scene::ProbePoint;
 use serde_json::json;
 
-use super::tissue::{bound_to_scene, max_node_errors};
+use super::tissue::bound_to_scene;
+use super::tissue_check::max_node_errors;
 
 /// The other file, bound to the same scene, with its own scratch and running worst.
 pub(super) struct Against {

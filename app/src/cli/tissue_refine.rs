@@ -12,7 +12,8 @@ use palpa_core::pgd::tissue::TissueLaw;
 use serde_json::json;
 
 use super::args::OrganArgs;
-use super::tissue::{press_log, press_pool, progress_line, summary, triples};
+use super::tissue::{press_log, press_pool, progress_line, summary};
+use super::tissue_points::triples;
 
 #[derive(Debug, Args)]
 pub struct RefineArgs {

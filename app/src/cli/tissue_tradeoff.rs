@@ -23,7 +23,9 @@ use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueLaw};
 use serde_json::json;
 
 use super::args::OrganArgs;
-use super::tissue::{bound_to_scene, max_node_errors, press_points};
+use super::tissue::bound_to_scene;
+use super::tissue_check::max_node_errors;
+use super::tissue_points::press_points;
 
 /// What the table is measured at.
 pub struct Settings<'a> {

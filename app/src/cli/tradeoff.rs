@@ -65,7 +65,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         bail!("--held-out 0: expected at least one point to measure at");
     }
     if let Some(n) = args.held_out {
-        super::tissue::check_heldout(n)?;
+        super::tissue_points::check_heldout(n)?;
     }
     let o = &args.organ;
     let (tissue_only, scene_only) = (
