@@ -153,7 +153,9 @@ mod hyperelastic {
     use super::*;
     use palpa_core::fe::hyper::Law;
     use palpa_core::fe::newton::NewtonSettings;
-    use palpa_core::fe::probe::{solve_hyperelastic, solve_linear_depth};
+    use palpa_core::fe::probe::{
+        solve_hyperelastic, solve_hyperelastic_depths, solve_linear_depth,
+    };
 
     /// A press on coarse P1 of the default material, as most tests here make it.
     fn p1_press(
@@ -302,6 +304,43 @@ mod hyperelastic {
         )
         .expect("linear");
         assert!((lin.force_n * unit.probe_displacement_mm - 4.0).abs() < 1e-9);
+    }
+
+    /// Several depths of one press solved as a path (each from the depth before, asked
+    /// in any order) reach the states Newton reaches from rest at each depth.
+    #[test]
+    fn depths_solved_as_a_path_are_the_presses_from_rest() {
+        let organ = coarse_liver();
+        let settings = NewtonSettings::default();
+        let req = press(POINTS[0], f64::NAN);
+        let depths = [6.0, 2.0, 4.0];
+        let path = solve_hyperelastic_depths(
+            &organ,
+            Element::P1,
+            Material::default(),
+            Law::NeoHookean,
+            &req,
+            &depths,
+            settings,
+        )
+        .expect("the press");
+        assert_eq!(path.len(), depths.len());
+        for (d, step) in depths.into_iter().zip(path) {
+            let (on_path, _) = step.unwrap_or_else(|e| panic!("{d} mm on the path: {e}"));
+            let (from_rest, _) = p1_press(&organ, Law::NeoHookean, &req, Some(d), settings)
+                .unwrap_or_else(|e| panic!("{d} mm from rest: {e}"));
+            assert!((on_path.probe_displacement_mm - d).abs() < 1e-8);
+            let force = (on_path.force_n - from_rest.force_n).abs() / from_rest.force_n;
+            let worst = on_path
+                .u
+                .iter()
+                .zip(&from_rest.u)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                force < 1e-8 && worst < 1e-6,
+                "{d} mm: {force:e}, {worst:e} mm"
+            );
+        }
     }
 
     /// A press far below a micrometre is the linear press: its residual stalls at the

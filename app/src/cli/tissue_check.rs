@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::Args;
 use palpa_core::fe::newton::NewtonSettings;
-use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic};
+use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic_depths};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{follow_at, press_at};
@@ -169,25 +169,31 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
             }
             _ => None,
         };
-        for &depth in &args.depths {
-            let t = Instant::now();
-            let reference = solve_hyperelastic(
-                &organ,
-                o.element,
-                o.material,
-                o.law,
-                // Along the scene's push (the interpolated vertex normal), as the app
-                // presses.
-                &ProbeRequest {
-                    at,
-                    force_n: f64::NAN,
-                    dir: Some(contact.push_dir),
-                    radius_mm: o.tool_radius_mm,
-                },
-                Some(depth),
-                NewtonSettings::default(),
-            );
-            let newton_s = t.elapsed().as_secs_f64();
+        // Newton at every depth, as one path: each depth from the equilibrium of the
+        // one before (the same states as from rest, for less), along the scene's push
+        // (the interpolated vertex normal), as the app presses.
+        let references = match solve_hyperelastic_depths(
+            &organ,
+            o.element,
+            o.material,
+            o.law,
+            &ProbeRequest {
+                at,
+                force_n: f64::NAN,
+                dir: Some(contact.push_dir),
+                radius_mm: o.tool_radius_mm,
+            },
+            &args.depths,
+            NewtonSettings::default(),
+        ) {
+            Ok(r) => r
+                .into_iter()
+                .map(|r| r.map_err(|e| e.to_string()))
+                .collect(),
+            Err(e) => vec![Err(e.to_string()); args.depths.len()],
+        };
+        for (&depth, reference) in args.depths.iter().zip(references) {
+            let newton_s = reference.as_ref().map_or(0.0, |(_, r)| r.seconds);
             let mut row = json!({"at": at, "depth_mm": depth, "newton_s": newton_s});
             let (limit, stopped) = bound.limit_mm(&point);
             if depth > limit {
@@ -197,7 +203,7 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
             let (sol, _) = match reference {
                 Ok(r) => r,
                 Err(e) => {
-                    row["newton_error"] = json!(e.to_string());
+                    row["newton_error"] = json!(e);
                     past_limit += usize::from(depth > limit);
                     println!("{row}");
                     continue;

@@ -273,20 +273,7 @@ pub fn solve(
     // A tangent beyond the memory is refused before any assembly.
     Cholesky::check_budget(&pb.pattern)?;
     if let Some(n) = &pb.probe {
-        // Linear compliance at the probe: n̂·K₀⁻¹f̂ (mm per unit force).
-        let chol = factor_tangent(
-            space,
-            law,
-            &pb.pattern,
-            &vec![0.0; 3 * space.nodes.len()],
-            lambda,
-            mu,
-        )?;
-        let x = chol.solve(&pb.shape);
-        let c0: f64 = n.iter().zip(&x).map(|(a, b)| a * b).sum();
-        if !(c0.is_finite() && c0.abs() > 0.0) {
-            return Err(FeError::ProbeNotMoved);
-        }
+        let c0 = rest_compliance(space, law, (lambda, mu), &pb.pattern, &pb.shape, n)?;
         pb.depth_weight = pb.shape_norm / c0.abs();
     }
     let state = pb.ramp(state, 0.0, target, &mut report)?;
@@ -296,6 +283,48 @@ pub fn solve(
         force_n: if pb.probe.is_some() { state.force } else { 1.0 },
         report,
     })
+}
+
+/// The linear compliance at the probe, `n̂·K₀⁻¹f̂` (mm per unit force; `shape` and
+/// `probe` on the free dofs), or [`FeError::ProbeNotMoved`] where the tool moves nothing.
+fn rest_compliance(
+    space: &Space,
+    law: Law,
+    (lambda, mu): (f64, f64),
+    pattern: &SymCsc,
+    shape: &[f64],
+    probe: &[f64],
+) -> Result<f64, FeError> {
+    let rest = vec![0.0; 3 * space.nodes.len()];
+    let chol = factor_tangent(space, law, pattern, &rest, lambda, mu)?;
+    let x = chol.solve(shape);
+    let c0: f64 = probe.iter().zip(&x).map(|(a, b)| a * b).sum();
+    if !(c0.is_finite() && c0.abs() > 0.0) {
+        return Err(FeError::ProbeNotMoved);
+    }
+    Ok(c0)
+}
+
+/// The linear stiffness at the probe, `1 / n̂·K₀⁻¹f̂` (N/mm; `shape` and `probe`
+/// all-node): what [`continue_depth`] weighs the depth error with.
+pub fn rest_stiffness_n_per_mm(
+    space: &Space,
+    law: Law,
+    material: Material,
+    (shape, probe): (&[f64], &[f64]),
+) -> Result<f64, FeError> {
+    material.validate()?;
+    let pattern = SymCsc::pattern(space);
+    Cholesky::check_budget(&pattern)?;
+    let c0 = rest_compliance(
+        space,
+        law,
+        material.lame_n_per_mm2(),
+        &pattern,
+        &space.restrict(shape),
+        &space.restrict(probe),
+    )?;
+    Ok(1.0 / c0.abs())
 }
 
 /// Depth control from an equilibrium already reached: `start` is its depth (mm), force

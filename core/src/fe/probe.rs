@@ -224,6 +224,80 @@ pub fn solve_hyperelastic(
     Ok((out, sol.report))
 }
 
+/// One depth of [`solve_hyperelastic_depths`]: its solution and Newton's report, or why
+/// no equilibrium was found there.
+pub type DepthSolve = Result<(ProbeSolution, NewtonReport), FeError>;
+
+/// Depth-controlled presses of one probe at several depths, as one path: the depths
+/// are solved in increasing order, each by Newton from the equilibrium of the depth
+/// before ([`newton::continue_depth`]), and where that finds none, from rest as
+/// [`solve_hyperelastic`] does. Under depth control the press is one path of
+/// equilibria, so where both converge they reach the same state (to Newton's
+/// tolerance); the path is cheaper, since a depth starts from a state near its own
+/// and the rest stiffness is factored once. Returned in the order asked, each with
+/// its own report (its seconds those of its own step).
+pub fn solve_hyperelastic_depths(
+    organ: &OrganMesh,
+    element: Element,
+    material: Material,
+    law: Law,
+    req: &ProbeRequest,
+    depths_mm: &[f64],
+    settings: NewtonSettings,
+) -> Result<Vec<DepthSolve>, FeError> {
+    if let Some(&d) = depths_mm.iter().find(|d| !d.is_finite()) {
+        return Err(FeError::DepthNotFinite { depth_mm: d });
+    }
+    let space = organ_space(organ, element);
+    let (probe, dir) = locate(&space, organ, req)?;
+    let shape = probe_load(&space, &probe, dir, 1.0, req.radius_mm)?;
+    let functional = probe_functional(&space, &probe, dir);
+    let stiffness = newton::rest_stiffness_n_per_mm(&space, law, material, (&shape, &functional))?;
+    let mut order: Vec<usize> = (0..depths_mm.len()).collect();
+    order.sort_by(|&a, &b| depths_mm[a].total_cmp(&depths_mm[b]));
+    let mut out: Vec<Option<DepthSolve>> = (0..depths_mm.len()).map(|_| None).collect();
+    // The last equilibrium reached: depth, force, all-node state.
+    let mut last = (0.0, 0.0, vec![0.0; shape.len()]);
+    for i in order {
+        let d = depths_mm[i];
+        let t = Instant::now();
+        let mut spent = 0usize;
+        let from_last = newton::continue_depth(
+            &space,
+            law,
+            material,
+            (&shape, &functional),
+            stiffness,
+            (last.0, last.1, &last.2),
+            d,
+            settings,
+            &mut spent,
+        );
+        let sol = match from_last {
+            Ok(sol) => Ok(sol),
+            Err(_) if last.0 != 0.0 => {
+                let control = Control::Depth {
+                    shape: shape.clone(),
+                    probe: functional.clone(),
+                    depth_mm: d,
+                };
+                newton::solve(&space, law, material, &control, settings)
+            }
+            Err(e) => Err(e),
+        };
+        out[i] = Some(sol.map(|mut sol| {
+            sol.report.seconds = t.elapsed().as_secs_f64();
+            last = (d, sol.force_n, sol.u.clone());
+            let load = shape.iter().map(|v| v * sol.force_n).collect();
+            let s = sol.report.seconds;
+            let mut p = summarize(&space, probe, dir, load, sol.u, 0.0, 0.0, s);
+            p.force_n = sol.force_n;
+            (p, sol.report)
+        }));
+    }
+    Ok(out.into_iter().flatten().collect())
+}
+
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn summarize(
     space: &Space,
