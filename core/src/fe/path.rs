@@ -24,7 +24,7 @@
 //! forms' change at a segment's end was only a proxy (measured, it let a press 14 %
 //! off in force through near the liver's sharp border). It bounds the last correction,
 //! not the distance to the equilibrium: against the reference Newton at every grid depth
-//! of three spread vertices the accepted states were within 0.14 mm and 0.81 % of the
+//! of ten spread vertices the accepted states were within 0.14 mm and 0.87 % of the
 //! force (`palpa bench fe --only build_cost`), where the chord contracts slowly.
 //!
 //! The chord contracts by about `‖I − K⁻¹K_t(u)‖` a step. On the liver (coarse P2,
