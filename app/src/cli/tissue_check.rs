@@ -6,11 +6,11 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::Args;
-use palpa_core::fe::newton::NewtonSettings;
-use palpa_core::fe::probe::{ProbeRequest, organ_space, solve_hyperelastic_depths};
+use palpa_core::fe::newton::{NewtonReport, NewtonSettings};
+use palpa_core::fe::probe::{ProbeRequest, ProbeSolution, organ_space, solve_hyperelastic_depths};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{follow_at, press_at};
+use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, follow_at, press_at};
 use palpa_core::pgd::tissue::{BLEND_SURPLUS_WARN_MM, PointIndex};
 use serde_json::json;
 
@@ -58,6 +58,35 @@ pub struct CheckArgs {
     /// from the checked file's at all).
     #[arg(long)]
     against: Option<PathBuf>,
+}
+
+/// The reference at one point: Newton at every depth, as one path (each depth from the
+/// equilibrium of the one before: the states Newton reaches from rest, for less), along
+/// `push` (the scene's: the interpolated vertex normal, as the app presses). Per depth,
+/// in the order given, the solution or why there is none.
+pub(super) fn newton_at_depths(
+    organ: &OrganMesh,
+    o: &SurfaceLawOptions,
+    at: [f64; 3],
+    push: [f64; 3],
+    depths_mm: &[f64],
+) -> Vec<Result<(ProbeSolution, NewtonReport), String>> {
+    let request = ProbeRequest {
+        at,
+        force_n: f64::NAN,
+        dir: Some(push),
+        radius_mm: o.tool_radius_mm,
+    };
+    let settings = NewtonSettings::default();
+    match solve_hyperelastic_depths(
+        organ, o.element, o.material, o.law, &request, depths_mm, settings,
+    ) {
+        Ok(r) => r
+            .into_iter()
+            .map(|r| r.map_err(|e| e.to_string()))
+            .collect(),
+        Err(e) => vec![Err(e.to_string()); depths_mm.len()],
+    }
 }
 
 /// `palpa tissue check`.
@@ -169,29 +198,7 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
             }
             _ => None,
         };
-        // Newton at every depth, as one path: each depth from the equilibrium of the
-        // one before (the same states as from rest, for less), along the scene's push
-        // (the interpolated vertex normal), as the app presses.
-        let references = match solve_hyperelastic_depths(
-            &organ,
-            o.element,
-            o.material,
-            o.law,
-            &ProbeRequest {
-                at,
-                force_n: f64::NAN,
-                dir: Some(contact.push_dir),
-                radius_mm: o.tool_radius_mm,
-            },
-            &args.depths,
-            NewtonSettings::default(),
-        ) {
-            Ok(r) => r
-                .into_iter()
-                .map(|r| r.map_err(|e| e.to_string()))
-                .collect(),
-            Err(e) => vec![Err(e.to_string()); args.depths.len()],
-        };
+        let references = newton_at_depths(&organ, &o, at, contact.push_dir, &args.depths);
         for (&depth, reference) in args.depths.iter().zip(references) {
             let newton_s = reference.as_ref().map_or(0.0, |(_, r)| r.seconds);
             let mut row = json!({"at": at, "depth_mm": depth, "newton_s": newton_s});

@@ -17,14 +17,12 @@ use std::time::Instant;
 
 use anyhow::Context;
 use palpa_core::axis::ProbePoint;
-use palpa_core::fe::newton::NewtonSettings;
-use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic_depths};
 use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueLaw};
 use serde_json::json;
 
 use super::args::OrganArgs;
 use super::tissue::bound_to_scene;
-use super::tissue_check::max_node_errors;
+use super::tissue_check::{max_node_errors, newton_at_depths};
 use super::tissue_points::press_points;
 
 /// What the table is measured at.
@@ -114,29 +112,7 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
             .context("the scene has no palpable surface")?;
         let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
         eprint!("\rtradeoff: Newton at press {}   ", presses.len() + 1);
-        let request = ProbeRequest {
-            at,
-            force_n: f64::NAN,
-            dir: Some(contact.push_dir),
-            radius_mm: o.tool_radius_mm,
-        };
-        // Every depth of the point as one path (each from the one before: the states
-        // Newton reaches from rest, for less).
-        let solved = match solve_hyperelastic_depths(
-            &organ,
-            o.element,
-            o.material,
-            o.law,
-            &request,
-            s.depths_mm,
-            NewtonSettings::default(),
-        ) {
-            Ok(r) => r
-                .into_iter()
-                .map(|r| r.map_err(|e| e.to_string()))
-                .collect(),
-            Err(e) => vec![Err(e.to_string()); s.depths_mm.len()],
-        };
+        let solved = newton_at_depths(&organ, &o, at, contact.push_dir, s.depths_mm);
         for (&depth_mm, solved) in s.depths_mm.iter().zip(solved) {
             let sol = match solved {
                 Ok((sol, _)) => sol,
