@@ -233,9 +233,9 @@ pub type DepthSolve = Result<(ProbeSolution, NewtonReport), FeError>;
 /// before ([`newton::continue_depth`]), and where that finds none, from rest as
 /// [`solve_hyperelastic`] does. Where the press is one path of equilibria (no branch
 /// between the depths), both reach the same state to Newton's tolerance; the path is
-/// cheaper, since a depth starts from a state near its own
-/// and the rest stiffness is factored once. Returned in the order asked, each with
-/// its own report (its seconds those of its own step).
+/// cheaper, since a depth starts from a state near its own and the rest stiffness is
+/// factored once. Returned in the order asked, each with its own report (its seconds
+/// those of its own step).
 pub fn solve_hyperelastic_depths(
     organ: &OrganMesh,
     element: Element,
