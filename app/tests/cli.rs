@@ -712,6 +712,23 @@ fn eval_and_fe_solve_press_along_the_same_direction_by_default() {
     let f_tissue_linear = nonlinear["linear_force_n"].as_f64().expect("force");
     assert!((f_tissue_linear - f_scene).abs() < 1e-9 * f_scene);
     assert_eq!(nonlinear["probe_point"], nonlinear["at"]);
+    // The press's keys are `palpa fe solve`'s in all three reports.
+    for key in [
+        "probe_point",
+        "probe_projection_distance_mm",
+        "direction",
+        "control",
+        "force_n",
+        "probe_displacement_mm",
+        "max_displacement_mm",
+    ] {
+        for (name, report) in [("eval scene", &linear), ("eval tissue", &nonlinear)] {
+            assert!(report.get(key).is_some(), "{name} lacks {key}: {report}");
+        }
+        assert!(fe.get(key).is_some(), "fe solve lacks {key}");
+    }
+    let distance = |v: &serde_json::Value| v["probe_projection_distance_mm"].as_f64();
+    assert_eq!(distance(&linear), distance(&nonlinear));
     // `--dir` still chooses the direction.
     let turned = common::json_ok(&palpa(
         &[&["fe", "solve", at, "--dir", "0,0,-1"][..], &press].concat(),

@@ -601,9 +601,11 @@ pub fn eval(
     let report = json!({
         "model": "tissue", "law": bound.law.options.law.name(),
         "element": bound.law.options.element.name(),
-        "at": scene.frame(&point).0, "projected_distance_mm": distance_mm,
+        "at": scene.frame(&point).0,
         // The keys of `palpa fe solve`, which presses along the same direction by default.
-        "probe_point": scene.frame(&point).0, "direction": contact.push_dir,
+        "probe_point": scene.frame(&point).0, "probe_projection_distance_mm": distance_mm,
+        "direction": contact.push_dir,
+        "control": if probe.force_n.is_some() { "force" } else { "depth" },
         "probe_displacement_mm": depth, "force_n": force, "linear_force_n": depth / c,
         "requested_force_n": probe.force_n,
         "max_displacement_mm": max, "depth_max_mm": bound.law.depth_max_mm(),
