@@ -754,7 +754,8 @@ fn depth_control_in_eval_and_fe_solve() {
     assert!(String::from_utf8_lossy(&run.stderr).contains("a linear press of 5.000 mm"));
     let run = palpa(&["eval", scene, at, "--depth-mm", "2", "--json"]);
     assert_eq!(common::json_ok(&run)["beyond_linear_range"], false);
-    assert!(!String::from_utf8_lossy(&run.stderr).contains("warning"));
+    // (`-30,90,25` lies 21 mm off the surface, which is warned too.)
+    assert!(!String::from_utf8_lossy(&run.stderr).contains("a linear press"));
     let lin = common::json_ok(&palpa(&[
         "fe",
         "solve",
@@ -1604,5 +1605,41 @@ fn a_memory_cap_refuses_the_factorization_by_name() {
             err.contains("PALPA_MEMORY_GB") && err.contains("expected a positive number"),
             "{cap}: {err}"
         );
+    }
+}
+
+/// A `--at` point far off the palpable surface still presses its closest palpable point,
+/// but says so; a point on the surface is pressed without the warning.
+#[test]
+fn eval_warns_when_the_point_lies_far_from_the_surface() {
+    let assets = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/");
+    for file in ["liver-coarse.palpa", "liver-coarse.tissue"] {
+        let file = format!("{assets}{file}");
+        let press = |at: &str| palpa(&["eval", &file, at, "--depth-mm", "2", "--json"]);
+        let far = press("--at=0,0,0");
+        let report = common::json_ok(&far);
+        let distance = report["probe_projection_distance_mm"]
+            .as_f64()
+            .expect("distance");
+        assert!(distance > 10.0, "{file}: {distance} mm");
+        let stderr = String::from_utf8_lossy(&far.stderr);
+        assert!(
+            stderr.contains("from the palpable surface")
+                && stderr.contains(&format!("{distance:.1} mm")),
+            "{file}: {stderr}"
+        );
+        // The point it pressed lies on the surface: pressing it again warns of nothing.
+        let p = &report["probe_point"];
+        let at = format!("--at={},{},{}", p[0], p[1], p[2]);
+        let near = press(&at);
+        let again = common::json_ok(&near);
+        assert!(
+            again["probe_projection_distance_mm"]
+                .as_f64()
+                .expect("distance")
+                < 1e-6
+        );
+        let stderr = String::from_utf8_lossy(&near.stderr);
+        assert!(!stderr.contains("palpable surface"), "{file}: {stderr}");
     }
 }

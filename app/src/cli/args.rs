@@ -115,6 +115,28 @@ impl ProbeArgs {
 
 pub use palpa_app::pick::{COORDINATE_MAX, coordinate_ok};
 
+/// How far from the palpable surface a `--at` point may lie before its press is warned:
+/// two tool radii. Every point is projected to its closest palpable point, so any point
+/// presses somewhere; past this a typo, or a point in another mesh's frame, is likelier
+/// than the press the user meant.
+pub const FAR_FROM_SURFACE_MM: f64 = 10.0;
+
+/// Warns (stderr) when `--at` lay more than [`FAR_FROM_SURFACE_MM`] from the palpable
+/// surface, naming the point actually pressed.
+pub fn warn_far_from_surface(distance_mm: f64, pressed: [f64; 3]) {
+    if distance_mm > FAR_FROM_SURFACE_MM {
+        eprintln!(
+            "warning: --at lies {distance_mm:.1} mm from the palpable surface (more than \
+             {FAR_FROM_SURFACE_MM} mm); pressing its closest palpable point \
+             ({:.2}, {:.2}, {:.2})",
+            // `+ 0.0` prints a negative zero as 0.00.
+            pressed[0] + 0.0,
+            pressed[1] + 0.0,
+            pressed[2] + 0.0
+        );
+    }
+}
+
 /// Three finite numbers from a comma-separated argument (`--at`, `--dir`).
 pub fn to3(v: &[f64], what: &str) -> anyhow::Result<[f64; 3]> {
     match v {

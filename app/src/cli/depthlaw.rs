@@ -183,6 +183,7 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
         .context("the contact law at the probe point")?;
     let c = contact.compliance_mm_per_n;
     let at = contact.point_mm;
+    super::args::warn_far_from_surface(distance, at);
     let t = Instant::now();
     let (depth, force, clamped) = match (args.depth_mm, args.force_n) {
         (Some(d), None) if d.is_finite() && d >= 0.0 => {

@@ -175,6 +175,7 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         }
     };
     let seconds = t.elapsed().as_secs_f64();
+    super::args::warn_far_from_surface(sol.probe.distance_mm, sol.probe.point);
     let report = json!({
         "young_kpa": material.young_kpa,
         "poisson": material.poisson,

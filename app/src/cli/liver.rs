@@ -781,6 +781,7 @@ fn report_eval<T: Scalar>(
     extra: serde_json::Value,
 ) -> anyhow::Result<()> {
     let f = e.force_n;
+    super::args::warn_far_from_surface(e.hit.distance, e.hit.point);
     let mut report = json!({
         "probe_point": e.hit.point,
         "probe_projection_distance_mm": e.hit.distance,

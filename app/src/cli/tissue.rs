@@ -530,6 +530,7 @@ pub fn eval(
     let (point, distance_mm) = scene
         .closest_palpable(at)
         .context("the scene has no palpable surface")?;
+    super::args::warn_far_from_surface(distance_mm, scene.frame(&point).0);
     let mut contact_scratch = scene.contact_scratch();
     let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
     let c = contact.compliance_mm_per_n;
