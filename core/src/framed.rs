@@ -133,7 +133,12 @@ pub fn read<T: DeserializeOwned>(
     };
     let stored = &bytes[20..];
     if xxhash_rust::xxh3::xxh3_64(stored) != word(12..20) {
-        return Err(FramedError::Corrupt("checksum mismatch".into()));
+        // The frame records no length, so a file cut short reads as this too.
+        return Err(FramedError::Corrupt(format!(
+            "checksum mismatch: the {} bytes after the header do not hash to the checksum \
+             it records (damaged or cut short; copy or build it again)",
+            stored.len()
+        )));
     }
     let inflated;
     let body = match kind {
@@ -231,5 +236,15 @@ mod tests {
         short.extend(cut);
         let e = read::<Vec<u32>>(&short, b"PALPATST", &[(5, Body::Lzma)]).expect_err("cut");
         assert!(matches!(&e, FramedError::Corrupt(_)), "{e:?}");
+        // Copied short as it is (the checksum left alone): the mismatch names the stored
+        // length and says a cut file reads so.
+        let e = read::<Vec<u32>>(&bytes[..bytes.len() / 2], b"PALPATST", &[(5, Body::Lzma)])
+            .expect_err("cut");
+        let stored = bytes.len() / 2 - 20;
+        assert!(
+            matches!(&e, FramedError::Corrupt(why)
+                if why.contains(&format!("{stored} bytes")) && why.contains("cut short")),
+            "{e:?}"
+        );
     }
 }
