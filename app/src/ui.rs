@@ -227,6 +227,9 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
             ui.label("this file has no tradeoff table (run palpa tradeoff FILE)");
         }
     }
+    if session.law.is_some() {
+        ui.label(crate::session::tissue_accuracy_text(session.goals_to_mm));
+    }
     ui.separator();
 
     ui.heading("Probe");

@@ -52,6 +52,21 @@ pub fn next_to_fixed_text(unpressed: usize) -> String {
     )
 }
 
+/// The accuracy panel's line for a nonlinear tissue: the modes knob's table above it is
+/// the scene's linear vademecum against the linear FE, which a tissue answer builds on
+/// but which does not measure it; this line says what does.
+pub fn tissue_accuracy_text(goals: Option<GoalDepths>) -> String {
+    let knob = "the line above is its linear part";
+    match goals {
+        Some(g) => format!(
+            "tissue: within 0.5 mm and 5 % of the nonlinear FE to {:.1} mm deep (force to \
+             {:.1} mm); {knob}",
+            g.both_mm, g.force_mm
+        ),
+        None => format!("tissue: not measured against the nonlinear FE here; {knob}"),
+    }
+}
+
 impl GoalDepths {
     /// The panel's line for a press `depth_mm` deep, past `both_mm`.
     pub fn past_text(&self, depth_mm: f32) -> String {
