@@ -242,7 +242,9 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         None => ProbePath::default_for(0.5 * (min + max), front),
     };
     let target = Offscreen::new(&gpu.device, opts.size);
-    let mut overlay = opts.ui.then(|| Overlay::new(&gpu.device, UI_FORMAT));
+    let mut overlay = opts
+        .ui
+        .then(|| Overlay::new(&gpu.device, UI_FORMAT, gpu.is_software()));
     let mut hud = Hud::new(loaded_source);
     hud.panel_open = opts.display.panel_open;
     session.controls.mode = PressMode::Depth;

@@ -77,12 +77,13 @@ impl Drawing {
         room: &Room,
         scene_format: wgpu::TextureFormat,
         ui_format: wgpu::TextureFormat,
+        software: bool,
     ) -> Self {
         Drawing {
             renderer: renderer_for(device, room, scene_format),
             scene_format,
             landscape: None,
-            overlay: Overlay::new(device, ui_format),
+            overlay: Overlay::new(device, ui_format, software),
         }
     }
 }

@@ -116,6 +116,7 @@ impl App {
                 &self.shell.room,
                 formats.scene,
                 formats.surface,
+                gpu.is_software(),
             );
             let egui = egui_winit::State::new(
                 drawing.overlay.ctx.clone(),
@@ -217,7 +218,13 @@ impl App {
     fn screenshot(&mut self, size: (u32, u32)) -> anyhow::Result<String> {
         let g = self.graphics.as_mut().context("no GPU yet")?;
         let target = Offscreen::new(&g.gpu.device, size);
-        let mut drawing = Drawing::new(&g.gpu.device, &self.shell.room, FORMAT, UI_FORMAT);
+        let mut drawing = Drawing::new(
+            &g.gpu.device,
+            &self.shell.room,
+            FORMAT,
+            UI_FORMAT,
+            g.gpu.is_software(),
+        );
         let raw = crate::overlay::headless_input(
             size,
             1.0,

@@ -98,7 +98,13 @@ fn palpable_px(shell: &mut Shell) -> Vec2 {
 fn a_palpation_session_survives_rotation_suspend_resume_a_lost_device_and_low_memory() {
     let mut shell = Shell::open("liver").expect("the built-in liver");
     let mut gpu = Gpu::headless().expect("software adapter");
-    let mut drawing = Drawing::new(&gpu.device, &shell.room, FORMAT, UI_FORMAT);
+    let mut drawing = Drawing::new(
+        &gpu.device,
+        &shell.room,
+        FORMAT,
+        UI_FORMAT,
+        gpu.is_software(),
+    );
     shell.resumed(PORTRAIT);
     frame(&mut shell, &gpu, &mut drawing, PORTRAIT);
     let p = palpable_px(&mut shell);
@@ -163,7 +169,13 @@ fn a_palpation_session_survives_rotation_suspend_resume_a_lost_device_and_low_me
     drop(drawing);
     drop(gpu);
     gpu = Gpu::headless().expect("a new device");
-    drawing = Drawing::new(&gpu.device, &shell.room, FORMAT, UI_FORMAT);
+    drawing = Drawing::new(
+        &gpu.device,
+        &shell.room,
+        FORMAT,
+        UI_FORMAT,
+        gpu.is_software(),
+    );
     let b = frame(&mut shell, &gpu, &mut drawing, PORTRAIT);
     assert_eq!(session(&shell).controls.probe, probe);
     // The same scene from the same camera: the view right of the panel agrees.
@@ -194,7 +206,13 @@ fn a_network_room_keeps_its_coordinates_through_suspend_and_a_new_device() {
 
     let mut shell = Shell::open(file.to_str().expect("utf-8")).expect("opens");
     let gpu = Gpu::headless().expect("software adapter");
-    let mut drawing = Drawing::new(&gpu.device, &shell.room, FORMAT, UI_FORMAT);
+    let mut drawing = Drawing::new(
+        &gpu.device,
+        &shell.room,
+        FORMAT,
+        UI_FORMAT,
+        gpu.is_software(),
+    );
     shell.resumed(LANDSCAPE);
     frame(&mut shell, &gpu, &mut drawing, LANDSCAPE);
     let coordinates = |s: &Shell| match &s.room {
@@ -222,7 +240,13 @@ fn a_network_room_keeps_its_coordinates_through_suspend_and_a_new_device() {
     shell.resumed(PORTRAIT);
     drop(drawing);
     let gpu = Gpu::headless().expect("a new device");
-    let mut drawing = Drawing::new(&gpu.device, &shell.room, FORMAT, UI_FORMAT);
+    let mut drawing = Drawing::new(
+        &gpu.device,
+        &shell.room,
+        FORMAT,
+        UI_FORMAT,
+        gpu.is_software(),
+    );
     frame(&mut shell, &gpu, &mut drawing, PORTRAIT);
     assert_eq!(coordinates(&shell), before);
 }

@@ -90,7 +90,7 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
     };
     let gpu = Gpu::headless()?;
     let target = Offscreen::new(&gpu.device, opts.size);
-    let mut overlay = Overlay::new(&gpu.device, UI_FORMAT);
+    let mut overlay = Overlay::new(&gpu.device, UI_FORMAT, gpu.is_software());
     let mut landscape = Landscape::new(&gpu.device, FORMAT);
     let mut hud = Hud::new(opts.scene.clone());
     hud.panel_open = opts.display.panel_open;

@@ -100,6 +100,12 @@ impl Gpu {
         })
     }
 
+    /// Whether the adapter rasterizes on the CPU (Mesa's lavapipe, WARP, SwiftShader):
+    /// there every blended pixel costs, and the interface leaves out what is only looks.
+    pub fn is_software(&self) -> bool {
+        self.adapter.get_info().device_type == wgpu::DeviceType::Cpu
+    }
+
     pub fn report(&self) -> AdapterReport {
         let info = self.adapter.get_info();
         AdapterReport {
