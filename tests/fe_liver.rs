@@ -2,7 +2,7 @@
 
 use palpa_core::fe::load::{probe_load, resultant};
 use palpa_core::fe::probe::{ProbeRequest, locate, organ_space, solve_linear};
-use palpa_core::fe::{Element, Material};
+use palpa_core::fe::{Element, FeError, Material};
 use palpa_core::organ::liver::{Liver, spacing_mm};
 use palpa_core::organ::{Level, mesh_organ};
 
@@ -341,6 +341,37 @@ mod hyperelastic {
                 "{d} mm: {force:e}, {worst:e} mm"
             );
         }
+    }
+
+    /// A depth at or past the organ's thickness along the push is refused by name, alone
+    /// and as one depth of a path (the others still solved), not left to Newton.
+    #[test]
+    fn a_press_through_the_organ_is_refused() {
+        let organ = coarse_liver();
+        let settings = NewtonSettings::default();
+        let req = press(POINTS[0], f64::NAN);
+        let through = |e: &FeError| match e {
+            FeError::DepthThroughOrgan {
+                depth_mm,
+                thickness_mm,
+            } => *depth_mm >= *thickness_mm && *thickness_mm > 20.0,
+            _ => false,
+        };
+        let e = p1_press(&organ, Law::NeoHookean, &req, Some(1e6), settings).expect_err("1 km");
+        assert!(through(&e), "{e}");
+        assert!(e.to_string().contains("through the organ"), "{e}");
+        let path = solve_hyperelastic_depths(
+            &organ,
+            Element::P1,
+            Material::default(),
+            Law::NeoHookean,
+            &req,
+            &[1e6, 1.0],
+            settings,
+        )
+        .expect("the path");
+        assert!(matches!(&path[0], Err(e) if through(e)));
+        assert!(path[1].is_ok());
     }
 
     /// A press far below a micrometre is the linear press: its residual stalls at the

@@ -211,6 +211,11 @@ pub enum FeError {
     #[error("invalid press: depth {depth_mm} mm is not finite")]
     DepthNotFinite { depth_mm: f64 },
     #[error(
+        "invalid press: depth {depth_mm} mm pushes the tool through the organ, which is \
+         {thickness_mm:.1} mm thick along the push there (expected a depth under that)"
+    )]
+    DepthThroughOrgan { depth_mm: f64, thickness_mm: f64 },
+    #[error(
         "invalid depth grid: deepest press {depth_max_mm} mm in steps of {step_mm} mm; \
          expected both finite and positive, with 1 to {max_steps} steps"
     )]

@@ -11,7 +11,7 @@ use super::load::{SurfacePoint, probe_load, project, value_at};
 use super::newton::{self, Control, NewtonReport, NewtonSettings};
 use super::space::Space;
 use super::{Element, FeError, Material};
-use crate::mesh::dot;
+use crate::mesh::{dot, sub};
 use crate::organ::OrganMesh;
 
 /// What to press, where and how hard.
@@ -204,6 +204,7 @@ pub fn solve_hyperelastic(
             if !d.is_finite() {
                 return Err(FeError::DepthNotFinite { depth_mm: d });
             }
+            check_thickness(&space, probe.point, dir, d)?;
             Control::Depth {
                 shape: probe_load(&space, &probe, dir, 1.0, req.radius_mm)?,
                 probe: probe_functional(&space, &probe, dir),
@@ -222,6 +223,30 @@ pub fn solve_hyperelastic(
     let mut out = summarize(&space, probe, dir, load, sol.u, 0.0, 0.0, s);
     out.force_n = force_n;
     Ok((out, sol.report))
+}
+
+/// Refuses a depth that would push the tool through the organ: at or past the
+/// organ's thickness along the push from the probe point (its farthest node along
+/// `dir`). Newton would only report, after halving its first step ten times, that it
+/// found no equilibrium.
+fn check_thickness(
+    space: &Space,
+    at: [f64; 3],
+    dir: [f64; 3],
+    depth_mm: f64,
+) -> Result<(), FeError> {
+    let thickness_mm = space
+        .nodes
+        .iter()
+        .map(|x| dot(sub(*x, at), dir))
+        .fold(0.0, f64::max);
+    if depth_mm >= thickness_mm {
+        return Err(FeError::DepthThroughOrgan {
+            depth_mm,
+            thickness_mm,
+        });
+    }
+    Ok(())
 }
 
 /// One depth of [`solve_hyperelastic_depths`]: its solution and Newton's report, or why
@@ -260,6 +285,10 @@ pub fn solve_hyperelastic_depths(
     let mut last = (0.0, 0.0, vec![0.0; shape.len()]);
     for i in order {
         let d = depths_mm[i];
+        if let Err(e) = check_thickness(&space, probe.point, dir, d) {
+            out[i] = Some(Err(e));
+            continue;
+        }
         let t = Instant::now();
         let mut spent = 0usize;
         let from_last = newton::continue_depth(
