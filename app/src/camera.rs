@@ -1,5 +1,10 @@
 //! The orbit camera: a target point, yaw and pitch around it (z is up, the liver's
 //! superior direction), and a distance. Right-handed view, wgpu's 0..1 depth range.
+//!
+//! The view's centre can be shifted off the screen's centre (a lens shift: the
+//! projection translated in normalized device coordinates), so the target sits in the
+//! middle of the part of the screen no panel covers. Rays and projections go through
+//! the same matrix, so picking stays exact.
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
@@ -12,6 +17,9 @@ pub struct OrbitCamera {
     pub pitch: f32,
     pub distance_mm: f32,
     pub fov_y: f32,
+    /// Where the view's centre lies on the screen, in normalized device coordinates
+    /// (x right, y up; zero: the screen's centre). See [`OrbitCamera::center_view_in`].
+    pub lens_shift: Vec2,
 }
 
 /// A ray in world space (mm), `dir` unit length.
@@ -34,6 +42,19 @@ impl OrbitCamera {
             pitch: 25f32.to_radians(),
             distance_mm: 0.9 * radius / (0.5 * fov_y).sin(),
             fov_y,
+            lens_shift: Vec2::ZERO,
+        }
+    }
+
+    /// Puts the view's centre (the target) in the middle of `free`, the part of a
+    /// `screen` the interface leaves uncovered (both rectangles as (min, max) corners
+    /// in the same units, y down). A degenerate rectangle leaves the centre where it is.
+    pub fn center_view_in(&mut self, free: (Vec2, Vec2), screen: (Vec2, Vec2)) {
+        let size = screen.1 - screen.0;
+        let center = 0.5 * (free.0 + free.1) - screen.0;
+        let shift = Vec2::new(2.0 * center.x / size.x - 1.0, 1.0 - 2.0 * center.y / size.y);
+        if size.min_element() > 0.0 && shift.is_finite() {
+            self.lens_shift = shift.clamp(Vec2::splat(-1.0), Vec2::splat(1.0));
         }
     }
 
@@ -62,12 +83,14 @@ impl OrbitCamera {
     pub fn clip_from_view(&self, aspect: f32) -> Mat4 {
         let near = (0.05 * self.distance_mm).max(1.0);
         let far = 10.0 * self.distance_mm + 1000.0;
-        glam::camera::rh::proj::directx::perspective(
-            self.fov_y_for(aspect),
-            aspect.max(1e-3),
-            near,
-            far,
-        )
+        let shift = Mat4::from_translation(self.lens_shift.extend(0.0));
+        shift
+            * glam::camera::rh::proj::directx::perspective(
+                self.fov_y_for(aspect),
+                aspect.max(1e-3),
+                near,
+                far,
+            )
     }
 
     pub fn clip_from_world(&self, aspect: f32) -> Mat4 {
@@ -169,6 +192,39 @@ mod tests {
         // The centre pixel looks at the target.
         let ray = cam.ray(size / 2.0, size);
         assert!((ray.dir - (cam.target_mm - cam.eye()).normalize()).length() < 1e-4);
+    }
+
+    /// Shifted to the middle of the part of the screen a panel leaves free, the target
+    /// projects there, and rays still pass through the points they were cast at.
+    #[test]
+    fn a_shifted_view_centres_the_target_in_the_free_part_and_picks_exactly() {
+        let mut cam = OrbitCamera::framing(
+            Vec3::new(-100.0, -80.0, -50.0),
+            Vec3::new(100.0, 80.0, 50.0),
+        );
+        let size = Vec2::new(1280.0, 720.0);
+        let screen = (Vec2::ZERO, size);
+        // A drawer 340 wide on the left; then a phone's sheet over the lower half.
+        for free in [
+            (Vec2::new(340.0, 0.0), size),
+            (Vec2::ZERO, Vec2::new(1280.0, 380.0)),
+        ] {
+            cam.center_view_in(free, screen);
+            let at = cam.project(cam.target_mm, size).expect("in front");
+            let middle = 0.5 * (free.0 + free.1);
+            assert!((at - middle).length() < 1e-2, "{at} against {middle}");
+            for p in [Vec3::new(30.0, 40.0, -20.0), Vec3::new(-60.0, 10.0, 35.0)] {
+                let px = cam.project(p, size).expect("in front of the camera");
+                let ray = cam.ray(px, size);
+                let to_p = p - ray.origin;
+                let off_axis = (to_p - to_p.dot(ray.dir) * ray.dir).length();
+                assert!(off_axis < 1e-2, "ray misses {p} by {off_axis} mm");
+            }
+        }
+        // A degenerate screen changes nothing.
+        let before = cam.lens_shift;
+        cam.center_view_in(screen, (Vec2::ZERO, Vec2::ZERO));
+        assert_eq!(cam.lens_shift, before);
     }
 
     #[test]

@@ -279,7 +279,8 @@ pub fn scroll_bar(layout: &Layout) -> egui::scroll_area::ScrollBarVisibility {
 }
 
 /// Draws the panel: its bar (a 48-point button that folds and unfolds it, with
-/// `summary` beside it) and, unfolded, `contents` in a scroll area.
+/// `summary` beside it) and, unfolded, `contents` in a scroll area. Returns the
+/// rectangle it covers (points).
 pub fn panel(
     ctx: &egui::Context,
     id: &str,
@@ -287,14 +288,14 @@ pub fn panel(
     open: &mut bool,
     summary: &str,
     contents: impl FnOnce(&mut egui::Ui),
-) {
+) -> Rect {
     let open_now = *open && !layout.too_small;
     let rect = layout.panel;
     let (pivot, pos) = match layout.form {
         Form::Sheet => (egui::Align2::LEFT_BOTTOM, rect.left_bottom()),
         Form::Drawer => (egui::Align2::LEFT_TOP, rect.left_top()),
     };
-    egui::Area::new(egui::Id::unique(id))
+    let shown = egui::Area::new(egui::Id::unique(id))
         .pivot(pivot)
         .fixed_pos(pos)
         .constrain(true)
@@ -340,6 +341,25 @@ pub fn panel(
                 }
             });
         });
+    shown.response.rect
+}
+
+/// The largest rectangle of `safe` that `covered` leaves free: the part to its right,
+/// left, above or below, whichever is largest (the view centres the organ there).
+/// `covered` outside `safe`, or none of it free: `safe` itself.
+pub fn free_rect(safe: Rect, covered: Rect) -> Rect {
+    let parts = [
+        Rect::from_min_max(pos2(covered.right(), safe.top()), safe.right_bottom()),
+        Rect::from_min_max(safe.left_top(), pos2(covered.left(), safe.bottom())),
+        Rect::from_min_max(safe.left_top(), pos2(safe.right(), covered.top())),
+        Rect::from_min_max(pos2(safe.left(), covered.bottom()), safe.right_bottom()),
+    ];
+    parts
+        .into_iter()
+        .filter(|r| r.is_positive())
+        .max_by(|a, b| a.area().total_cmp(&b.area()))
+        .filter(|_| safe.intersects(covered))
+        .unwrap_or(safe)
 }
 
 /// The interactive widgets (clickable or draggable, enabled, visible) on the screen
@@ -422,6 +442,26 @@ mod tests {
 
     fn screen(px: (u32, u32), ppp: f32) -> Screen {
         Screen::new(px, ppp, Insets::default(), false)
+    }
+
+    /// The view keeps the largest part the panel leaves: right of a drawer, above a
+    /// sheet; a panel outside the screen leaves all of it.
+    #[test]
+    fn the_free_part_is_beside_a_drawer_and_above_a_sheet() {
+        let safe = Rect::from_min_max(pos2(0.0, 0.0), pos2(1280.0, 720.0));
+        let drawer = Rect::from_min_max(pos2(6.0, 6.0), pos2(346.0, 714.0));
+        assert_eq!(
+            free_rect(safe, drawer),
+            Rect::from_min_max(pos2(346.0, 0.0), pos2(1280.0, 720.0))
+        );
+        let phone = Rect::from_min_max(pos2(0.0, 47.0), pos2(390.0, 810.0));
+        let sheet = Rect::from_min_max(pos2(6.0, 420.0), pos2(384.0, 804.0));
+        assert_eq!(
+            free_rect(phone, sheet),
+            Rect::from_min_max(pos2(0.0, 47.0), pos2(390.0, 420.0))
+        );
+        let away = Rect::from_min_max(pos2(2000.0, 0.0), pos2(2100.0, 50.0));
+        assert_eq!(free_rect(safe, away), safe);
     }
 
     #[test]
