@@ -169,7 +169,7 @@ mod hyperelastic {
             palpa_core::fe::probe::ProbeSolution,
             palpa_core::fe::newton::NewtonReport,
         ),
-        palpa_core::fe::FeError,
+        FeError,
     > {
         solve_hyperelastic(
             organ,
