@@ -157,6 +157,25 @@ mod hyperelastic {
         solve_hyperelastic, solve_hyperelastic_depths, solve_linear_depth,
     };
 
+    /// A neo-Hookean press on coarse P1 of the default material at several depths, as
+    /// one path.
+    fn p1_path(
+        organ: &palpa_core::organ::OrganMesh,
+        req: &ProbeRequest,
+        depths_mm: &[f64],
+        settings: NewtonSettings,
+    ) -> Result<Vec<palpa_core::fe::probe::DepthSolve>, FeError> {
+        solve_hyperelastic_depths(
+            organ,
+            Element::P1,
+            Material::default(),
+            Law::NeoHookean,
+            req,
+            depths_mm,
+            settings,
+        )
+    }
+
     /// A press on coarse P1 of the default material, as most tests here make it.
     fn p1_press(
         organ: &palpa_core::organ::OrganMesh,
@@ -314,16 +333,7 @@ mod hyperelastic {
         let settings = NewtonSettings::default();
         let req = press(POINTS[0], f64::NAN);
         let depths = [6.0, 2.0, 4.0];
-        let path = solve_hyperelastic_depths(
-            &organ,
-            Element::P1,
-            Material::default(),
-            Law::NeoHookean,
-            &req,
-            &depths,
-            settings,
-        )
-        .expect("the press");
+        let path = p1_path(&organ, &req, &depths, settings).expect("the press");
         assert_eq!(path.len(), depths.len());
         for (d, step) in depths.into_iter().zip(path) {
             let (on_path, _) = step.unwrap_or_else(|e| panic!("{d} mm on the path: {e}"));
@@ -360,16 +370,7 @@ mod hyperelastic {
         let e = p1_press(&organ, Law::NeoHookean, &req, Some(1e6), settings).expect_err("1 km");
         assert!(through(&e), "{e}");
         assert!(e.to_string().contains("through the organ"), "{e}");
-        let path = solve_hyperelastic_depths(
-            &organ,
-            Element::P1,
-            Material::default(),
-            Law::NeoHookean,
-            &req,
-            &[1e6, 1.0],
-            settings,
-        )
-        .expect("the path");
+        let path = p1_path(&organ, &req, &[1e6, 1.0], settings).expect("the path");
         assert!(matches!(&path[0], Err(e) if through(e)));
         assert!(path[1].is_ok());
     }

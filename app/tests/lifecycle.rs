@@ -36,6 +36,17 @@ fn frame(shell: &mut Shell, gpu: &Gpu, drawing: &mut Drawing, size: (u32, u32)) 
     target.read(&gpu.device).expect("read back")
 }
 
+/// What a frame draws with on `gpu`, for the shell's room.
+fn new_drawing(gpu: &Gpu, shell: &Shell) -> Drawing {
+    Drawing::new(
+        &gpu.device,
+        &shell.room,
+        FORMAT,
+        UI_FORMAT,
+        gpu.is_software(),
+    )
+}
+
 fn touch(id: u64) -> PointerId {
     PointerId::Touch(id)
 }
@@ -98,13 +109,7 @@ fn palpable_px(shell: &mut Shell) -> Vec2 {
 fn a_palpation_session_survives_rotation_suspend_resume_a_lost_device_and_low_memory() {
     let mut shell = Shell::open("liver").expect("the built-in liver");
     let mut gpu = Gpu::headless().expect("software adapter");
-    let mut drawing = Drawing::new(
-        &gpu.device,
-        &shell.room,
-        FORMAT,
-        UI_FORMAT,
-        gpu.is_software(),
-    );
+    let mut drawing = new_drawing(&gpu, &shell);
     shell.resumed(PORTRAIT);
     frame(&mut shell, &gpu, &mut drawing, PORTRAIT);
     let p = palpable_px(&mut shell);
@@ -172,13 +177,7 @@ fn a_palpation_session_survives_rotation_suspend_resume_a_lost_device_and_low_me
     drop(drawing);
     drop(gpu);
     gpu = Gpu::headless().expect("a new device");
-    drawing = Drawing::new(
-        &gpu.device,
-        &shell.room,
-        FORMAT,
-        UI_FORMAT,
-        gpu.is_software(),
-    );
+    drawing = new_drawing(&gpu, &shell);
     let b = frame(&mut shell, &gpu, &mut drawing, PORTRAIT);
     assert_eq!(session(&shell).controls.probe, probe);
     // The same scene from the same camera: the view right of the panel agrees.
@@ -209,13 +208,7 @@ fn a_network_room_keeps_its_coordinates_through_suspend_and_a_new_device() {
 
     let mut shell = Shell::open(file.to_str().expect("utf-8")).expect("opens");
     let gpu = Gpu::headless().expect("software adapter");
-    let mut drawing = Drawing::new(
-        &gpu.device,
-        &shell.room,
-        FORMAT,
-        UI_FORMAT,
-        gpu.is_software(),
-    );
+    let mut drawing = new_drawing(&gpu, &shell);
     shell.resumed(LANDSCAPE);
     frame(&mut shell, &gpu, &mut drawing, LANDSCAPE);
     let coordinates = |s: &Shell| match &s.room {
@@ -243,13 +236,7 @@ fn a_network_room_keeps_its_coordinates_through_suspend_and_a_new_device() {
     shell.resumed(PORTRAIT);
     drop(drawing);
     let gpu = Gpu::headless().expect("a new device");
-    let mut drawing = Drawing::new(
-        &gpu.device,
-        &shell.room,
-        FORMAT,
-        UI_FORMAT,
-        gpu.is_software(),
-    );
+    let mut drawing = new_drawing(&gpu, &shell);
     frame(&mut shell, &gpu, &mut drawing, PORTRAIT);
     assert_eq!(coordinates(&shell), before);
 }
