@@ -88,7 +88,7 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
         panel(ui, session, hud);
     });
     hud.panel_open = Some(open);
-    center_view(ctx, hud, covered, &mut session.controls.camera);
+    center_view(ctx, hud, &[covered], &mut session.controls.camera);
     let top = ctx.content_rect().top() + 12.0;
     if let Some(msg) = hud.message.clone() {
         egui::Window::new("Notice")
@@ -123,18 +123,20 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
     }
 }
 
-/// Centres the organ in the part of the safe area the panel leaves free, from the
-/// next frame on: a phone's open sheet covers the lower half of the screen, where the
-/// organ would otherwise sit half hidden.
+/// Centres the view (the organ, a network's landscape) in the part of the safe area
+/// the panels leave free, from the next frame on: a phone's open sheet covers the
+/// lower half of the screen, where the organ would otherwise sit half hidden.
 pub fn center_view(
     ctx: &egui::Context,
     hud: &Hud,
-    covered: egui::Rect,
+    covered: &[egui::Rect],
     camera: &mut crate::camera::OrbitCamera,
 ) {
     let screen = ctx.content_rect();
     let safe = Screen::from_ctx(ctx, hud.touch_seen).safe_rect();
-    let free = crate::layout::free_rect(safe, covered);
+    let free = covered
+        .iter()
+        .fold(safe, |free, &c| crate::layout::free_rect(free, c));
     let v = |p: egui::Pos2| glam::Vec2::new(p.x, p.y);
     camera.center_view_in((v(free.min), v(free.max)), (v(screen.min), v(screen.max)));
 }

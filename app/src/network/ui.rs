@@ -24,20 +24,23 @@ pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
     );
     match layout.form {
         Form::Sheet => {
-            crate::layout::panel(ctx, "network-panel", &layout, &mut open, &summary, |ui| {
-                controls(ui, room, hud);
-                ui.separator();
-                views(ui, room);
-            });
+            let sheet =
+                crate::layout::panel(ctx, "network-panel", &layout, &mut open, &summary, |ui| {
+                    controls(ui, room, hud);
+                    ui.separator();
+                    views(ui, room);
+                });
+            crate::ui::center_view(ctx, hud, &[sheet], &mut room.camera);
         }
         Form::Drawer => {
-            crate::layout::panel(ctx, "network-panel", &layout, &mut open, &summary, |ui| {
-                controls(ui, room, hud);
-            });
+            let drawer =
+                crate::layout::panel(ctx, "network-panel", &layout, &mut open, &summary, |ui| {
+                    controls(ui, room, hud);
+                });
             // The distribution on the right, inside the safe area.
             let safe = ctx.content_rect();
             let width = (0.32 * safe.width()).clamp(260.0, 420.0);
-            egui::Area::new(egui::Id::unique("network-distribution"))
+            let distribution = egui::Area::new(egui::Id::unique("network-distribution"))
                 .pivot(egui::Align2::RIGHT_TOP)
                 .fixed_pos(safe.right_top() + egui::vec2(-8.0, 8.0))
                 .constrain(true)
@@ -50,6 +53,8 @@ pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
                             .show(ui, |ui| views(ui, room));
                     });
                 });
+            let covered = [drawer, distribution.response.rect];
+            crate::ui::center_view(ctx, hud, &covered, &mut room.camera);
         }
     }
     hud.panel_open = Some(open);
