@@ -4,9 +4,12 @@
 //! faces, plus the places a model is most likely to fail (faces within 10 mm of the
 //! fixed region, the faces along the sharpest palpable edges — the inferior border —
 //! and the faces farthest to the patient's left, the thin left lobe). Each gets a full
-//! FE solve of a unit push along the inward face normal with the same tool, and the
-//! model is compared on every surface node (relative L2 and the largest nodal error)
-//! and on the compliance `c(s) = t·u(s)` the force law uses.
+//! FE solve of a unit push with the same tool along the direction the app pushes
+//! there (the inward normal smoothed across edges, `fe::probe::smooth_inward_dir`; a
+//! face's own normal jumps at its edges, and next to the fixed region the two change
+//! the force by up to 15 %), and the model is compared on every surface node (relative
+//! L2 and the largest nodal error) and on the compliance `c(s) = t·u(s)` the force law
+//! uses.
 
 use std::collections::HashMap;
 
@@ -28,7 +31,7 @@ pub struct Case {
     pub face: usize,
     pub bary: [f64; 3],
     pub point: [f64; 3],
-    /// Unit push direction (inward face normal).
+    /// Unit push direction (the app's: the smoothed inward normal, for [`cases`]).
     pub dir: [f64; 3],
     /// What picked it: "random", "near-fixed", "sharp-border", "left-lobe".
     pub kind: &'static str,
@@ -119,7 +122,18 @@ pub fn cases(
         // Strictly inside the face: never a node, never an edge.
         let (a, b) = (rng.range(0.1, 0.8), rng.range(0.1, 0.9));
         let bary = [a, (1.0 - a) * b, (1.0 - a) * (1.0 - b)];
-        out.push(press(space, problem, face, bary, radius_mm, kind)?);
+        let fc = space.face(face);
+        let c = [0, 1, 2].map(|i| space.nodes[fc[i] as usize]);
+        let point = [0, 1, 2].map(|d| (0..3).map(|i| bary[i] * c[i][d]).sum::<f64>());
+        let sp = SurfacePoint {
+            face,
+            bary,
+            point,
+            normal: triangle_normal(c[0], c[1], c[2]),
+            distance_mm: 0.0,
+        };
+        let dir = crate::fe::probe::smooth_inward_dir(organ, point)?;
+        out.push(solve_case(space, problem, sp, dir, radius_mm, kind)?);
     }
     Ok(out)
 }
