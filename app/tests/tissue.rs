@@ -1488,9 +1488,29 @@ fn the_band_next_to_the_fixed_region_is_pressed_and_answers_there() {
 /// `tissue points --next-to-fixed` may draw) does not move: `palpa eval` says so by
 /// name (it once said "too few modes", of a table that has none), and `tissue check`
 /// reports the point as held and goes on (it once stopped the whole check there).
+/// `tissue points` says how many of its draw lie in such triangles (the seed-8 band
+/// draw of docs/tissue-measurements.md §11: two of eight, this point one of them).
 #[test]
 fn a_point_on_the_fixed_region_is_named_held() {
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let draw = palpa(&[
+        "tissue",
+        "points",
+        "--next-to-fixed",
+        "--heldout",
+        "8",
+        "--seed",
+        "8",
+    ]);
+    let (points, said) = (
+        String::from_utf8_lossy(&draw.stdout),
+        String::from_utf8_lossy(&draw.stderr),
+    );
+    assert!(points.contains("11.6337,-51.8696,-15.3203"), "{points}");
+    assert!(
+        said.contains("2 of the 8 points lie in a triangle whose three corners are held"),
+        "{said}"
+    );
     let held = "--at=11.6337,-51.8696,-15.3203";
     let out = palpa(&["eval", shipped, held, "--depth-mm", "2.6", "--json"]);
     assert!(!out.status.success());

@@ -47,13 +47,34 @@ pub fn points(args: &PointsArgs) -> anyhow::Result<()> {
             let palpable: Vec<usize> = (0..organ.boundary.len())
                 .filter(|&f| organ.palpable[f])
                 .collect();
+            let all_held = |tri: &[u32; 3]| tri.iter().all(|&v| organ.fixed[v as usize]);
+            let held_faces = faces
+                .iter()
+                .filter(|&&f| all_held(&organ.boundary[f]))
+                .count();
             eprintln!(
                 "tissue points: {} triangles touch the fixed region, {:.1} % of the \
-                 palpable surface's area",
+                 palpable surface's area ({held_faces} with all three corners held)",
                 faces.len(),
                 100.0 * faces_area(&organ, &faces) / faces_area(&organ, &palpable)
             );
-            points_in(&organ, &faces, args.heldout, args.seed)?
+            // Drawn as `points_in` draws them (the same seed gives the same points),
+            // keeping each point's triangle to say which lie where nothing moves.
+            check_heldout(args.heldout)?;
+            let mut rng = Rng::seed(args.seed);
+            let drawn: Vec<_> = (0..args.heldout)
+                .map(|_| super::bench_fe::heldout_point(&organ, &faces, &mut rng))
+                .collect();
+            let held = drawn.iter().filter(|(_, tri, _)| all_held(tri)).count();
+            if held > 0 {
+                eprintln!(
+                    "tissue points: {held} of the {} points lie in a triangle whose three \
+                     corners are held: nothing moves there (`tissue check` reports them as \
+                     held)",
+                    drawn.len()
+                );
+            }
+            drawn.into_iter().map(|(p, _, _)| p).collect()
         }
         None => surface_points(&organ, args.heldout, args.seed)?,
         Some(file) => {
