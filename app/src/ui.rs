@@ -152,10 +152,7 @@ fn blend_surplus(ui: &mut egui::Ui, session: &Session) {
     if eta > BLEND_SURPLUS_WARN_MM {
         ui.colored_label(
             Color32::from_rgb(230, 160, 60),
-            format!(
-                "blend surplus {eta:.2} mm here: the surface may be more than 0.5 mm off \
-                 (refine this region: palpa tissue refine)"
-            ),
+            crate::session::blend_surplus_text(eta),
         );
     } else {
         ui.label(format!(
@@ -285,10 +282,8 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
         ));
         if s.beyond_law != 0 {
             let text = match session.law.as_ref().map(|l| l.limit_mm(&s.command.point())) {
-                Some((limit, Some(why))) => {
-                    format!("held at {limit:.0} mm: a press here found {why}")
-                }
-                _ => "deeper than the force law covers: held at its last depth".to_string(),
+                Some((limit, why)) => crate::session::held_text(limit, why),
+                None => "deeper than the force law covers: held at its last depth".to_string(),
             };
             // The trigger asked for more than the tissue gives at its limit.
             let text = if s.command.mode() == PressMode::Force {

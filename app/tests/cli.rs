@@ -751,7 +751,14 @@ fn depth_control_in_eval_and_fe_solve() {
     // 5 mm is past where the linear tissue agrees with the nonlinear one: flagged, and
     // said; 2 mm is not.
     assert_eq!(eval["beyond_linear_range"], true);
-    assert!(String::from_utf8_lossy(&run.stderr).contains("a linear press of 5.000 mm"));
+    let said = String::from_utf8_lossy(&run.stderr);
+    assert!(said.contains("a linear press of 5.000 mm"), "{said}");
+    // The shipped tissue lies beside the scene: the warning names the command that
+    // answers as the app does.
+    assert!(
+        said.contains("`palpa eval") && said.contains("liver-coarse.tissue`"),
+        "{said}"
+    );
     let run = palpa(&["eval", scene, at, "--depth-mm", "2", "--json"]);
     assert_eq!(common::json_ok(&run)["beyond_linear_range"], false);
     // (`-30,90,25` lies 21 mm off the surface, which is warned too.)

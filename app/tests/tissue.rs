@@ -264,9 +264,13 @@ fn eval_reads_a_tissue_file_both_ways() {
     let back = v["probe_displacement_mm"].as_f64().expect("depth");
     assert!((back - 5.0).abs() < 1e-6, "inverse gave {back} mm");
 
+    assert!(!e.contains("held"), "{e}");
     let (v, e) = eval(&["--depth-mm", "12"]);
     let v = v.unwrap_or_else(|| panic!("{e}"));
     assert_eq!(v["beyond_depth_max"], true);
+    assert_eq!(v["requested_depth_mm"], 12.0);
+    // Flagged in the report and said on stderr, with what was asked.
+    assert!(e.contains("held at its last depth") && e.contains("(asked 12.00 mm)"), "{e}");
     // A force no press reaches is held at the limit and answers the force there,
     // the one asked for beside it.
     let held = v["force_n"].as_f64().expect("force");
@@ -274,6 +278,7 @@ fn eval_reads_a_tissue_file_both_ways() {
     let v = v.unwrap_or_else(|| panic!("{e}"));
     assert_eq!(v["beyond_depth_max"], true);
     assert_eq!(v["requested_force_n"], 1e6);
+    assert!(e.contains("held at") && e.contains("(asked 1000000.00 N)"), "{e}");
     let at_limit = v["force_n"].as_f64().expect("force");
     assert!(
         (at_limit - held).abs() < 1e-9 * held,

@@ -840,10 +840,22 @@ fn report_eval<T: Scalar>(
         .is_some_and(|d| d.abs() > LINEAR_AGREES_MM);
     report["beyond_linear_range"] = json!(deep);
     if deep {
+        // The app presses with a tissue beside the scene; say how to get its answer.
+        let sidecar = args.file.with_extension("tissue");
+        let hint = if sidecar.exists() && sidecar != args.file {
+            format!(
+                "{} beside this scene models them, and the app presses with it: `palpa eval \
+                 {}` answers as the app does",
+                sidecar.display(),
+                sidecar.display()
+            )
+        } else {
+            "a .tissue scene models deep presses".to_string()
+        };
         eprintln!(
             "warning: a linear press of {:.3} mm: tissue is not linear that deep (at 2.6 mm \
              the linear force is up to 5.8 % off the neo-Hookean tissue's, at 7.3 mm 18.8 %); \
-             a .tissue scene models deep presses",
+             {hint}",
             e.probe_displacement_mm.unwrap_or(0.0)
         );
     }

@@ -17,7 +17,8 @@ use palpa_core::pgd::surfacelaw::{
     DEFAULT_REFINE_ABOVE_MM, MAX_GRID_POINTS, PressCount, SurfaceLaw, SurfaceLawOptions,
 };
 use palpa_core::pgd::tissue::{
-    BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits, TissueLaw,
+    BLEND_SURPLUS_WARN_MM, BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits,
+    TissueLaw,
 };
 use serde_json::json;
 
@@ -592,6 +593,21 @@ pub fn eval(
         write_surface_vtu(out, &nodes, scene.triangles(), &fields, &meta)
             .with_context(|| format!("writing {}", out.display()))?;
     }
+    let (limit_mm, stopped) = bound.limit_mm(&point);
+    if beyond {
+        let asked = match probe.force_n {
+            Some(f) => format!("{f:.2} N"),
+            None => format!("{:.2} mm", probe.depth_mm.unwrap_or(depth)),
+        };
+        eprintln!(
+            "warning: {} (asked {asked})",
+            palpa_app::session::held_text(limit_mm, stopped)
+        );
+    }
+    let surplus_mm = bound.blend_surplus_mm(&point, depth);
+    if let Some(eta) = surplus_mm.filter(|&e| e > BLEND_SURPLUS_WARN_MM) {
+        eprintln!("warning: {}", palpa_app::session::blend_surplus_text(eta));
+    }
     let unpressed = bound.unpressed_corners(&point);
     if unpressed > 0 {
         eprintln!(
@@ -608,11 +624,11 @@ pub fn eval(
         "direction": contact.push_dir,
         "control": if probe.force_n.is_some() { "force" } else { "depth" },
         "probe_displacement_mm": depth, "force_n": force, "linear_force_n": depth / c,
-        "requested_force_n": probe.force_n,
+        "requested_force_n": probe.force_n, "requested_depth_mm": probe.depth_mm,
         "max_displacement_mm": max, "depth_max_mm": bound.law.depth_max_mm(),
         "beyond_depth_max": beyond,
-        "depth_limit_mm": bound.limit_mm(&point).0, "stopped": bound.limit_mm(&point).1,
-        "blend_surplus_mm": bound.blend_surplus_mm(&point, depth),
+        "depth_limit_mm": limit_mm, "stopped": stopped,
+        "blend_surplus_mm": surplus_mm,
         "unpressed_corners": unpressed,
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
     });

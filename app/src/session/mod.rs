@@ -52,6 +52,29 @@ pub fn next_to_fixed_text(unpressed: usize) -> String {
     )
 }
 
+/// What the panel and `palpa eval` say of a press held at the tissue's limit at the
+/// probe, `limit_mm`: a press blended there found no equilibrium deeper (`why`, naming
+/// the depth), or the press asked for more than the model's grid.
+pub fn held_text(limit_mm: f64, why: Option<&str>) -> String {
+    match why {
+        Some(why) => format!("held at {limit_mm:.1} mm: a press here found {why}"),
+        None => format!(
+            "deeper than the tissue model covers: force and surface held at its last depth, \
+             {limit_mm:.1} mm"
+        ),
+    }
+}
+
+/// What the panel and `palpa eval` say where the blend's surplus under the probe,
+/// `eta_mm`, exceeds `BLEND_SURPLUS_WARN_MM`: the blend of pressed points may miss
+/// the surface goal there, however shallow the press.
+pub fn blend_surplus_text(eta_mm: f64) -> String {
+    format!(
+        "blend surplus {eta_mm:.2} mm here: the surface may be more than 0.5 mm off (refine \
+         this region: palpa tissue refine)"
+    )
+}
+
 /// The accuracy panel's line for a nonlinear tissue: the modes knob's table above it is
 /// the scene's linear vademecum against the linear FE, which a tissue answer builds on
 /// but which does not measure it; this line says what does.
