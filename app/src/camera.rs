@@ -1,10 +1,11 @@
 //! The orbit camera: a target point, yaw and pitch around it (z is up, the liver's
 //! superior direction), and a distance. Right-handed view, wgpu's 0..1 depth range.
 //!
-//! The view's centre can be shifted off the screen's centre (a lens shift: the
-//! projection translated in normalized device coordinates), so the target sits in the
-//! middle of the part of the screen no panel covers. Rays and projections go through
-//! the same matrix, so picking stays exact.
+//! The view can be fitted to the part of the screen no panel covers: the projection is
+//! made for a viewport of that part's shape, then scaled and translated in normalized
+//! device coordinates onto it (a lens shift), so the target sits in its middle and the
+//! organ fits across it as it would fit a window of that size. Rays and projections go
+//! through the same matrix, so picking stays exact.
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
@@ -20,6 +21,9 @@ pub struct OrbitCamera {
     /// Where the view's centre lies on the screen, in normalized device coordinates
     /// (x right, y up; zero: the screen's centre). See [`OrbitCamera::center_view_in`].
     pub lens_shift: Vec2,
+    /// The fitted viewport's size as a fraction of the screen's, per axis (one: the
+    /// whole screen).
+    pub lens_scale: Vec2,
 }
 
 /// A ray in world space (mm), `dir` unit length.
@@ -43,19 +47,29 @@ impl OrbitCamera {
             distance_mm: 0.9 * radius / (0.5 * fov_y).sin(),
             fov_y,
             lens_shift: Vec2::ZERO,
+            lens_scale: Vec2::ONE,
         }
     }
 
-    /// Puts the view's centre (the target) in the middle of `free`, the part of a
-    /// `screen` the interface leaves uncovered (both rectangles as (min, max) corners
-    /// in the same units, y down). A degenerate rectangle leaves the centre where it is.
+    /// Fits the view to `free`, the part of a `screen` the interface leaves uncovered
+    /// (both rectangles as (min, max) corners in the same units, y down): the target in
+    /// its middle, the organ framed as in a window of its shape (a tall part widens
+    /// the field, [`Self::fov_y_for`], so the organ still fits across). A degenerate
+    /// rectangle leaves the view as it is.
     pub fn center_view_in(&mut self, free: (Vec2, Vec2), screen: (Vec2, Vec2)) {
         let size = screen.1 - screen.0;
         let center = 0.5 * (free.0 + free.1) - screen.0;
         let shift = Vec2::new(2.0 * center.x / size.x - 1.0, 1.0 - 2.0 * center.y / size.y);
-        if size.min_element() > 0.0 && shift.is_finite() {
+        let scale = (free.1 - free.0) / size;
+        if size.min_element() > 0.0 && shift.is_finite() && scale.min_element() > 0.0 {
             self.lens_shift = shift.clamp(Vec2::splat(-1.0), Vec2::splat(1.0));
+            self.lens_scale = scale.min(Vec2::ONE);
         }
+    }
+
+    /// The fitted viewport's aspect (width / height) on a screen of `aspect`.
+    fn fitted_aspect(&self, aspect: f32) -> f32 {
+        aspect.max(1e-3) * self.lens_scale.x / self.lens_scale.y
     }
 
     pub fn eye(&self) -> Vec3 {
@@ -83,11 +97,13 @@ impl OrbitCamera {
     pub fn clip_from_view(&self, aspect: f32) -> Mat4 {
         let near = (0.05 * self.distance_mm).max(1.0);
         let far = 10.0 * self.distance_mm + 1000.0;
-        let shift = Mat4::from_translation(self.lens_shift.extend(0.0));
-        shift
+        let fitted = self.fitted_aspect(aspect);
+        let onto_screen = Mat4::from_translation(self.lens_shift.extend(0.0))
+            * Mat4::from_scale(self.lens_scale.extend(1.0));
+        onto_screen
             * glam::camera::rh::proj::directx::perspective(
-                self.fov_y_for(aspect),
-                aspect.max(1e-3),
+                self.fov_y_for(fitted),
+                fitted,
                 near,
                 far,
             )
@@ -139,8 +155,10 @@ impl OrbitCamera {
 
     /// Moves the target in the view plane by a screen-space delta in pixels.
     pub fn pan(&mut self, delta_px: Vec2, viewport_px: Vec2) {
-        let fov = self.fov_y_for(viewport_px.x / viewport_px.y.max(1.0));
-        let mm_per_px = 2.0 * self.distance_mm * (0.5 * fov).tan() / viewport_px.y.max(1.0);
+        let fov = self.fov_y_for(self.fitted_aspect(viewport_px.x / viewport_px.y.max(1.0)));
+        // The fitted viewport's height spans the field of view.
+        let height_px = (viewport_px.y * self.lens_scale.y).max(1.0);
+        let mm_per_px = 2.0 * self.distance_mm * (0.5 * fov).tan() / height_px;
         let (right, up) = self.screen_axes();
         let moved = self.target_mm + (-delta_px.x * right + delta_px.y * up) * mm_per_px;
         // Within the probe coordinates' bound: far past the organ, never infinite.
@@ -222,9 +240,71 @@ mod tests {
             }
         }
         // A degenerate screen changes nothing.
-        let before = cam.lens_shift;
+        let before = (cam.lens_shift, cam.lens_scale);
         cam.center_view_in(screen, (Vec2::ZERO, Vec2::ZERO));
-        assert_eq!(cam.lens_shift, before);
+        assert_eq!((cam.lens_shift, cam.lens_scale), before);
+    }
+
+    /// Fitted to a part of the screen, the view frames the body as a window of that
+    /// part's size would: a part as wide as the screen changes nothing, a tall one
+    /// (between a drawer and a panel) keeps the body's width inside it.
+    #[test]
+    fn a_fitted_view_frames_the_body_as_a_window_of_the_free_part() {
+        let (min, max) = (
+            Vec3::new(-100.0, -80.0, -50.0),
+            Vec3::new(100.0, 80.0, 50.0),
+        );
+        let size = Vec2::new(1280.0, 720.0);
+        let screen = (Vec2::ZERO, size);
+        let corners: Vec<Vec3> = (0..8)
+            .map(|k| Vec3::select(glam::BVec3::new(k & 1 > 0, k & 2 > 0, k & 4 > 0), max, min))
+            .collect();
+        let extent = |cam: &OrbitCamera, size: Vec2, offset: Vec2| {
+            let px: Vec<Vec2> = corners
+                .iter()
+                .map(|&p| cam.project(p, size).expect("in front") - offset)
+                .collect();
+            let lo = px.iter().fold(Vec2::splat(f32::MAX), |a, &b| a.min(b));
+            let hi = px.iter().fold(Vec2::splat(f32::MIN), |a, &b| a.max(b));
+            (lo, hi)
+        };
+        for free in [
+            (Vec2::new(340.0, 0.0), size),
+            (Vec2::new(340.0, 0.0), Vec2::new(850.0, 720.0)),
+            (Vec2::new(0.0, 0.0), Vec2::new(1280.0, 380.0)),
+        ] {
+            let mut cam = OrbitCamera::framing(min, max);
+            let alone = extent(&cam, free.1 - free.0, Vec2::ZERO);
+            cam.center_view_in(free, screen);
+            let fitted = extent(&cam, size, free.0);
+            for (a, b) in [(alone.0, fitted.0), (alone.1, fitted.1)] {
+                assert!(
+                    (a - b).length() < 0.05,
+                    "{free:?}: {a} in a window, {b} fitted"
+                );
+            }
+        }
+        // Between a drawer and a panel the body's width stays inside the free part.
+        let mut cam = OrbitCamera::framing(min, max);
+        let free = (Vec2::new(340.0, 0.0), Vec2::new(850.0, 720.0));
+        cam.center_view_in(free, screen);
+        let (lo, hi) = extent(&cam, size, Vec2::ZERO);
+        let ray_through = |p: Vec3| {
+            let px = cam.project(p, size).expect("in front");
+            let ray = cam.ray(px, size);
+            let to_p = p - ray.origin;
+            (to_p - to_p.dot(ray.dir) * ray.dir).length()
+        };
+        assert!(ray_through(Vec3::new(30.0, 40.0, -20.0)) < 1e-2);
+        // The box's corners span the free part's 510 px (720 on the whole screen).
+        let whole = extent(&OrbitCamera::framing(min, max), size, Vec2::ZERO);
+        let (width, whole_width) = (hi.x - lo.x, whole.1.x - whole.0.x);
+        assert!(
+            width < 1.02 * 510.0 && width < 0.75 * whole_width,
+            "{lo} {hi}, {whole:?}"
+        );
+        let middle = 0.5 * (lo.x + hi.x);
+        assert!((middle - 595.0).abs() < 25.0, "{lo} {hi}");
     }
 
     #[test]

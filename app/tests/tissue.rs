@@ -270,7 +270,10 @@ fn eval_reads_a_tissue_file_both_ways() {
     assert_eq!(v["beyond_depth_max"], true);
     assert_eq!(v["requested_depth_mm"], 12.0);
     // Flagged in the report and said on stderr, with what was asked.
-    assert!(e.contains("held at its last depth") && e.contains("(asked 12.00 mm)"), "{e}");
+    assert!(
+        e.contains("held at its last depth") && e.contains("(asked 12.00 mm)"),
+        "{e}"
+    );
     // A force no press reaches is held at the limit and answers the force there,
     // the one asked for beside it.
     let held = v["force_n"].as_f64().expect("force");
@@ -278,7 +281,10 @@ fn eval_reads_a_tissue_file_both_ways() {
     let v = v.unwrap_or_else(|| panic!("{e}"));
     assert_eq!(v["beyond_depth_max"], true);
     assert_eq!(v["requested_force_n"], 1e6);
-    assert!(e.contains("held at") && e.contains("(asked 1000000.00 N)"), "{e}");
+    assert!(
+        e.contains("held at") && e.contains("(asked 1000000.00 N)"),
+        "{e}"
+    );
     let at_limit = v["force_n"].as_f64().expect("force");
     assert!(
         (at_limit - held).abs() < 1e-9 * held,
