@@ -19,7 +19,7 @@ use crate::input::PressMode;
 use crate::overlay::{Overlay, headless_input};
 use crate::render::Renderer;
 use crate::render::gpu::{AdapterReport, Gpu};
-use crate::render::offscreen::{FORMAT, Image, Offscreen, UI_FORMAT};
+use crate::render::offscreen::{FORMAT, Image, Offscreen};
 use crate::session::Session;
 use crate::stats::percentile;
 use crate::ui::Hud;
@@ -241,10 +241,10 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         Some(p) => ProbePath::load(p)?,
         None => ProbePath::default_for(0.5 * (min + max), front),
     };
-    let target = Offscreen::new(&gpu.device, opts.size);
+    let target = Offscreen::new(&gpu.device, opts.size, gpu.can_reinterpret());
     let mut overlay = opts
         .ui
-        .then(|| Overlay::new(&gpu.device, UI_FORMAT, gpu.is_software()));
+        .then(|| Overlay::new(&gpu.device, target.ui_format, gpu.is_software()));
     let mut hud = Hud::new(loaded_source);
     hud.panel_open = opts.display.panel_open;
     session.controls.mode = PressMode::Depth;

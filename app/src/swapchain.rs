@@ -57,14 +57,24 @@ impl SurfaceHost {
         };
         let size = window.inner_size();
         let caps = surface.get_capabilities(&gpu.adapter);
+        // Where the device can view the surface in its sRGB twin, the surface is plain
+        // (egui blends in gamma space) and the scene draws through the sRGB view; on
+        // GL it cannot, and both draw into an sRGB surface.
+        let reinterpret = gpu.can_reinterpret();
         let surface_format = caps
             .formats
             .iter()
             .copied()
-            .find(|f| !f.is_srgb() && f.add_srgb_suffix() != *f)
+            .find(|f| match reinterpret {
+                true => !f.is_srgb() && f.add_srgb_suffix() != *f,
+                false => f.is_srgb(),
+            })
             .or_else(|| caps.formats.first().copied())
             .context("the surface supports no format with this adapter")?;
-        let scene = surface_format.add_srgb_suffix();
+        let scene = match reinterpret {
+            true => surface_format.add_srgb_suffix(),
+            false => surface_format,
+        };
         let mut config = surface
             .get_default_config(&gpu.adapter, size.width.max(1), size.height.max(1))
             .context("the surface is not supported by the adapter")?;

@@ -31,7 +31,7 @@ use winit::window::{Window, WindowId};
 use crate::gamepad::Gamepads;
 use crate::input::{Button, InputEvent, PointerId};
 use crate::render::gpu::Gpu;
-use crate::render::offscreen::{FORMAT, Offscreen, UI_FORMAT};
+use crate::render::offscreen::{FORMAT, Offscreen};
 use crate::shell::{Drawing, Room, Shell};
 use crate::swapchain::SurfaceHost;
 
@@ -217,12 +217,12 @@ impl App {
     /// the working folder.
     fn screenshot(&mut self, size: (u32, u32)) -> anyhow::Result<String> {
         let g = self.graphics.as_mut().context("no GPU yet")?;
-        let target = Offscreen::new(&g.gpu.device, size);
+        let target = Offscreen::new(&g.gpu.device, size, g.gpu.can_reinterpret());
         let mut drawing = Drawing::new(
             &g.gpu.device,
             &self.shell.room,
             FORMAT,
-            UI_FORMAT,
+            target.ui_format,
             g.gpu.is_software(),
         );
         let raw = crate::overlay::headless_input(

@@ -49,7 +49,7 @@ fn gpu_and_cpu_deformation_agree() {
         session.controls.modes = modes;
         settle(&session, std::time::Duration::from_secs(2));
         let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
-        let target = Offscreen::new(&gpu.device, (64, 64));
+        let target = Offscreen::new(&gpu.device, (64, 64), gpu.can_reinterpret());
         let input = session.frame();
         assert_eq!(input.coeffs.len(), modes as usize);
         let encoder = renderer.encode_frame(&gpu, &target.view, (64, 64), &input);
@@ -110,7 +110,7 @@ fn default_scene_matches_the_reference_image() {
     session.colormap_mm = None;
     let size = (320, 240);
     let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
-    let target = Offscreen::new(&gpu.device, size);
+    let target = Offscreen::new(&gpu.device, size, gpu.can_reinterpret());
     let input = session.frame();
     let mut encoder = renderer.encode_frame(&gpu, &target.view, size, &input);
     target.encode_copy(&mut encoder);
@@ -336,7 +336,7 @@ fn the_region_mode_draws_the_painted_regions() {
     );
     assert!(session.painter.as_ref().expect("on").counts().0 > 0);
     let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
-    let target = Offscreen::new(&gpu.device, size);
+    let target = Offscreen::new(&gpu.device, size, gpu.can_reinterpret());
     let mut render = |session: &mut Session| {
         let input = session.frame();
         let mut encoder = renderer.encode_frame(&gpu, &target.view, size, &input);

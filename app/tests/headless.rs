@@ -280,3 +280,55 @@ fn a_probe_path_far_off_the_organ_is_refused() {
     let e = path("1e300").expect_err("1e300 mm refused");
     assert!(e.to_string().contains("within ±1e6 mm"), "{e}");
 }
+
+/// On GL a texture cannot be viewed in another format (no `VIEW_FORMATS`): the frame
+/// and its interface draw into the sRGB target itself. Where the machine has a GL
+/// adapter (Mesa's llvmpipe here), the scene matches Vulkan's; where it has none, the
+/// error says so by name, never a validation error.
+#[test]
+fn the_gl_backend_draws_what_vulkan_draws() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let shot = |backend: &str, ui: bool| {
+        let png = dir.path().join(format!("{backend}-{ui}.png"));
+        let mut args = vec![
+            "headless", "--frames", "25", "--fps", "0", "--size", "320x200",
+        ];
+        if !ui {
+            args.push("--no-ui");
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args(&args)
+            .args(["--out", png.to_str().expect("utf-8"), "--json"])
+            .env("WGPU_BACKEND", backend)
+            .output()
+            .expect("palpa runs");
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        let image = out
+            .status
+            .success()
+            .then(|| palpa_app::render::offscreen::Image::load_png(&png).expect("a PNG"));
+        (image, stderr)
+    };
+    let (vulkan, e) = shot("vulkan", false);
+    let vulkan = vulkan.unwrap_or_else(|| panic!("{e}"));
+    let (gl, e) = shot("gl", false);
+    assert!(!e.contains("Validation Error"), "{e}");
+    let Some(gl) = gl else {
+        assert!(e.contains("no GPU adapter found"), "{e}");
+        return;
+    };
+    // The same scene: the rasterizers differ only along edges.
+    let differ = vulkan
+        .rgba
+        .chunks_exact(4)
+        .zip(gl.rgba.chunks_exact(4))
+        .filter(|(a, b)| a.iter().zip(b.iter()).any(|(x, y)| x.abs_diff(*y) > 24))
+        .count();
+    let share = differ as f64 / f64::from(320 * 200);
+    assert!(share < 0.03, "{:.1} % of pixels differ", 100.0 * share);
+    // With the interface: drawn, and over the scene.
+    let (with_ui, e) = shot("gl", true);
+    let with_ui = with_ui.unwrap_or_else(|| panic!("{e}"));
+    assert!(!e.contains("Validation Error"), "{e}");
+    assert_ne!(with_ui.rgba, gl.rgba, "no interface drawn");
+}

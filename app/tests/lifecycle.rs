@@ -19,7 +19,7 @@ const LANDSCAPE: (u32, u32) = (1170, 540);
 
 fn frame(shell: &mut Shell, gpu: &Gpu, drawing: &mut Drawing, size: (u32, u32)) -> Image {
     assert!(shell.has_surface(), "a frame needs a surface");
-    let target = Offscreen::new(&gpu.device, size);
+    let target = Offscreen::new(&gpu.device, size, gpu.can_reinterpret());
     let raw = palpa_app::overlay::headless_input(size, 1.5, Insets::default(), 0.0);
     let (mut encoder, _) = shell.encode(
         gpu,

@@ -201,11 +201,13 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
     let (report, _) = run(&opts)?;
     if !print_json(args.json, &report)? {
         println!(
-            "{} frames at {}x{} on {}: frame p50 {:.2} ms, p95 {:.2} ms; evaluation p50 {:.1} µs, joint {:.1} µs",
+            "{} frames at {}x{} on {} ({}, {}): frame p50 {:.2} ms, p95 {:.2} ms; evaluation p50 {:.1} µs, joint {:.1} µs",
             report.frames,
             size.0,
             size.1,
             report.adapter.name,
+            report.adapter.backend,
+            report.adapter.device_type,
             report.frame_ms_p50,
             report.frame_ms_p95,
             report.eval_us_p50,

@@ -13,7 +13,7 @@ use super::build::BuildState;
 use crate::overlay::{Overlay, headless_input};
 use crate::render::gpu::{AdapterReport, Gpu};
 use crate::render::landscape::Landscape;
-use crate::render::offscreen::{FORMAT, Image, Offscreen, UI_FORMAT};
+use crate::render::offscreen::{FORMAT, Image, Offscreen};
 use crate::stats::percentile;
 use crate::ui::Hud;
 
@@ -89,8 +89,8 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         None => None,
     };
     let gpu = Gpu::headless()?;
-    let target = Offscreen::new(&gpu.device, opts.size);
-    let mut overlay = Overlay::new(&gpu.device, UI_FORMAT, gpu.is_software());
+    let target = Offscreen::new(&gpu.device, opts.size, gpu.can_reinterpret());
+    let mut overlay = Overlay::new(&gpu.device, target.ui_format, gpu.is_software());
     let mut landscape = Landscape::new(&gpu.device, FORMAT);
     let mut hud = Hud::new(opts.scene.clone());
     hud.panel_open = opts.display.panel_open;

@@ -45,6 +45,16 @@ impl Gpu {
         }
     }
 
+    /// Whether a texture can be viewed in another format than its own (its sRGB twin):
+    /// not on GL (`DownlevelFlags::VIEW_FORMATS`). Without it the interface draws into
+    /// the sRGB target itself (egui blends in linear space there: a shade lighter edges).
+    pub fn can_reinterpret(&self) -> bool {
+        self.adapter
+            .get_downlevel_capabilities()
+            .flags
+            .contains(wgpu::DownlevelFlags::VIEW_FORMATS)
+    }
+
     /// A context without a window (tests, `palpa headless`). Honours `WGPU_BACKEND`,
     /// `WGPU_ADAPTER_NAME` and `WGPU_POWER_PREF`.
     pub fn headless() -> anyhow::Result<Self> {

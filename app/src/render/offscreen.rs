@@ -14,8 +14,11 @@ pub const UI_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 pub struct Offscreen {
     pub texture: wgpu::Texture,
     pub view: wgpu::TextureView,
-    /// A [`UI_FORMAT`] view of the same texture, for the egui overlay.
+    /// A view of the same texture for the egui overlay, in `ui_format`.
     pub ui_view: wgpu::TextureView,
+    /// [`UI_FORMAT`], or [`FORMAT`] itself where the device cannot view a texture in
+    /// another format ([`Gpu::can_reinterpret`](super::gpu::Gpu::can_reinterpret)).
+    pub ui_format: wgpu::TextureFormat,
     readback: wgpu::Buffer,
     pub size: (u32, u32),
     padded_row: u32,
@@ -30,18 +33,20 @@ pub struct Image {
 }
 
 impl Offscreen {
-    pub fn new(device: &wgpu::Device, size: (u32, u32)) -> Self {
+    /// `reinterpret`: whether the device can view the texture as [`UI_FORMAT`].
+    pub fn new(device: &wgpu::Device, size: (u32, u32), reinterpret: bool) -> Self {
+        let ui_format = if reinterpret { UI_FORMAT } else { FORMAT };
         let texture = super::texture_2d(
             device,
             "offscreen colour",
             size,
             FORMAT,
             wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            &[UI_FORMAT],
+            if reinterpret { &[UI_FORMAT] } else { &[] },
         );
         let view = texture.create_view(&Default::default());
         let ui_view = texture.create_view(&wgpu::TextureViewDescriptor {
-            format: Some(UI_FORMAT),
+            format: Some(ui_format),
             ..Default::default()
         });
         let padded_row = (4 * size.0).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -55,6 +60,7 @@ impl Offscreen {
             texture,
             view,
             ui_view,
+            ui_format,
             readback,
             size,
             padded_row,
