@@ -612,6 +612,9 @@ fn tissue_check_separates_the_blend_from_the_press() {
         assert_eq!(by_depth["presses_compared"], 2, "{by_depth}");
     }
     assert!(num(full, "force_eval_us") > 0.0 && num(full, "surface_eval_us") > 0.0);
+    // The inverse (force in, depth out) gives each answered force's depth back.
+    assert!(num(full, "inverse_eval_us") > 0.0, "{full}");
+    assert!(num(full, "inverse_worst_mm") < 1e-6, "{full}");
     let linear = &table["linear"];
     assert!(num(linear, "worst_surface_max_error_mm") > num(full, "worst_surface_max_error_mm"));
     assert!(num(linear, "worst_force_rel_error") > num(full, "worst_force_rel_error"));

@@ -222,7 +222,9 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
 }
 
 /// One setting's row: errors over all presses and per held-out depth, and the
-/// on-line times (force: mean of many calls; surface: one whole-surface update).
+/// on-line times (force and its inverse, force in and depth out as the gamepad's trigger
+/// asks: means of many calls; surface: one whole-surface update). The inverse of each
+/// answered force is held to its depth (`inverse_worst_mm`).
 fn measure(
     bound: &BoundTissue,
     presses: &[Press],
@@ -236,6 +238,7 @@ fn measure(
     let mut all = Errors::default();
     let mut by_depth: Vec<Errors> = depths_mm.iter().map(|_| Errors::default()).collect();
     let (mut force_s, mut force_calls, mut surface_s) = (0.0, 0usize, 0.0);
+    let (mut inverse_s, mut inverse_worst_mm) = (0.0, 0.0f64);
     for p in presses {
         let (limit, _) = bound.limit_mm(&p.point);
         let at_depth = depths_mm.iter().position(|&d| d == p.depth_mm);
@@ -249,11 +252,27 @@ fn measure(
         let t = Instant::now();
         let mut force = 0.0;
         for _ in 0..1000 {
-            force =
-                std::hint::black_box(bound.force_n(&p.point, p.depth_mm, p.compliance_mm_per_n)).0;
+            force = std::hint::black_box(bound.force_n(
+                std::hint::black_box(&p.point),
+                std::hint::black_box(p.depth_mm),
+                p.compliance_mm_per_n,
+            ))
+            .0;
         }
         force_s += t.elapsed().as_secs_f64();
         force_calls += 1000;
+        let t = Instant::now();
+        let mut depth = 0.0;
+        for _ in 0..1000 {
+            depth = std::hint::black_box(bound.depth_mm(
+                std::hint::black_box(&p.point),
+                std::hint::black_box(force),
+                p.compliance_mm_per_n,
+            ))
+            .0;
+        }
+        inverse_s += t.elapsed().as_secs_f64();
+        inverse_worst_mm = inverse_worst_mm.max((depth - p.depth_mm).abs());
         rows.copy_from_slice(&p.linear_rows);
         let t = Instant::now();
         bound.add_surface(&p.point, p.depth_mm, &mut scratch, &mut rows);
@@ -281,6 +300,8 @@ fn measure(
             .collect::<Vec<_>>()
     );
     row["force_eval_us"] = json!((force_calls > 0).then(|| force_s / force_calls as f64 * 1e6));
+    row["inverse_eval_us"] = json!((force_calls > 0).then(|| inverse_s / force_calls as f64 * 1e6));
+    row["inverse_worst_mm"] = json!((force_calls > 0).then_some(inverse_worst_mm));
     row["surface_eval_us"] =
         json!((all.compared > 0).then(|| surface_s / all.compared as f64 * 1e6));
     row
