@@ -1531,6 +1531,18 @@ fn a_point_on_the_fixed_region_is_named_held() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("lies on the fixed region"), "{err}");
     assert!(!err.contains("too few modes"), "{err}");
+    // The linear scene names it too: no force presses it, a force shows the tissue
+    // around it.
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
+    let out = palpa(&["eval", scene, held, "--depth-mm", "2.6", "--json"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("lies on the fixed region"),
+        "{err}"
+    );
+    let out = palpa(&["eval", scene, held, "--force-n", "3", "--json"]);
+    let v = common::json_ok(&out);
+    assert_eq!(v["probe_displacement_mm"], 0.0, "{v}");
     let out = palpa(&["tissue", "check", shipped, held, "--depths", "2.6"]);
     let lines = common::json_lines_ok(&out);
     assert!(

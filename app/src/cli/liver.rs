@@ -697,6 +697,13 @@ fn press_force(probe: &ProbeArgs, compliance_mm_per_n: Option<f64>) -> anyhow::R
         (Some(f), _) => Ok(f),
         (None, Some(d)) => match compliance_mm_per_n {
             Some(c) if c.is_finite() && c.abs() > 0.0 => Ok(d / c),
+            // A point whose triangle is held on the fixed region: no force moves it.
+            Some(c) if c.is_finite() => bail!(
+                "--depth-mm {d}: the probe point does not move under a push (its \
+                 displacement along the push is {c:.3e} mm/N: it lies on the fixed region, \
+                 its triangle held), so no force presses it {d} mm; press a point off the \
+                 fixed region, or give --force-n to see the tissue around it move"
+            ),
             _ => bail!(
                 "--depth-mm needs the probe displacement at this point, which this model does not give; use --force-n"
             ),
