@@ -106,6 +106,25 @@ pub const LANDSCAPE_HEIGHT: f32 = 45.0;
 /// Most cells a side of a [`JointWindow`].
 pub const MAX_CELLS: usize = 160;
 
+/// The copy numbers worth showing of a marginal `p`: from the first to the last where
+/// it is at least 1e-4 of its largest value, two more each side (the joint's rule, so
+/// its plot shows the mass instead of the whole truncated range). `None` where `p` is
+/// zero (or not finite) everywhere.
+pub fn marginal_window(p: &[f64]) -> Option<std::ops::RangeInclusive<usize>> {
+    let top = p
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max);
+    if top <= 0.0 {
+        return None;
+    }
+    let shown = |v: &f64| *v >= 1e-4 * top;
+    let first = p.iter().position(shown)?;
+    let last = p.iter().rposition(shown)?;
+    Some(first.saturating_sub(2)..=(last + 2).min(p.len() - 1))
+}
+
 impl Joint {
     /// The square window (with a margin) around where the joint is at least 1e-4 of
     /// its largest value: the box is sized for every time and parameter, the
@@ -603,5 +622,23 @@ mod tests {
         // 64⁸ states: FSP refuses by size.
         let err = format!("{:#}", room.start_check().expect_err("too large"));
         assert!(err.contains("states"), "{err}");
+    }
+
+    /// A marginal's plot shows where its mass is (two copies' margin), within the
+    /// truncated range; nothing to show where it is zero or not finite.
+    #[test]
+    fn a_marginal_plot_shows_where_the_mass_is() {
+        let mut p = vec![0.0; 200];
+        for (z, v) in p.iter_mut().enumerate().skip(30).take(20) {
+            *v = (-((z as f64 - 40.0) / 3.0).powi(2)).exp();
+        }
+        // 1e-4 of the peak: copy 30 is below it (e^-11.1), 31 and 49 above (e^-9).
+        assert_eq!(marginal_window(&p), Some(29..=51));
+        p[1] = 0.5;
+        p[199] = 2e-4;
+        assert_eq!(marginal_window(&p), Some(0..=199));
+        assert_eq!(marginal_window(&[0.0; 5]), None);
+        assert_eq!(marginal_window(&[f64::NAN; 5]), None);
+        assert_eq!(marginal_window(&[]), None);
     }
 }

@@ -347,6 +347,8 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
         return;
     }
     let cols = room.species.len().clamp(1, 2);
+    // Measured outside the grid: inside a cell the width left is the cell's.
+    let plot_width = (ui.available_width() / cols as f32 - 12.0).max(90.0);
     egui::Grid::new("marginals").show(ui, |ui| {
         for (i, (name, m)) in room.species.iter().zip(&e.moments.marginals).enumerate() {
             ui.vertical(|ui| {
@@ -355,27 +357,24 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
                     e.moments.mean[i],
                     e.moments.var[i].max(0.0).sqrt()
                 ));
-                let bars: Vec<egui_plot::Bar> = m
-                    .iter()
-                    .enumerate()
-                    .map(|(z, &p)| egui_plot::Bar::new(z as f64, p).width(1.0))
+                // Only where the mass is: the truncated range runs far past it.
+                let shown = super::marginal_window(m).unwrap_or(0..=m.len().saturating_sub(1));
+                let points = |p: &[f64]| -> Vec<[f64; 2]> {
+                    p.iter()
+                        .enumerate()
+                        .filter(|(z, _)| shown.contains(z))
+                        .map(|(z, &p)| [z as f64, p])
+                        .collect()
+                };
+                let bars: Vec<egui_plot::Bar> = points(m)
+                    .into_iter()
+                    .map(|[z, p]| egui_plot::Bar::new(z, p).width(1.0))
                     .collect();
-                let exact: Option<Vec<[f64; 2]>> = room.check_result.as_ref().map(|r| {
-                    r.exact.marginals[i]
-                        .iter()
-                        .enumerate()
-                        .map(|(z, &p)| [z as f64, p])
-                        .collect()
-                });
-                let sampled: Option<Vec<[f64; 2]>> = room.ssa_result.as_ref().map(|r| {
-                    r.sampled.marginals[i]
-                        .iter()
-                        .enumerate()
-                        .map(|(z, &p)| [z as f64, p])
-                        .collect()
-                });
+                let exact = (room.check_result.as_ref()).map(|r| points(&r.exact.marginals[i]));
+                let sampled = (room.ssa_result.as_ref()).map(|r| points(&r.sampled.marginals[i]));
                 egui_plot::Plot::new(format!("marginal-{i}"))
-                    .width(0.46 * ui.available_width().max(200.0))
+                    .width(plot_width)
+                    .x_axis_label(format!("copies {}..{}", shown.start(), shown.end()))
                     .height(90.0)
                     .include_y(0.0)
                     .allow_zoom(false)
