@@ -116,12 +116,25 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
     let scene =
         PalpationScene::new(model).with_context(|| format!("{spec} is not a palpation scene"))?;
     let law = sidecar_tissue(path, &scene)?;
+    let goals_to_mm = match &law {
+        Some(Tissue::Vademecum(_)) => tissue_goals(&path.with_extension("tissue")),
+        _ => None,
+    };
     Ok(LoadedScene {
         scene,
         source: path.display().to_string(),
         law,
-        goals_to_mm: None,
+        goals_to_mm,
     })
+}
+
+/// The depths a tissue file is measured within the goals to, where known: the
+/// built-in tissue's, for its bytes wherever they lie (`assets/liver-coarse.tissue`
+/// opened by path, or copied); `None` for any other file.
+pub fn tissue_goals(path: &Path) -> Option<GoalDepths> {
+    let same_size = std::fs::metadata(path).ok()?.len() == BUILT_IN_TISSUE.len() as u64;
+    let bytes = same_size.then(|| std::fs::read(path).ok()).flatten()?;
+    (bytes == BUILT_IN_TISSUE).then_some(BUILT_IN_GOALS_TO_MM)
 }
 
 /// A scene of either kind, ready for its room.

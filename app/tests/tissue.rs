@@ -248,6 +248,8 @@ fn eval_reads_a_tissue_file_both_ways() {
     let (v, e) = eval(&["--depth-mm", "5"]);
     let v = v.unwrap_or_else(|| panic!("{e}"));
     assert_eq!(v["model"], "tissue");
+    // A file nobody measured against the full FE claims no depth.
+    assert!(v["goals_to_mm"].is_null(), "{v}");
     assert_eq!(v["probe_displacement_mm"], 5.0);
     let force = v["force_n"].as_f64().expect("force");
     let linear = v["linear_force_n"].as_f64().expect("linear force");
@@ -1554,4 +1556,39 @@ fn a_point_on_the_fixed_region_is_named_held() {
     let summary = lines.last().expect("a summary");
     assert_eq!(summary["points_held"], 1, "{summary}");
     assert_eq!(summary["presses_compared"], 0, "{summary}");
+}
+
+/// The shipped tissue, wherever its bytes lie (its own path, a copy, the scene beside
+/// it opened by path), carries the depths it is measured within the goals to: `palpa
+/// eval` reports them and warns past them as the panel does.
+#[test]
+fn the_shipped_tissue_says_how_deep_it_is_measured() {
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let copy = dir.path().join("copy.tissue");
+    std::fs::copy(shipped, &copy).expect("copies");
+    let goals = palpa_app::scenes::BUILT_IN_GOALS_TO_MM;
+    for file in [shipped, copy.to_str().expect("utf-8")] {
+        for (depth, past) in [("9", false), ("13", true)] {
+            let out = palpa(&["eval", file, "--at=60,10,0", "--depth-mm", depth, "--json"]);
+            let v = common::json_ok(&out);
+            assert_eq!(v["goals_to_mm"]["both"], f64::from(goals.both_mm), "{v}");
+            assert_eq!(v["goals_to_mm"]["force"], 14.6, "{v}");
+            let said = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(
+                said.contains("deeper than 11.5 mm"),
+                past,
+                "{depth} mm: {said}"
+            );
+        }
+    }
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
+    let opened = palpa_app::scenes::load(scene).expect("the shipped scene by path");
+    assert_eq!(opened.goals_to_mm, Some(goals));
+    // Changed by a byte, it is another tissue.
+    let mut bytes = std::fs::read(&copy).expect("reads");
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&copy, bytes).expect("writes");
+    assert_eq!(palpa_app::scenes::tissue_goals(&copy), None);
 }

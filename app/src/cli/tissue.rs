@@ -608,6 +608,11 @@ pub fn eval(
     if let Some(eta) = surplus_mm.filter(|&e| e > BLEND_SURPLUS_WARN_MM) {
         eprintln!("warning: {}", palpa_app::session::blend_surplus_text(eta));
     }
+    // Past the depth the file is measured within the goals to, as the panel says it.
+    let goals = palpa_app::scenes::tissue_goals(file);
+    if let Some(g) = goals.filter(|g| depth > f64::from(g.both_mm)) {
+        eprintln!("warning: {}", g.past_text(depth as f32));
+    }
     let unpressed = bound.unpressed_corners(&point);
     if unpressed > 0 {
         eprintln!(
@@ -630,6 +635,12 @@ pub fn eval(
         "depth_limit_mm": limit_mm, "stopped": stopped,
         "blend_surplus_mm": surplus_mm,
         "unpressed_corners": unpressed,
+        // Measured within the goals to these depths (the built-in tissue), else null.
+        // (Stored as f32 tenths of a millimetre: printed as the tenths they are.)
+        "goals_to_mm": goals.map(|g| {
+            let tenths = |mm: f32| (f64::from(mm) * 10.0).round() / 10.0;
+            json!({"both": tenths(g.both_mm), "force": tenths(g.force_mm)})
+        }),
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
     });
     super::args::print_report(&report, json_out)
