@@ -1567,7 +1567,7 @@ fn the_shipped_tissue_says_how_deep_it_is_measured() {
     let dir = tempfile::tempdir().expect("tempdir");
     let copy = dir.path().join("copy.tissue");
     std::fs::copy(shipped, &copy).expect("copies");
-    let goals = palpa_app::scenes::BUILT_IN_GOALS_TO_MM;
+    let goals = scenes::BUILT_IN_GOALS_TO_MM;
     for file in [shipped, copy.to_str().expect("utf-8")] {
         for (depth, past) in [("9", false), ("13", true)] {
             let out = palpa(&["eval", file, "--at=60,10,0", "--depth-mm", depth, "--json"]);
@@ -1583,12 +1583,12 @@ fn the_shipped_tissue_says_how_deep_it_is_measured() {
         }
     }
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
-    let opened = palpa_app::scenes::load(scene).expect("the shipped scene by path");
+    let opened = scenes::load(scene).expect("the shipped scene by path");
     assert_eq!(opened.goals_to_mm, Some(goals));
     // Changed by a byte, it is another tissue.
     let mut bytes = std::fs::read(&copy).expect("reads");
     let last = bytes.len() - 1;
     bytes[last] ^= 1;
     std::fs::write(&copy, bytes).expect("writes");
-    assert_eq!(palpa_app::scenes::tissue_goals(&copy), None);
+    assert_eq!(scenes::tissue_goals(&copy), None);
 }
