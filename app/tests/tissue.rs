@@ -1582,6 +1582,12 @@ fn the_shipped_tissue_says_how_deep_it_is_measured() {
             );
         }
     }
+    let info = common::json_ok(&palpa(&["info", shipped, "--json"]));
+    assert_eq!(
+        info["goals_to_mm"]["both"],
+        f64::from(goals.both_mm),
+        "{info}"
+    );
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
     let opened = scenes::load(scene).expect("the shipped scene by path");
     assert_eq!(opened.goals_to_mm, Some(goals));

@@ -335,6 +335,13 @@ fn stopped_by(stopped: &[String]) -> serde_json::Value {
     })
 }
 
+/// The depths a tissue is measured within the goals to, as JSON (null where unknown).
+/// They are f32 tenths of a millimetre, printed as the tenths they are.
+fn goals_json(goals: Option<palpa_app::session::GoalDepths>) -> serde_json::Value {
+    let tenths = |mm: f32| (f64::from(mm) * 10.0).round() / 10.0;
+    json!(goals.map(|g| json!({"both": tenths(g.both_mm), "force": tenths(g.force_mm)})))
+}
+
 /// What a tissue file holds: its samples, how far its presses reach, its bytes and
 /// bound (`palpa info X.tissue`, `palpa tissue cut`).
 pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
@@ -364,6 +371,8 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
         "payload_bytes": law.payload_bytes(),
         "file_bytes": std::fs::metadata(path).map(|m| m.len()).unwrap_or(0),
         "build_s": law.build_s,
+        // Measured against the full FE to these depths (the built-in tissue's bytes).
+        "goals_to_mm": goals_json(palpa_app::scenes::tissue_goals(path)),
     })
 }
 
@@ -636,11 +645,7 @@ pub fn eval(
         "blend_surplus_mm": surplus_mm,
         "unpressed_corners": unpressed,
         // Measured within the goals to these depths (the built-in tissue), else null.
-        // (Stored as f32 tenths of a millimetre: printed as the tenths they are.)
-        "goals_to_mm": goals.map(|g| {
-            let tenths = |mm: f32| (f64::from(mm) * 10.0).round() / 10.0;
-            json!({"both": tenths(g.both_mm), "force": tenths(g.force_mm)})
-        }),
+        "goals_to_mm": goals_json(goals),
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
     });
     super::args::print_report(&report, json_out)
