@@ -408,11 +408,26 @@ impl BoundTissue {
         (d / compliance_mm_per_n * g, depth_mm > top * (1.0 + 1e-12))
     }
 
-    /// Force in, depth out: the depth whose force is `force_n` (bisection on the
-    /// blended curve, which does not fall with depth up to the probe's limit: every
-    /// press kept stops where its force falls, and is held at its largest over a dip
-    /// within tolerance); held at the limit, and flagged, when even
-    /// that needs less force.
+    /// The blended ratio at grid depth `j` (1 where no corner was sampled).
+    fn blended_node(&self, terms: Option<&Terms>, j: usize) -> f64 {
+        let steps = self.law.steps as usize;
+        terms.map_or(1.0, |corners| {
+            corners
+                .iter()
+                .map(|&(s, w)| w * f64::from(self.law.ratio[s * steps + j]))
+                .sum()
+        })
+    }
+
+    /// Force in, depth out: the depth whose force is `force_n` on the blended curve,
+    /// which does not fall with depth up to the probe's limit (every press kept stops
+    /// where its force falls, and is held at its largest over a dip within tolerance);
+    /// held at the limit, and flagged, when even that needs less force.
+    ///
+    /// The ratio is linear in the depth between grid depths, so the force `d/c · g(d)`
+    /// is a quadratic there: the grid interval that holds `force_n` is found by
+    /// bisection over the grid depths, then its quadratic is solved, about seven
+    /// blends in all.
     pub fn depth_mm(&self, p: &ProbePoint, force_n: f64, compliance_mm_per_n: f64) -> (f64, bool) {
         let terms = self.terms(p);
         let (last, _) = self.last_depth(terms.as_ref());
@@ -441,16 +456,37 @@ impl BoundTissue {
             };
             return (d, false);
         }
-        let (mut lo, mut hi) = (0.0, top);
-        for _ in 0..48 {
-            let mid = 0.5 * (lo + hi);
-            if f(mid) < force_n {
+        // f(0) = 0 < F <= f(top): keep f(lo) < F <= f(hi) over grid depths.
+        let h = self.law.options.depth_step_mm;
+        let at_node =
+            |j: usize| j as f64 * h / compliance_mm_per_n * self.blended_node(terms.as_ref(), j);
+        let (mut lo, mut hi) = (0, last);
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            if at_node(mid) < force_n {
                 lo = mid;
             } else {
                 hi = mid;
             }
         }
-        (0.5 * (lo + hi), false)
+        // On [d0, d0 + h]: g(d) = ga + k (d - d0), so F c = k d² + b d with b = ga - k d0;
+        // the root in the interval is the one nearer zero, taken in the form that does
+        // not cancel.
+        let (ga, gb) = (
+            self.blended_node(terms.as_ref(), lo),
+            self.blended_node(terms.as_ref(), hi),
+        );
+        let d0 = lo as f64 * h;
+        let k = (gb - ga) / h;
+        let b = ga - k * d0;
+        let fc = force_n * compliance_mm_per_n;
+        let root = (b * b + 4.0 * k * fc).max(0.0).sqrt();
+        let d = if b + root > 0.0 {
+            2.0 * fc / (b + root)
+        } else {
+            d0
+        };
+        (d.clamp(d0, hi as f64 * h), false)
     }
 
     /// Adds the nonlinear residual of a press of `depth_mm` at `p` to `rows_mm` (three

@@ -189,7 +189,17 @@ fn a_press_that_stopped_short_limits_only_the_probes_that_blend_it() {
     // Within the reach: d (1 − 0.1 d) = 0.45.
     let (d, flagged) = bound.depth_mm(&inside, 0.45, 1.0);
     let want = (1.0 - 0.82f64.sqrt()) / 0.2;
+    // (1e-6: the ratios are stored in f32.)
     assert!((d - want).abs() < 1e-6 && !flagged, "{d}");
+    // The inverse solves each grid interval's quadratic: every depth comes back to
+    // round-off, within the reach and across grid depths (seeded).
+    let mut rng = crate::rng::Rng::seed(5);
+    for _ in 0..200 {
+        let depth = rng.range(1e-3, 2.0);
+        let (f, _) = bound.force_n(&at_corner, depth, 1.0);
+        let (back, flagged) = bound.depth_mm(&at_corner, f, 1.0);
+        assert!((back - depth).abs() < 1e-12 && !flagged, "{depth} mm: {back}");
+    }
     // Tiny forces to relative round-off, below bisection's 4e-14 mm resolution too
     // (1e-300 N was once answered 1.8e-14 mm): d ≈ F (1 + 0.1 F).
     for force in [1e-300, 1e-12, 1e-7, 1e-4] {
