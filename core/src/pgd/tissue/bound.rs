@@ -439,23 +439,6 @@ impl BoundTissue {
         if f(top) < force_n {
             return (top, true);
         }
-        // Bisection on [0, top] resolves the depth to top / 2⁴⁸ (about 4e-14 mm), which
-        // is no answer for a force whose depth is smaller still (1e-300 N once gave
-        // 1.8e-14 mm). So deep within the first millionth of the range, where the ratio
-        // is its value at the linear depth to about that fraction, one fixed-point
-        // step from the linear depth answers to round-off.
-        let linear_mm = force_n * compliance_mm_per_n;
-        if linear_mm < 1e-6 * top {
-            // d = F c / g(d_lin) = d_lin · F / f(d_lin), in that order so nothing
-            // underflows.
-            let at = f(linear_mm);
-            let d = if at > 0.0 {
-                linear_mm * (force_n / at)
-            } else {
-                linear_mm
-            };
-            return (d, false);
-        }
         // f(0) = 0 < F <= f(top): keep f(lo) < F <= f(hi) over grid depths.
         let h = self.law.options.depth_step_mm;
         let at_node =
@@ -471,7 +454,8 @@ impl BoundTissue {
         }
         // On [d0, d0 + h]: g(d) = ga + k (d - d0), so F c = k d² + b d with b = ga - k d0;
         // the root in the interval is the one nearer zero, taken in the form that does
-        // not cancel.
+        // not cancel, so a tiny force's depth is F c / b to round-off (bisection's
+        // top / 2⁴⁸ had answered 1e-300 N with 1.8e-14 mm).
         let (ga, gb) = (
             self.blended_node(terms.as_ref(), lo),
             self.blended_node(terms.as_ref(), hi),

@@ -198,9 +198,12 @@ fn a_press_that_stopped_short_limits_only_the_probes_that_blend_it() {
         let depth = rng.range(1e-3, 2.0);
         let (f, _) = bound.force_n(&at_corner, depth, 1.0);
         let (back, flagged) = bound.depth_mm(&at_corner, f, 1.0);
-        assert!((back - depth).abs() < 1e-12 && !flagged, "{depth} mm: {back}");
+        assert!(
+            (back - depth).abs() < 1e-12 && !flagged,
+            "{depth} mm: {back}"
+        );
     }
-    // Tiny forces to relative round-off, below bisection's 4e-14 mm resolution too
+    // Tiny forces to relative round-off, below the old bisection's 4e-14 mm resolution
     // (1e-300 N was once answered 1.8e-14 mm): d ≈ F (1 + 0.1 F).
     for force in [1e-300, 1e-12, 1e-7, 1e-4] {
         let (d, flagged) = bound.depth_mm(&inside, force, 1.0);
