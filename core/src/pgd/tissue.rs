@@ -42,8 +42,9 @@
 //!
 //! coefficients linear in `d` between grid depths; the force is
 //! `F(s, d) = d / c(s) · g(s, d)`, `g` blended the same way, with `c(s)` the linear
-//! vademecum's exact compliance, and its inverse (force in, depth out) bisects that
-//! curve. The quadratic term matters where the deep press's response turns quickly
+//! vademecum's exact compliance, and its inverse (force in, depth out) solves that
+//! curve, a quadratic in `d` on each grid interval, on the interval that holds the
+//! force. The quadratic term matters where the deep press's response turns quickly
 //! along the surface: near a sharp border the tissue under the tool slides sideways by
 //! up to 6 mm beyond the linear answer at 13 mm, and the linear blend of three corners
 //! erred by 3.1 mm at a held-out point where the quadratic one erred by 0.2 mm (coarse
