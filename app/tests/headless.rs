@@ -332,3 +332,22 @@ fn the_gl_backend_draws_what_vulkan_draws() {
     assert!(!e.contains("Validation Error"), "{e}");
     assert_ne!(with_ui.rgba, gl.rgba, "no interface drawn");
 }
+
+#[test]
+fn a_session_without_a_runtime_folder_prints_no_loader_errors() {
+    // As under ssh, sudo or a container: libwayland (through Mesa's Vulkan layer)
+    // would print "error: XDG_RUNTIME_DIR is invalid or not set" before every frame.
+    for value in [None, Some("relative")] {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_palpa"));
+        cmd.args(["headless", "--frames", "2", "--size", "64x64", "--no-ui"])
+            .env("WGPU_BACKEND", "vulkan");
+        match value {
+            None => cmd.env_remove("XDG_RUNTIME_DIR"),
+            Some(v) => cmd.env("XDG_RUNTIME_DIR", v),
+        };
+        let out = cmd.output().expect("palpa runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{value:?}: {stderr}");
+    }
+}
