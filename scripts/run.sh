@@ -11,10 +11,6 @@ cd "$(dirname "$0")/.."
 scripts/deps.sh --gpu
 [[ -f "$HOME/.cargo/env" ]] && source "$HOME/.cargo/env"
 cargo build --release --locked -p palpa-app --bin palpa
-if [[ -z "${XDG_RUNTIME_DIR:-}" || ! -d "${XDG_RUNTIME_DIR}" ]]; then
-  XDG_RUNTIME_DIR=$(mktemp -d)
-  export XDG_RUNTIME_DIR
-fi
 if [[ $# -eq 0 && -z "${DISPLAY:-}" && -z "${WAYLAND_DISPLAY:-}" ]]; then
   echo "run.sh: no display found; rendering the default scene offscreen instead" >&2
   exec target/release/palpa headless --scene liver --out palpa-headless.png

@@ -9,6 +9,7 @@ scripts/deps.sh --gpu
 [[ -f "$HOME/.cargo/env" ]] && source "$HOME/.cargo/env"
 export CARGO_TERM_COLOR=never
 # Mesa wants a private runtime folder; without one it prints a harmless complaint.
+# (`palpa` sets its own; the test binaries that render in-process do not.)
 if [[ -z "${XDG_RUNTIME_DIR:-}" || ! -d "${XDG_RUNTIME_DIR}" ]]; then
   XDG_RUNTIME_DIR=$(mktemp -d)
   export XDG_RUNTIME_DIR
