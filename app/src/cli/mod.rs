@@ -93,7 +93,13 @@ pub fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+                // egui-wgpu warns that it "prefers" a plain target whenever it draws
+                // into an sRGB one. palpa does that only where the adapter cannot view
+                // a texture in its sRGB twin (GL), and egui then picks its shader for
+                // that target itself: the frame is right, the warning is noise.
+                .unwrap_or_else(|_| {
+                    tracing_subscriber::EnvFilter::new("warn,egui_wgpu::renderer=error")
+                }),
         )
         .with_writer(std::io::stderr)
         .init();
