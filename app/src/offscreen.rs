@@ -140,6 +140,8 @@ pub struct HeadlessOptions {
     pub out: Option<PathBuf>,
     pub modes: Option<u32>,
     pub colormap_mm: Option<f32>,
+    /// Where the surface is deformed (`None`: where it is faster for the adapter).
+    pub deform_on: Option<crate::render::deform::DeformOn>,
     /// Frame pacing (frames per second); 0: back to back.
     pub fps: f64,
     /// Draw the egui interface over the scene.
@@ -156,6 +158,8 @@ pub struct HeadlessReport {
     pub fps: f64,
     pub scene: String,
     pub modes_used: u32,
+    /// Where the surface was deformed: `gpu` (compute shader) or `cpu`.
+    pub deform: &'static str,
     pub frame_ms_p50: f64,
     pub frame_ms_p95: f64,
     pub frame_ms_max: f64,
@@ -231,6 +235,9 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         session.controls.modes = n.clamp(1, session.scene.modes() as u32);
     }
     session.colormap_mm = opts.colormap_mm;
+    session.deform_on = opts
+        .deform_on
+        .unwrap_or_else(|| crate::render::deform::DeformOn::preferred(gpu.is_software()));
     let (min, max) = renderer.bounds();
     let cam = session.controls.camera;
     let front = session.controls.probe.map_or(cam.target_mm, |p| {
@@ -340,6 +347,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         fps: opts.fps,
         scene: opts.scene.clone(),
         modes_used: session.controls.modes,
+        deform: session.deform_on.name(),
         frame_ms_p50: percentile(frame_ms.clone(), 0.5),
         frame_ms_p95: percentile(frame_ms.clone(), 0.95),
         frame_ms_max: percentile(frame_ms, 1.0),

@@ -20,6 +20,7 @@ use crate::network::build::{BuildState, NetworkBuild};
 use crate::network::{NetworkRoom, Prepared};
 use crate::overlay::Overlay;
 use crate::render::Renderer;
+use crate::render::deform::DeformOn;
 use crate::render::gpu::Gpu;
 use crate::render::landscape::Landscape;
 use crate::scenes::Opened;
@@ -262,6 +263,9 @@ impl Shell {
         }
         let mut encoder = match (&mut *room, drawing.renderer.as_mut()) {
             (Room::Palpation(session), Some(r)) => {
+                session.deform_on = hud
+                    .deform_on
+                    .unwrap_or_else(|| DeformOn::preferred(gpu.is_software()));
                 let input = session.frame();
                 r.encode_frame(gpu, view, size, &input)
             }

@@ -12,6 +12,7 @@ use palpa_core::TradeoffRow;
 
 use crate::input::PressMode;
 use crate::layout::{Form, Layout, Screen};
+use crate::render::deform::DeformOn;
 use crate::session::Session;
 use crate::stats::Ring;
 
@@ -37,6 +38,9 @@ pub struct Hud {
     pub panel_open: Option<bool>,
     /// A touch was seen: controls get touch sizes from then on.
     pub touch_seen: bool,
+    /// Where the user chose to deform the surface (the D key); `None`: where it is
+    /// faster for the adapter ([`DeformOn::preferred`]).
+    pub deform_on: Option<DeformOn>,
 }
 
 impl Hud {
@@ -47,6 +51,7 @@ impl Hud {
             gamepad: None,
             message: None,
             show_help: false,
+            deform_on: None,
             screenshot_requested: false,
             last_screenshot: None,
             switch_to: None,
@@ -337,10 +342,14 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     ui.heading("Live");
     let st = session.force.stats();
     ui.label(format!(
-        "frame {:.1} ms (p95 {:.1}) · render eval {:.1} µs",
+        "frame {:.1} ms (p95 {:.1}) · render eval {:.1} µs{}",
         hud.frame_ms.quantile(0.5),
         hud.frame_ms.quantile(0.95),
-        session.render_eval_us.quantile(0.5)
+        session.render_eval_us.quantile(0.5),
+        match session.deform_on {
+            DeformOn::Gpu => "",
+            DeformOn::Cpu => " (surface on the CPU)",
+        }
     ));
     ui.label(format!(
         "force loop {:.1} Hz · p99 period {:.0} µs · missed {} · contact {:.2} µs ({})",
@@ -555,6 +564,7 @@ fn help(ui: &mut egui::Ui) {
             ("Pan", "right- or middle-drag · two-finger drag"),
             ("Zoom", "wheel · pinch"),
             ("Colormap", "C"),
+            ("Deform the surface on the CPU / the GPU", "D"),
             (
                 "Paint regions",
                 "Regions ▸ paint: left-drag marks fixed / palpable / neither; Save writes X.regions.toml for palpa scene build --regions",

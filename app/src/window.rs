@@ -30,6 +30,7 @@ use winit::window::{Window, WindowId};
 
 use crate::gamepad::Gamepads;
 use crate::input::{Button, InputEvent, PointerId};
+use crate::render::deform::DeformOn;
 use crate::render::gpu::Gpu;
 use crate::render::offscreen::{FORMAT, Offscreen};
 use crate::shell::{Drawing, Room, Shell};
@@ -371,6 +372,14 @@ impl ApplicationHandler for App {
                     }
                     Key::Character(c) if c.eq_ignore_ascii_case("h") => {
                         self.shell.hud.show_help = !self.shell.hud.show_help;
+                    }
+                    Key::Character(c) if c.eq_ignore_ascii_case("d") => {
+                        if let Room::Palpation(session) = &self.shell.room {
+                            self.shell.hud.deform_on = Some(match session.deform_on {
+                                DeformOn::Gpu => DeformOn::Cpu,
+                                DeformOn::Cpu => DeformOn::Gpu,
+                            });
+                        }
                     }
                     Key::Character(c) if c.eq_ignore_ascii_case("c") => {
                         if let Room::Palpation(session) = &mut self.shell.room {

@@ -164,7 +164,7 @@ fn bench_eval_prints_one_json_object_per_configuration() {
 /// its table meaningless (some tables take an hour), naming the flag.
 #[test]
 fn benchmarks_refuse_bad_options_up_front() {
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 13] = [
         (
             &["bench", "eval", "--rows", "0", "--min-time-ms", "1"],
             "must be positive",
@@ -193,6 +193,15 @@ fn benchmarks_refuse_bad_options_up_front() {
             ],
             "only 4",
         ),
+        (
+            &["bench", "deform", "--modes", "0"],
+            "--modes 0: expected from 1",
+        ),
+        (
+            &["bench", "deform", "--modes", "99"],
+            "--modes 99: expected from 1",
+        ),
+        (&["bench", "deform", "--depth-mm", "20"], "--depth-mm 20"),
         (&["bench", "offline", "--modes", "0"], "--modes 0"),
         (&["bench", "offline", "--block", "4,0"], "--block [4, 0]"),
     ];

@@ -93,6 +93,59 @@ fn gpu_and_cpu_deformation_agree() {
     }
 }
 
+#[test]
+fn the_cpu_deformed_surface_draws_the_same_frame() {
+    use palpa_app::render::deform::DeformOn;
+    let gpu = gpu();
+    let mut session = pressing_session();
+    let size = (160, 120);
+    let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
+    let target = Offscreen::new(&gpu.device, size, gpu.can_reinterpret());
+    let mut draw = |session: &mut Session| {
+        let input = session.frame();
+        let uploaded = input
+            .cpu_surface
+            .map(|s| (s.positions.to_vec(), s.normals.to_vec()));
+        let mut encoder = renderer.encode_frame(&gpu, &target.view, size, &input);
+        target.encode_copy(&mut encoder);
+        gpu.queue.submit([encoder.finish()]);
+        let image = target.read(&gpu.device).expect("read back");
+        let buffers = renderer
+            .deform
+            .read_back(&gpu.device, &gpu.queue)
+            .expect("read back");
+        (image, uploaded, buffers)
+    };
+    session.deform_on = DeformOn::Gpu;
+    let (on_gpu, none, _) = draw(&mut session);
+    assert!(none.is_none(), "the GPU path uploads no surface");
+    session.deform_on = DeformOn::Cpu;
+    let (on_cpu, uploaded, buffers) = draw(&mut session);
+    // What the CPU computed is what the vertex buffers hold, bit for bit.
+    assert_eq!(uploaded, Some(buffers));
+    let different = on_gpu
+        .rgba
+        .chunks_exact(4)
+        .zip(on_cpu.rgba.chunks_exact(4))
+        .filter(|(a, b)| (0..3).any(|c| a[c].abs_diff(b[c]) > PIXEL_TOLERANCE))
+        .count();
+    let fraction = different as f64 / f64::from(size.0 * size.1);
+    assert!(
+        fraction <= MAX_DIFFERENT_FRACTION,
+        "{:.3} % of pixels differ between the two paths",
+        100.0 * fraction
+    );
+    // And the frame is not the rest shape: the press shows.
+    session.controls.release_probe();
+    session.force.command(session.controls.command());
+    settle(&session, std::time::Duration::from_secs(2));
+    let (at_rest, _, _) = draw(&mut session);
+    assert_ne!(
+        at_rest.rgba, on_cpu.rgba,
+        "the pressed frame differs from rest"
+    );
+}
+
 fn reference_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference")
 }

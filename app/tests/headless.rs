@@ -44,6 +44,9 @@ fn headless_renders_frames_and_reports_the_loops() {
         assert!(v[key].is_number(), "{key} missing in {v}");
     }
     assert_eq!(v["frames"], 40);
+    // The surface is deformed where it is faster: on the CPU on a software adapter.
+    let software = v["adapter"]["device_type"] == "cpu";
+    assert_eq!(v["deform"], if software { "cpu" } else { "gpu" }, "{v}");
     for key in ["name", "backend", "device_type"] {
         assert!(v["adapter"][key].is_string(), "adapter.{key} missing");
     }
@@ -353,4 +356,43 @@ fn a_session_without_a_runtime_folder_prints_no_loader_errors() {
         assert!(out.status.success(), "{stderr}");
         assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{value:?}: {stderr}");
     }
+}
+
+#[test]
+fn the_deformation_benchmark_measures_both_paths_on_the_same_frames() {
+    let out = palpa(&[
+        "bench", "deform", "--modes", "1,5", "--frames", "3", "--json",
+    ]);
+    let rows = common::json_lines_ok(&out);
+    let paths: Vec<(u64, &str)> = rows
+        .iter()
+        .map(|r| {
+            (
+                r["modes"].as_u64().expect("modes"),
+                r["path"].as_str().expect("path"),
+            )
+        })
+        .collect();
+    assert_eq!(paths, [(1, "gpu"), (1, "cpu"), (5, "gpu"), (5, "cpu")]);
+    for r in &rows {
+        for key in ["cpu_us_p50", "wait_us_p50", "total_us_p50"] {
+            assert!(r[key].as_f64().expect(key) > 0.0, "{key} in {r}");
+        }
+        // f32 sums of a few terms against the CPU's double precision: round-off of
+        // positions of about 100 mm, and of normals.
+        let mm = r["gpu_vs_cpu_mm"].as_f64().expect("mm");
+        assert!(mm < 1e-4, "{r}");
+        assert!(
+            r["gpu_vs_cpu_normal_deg"].as_f64().expect("deg") < 0.5,
+            "{r}"
+        );
+    }
+    // The CPU path uploads the surface (32 bytes a vertex), the GPU path the
+    // coefficients and the near field.
+    let vertices = rows[0]["vertices"].as_u64().expect("vertices");
+    assert_eq!(rows[1]["upload_bytes"].as_u64(), Some(32 * vertices));
+    assert_eq!(
+        rows[0]["upload_bytes"].as_u64(),
+        Some(2048 + 16 + 16 * vertices)
+    );
 }

@@ -40,6 +40,7 @@ fn liver(size: (u32, u32), d: Display) -> (LayoutReport, Image) {
         out: None,
         modes: None,
         colormap_mm: None,
+        deform_on: None,
         fps: 0.0,
         ui: true,
         display: d,

@@ -38,6 +38,9 @@ pub enum BenchCommand {
     /// The Discrete Stochastic Model Test Suite from its SBML files: FSP and PGD
     /// against the published mean and sd, the SSA by the suite's own test, times.
     Dsmts(super::bench_dsmts::DsmtsBenchArgs),
+    /// The palpation surface deformed on the GPU (compute shader) against on the CPU:
+    /// time per frame and how far apart the two surfaces are, on the adapter at hand.
+    Deform(super::bench_deform::DeformBenchArgs),
 }
 
 #[derive(Debug, Args)]
@@ -78,6 +81,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Eval(args) => eval(args),
         BenchCommand::Fe(args) => super::bench_fe::run(args),
+        BenchCommand::Deform(args) => super::bench_deform::run(args),
         BenchCommand::Offline(args) => super::bench_pgd::run(args),
         BenchCommand::Cme(args) => super::bench_cme::run(args),
         BenchCommand::Views(args) => super::bench_views::run(args),

@@ -31,6 +31,11 @@ pub struct HeadlessArgs {
     /// Colour by displacement magnitude, this many mm at the top of the scale.
     #[arg(long)]
     colormap_mm: Option<f32>,
+    /// Where the surface is deformed: `gpu` (the compute shader) or `cpu` (every row
+    /// and the normals evaluated on the CPU and uploaded). Default: the CPU on a
+    /// software adapter, else the GPU; `palpa bench deform` measures both.
+    #[arg(long, value_name = "gpu|cpu")]
+    deform: Option<DeformArg>,
     /// Frame pacing, frames per second, as a display's refresh would pace them
     /// (0: back to back, the force thread's worst case).
     #[arg(long, default_value_t = 60.0)]
@@ -61,6 +66,22 @@ pub struct HeadlessArgs {
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
+}
+
+/// Where the palpation surface is deformed (`--deform`).
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum DeformArg {
+    Gpu,
+    Cpu,
+}
+
+impl From<DeformArg> for palpa_app::render::deform::DeformOn {
+    fn from(a: DeformArg) -> Self {
+        match a {
+            DeformArg::Gpu => Self::Gpu,
+            DeformArg::Cpu => Self::Cpu,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -102,6 +123,7 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
         modes: args.modes,
         colormap_mm: args.colormap_mm,
+        deform_on: args.deform.map(Into::into),
         fps: args.fps,
         ui: !args.no_ui,
         display: args.display()?,
@@ -128,6 +150,7 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
             ("--probe-path", args.probe_path != "default"),
             ("--modes", args.modes.is_some()),
             ("--colormap-mm", args.colormap_mm.is_some()),
+            ("--deform", args.deform.is_some()),
         ],
     );
     let given = |flags: &[(&str, bool)]| -> Vec<String> {

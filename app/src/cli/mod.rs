@@ -4,6 +4,7 @@ mod args;
 mod bench;
 mod bench_build;
 mod bench_cme;
+mod bench_deform;
 mod bench_dsmts;
 mod bench_fe;
 mod bench_pgd;

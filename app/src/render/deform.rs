@@ -2,6 +2,11 @@
 //! in a storage buffer, the `n` coefficients in a uniform, one compute pass for the
 //! displacement and one for the normals of the deformed surface. The outputs are the
 //! vertex buffers the surface is drawn from.
+//!
+//! The same buffers can instead be filled by the CPU ([`DeformOn::Cpu`]: the session
+//! evaluates every row and the normals itself and uploads 32 bytes a vertex). Which is
+//! faster depends on the device: `palpa bench deform` measures both on the adapter at
+//! hand, with how far apart their surfaces are.
 
 use bytemuck::{Pod, Zeroable};
 use palpa_core::scene::PalpationScene;
@@ -17,6 +22,47 @@ const WORKGROUP: u32 = 64;
 
 /// One vec4 of a GPU buffer (xyz and w).
 pub type Vec4Data = [f32; 4];
+
+/// Where the deformed surface and its normals are computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DeformOn {
+    /// The compute shader: the CPU uploads the `n` coefficients and the near field.
+    #[default]
+    Gpu,
+    /// The CPU (palpa-core's evaluation in double precision): it uploads the positions
+    /// and normals, and the compute passes are not run.
+    Cpu,
+}
+
+impl DeformOn {
+    /// The default for an adapter. On a software adapter (Mesa's lavapipe) the compute
+    /// passes run on the CPU too, behind a dispatch: there the CPU path's frames were
+    /// about 3 % shorter (liver, 1280x720, `palpa headless`), and `palpa bench deform`
+    /// measured the deformation itself at 0.4–0.5 of the compute path's time. A GPU
+    /// takes the rows off the CPU and runs beside it.
+    pub fn preferred(software_adapter: bool) -> Self {
+        if software_adapter {
+            DeformOn::Cpu
+        } else {
+            DeformOn::Gpu
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            DeformOn::Gpu => "gpu",
+            DeformOn::Cpu => "cpu",
+        }
+    }
+}
+
+/// A surface deformed on the CPU, per render vertex: positions (xyz, |u|) and unit
+/// normals (xyz, 0).
+#[derive(Debug, Clone, Copy)]
+pub struct CpuSurface<'a> {
+    pub positions: &'a [Vec4Data],
+    pub normals: &'a [Vec4Data],
+}
 
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 #[repr(C)]
@@ -77,7 +123,8 @@ impl Deform {
                 size: out_size,
                 usage: wgpu::BufferUsages::STORAGE
                     | wgpu::BufferUsages::VERTEX
-                    | wgpu::BufferUsages::COPY_SRC,
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         };
@@ -204,6 +251,36 @@ impl Deform {
     pub fn set_near(&self, queue: &wgpu::Queue, near_mm: &[Vec4Data]) {
         let n = near_mm.len().min(self.vertex_count as usize);
         queue.write_buffer(&self.near, 0, bytemuck::cast_slice(&near_mm[..n]));
+    }
+
+    /// Fills the position and normal buffers for a frame: from `cpu` when the CPU
+    /// deformed the surface, else by the compute passes on `coeffs` and `near_mm`.
+    pub fn record(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        coeffs: &[f64],
+        near_mm: &[Vec4Data],
+        cpu: Option<CpuSurface<'_>>,
+    ) {
+        match cpu {
+            Some(surface) => self.upload(queue, surface),
+            None => {
+                self.set_coefficients(queue, coeffs);
+                self.set_near(queue, near_mm);
+                self.encode(encoder);
+            }
+        }
+    }
+
+    /// Writes a CPU-deformed surface into the vertex buffers (entries past the
+    /// vertex count are ignored).
+    pub fn upload(&self, queue: &wgpu::Queue, surface: CpuSurface<'_>) {
+        let n = self.vertex_count as usize;
+        let p = &surface.positions[..surface.positions.len().min(n)];
+        let q = &surface.normals[..surface.normals.len().min(n)];
+        queue.write_buffer(&self.positions, 0, bytemuck::cast_slice(p));
+        queue.write_buffer(&self.normals, 0, bytemuck::cast_slice(q));
     }
 
     /// Records the two compute passes.

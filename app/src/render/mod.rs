@@ -78,6 +78,9 @@ pub struct FrameInput<'a> {
     pub coeffs: &'a [f64],
     /// The near-field displacement per render vertex (mm, xyz_), added to the modes'.
     pub near_mm: &'a [[f32; 4]],
+    /// The surface deformed on the CPU ([`deform::DeformOn::Cpu`]); `None`: the
+    /// compute passes deform it from the coefficients and the near field.
+    pub cpu_surface: Option<deform::CpuSurface<'a>>,
     /// Colour by displacement magnitude, with this value (mm) at the top of the scale.
     pub colormap_mm: Option<f32>,
     pub probe: Option<ProbeVisual>,
@@ -254,8 +257,6 @@ impl Renderer {
             }
             _ => {}
         }
-        self.deform.set_coefficients(queue, input.coeffs);
-        self.deform.set_near(queue, input.near_mm);
         let objects = self.object_uniforms(input.probe.as_ref());
         for (i, o) in objects.iter().enumerate() {
             queue.write_buffer(
@@ -264,7 +265,13 @@ impl Renderer {
                 bytemuck::bytes_of(o),
             );
         }
-        self.deform.encode(encoder);
+        self.deform.record(
+            queue,
+            encoder,
+            input.coeffs,
+            input.near_mm,
+            input.cpu_surface,
+        );
 
         let depth_view = self.depth_view(device, (w, h)).clone();
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

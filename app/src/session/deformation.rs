@@ -1,14 +1,19 @@
 //! What a palpation frame evaluates on the CPU: the mode coefficients at the probe,
 //! the near field under the tool and, for a hyperelastic vademecum, the tissue's
 //! nonlinear residual (both added per row, for the GPU and the picture), the drawn
-//! tip, and on demand the whole deformed surface (for picking). Reused buffers:
-//! nothing is allocated per frame.
+//! tip, and on demand the whole deformed surface (for picking) and its normals (for
+//! drawing, where the CPU deforms: [`DeformOn::Cpu`]). Reused buffers: nothing is
+//! allocated per frame.
 
 use std::sync::Arc;
 
 use glam::Vec3;
 use palpa_core::pgd::tissue::{Tissue, TissueScratch};
 use palpa_core::scene::{PalpationScene, ProbePoint};
+
+#[cfg(doc)]
+use crate::render::deform::DeformOn;
+use crate::render::deform::{CpuSurface, Vec4Data};
 
 #[derive(Debug)]
 pub struct Deformation {
@@ -22,6 +27,11 @@ pub struct Deformation {
     near_rows: Vec<f64>,
     near_gpu: Vec<[f32; 4]>,
     deformed_valid: bool,
+    /// The CPU-deformed surface as the GPU's vertex buffers hold it, and the normals'
+    /// sums in double precision.
+    cpu_positions: Vec<Vec4Data>,
+    cpu_normals: Vec<Vec4Data>,
+    normal_sums: Vec<[f64; 3]>,
     /// The hyperelastic vademecum's residual surface, if the scene has one.
     tissue: Option<(Arc<Tissue>, TissueScratch)>,
 }
@@ -48,6 +58,9 @@ impl Deformation {
             near_rows: vec![0.0; rows],
             near_gpu: vec![[0.0; 4]; rows / 3],
             deformed_valid: true,
+            cpu_positions: vec![[0.0; 4]; rows / 3],
+            cpu_normals: vec![[0.0; 4]; rows / 3],
+            normal_sums: vec![[0.0; 3]; rows / 3],
         }
     }
 
@@ -144,5 +157,46 @@ impl Deformation {
             self.deformed_valid = true;
         }
         &self.deformed_mm
+    }
+
+    /// The surface of the last evaluation deformed on the CPU, as the compute passes
+    /// would leave it: positions with `|u|` (in double precision, then rounded) and
+    /// area-weighted unit normals (`+z` where the triangles' areas cancel, as on the
+    /// GPU).
+    pub fn cpu_surface(&mut self, scene: &PalpationScene) -> CpuSurface<'_> {
+        self.deformed_mm(scene);
+        for (i, (p, d)) in self
+            .cpu_positions
+            .iter_mut()
+            .zip(&self.deformed_mm)
+            .enumerate()
+        {
+            let u = (0..3)
+                .map(|c| (self.displacement[3 * i + c] + self.near_rows[3 * i + c]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            *p = [d[0], d[1], d[2], u as f32];
+        }
+        palpa_core::mesh::vertex_normals_into(
+            &self.deformed_mm,
+            scene.triangles(),
+            &mut self.normal_sums,
+        );
+        for (n, s) in self.cpu_normals.iter_mut().zip(&self.normal_sums) {
+            *n = if *s == [0.0; 3] {
+                [0.0, 0.0, 1.0, 0.0]
+            } else {
+                [s[0] as f32, s[1] as f32, s[2] as f32, 0.0]
+            };
+        }
+        self.last_cpu_surface()
+    }
+
+    /// The surface [`Self::cpu_surface`] last computed.
+    pub fn last_cpu_surface(&self) -> CpuSurface<'_> {
+        CpuSurface {
+            positions: &self.cpu_positions,
+            normals: &self.cpu_normals,
+        }
     }
 }

@@ -18,6 +18,7 @@ use crate::camera::OrbitCamera;
 use crate::force::{ForceLoop, ForceSample, HapticDevice, LoopTiming, SampleStatus};
 use crate::input::{Controls, InputEvent};
 use crate::pick::ScenePicker;
+use crate::render::deform::DeformOn;
 use crate::render::{FrameInput, ProbeVisual};
 use crate::stats::Ring;
 
@@ -119,6 +120,8 @@ pub struct Session {
     pub force: ForceLoop,
     /// Colour by displacement, with this value (mm) at the top of the scale.
     pub colormap_mm: Option<f32>,
+    /// Where the surface is deformed (the compute shader by default).
+    pub deform_on: DeformOn,
     /// The sample the current frame shows.
     pub sample: ForceSample,
     /// Render-side evaluation time (particularization + contact rows), µs, recent frames.
@@ -183,6 +186,7 @@ impl Session {
             controls,
             force,
             colormap_mm: None,
+            deform_on: DeformOn::Gpu,
             sample: ForceSample::default(),
             render_eval_us: Ring::new(256),
             force_history: Ring2 {
@@ -360,6 +364,10 @@ impl Session {
                 valid: self.controls.feedback.is_none(),
             });
         }
+        let cpu_surface = self.deform_on == DeformOn::Cpu;
+        if cpu_surface {
+            self.deformation.cpu_surface(&self.scene);
+        }
         self.render_eval_us.push(t0.elapsed().as_secs_f64() * 1e6);
         self.force_history
             .x
@@ -380,6 +388,7 @@ impl Session {
             camera: &self.controls.camera,
             coeffs: self.deformation.coeffs(),
             near_mm: self.deformation.near_gpu(),
+            cpu_surface: cpu_surface.then(|| self.deformation.last_cpu_surface()),
             colormap_mm: self.colormap_mm,
             probe: visual,
         }

@@ -123,23 +123,30 @@ pub(crate) fn lerp(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
 /// Area-weighted vertex normals (the cross product's length is twice the area).
 pub fn vertex_normals(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
     let mut n = vec![[0.0f64; 3]; vertices.len()];
+    vertex_normals_into(vertices, triangles, &mut n);
+    n.iter().map(|v| v.map(|c| c as f32)).collect()
+}
+
+/// [`vertex_normals`] into `out` (one per vertex, overwritten), in double precision
+/// and without allocating: a vertex in no triangle, or whose triangles' areas cancel,
+/// gets zero.
+pub fn vertex_normals_into(vertices: &[[f32; 3]], triangles: &[[u32; 3]], out: &mut [[f64; 3]]) {
+    out.fill([0.0; 3]);
     for t in triangles {
         let [a, b, c] = t.map(|i| vertices[i as usize].map(f64::from));
         let cr = cross(sub(b, a), sub(c, a));
         for &v in t {
             for c in 0..3 {
-                n[v as usize][c] += cr[c];
+                out[v as usize][c] += cr[c];
             }
         }
     }
-    n.iter()
-        .map(|v| {
-            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            if len > 0.0 {
-                v.map(|c| (c / len) as f32)
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect()
+    for v in out.iter_mut() {
+        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        *v = if len > 0.0 {
+            v.map(|c| c / len)
+        } else {
+            [0.0; 3]
+        };
+    }
 }
