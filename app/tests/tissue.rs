@@ -57,6 +57,7 @@ fn hand_made(scene: &PalpationScene) -> TissueLaw {
         tolerance_mm: 0.05,
         build_s: 0.0,
         compress_s: 0.0,
+        mesh_xxh3: None,
     };
     law.check().expect("a consistent hand-made law");
     law
@@ -1597,4 +1598,107 @@ fn the_shipped_tissue_says_how_deep_it_is_measured() {
     bytes[last] ^= 1;
     std::fs::write(&copy, bytes).expect("writes");
     assert_eq!(scenes::tissue_goals(&copy), None);
+}
+
+/// Your own organ's tissue: built from the surface with the flags its scene was built
+/// with, it binds to the scene and answers; built with other regions (here the
+/// defaults: fixed where the surface faces posterior within 45°, palpable everywhere
+/// else, where the kidney's scene fixes 50° and palpates the anterior 85°) it is
+/// another organ, and the scene refuses it by name instead of answering for another
+/// support. The app opening the scene with it beside says the same.
+#[test]
+fn a_tissue_of_your_own_organ_is_built_with_its_scenes_regions() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/kidney");
+    let scene = dir.path().join("kidney-coarse.palpa");
+    std::fs::copy(assets.join("kidney-coarse.palpa"), &scene).expect("copy the scene");
+    let surface = path(&assets.join("kidney.obj"));
+    let build = |out: &std::path::Path, regions: &[&str]| {
+        let mut args = vec![
+            "tissue",
+            "build",
+            "--surface",
+            &surface,
+            "--units",
+            "cm",
+            "--up",
+            "y",
+            "--anterior",
+            "z",
+        ];
+        args.extend_from_slice(regions);
+        let out = path(out);
+        args.extend_from_slice(&[
+            "--within",
+            "0,20,0,3",
+            "--depth-max-mm",
+            "1",
+            "--no-refine",
+            "--no-edges",
+            "--out",
+            &out,
+        ]);
+        common::json_ok(&palpa(&args))
+    };
+    let scenes_own = dir.path().join("own.tissue");
+    let summary = build(
+        &scenes_own,
+        &[
+            "--fixed",
+            "normal:posterior:50",
+            "--palpable",
+            "normal:anterior:85",
+        ],
+    );
+    assert!(
+        summary["samples"].as_u64().expect("samples") >= 1,
+        "{summary}"
+    );
+    let defaults = dir.path().join("defaults.tissue");
+    build(&defaults, &[]);
+    let eval = |tissue: &std::path::Path| {
+        palpa(&[
+            "eval",
+            &path(tissue),
+            "--scene",
+            &path(&scene),
+            "--at",
+            "0,25,0",
+            "--depth-mm",
+            "0.8",
+            "--json",
+        ])
+    };
+    let v = common::json_ok(&eval(&scenes_own));
+    assert!(v["force_n"].as_f64().expect("force") > 0.0, "{v}");
+    let refused = eval(&defaults);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success());
+    assert!(
+        stderr.contains("another organ mesh than the scene's"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("--fixed"), "{stderr}");
+    // The app opening the scene finds the tissue beside it and binds it, or says why.
+    let beside = dir.path().join("kidney-coarse.tissue");
+    let headless = || {
+        palpa(&[
+            "headless",
+            "--scene",
+            &path(&scene),
+            "--frames",
+            "2",
+            "--size",
+            "64x64",
+            "--no-ui",
+            "--json",
+        ])
+    };
+    std::fs::copy(&scenes_own, &beside).expect("copy");
+    let v = common::json_ok(&headless());
+    assert_eq!(v["tissue"], "neo-hookean vademecum", "{v}");
+    std::fs::copy(&defaults, &beside).expect("copy");
+    let out = headless();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("another organ mesh"), "{stderr}");
 }

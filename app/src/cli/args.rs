@@ -5,6 +5,11 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use clap::Args;
 
+use palpa_core::organ::Selector;
+use palpa_core::organ::region_file::RegionFile;
+use palpa_core::organ::syntax;
+use palpa_core::surface_import::frame::Axes;
+
 use super::organ::{LevelArg, OrganName};
 
 /// Which organ mesh a command works on.
@@ -14,44 +19,181 @@ pub struct OrganArgs {
     pub organ: OrganName,
     #[arg(long, value_enum, default_value = "coarse")]
     pub level: LevelArg,
-    /// A closed surface (OBJ, STL or PLY) to mesh instead of the organ; fixed =
-    /// posterior-facing (−y) surface, palpable = anterior/inferior (`palpa scene build`
-    /// chooses regions).
+    /// A closed surface (OBJ, STL or PLY) to mesh instead of the organ, placed and
+    /// split into regions by the flags `palpa scene build` takes (give the same ones
+    /// the scene was built with: a tissue remembers its mesh and regions).
     #[arg(long, requires = "units")]
     pub surface: Option<PathBuf>,
     /// The surface file's length unit: mm, cm or m.
     #[arg(long, requires = "surface")]
     pub units: Option<palpa_core::surface_import::frame::Units>,
-    /// The surface file's axes that become the patient's x, y, z (e.g. `x,-z,y`).
-    #[arg(long, requires = "surface")]
-    pub axes: Option<String>,
+    #[command(flatten)]
+    pub place: PlaceArgs,
+    #[command(flatten)]
+    pub regions: RegionArgs,
 }
 
 impl OrganArgs {
+    /// The flags given that only a `--surface` uses (for refusals elsewhere).
+    pub fn surface_flags(&self) -> Vec<&'static str> {
+        [
+            ("--surface", self.surface.is_some()),
+            ("--units", self.units.is_some()),
+        ]
+        .into_iter()
+        .chain(self.place.given())
+        .chain(self.regions.given())
+        .filter(|f| f.1)
+        .map(|f| f.0)
+        .collect()
+    }
+
     pub fn mesh(&self) -> anyhow::Result<palpa_core::organ::OrganMesh> {
         use palpa_core::organ::user::{self, SurfaceOptions};
-        use palpa_core::surface_import::frame::{Axes, Units};
+        use palpa_core::surface_import::frame::Units;
         let Some(path) = &self.surface else {
             return super::organ::mesh(self.organ, self.level);
         };
-        let axes = match &self.axes {
-            Some(a) => Axes::parse(a).map_err(anyhow::Error::msg)?,
-            None => Axes::default(),
-        };
         let options = SurfaceOptions {
             units: self.units.unwrap_or(Units::Mm),
-            axes,
-            close_holes_max_edges: 0,
-            largest_component: false,
+            axes: self.place.axes()?,
+            close_holes_max_edges: self.regions.close_holes,
+            largest_component: self.regions.largest_component,
         };
         let (solid, report) = user::prepare(path, &options)
             .with_context(|| format!("preparing {}", path.display()))?;
         for w in &report.warnings {
             eprintln!("palpa: warning: {w}");
         }
-        let (fixed, palpable) = palpa_core::organ::default_user_regions();
+        let (fixed, palpable, _) = self.regions.selectors()?;
         user::mesh(&solid, self.level.into(), &fixed, &palpable)
             .with_context(|| format!("meshing {}", path.display()))
+    }
+}
+
+/// How a surface file's axes become the patient's (`scene build` and every command
+/// that meshes a `--surface`).
+#[derive(Debug, Args, Default)]
+pub struct PlaceArgs {
+    /// The file axes that become the patient's x (left), y (anterior), z (superior),
+    /// e.g. `x,-z,y`; default `x,y,z`.
+    #[arg(long, requires = "surface", conflicts_with_all = ["up", "anterior"], allow_hyphen_values = true)]
+    pub axes: Option<String>,
+    /// The file's superior (up) axis, e.g. `y` (with --anterior).
+    #[arg(long, requires = "anterior", allow_hyphen_values = true)]
+    pub up: Option<String>,
+    /// The file's anterior axis, e.g. `-z` (with --up).
+    #[arg(long, requires = "up", allow_hyphen_values = true)]
+    pub anterior: Option<String>,
+}
+
+impl PlaceArgs {
+    pub fn axes(&self) -> anyhow::Result<Axes> {
+        Ok(match (&self.axes, &self.up, &self.anterior) {
+            (Some(a), _, _) => Axes::parse(a).map_err(anyhow::Error::msg)?,
+            (None, Some(up), Some(ant)) => {
+                Axes::from_up_anterior(up, ant).map_err(anyhow::Error::msg)?
+            }
+            _ => Axes::default(),
+        })
+    }
+
+    fn given(&self) -> [(&'static str, bool); 3] {
+        [
+            ("--axes", self.axes.is_some()),
+            ("--up", self.up.is_some()),
+            ("--anterior", self.anterior.is_some()),
+        ]
+    }
+}
+
+/// Which parts of a surface are fixed and palpable, and its repairs (`scene build`
+/// and every command that meshes a `--surface`).
+#[derive(Debug, Args, Default)]
+pub struct RegionArgs {
+    /// Fixed (attached) boundary, a selector in the organ frame (mm, after units and
+    /// axes), e.g. `normal:posterior:45`; repeat to add. Default: facing posterior
+    /// within 45° (when no --regions file names a fixed region).
+    #[arg(long, requires = "surface", allow_hyphen_values = true)]
+    pub fixed: Vec<String>,
+    /// Palpable boundary, a selector; repeat to add. Default: everything not fixed.
+    #[arg(long, requires = "surface", allow_hyphen_values = true)]
+    pub palpable: Vec<String>,
+    /// A region file (painted in the app, or written by hand).
+    #[arg(long, requires = "surface")]
+    pub regions: Option<PathBuf>,
+    /// Close holes of at most this many edges (a fan from each hole's centroid).
+    #[arg(long, requires = "surface", default_value_t = 0)]
+    pub close_holes: usize,
+    /// Keep the largest piece of a surface in several pieces.
+    #[arg(long, requires = "surface")]
+    pub largest_component: bool,
+}
+
+impl RegionArgs {
+    fn given(&self) -> [(&'static str, bool); 5] {
+        [
+            ("--fixed", !self.fixed.is_empty()),
+            ("--palpable", !self.palpable.is_empty()),
+            ("--regions", self.regions.is_some()),
+            ("--close-holes", self.close_holes != 0),
+            ("--largest-component", self.largest_component),
+        ]
+    }
+
+    /// The fixed and palpable selectors from the flags and the region file, and their
+    /// description for a scene's provenance.
+    pub fn selectors(&self) -> anyhow::Result<(Selector, Selector, String)> {
+        let parse = |v: &[String]| {
+            v.iter()
+                .map(|e| syntax::parse(e))
+                .collect::<Result<Vec<_>, _>>()
+        };
+        let mut fixed = parse(&self.fixed)?;
+        let mut palpable = parse(&self.palpable)?;
+        // `fixed[EXPR]`, `palpable[EXPR]`, `file[NAME]`: what `palpa info` shows (the
+        // provenance is whitespace-separated, so whitespace is dropped).
+        let bare = |e: &str| e.split_whitespace().collect::<String>();
+        let mut described: Vec<String> = self
+            .fixed
+            .iter()
+            .map(|e| format!("fixed[{}]", bare(e)))
+            .chain(
+                self.palpable
+                    .iter()
+                    .map(|e| format!("palpable[{}]", bare(e))),
+            )
+            .collect();
+        if let Some(path) = &self.regions {
+            let r = RegionFile::load(path)?;
+            let (f, p) = r.selectors(path)?;
+            fixed.push(f);
+            palpable.push(p);
+            described.push(format!(
+                "file:{}",
+                path.file_name()
+                    .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+            ));
+        }
+        if fixed.is_empty() {
+            fixed.push(palpa_core::organ::default_user_regions().0);
+            described.push("fixed[default:normal:posterior:45]".into());
+        }
+        if palpable.is_empty() {
+            palpable.push(Selector::Everything);
+            described.push("palpable[default:all]".into());
+        }
+        // Region hash: the selectors as data (so a changed selector rebuilds).
+        let data = format!("{fixed:?}{palpable:?}");
+        described.push(format!(
+            "xxh3[{:016x}]",
+            xxhash_rust::xxh3::xxh3_64(data.as_bytes())
+        ));
+        Ok((
+            Selector::Any(fixed),
+            Selector::Any(palpable),
+            described.join(","),
+        ))
     }
 }
 

@@ -18,18 +18,17 @@ use palpa_core::fe::hyper::Law;
 use palpa_core::fe::{Element, Material};
 use palpa_core::file;
 use palpa_core::mesh::quality;
-use palpa_core::organ::region_file::RegionFile;
-use palpa_core::organ::syntax;
+use palpa_core::organ::Level;
 use palpa_core::organ::user::{self, SurfaceOptions};
-use palpa_core::organ::{Level, Selector};
 use palpa_core::pgd::cluster::FarSettings;
 use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
 use palpa_core::pgd::nodal::{self, NodalSettings};
 use palpa_core::pgd::palpation::describe_user;
 use palpa_core::pgd::tradeoff::nodal_table;
-use palpa_core::surface_import::frame::{Axes, Units};
+use palpa_core::surface_import::frame::Units;
 use serde_json::json;
 
+use super::args::{PlaceArgs, RegionArgs};
 use super::organ::LevelArg;
 
 #[derive(Debug, Subcommand)]
@@ -106,33 +105,10 @@ pub struct BuildArgs {
     /// The file's length unit (surface files do not carry one).
     #[arg(long)]
     units: Units,
-    /// The file axes that become the patient's x (left), y (anterior), z (superior),
-    /// e.g. `x,-z,y`; default `x,y,z`.
-    #[arg(long, conflicts_with_all = ["up", "anterior"])]
-    axes: Option<String>,
-    /// The file's superior (up) axis, e.g. `y` (with --anterior).
-    #[arg(long, requires = "anterior", allow_hyphen_values = true)]
-    up: Option<String>,
-    /// The file's anterior axis, e.g. `-z` (with --up).
-    #[arg(long, requires = "up", allow_hyphen_values = true)]
-    anterior: Option<String>,
-    /// Fixed (attached) boundary, a selector in the organ frame (mm, after units and
-    /// axes), e.g. `normal:posterior:45`; repeat to add. Default: facing posterior
-    /// within 45° (when no --regions file names a fixed region).
-    #[arg(long, allow_hyphen_values = true)]
-    fixed: Vec<String>,
-    /// Palpable boundary, a selector; repeat to add. Default: everything not fixed.
-    #[arg(long, allow_hyphen_values = true)]
-    palpable: Vec<String>,
-    /// A region file (painted in the app, or written by hand).
-    #[arg(long)]
-    regions: Option<PathBuf>,
-    /// Close holes of at most this many edges (a fan from each hole's centroid).
-    #[arg(long, default_value_t = 0)]
-    close_holes: usize,
-    /// Keep the largest piece of a surface in several pieces.
-    #[arg(long)]
-    largest_component: bool,
+    #[command(flatten)]
+    place: PlaceArgs,
+    #[command(flatten)]
+    regions: RegionArgs,
     #[arg(long, value_enum, default_value = "coarse")]
     level: LevelArg,
     #[arg(long, default_value = "p2")]
@@ -194,70 +170,6 @@ impl Progress {
     }
 }
 
-fn axes_of(args: &BuildArgs) -> anyhow::Result<Axes> {
-    Ok(match (&args.axes, &args.up, &args.anterior) {
-        (Some(a), _, _) => Axes::parse(a).map_err(anyhow::Error::msg)?,
-        (None, Some(up), Some(ant)) => {
-            Axes::from_up_anterior(up, ant).map_err(anyhow::Error::msg)?
-        }
-        _ => Axes::default(),
-    })
-}
-
-/// The fixed and palpable selectors from the command line and the region file.
-fn regions_of(args: &BuildArgs) -> anyhow::Result<(Selector, Selector, String)> {
-    let parse = |v: &[String]| {
-        v.iter()
-            .map(|e| syntax::parse(e))
-            .collect::<Result<Vec<_>, _>>()
-    };
-    let mut fixed = parse(&args.fixed)?;
-    let mut palpable = parse(&args.palpable)?;
-    // `fixed[EXPR]`, `palpable[EXPR]`, `file[NAME]`: what `palpa info` shows (the
-    // provenance is whitespace-separated, so whitespace is dropped).
-    let bare = |e: &str| e.split_whitespace().collect::<String>();
-    let mut described: Vec<String> = args
-        .fixed
-        .iter()
-        .map(|e| format!("fixed[{}]", bare(e)))
-        .chain(
-            args.palpable
-                .iter()
-                .map(|e| format!("palpable[{}]", bare(e))),
-        )
-        .collect();
-    if let Some(path) = &args.regions {
-        let r = RegionFile::load(path)?;
-        let (f, p) = r.selectors(path)?;
-        fixed.push(f);
-        palpable.push(p);
-        described.push(format!(
-            "file:{}",
-            path.file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
-        ));
-    }
-    if fixed.is_empty() {
-        fixed.push(palpa_core::organ::default_user_regions().0);
-        described.push("fixed[default:normal:posterior:45]".into());
-    }
-    if palpable.is_empty() {
-        palpable.push(Selector::Everything);
-        described.push("palpable[default:all]".into());
-    }
-    // Region hash: the selectors as data (so a changed selector rebuilds).
-    let data = format!("{fixed:?}{palpable:?}");
-    described.push(format!(
-        "xxh3[{:016x}]",
-        xxhash_rust::xxh3::xxh3_64(data.as_bytes())
-    ));
-    Ok((
-        Selector::Any(fixed),
-        Selector::Any(palpable),
-        described.join(","),
-    ))
-}
-
 fn build_dir(out: &Path) -> PathBuf {
     let mut p = out.as_os_str().to_owned();
     p.push(".build");
@@ -296,15 +208,15 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     }
 
     pr.start("surface", &args.surface.display().to_string());
-    let axes = axes_of(args)?;
-    let (fixed, palpable, regions_desc) = regions_of(args)?;
+    let axes = args.place.axes()?;
+    let (fixed, palpable, regions_desc) = args.regions.selectors()?;
     let (solid, sr) = user::prepare(
         &args.surface,
         &SurfaceOptions {
             units: args.units,
             axes,
-            close_holes_max_edges: args.close_holes,
-            largest_component: args.largest_component,
+            close_holes_max_edges: args.regions.close_holes,
+            largest_component: args.regions.largest_component,
         },
     )
     .with_context(|| format!("preparing {}", args.surface.display()))?;

@@ -46,7 +46,7 @@ pub fn band(args: &BandArgs) -> anyhow::Result<()> {
     }
     let organ = args.organ.mesh()?;
     let base = TissueLaw::load(&args.tissue)?;
-    base.check_organ(&organ.mesh.vertices)?;
+    base.check_organ(&organ)?;
     if !base.refinement.band.is_empty() {
         bail!(
             "{} already holds a band next to the fixed region ({} edges): expected a file \

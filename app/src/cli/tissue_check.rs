@@ -123,7 +123,7 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
         );
     }
     let organ = args.organ.mesh()?;
-    bound.law.check_organ(&organ.mesh.vertices)?;
+    bound.law.check_organ(&organ)?;
     let law = &bound.law;
     let mut scratch = bound.scratch();
     let mut contact_scratch = scene.contact_scratch();

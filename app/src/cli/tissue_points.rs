@@ -79,7 +79,7 @@ pub fn points(args: &PointsArgs) -> anyhow::Result<()> {
         None => surface_points(&organ, args.heldout, args.seed)?,
         Some(file) => {
             let law = TissueLaw::load(file)?;
-            law.check_organ(&organ.mesh.vertices)?;
+            law.check_organ(&organ)?;
             let faces = split_faces(&organ, &law)?;
             points_in(&organ, &faces, args.heldout, args.seed)?
         }

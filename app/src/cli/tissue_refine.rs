@@ -79,7 +79,7 @@ pub(super) fn read_back(
     };
     let organ = args.organ.mesh()?;
     let base = TissueLaw::load(&args.tissue)?;
-    base.check_organ(&organ.mesh.vertices)?;
+    base.check_organ(&organ)?;
     Ok((at, organ, base))
 }
 

@@ -99,7 +99,7 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
         );
     }
     let organ = s.organ.mesh()?;
-    law.check_organ(&organ.mesh.vertices)?;
+    law.check_organ(&organ)?;
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let mut contact_scratch = scene.contact_scratch();
     let mut coeffs = vec![0.0; scene.modes()];

@@ -73,9 +73,6 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
             ("--depths", args.depths.is_some()),
             ("--scene", args.scene.is_some()),
             ("--seed", args.seed.is_some()),
-            ("--surface", o.surface.is_some()),
-            ("--units", o.units.is_some()),
-            ("--axes", o.axes.is_some()),
         ],
         [("--svd", args.svd), ("--plot", args.plot.is_some())],
     );
@@ -97,7 +94,8 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         };
         return super::tissue_tradeoff::run(&args.file, &settings, args.json);
     }
-    if let Some(flag) = first(&tissue_only) {
+    let flag = first(&tissue_only).or_else(|| o.surface_flags().first().copied());
+    if let Some(flag) = flag {
         bail!(
             "{flag} applies to a tissue file's table; {} is a scene, whose table needs \
              no more than the file (its level, material and held-out points are its own)",

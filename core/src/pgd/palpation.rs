@@ -511,6 +511,21 @@ fn describe_named(
     radius_mm: f64,
     update: bool,
 ) -> String {
+    format!(
+        "organ={name} level={level} mesh_xxh3={:016x} element={} young_kpa={} poisson={} radius_mm={} update={}",
+        mesh_hash(organ),
+        element.name(),
+        material.young_kpa,
+        material.poisson,
+        radius_mm,
+        update
+    )
+}
+
+/// The organ mesh's fingerprint (`mesh_xxh3` in [`describe`]): its vertices,
+/// tetrahedra, boundary and fixed and palpable flags, so the same surface meshed with
+/// other regions differs.
+pub fn mesh_hash(organ: &OrganMesh) -> u64 {
     let mut h = xxhash_rust::xxh3::Xxh3::new();
     h.update(bytemuck::cast_slice(&organ.mesh.vertices));
     h.update(bytemuck::cast_slice(&organ.mesh.tets));
@@ -522,15 +537,7 @@ fn describe_named(
         .map(|&b| u8::from(b))
         .collect();
     h.update(&flags);
-    format!(
-        "organ={name} level={level} mesh_xxh3={:016x} element={} young_kpa={} poisson={} radius_mm={} update={}",
-        h.digest(),
-        element.name(),
-        material.young_kpa,
-        material.poisson,
-        radius_mm,
-        update
-    )
+    h.digest()
 }
 
 /// Reads `key=value` from a description made by [`describe`].

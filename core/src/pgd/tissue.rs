@@ -104,7 +104,8 @@ use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (13: version 12's, then the band next to the fixed region
+/// The file's format version (14: version 13's, then the organ mesh's fingerprint
+/// ([`TissueLaw::mesh_xxh3`]); 13: version 12's, then the band next to the fixed region
 /// ([`BandEdge`]); 12: version 11's, the shapes stored as what their
 /// neighbours do not predict ([`super::tissue_predict`]); 11: version 10's, then the
 /// sub-triangles split again ([`SubSplit`]); 10: version 9's, the weights stored after the other
@@ -112,7 +113,7 @@ pub const MAGIC: &[u8; 8] = b"PALPATIS";
 /// 8's fields, the shapes stored by coordinate plane ([`Shapes::to_planes`]) and the
 /// body LZMA-compressed. Versions 9 and 8 (deflated) still load as they are, and 7,
 /// deflated, and 6, plain, each sample its own group).
-pub const VERSION: u32 = 13;
+pub const VERSION: u32 = 14;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -147,7 +148,7 @@ pub enum TissueError {
     #[error(
         "the tissue law does not fit this organ mesh: {matched} of its {total} surface rows \
          sit on the mesh's {vertices} vertices (expected all; give the --level, or the \
-         --surface, --units and --axes, it was built with)"
+         --surface, --units, --axes or --up/--anterior and region flags, it was built with)"
     )]
     Organ {
         matched: usize,
@@ -161,6 +162,19 @@ pub enum TissueError {
          --young-kpa, --poisson)"
     )]
     LinearModel { law: String, scene: String },
+    #[error(
+        "the tissue law was built on another organ mesh than {what} (mesh fingerprint \
+         {law:016x} against {other}): the same surface meshed at another level or with other \
+         fixed and palpable regions is another organ. {hint} (--level, --surface, --units, \
+         --axes or --up/--anterior, --fixed, --palpable, --regions, --close-holes, \
+         --largest-component)"
+    )]
+    MeshDiffers {
+        law: u64,
+        other: String,
+        what: &'static str,
+        hint: &'static str,
+    },
 }
 
 /// The compressed nonlinear vademecum (see the module docs).
@@ -220,6 +234,12 @@ pub struct TissueLaw {
     pub tolerance_mm: f64,
     pub build_s: f64,
     pub compress_s: f64,
+    /// The fingerprint of the organ mesh the presses were made on
+    /// ([`crate::pgd::palpation::mesh_hash`]: vertices, tetrahedra and the fixed and
+    /// palpable flags), compared with a scene's or an organ's before they are used
+    /// together. `None` in files before format 14, which are not compared.
+    #[serde(skip)]
+    pub mesh_xxh3: Option<u64>,
 }
 
 /// The shares of the tolerance one mode's rounding may take (node error in mm at the
@@ -499,8 +519,11 @@ impl TissueLaw {
     /// Checks that the organ mesh a command rebuilt (`--level`, `--surface`) is the one
     /// this law was built on: every row (surface vertex) must be one of its vertices.
     /// Another level's mesh would otherwise show only as "no triangle pressed", or
-    /// as Newton references on a different surface.
-    pub fn check_organ(&self, vertices_mm: &[[f64; 3]]) -> Result<(), TissueError> {
+    /// as Newton references on a different surface. A law that records its mesh's
+    /// fingerprint (format 14 on) must match the organ's too: the same surface with
+    /// other fixed or palpable regions is another organ.
+    pub fn check_organ(&self, organ: &OrganMesh) -> Result<(), TissueError> {
+        let vertices_mm = &organ.mesh.vertices;
         let index = PointIndex::new(vertices_mm.iter().copied());
         let matched = self
             .rows_mm
@@ -508,7 +531,16 @@ impl TissueLaw {
             .filter(|p| index.find(p.map(f64::from)).is_some())
             .count();
         if matched == self.rows_mm.len() {
-            Ok(())
+            let organ_hash = crate::pgd::palpation::mesh_hash(organ);
+            match self.mesh_xxh3 {
+                Some(law) if law != organ_hash => Err(TissueError::MeshDiffers {
+                    law,
+                    other: format!("{organ_hash:016x}"),
+                    what: "the organ mesh given",
+                    hint: "Give the flags the tissue was built with",
+                }),
+                _ => Ok(()),
+            }
         } else {
             Err(TissueError::Organ {
                 matched,
@@ -522,11 +554,25 @@ impl TissueLaw {
     /// `... element=p2 young_kpa=160 poisson=0.48 ...`) used this law's element and
     /// material: a residual of P1 added to a linear answer of P2 is neither model
     /// (measured: forces 30–40 % off). Keys the line does not name are not compared.
+    /// Where both record it, the organ mesh's fingerprint (`mesh_xxh3`) must agree too:
+    /// a tissue pressed on the same surface with another fixed region binds to every
+    /// vertex, yet answers for another support.
     pub fn check_linear_model(&self, scene_mesh_line: &str) -> Result<(), TissueError> {
         let o = &self.options;
-        match linear_model_mismatch(o.element, &o.material, scene_mesh_line) {
-            Some((law, scene)) => Err(TissueError::LinearModel { law, scene }),
-            None => Ok(()),
+        if let Some((law, scene)) = linear_model_mismatch(o.element, &o.material, scene_mesh_line) {
+            return Err(TissueError::LinearModel { law, scene });
+        }
+        let scene = crate::pgd::palpation::describe_get(scene_mesh_line, "mesh_xxh3");
+        match (self.mesh_xxh3, scene) {
+            (Some(law), Some(scene)) if format!("{law:016x}") != scene => {
+                Err(TissueError::MeshDiffers {
+                    law,
+                    other: scene.to_string(),
+                    what: "the scene's",
+                    hint: "Build the tissue with the flags the scene was built with",
+                })
+            }
+            _ => Ok(()),
         }
     }
 
@@ -664,6 +710,7 @@ impl TissueLaw {
             tolerance_mm,
             build_s: law.build_s,
             compress_s: t0.elapsed().as_secs_f64(),
+            mesh_xxh3: Some(crate::pgd::palpation::mesh_hash(organ)),
         };
         debug_assert_eq!(tissue.check(), Ok(()));
         Ok(tissue)
@@ -843,7 +890,13 @@ impl TissueLaw {
             path,
             MAGIC,
             (VERSION, Body::Lzma),
-            &(&stored, &weights, sub, &self.refinement.band),
+            &(
+                &stored,
+                &weights,
+                sub,
+                &self.refinement.band,
+                self.mesh_xxh3,
+            ),
         )
         .map_err(|source| TissueError::Io {
             path: path.to_path_buf(),
@@ -868,7 +921,7 @@ impl TissueLaw {
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
         };
-        let read = crate::framed::read::<(TissueLaw, Weights, SubSplit, Vec<BandEdge>)>(
+        let read = crate::framed::read::<(TissueLaw, Weights, SubSplit, Vec<BandEdge>, Option<u64>)>(
             bytes,
             MAGIC,
             &[(VERSION, Body::Lzma)],
@@ -893,7 +946,20 @@ impl TissueLaw {
             Ok::<_, TissueError>(law)
         };
         let law: TissueLaw = match read {
-            Ok((law, weights, sub, band)) => predicted(law, weights, sub, band)?,
+            Ok((law, weights, sub, band, mesh)) => TissueLaw {
+                mesh_xxh3: mesh,
+                ..predicted(law, weights, sub, band)?
+            },
+            Err(FramedError::Version(13)) => {
+                let (law, weights, sub, band) =
+                    crate::framed::read::<(TissueLaw, Weights, SubSplit, Vec<BandEdge>)>(
+                        bytes,
+                        MAGIC,
+                        &[(13, Body::Lzma)],
+                    )
+                    .map_err(named)?;
+                predicted(law, weights, sub, band)?
+            }
             Err(FramedError::Version(12)) => {
                 let (law, weights, sub) = crate::framed::read::<(TissueLaw, Weights, SubSplit)>(
                     bytes,

@@ -299,6 +299,7 @@ pub(super) mod tests {
             tolerance_mm: 0.05,
             build_s: 0.0,
             compress_s: 0.0,
+            mesh_xxh3: None,
         }
     }
 

@@ -66,6 +66,7 @@ impl From<TissueLawV7> for TissueLaw {
             tolerance_mm: o.tolerance_mm,
             build_s: o.build_s,
             compress_s: o.compress_s,
+            mesh_xxh3: None,
         }
     }
 }
@@ -107,12 +108,14 @@ mod tests {
         }
     }
 
-    /// A version 13 file's body: the law, its weights, the second level, the band.
+    /// A version 14 file's body: the law, its weights, the second level, the band, the
+    /// organ mesh's fingerprint (version 13: the same without the fingerprint).
     type Raw = (
         TissueLaw,
         Weights,
         SubSplit,
         Vec<crate::pgd::surfacelaw::BandEdge>,
+        Option<u64>,
     );
 
     #[test]
@@ -127,7 +130,7 @@ mod tests {
             assert_eq!(back.group, vec![0, 1, 2]);
         }
         // Version 8 (today's fields, deflated) and 9 (LZMA, shapes by plane) load as
-        // they are; today's files are version 13, and a version this palpa does not
+        // they are; today's files are version 14, and a version this palpa does not
         // know is named.
         let path = dir.path().join("v8.tissue");
         crate::framed::write(&path, MAGIC, (8, Body::Deflated), &law).expect("writes");
@@ -145,13 +148,14 @@ mod tests {
         // version 11 is 12 with the shapes by plane; version 10 is 11 without the second
         // level ([`SubSplit`]), which comes after the weights.
         for (law, single) in [(&law, true), (&half, false)] {
-            let path = dir.path().join("v13.tissue");
+            let path = dir.path().join("v14.tissue");
             law.save(&path).expect("saves");
             let bytes = std::fs::read(&path).expect("reads");
-            assert_eq!(&bytes[8..12], &13u32.to_le_bytes());
-            let (stored, weights, sub, band): Raw =
-                crate::framed::read(&bytes, MAGIC, &[(13, Body::Lzma)]).expect("raw");
+            assert_eq!(&bytes[8..12], &14u32.to_le_bytes());
+            let (stored, weights, sub, band, mesh): Raw =
+                crate::framed::read(&bytes, MAGIC, &[(14, Body::Lzma)]).expect("raw");
             assert!(band.is_empty());
+            assert_eq!(mesh, None);
             let predicted = RowPrediction::new(&law.rows_mm).encode(&law.shape);
             assert_eq!(Some(&stored.shape), predicted.as_ref(), "shapes as misses");
             assert_ne!(stored.shape, law.shape);
@@ -159,6 +163,15 @@ mod tests {
             assert_eq!(matches!(weights, Weights::Single(_)), single);
             assert!(sub.is_empty());
             assert_eq!(&TissueLaw::load(&path).expect("loads"), law);
+            let v13 = dir.path().join("v13.tissue");
+            crate::framed::write(
+                &v13,
+                MAGIC,
+                (13, Body::Lzma),
+                &(&stored, &weights, &sub, &band),
+            )
+            .expect("writes");
+            assert_eq!(&TissueLaw::load(&v13).expect("loads"), law);
             let v12 = dir.path().join("v12.tissue");
             crate::framed::write(&v12, MAGIC, (12, Body::Lzma), &(&stored, &weights, &sub))
                 .expect("writes");
@@ -176,24 +189,24 @@ mod tests {
                 .expect("writes");
             assert_eq!(&TissueLaw::load(&v10).expect("loads"), law);
         }
-        // A version 13 body whose shapes are no whole number of modes is named.
-        let bytes = std::fs::read(dir.path().join("v13.tissue")).expect("reads");
-        let (mut stored, weights, sub, band): Raw =
-            crate::framed::read(&bytes, MAGIC, &[(13, Body::Lzma)]).expect("raw");
+        // A version 14 body whose shapes are no whole number of modes is named.
+        let bytes = std::fs::read(dir.path().join("v14.tissue")).expect("reads");
+        let (mut stored, weights, sub, band, mesh): Raw =
+            crate::framed::read(&bytes, MAGIC, &[(14, Body::Lzma)]).expect("raw");
         stored.shape = stored.shape.prefix(stored.shape.len() - 1);
         let torn = dir.path().join("torn.tissue");
         crate::framed::write(
             &torn,
             MAGIC,
-            (13, Body::Lzma),
-            &(&stored, &weights, &sub, &band),
+            (14, Body::Lzma),
+            &(&stored, &weights, &sub, &band, mesh),
         )
         .expect("writes");
         let e = TissueLaw::load(&torn).expect_err("a torn shape");
         assert!(e.to_string().contains("whole number of modes"), "{e}");
-        let path = dir.path().join("v14.tissue");
-        crate::framed::write(&path, MAGIC, (14, Body::Lzma), &law).expect("writes");
-        let e = TissueLaw::load(&path).expect_err("version 14");
-        assert!(e.to_string().contains("version 14"), "{e}");
+        let path = dir.path().join("v15.tissue");
+        crate::framed::write(&path, MAGIC, (15, Body::Lzma), &law).expect("writes");
+        let e = TissueLaw::load(&path).expect_err("version 15");
+        assert!(e.to_string().contains("version 15"), "{e}");
     }
 }

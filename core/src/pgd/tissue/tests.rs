@@ -77,6 +77,7 @@ pub(in crate::pgd) fn one_row_law_with_ratio(
         tolerance_mm: 0.05,
         build_s: 0.0,
         compress_s: 0.0,
+        mesh_xxh3: None,
     };
     law.check().expect("consistent");
     law
@@ -161,6 +162,7 @@ fn a_press_that_stopped_short_limits_only_the_probes_that_blend_it() {
         tolerance_mm: 0.05,
         build_s: 0.0,
         compress_s: 0.0,
+        mesh_xxh3: None,
     };
     law.check().expect("consistent");
     let mut bad = law.clone();
@@ -473,4 +475,40 @@ fn a_band_off_the_scene_is_refused() {
         err.to_string().contains("no palpable vertex of the scene"),
         "{err}"
     );
+}
+
+/// A law remembers the organ mesh it was pressed on (format 14) and refuses a scene of
+/// another, such as the same surface with another fixed region; a scene or a law that
+/// does not record it is not compared.
+#[test]
+fn a_law_remembers_its_mesh_and_refuses_a_scene_of_another() {
+    let mut law = one_row_law(
+        &[[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]],
+        vec![],
+        Refinement::default(),
+        &[0.1, 0.2, 0.3],
+    );
+    law.mesh_xxh3 = Some(0x0123_4567_89ab_cdef);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("t.tissue");
+    law.save(&path).expect("saved");
+    let back = TissueLaw::load(&path).expect("loaded");
+    assert_eq!(back.mesh_xxh3, law.mesh_xxh3);
+    assert_eq!(back, law);
+    let line = |hash: &str| {
+        format!("organ=user level=coarse mesh_xxh3={hash} element=p2 young_kpa=160 poisson=0.48")
+    };
+    assert!(back.check_linear_model(&line("0123456789abcdef")).is_ok());
+    let err = back
+        .check_linear_model(&line("0123456789abcdee"))
+        .expect_err("another mesh");
+    assert!(matches!(err, TissueError::MeshDiffers { .. }), "{err}");
+    assert!(err.to_string().contains("--fixed"), "{err}");
+    assert!(
+        back.check_linear_model("organ=user element=p2 young_kpa=160 poisson=0.48")
+            .is_ok()
+    );
+    let mut old = back.clone();
+    old.mesh_xxh3 = None;
+    assert!(old.check_linear_model(&line("0123456789abcdee")).is_ok());
 }
