@@ -34,7 +34,7 @@ use super::organ::LevelArg;
 #[derive(Debug, Subcommand)]
 pub enum SceneCommand {
     /// Surface file → tetrahedral mesh → vademecum → tradeoff → scene, resumable.
-    Build(BuildArgs),
+    Build(Box<BuildArgs>),
     /// Write a closed surface made here: the kidney example (cm, y up, z anterior), or
     /// a sphere or an ellipsoid of known volume (for trying `scene build`).
     Shape(ShapeArgs),
@@ -452,10 +452,192 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         "modes": scene.modes(),
         "tradeoff": {"rows": rows, "measured": tradeoff_json},
         "force_law": law_json,
+        "tissue_command": law.map(|l| tissue_command(args, l)),
         "resumed": {"vademecum": resumed_vademecum, "tradeoff": resumed_tradeoff},
         "bytes": std::fs::metadata(&args.out).map(|m| m.len()).ok(),
         "seconds": pr.times.iter().map(|(n, s)| (n.to_string(), json!(s))).collect::<serde_json::Map<_, _>>(),
         "total_s": pr.t0.elapsed().as_secs_f64(),
     });
+    if let Some(l) = law {
+        eprintln!(
+            "palpa: the scene presses with its force law; its surface under deep presses comes \
+             from a tissue vademecum of this organ, built with the same flags:\n  {}\n(hours on \
+             two cores for a whole surface; --cover X,Y,Z,… presses only the triangles at given \
+             points)",
+            tissue_command(args, l)
+        );
+    }
     super::args::print_report(&summary, args.json)
+}
+
+/// The `palpa tissue build` that presses this scene's organ: the same surface,
+/// placing, regions, level, element and model, its output beside the scene.
+fn tissue_command(args: &BuildArgs, law: Law) -> String {
+    let mut words: Vec<String> = ["palpa", "tissue", "build", "--surface"]
+        .map(String::from)
+        .to_vec();
+    words.push(args.surface.display().to_string());
+    words.extend(["--units".into(), args.units.name().into()]);
+    let p = &args.place;
+    if let Some(a) = &p.axes {
+        words.extend(["--axes".into(), a.clone()]);
+    }
+    if let (Some(up), Some(anterior)) = (&p.up, &p.anterior) {
+        words.extend([
+            "--up".into(),
+            up.clone(),
+            "--anterior".into(),
+            anterior.clone(),
+        ]);
+    }
+    let r = &args.regions;
+    for f in &r.fixed {
+        words.extend(["--fixed".into(), f.clone()]);
+    }
+    for f in &r.palpable {
+        words.extend(["--palpable".into(), f.clone()]);
+    }
+    if let Some(file) = &r.regions {
+        words.extend(["--regions".into(), file.display().to_string()]);
+    }
+    if r.close_holes > 0 {
+        words.extend(["--close-holes".into(), r.close_holes.to_string()]);
+    }
+    if r.largest_component {
+        words.push("--largest-component".into());
+    }
+    let level: Level = args.level.into();
+    words.extend([
+        "--level".into(),
+        level.name().into(),
+        "--element".into(),
+        args.element.name().into(),
+        "--model".into(),
+        law.name().into(),
+    ]);
+    if let Some(d) = args.depth_max_mm {
+        words.extend(["--depth-max-mm".into(), d.to_string()]);
+    }
+    words.extend([
+        "--out".into(),
+        args.out.with_extension("tissue").display().to_string(),
+    ]);
+    words
+        .iter()
+        .map(|w| shell_word(w))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// `w` as one word for a POSIX shell: as it is where it holds only plain characters,
+/// else in single quotes.
+fn shell_word(w: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "-_./,:=+@%".contains(c);
+    if !w.is_empty() && w.chars().all(plain) {
+        w.to_string()
+    } else {
+        format!("'{}'", w.replace('\'', r"'\''"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    #[derive(Debug, Parser)]
+    struct Scene {
+        #[command(flatten)]
+        args: BuildArgs,
+    }
+
+    #[derive(Debug, Parser)]
+    struct Tissue {
+        #[command(flatten)]
+        args: super::super::tissue::BuildArgs,
+    }
+
+    /// Splits a command line as a POSIX shell would for the quoting `shell_word` uses.
+    fn shell_split(line: &str) -> Vec<String> {
+        let mut words = Vec::new();
+        let (mut word, mut quoted, mut any) = (String::new(), false, false);
+        let mut chars = line.chars();
+        while let Some(c) = chars.next() {
+            match c {
+                '\'' => (quoted, any) = (!quoted, true),
+                '\\' if !quoted => {
+                    word.extend(chars.next());
+                    any = true;
+                }
+                ' ' if !quoted => {
+                    if any {
+                        words.push(std::mem::take(&mut word));
+                    }
+                    any = false;
+                }
+                c => (word, any) = (word + &c.to_string(), true),
+            }
+        }
+        if any {
+            words.push(word);
+        }
+        words
+    }
+
+    #[test]
+    fn the_tissue_command_meshes_the_scenes_organ() {
+        let scene = Scene::parse_from([
+            "scene",
+            "--surface",
+            "my organ.obj",
+            "--units",
+            "cm",
+            "--up",
+            "y",
+            "--anterior",
+            "-z",
+            "--fixed",
+            "normal:posterior:50 | ball:0,0,0:5",
+            "--palpable",
+            "!(half:0,0,0:left)",
+            "--palpable",
+            "it's",
+            "--close-holes",
+            "3",
+            "--largest-component",
+            "--level",
+            "medium",
+            "--element",
+            "p1",
+            "--model",
+            "svk",
+            "--out",
+            "dir/kidney.palpa",
+        ])
+        .args;
+        let line = tissue_command(&scene, Law::Svk);
+        let words = shell_split(&line);
+        assert_eq!(&words[..3], ["palpa", "tissue", "build"], "{line}");
+        let tissue = Tissue::try_parse_from(
+            std::iter::once("tissue".to_string()).chain(words[3..].iter().cloned()),
+        )
+        .unwrap_or_else(|e| panic!("{line}: {e}"))
+        .args;
+        let o = &tissue.organ;
+        assert_eq!(o.surface.as_deref(), Some(Path::new("my organ.obj")));
+        assert_eq!(o.units.map(Units::name), Some("cm"));
+        assert_eq!(
+            (o.place.up.as_deref(), o.place.anterior.as_deref()),
+            (Some("y"), Some("-z"))
+        );
+        assert_eq!(o.regions.fixed, scene.regions.fixed);
+        assert_eq!(o.regions.palpable, scene.regions.palpable);
+        assert_eq!(o.regions.close_holes, 3);
+        assert!(o.regions.largest_component);
+        assert_eq!(Level::from(o.level), Level::Medium);
+        assert_eq!(tissue.element, Element::P1);
+        assert_eq!(tissue.model.law(), Law::Svk);
+        assert_eq!(tissue.out, Path::new("dir/kidney.tissue"));
+    }
 }
