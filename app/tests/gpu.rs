@@ -123,13 +123,7 @@ fn the_cpu_deformed_surface_draws_the_same_frame() {
     let (on_cpu, uploaded, buffers) = draw(&mut session);
     // What the CPU computed is what the vertex buffers hold, bit for bit.
     assert_eq!(uploaded, Some(buffers));
-    let different = on_gpu
-        .rgba
-        .chunks_exact(4)
-        .zip(on_cpu.rgba.chunks_exact(4))
-        .filter(|(a, b)| (0..3).any(|c| a[c].abs_diff(b[c]) > PIXEL_TOLERANCE))
-        .count();
-    let fraction = different as f64 / f64::from(size.0 * size.1);
+    let fraction = different_fraction(&on_gpu, &on_cpu);
     assert!(
         fraction <= MAX_DIFFERENT_FRACTION,
         "{:.3} % of pixels differ between the two paths",
@@ -148,6 +142,18 @@ fn the_cpu_deformed_surface_draws_the_same_frame() {
 
 fn reference_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference")
+}
+
+/// The share of pixels of two images of one size that differ by more than
+/// [`PIXEL_TOLERANCE`] in a colour channel.
+fn different_fraction(a: &Image, b: &Image) -> f64 {
+    let different = a
+        .rgba
+        .chunks_exact(4)
+        .zip(b.rgba.chunks_exact(4))
+        .filter(|(p, q)| (0..3).any(|c| p[c].abs_diff(q[c]) > PIXEL_TOLERANCE))
+        .count();
+    different as f64 / (a.width * a.height) as f64
 }
 
 /// Pixels differing by more than this (max over channels) count as different.
@@ -265,13 +271,7 @@ fn the_network_scene_matches_the_reference_image() {
         (reference.width, reference.height),
         (crop.width, crop.height)
     );
-    let different = crop
-        .rgba
-        .chunks(4)
-        .zip(reference.rgba.chunks(4))
-        .filter(|(a, r)| (0..3).any(|c| a[c].abs_diff(r[c]) > PIXEL_TOLERANCE))
-        .count();
-    let fraction = different as f64 / (crop.width * crop.height) as f64;
+    let fraction = different_fraction(&crop, &reference);
     if fraction > MAX_DIFFERENT_FRACTION {
         let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("network-toggle-actual.png");
         crop.save_png(&out).expect("write actual");
