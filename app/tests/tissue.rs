@@ -1654,6 +1654,17 @@ fn a_tissue_of_your_own_organ_is_built_with_its_scenes_regions() {
         summary["samples"].as_u64().expect("samples") >= 1,
         "{summary}"
     );
+    // It names its mesh as the scene's provenance does.
+    let info = common::json_ok(&palpa(&["info", &path(&scenes_own)]));
+    let scene_info = common::json_ok(&palpa(&["info", &path(&scene)]));
+    let mesh = scene_info["provenance"]["mesh"]
+        .as_str()
+        .expect("mesh line");
+    let hash = info["mesh_xxh3"].as_str().expect("mesh_xxh3");
+    assert!(
+        mesh.contains(&format!("mesh_xxh3={hash}")),
+        "{hash} not in {mesh}"
+    );
     let defaults = dir.path().join("defaults.tissue");
     build(&defaults, &[]);
     let eval = |tissue: &std::path::Path| {

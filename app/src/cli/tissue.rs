@@ -353,6 +353,9 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
         "file": path, "kind": "tissue",
         "law": o.law.name(), "element": o.element.name(),
         "young_kpa": o.material.young_kpa, "poisson": o.material.poisson,
+        // The mesh the presses were made on, as a scene's provenance names it
+        // (`mesh_xxh3`); null in files before format 14.
+        "mesh_xxh3": law.mesh_xxh3.map(|h| format!("{h:016x}")),
         "depth_max_mm": law.depth_max_mm(), "depth_step_mm": o.depth_step_mm,
         "vertices": vertices, "vertices_skipped": law.skipped_mm.len(),
         "edges": law.edge_ends.len(),
