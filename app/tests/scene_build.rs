@@ -93,7 +93,22 @@ fn a_scene_builds_from_a_surface_resumes_after_kill_and_opens() {
     let whole = dir.path().join("whole.palpa");
     let mut whole_args = args;
     whole_args[whole_args.len() - 2] = s(&whole);
-    ok(&palpa(&whole_args));
+    // A tissue left beside it from another mesh is named: the app would refuse it.
+    let resumed = palpa_app::scenes::load(s(&scene)).expect("the scene").scene;
+    let mut stale = crate::tissue::hand_made(&resumed);
+    stale.mesh_xxh3 = Some(1);
+    stale.options.element = palpa_core::fe::Element::P1;
+    stale
+        .save(&dir.path().join("whole.tissue"))
+        .expect("a stale tissue");
+    let built = palpa(&whole_args);
+    ok(&built);
+    let stderr = String::from_utf8_lossy(&built.stderr);
+    assert!(
+        stderr.contains("whole.tissue beside the scene does not fit it")
+            && stderr.contains("another organ mesh"),
+        "{stderr}"
+    );
     let (x, y) = (
         palpa_core::file::read_header(&scene).expect("resumed"),
         palpa_core::file::read_header(&whole).expect("whole"),

@@ -17,7 +17,7 @@ use palpa_core::scene::PalpationScene;
 /// A hand-made vademecum on the shipped scene: at every palpable vertex the force is
 /// 0.9 of the linear one at 5 mm and 0.8 at 10 mm, and the residual moves render
 /// vertex 0 along x by `d / 5` mm and nothing else.
-fn hand_made(scene: &PalpationScene) -> TissueLaw {
+pub(crate) fn hand_made(scene: &PalpationScene) -> TissueLaw {
     let samples = scene.axis_vertices_mm().len();
     let rows = scene.vertices_mm().len();
     let mut shape = vec![0i16; samples * 3 * rows];

@@ -419,6 +419,20 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     }
     pr.done();
     std::fs::remove_dir_all(&dir).with_context(|| format!("removing {}", dir.display()))?;
+    // A tissue left beside the scene from an earlier build may be of another mesh
+    // (another level or other regions): the app would refuse it when opening the scene.
+    let tissue_out = args.out.with_extension("tissue");
+    if tissue_out.exists() {
+        let fits = palpa_core::pgd::tissue::TissueLaw::load(&tissue_out)
+            .and_then(|t| t.check_linear_model(&desc));
+        if let Err(why) = fits {
+            eprintln!(
+                "palpa: warning: {} beside the scene does not fit it, and opening the scene \
+                 will say so: {why}",
+                tissue_out.display()
+            );
+        }
+    }
 
     let (lo, hi) = sr.bbox_mm;
     let summary = json!({
