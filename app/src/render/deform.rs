@@ -23,11 +23,11 @@ const WORKGROUP: u32 = 64;
 /// One vec4 of a GPU buffer (xyz and w).
 pub type Vec4Data = [f32; 4];
 
-/// Where the deformed surface and its normals are computed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// Where the deformed surface and its normals are computed (no `Default`: the
+/// default depends on the adapter, [`DeformOn::preferred`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DeformOn {
     /// The compute shader: the CPU uploads the `n` coefficients and the near field.
-    #[default]
     Gpu,
     /// The CPU (palpa-core's evaluation in double precision): it uploads the positions
     /// and normals, and the compute passes are not run.
