@@ -55,9 +55,10 @@
 //! there were given up, at 9 and 14 mm. Where the halved steps fail too, the next grid
 //! depth is handed to the reference Newton ([`super::newton::continue_depth`]: a fresh
 //! tangent each iteration, a line search on the residual, its own step cuts down to a
-//! thirty-second), first from the last accepted state, then from rest as the reference
-//! solve itself starts ([`PathOptions::newton_fallback`]). It runs only where the press
-//! would otherwise stop, so every press that got through without it is unchanged.
+//! thirty-second) from the last accepted state ([`PathOptions::newton_fallback`]). It
+//! runs only where the press would otherwise stop, so every press that got through
+//! without it is unchanged. (It also tried from rest, as the reference solve starts,
+//! until that was measured to rescue no press: see the fallback's code.)
 //! Where that fails too the press stops there: the depths reached are kept (each an
 //! equilibrium) and the depth that failed is named ([`GridPress::stopped`]). Saint Venant–Kirchhoff stops this way where it loses
 //! stability, which the vademecum then reports as the press's limit.
@@ -67,9 +68,9 @@
 //! fallback's iterations all count, and a press that spends it stops where it is, as
 //! where no equilibrium is found, saying so. An ordinary press spends 1–10. The budget
 //! bounds the presses that end in the fallback: on coarse P2 one such press spent 135
-//! (129 s, most of it in a fallback from rest that failed as well) and now stops after
-//! 40 (56 s) at the same depth; on medium, where each factorization takes tens of
-//! seconds on one thread, such a press ran for more than an hour.
+//! (129 s, most of it in a fallback from rest, since dropped, that failed as well) and
+//! stopped after 40 (56 s) at the same depth; on medium, where each factorization takes
+//! tens of seconds on one thread, such a press ran for more than an hour.
 //!
 //! A later segment's tangent is factored in single precision
 //! ([`Cholesky::factor_single`]). Its factor is only an approximate inverse here (the
@@ -138,7 +139,8 @@ pub struct PathOptions {
     /// the fallback's iterations); past it the press stops where it is, as where no
     /// equilibrium is found. An ordinary press spends 1–10; one that ends in the
     /// fallback spent 135 on coarse P2 (129 s, nearly all in a fallback from rest that
-    /// failed too) and, on medium, more than an hour of single-threaded factoring.
+    /// failed too, since dropped) and, on medium, more than an hour of single-threaded
+    /// factoring.
     pub max_factorizations: usize,
 }
 
@@ -471,26 +473,20 @@ pub fn follow(
                     )
                 };
                 let goal = depths_mm[j];
-                let rest = vec![0.0; n_all];
-                // From the last state, then from rest (what the reference solve does:
-                // where the press slides, the equilibrium followed from the last state
-                // may end while the one reached from rest goes on).
-                let starts = [
-                    (last.depth_mm, last.force_n, last.u.as_slice()),
-                    (0.0, 0.0, rest.as_slice()),
-                ];
-                for start in starts.into_iter().filter(|_| o.newton_fallback) {
-                    let left = budget_left(&out);
-                    if left == 0 {
-                        break;
-                    }
+                // From the last state only. Newton from rest (where the reference solve
+                // starts) came after it until it was measured: in 26 presses that
+                // reached it on the kidney and the liver's band it found no equilibrium
+                // once, and it took 12-20 % of those builds (docs/tissue-measurements.md
+                // §3).
+                let left = budget_left(&out);
+                if o.newton_fallback && left > 0 {
                     match continue_depth(
                         space,
                         law,
                         material,
                         (load.shape, load.probe),
                         out.first.force[0],
-                        start,
+                        (last.depth_mm, last.force_n, &last.u),
                         goal,
                         NewtonSettings {
                             max_iterations: left,
@@ -511,10 +507,9 @@ pub fn follow(
                                 last_mm: 0.0,
                                 converged: true,
                             };
-                            break;
                         }
                         Err(e @ FeError::NoConvergenceDepth { .. }) => {
-                            why = format!("{why}; nor Newton from {:.2} mm: {e}", start.0);
+                            why = format!("{why}; nor Newton from {:.2} mm: {e}", last.depth_mm);
                         }
                         Err(e) => return Err(e),
                     }
@@ -586,9 +581,9 @@ pub enum StopKind {
     /// vademecum's own check of a press's forces).
     ForcePeak,
     /// No equilibrium was found at the next depth (or the first series failed).
-    /// `budget_spent`: the press's factorizations ran out on the way, mostly in the
-    /// fallback from rest, which gets what the chord and Newton from the last state
-    /// left of [`PathOptions::max_factorizations`].
+    /// `budget_spent`: the press's factorizations ran out on the way (in files built
+    /// before the fallback from rest was dropped, mostly in it: it got what the chord
+    /// and Newton from the last state left of [`PathOptions::max_factorizations`]).
     NoEquilibrium { budget_spent: bool },
 }
 

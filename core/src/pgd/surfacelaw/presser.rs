@@ -29,9 +29,9 @@ pub(super) fn open_press_log(
         source,
     };
     let (key, previous) = press_log_key(organ, o, rows, cover);
-    for previous in previous {
+    for (previous, whole) in previous {
         RecordLog::upgrade::<Logged>(path, &previous, &key, |p| {
-            p.as_ref().is_ok_and(|p| p.reach as usize == steps)
+            whole || p.as_ref().is_ok_and(|p| p.reach as usize == steps)
         })
         .map_err(log_error)?;
     }
@@ -54,13 +54,14 @@ pub(crate) fn logged_press_ids(
 }
 
 /// A build's press-log key (everything that determines its presses), and the keys of
-/// earlier versions whose presses that reached every depth it takes over.
+/// earlier versions it takes presses over from: all of them (`true`) or those that
+/// reached every depth.
 fn press_log_key(
     organ: &OrganMesh,
     o: &SurfaceLawOptions,
     rows: usize,
     cover: Option<&[u32]>,
-) -> (String, Vec<String>) {
+) -> (String, Vec<(String, bool)>) {
     let po = path_options(o);
     let covered = cover.map_or(String::new(), |c| {
         let bytes: Vec<u8> = c.iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -76,19 +77,26 @@ fn press_log_key(
             crate::pgd::depthlaw::organ_hash(organ),
         )
     };
-    let key = key_of(6, format!("{po:?}"));
+    let key = key_of(7, format!("{po:?}"));
     // Versions 3 (before the path follower's Newton fallback), 4 (which stopped a
     // press at any dip of its force) and 5 (no factorization budget) differ from this
     // build only where a press stopped short, or reached every depth through a
     // fallback longer than the budget (none seen: every fallback measured that spent
     // past it failed): their presses that reached every depth are kept, the others
     // pressed again.
+    // Version 6 also tried Newton from rest where Newton from the last state failed:
+    // it differs from this build only where that found an equilibrium, which it did at
+    // none of the 26 presses measured (`fe::path`), so its presses are all taken over.
     let budget = PathOptions::default().max_factorizations;
-    let mut previous = Vec::new();
+    let mut previous = vec![(key_of(6, format!("{po:?}")), true)];
     if po.newton_fallback && po.stop_past_force_peak && po.max_factorizations == budget {
         let v5 = format!("{po:?}").replace(&format!(", max_factorizations: {budget}"), "");
         let v3 = v5.replace(", newton_fallback: true", "");
-        previous = vec![key_of(3, v3), key_of(4, v5.clone()), key_of(5, v5)];
+        previous.extend([
+            (key_of(3, v3), false),
+            (key_of(4, v5.clone()), false),
+            (key_of(5, v5), false),
+        ]);
     }
     (key, previous)
 }
