@@ -46,11 +46,17 @@ pub(crate) fn logged_press_ids(
     rows: usize,
     path: &Path,
 ) -> Result<Vec<u32>, SurfaceLawBuildError> {
-    let (key, _) = press_log_key(organ, o, rows, None);
-    RecordLog::finished_ids::<Logged>(path, &key).map_err(|source| SurfaceLawBuildError::Log {
+    let (key, previous) = press_log_key(organ, o, rows, None);
+    let log_error = |source| SurfaceLawBuildError::Log {
         path: path.to_path_buf(),
         source,
-    })
+    };
+    let mut ids = RecordLog::finished_ids::<Logged>(path, &key).map_err(log_error)?;
+    // A log of an earlier key whose presses are all taken over counts as well.
+    for (previous, _) in previous.iter().filter(|(_, whole)| *whole) {
+        ids.extend(RecordLog::finished_ids::<Logged>(path, previous).map_err(log_error)?);
+    }
+    Ok(ids)
 }
 
 /// A build's press-log key (everything that determines its presses), and the keys of
@@ -283,5 +289,35 @@ impl Stored {
             .collect();
         let others: Vec<usize> = base.iter().map(|b| b.0).collect();
         (residual, ratio, r as u32, self.first_stop(p, &others))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::organ::Level;
+    use crate::organ::catalogue::{OrganName, mesh};
+
+    /// A log left under version 6 (before the fallback from rest was dropped) counts
+    /// as this build's: its presses are all taken over, and a plan says so.
+    #[test]
+    fn a_version_6_log_counts_as_logged() {
+        let organ = mesh(OrganName::Liver, Level::Coarse);
+        let o = SurfaceLawOptions::default();
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("x.tissue.presses.log");
+        let (key, previous) = press_log_key(&organ, &o, 10, None);
+        assert!(key.starts_with("palpa tissue-build log 7 "), "{key}");
+        let (v6, whole) = &previous[0];
+        assert_eq!(v6, &key.replacen("log 7 ", "log 6 ", 1));
+        assert!(*whole);
+        let (mut log, _) = RecordLog::open::<Logged>(&path, v6).expect("open");
+        log.push(5, &Logged::Err("held".into())).expect("push");
+        drop(log);
+        assert_eq!(logged_press_ids(&organ, &o, 10, &path).expect("ids"), [5]);
+        // Opened by the build, it is carried over whole under the new key.
+        let (_, records) = open_press_log(&organ, &o, 10, 16, None, &path).expect("open");
+        assert_eq!(records.len(), 1);
+        assert_eq!(logged_press_ids(&organ, &o, 10, &path).expect("ids"), [5]);
     }
 }
