@@ -474,10 +474,9 @@ pub fn follow(
                 };
                 let goal = depths_mm[j];
                 // From the last state only. Newton from rest (where the reference solve
-                // starts) came after it until it was measured: in 26 presses that
-                // reached it on the kidney and the liver's band it found no equilibrium
-                // once, and it took 12-20 % of those builds (docs/tissue-measurements.md
-                // §3).
+                // starts) came after it until it was measured: tried in 26 presses of
+                // the kidney and the liver's band, it never found an equilibrium, and it
+                // took 12-20 % of those presses' time (docs/tissue-measurements.md §3).
                 let left = budget_left(&out);
                 if o.newton_fallback && left > 0 {
                     match continue_depth(
