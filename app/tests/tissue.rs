@@ -825,6 +825,22 @@ fn svk_presses_stop_where_the_tissue_loses_stability() {
     assert_eq!(counted, num(&info, "stopped_short"), "{info}");
     assert!(counted >= 1.0, "{info}");
     assert!(num(by, "no_equilibrium_budget_spent") <= num(by, "no_equilibrium"));
+    // Where the follower finds no equilibrium, Newton tries once, from the last state
+    // (a second try from rest was dropped: it never found one, and it cost time).
+    let law = TissueLaw::load(&tissue).expect("loads");
+    let tries = |why: &String| why.matches("; nor Newton from ").count();
+    assert!(
+        law.stopped.iter().all(|why| tries(why) <= 1),
+        "{:?}",
+        law.stopped
+    );
+    assert!(
+        law.stopped
+            .iter()
+            .any(|why| tries(why) == 1 && !why.contains("budget")),
+        "no press reached the fallback with budget left: {:?}",
+        law.stopped
+    );
 
     let at = "-30.3,70.7,16.9";
     let eval = |depth: &str| {
