@@ -11,6 +11,7 @@ const FLOORS: &[(&str, u32)] = &[
     ("fsutil", 0),
     ("mesh", 0),
     ("timing", 0),
+    ("cpu", 0),
     ("tensor", 1),
     ("disk", 1),
     ("framed", 1),

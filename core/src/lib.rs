@@ -39,6 +39,7 @@
 
 pub mod axis;
 pub mod cme;
+pub mod cpu;
 pub mod disk;
 pub mod export;
 pub mod farfield;

@@ -66,6 +66,7 @@ pub fn simulate_within(
     let results: Vec<(Vec<Vec<i64>>, u64, bool)> = (0..trajectories)
         .into_par_iter()
         .map(|k| {
+            crate::cpu::clear_upper_halves();
             let mut rng = Rng::seed(seed ^ (k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
             let mut z: Vec<i64> = network.species.iter().map(|s| s.initial as i64).collect();
             let mut a = vec![0.0; network.reactions.len()];

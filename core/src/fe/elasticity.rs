@@ -78,6 +78,7 @@ where
         let kes: Vec<Vec<f64>> = (start..end)
             .into_par_iter()
             .map(|c| {
+                crate::cpu::clear_upper_halves();
                 let mut ke = vec![0.0; m * m];
                 element(c, &mut ke);
                 ke
@@ -140,6 +141,7 @@ pub fn dirichlet_lifting(space: &Space, material: Material, u_d: &[f64]) -> Vec<
     let contributions: Vec<Vec<(usize, f64)>> = (0..space.cell_count())
         .into_par_iter()
         .map(|c| {
+            crate::cpu::clear_upper_halves();
             let cell = space.cell(c);
             if cell.iter().all(|&n| !space.fixed[n as usize]) {
                 return Vec::new();

@@ -66,6 +66,7 @@ where
     let parts: Vec<(Vec<usize>, Vec<f64>)> = cells
         .par_iter()
         .map(|&c| {
+            crate::cpu::clear_upper_halves();
             let mut fe = vec![0.0; m];
             element(c, &mut fe);
             let mut dofs = Vec::with_capacity(m);

@@ -247,8 +247,9 @@ impl Cholesky {
         };
         let sym =
             SymbolicLlt::try_new(m.symbolic(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
-        let llt = Llt::try_new_with_symbolic(sym, m.as_ref(), Side::Lower)
-            .map_err(|e| err(format!("{e:?}")))?;
+        let llt = Llt::try_new_with_symbolic(sym, m.as_ref(), Side::Lower);
+        crate::cpu::clear_upper_halves();
+        let llt = llt.map_err(|e| err(format!("{e:?}")))?;
         Ok(Cholesky {
             llt: Factor::Double(llt),
             n: a.n,
@@ -304,17 +305,17 @@ impl Cholesky {
         let mut scratch = MemBuffer::new(
             symbolic.factorize_numeric_llt_scratch::<f32>(Par::Seq, Default::default()),
         );
-        symbolic
-            .factorize_numeric_llt(
-                &mut values,
-                single.as_ref(),
-                Side::Lower,
-                Default::default(),
-                Par::Seq,
-                MemStack::new(&mut scratch),
-                Default::default(),
-            )
-            .map_err(|e| err(format!("{e:?}")))?;
+        let numeric = symbolic.factorize_numeric_llt(
+            &mut values,
+            single.as_ref(),
+            Side::Lower,
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut scratch),
+            Default::default(),
+        );
+        crate::cpu::clear_upper_halves();
+        numeric.map_err(|e| err(format!("{e:?}")))?;
         Ok(Cholesky {
             llt: Factor::Single(symbolic, values),
             n: a.n,
@@ -331,6 +332,7 @@ impl Cholesky {
             Par::Seq,
             MemStack::new(&mut scratch),
         );
+        crate::cpu::clear_upper_halves();
     }
 
     /// Solves A x = b for one right-hand side.
@@ -339,6 +341,7 @@ impl Cholesky {
             Factor::Double(llt) => {
                 let mut rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| b[i]);
                 llt.solve_in_place(rhs.as_mut());
+                crate::cpu::clear_upper_halves();
                 (0..self.n).map(|i| rhs[(i, 0)]).collect()
             }
             Factor::Single(symbolic, values) => {
@@ -352,7 +355,10 @@ impl Cholesky {
     /// Solves for several right-hand sides at once (columns of `b`, n × k, column-major).
     pub fn solve_many(&self, b: &mut Mat<f64>) {
         match &self.llt {
-            Factor::Double(llt) => llt.solve_in_place(b.as_mut()),
+            Factor::Double(llt) => {
+                llt.solve_in_place(b.as_mut());
+                crate::cpu::clear_upper_halves();
+            }
             Factor::Single(symbolic, values) => {
                 let mut single = Mat::<f32>::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] as f32);
                 Self::solve_single(symbolic, values, &mut single);

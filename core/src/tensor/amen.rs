@@ -254,6 +254,7 @@ fn gemm_rm(
         1.0,
         faer::Par::Seq,
     );
+    crate::cpu::clear_upper_halves();
 }
 
 /// The local operator of core `k`: channels' interfaces on both sides.

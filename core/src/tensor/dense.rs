@@ -4,7 +4,8 @@
 //! core). The tensor-train cores are small (tens to a few hundred rows), and there
 //! waking the pool costs more than it saves: on `signaling-cascade-20` to t = 15 the
 //! process spent 3.2 s of 5.4 in the kernel, waiting on rayon's latches. These do the
-//! same factorizations with `Par::Seq`.
+//! same factorizations with `Par::Seq`. Each clears the vector registers' upper halves
+//! after faer (see [`crate::cpu`]).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::{householder, qr, svd};
@@ -26,7 +27,7 @@ pub fn thin_svd(a: MatRef<'_, f64>) -> Option<Svd> {
     let mut s = faer::diag::Diag::<f64>::zeros(k);
     let thin = svd::ComputeSvdVectors::Thin;
     let scratch = svd::svd_scratch::<f64>(m, n, thin, thin, Par::Seq, Default::default());
-    svd::svd(
+    let done = svd::svd(
         a,
         s.as_mut(),
         Some(u.as_mut()),
@@ -34,8 +35,9 @@ pub fn thin_svd(a: MatRef<'_, f64>) -> Option<Svd> {
         Par::Seq,
         MemStack::new(&mut MemBuffer::new(scratch)),
         Default::default(),
-    )
-    .ok()?;
+    );
+    crate::cpu::clear_upper_halves();
+    done.ok()?;
     let s = (0..k).map(|i| s.column_vector()[i]).collect();
     Some(Svd { u, s, v })
 }
@@ -81,6 +83,7 @@ pub fn thin_qr(a: MatRef<'_, f64>) -> (Mat<f64>, Mat<f64>) {
         Par::Seq,
         MemStack::new(&mut MemBuffer::new(scratch)),
     );
+    crate::cpu::clear_upper_halves();
     (q, r)
 }
 

@@ -96,6 +96,7 @@ pub fn gemm(dst: &mut Mat<f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f
         alpha,
         Par::Seq,
     );
+    crate::cpu::clear_upper_halves();
 }
 
 pub fn mul(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
@@ -460,6 +461,7 @@ fn dot_step(l: &Mat<f64>, a: &Core, b: &Core) -> Mat<f64> {
         1.0,
         Par::Seq,
     );
+    crate::cpu::clear_upper_halves();
     mul(
         MatRef::from_row_major_slice(&t, b.r0 * a.n, a.r1).transpose(),
         b.left(),

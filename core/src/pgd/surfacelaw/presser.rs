@@ -150,6 +150,7 @@ impl Presser<'_> {
         let computed: Vec<(usize, Logged)> = todo
             .par_bridge()
             .map(|k| -> Result<_, SurfaceLawBuildError> {
+                crate::cpu::clear_upper_halves();
                 let p = &points[k];
                 let press = point_press(
                     self.space,
