@@ -37,8 +37,9 @@ pub enum Body {
     /// like deflate, and 15 % smaller on a 27 MB tissue law (8.09 → 6.89 MB: LZMA's
     /// range coder with literal contexts models the 8-bit shapes' skewed values where
     /// deflate's Huffman codes spend whole bits, and its window spans the whole body
-    /// where deflate's spans 32 KB). Writing it is slower (about 18 s and 0.4 GB,
-    /// deflate 4 s), reading it about 0.3 s slower.
+    /// where deflate's spans 32 KB). Writing it is slower (about 11 s for the shipped
+    /// tissue's 38.7 MB body, see `lzma_options`; deflate took 4 s on a 27 MB one),
+    /// reading it about 0.3 s slower.
     Lzma,
 }
 
@@ -46,14 +47,21 @@ pub enum Body {
 /// for more memory than this, with the decoder's own few hundred KB).
 pub const LZMA_DICT_MAX: u32 = 64 << 20;
 
-/// The LZMA encoder's settings for a body of `len` bytes: preset 9 (normal mode,
-/// binary-tree match finder) with the longest match the format allows searched for
-/// (273 bytes, where the preset stops at 64: the shipped tissue, 38.7 MB of body, 8.00
-/// → 7.92 MB, the stream the same to any LZMA reader), its dictionary cut to the
-/// smallest power of two that holds the body (a larger one finds nothing more and
-/// costs the encoder about ten times its size in memory).
+/// The LZMA encoder's settings for a body of `len` bytes: normal mode (the optimal
+/// parse of preset 9) with the hash-chain match finder looking at one candidate a
+/// position, and the longest match the format allows (273 bytes), its dictionary cut
+/// to the smallest power of two that holds the body (a larger one finds nothing more
+/// and costs the encoder about ten times its size in memory). Measured on the shipped
+/// tissue's 38.7 MB body, one after the other on the otherwise idle machine: preset 9
+/// as it comes (binary tree, full search, matches to 64 bytes) 8.00 MB in 39 s; with
+/// matches to 273 bytes 7.91 MB in 52 s (what files were written with until
+/// 2026-11-30); this 7.97 MB in 11 s. Of the hash-chain depths tried (1, 2, 4, 8, 16
+/// and 48 candidates: 7.97–8.14 MB), one gave both the smallest stream and the
+/// fastest. Any LZMA reader reads either stream.
 fn lzma_options(len: usize) -> lzma_rust2::LzmaOptions {
     let mut options = lzma_rust2::LzmaOptions::with_preset(9);
+    options.mf = lzma_rust2::MfType::Hc4;
+    options.depth_limit = 1;
     options.nice_len = lzma_rust2::LzmaOptions::NICE_LEN_MAX;
     let fits = u32::try_from(len.max(1 << 16))
         .map_or(LZMA_DICT_MAX, |n| n.next_power_of_two().min(LZMA_DICT_MAX));
