@@ -160,6 +160,35 @@ fn bench_eval_prints_one_json_object_per_configuration() {
     assert_eq!(lines[1]["rows"], 600);
 }
 
+/// `bench dsmts` on one case: the case's row, the suite's verdict, and the SSA timed
+/// again on cleared registers and after a dense faer product on the pool's threads
+/// (what `palpa_core::cpu` guards against), the ratio what its name says.
+#[test]
+fn bench_dsmts_times_the_ssa_after_a_dense_product() {
+    let suite = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/dsmts");
+    let out = palpa(&[
+        "bench",
+        "dsmts",
+        "--suite",
+        suite,
+        "--cases",
+        "00001",
+        "--no-pgd",
+        "--trajectories",
+        "200",
+        "--json",
+    ]);
+    let v = common::json_ok(&out);
+    assert_eq!(v["cases"].as_array().map(Vec::len), Some(1), "{v}");
+    assert_eq!(v["cases"][0]["case"], "00001", "{v}");
+    let r = &v["ssa_after_dense_product"];
+    assert_eq!(r["case"], "00001", "{v}");
+    let num = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("{k}: {r}"));
+    let (clean, after, ratio) = (num("clean_seconds"), num("seconds"), num("ratio"));
+    assert!(clean > 0.0 && after > 0.0, "{r}");
+    assert!((ratio - after / clean).abs() <= 1e-9 * ratio, "{r}");
+}
+
 /// Every benchmark refuses, before it measures anything, what would abort it or make
 /// its table meaningless (some tables take an hour), naming the flag.
 #[test]

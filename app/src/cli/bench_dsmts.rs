@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use clap::Args;
-use palpa_core::cme::dsmts::{Case, SUITE_MEAN_FAILS, SUITE_SD_FAILS};
+use palpa_core::cme::dsmts::{Case, Output, SUITE_MEAN_FAILS, SUITE_SD_FAILS};
 use serde_json::json;
 
 #[derive(Debug, Args)]
@@ -55,6 +55,7 @@ pub fn run(args: &DsmtsBenchArgs) -> anyhow::Result<()> {
     }
     let mut rows = Vec::new();
     let (mut mean_fails, mut sd_fails) = (0, 0);
+    let mut first_run: Option<(Case, palpa_core::cme::Network, Vec<Output>)> = None;
     if !args.json {
         println!(
             "{:<6} {:<9} {:>9} {:>9} {:>7}  {:>5} {:>5} {:<4} {:>6}  {:>9} {:>9} {:>7}  boxes",
@@ -89,6 +90,9 @@ pub fn run(args: &DsmtsBenchArgs) -> anyhow::Result<()> {
             .with_context(|| format!("case {}: an output variable is not a species", case.id))?;
         let (fsp, boxes) = case.check_fsp(&network, &outputs, args.max_leak)?;
         let ssa = case.check_ssa(&network, &outputs, args.trajectories, args.seed);
+        if first_run.is_none() {
+            first_run = Some((case.clone(), network.clone(), outputs.clone()));
+        }
         mean_fails += ssa.mean_fails;
         sd_fails += ssa.sd_fails;
         let pgd = if args.no_pgd {
@@ -142,6 +146,11 @@ pub fn run(args: &DsmtsBenchArgs) -> anyhow::Result<()> {
     // The suite's guide: a correct simulator at n = 10⁴ fails about 2–3 mean and 5–6
     // sd points over the whole suite.
     let ssa_ok = mean_fails <= SUITE_MEAN_FAILS && sd_fails <= SUITE_SD_FAILS;
+    let registers = first_run.map(|(case, network, outputs)| {
+        let (clean_s, after_s) = ssa_after_dense_product(&case, &network, &outputs, args);
+        json!({"case": case.id, "clean_seconds": clean_s, "seconds": after_s,
+               "ratio": after_s / clean_s})
+    });
     if args.json {
         println!(
             "{}",
@@ -149,6 +158,7 @@ pub fn run(args: &DsmtsBenchArgs) -> anyhow::Result<()> {
                 "cases": rows,
                 "ssa_failed_points": {"mean": mean_fails, "sd": sd_fails},
                 "ssa_passes_suite": ssa_ok,
+                "ssa_after_dense_product": registers,
             }))?
         );
     } else {
@@ -157,6 +167,40 @@ pub fn run(args: &DsmtsBenchArgs) -> anyhow::Result<()> {
              run (the suite allows about {SUITE_MEAN_FAILS} and {SUITE_SD_FAILS} over all): {}",
             if ssa_ok { "pass" } else { "FAIL" }
         );
+        if let Some(r) = registers {
+            println!(
+                "SSA of case {} after a dense faer product on every pool thread: {:.2} s, \
+                 {:.2} s on cleared registers ({:.2}x; 8x when the paths did not clear them, \
+                 on an Intel Xeon with AVX-512: see palpa_core::cpu)",
+                r["case"].as_str().unwrap_or("?"),
+                r["seconds"].as_f64().unwrap_or(f64::NAN),
+                r["clean_seconds"].as_f64().unwrap_or(f64::NAN),
+                r["ratio"].as_f64().unwrap_or(f64::NAN),
+            );
+        }
     }
     Ok(())
+}
+
+/// The first case's SSA timed again on registers cleared on every pool thread, then
+/// after a 300 × 300 faer product there (the state faer's AVX-512 kernels can leave,
+/// which slowed the paths eightfold until each path cleared it: `palpa_core::cpu`).
+/// Seconds clean and after.
+fn ssa_after_dense_product(
+    case: &Case,
+    network: &palpa_core::cme::Network,
+    outputs: &[Output],
+    args: &DsmtsBenchArgs,
+) -> (f64, f64) {
+    let run = || {
+        case.check_ssa(network, outputs, args.trajectories, args.seed)
+            .seconds
+    };
+    rayon::broadcast(|_| palpa_core::cpu::clear_upper_halves());
+    let clean = run();
+    rayon::broadcast(|_| {
+        let a = faer::Mat::<f64>::from_fn(300, 300, |i, j| ((i * 7 + j * 3) % 11) as f64);
+        std::hint::black_box(&a * &a);
+    });
+    (clean, run())
 }
