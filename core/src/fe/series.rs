@@ -75,6 +75,15 @@ fn add_scaled(acc: &mut M3, s: f64, a: &M3) {
     }
 }
 
+/// `acc += a b` on the upper triangle only (for sums known to be symmetric).
+fn add_upper(acc: &mut M3, a: &M3, b: &M3) {
+    for i in 0..3 {
+        for j in i..3 {
+            acc[i][j] += a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
+        }
+    }
+}
+
 /// Permutations of (0, 1, 2) with their signs (the determinant's six terms).
 const PERMS: [([usize; 3], f64); 6] = [
     ([0, 1, 2], 1.0),
@@ -86,24 +95,33 @@ const PERMS: [([usize; 3], f64); 6] = [
 ];
 
 /// The coefficients `0..=p` of the second Piola–Kirchhoff stress for the deformation
-/// gradient series `f[0..=p]`. `f[0]` is `I` about the rest state, or `I + ∇u_0` about
-/// a deformed state `u_0` (then `C_0 ≠ I`, `J_0 ≠ 1` and `S_0 ≠ 0`).
-fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
+/// gradient series `f[0..=p]`, into `s[0..=p]`. `f[0]` is `I` about the rest state, or
+/// `I + ∇u_0` about a deformed state `u_0` (then `C_0 ≠ I`, `J_0 ≠ 1` and `S_0 ≠ 0`).
+///
+/// Runs once per quadrature point and order, so every series lives in a fixed array on
+/// the stack (`p ≤ MAX_ORDERS`): the heap's cost was a tenth of the whole right-hand side.
+fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64, s: &mut [M3]) {
     let p = f.len() - 1;
-    let c: Vec<M3> = (0..=p)
-        .map(|k| {
-            let mut ck = ZERO;
-            for i in 0..=k {
-                add_scaled(&mut ck, 1.0, &mul_tn(&f[i], &f[k - i]));
+    // C_k = Σ_{i+j=k} F_iᵀ F_j: the pairs (i, j) and (j, i) give a matrix and its
+    // transpose, so each unordered pair is one product.
+    let mut c = [ZERO; SERIES_LEN];
+    for (k, ck) in c.iter_mut().enumerate().take(p + 1) {
+        let mut acc = ZERO;
+        for i in 0..k.div_ceil(2) {
+            add_scaled(&mut acc, 1.0, &mul_tn(&f[i], &f[k - i]));
+        }
+        for a in 0..3 {
+            for b in 0..3 {
+                ck[a][b] = acc[a][b] + acc[b][a];
             }
-            ck
-        })
-        .collect();
+        }
+        if k % 2 == 0 {
+            add_scaled(ck, 1.0, &mul_tn(&f[k / 2], &f[k / 2]));
+        }
+    }
     match law {
-        Law::Svk => c
-            .iter()
-            .enumerate()
-            .map(|(k, ck)| {
+        Law::Svk => {
+            for (k, (sk, ck)) in s.iter_mut().zip(&c).take(p + 1).enumerate() {
                 // E_0 = ½(C_0 − I), E_k = ½ C_k.
                 let mut e = *ck;
                 if k == 0 {
@@ -112,28 +130,26 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
                     }
                 }
                 let tr = 0.5 * (e[0][0] + e[1][1] + e[2][2]);
-                let mut s = ZERO;
                 for i in 0..3 {
                     for j in 0..3 {
-                        s[i][j] = mu * e[i][j] + if i == j { lambda * tr } else { 0.0 };
+                        sk[i][j] = mu * e[i][j] + if i == j { lambda * tr } else { 0.0 };
                     }
                 }
-                s
-            })
-            .collect(),
+            }
+        }
         Law::NeoHookean => {
             // J = det F: each permutation's product of three entry series, as two
             // Cauchy products (the first two rows' entries, then the third's): O(p²)
             // a permutation where the triple sum is O(p³).
-            let mut jac = vec![0.0; p + 1];
-            let mut pair = vec![0.0; p + 1];
+            let mut jac = [0.0; SERIES_LEN];
+            let mut pair = [0.0; SERIES_LEN];
             for (perm, sign) in PERMS {
-                for (k, q) in pair.iter_mut().enumerate() {
+                for (k, q) in pair.iter_mut().enumerate().take(p + 1) {
                     *q = (0..=k)
                         .map(|a| f[a][0][perm[0]] * f[k - a][1][perm[1]])
                         .sum();
                 }
-                for (k, jk) in jac.iter_mut().enumerate() {
+                for (k, jk) in jac.iter_mut().enumerate().take(p + 1) {
                     let sum: f64 = (0..=k).map(|m| pair[m] * f[k - m][2][perm[2]]).sum();
                     *jk += sign * sum;
                 }
@@ -141,42 +157,60 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64) -> Vec<M3> {
             if jac[0].is_nan() || jac[0] <= 0.0 {
                 // An inverted expansion point: no series (the Newton reference rejects
                 // the same state).
-                return vec![[[f64::NAN; 3]; 3]; p + 1];
+                s[..=p].fill([[f64::NAN; 3]; 3]);
+                return;
             }
             // (ln J)' = J'/J: k L_k J_0 = k J_k − Σ_{m=1..k−1} m L_m J_{k−m}.
-            let mut ln_j = vec![jac[0].ln(); p + 1];
+            let mut ln_j = [jac[0].ln(); SERIES_LEN];
             for k in 1..=p {
-                let s: f64 = (1..k).map(|m| m as f64 * ln_j[m] * jac[k - m]).sum();
-                ln_j[k] = (jac[k] - s / k as f64) / jac[0];
+                let sum: f64 = (1..k).map(|m| m as f64 * ln_j[m] * jac[k - m]).sum();
+                ln_j[k] = (jac[k] - sum / k as f64) / jac[0];
             }
-            // C Y = I: Y_0 = C_0⁻¹, Y_k = −Y_0 Σ_{i=1..k} C_i Y_{k−i}.
-            let y0 = inverse(&c[0], det(&c[0]));
-            let mut y = vec![y0];
+            // C Y = I: Y_0 = C_0⁻¹, Y_k = −Y_0 Σ_{i=1..k} C_i Y_{k−i}. Every Y_k is
+            // symmetric (C⁻¹ is, for every depth); about the rest state Y_0 = I, so the
+            // sum is −Y_k and only its upper triangle is formed.
+            let at_rest = c[0] == ID;
+            let mut y = [ZERO; SERIES_LEN];
+            y[0] = if at_rest {
+                ID
+            } else {
+                inverse(&c[0], det(&c[0]))
+            };
             for k in 1..=p {
                 let mut acc = ZERO;
-                for i in 1..=k {
-                    add_scaled(&mut acc, 1.0, &mul(&c[i], &y[k - i]));
+                if at_rest {
+                    for i in 1..=k {
+                        add_upper(&mut acc, &c[i], &y[k - i]);
+                    }
+                } else {
+                    for i in 1..=k {
+                        add_scaled(&mut acc, 1.0, &mul(&c[i], &y[k - i]));
+                    }
+                    acc = mul(&y[0], &acc);
                 }
-                let mut yk = mul(&y0, &acc);
-                yk.iter_mut().flatten().for_each(|v| *v = -*v);
-                y.push(yk);
+                for a in 0..3 {
+                    for b in a..3 {
+                        y[k][a][b] = -acc[a][b];
+                        y[k][b][a] = -acc[a][b];
+                    }
+                }
             }
-            (0..=p)
-                .map(|k| {
-                    let mut s = ZERO;
-                    add_scaled(&mut s, -mu, &y[k]);
-                    if k == 0 {
-                        add_scaled(&mut s, mu, &ID);
-                    }
-                    for m in 0..=k {
-                        add_scaled(&mut s, lambda * ln_j[m], &y[k - m]);
-                    }
-                    s
-                })
-                .collect()
+            for (k, sk) in s.iter_mut().enumerate().take(p + 1) {
+                *sk = ZERO;
+                add_scaled(sk, -mu, &y[k]);
+                if k == 0 {
+                    add_scaled(sk, mu, &ID);
+                }
+                for m in 0..=k {
+                    add_scaled(sk, lambda * ln_j[m], &y[k - m]);
+                }
+            }
         }
     }
 }
+
+/// Room for a series of [`MAX_ORDERS`] orders and its constant term.
+const SERIES_LEN: usize = MAX_ORDERS + 1;
 
 /// The `a^p` coefficient of cell `c`'s internal force at
 /// `u(a) = u_0 + Σ_{i<p} a^i u_i` (`base` = all-node `u_0`, `None` for the rest state;
@@ -201,8 +235,13 @@ pub fn element_coefficient(
     let (gl, vol) =
         barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
     let rule = if p2 { &TET_DEGREE4 } else { &TET_DEGREE1 };
+    assert!(
+        p <= MAX_ORDERS,
+        "a series of {p} orders (at most {MAX_ORDERS})"
+    );
     let mut g = [[0.0; 3]; 10];
-    let mut f = vec![ZERO; p + 1];
+    let mut f = [ZERO; SERIES_LEN];
+    let mut s = [ZERO; SERIES_LEN];
     for (l, w) in rule.points.iter().zip(rule.weights) {
         tet_gradients(p2, *l, &gl, &mut g);
         f[0] = ID;
@@ -231,7 +270,7 @@ pub fn element_coefficient(
             }
             f[k] = h;
         }
-        let s = stress_series(law, &f, lambda, mu);
+        stress_series(law, &f[..=p], lambda, mu, &mut s);
         let mut pp = ZERO;
         for i in 0..=p {
             add_scaled(&mut pp, 1.0, &mul(&f[i], &s[p - i]));
