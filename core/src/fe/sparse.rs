@@ -5,9 +5,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::prelude::Solve;
 use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 
@@ -229,29 +227,55 @@ pub struct Cholesky {
     n: usize,
 }
 
+/// The symbolic analysis and the factor's values. A double factor is factored and
+/// solved on [`double_par`]'s threads, a single one sequentially (see
+/// [`Cholesky::factor_single`]).
 #[derive(Debug)]
 enum Factor {
-    Double(Llt<usize, f64>),
-    /// The symbolic analysis and the factor's values, used sequentially (see
-    /// [`Cholesky::factor_single`]).
+    Double(Arc<SymbolicCholesky<usize>>, Vec<f64>),
     Single(Arc<SymbolicCholesky<usize>>, Vec<f32>),
+}
+
+/// The parallelism of double-precision factorizations and solves: one task per core of
+/// the machine, whatever pool the caller runs in. faer's rounding depends on how many
+/// tasks it splits the work into, and its default takes that from the calling pool: a
+/// tissue build presses inside a pool of `--jobs` threads, so its law changed with the
+/// number of presses at once (the same three-press region, coarse P2: bound
+/// 0.0949400 mm one at a time, 0.0949394 mm two at a time). The core count is fixed for
+/// a machine, so a build gives one law however many presses run at once; where the
+/// pool has fewer threads, the tasks simply run in turn.
+fn double_par() -> Par {
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    Par::rayon(*CORES.get_or_init(|| {
+        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+    }))
 }
 
 impl Cholesky {
     pub fn factor(a: &SymCsc, fixed_nodes: usize) -> Result<Cholesky, FeError> {
         Cholesky::check_budget(a)?;
-        let m = a.to_faer();
         let err = |e: String| FeError::NotPositiveDefinite {
             fixed_nodes,
             detail: e,
         };
-        let sym =
-            SymbolicLlt::try_new(m.symbolic(), Side::Lower).map_err(|e| err(format!("{e:?}")))?;
-        let llt = Llt::try_new_with_symbolic(sym, m.as_ref(), Side::Lower);
+        let symbolic = symbolic(a)?;
+        let mut values = vec![0.0f64; symbolic.len_val()];
+        let par = double_par();
+        let mut scratch =
+            MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
+        let numeric = symbolic.factorize_numeric_llt(
+            &mut values,
+            a.to_faer().as_ref(),
+            Side::Lower,
+            Default::default(),
+            par,
+            MemStack::new(&mut scratch),
+            Default::default(),
+        );
         crate::cpu::clear_upper_halves();
-        let llt = llt.map_err(|e| err(format!("{e:?}")))?;
+        numeric.map_err(|e| err(format!("{e:?}")))?;
         Ok(Cholesky {
-            llt: Factor::Double(llt),
+            llt: Factor::Double(symbolic, values),
             n: a.n,
         })
     }
@@ -322,14 +346,18 @@ impl Cholesky {
         })
     }
 
-    /// Solves the single factor for the columns of `rhs`, sequentially.
-    fn solve_single(symbolic: &SymbolicCholesky<usize>, values: &[f32], rhs: &mut Mat<f32>) {
-        let mut scratch =
-            MemBuffer::new(symbolic.solve_in_place_scratch::<f32>(rhs.ncols(), Par::Seq));
+    /// Solves the factor `(symbolic, values)` for the columns of `rhs` with `par`.
+    fn solve_with<T: faer::traits::ComplexField>(
+        symbolic: &SymbolicCholesky<usize>,
+        values: &[T],
+        rhs: &mut Mat<T>,
+        par: Par,
+    ) {
+        let mut scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<T>(rhs.ncols(), par));
         LltRef::new(symbolic, values).solve_in_place_with_conj(
             Conj::No,
             rhs.as_mut(),
-            Par::Seq,
+            par,
             MemStack::new(&mut scratch),
         );
         crate::cpu::clear_upper_halves();
@@ -338,15 +366,14 @@ impl Cholesky {
     /// Solves A x = b for one right-hand side.
     pub fn solve(&self, b: &[f64]) -> Vec<f64> {
         match &self.llt {
-            Factor::Double(llt) => {
+            Factor::Double(symbolic, values) => {
                 let mut rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| b[i]);
-                llt.solve_in_place(rhs.as_mut());
-                crate::cpu::clear_upper_halves();
+                Self::solve_with(symbolic, values, &mut rhs, double_par());
                 (0..self.n).map(|i| rhs[(i, 0)]).collect()
             }
             Factor::Single(symbolic, values) => {
                 let mut rhs = Mat::<f32>::from_fn(self.n, 1, |i, _| b[i] as f32);
-                Self::solve_single(symbolic, values, &mut rhs);
+                Self::solve_with(symbolic, values, &mut rhs, Par::Seq);
                 (0..self.n).map(|i| f64::from(rhs[(i, 0)])).collect()
             }
         }
@@ -355,13 +382,12 @@ impl Cholesky {
     /// Solves for several right-hand sides at once (columns of `b`, n × k, column-major).
     pub fn solve_many(&self, b: &mut Mat<f64>) {
         match &self.llt {
-            Factor::Double(llt) => {
-                llt.solve_in_place(b.as_mut());
-                crate::cpu::clear_upper_halves();
+            Factor::Double(symbolic, values) => {
+                Self::solve_with(symbolic, values, b, double_par());
             }
             Factor::Single(symbolic, values) => {
                 let mut single = Mat::<f32>::from_fn(b.nrows(), b.ncols(), |i, j| b[(i, j)] as f32);
-                Self::solve_single(symbolic, values, &mut single);
+                Self::solve_with(symbolic, values, &mut single, Par::Seq);
                 for j in 0..b.ncols() {
                     for i in 0..b.nrows() {
                         b[(i, j)] = f64::from(single[(i, j)]);
