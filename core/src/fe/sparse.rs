@@ -251,6 +251,30 @@ fn double_par() -> Par {
     }))
 }
 
+/// The numeric factor of `m` (lower triangle) under `symbolic`, with `par`, or faer's
+/// reason it is not positive definite.
+fn numeric<T: faer::traits::ComplexField>(
+    symbolic: &SymbolicCholesky<usize>,
+    m: faer::sparse::SparseColMatRef<'_, usize, T>,
+    par: Par,
+) -> Result<Vec<T>, String> {
+    let mut values = vec![T::zero_impl(); symbolic.len_val()];
+    let mut scratch =
+        MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<T>(par, Default::default()));
+    let numeric = symbolic.factorize_numeric_llt(
+        &mut values,
+        m,
+        Side::Lower,
+        Default::default(),
+        par,
+        MemStack::new(&mut scratch),
+        Default::default(),
+    );
+    crate::cpu::clear_upper_halves();
+    numeric.map(|_| ()).map_err(|e| format!("{e:?}"))?;
+    Ok(values)
+}
+
 impl Cholesky {
     pub fn factor(a: &SymCsc, fixed_nodes: usize) -> Result<Cholesky, FeError> {
         Cholesky::check_budget(a)?;
@@ -259,21 +283,7 @@ impl Cholesky {
             detail: e,
         };
         let symbolic = symbolic(a)?;
-        let mut values = vec![0.0f64; symbolic.len_val()];
-        let par = double_par();
-        let mut scratch =
-            MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
-        let numeric = symbolic.factorize_numeric_llt(
-            &mut values,
-            a.to_faer().as_ref(),
-            Side::Lower,
-            Default::default(),
-            par,
-            MemStack::new(&mut scratch),
-            Default::default(),
-        );
-        crate::cpu::clear_upper_halves();
-        numeric.map_err(|e| err(format!("{e:?}")))?;
+        let values = numeric(&symbolic, a.to_faer().as_ref(), double_par()).map_err(err)?;
         Ok(Cholesky {
             llt: Factor::Double(symbolic, values),
             n: a.n,
@@ -325,21 +335,7 @@ impl Cholesky {
             m.symbolic().to_owned().map_err(|e| err(format!("{e:?}")))?,
             a.val.iter().map(|&v| v as f32).collect(),
         );
-        let mut values = vec![0.0f32; symbolic.len_val()];
-        let mut scratch = MemBuffer::new(
-            symbolic.factorize_numeric_llt_scratch::<f32>(Par::Seq, Default::default()),
-        );
-        let numeric = symbolic.factorize_numeric_llt(
-            &mut values,
-            single.as_ref(),
-            Side::Lower,
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut scratch),
-            Default::default(),
-        );
-        crate::cpu::clear_upper_halves();
-        numeric.map_err(|e| err(format!("{e:?}")))?;
+        let values = numeric(&symbolic, single.as_ref(), Par::Seq).map_err(err)?;
         Ok(Cholesky {
             llt: Factor::Single(symbolic, values),
             n: a.n,
