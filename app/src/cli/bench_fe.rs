@@ -11,7 +11,9 @@
 //!   ten spread positions on coarse P2: the force, Newton work and seconds, or the
 //!   depth and force where it stopped and why;
 //! - `depth_poisson`: the neo-Hookean press at the anterior point for ν = 0.48, 0.49,
-//!   0.499.
+//!   0.499;
+//! - `ordering`: the P2 rest stiffness factored under AMD and under nested dissection
+//!   (what `fe::sparse` uses), at `--ordering-levels`: entries, seconds and ratios.
 
 use std::time::Instant;
 
@@ -39,7 +41,7 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson, series, depth_law, surface_law, reduced, build_cost).
+    /// depth_poisson, series, depth_law, surface_law, reduced, build_cost, ordering).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
@@ -87,13 +89,17 @@ pub struct FeBenchArgs {
     /// as `palpa fe solve --depth-mm` does; several minutes more a position).
     #[arg(long)]
     build_from_rest: bool,
+    /// `ordering` table: the levels measured (P2; medium's AMD factorization takes about
+    /// a minute and 4 GB), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values = ["coarse", "medium"])]
+    ordering_levels: Vec<LevelArg>,
     /// `series` table: laws (svk, neo-hookean), comma-separated.
     #[arg(long, value_delimiter = ',', default_values = ["neo-hookean", "svk"])]
     series_laws: Vec<Law>,
 }
 
 /// The tables `--only` may name.
-const TABLES: [&str; 12] = [
+const TABLES: [&str; 13] = [
     "cost",
     "poisson",
     "positions",
@@ -106,6 +112,7 @@ const TABLES: [&str; 12] = [
     "surface_law",
     "reduced",
     "build_cost",
+    "ordering",
 ];
 
 impl FeBenchArgs {
@@ -236,6 +243,9 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
             args.reduced_refresh,
         )?;
     }
+    if args.wants("ordering") {
+        ordering(&args.ordering_levels)?;
+    }
     if args.wants("build_cost") {
         super::bench_build::build_cost(
             &coarse,
@@ -288,6 +298,55 @@ fn cost(args: &FeBenchArgs, levels: &[LevelArg]) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The rest stiffness of P2 at each level factored under AMD and under nested
+/// dissection (`fe::ordering`), one thread each: the factor's entries, the seconds of the
+/// analysis, a factorization and a solve in both precisions, and their ratios.
+fn ordering(levels: &[LevelArg]) -> anyhow::Result<()> {
+    use palpa_core::fe::elasticity::{assemble, element_stiffness};
+    use palpa_core::fe::sparse::{SymCsc, ordering_cost};
+    for &level in levels {
+        let organ = mesh_organ(OrganName::Liver, level)?;
+        let space = organ_space(&organ, Element::P2);
+        let (lambda, mu) = Material::default().lame_n_per_mm2();
+        let mut k = SymCsc::pattern(&space);
+        assemble(&space, &mut k, |c, ke| {
+            element_stiffness(&space, c, lambda, mu, ke);
+        });
+        let nd = ordering_cost(&k, true)?;
+        let amd = ordering_cost(&k, false)?;
+        let ratio = |a: f64, n: f64| a / n;
+        println!(
+            "{}",
+            json!({
+                "table": "ordering",
+                "level": format!("{level:?}").to_lowercase(),
+                "element": "p2",
+                "dofs": k.n,
+                "amd": cost_json(&amd),
+                "nested_dissection": cost_json(&nd),
+                "entries_ratio": ratio(amd.factor_entries as f64, nd.factor_entries as f64),
+                "double_factor_ratio": ratio(amd.double_factor_s, nd.double_factor_s),
+                "single_factor_ratio": ratio(amd.single_factor_s, nd.single_factor_s),
+                "double_solve_ratio": ratio(amd.double_solve_s, nd.double_solve_s),
+                "single_solve_ratio": ratio(amd.single_solve_s, nd.single_solve_s),
+            })
+        );
+    }
+    Ok(())
+}
+
+fn cost_json(c: &palpa_core::fe::sparse::OrderingCost) -> serde_json::Value {
+    json!({
+        "factor_entries": c.factor_entries,
+        "analysis_s": c.analysis_s,
+        "double_factor_s": c.double_factor_s,
+        "double_solve_s": c.double_solve_s,
+        "single_factor_s": c.single_factor_s,
+        "single_solve_s": c.single_solve_s,
+        "double_residual": c.double_residual,
+    })
 }
 
 /// The probe displacement as ν → 0.5, P1 against P2 (locking).

@@ -21,13 +21,14 @@
 //! even P2 degrades (measured in the issue notes).
 //!
 //! **Solve.** Sparse symmetric positive-definite stiffness on the free degrees of
-//! freedom (fixed nodes removed), factored once by faer's sparse Cholesky (LLᵀ with
-//! AMD ordering).
+//! freedom (fixed nodes removed), factored once by faer's sparse Cholesky (LLᵀ under a
+//! nested-dissection ordering of the mesh's nodes, [`ordering`]).
 
 pub mod elasticity;
 pub mod hyper;
 pub mod load;
 pub mod newton;
+pub mod ordering;
 pub mod path;
 pub mod probe;
 pub mod reduced;

@@ -1,11 +1,15 @@
 //! A symmetric sparse matrix stored as its lower triangle in compressed columns, with a
-//! pattern built once from the cells, element scatter-add, and faer's sparse Cholesky.
+//! pattern built once from the cells, element scatter-add, and faer's sparse Cholesky
+//! under a nested-dissection ordering ([`super::ordering`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
+use faer::perm::PermRef;
+use faer::sparse::linalg::cholesky::{
+    LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 
@@ -182,8 +186,9 @@ struct Analysis {
     symbolic: Arc<SymbolicCholesky<usize>>,
 }
 
-/// The symbolic Cholesky analysis of `a` (ordering and fill-in), faer's defaults;
-/// made once for each pattern (see [`ANALYSES`]).
+/// The symbolic Cholesky analysis of `a` (ordering and fill-in): nested dissection
+/// where [`super::ordering`] gives one, else faer's AMD; made once for each pattern
+/// (see [`ANALYSES`]).
 fn symbolic(a: &SymCsc) -> Result<Arc<SymbolicCholesky<usize>>, FeError> {
     let same = |e: &Analysis| e.n == a.n && e.col_ptr == a.col_ptr && e.row_idx == a.row_idx;
     {
@@ -193,11 +198,16 @@ fn symbolic(a: &SymCsc) -> Result<Arc<SymbolicCholesky<usize>>, FeError> {
             return Ok(Arc::clone(&hit.symbolic));
         }
     }
+    let nd = super::ordering::nested_dissection(a);
+    let ordering = match &nd {
+        Some((fwd, inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, a.n)),
+        None => SymmetricOrdering::Amd,
+    };
     let symbolic = Arc::new(
         factorize_symbolic_cholesky(
             a.to_faer().symbolic(),
             Side::Lower,
-            Default::default(),
+            ordering,
             Default::default(),
         )
         .map_err(|e| FeError::NotPositiveDefinite {
@@ -392,6 +402,81 @@ impl Cholesky {
             }
         }
     }
+}
+
+/// What one ordering costs on one matrix, measured on one thread: the factor's entries,
+/// the analysis, a numeric factorization and one solve in double and in single precision.
+/// `palpa bench fe --only ordering` prints it for AMD and nested dissection side by side.
+#[derive(Debug, Clone, Copy)]
+pub struct OrderingCost {
+    pub factor_entries: usize,
+    pub analysis_s: f64,
+    pub double_factor_s: f64,
+    pub double_solve_s: f64,
+    pub single_factor_s: f64,
+    pub single_solve_s: f64,
+    /// `‖A x − b‖ / ‖b‖` of the double solve: both orders factor the same matrix.
+    pub double_residual: f64,
+}
+
+/// Measures [`OrderingCost`] for `a` under nested dissection (`nested`, where
+/// [`super::ordering`] gives one) or AMD, bypassing the kept analyses.
+pub fn ordering_cost(a: &SymCsc, nested: bool) -> Result<OrderingCost, FeError> {
+    use std::time::Instant;
+    let err = |e: String| FeError::NotPositiveDefinite {
+        fixed_nodes: 0,
+        detail: e,
+    };
+    let t = Instant::now();
+    let nd = if nested {
+        super::ordering::nested_dissection(a)
+    } else {
+        None
+    };
+    let ordering = match &nd {
+        Some((fwd, inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, a.n)),
+        None => SymmetricOrdering::Amd,
+    };
+    let m = a.to_faer();
+    let symbolic =
+        factorize_symbolic_cholesky(m.symbolic(), Side::Lower, ordering, Default::default())
+            .map_err(|e| err(format!("symbolic analysis failed: {e:?}")))?;
+    let analysis_s = t.elapsed().as_secs_f64();
+    let b: Vec<f64> = (0..a.n).map(|i| ((i % 7) as f64 - 3.0) / 3.0).collect();
+    let t = Instant::now();
+    let double = numeric(&symbolic, m.as_ref(), Par::Seq).map_err(err)?;
+    let double_factor_s = t.elapsed().as_secs_f64();
+    let mut x = Mat::<f64>::from_fn(a.n, 1, |i, _| b[i]);
+    let t = Instant::now();
+    Cholesky::solve_with(&symbolic, &double, &mut x, Par::Seq);
+    let double_solve_s = t.elapsed().as_secs_f64();
+    let x: Vec<f64> = (0..a.n).map(|i| x[(i, 0)]).collect();
+    let mut ax = vec![0.0; a.n];
+    a.mul(&x, &mut ax);
+    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|q| q * q).sum::<f64>().sqrt();
+    let double_residual =
+        norm(&mut ax.iter().zip(&b).map(|(p, q)| p - q)) / norm(&mut b.iter().copied());
+    drop(double);
+    let single_m = SparseColMat::new(
+        m.symbolic().to_owned().map_err(|e| err(format!("{e:?}")))?,
+        a.val.iter().map(|&v| v as f32).collect(),
+    );
+    let t = Instant::now();
+    let single = numeric(&symbolic, single_m.as_ref(), Par::Seq).map_err(err)?;
+    let single_factor_s = t.elapsed().as_secs_f64();
+    let mut xs = Mat::<f32>::from_fn(a.n, 1, |i, _| b[i] as f32);
+    let t = Instant::now();
+    Cholesky::solve_with(&symbolic, &single, &mut xs, Par::Seq);
+    let single_solve_s = t.elapsed().as_secs_f64();
+    Ok(OrderingCost {
+        factor_entries: symbolic.len_val(),
+        analysis_s,
+        double_factor_s,
+        double_solve_s,
+        single_factor_s,
+        single_solve_s,
+        double_residual,
+    })
 }
 
 #[cfg(test)]
