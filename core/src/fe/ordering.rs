@@ -20,7 +20,11 @@
 //!
 //! | mesh | unknowns | factor entries, AMD → ND | double factorization | one solve |
 //! |---|---|---|---|---|
-//! | coarse | 38 247 | 41.5 M → 25.7 M | 1.08 → 0.50 s | 31 → 23 ms |
+//! | coarse | 38 247 | 41.5 M → 25.7 M | 1.21 → 0.58 s | 35 → 25 ms |
+//! | medium | 178 869 | 520 M → 265 M | 47.9 → 14.7 s | 337 → 188 ms |
+//!
+//! A tissue build's presses are about a quarter cheaper on coarse and two and a half
+//! times on medium, in about half the memory (docs/tissue-measurements.md §4).
 //!
 //! The ordering is deterministic: METIS seeds its own generator with a fixed seed, so
 //! the same pattern always gets the same order, and a build the same factors.

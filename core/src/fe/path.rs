@@ -616,7 +616,11 @@ impl StopKind {
 /// (`L` = 41.5 million) 0.87 and 1.28 GB, medium P2 (517 million) 8.9 and 13.8 GB, so
 /// 8–11 bytes an entry shared and about 10 a press; two medium presses falling back
 /// on Newton at once peaked at 21.7 GB (about 17 a press). The constants (12 and 16)
-/// put two medium presses at 22.8 GB (docs/tissue-measurements.md §5).
+/// put two medium presses at 22.8 GB (docs/tissue-measurements.md §5). Those were
+/// measured under AMD; under the nested-dissection order (`super::ordering`) the
+/// factors hold 25.7 and 265 million entries, and the same bytes an entry held: the
+/// two-at-a-time coarse covering build peaked at 0.94 GB (estimate 1.13 GB), one medium
+/// press at 4.9 GB (estimate 7.4 GB).
 pub fn press_memory_bytes(space: &Space) -> Result<(u64, u64), FeError> {
     let entries = super::sparse::factor_entries(&SymCsc::pattern(space))?;
     Ok((
