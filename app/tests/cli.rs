@@ -189,6 +189,43 @@ fn bench_dsmts_times_the_ssa_after_a_dense_product() {
     assert!((ratio - after / clean).abs() <= 1e-9 * ratio, "{r}");
 }
 
+/// `bench fe --only ordering` factors coarse P2's rest stiffness under both orders:
+/// the same matrix solved to rounding either way, nested dissection with fewer factor
+/// entries (what the factorizations use), the ratios what their names say.
+#[test]
+fn bench_fe_ordering_compares_amd_and_nested_dissection() {
+    let out = palpa(&[
+        "bench",
+        "fe",
+        "--only",
+        "ordering",
+        "--ordering-levels",
+        "coarse",
+    ]);
+    let v = common::json_ok(&out);
+    assert_eq!(v["table"], "ordering", "{v}");
+    assert_eq!(v["level"], "coarse", "{v}");
+    let num =
+        |k: &str, at: &serde_json::Value| at[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    let (amd, nd) = (&v["amd"], &v["nested_dissection"]);
+    for c in [amd, nd] {
+        // Measured 2e-14 for both orders: 1e-10 leaves four orders of magnitude for
+        // another machine's rounding, and far less than a wrong order would leave.
+        assert!(num("double_residual", c) < 1e-10, "{v}");
+    }
+    let (ea, en) = (num("factor_entries", amd), num("factor_entries", nd));
+    assert!(en < ea, "{v}");
+    assert!(
+        (num("entries_ratio", &v) - ea / en).abs() <= 1e-12 * ea / en,
+        "{v}"
+    );
+    let (fa, fnd) = (num("double_factor_s", amd), num("double_factor_s", nd));
+    assert!(
+        (num("double_factor_ratio", &v) - fa / fnd).abs() <= 1e-9 * fa / fnd,
+        "{v}"
+    );
+}
+
 /// Every benchmark refuses, before it measures anything, what would abort it or make
 /// its table meaningless (some tables take an hour), naming the flag.
 #[test]

@@ -198,23 +198,7 @@ fn symbolic(a: &SymCsc) -> Result<Arc<SymbolicCholesky<usize>>, FeError> {
             return Ok(Arc::clone(&hit.symbolic));
         }
     }
-    let nd = super::ordering::nested_dissection(a);
-    let ordering = match &nd {
-        Some((fwd, inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, a.n)),
-        None => SymmetricOrdering::Amd,
-    };
-    let symbolic = Arc::new(
-        factorize_symbolic_cholesky(
-            a.to_faer().symbolic(),
-            Side::Lower,
-            ordering,
-            Default::default(),
-        )
-        .map_err(|e| FeError::NotPositiveDefinite {
-            fixed_nodes: 0,
-            detail: format!("symbolic analysis failed: {e:?}"),
-        })?,
-    );
+    let symbolic = Arc::new(analyse(a, true)?);
     let mut kept = ANALYSES.lock().unwrap_or_else(PoisonError::into_inner);
     if !kept.iter().any(same) {
         if kept.len() == ANALYSES_KEPT {
@@ -228,6 +212,37 @@ fn symbolic(a: &SymCsc) -> Result<Arc<SymbolicCholesky<usize>>, FeError> {
         });
     }
     Ok(symbolic)
+}
+
+/// `a`'s symbolic analysis under nested dissection where `nested` and
+/// [`super::ordering`] gives one, else under faer's AMD.
+fn analyse(a: &SymCsc, nested: bool) -> Result<SymbolicCholesky<usize>, FeError> {
+    let nd = nested
+        .then(|| super::ordering::nested_dissection(a))
+        .flatten();
+    let ordering = match &nd {
+        Some((fwd, inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, a.n)),
+        None => SymmetricOrdering::Amd,
+    };
+    factorize_symbolic_cholesky(
+        a.to_faer().symbolic(),
+        Side::Lower,
+        ordering,
+        Default::default(),
+    )
+    .map_err(|e| FeError::NotPositiveDefinite {
+        fixed_nodes: 0,
+        detail: format!("symbolic analysis failed: {e:?}"),
+    })
+}
+
+/// `a` rounded to single precision, in faer's form.
+fn to_single(a: &SymCsc) -> Result<SparseColMat<usize, f32>, String> {
+    let m = a.to_faer();
+    Ok(SparseColMat::new(
+        m.symbolic().to_owned().map_err(|e| format!("{e:?}"))?,
+        a.val.iter().map(|&v| v as f32).collect(),
+    ))
 }
 
 /// A factored symmetric positive-definite matrix, in double or single precision.
@@ -329,7 +344,6 @@ impl Cholesky {
             fixed_nodes,
             detail: e,
         };
-        let m = a.to_faer();
         let symbolic = symbolic(a)?;
         // The budget as for `factor`: the factor and its workspace, in four bytes.
         let need = 2 * 4 * symbolic.len_val() as u64;
@@ -341,10 +355,7 @@ impl Cholesky {
                 budget_gb: budget as f64 / 1e9,
             });
         }
-        let single = SparseColMat::new(
-            m.symbolic().to_owned().map_err(|e| err(format!("{e:?}")))?,
-            a.val.iter().map(|&v| v as f32).collect(),
-        );
+        let single = to_single(a).map_err(err)?;
         let values = numeric(&symbolic, single.as_ref(), Par::Seq).map_err(err)?;
         Ok(Cholesky {
             llt: Factor::Single(symbolic, values),
@@ -428,20 +439,9 @@ pub fn ordering_cost(a: &SymCsc, nested: bool) -> Result<OrderingCost, FeError> 
         detail: e,
     };
     let t = Instant::now();
-    let nd = if nested {
-        super::ordering::nested_dissection(a)
-    } else {
-        None
-    };
-    let ordering = match &nd {
-        Some((fwd, inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, a.n)),
-        None => SymmetricOrdering::Amd,
-    };
-    let m = a.to_faer();
-    let symbolic =
-        factorize_symbolic_cholesky(m.symbolic(), Side::Lower, ordering, Default::default())
-            .map_err(|e| err(format!("symbolic analysis failed: {e:?}")))?;
+    let symbolic = analyse(a, nested)?;
     let analysis_s = t.elapsed().as_secs_f64();
+    let m = a.to_faer();
     let b: Vec<f64> = (0..a.n).map(|i| ((i % 7) as f64 - 3.0) / 3.0).collect();
     let t = Instant::now();
     let double = numeric(&symbolic, m.as_ref(), Par::Seq).map_err(err)?;
@@ -457,10 +457,7 @@ pub fn ordering_cost(a: &SymCsc, nested: bool) -> Result<OrderingCost, FeError> 
     let double_residual =
         norm(&mut ax.iter().zip(&b).map(|(p, q)| p - q)) / norm(&mut b.iter().copied());
     drop(double);
-    let single_m = SparseColMat::new(
-        m.symbolic().to_owned().map_err(|e| err(format!("{e:?}")))?,
-        a.val.iter().map(|&v| v as f32).collect(),
-    );
+    let single_m = to_single(a).map_err(err)?;
     let t = Instant::now();
     let single = numeric(&symbolic, single_m.as_ref(), Par::Seq).map_err(err)?;
     let single_factor_s = t.elapsed().as_secs_f64();
