@@ -6,7 +6,8 @@
 //! neighbours; *nested dissection* splits the graph of `A` by a small separator `S`
 //! into two halves, orders each half recursively, and `S` last, so no fill crosses
 //! between the halves. On a 3-D mesh of `n` unknowns a plane separator has about
-//! `n^{2/3}` of them, and the factor's work is `O(n²)` against AMD's larger constant.
+//! `n^{2/3}` of them, which bounds the factor's entries by `O(n^{4/3})` and its work by
+//! `O(n²)`; minimum degree carries no such bound, and on these meshes fills more.
 //!
 //! The separators come from METIS (`METIS_NodeND`: multilevel coarsening, bisection
 //! of the coarse graph, refinement on the way back), on the graph of the *nodes*: the
@@ -26,8 +27,9 @@
 //! A tissue build's presses are about a quarter cheaper on coarse and two and a half
 //! times on medium, in about half the memory (docs/tissue-measurements.md §4).
 //!
-//! The ordering is deterministic: METIS seeds its own generator with a fixed seed, so
-//! the same pattern always gets the same order, and a build the same factors.
+//! The ordering is deterministic: METIS seeds its own generator with a fixed seed
+//! (4321 where none is set), so the same pattern always gets the same order, and a
+//! build the same factors (a unit test orders a pattern twice).
 //!
 //! Matrices of fewer than [`MIN_NODES`] nodes keep AMD, as does a build without the
 //! `metis` feature (the mobile libraries, which evaluate meta-models and factor
