@@ -26,6 +26,7 @@
 
 pub mod elasticity;
 pub mod hyper;
+pub mod lanes;
 pub mod load;
 pub mod newton;
 pub mod ordering;

@@ -217,6 +217,10 @@ const SERIES_LEN: usize = MAX_ORDERS + 1;
 /// `u(a) = u_0 + Σ_{i<p} a^i u_i` (`base` = all-node `u_0`, `None` for the rest state;
 /// `lower[i − 1]` = all-node `u_i`), into `fe` (3·nodes per cell). The part linear in
 /// `u_p` is left out: it is the tangent at `u_0` times `u_p`.
+///
+/// The plain statement of the arithmetic, one quadrature point at a time: the series
+/// run [`super::lanes::element_coefficient`], the same numbers bit for bit four points
+/// at a time (a unit test there compares the two).
 #[allow(clippy::too_many_arguments)]
 pub fn element_coefficient(
     space: &Space,
@@ -299,7 +303,7 @@ fn coefficient(
     cells: &[usize],
 ) -> Vec<f64> {
     super::newton::assemble_vector_on(space, cells, |c, fe| {
-        element_coefficient(space, law, c, base, lower, p, lambda, mu, fe);
+        super::lanes::element_coefficient(space, law, c, base, lower, p, lambda, mu, fe);
     })
 }
 

@@ -1,0 +1,578 @@
+//! The depth series' right-hand sides ([`super::series`]) four quadrature points at a
+//! time, the same arithmetic in vector lanes.
+//!
+//! Order `p`'s right-hand side `N_p` is the costliest part of a press: at every
+//! quadrature point it forms the series of `F`, `C = FᵀF`, `J = det F`, `ln J`, `C⁻¹`
+//! and `S` to index `p` (`O(p²)` products of 3 × 3 matrices), and the scalar code did
+//! that one point after another, one multiply at a time: about 30 % of a whole-surface
+//! tissue build's time. A P2 cell's eleven degree-4 points are independent, so here
+//! they are laid out as three groups of four lanes (the twelfth lane repeats the
+//! centroid with weight zero and is never added) and every scalar operation of
+//! [`super::series::element_coefficient`] becomes the same operation on four lanes.
+//!
+//! **The same numbers.** Each lane performs exactly the scalar code's operations in
+//! the scalar code's order (no fused multiply-add: Rust does not contract `a * b + c`),
+//! and the cell's force sums the points' contributions in the rule's order, so the
+//! result is the scalar one bit for bit; a unit test checks that on random states, both
+//! laws, about the rest state and about a deformed one. The lanes are plain arrays
+//! that the compiler turns into vector instructions: [`pulp::Arch::dispatch`] runs the
+//! kernel compiled for the widest instruction set the CPU has (AVX2 with 256-bit
+//! registers here), with no `unsafe` code of ours.
+
+use super::hyper::{Law, M3, det, inverse};
+use super::shape::{TET_DEGREE1, TET_DEGREE4, barycentric_gradients};
+use super::space::Space;
+use super::Element;
+
+/// Quadrature points a group holds.
+const L: usize = 4;
+type V = [f64; L];
+type M3V = [[V; 3]; 3];
+
+const ZV: V = [0.0; L];
+const ZERO: M3V = [[ZV; 3]; 3];
+const ONE: V = [1.0; L];
+const ID: M3V = [[ONE, ZV, ZV], [ZV, ONE, ZV], [ZV, ZV, ONE]];
+/// The start of a scalar `Iterator::sum` of `f64`: `-0.0`, the additive identity that
+/// keeps the sign of a sum of negative zeros (so the lanes agree to the last bit).
+const SUM0: V = [-0.0; L];
+
+use super::series::MAX_ORDERS;
+const SERIES_LEN: usize = MAX_ORDERS + 1;
+/// Room for the builds' series (12 orders and the constant term).
+const SHORT: usize = 13;
+
+#[inline(always)]
+fn mul(a: &M3V, b: &M3V) -> M3V {
+    let mut c = ZERO;
+    for i in 0..3 {
+        for j in 0..3 {
+            for l in 0..L {
+                c[i][j][l] =
+                    a[i][0][l] * b[0][j][l] + a[i][1][l] * b[1][j][l] + a[i][2][l] * b[2][j][l];
+            }
+        }
+    }
+    c
+}
+
+#[inline(always)]
+fn mul_tn(a: &M3V, b: &M3V) -> M3V {
+    let mut c = ZERO;
+    for i in 0..3 {
+        for j in 0..3 {
+            for l in 0..L {
+                c[i][j][l] =
+                    a[0][i][l] * b[0][j][l] + a[1][i][l] * b[1][j][l] + a[2][i][l] * b[2][j][l];
+            }
+        }
+    }
+    c
+}
+
+/// `acc += s a`, `s` one value a lane.
+#[inline(always)]
+fn add_scaled(acc: &mut M3V, s: &V, a: &M3V) {
+    for i in 0..3 {
+        for j in 0..3 {
+            for l in 0..L {
+                acc[i][j][l] += s[l] * a[i][j][l];
+            }
+        }
+    }
+}
+
+/// `acc += a b` on the upper triangle only.
+#[inline(always)]
+fn add_upper(acc: &mut M3V, a: &M3V, b: &M3V) {
+    for i in 0..3 {
+        for j in i..3 {
+            for l in 0..L {
+                acc[i][j][l] +=
+                    a[i][0][l] * b[0][j][l] + a[i][1][l] * b[1][j][l] + a[i][2][l] * b[2][j][l];
+            }
+        }
+    }
+}
+
+const PERMS: [([usize; 3], f64); 6] = [
+    ([0, 1, 2], 1.0),
+    ([1, 2, 0], 1.0),
+    ([2, 0, 1], 1.0),
+    ([0, 2, 1], -1.0),
+    ([2, 1, 0], -1.0),
+    ([1, 0, 2], -1.0),
+];
+
+fn lane(m: &M3V, l: usize) -> M3 {
+    let mut out = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            out[i][j] = m[i][j][l];
+        }
+    }
+    out
+}
+
+/// [`super::series`]'s `stress_series`, four points a call.
+#[inline(always)]
+fn stress_series<const N: usize>(
+    law: Law,
+    f: &[M3V; N],
+    p: usize,
+    lambda: f64,
+    mu: f64,
+    s: &mut [M3V; N],
+) {
+    // Lets the compiler drop the bounds checks of every `k ≤ p` index below.
+    assert!(p < N);
+    let mut c = [ZERO; N];
+    for (k, ck) in c.iter_mut().enumerate().take(p + 1) {
+        let mut acc = ZERO;
+        for i in 0..k.div_ceil(2) {
+            add_scaled(&mut acc, &ONE, &mul_tn(&f[i], &f[k - i]));
+        }
+        for a in 0..3 {
+            for b in 0..3 {
+                for l in 0..L {
+                    ck[a][b][l] = acc[a][b][l] + acc[b][a][l];
+                }
+            }
+        }
+        if k % 2 == 0 {
+            add_scaled(ck, &ONE, &mul_tn(&f[k / 2], &f[k / 2]));
+        }
+    }
+    match law {
+        Law::Svk => {
+            for (k, (sk, ck)) in s.iter_mut().zip(&c).take(p + 1).enumerate() {
+                let mut e = *ck;
+                if k == 0 {
+                    for (i, row) in e.iter_mut().enumerate() {
+                        for l in 0..L {
+                            row[i][l] -= 1.0;
+                        }
+                    }
+                }
+                for l in 0..L {
+                    let tr = 0.5 * (e[0][0][l] + e[1][1][l] + e[2][2][l]);
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            sk[i][j][l] = mu * e[i][j][l] + if i == j { lambda * tr } else { 0.0 };
+                        }
+                    }
+                }
+            }
+        }
+        Law::NeoHookean => {
+            let mut jac = [ZV; N];
+            let mut pair = [ZV; N];
+            for (perm, sign) in PERMS {
+                for (k, q) in pair.iter_mut().enumerate().take(p + 1) {
+                    *q = SUM0;
+                    for a in 0..=k {
+                        for l in 0..L {
+                            q[l] += f[a][0][perm[0]][l] * f[k - a][1][perm[1]][l];
+                        }
+                    }
+                }
+                for (k, jk) in jac.iter_mut().enumerate().take(p + 1) {
+                    let mut sum = SUM0;
+                    for m in 0..=k {
+                        for l in 0..L {
+                            sum[l] += pair[m][l] * f[k - m][2][perm[2]][l];
+                        }
+                    }
+                    for l in 0..L {
+                        jk[l] += sign * sum[l];
+                    }
+                }
+            }
+            let inverted: [bool; L] = std::array::from_fn(|l| jac[0][l].is_nan() || jac[0][l] <= 0.0);
+            let mut ln_j = [ZV; N];
+            let ln0: V = std::array::from_fn(|l| jac[0][l].ln());
+            ln_j.fill(ln0);
+            for k in 1..=p {
+                let mut sum = SUM0;
+                for m in 1..k {
+                    for l in 0..L {
+                        sum[l] += m as f64 * ln_j[m][l] * jac[k - m][l];
+                    }
+                }
+                for l in 0..L {
+                    ln_j[k][l] = (jac[k][l] - sum[l] / k as f64) / jac[0][l];
+                }
+            }
+            let at_rest = c[0] == ID;
+            let mut y = [ZERO; N];
+            y[0] = if at_rest {
+                ID
+            } else {
+                let mut y0 = ZERO;
+                for l in 0..L {
+                    let c0 = lane(&c[0], l);
+                    let inv = inverse(&c0, det(&c0));
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            y0[i][j][l] = inv[i][j];
+                        }
+                    }
+                }
+                y0
+            };
+            for k in 1..=p {
+                let mut acc = ZERO;
+                if at_rest {
+                    for i in 1..=k {
+                        add_upper(&mut acc, &c[i], &y[k - i]);
+                    }
+                } else {
+                    for i in 1..=k {
+                        add_scaled(&mut acc, &ONE, &mul(&c[i], &y[k - i]));
+                    }
+                    acc = mul(&y[0], &acc);
+                }
+                for a in 0..3 {
+                    for b in a..3 {
+                        for l in 0..L {
+                            y[k][a][b][l] = -acc[a][b][l];
+                            y[k][b][a][l] = -acc[a][b][l];
+                        }
+                    }
+                }
+            }
+            let mmu: V = [-mu; L];
+            let pmu: V = [mu; L];
+            for (k, sk) in s.iter_mut().enumerate().take(p + 1) {
+                *sk = ZERO;
+                add_scaled(sk, &mmu, &y[k]);
+                if k == 0 {
+                    add_scaled(sk, &pmu, &ID);
+                }
+                for m in 0..=k {
+                    let lj: V = std::array::from_fn(|l| lambda * ln_j[m][l]);
+                    add_scaled(sk, &lj, &y[k - m]);
+                }
+            }
+            for (l, _) in inverted.iter().enumerate().filter(|(_, bad)| **bad) {
+                for sk in s.iter_mut().take(p + 1) {
+                    for row in sk.iter_mut() {
+                        for v in row.iter_mut() {
+                            v[l] = f64::NAN;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The lanes' barycentric coordinates and weights for a rule of `n` points, in groups
+/// of four (the last group padded with the first point at weight zero).
+struct Groups {
+    points: Vec<[V; 4]>,
+    weights: Vec<V>,
+    /// Real points in each group.
+    counts: Vec<usize>,
+}
+
+fn groups(points: &[[f64; 4]], weights: &[f64]) -> Groups {
+    let n = points.len();
+    let g = n.div_ceil(L);
+    let mut out = Groups {
+        points: Vec::with_capacity(g),
+        weights: Vec::with_capacity(g),
+        counts: Vec::with_capacity(g),
+    };
+    for q in 0..g {
+        let idx = |l: usize| (q * L + l).min(n - 1);
+        let real = |l: usize| q * L + l < n;
+        out.points
+            .push(std::array::from_fn(|b| std::array::from_fn(|l| points[if real(l) { idx(l) } else { 0 }][b])));
+        out.weights
+            .push(std::array::from_fn(|l| if real(l) { weights[idx(l)] } else { 0.0 }));
+        out.counts.push((n - q * L).min(L));
+    }
+    out
+}
+
+/// [`super::series::element_coefficient`], the same numbers bit for bit, its
+/// quadrature points in vector lanes.
+#[allow(clippy::too_many_arguments)]
+pub fn element_coefficient(
+    space: &Space,
+    law: Law,
+    c: usize,
+    base: Option<&[f64]>,
+    lower: &[Vec<f64>],
+    p: usize,
+    lambda: f64,
+    mu: f64,
+    fe: &mut [f64],
+) {
+    assert!(
+        p <= MAX_ORDERS,
+        "a series of {p} orders (at most {MAX_ORDERS})"
+    );
+    pulp::Arch::new().dispatch(Kernel {
+        space,
+        law,
+        c,
+        base,
+        lower,
+        p,
+        lambda,
+        mu,
+        fe,
+    });
+}
+
+/// The kernel's arguments, so that [`pulp::Arch::dispatch`] inlines the whole body
+/// into its function compiled for the CPU's instruction set (a closure there was
+/// compiled apart, for baseline x86-64: no vector registers, measured).
+struct Kernel<'a> {
+    space: &'a Space,
+    law: Law,
+    c: usize,
+    base: Option<&'a [f64]>,
+    lower: &'a [Vec<f64>],
+    p: usize,
+    lambda: f64,
+    mu: f64,
+    fe: &'a mut [f64],
+}
+
+impl pulp::WithSimd for Kernel<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let Kernel {
+            space,
+            law,
+            c,
+            base,
+            lower,
+            p,
+            lambda,
+            mu,
+            fe,
+        } = self;
+        // Series arrays sized to the order (zeroing 31 orders' room at every call
+        // cost more than the arithmetic at the builds' 6–12 orders).
+        if p < SHORT {
+            element_coefficient_lanes::<SHORT>(space, law, c, base, lower, p, lambda, mu, fe);
+        } else {
+            element_coefficient_lanes::<SERIES_LEN>(space, law, c, base, lower, p, lambda, mu, fe);
+        }
+    }
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn element_coefficient_lanes<const N: usize>(
+    space: &Space,
+    law: Law,
+    c: usize,
+    base: Option<&[f64]>,
+    lower: &[Vec<f64>],
+    p: usize,
+    lambda: f64,
+    mu: f64,
+    fe: &mut [f64],
+) {
+    let p2 = space.element == Element::P2;
+    let npc = space.element.nodes_per_cell();
+    fe[..3 * npc].fill(0.0);
+    let cell = space.cell(c);
+    let (gl, vol) =
+        barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
+    let rule = if p2 { &TET_DEGREE4 } else { &TET_DEGREE1 };
+    let groups = groups(rule.points, rule.weights);
+    // The cell's nodal values of u_0 and of each lower order (gathered once a cell).
+    let mut nodal = [[[0.0; 3]; 10]; N];
+    let gather = |u: &[f64], out: &mut [[f64; 3]; 10]| {
+        for a in 0..npc {
+            let n = cell[a] as usize;
+            out[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
+        }
+    };
+    if let Some(u) = base {
+        gather(u, &mut nodal[0]);
+    }
+    for k in 1..p {
+        gather(&lower[k - 1], &mut nodal[k]);
+    }
+    let mut g = [[ZV; 3]; 10];
+    let mut f = [ZERO; N];
+    let mut s = [ZERO; N];
+    let mut contrib = [[ZV; 3]; 10];
+    for ((l, w), &count) in groups.points.iter().zip(&groups.weights).zip(&groups.counts) {
+        gradients(p2, l, &gl, &mut g);
+        f[0] = ID;
+        if base.is_some() {
+            add_gradient(&mut f[0], &nodal[0], &g, npc);
+        }
+        for k in 1..=p {
+            let mut h = ZERO;
+            if k < p {
+                add_gradient(&mut h, &nodal[k], &g, npc);
+            }
+            f[k] = h;
+        }
+        stress_series::<N>(law, &f, p, lambda, mu, &mut s);
+        let mut pp = ZERO;
+        for i in 0..=p {
+            add_scaled(&mut pp, &ONE, &mul(&f[i], &s[p - i]));
+        }
+        for a in 0..npc {
+            for i in 0..3 {
+                for q in 0..L {
+                    let wv = w[q] * vol;
+                    contrib[a][i][q] = wv
+                        * (pp[i][0][q] * g[a][0][q]
+                            + pp[i][1][q] * g[a][1][q]
+                            + pp[i][2][q] * g[a][2][q]);
+                }
+            }
+        }
+        // Point by point in the rule's order, as the scalar loop adds them.
+        for q in 0..count {
+            for a in 0..npc {
+                for i in 0..3 {
+                    fe[3 * a + i] += contrib[a][i][q];
+                }
+            }
+        }
+    }
+}
+
+/// `h += Σ_a u_a ⊗ ∇N_a`, the nodes in order (as the scalar loop sums them).
+#[inline(always)]
+fn add_gradient(h: &mut M3V, u: &[[f64; 3]; 10], g: &[[V; 3]; 10], npc: usize) {
+    for a in 0..npc {
+        for i in 0..3 {
+            for j in 0..3 {
+                for l in 0..L {
+                    h[i][j][l] += u[a][i] * g[a][j][l];
+                }
+            }
+        }
+    }
+}
+
+/// [`super::shape::tet_gradients`] at four points.
+#[inline(always)]
+fn gradients(p2: bool, l: &[V; 4], gl: &[[f64; 3]; 4], out: &mut [[V; 3]; 10]) {
+    if p2 {
+        for i in 0..4 {
+            for d in 0..3 {
+                for q in 0..L {
+                    out[i][d][q] = (4.0 * l[i][q] - 1.0) * gl[i][d];
+                }
+            }
+        }
+        for (e, &(i, j)) in super::shape::TET_EDGES.iter().enumerate() {
+            for d in 0..3 {
+                for q in 0..L {
+                    out[4 + e][d][q] = 4.0 * (l[i][q] * gl[j][d] + l[j][q] * gl[i][d]);
+                }
+            }
+        }
+    } else {
+        for i in 0..4 {
+            for d in 0..3 {
+                out[i][d] = [gl[i][d]; L];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fe::Material;
+    use crate::fe::hyper::tests::one_tet_space;
+    use crate::rng::Rng;
+
+    /// Random orders and bases on the test tetrahedron: the lanes give the scalar
+    /// numbers exactly, for both laws and elements, every order up to twelve, and a
+    /// crushed base (inverted at some points: NaN in both).
+    #[test]
+    fn lanes_match_the_scalar_coefficient_bit_for_bit() {
+        let (lambda, mu) = Material::default().lame_n_per_mm2();
+        let mut nan_rows = 0;
+        for kind in [Element::P1, Element::P2] {
+            let space = one_tet_space(kind);
+            let m = 3 * kind.nodes_per_cell();
+            let mut rng = Rng::seed(31);
+            for _trial in 0..4 {
+                let lower: Vec<Vec<f64>> = (0..12)
+                    .map(|_| (0..m).map(|_| rng.range(-0.3, 0.3)).collect())
+                    .collect();
+                let deformed: Vec<f64> = (0..m).map(|_| rng.range(-0.4, 0.4)).collect();
+                let crushed: Vec<f64> = (0..m).map(|_| rng.range(-12.0, 12.0)).collect();
+                for law in [Law::Svk, Law::NeoHookean] {
+                    for base in [None, Some(&deformed[..]), Some(&crushed[..])] {
+                        for p in 1..=12 {
+                            let mut want = vec![0.0; m];
+                            let mut got = vec![0.0; m];
+                            let lw = &lower[..p - 1];
+                            crate::fe::series::element_coefficient(
+                                &space, law, 0, base, lw, p, lambda, mu, &mut want,
+                            );
+                            element_coefficient(&space, law, 0, base, lw, p, lambda, mu, &mut got);
+                            for r in 0..m {
+                                nan_rows += usize::from(want[r].is_nan());
+                                assert!(
+                                    want[r].to_bits() == got[r].to_bits()
+                                        || (want[r].is_nan() && got[r].is_nan()),
+                                    "{law:?} {kind:?} base {} order {p} row {r}: {} against {}",
+                                    base.is_some(),
+                                    got[r],
+                                    want[r]
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(nan_rows > 0, "the crushed bases invert the tetrahedron somewhere");
+    }
+}
+
+#[cfg(test)]
+mod timing_scratch {
+    use super::*;
+    use crate::fe::Material;
+
+    #[test]
+    #[ignore]
+    fn scratch_time_lanes() {
+        let organ = crate::organ::catalogue::mesh(crate::organ::catalogue::OrganName::Liver, crate::organ::Level::Coarse);
+        let space = crate::fe::probe::organ_space(&organ, Element::P2);
+        let n = 3 * space.nodes.len();
+        let (lambda, mu) = Material::default().lame_n_per_mm2();
+        let mut rng = crate::rng::Rng::seed(3);
+        let lower: Vec<Vec<f64>> = (0..12).map(|_| (0..n).map(|_| rng.range(-0.01, 0.01)).collect()).collect();
+        let cells: Vec<usize> = (0..space.cell_count()).collect();
+        for base in [None, Some(&lower[11][..])] {
+            for which in 0..2 {
+                let t = std::time::Instant::now();
+                let mut chk = 0.0;
+                for p in 2..=12 {
+                    let v = crate::fe::newton::assemble_vector_on(&space, &cells, |c, fe| {
+                        if which == 0 {
+                            crate::fe::series::element_coefficient(&space, Law::NeoHookean, c, base, &lower[..p - 1], p, lambda, mu, fe);
+                        } else {
+                            element_coefficient(&space, Law::NeoHookean, c, base, &lower[..p - 1], p, lambda, mu, fe);
+                        }
+                    });
+                    chk += v.iter().sum::<f64>();
+                }
+                eprintln!("base {} {} {:.3} s checksum {chk:e}", base.is_some(), if which == 0 { "scalar" } else { "lanes" }, t.elapsed().as_secs_f64());
+            }
+        }
+    }
+}
