@@ -19,10 +19,10 @@
 //! kernel compiled for the widest instruction set the CPU has (AVX2 with 256-bit
 //! registers here), with no `unsafe` code of ours.
 
+use super::Element;
 use super::hyper::{Law, M3, det, inverse};
 use super::shape::{TET_DEGREE1, TET_DEGREE4, barycentric_gradients};
 use super::space::Space;
-use super::Element;
 
 /// Quadrature points a group holds.
 const L: usize = 4;
@@ -188,7 +188,8 @@ fn stress_series<const N: usize>(
                     }
                 }
             }
-            let inverted: [bool; L] = std::array::from_fn(|l| jac[0][l].is_nan() || jac[0][l] <= 0.0);
+            let inverted: [bool; L] =
+                std::array::from_fn(|l| jac[0][l].is_nan() || jac[0][l] <= 0.0);
             let mut ln_j = [ZV; N];
             let ln0: V = std::array::from_fn(|l| jac[0][l].ln());
             ln_j.fill(ln0);
@@ -276,6 +277,11 @@ struct Groups {
     counts: Vec<usize>,
 }
 
+static GROUPS_P2: std::sync::LazyLock<Groups> =
+    std::sync::LazyLock::new(|| groups(TET_DEGREE4.points, TET_DEGREE4.weights));
+static GROUPS_P1: std::sync::LazyLock<Groups> =
+    std::sync::LazyLock::new(|| groups(TET_DEGREE1.points, TET_DEGREE1.weights));
+
 fn groups(points: &[[f64; 4]], weights: &[f64]) -> Groups {
     let n = points.len();
     let g = n.div_ceil(L);
@@ -287,10 +293,12 @@ fn groups(points: &[[f64; 4]], weights: &[f64]) -> Groups {
     for q in 0..g {
         let idx = |l: usize| (q * L + l).min(n - 1);
         let real = |l: usize| q * L + l < n;
-        out.points
-            .push(std::array::from_fn(|b| std::array::from_fn(|l| points[if real(l) { idx(l) } else { 0 }][b])));
-        out.weights
-            .push(std::array::from_fn(|l| if real(l) { weights[idx(l)] } else { 0.0 }));
+        out.points.push(std::array::from_fn(|b| {
+            std::array::from_fn(|l| points[if real(l) { idx(l) } else { 0 }][b])
+        }));
+        out.weights.push(std::array::from_fn(|l| {
+            if real(l) { weights[idx(l)] } else { 0.0 }
+        }));
         out.counts.push((n - q * L).min(L));
     }
     out
@@ -387,8 +395,7 @@ fn element_coefficient_lanes<const N: usize>(
     let cell = space.cell(c);
     let (gl, vol) =
         barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
-    let rule = if p2 { &TET_DEGREE4 } else { &TET_DEGREE1 };
-    let groups = groups(rule.points, rule.weights);
+    let groups = if p2 { &*GROUPS_P2 } else { &*GROUPS_P1 };
     // The cell's nodal values of u_0 and of each lower order (gathered once a cell).
     let mut nodal = [[[0.0; 3]; 10]; N];
     let gather = |u: &[f64], out: &mut [[f64; 3]; 10]| {
@@ -407,7 +414,12 @@ fn element_coefficient_lanes<const N: usize>(
     let mut f = [ZERO; N];
     let mut s = [ZERO; N];
     let mut contrib = [[ZV; 3]; 10];
-    for ((l, w), &count) in groups.points.iter().zip(&groups.weights).zip(&groups.counts) {
+    for ((l, w), &count) in groups
+        .points
+        .iter()
+        .zip(&groups.weights)
+        .zip(&groups.counts)
+    {
         gradients(p2, l, &gl, &mut g);
         f[0] = ID;
         if base.is_some() {
@@ -437,6 +449,176 @@ fn element_coefficient_lanes<const N: usize>(
             }
         }
         // Point by point in the rule's order, as the scalar loop adds them.
+        for q in 0..count {
+            for a in 0..npc {
+                for i in 0..3 {
+                    fe[3 * a + i] += contrib[a][i][q];
+                }
+            }
+        }
+    }
+}
+
+/// [`super::hyper::element`]'s internal force (no tangent), the same numbers bit for
+/// bit, its quadrature points in vector lanes: the residual of every chord step.
+#[allow(clippy::too_many_arguments)]
+pub fn element_force(
+    space: &Space,
+    law: Law,
+    c: usize,
+    u: &[f64],
+    lambda: f64,
+    mu: f64,
+    fe: &mut [f64],
+) {
+    pulp::Arch::new().dispatch(ForceKernel {
+        space,
+        law,
+        c,
+        u,
+        lambda,
+        mu,
+        fe,
+    });
+}
+
+struct ForceKernel<'a> {
+    space: &'a Space,
+    law: Law,
+    c: usize,
+    u: &'a [f64],
+    lambda: f64,
+    mu: f64,
+    fe: &'a mut [f64],
+}
+
+impl pulp::WithSimd for ForceKernel<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let ForceKernel {
+            space,
+            law,
+            c,
+            u,
+            lambda,
+            mu,
+            fe,
+        } = self;
+        element_force_lanes(space, law, c, u, lambda, mu, fe);
+    }
+}
+
+/// `det a` a lane, as [`super::hyper`]'s `det` computes it.
+#[inline(always)]
+fn det_v(a: &M3V) -> V {
+    std::array::from_fn(|l| {
+        a[0][0][l] * (a[1][1][l] * a[2][2][l] - a[1][2][l] * a[2][1][l])
+            - a[0][1][l] * (a[1][0][l] * a[2][2][l] - a[1][2][l] * a[2][0][l])
+            + a[0][2][l] * (a[1][0][l] * a[2][1][l] - a[1][1][l] * a[2][0][l])
+    })
+}
+
+/// The second Piola–Kirchhoff stress at `f`, as [`super::hyper`]'s `Law::state`
+/// computes it (NaN where `J ≤ 0` under the neo-Hookean law).
+#[inline(always)]
+fn stress(law: Law, f: &M3V, lambda: f64, mu: f64) -> M3V {
+    let mut c = ZERO;
+    for i in 0..3 {
+        for j in 0..3 {
+            for l in 0..L {
+                c[i][j][l] =
+                    f[0][i][l] * f[0][j][l] + f[1][i][l] * f[1][j][l] + f[2][i][l] * f[2][j][l];
+            }
+        }
+    }
+    let mut s = ZERO;
+    match law {
+        Law::Svk => {
+            for l in 0..L {
+                let tr = 0.5 * (c[0][0][l] + c[1][1][l] + c[2][2][l] - 3.0);
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let e = 0.5 * (c[i][j][l] - if i == j { 1.0 } else { 0.0 });
+                        s[i][j][l] = 2.0 * mu * e + if i == j { lambda * tr } else { 0.0 };
+                    }
+                }
+            }
+        }
+        Law::NeoHookean => {
+            let j = det_v(f);
+            let ln_j: V = std::array::from_fn(|l| j[l].ln());
+            for l in 0..L {
+                let d = j[l] * j[l];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        let (a1, a2) = ((b + 1) % 3, (b + 2) % 3);
+                        let (b1, b2) = ((a + 1) % 3, (a + 2) % 3);
+                        let ci = (c[a1][b1][l] * c[a2][b2][l] - c[a1][b2][l] * c[a2][b1][l]) / d;
+                        let id = if a == b { 1.0 } else { 0.0 };
+                        s[a][b][l] = mu * (id - ci) + lambda * ln_j[l] * ci;
+                    }
+                }
+                if j[l].is_nan() || j[l] <= 0.0 {
+                    for row in &mut s {
+                        for v in row.iter_mut() {
+                            v[l] = f64::NAN;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    s
+}
+
+#[inline(always)]
+fn element_force_lanes(
+    space: &Space,
+    law: Law,
+    c: usize,
+    u: &[f64],
+    lambda: f64,
+    mu: f64,
+    fe: &mut [f64],
+) {
+    let p2 = space.element == Element::P2;
+    let npc = space.element.nodes_per_cell();
+    fe[..3 * npc].fill(0.0);
+    let cell = space.cell(c);
+    let (gl, vol) =
+        barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
+    let groups = if p2 { &*GROUPS_P2 } else { &*GROUPS_P1 };
+    let mut nodal = [[0.0; 3]; 10];
+    for a in 0..npc {
+        let n = cell[a] as usize;
+        nodal[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
+    }
+    let mut g = [[ZV; 3]; 10];
+    let mut contrib = [[ZV; 3]; 10];
+    for ((l, w), &count) in groups
+        .points
+        .iter()
+        .zip(&groups.weights)
+        .zip(&groups.counts)
+    {
+        gradients(p2, l, &gl, &mut g);
+        let mut f = ID;
+        add_gradient(&mut f, &nodal, &g, npc);
+        let s = stress(law, &f, lambda, mu);
+        let p = mul(&f, &s);
+        for a in 0..npc {
+            for i in 0..3 {
+                for q in 0..L {
+                    let wv = w[q] * vol;
+                    contrib[a][i][q] = wv
+                        * (p[i][0][q] * g[a][0][q]
+                            + p[i][1][q] * g[a][1][q]
+                            + p[i][2][q] * g[a][2][q]);
+                }
+            }
+        }
         for q in 0..count {
             for a in 0..npc {
                 for i in 0..3 {
@@ -538,7 +720,47 @@ mod tests {
                 }
             }
         }
-        assert!(nan_rows > 0, "the crushed bases invert the tetrahedron somewhere");
+        assert!(
+            nan_rows > 0,
+            "the crushed bases invert the tetrahedron somewhere"
+        );
+    }
+
+    /// The internal force in lanes is the scalar one bit for bit, both laws and
+    /// elements, moderate and crushed states (NaN in both).
+    #[test]
+    fn lanes_match_the_scalar_internal_force_bit_for_bit() {
+        let (lambda, mu) = Material::default().lame_n_per_mm2();
+        let mut nan_rows = 0;
+        for kind in [Element::P1, Element::P2] {
+            let space = one_tet_space(kind);
+            let m = 3 * kind.nodes_per_cell();
+            let mut rng = Rng::seed(32);
+            for trial in 0..40 {
+                let size = if trial % 4 == 3 { 12.0 } else { 0.8 };
+                let u: Vec<f64> = (0..m).map(|_| rng.range(-size, size)).collect();
+                for law in [Law::Svk, Law::NeoHookean] {
+                    let mut want = vec![0.0; m];
+                    let mut got = vec![0.0; m];
+                    crate::fe::hyper::element(&space, law, 0, &u, lambda, mu, &mut want, None);
+                    element_force(&space, law, 0, &u, lambda, mu, &mut got);
+                    for r in 0..m {
+                        nan_rows += usize::from(want[r].is_nan());
+                        assert!(
+                            want[r].to_bits() == got[r].to_bits()
+                                || (want[r].is_nan() && got[r].is_nan()),
+                            "{law:?} {kind:?} trial {trial} row {r}: {} against {}",
+                            got[r],
+                            want[r]
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            nan_rows > 0,
+            "the crushed states invert the tetrahedron somewhere"
+        );
     }
 }
 
@@ -550,13 +772,47 @@ mod timing_scratch {
     #[test]
     #[ignore]
     fn scratch_time_lanes() {
-        let organ = crate::organ::catalogue::mesh(crate::organ::catalogue::OrganName::Liver, crate::organ::Level::Coarse);
+        let organ = crate::organ::catalogue::mesh(
+            crate::organ::catalogue::OrganName::Liver,
+            crate::organ::Level::Coarse,
+        );
         let space = crate::fe::probe::organ_space(&organ, Element::P2);
         let n = 3 * space.nodes.len();
         let (lambda, mu) = Material::default().lame_n_per_mm2();
         let mut rng = crate::rng::Rng::seed(3);
-        let lower: Vec<Vec<f64>> = (0..12).map(|_| (0..n).map(|_| rng.range(-0.01, 0.01)).collect()).collect();
+        let lower: Vec<Vec<f64>> = (0..12)
+            .map(|_| (0..n).map(|_| rng.range(-0.01, 0.01)).collect())
+            .collect();
         let cells: Vec<usize> = (0..space.cell_count()).collect();
+        let u: Vec<f64> = lower[0].iter().map(|x| 10.0 * x).collect();
+        for which in 0..2 {
+            let t = std::time::Instant::now();
+            let mut chk = 0.0;
+            for _ in 0..20 {
+                let v = crate::fe::newton::assemble_vector_on(&space, &cells, |c, fe| {
+                    if which == 0 {
+                        crate::fe::hyper::element(
+                            &space,
+                            Law::NeoHookean,
+                            c,
+                            &u,
+                            lambda,
+                            mu,
+                            fe,
+                            None,
+                        );
+                    } else {
+                        element_force(&space, Law::NeoHookean, c, &u, lambda, mu, fe);
+                    }
+                });
+                chk += v.iter().sum::<f64>();
+            }
+            eprintln!(
+                "residual x20 {} {:.3} s checksum {chk:e}",
+                which,
+                t.elapsed().as_secs_f64()
+            );
+        }
         for base in [None, Some(&lower[11][..])] {
             for which in 0..2 {
                 let t = std::time::Instant::now();
@@ -564,14 +820,39 @@ mod timing_scratch {
                 for p in 2..=12 {
                     let v = crate::fe::newton::assemble_vector_on(&space, &cells, |c, fe| {
                         if which == 0 {
-                            crate::fe::series::element_coefficient(&space, Law::NeoHookean, c, base, &lower[..p - 1], p, lambda, mu, fe);
+                            crate::fe::series::element_coefficient(
+                                &space,
+                                Law::NeoHookean,
+                                c,
+                                base,
+                                &lower[..p - 1],
+                                p,
+                                lambda,
+                                mu,
+                                fe,
+                            );
                         } else {
-                            element_coefficient(&space, Law::NeoHookean, c, base, &lower[..p - 1], p, lambda, mu, fe);
+                            element_coefficient(
+                                &space,
+                                Law::NeoHookean,
+                                c,
+                                base,
+                                &lower[..p - 1],
+                                p,
+                                lambda,
+                                mu,
+                                fe,
+                            );
                         }
                     });
                     chk += v.iter().sum::<f64>();
                 }
-                eprintln!("base {} {} {:.3} s checksum {chk:e}", base.is_some(), if which == 0 { "scalar" } else { "lanes" }, t.elapsed().as_secs_f64());
+                eprintln!(
+                    "base {} {} {:.3} s checksum {chk:e}",
+                    base.is_some(),
+                    if which == 0 { "scalar" } else { "lanes" },
+                    t.elapsed().as_secs_f64()
+                );
             }
         }
     }
