@@ -302,7 +302,11 @@ pub fn follow(
         Err(e) => return Err(e),
     };
     let n_all = 3 * space.nodes.len();
-    let rest = expander.rest_factor();
+    // The first segment's chord solves with the single-precision rest factor (the
+    // series above used the double one).
+    let rest = expander
+        .rest_single()
+        .unwrap_or_else(|| expander.rest_factor());
     let mut seg = Segment {
         start_mm: 0.0,
         base_u: vec![0.0; n_all],

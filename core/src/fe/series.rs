@@ -620,6 +620,9 @@ pub struct Expander<'a> {
     lambda: f64,
     mu: f64,
     chol: Cholesky,
+    /// The rest stiffness factored again in single precision, made on first use: the
+    /// first segment's chord solves with it (see [`Self::rest_single`]).
+    single: std::sync::OnceLock<Option<Cholesky>>,
     pub factor_s: f64,
 }
 
@@ -642,6 +645,7 @@ impl<'a> Expander<'a> {
             lambda,
             mu,
             chol,
+            single: std::sync::OnceLock::new(),
             factor_s: t0.elapsed().as_secs_f64(),
         })
     }
@@ -685,9 +689,33 @@ impl<'a> Expander<'a> {
         Ok(out)
     }
 
-    /// The factored rest stiffness (the first segment's tangent for every press).
+    /// The factored rest stiffness (the rest series' exact solves).
     pub fn rest_factor(&self) -> &Cholesky {
         &self.chol
+    }
+
+    /// The rest stiffness in single precision, factored once on first use and shared
+    /// by every press: the first segment's chord corrections solve with it. A chord's
+    /// factor is only an approximate inverse (every residual and acceptance test is in
+    /// double precision), and a single solve reads half the bytes of a double one.
+    /// Factored and solved sequentially, so its rounding does not depend on the
+    /// threads. `None` where the single-precision factorization fails (then the chord
+    /// keeps the double factor).
+    pub fn rest_single(&self) -> Option<&Cholesky> {
+        self.single
+            .get_or_init(|| {
+                let n = 3 * self.space.nodes.len();
+                let k = super::newton::tangent(
+                    self.space,
+                    self.law,
+                    &SymCsc::pattern(self.space),
+                    &vec![0.0; n],
+                    self.lambda,
+                    self.mu,
+                );
+                Cholesky::factor_single(&k, self.space.fixed_count()).ok()
+            })
+            .as_ref()
     }
 }
 
