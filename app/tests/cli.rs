@@ -226,6 +226,38 @@ fn bench_fe_ordering_compares_amd_and_nested_dissection() {
     );
 }
 
+/// `bench fe --only lanes` times a real press's three element kernels both ways and
+/// finds the lanes identical to the scalar arithmetic, bit for bit (it asserts no
+/// time).
+#[test]
+fn bench_fe_lanes_agree_bit_for_bit() {
+    let out = palpa(&["bench", "fe", "--only", "lanes"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object a line"))
+        .collect();
+    let kernels: Vec<&str> = rows
+        .iter()
+        .map(|r| r["kernel"].as_str().unwrap_or(""))
+        .collect();
+    assert_eq!(kernels, ["series_rhs", "residual", "tangent"], "{rows:?}");
+    let num = |k: &str, r: &serde_json::Value| r[k].as_f64().unwrap_or_else(|| panic!("{k}: {r}"));
+    for r in &rows {
+        assert_eq!(r["table"], "lanes", "{r}");
+        assert_eq!(r["identical"], true, "{r}");
+        assert_eq!(r["largest_difference"].as_f64(), Some(0.0), "{r}");
+        assert!(r["entries"].as_u64().is_some_and(|n| n > 1000), "{r}");
+        let (s, l) = (num("scalar_s", r), num("lanes_s", r));
+        let speedup = num("speedup", r);
+        assert!((speedup - s / l).abs() <= 1e-9 * speedup, "{r}");
+    }
+}
+
 /// Every benchmark refuses, before it measures anything, what would abort it or make
 /// its table meaningless (some tables take an hour), naming the flag.
 #[test]

@@ -33,7 +33,7 @@ fn largest_distance(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// The pressable vertex nearest `p`.
-fn nearest_vertex(organ: &OrganMesh, pressable: &[u32], p: [f64; 3]) -> Option<u32> {
+pub(super) fn nearest_vertex(organ: &OrganMesh, pressable: &[u32], p: [f64; 3]) -> Option<u32> {
     pressable.iter().copied().min_by(|&a, &b| {
         let d = |v: u32| {
             let q = organ.mesh.vertices[v as usize];

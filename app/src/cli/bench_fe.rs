@@ -13,7 +13,10 @@
 //! - `depth_poisson`: the neo-Hookean press at the anterior point for ν = 0.48, 0.49,
 //!   0.499;
 //! - `ordering`: the P2 rest stiffness factored under AMD and under nested dissection
-//!   (what `fe::sparse` uses), at `--ordering-levels`: entries, seconds and ratios.
+//!   (what `fe::sparse` uses), at `--ordering-levels`: entries, seconds and ratios;
+//! - `lanes`: a press's element kernels (series right-hand sides, residual, tangent)
+//!   one quadrature point at a time and four in vector lanes: seconds, speedup, and
+//!   that the two agree bit for bit.
 
 use std::time::Instant;
 
@@ -41,7 +44,8 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson, series, depth_law, surface_law, reduced, build_cost, ordering).
+    /// depth_poisson, series, depth_law, surface_law, reduced, build_cost, ordering,
+    /// lanes).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
@@ -99,7 +103,7 @@ pub struct FeBenchArgs {
 }
 
 /// The tables `--only` may name.
-const TABLES: [&str; 13] = [
+const TABLES: [&str; 14] = [
     "cost",
     "poisson",
     "positions",
@@ -113,6 +117,7 @@ const TABLES: [&str; 13] = [
     "reduced",
     "build_cost",
     "ordering",
+    "lanes",
 ];
 
 impl FeBenchArgs {
@@ -245,6 +250,9 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     }
     if args.wants("ordering") {
         ordering(&args.ordering_levels)?;
+    }
+    if args.wants("lanes") {
+        super::bench_lanes::lanes_table(&coarse, ANTERIOR)?;
     }
     if args.wants("build_cost") {
         super::bench_build::build_cost(

@@ -7,6 +7,7 @@ mod bench_cme;
 mod bench_deform;
 mod bench_dsmts;
 mod bench_fe;
+mod bench_lanes;
 mod bench_pgd;
 mod bench_reduced;
 mod bench_views;

@@ -629,6 +629,262 @@ fn element_force_lanes(
     }
 }
 
+/// [`super::hyper::element`]'s tangent `ke` (row-major, `3·npc` square), the same
+/// numbers bit for bit, its quadrature points in vector lanes: every segment's and
+/// Newton iteration's tangent.
+pub fn element_tangent(
+    space: &Space,
+    law: Law,
+    c: usize,
+    u: &[f64],
+    lambda: f64,
+    mu: f64,
+    ke: &mut [f64],
+) {
+    pulp::Arch::new().dispatch(TangentKernel {
+        space,
+        law,
+        c,
+        u,
+        lambda,
+        mu,
+        ke,
+    });
+}
+
+struct TangentKernel<'a> {
+    space: &'a Space,
+    law: Law,
+    c: usize,
+    u: &'a [f64],
+    lambda: f64,
+    mu: f64,
+    ke: &'a mut [f64],
+}
+
+impl pulp::WithSimd for TangentKernel<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let TangentKernel {
+            space,
+            law,
+            c,
+            u,
+            lambda,
+            mu,
+            ke,
+        } = self;
+        element_tangent_lanes(space, law, c, u, lambda, mu, ke);
+    }
+}
+
+/// `Law::state` of [`super::hyper`] in lanes: `S`, `C⁻¹` (neo-Hookean; zero for SVK)
+/// and the factor `μ − λ ln J` (`μ` for SVK).
+#[inline(always)]
+fn state(law: Law, f: &M3V, lambda: f64, mu: f64) -> (M3V, M3V, V) {
+    let mut c = ZERO;
+    for i in 0..3 {
+        for j in 0..3 {
+            for l in 0..L {
+                c[i][j][l] =
+                    f[0][i][l] * f[0][j][l] + f[1][i][l] * f[1][j][l] + f[2][i][l] * f[2][j][l];
+            }
+        }
+    }
+    let mut s = ZERO;
+    let mut ci = ZERO;
+    let mut shear = [mu; L];
+    match law {
+        Law::Svk => {
+            for l in 0..L {
+                let tr = 0.5 * (c[0][0][l] + c[1][1][l] + c[2][2][l] - 3.0);
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let e = 0.5 * (c[i][j][l] - if i == j { 1.0 } else { 0.0 });
+                        s[i][j][l] = 2.0 * mu * e + if i == j { lambda * tr } else { 0.0 };
+                    }
+                }
+            }
+        }
+        Law::NeoHookean => {
+            let j = det_v(f);
+            let ln_j: V = std::array::from_fn(|l| j[l].ln());
+            for l in 0..L {
+                let d = j[l] * j[l];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        let (a1, a2) = ((b + 1) % 3, (b + 2) % 3);
+                        let (b1, b2) = ((a + 1) % 3, (a + 2) % 3);
+                        ci[a][b][l] =
+                            (c[a1][b1][l] * c[a2][b2][l] - c[a1][b2][l] * c[a2][b1][l]) / d;
+                    }
+                }
+                for a in 0..3 {
+                    for b in 0..3 {
+                        let id = if a == b { 1.0 } else { 0.0 };
+                        s[a][b][l] = mu * (id - ci[a][b][l]) + lambda * ln_j[l] * ci[a][b][l];
+                    }
+                }
+                shear[l] = mu - lambda * ln_j[l];
+                if j[l].is_nan() || j[l] <= 0.0 {
+                    for (sr, cr) in s.iter_mut().zip(ci.iter_mut()) {
+                        for (sv, cv) in sr.iter_mut().zip(cr.iter_mut()) {
+                            sv[l] = f64::NAN;
+                            cv[l] = f64::NAN;
+                        }
+                    }
+                    shear[l] = f64::NAN;
+                }
+            }
+        }
+    }
+    (s, ci, shear)
+}
+
+#[inline(always)]
+fn element_tangent_lanes(
+    space: &Space,
+    law: Law,
+    c: usize,
+    u: &[f64],
+    lambda: f64,
+    mu: f64,
+    k: &mut [f64],
+) {
+    let p2 = space.element == Element::P2;
+    let npc = space.element.nodes_per_cell();
+    let m = 3 * npc;
+    k[..m * m].fill(0.0);
+    let cell = space.cell(c);
+    let (gl, vol) =
+        barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
+    let groups = if p2 { &*GROUPS_P2 } else { &*GROUPS_P1 };
+    let mut nodal = [[0.0; 3]; 10];
+    for a in 0..npc {
+        let n = cell[a] as usize;
+        nodal[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
+    }
+    let mut g = [[ZV; 3]; 10];
+    let mut de = [ZERO; 30];
+    let mut lin = [ZV; 30];
+    let mut cde = [ZERO; 30];
+    for ((l, w), &count) in groups
+        .points
+        .iter()
+        .zip(&groups.weights)
+        .zip(&groups.counts)
+    {
+        gradients(p2, l, &gl, &mut g);
+        let wv: V = std::array::from_fn(|q| w[q] * vol);
+        let mut f = ID;
+        add_gradient(&mut f, &nodal, &g, npc);
+        let (s, ci, shear) = state(law, &f, lambda, mu);
+        for a in 0..npc {
+            for i in 0..3 {
+                let r = 3 * a + i;
+                let d = &mut de[r];
+                for jj in 0..3 {
+                    for kk in 0..3 {
+                        for q in 0..L {
+                            d[jj][kk][q] =
+                                0.5 * (f[i][jj][q] * g[a][kk][q] + f[i][kk][q] * g[a][jj][q]);
+                        }
+                    }
+                }
+                match law {
+                    Law::Svk => {
+                        for q in 0..L {
+                            lin[r][q] = d[0][0][q] + d[1][1][q] + d[2][2][q];
+                        }
+                    }
+                    Law::NeoHookean => {
+                        let mut acc = SUM0;
+                        for x in 0..3 {
+                            for y in 0..3 {
+                                for q in 0..L {
+                                    acc[q] += ci[x][y][q] * d[x][y][q];
+                                }
+                            }
+                        }
+                        lin[r] = acc;
+                        for x in 0..3 {
+                            for y in 0..3 {
+                                for q in 0..L {
+                                    cde[r][x][y][q] = ci[x][0][q] * d[0][y][q]
+                                        + ci[x][1][q] * d[1][y][q]
+                                        + ci[x][2][q] * d[2][y][q];
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let mut sg = [[ZV; 3]; 10];
+        for a in 0..npc {
+            for j in 0..3 {
+                for q in 0..L {
+                    sg[a][j][q] =
+                        s[j][0][q] * g[a][0][q] + s[j][1][q] * g[a][1][q] + s[j][2][q] * g[a][2][q];
+                }
+            }
+        }
+        let lw: V = [lambda; L];
+        let sh2: V = std::array::from_fn(|q| 2.0 * shear[q]);
+        for r in 0..m {
+            let (a, i) = (r / 3, r % 3);
+            let (dr, cr) = (&de[r], &cde[r]);
+            let lr: V = std::array::from_fn(|q| lw[q] * lin[r][q]);
+            for col in r..m {
+                let (b, kc) = (col / 3, col % 3);
+                let mut dd = ZV;
+                match law {
+                    Law::Svk => {
+                        let dc = &de[col];
+                        for x in 0..3 {
+                            for y in 0..3 {
+                                for q in 0..L {
+                                    dd[q] += dr[x][y][q] * dc[x][y][q];
+                                }
+                            }
+                        }
+                    }
+                    Law::NeoHookean => {
+                        let cc = &cde[col];
+                        for x in 0..3 {
+                            for y in 0..3 {
+                                for q in 0..L {
+                                    dd[q] += cr[x][y][q] * cc[y][x][q];
+                                }
+                            }
+                        }
+                    }
+                }
+                let mut v: V =
+                    std::array::from_fn(|q| wv[q] * (lr[q] * lin[col][q] + sh2[q] * dd[q]));
+                if i == kc {
+                    for q in 0..L {
+                        v[q] += wv[q]
+                            * (g[b][0][q] * sg[a][0][q]
+                                + g[b][1][q] * sg[a][1][q]
+                                + g[b][2][q] * sg[a][2][q]);
+                    }
+                }
+                for vq in &v[..count] {
+                    k[r * m + col] += vq;
+                }
+            }
+        }
+    }
+    for r in 0..m {
+        for col in 0..r {
+            k[r * m + col] = k[col * m + r];
+        }
+    }
+}
+
 /// `h += Σ_a u_a ⊗ ∇N_a`, the nodes in order (as the scalar loop sums them).
 #[inline(always)]
 fn add_gradient(h: &mut M3V, u: &[[f64; 3]; 10], g: &[[V; 3]; 10], npc: usize) {
@@ -762,98 +1018,51 @@ mod tests {
             "the crushed states invert the tetrahedron somewhere"
         );
     }
-}
 
-#[cfg(test)]
-mod timing_scratch {
-    use super::*;
-    use crate::fe::Material;
-
+    /// The tangent in lanes is the scalar one bit for bit (every entry, both laws and
+    /// elements, moderate and crushed states).
     #[test]
-    #[ignore]
-    fn scratch_time_lanes() {
-        let organ = crate::organ::catalogue::mesh(
-            crate::organ::catalogue::OrganName::Liver,
-            crate::organ::Level::Coarse,
-        );
-        let space = crate::fe::probe::organ_space(&organ, Element::P2);
-        let n = 3 * space.nodes.len();
+    fn lanes_match_the_scalar_tangent_bit_for_bit() {
         let (lambda, mu) = Material::default().lame_n_per_mm2();
-        let mut rng = crate::rng::Rng::seed(3);
-        let lower: Vec<Vec<f64>> = (0..12)
-            .map(|_| (0..n).map(|_| rng.range(-0.01, 0.01)).collect())
-            .collect();
-        let cells: Vec<usize> = (0..space.cell_count()).collect();
-        let u: Vec<f64> = lower[0].iter().map(|x| 10.0 * x).collect();
-        for which in 0..2 {
-            let t = std::time::Instant::now();
-            let mut chk = 0.0;
-            for _ in 0..20 {
-                let v = crate::fe::newton::assemble_vector_on(&space, &cells, |c, fe| {
-                    if which == 0 {
-                        crate::fe::hyper::element(
-                            &space,
-                            Law::NeoHookean,
-                            c,
-                            &u,
-                            lambda,
-                            mu,
-                            fe,
-                            None,
+        let mut nan_entries = 0;
+        for kind in [Element::P1, Element::P2] {
+            let space = one_tet_space(kind);
+            let m = 3 * kind.nodes_per_cell();
+            let mut rng = Rng::seed(33);
+            for trial in 0..40 {
+                let size = if trial % 4 == 3 { 12.0 } else { 0.8 };
+                let u: Vec<f64> = (0..m).map(|_| rng.range(-size, size)).collect();
+                for law in [Law::Svk, Law::NeoHookean] {
+                    let mut fe = vec![0.0; m];
+                    let mut want = vec![0.0; m * m];
+                    let mut got = vec![7.0; m * m];
+                    crate::fe::hyper::element(
+                        &space,
+                        law,
+                        0,
+                        &u,
+                        lambda,
+                        mu,
+                        &mut fe,
+                        Some(&mut want),
+                    );
+                    element_tangent(&space, law, 0, &u, lambda, mu, &mut got);
+                    for r in 0..m * m {
+                        nan_entries += usize::from(want[r].is_nan());
+                        assert!(
+                            want[r].to_bits() == got[r].to_bits()
+                                || (want[r].is_nan() && got[r].is_nan()),
+                            "{law:?} {kind:?} trial {trial} entry {r}: {} against {}",
+                            got[r],
+                            want[r]
                         );
-                    } else {
-                        element_force(&space, Law::NeoHookean, c, &u, lambda, mu, fe);
                     }
-                });
-                chk += v.iter().sum::<f64>();
-            }
-            eprintln!(
-                "residual x20 {} {:.3} s checksum {chk:e}",
-                which,
-                t.elapsed().as_secs_f64()
-            );
-        }
-        for base in [None, Some(&lower[11][..])] {
-            for which in 0..2 {
-                let t = std::time::Instant::now();
-                let mut chk = 0.0;
-                for p in 2..=12 {
-                    let v = crate::fe::newton::assemble_vector_on(&space, &cells, |c, fe| {
-                        if which == 0 {
-                            crate::fe::series::element_coefficient(
-                                &space,
-                                Law::NeoHookean,
-                                c,
-                                base,
-                                &lower[..p - 1],
-                                p,
-                                lambda,
-                                mu,
-                                fe,
-                            );
-                        } else {
-                            element_coefficient(
-                                &space,
-                                Law::NeoHookean,
-                                c,
-                                base,
-                                &lower[..p - 1],
-                                p,
-                                lambda,
-                                mu,
-                                fe,
-                            );
-                        }
-                    });
-                    chk += v.iter().sum::<f64>();
                 }
-                eprintln!(
-                    "base {} {} {:.3} s checksum {chk:e}",
-                    base.is_some(),
-                    if which == 0 { "scalar" } else { "lanes" },
-                    t.elapsed().as_secs_f64()
-                );
             }
         }
+        assert!(
+            nan_entries > 0,
+            "the crushed states invert the tetrahedron somewhere"
+        );
     }
 }

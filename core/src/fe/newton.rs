@@ -35,7 +35,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::elasticity::{assemble, cell_dofs};
-use super::hyper::{Law, element};
+use super::hyper::Law;
 use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
 use super::{FeError, Material, StepFailure};
@@ -97,10 +97,8 @@ pub fn tangent(
 ) -> SymCsc {
     let mut k = pattern.clone();
     k.val.fill(0.0);
-    let m = 3 * space.element.nodes_per_cell();
     assemble(space, &mut k, |c, ke| {
-        let mut fe = vec![0.0; m];
-        element(space, law, c, u, lambda, mu, &mut fe, Some(ke));
+        super::lanes::element_tangent(space, law, c, u, lambda, mu, ke);
     });
     k
 }
