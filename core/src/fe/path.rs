@@ -77,9 +77,12 @@
 //! chord's tangent is already some millimetres old): every residual and every
 //! acceptance test is in double precision, so the factor's rounding can change the
 //! steps but not what counts as an equilibrium. The rest stiffness, whose solves are
-//! the rest series' exact coefficients, stays in double (a single copy of it for the
-//! first segment's corrections was 6 % faster again, but made the law depend on the
-//! number of threads in its last bits). Measured on four spread vertices of coarse P2
+//! the rest series' exact coefficients, stays in double; the first segment's chord
+//! solves with a single-precision copy of it ([`Expander::rest_single`]), factored
+//! once and sequentially so that the law does not depend on the threads (an earlier
+//! copy factored in parallel did). On a 60-press covering build of coarse P2 that copy
+//! took the build from 83.8 to 77.2 s, the file's answers at its held-out presses
+//! within 0.0014 mm and 1e-5 of the force of the double chord's. Measured on four spread vertices of coarse P2
 //! pressed to 15 mm: the same segments (14) and chord steps (117), states within
 //! 0.0014 mm and forces within 1e-4 of the double-precision ones; the build's time
 //! is in `docs/tissue-measurements.md` §4.
@@ -610,7 +613,8 @@ impl StopKind {
 }
 
 /// Bytes a build of presses needs on `space`'s mesh, `(shared, each)`: the rest
-/// stiffness factor all presses share (double precision), and what one press holds at
+/// stiffness factors all presses share (double precision for the series, single for
+/// the first segment's chord), and what one press holds at
 /// its peak. A press keeps its segment's single-precision factor and, where it falls
 /// back on Newton ([`PathOptions::newton_fallback`]), factors a double-precision
 /// tangent beside it; its vectors (series orders, chord history) are small beside
@@ -624,7 +628,10 @@ impl StopKind {
 /// measured under AMD; under the nested-dissection order (`super::ordering`) the
 /// factors hold 25.7 and 265 million entries, and the same bytes an entry held: the
 /// two-at-a-time coarse covering build peaked at 0.94 GB (estimate 1.13 GB), one medium
-/// press at 4.9 GB (estimate 7.4 GB).
+/// press at 4.9 GB (estimate 7.4 GB). The shared single-precision rest factor (4 bytes
+/// an entry) raised the shared constant to 16: measured with it, 1.00 GB for the
+/// coarse covering build (estimate 1.23 GB) and 5.8 GB for the medium press (estimate
+/// 8.5 GB).
 pub fn press_memory_bytes(space: &Space) -> Result<(u64, u64), FeError> {
     let entries = super::sparse::factor_entries(&SymCsc::pattern(space))?;
     Ok((
@@ -634,7 +641,7 @@ pub fn press_memory_bytes(space: &Space) -> Result<(u64, u64), FeError> {
 }
 
 /// See [`press_memory_bytes`].
-pub const SHARED_BYTES_PER_ENTRY: u64 = 12;
+pub const SHARED_BYTES_PER_ENTRY: u64 = 16;
 /// See [`press_memory_bytes`].
 pub const PRESS_BYTES_PER_ENTRY: u64 = 16;
 
