@@ -286,20 +286,53 @@ pub fn follow(
     depths_mm: &[f64],
     o: &PathOptions,
 ) -> Result<Result<GridPress, String>, FeError> {
+    if let Some(why) = bad_depths(depths_mm) {
+        return Ok(Err(why));
+    }
     let t0 = Instant::now();
-    if depths_mm.first() != Some(&0.0)
+    let first = expander.expand_active(load.shape, load.probe, o.orders, o.active_cutoff);
+    follow_from(
+        space,
+        law,
+        material,
+        expander,
+        load,
+        (first, t0),
+        depths_mm,
+        o,
+    )
+}
+
+/// Why `depths_mm` is no depth grid (`None`: it is one).
+fn bad_depths(depths_mm: &[f64]) -> Option<String> {
+    (depths_mm.first() != Some(&0.0)
         || depths_mm
             .windows(2)
-            .any(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
-    {
-        return Ok(Err(format!(
-            "depths {depths_mm:?}: expected 0 first, then increasing"
-        )));
+            .any(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater)))
+    .then(|| format!("depths {depths_mm:?}: expected 0 first, then increasing"))
+}
+
+/// [`follow`] with the press's rest series already expanded (`o.orders` orders on
+/// `o.active_cutoff`, as [`Expander::expand_active_batch`] expands several presses'
+/// at once), and the instant its expansion started (the press's time counts from it).
+#[allow(clippy::too_many_arguments)]
+pub fn follow_from(
+    space: &Space,
+    law: Law,
+    material: Material,
+    expander: &Expander,
+    load: &PressLoad,
+    (first, t0): (Result<DepthSeries, FeError>, Instant),
+    depths_mm: &[f64],
+    o: &PathOptions,
+) -> Result<Result<GridPress, String>, FeError> {
+    if let Some(why) = bad_depths(depths_mm) {
+        return Ok(Err(why));
     }
     let (lambda, mu) = material.lame_n_per_mm2();
     let shape_free = space.restrict(load.shape);
     let probe_free = space.restrict(load.probe);
-    let first = match expander.expand_active(load.shape, load.probe, o.orders, o.active_cutoff) {
+    let first = match first {
         Ok(s) => s,
         Err(e @ FeError::ProbeNotMoved) => return Ok(Err(format!("first series: {e}"))),
         Err(e) => return Err(e),

@@ -670,22 +670,35 @@ impl<'a> Expander<'a> {
         orders: usize,
         cutoff: f64,
     ) -> Result<DepthSeries, FeError> {
+        self.expand_active_batch(&[(shape, probe)], orders, cutoff)?
+            .pop()
+            .expect("one series for one load")
+    }
+
+    /// [`Self::expand_active`] for several presses at once, each series what it would
+    /// be alone (bit for bit: see [`rest_orders_batch`]). The outer error is the
+    /// request's (too many orders); each press has its own result.
+    pub fn expand_active_batch(
+        &self,
+        loads: &[(&[f64], &[f64])],
+        orders: usize,
+        cutoff: f64,
+    ) -> Result<Vec<Result<DepthSeries, FeError>>, FeError> {
         let t0 = Instant::now();
-        let mut out = orders_about(
+        let mut out = rest_orders_batch(
             self.space,
             self.law,
-            self.lambda,
-            self.mu,
+            (self.lambda, self.mu),
             &self.chol,
-            shape,
-            probe,
-            None,
+            loads,
             orders,
             cutoff,
-            None,
         )?;
-        out.factor_s = self.factor_s;
-        out.seconds = self.factor_s + t0.elapsed().as_secs_f64();
+        let each_s = t0.elapsed().as_secs_f64() / loads.len().max(1) as f64;
+        for s in out.iter_mut().flatten() {
+            s.factor_s = self.factor_s;
+            s.seconds = self.factor_s + each_s;
+        }
         Ok(out)
     }
 
@@ -812,6 +825,126 @@ pub(crate) fn orders_about(
         factor_s: 0.0,
         seconds: 0.0,
     })
+}
+
+/// Columns a rest-series solve always has (padded with zeros): see [`solve_columns`].
+pub const SOLVE_WIDTH: usize = 4;
+
+/// Solves `chol` for the columns `cols`, [`SOLVE_WIDTH`] at a time: a solve of several
+/// right-hand sides reads the factor once (on coarse P2, four columns cost 1.9 times
+/// one). faer rounds a column differently in solves of different widths, so every
+/// solve here has the same width, a short one padded with zero columns; then a press's
+/// series is the same bit for bit alone or in any batch.
+fn solve_columns(chol: &Cholesky, cols: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let mut out = Vec::with_capacity(cols.len());
+    for group in cols.chunks(SOLVE_WIDTH) {
+        let n = group[0].len();
+        let mut m =
+            faer::Mat::<f64>::from_fn(n, SOLVE_WIDTH, |i, j| group.get(j).map_or(0.0, |c| c[i]));
+        chol.solve_many(&mut m);
+        out.extend((0..group.len()).map(|j| (0..n).map(|i| m[(i, j)]).collect()));
+    }
+    out
+}
+
+/// A press's rest series while it is being expanded.
+struct Growing {
+    probe_free: Vec<f64>,
+    y: Vec<f64>,
+    compliance: f64,
+    force: Vec<f64>,
+    lower: Vec<Vec<f64>>,
+    cells: Vec<usize>,
+    failed: Option<FeError>,
+}
+
+/// The rest series (`orders_about` with no base and no augmentation) of several
+/// presses, in lockstep: each order assembles every press's right-hand side, then
+/// solves them together with the rest factor ([`solve_columns`]). Every series is the
+/// one its press gives alone, to the last bit (a unit test compares them).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn rest_orders_batch(
+    space: &Space,
+    law: Law,
+    (lambda, mu): (f64, f64),
+    chol: &Cholesky,
+    loads: &[(&[f64], &[f64])],
+    orders: usize,
+    cutoff: f64,
+) -> Result<Vec<Result<DepthSeries, FeError>>, FeError> {
+    check_orders(orders, 1)?;
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let shapes: Vec<Vec<f64>> = loads.iter().map(|(s, _)| space.restrict(s)).collect();
+    let ys = solve_columns(chol, &shapes);
+    let mut presses: Vec<Growing> = ys
+        .into_iter()
+        .zip(loads)
+        .map(|(y, (_, probe))| {
+            let probe_free = space.restrict(probe);
+            let compliance = dot(&probe_free, &y);
+            let ok = compliance.is_finite() && compliance.abs() > 0.0;
+            Growing {
+                probe_free,
+                y,
+                compliance,
+                force: Vec::with_capacity(orders),
+                lower: Vec::with_capacity(orders),
+                cells: Vec::new(),
+                failed: (!ok).then_some(FeError::ProbeNotMoved),
+            }
+        })
+        .collect();
+    for p in 1..=orders {
+        let alive: Vec<usize> = (0..presses.len())
+            .filter(|&i| presses[i].failed.is_none())
+            .collect();
+        let xs = if p == 1 {
+            Vec::new()
+        } else {
+            let rhs: Vec<Vec<f64>> = alive
+                .iter()
+                .map(|&i| {
+                    let g = &mut presses[i];
+                    if p == 2 {
+                        g.cells = active_cells(space, &g.lower[0], cutoff);
+                    }
+                    coefficient(space, law, None, &g.lower, p, lambda, mu, &g.cells)
+                })
+                .collect();
+            solve_columns(chol, &rhs)
+        };
+        for (slot, &i) in alive.iter().enumerate() {
+            let g = &mut presses[i];
+            let (fp, up) = if p == 1 {
+                (
+                    1.0 / g.compliance,
+                    g.y.iter().map(|v| v / g.compliance).collect::<Vec<_>>(),
+                )
+            } else {
+                let x = &xs[slot];
+                let fp = dot(&g.probe_free, x) / g.compliance;
+                (fp, g.y.iter().zip(x).map(|(a, b)| fp * a - b).collect())
+            };
+            if !fp.is_finite() {
+                g.failed = Some(FeError::ProbeNotMoved);
+                continue;
+            }
+            g.force.push(fp);
+            g.lower.push(space.expand(&up));
+        }
+    }
+    Ok(presses
+        .into_iter()
+        .map(|g| match g.failed {
+            Some(e) => Err(e),
+            None => Ok(DepthSeries {
+                force: g.force,
+                u: g.lower,
+                factor_s: 0.0,
+                seconds: 0.0,
+            }),
+        })
+        .collect())
 }
 
 /// A press expanded twice: about the rest state up to `split_mm`, then about the
@@ -989,6 +1122,63 @@ mod tests {
     /// the force itself: summed to the order of the path's truncation they reproduce
     /// `f_int(u(d))` to O(d^{p+1}) — here p = 6 at d = 0.05, far below round-off
     /// relative to the linear term — for both laws and both elements.
+    /// A press's rest series is the same, bit for bit, expanded alone or in a batch
+    /// with others, at any place in the batch: a build's presses do not depend on how
+    /// its tasks group them (or on which were taken from a log).
+    #[test]
+    fn a_series_in_a_batch_is_the_series_alone() {
+        use crate::pgd::surfacelaw::{SurfaceLawOptions, organ_vertex_normals, tool_load};
+        let organ = crate::organ::catalogue::mesh(
+            crate::organ::catalogue::OrganName::Liver,
+            crate::organ::Level::Coarse,
+        );
+        let space = crate::fe::probe::organ_space(&organ, Element::P2);
+        let o = SurfaceLawOptions::default();
+        let expander = Expander::new(&space, o.law, o.material).expect("rest factor");
+        let normals = organ_vertex_normals(&organ);
+        let pressable = organ.pressable_vertices();
+        let loads: Vec<(Vec<f64>, Vec<f64>)> = [0, pressable.len() / 3, pressable.len() / 2]
+            .iter()
+            .map(|&i| {
+                let v = pressable[i] as usize;
+                let push = normals[v].map(|c| -f64::from(c));
+                tool_load(&space, &organ, &o, organ.mesh.vertices[v], push).expect("a load")
+            })
+            .collect();
+        let refs: Vec<(&[f64], &[f64])> = loads
+            .iter()
+            .map(|(s, p)| (s.as_slice(), p.as_slice()))
+            .collect();
+        let orders = 5;
+        let batch = expander
+            .expand_active_batch(&refs, orders, o.active_cutoff)
+            .expect("orders in range");
+        let reversed = expander
+            .expand_active_batch(&[refs[2], refs[1]], orders, o.active_cutoff)
+            .expect("orders in range");
+        for (i, (s, p)) in refs.iter().enumerate() {
+            let alone = expander
+                .expand_active(s, p, orders, o.active_cutoff)
+                .expect("a series");
+            let mut others = vec![batch[i].as_ref().expect("a series")];
+            if i > 0 {
+                others.push(reversed[2 - i].as_ref().expect("a series"));
+            }
+            for other in others {
+                assert_eq!(alone.force.len(), orders);
+                for (a, b) in alone.force.iter().zip(&other.force) {
+                    assert_eq!(a.to_bits(), b.to_bits(), "press {i}: force {a} against {b}");
+                }
+                for (ua, ub) in alone.u.iter().zip(&other.u) {
+                    assert!(
+                        ua.iter().zip(ub).all(|(a, b)| a.to_bits() == b.to_bits()),
+                        "press {i}: an order differs"
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn coefficients_sum_to_the_internal_force_along_the_path() {
         let (lambda, mu) = Material::default().lame_n_per_mm2();

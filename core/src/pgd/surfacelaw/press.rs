@@ -3,9 +3,11 @@
 use super::{SurfaceLawOptions, VertexPress};
 use crate::fe::FeError;
 use crate::fe::load::{probe_functional, probe_load};
-use crate::fe::path::{GridPress, PathOptions, PressLoad, follow};
+use std::time::{Duration, Instant};
+
+use crate::fe::path::{GridPress, PathOptions, PressLoad, follow, follow_from};
 use crate::fe::probe::{ProbeRequest, locate};
-use crate::fe::series::{Continued, Expander, SplitTangent, continued_from};
+use crate::fe::series::{Continued, DepthSeries, Expander, SplitTangent, continued_from};
 use crate::organ::OrganMesh;
 
 pub use crate::fe::probe::organ_vertex_normals;
@@ -137,15 +139,7 @@ pub fn follow_at(
     extra_mm: &[f64],
 ) -> Result<Result<(GridPress, Vec<f64>), String>, FeError> {
     let (shape, probe) = tool_load(space, organ, o, at, push)?;
-    let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
-    let mut depths: Vec<f64> = (0..steps).map(|j| j as f64 * o.depth_step_mm).collect();
-    depths.extend(
-        extra_mm
-            .iter()
-            .filter(|d| **d > 0.0 && **d <= o.depth_max_mm),
-    );
-    depths.sort_by(f64::total_cmp);
-    depths.dedup();
+    let depths = grid_depths(o, extra_mm);
     let load = PressLoad {
         shape: &shape,
         probe: &probe,
@@ -160,6 +154,63 @@ pub fn follow_at(
         &path_options(o),
     )?
     .map(|p| (p, depths)))
+}
+
+/// The build's depth grid, with the extra depths `extra_mm` within its range.
+fn grid_depths(o: &SurfaceLawOptions, extra_mm: &[f64]) -> Vec<f64> {
+    let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;
+    let mut depths: Vec<f64> = (0..steps).map(|j| j as f64 * o.depth_step_mm).collect();
+    depths.extend(
+        extra_mm
+            .iter()
+            .filter(|d| **d > 0.0 && **d <= o.depth_max_mm),
+    );
+    depths.sort_by(f64::total_cmp);
+    depths.dedup();
+    depths
+}
+
+/// A surface point's tool load and rest series, ready to be followed
+/// ([`point_press_prepared`]).
+pub(super) struct Prepared {
+    shape: Vec<f64>,
+    probe: Vec<f64>,
+    first: Result<DepthSeries, FeError>,
+    /// Its share of the batch's expansion time.
+    series_s: f64,
+}
+
+/// The loads and rest series of the presses at `points` (`(at, push)` each), the
+/// series expanded together ([`Expander::expand_active_batch`]: their solves share
+/// the passes over the rest factor). Each is the series its press gives alone.
+pub(super) fn prepare(
+    space: &crate::fe::space::Space,
+    organ: &OrganMesh,
+    expander: &Expander,
+    o: &SurfaceLawOptions,
+    points: &[([f64; 3], [f64; 3])],
+) -> Result<Vec<Prepared>, FeError> {
+    let t0 = Instant::now();
+    let loads = points
+        .iter()
+        .map(|&(at, push)| tool_load(space, organ, o, at, push))
+        .collect::<Result<Vec<_>, _>>()?;
+    let refs: Vec<(&[f64], &[f64])> = loads
+        .iter()
+        .map(|(s, p)| (s.as_slice(), p.as_slice()))
+        .collect();
+    let series = expander.expand_active_batch(&refs, o.orders, o.active_cutoff)?;
+    let series_s = t0.elapsed().as_secs_f64() / points.len().max(1) as f64;
+    Ok(loads
+        .into_iter()
+        .zip(series)
+        .map(|((shape, probe), first)| Prepared {
+            shape,
+            probe,
+            first,
+            series_s,
+        })
+        .collect())
 }
 
 /// The unit tool load and the probe functional of a press at `at` along `push`
@@ -197,21 +248,35 @@ pub(super) fn edge_id(organ: &OrganMesh, e: usize) -> u32 {
 }
 
 /// One surface point's press (a vertex or an edge midpoint) followed to equilibrium on
-/// the depth grid ([`follow`]), or why it is skipped (the tool does not move its
+/// the depth grid ([`follow_from`]) from its [`prepare`]d load and series, or why it is skipped (the tool does not move its
 /// centre, next to the fixed region; or no equilibrium was found at some depth).
-#[allow(clippy::too_many_arguments)]
-pub(super) fn point_press(
+pub(super) fn point_press_prepared(
     space: &crate::fe::space::Space,
-    organ: &OrganMesh,
     expander: &Expander,
     o: &SurfaceLawOptions,
     rows: &[u32],
     steps: usize,
-    at: [f64; 3],
-    push: [f64; 3],
+    prepared: Prepared,
 ) -> Result<Result<VertexPress, String>, FeError> {
     // The build's grid alone: `depths.len() == steps`.
-    let (press, depths) = match follow_at(space, organ, expander, o, at, push, &[])? {
+    let depths = grid_depths(o, &[]);
+    let load = PressLoad {
+        shape: &prepared.shape,
+        probe: &prepared.probe,
+    };
+    let started = Instant::now()
+        .checked_sub(Duration::from_secs_f64(prepared.series_s))
+        .unwrap_or_else(Instant::now);
+    let press = match follow_from(
+        space,
+        o.law,
+        o.material,
+        expander,
+        &load,
+        (prepared.first, started),
+        &depths,
+        &path_options(o),
+    )? {
         Ok(p) => p,
         Err(why) => return Ok(Err(why)),
     };

@@ -4,7 +4,7 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Mutex;
 
-use super::press::{path_options, point_press};
+use super::press::{path_options, point_press_prepared, prepare};
 use super::refine::{Logged, PressPoint};
 use super::{PressCount, SurfaceLawBuildError, SurfaceLawOptions, VertexPress};
 use crate::fe::path::PathOptions;
@@ -107,6 +107,9 @@ fn press_log_key(
     (key, previous)
 }
 
+/// Presses a task expands together (see [`Presser::press`]).
+const PRESS_BATCH: usize = crate::fe::series::SOLVE_WIDTH;
+
 /// Presses surface points in parallel, logging each as it finishes and reporting
 /// progress (see [`PressCount`]).
 pub(super) struct Presser<'a> {
@@ -142,44 +145,56 @@ impl Presser<'_> {
             total,
             from_log: logged,
         });
-        let todo = (0..points.len()).filter(|&k| out[k].is_none());
-        // One press a task, taken in `points`' order: a split range would have each
-        // thread press a run in turn (a build's last run, presses of minutes on
-        // medium P2, went on on one core while the other sat idle), and an interrupted
-        // build would leave the log holding two fronts rather than the first presses.
-        let computed: Vec<(usize, Logged)> = todo
+        let todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
+        // A few presses a task, taken in `points`' order: their rest series are
+        // expanded together (one pass over the rest factor solves all of them), then
+        // each is followed and logged in turn. Few, because a task's presses run on
+        // one core: a split range would have each thread press a long run in turn (a
+        // build's last run, presses of minutes on medium P2, went on on one core while
+        // the other sat idle), and an interrupted build would leave the log holding
+        // two fronts rather than the first presses. A press's numbers do not depend on
+        // its batch (`fe::series::rest_orders_batch`).
+        let computed: Vec<Vec<(usize, Logged)>> = todo
+            .chunks(PRESS_BATCH)
             .par_bridge()
-            .map(|k| -> Result<_, SurfaceLawBuildError> {
+            .map(|batch| -> Result<_, SurfaceLawBuildError> {
                 crate::cpu::clear_upper_halves();
-                let p = &points[k];
-                let press = point_press(
-                    self.space,
-                    self.organ,
-                    self.expander,
-                    self.o,
-                    self.rows,
-                    self.steps,
-                    p.at,
-                    p.push,
-                )?;
-                if let Some((l, path)) = self.log {
-                    // Off-line and once a press (seconds): a lock is fine here.
-                    let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
-                    l.push(p.id, &press)
-                        .map_err(|source| SurfaceLawBuildError::Log {
-                            path: path.to_path_buf(),
-                            source,
-                        })?;
+                let at: Vec<_> = batch
+                    .iter()
+                    .map(|&k| (points[k].at, points[k].push))
+                    .collect();
+                let prepared = prepare(self.space, self.organ, self.expander, self.o, &at)?;
+                let mut done = Vec::with_capacity(batch.len());
+                for (&k, prepared) in batch.iter().zip(prepared) {
+                    let p = &points[k];
+                    let press = point_press_prepared(
+                        self.space,
+                        self.expander,
+                        self.o,
+                        self.rows,
+                        self.steps,
+                        prepared,
+                    )?;
+                    if let Some((l, path)) = self.log {
+                        // Off-line and once a press (seconds): a lock is fine here.
+                        let mut l = l.lock().unwrap_or_else(|p| p.into_inner());
+                        l.push(p.id, &press)
+                            .map_err(|source| SurfaceLawBuildError::Log {
+                                path: path.to_path_buf(),
+                                source,
+                            })?;
+                    }
+                    (self.progress)(PressCount {
+                        done: self.done.fetch_add(1, Ordering::Relaxed) + 1,
+                        total,
+                        from_log: logged,
+                    });
+                    done.push((k, press));
                 }
-                (self.progress)(PressCount {
-                    done: self.done.fetch_add(1, Ordering::Relaxed) + 1,
-                    total,
-                    from_log: logged,
-                });
-                Ok((k, press))
+                Ok(done)
             })
             .collect::<Result<_, _>>()?;
-        for (k, press) in computed {
+        for (k, press) in computed.into_iter().flatten() {
             out[k] = Some(press);
         }
         let out = out
