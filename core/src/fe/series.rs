@@ -1127,38 +1127,49 @@ mod tests {
     /// its tasks group them (or on which were taken from a log).
     #[test]
     fn a_series_in_a_batch_is_the_series_alone() {
-        use crate::pgd::surfacelaw::{SurfaceLawOptions, organ_vertex_normals, tool_load};
+        use crate::fe::load::{probe_functional, probe_load};
+        use crate::fe::probe::{ProbeRequest, locate, organ_vertex_normals};
         let organ = crate::organ::catalogue::mesh(
             crate::organ::catalogue::OrganName::Liver,
             crate::organ::Level::Coarse,
         );
         let space = crate::fe::probe::organ_space(&organ, Element::P2);
-        let o = SurfaceLawOptions::default();
-        let expander = Expander::new(&space, o.law, o.material).expect("rest factor");
+        let expander =
+            Expander::new(&space, Law::NeoHookean, Material::default()).expect("rest factor");
         let normals = organ_vertex_normals(&organ);
         let pressable = organ.pressable_vertices();
+        // Three vertices pressed along their inward normals by a 5 mm tool, as the
+        // tissue build presses them.
         let loads: Vec<(Vec<f64>, Vec<f64>)> = [0, pressable.len() / 3, pressable.len() / 2]
             .iter()
             .map(|&i| {
                 let v = pressable[i] as usize;
-                let push = normals[v].map(|c| -f64::from(c));
-                tool_load(&space, &organ, &o, organ.mesh.vertices[v], push).expect("a load")
+                let req = ProbeRequest {
+                    at: organ.mesh.vertices[v],
+                    force_n: 1.0,
+                    dir: Some(normals[v].map(|c| -f64::from(c))),
+                    radius_mm: 5.0,
+                };
+                let (probe, dir) = locate(&space, &organ, &req).expect("on the surface");
+                let shape = probe_load(&space, &probe, dir, 1.0, 5.0).expect("a load");
+                (shape, probe_functional(&space, &probe, dir))
             })
             .collect();
+        let cutoff = 1e-2;
         let refs: Vec<(&[f64], &[f64])> = loads
             .iter()
             .map(|(s, p)| (s.as_slice(), p.as_slice()))
             .collect();
         let orders = 5;
         let batch = expander
-            .expand_active_batch(&refs, orders, o.active_cutoff)
+            .expand_active_batch(&refs, orders, cutoff)
             .expect("orders in range");
         let reversed = expander
-            .expand_active_batch(&[refs[2], refs[1]], orders, o.active_cutoff)
+            .expand_active_batch(&[refs[2], refs[1]], orders, cutoff)
             .expect("orders in range");
         for (i, (s, p)) in refs.iter().enumerate() {
             let alone = expander
-                .expand_active(s, p, orders, o.active_cutoff)
+                .expand_active(s, p, orders, cutoff)
                 .expect("a series");
             let mut others = vec![batch[i].as_ref().expect("a series")];
             if i > 0 {
