@@ -413,7 +413,6 @@ fn element_coefficient_lanes<const N: usize>(
     let mut g = [[ZV; 3]; 10];
     let mut f = [ZERO; N];
     let mut s = [ZERO; N];
-    let mut contrib = [[ZV; 3]; 10];
     for ((l, w), &count) in groups
         .points
         .iter()
@@ -437,31 +436,12 @@ fn element_coefficient_lanes<const N: usize>(
         for i in 0..=p {
             add_scaled(&mut pp, &ONE, &mul(&f[i], &s[p - i]));
         }
-        for a in 0..npc {
-            for i in 0..3 {
-                for q in 0..L {
-                    let wv = w[q] * vol;
-                    contrib[a][i][q] = wv
-                        * (pp[i][0][q] * g[a][0][q]
-                            + pp[i][1][q] * g[a][1][q]
-                            + pp[i][2][q] * g[a][2][q]);
-                }
-            }
-        }
-        // Point by point in the rule's order, as the scalar loop adds them.
-        for q in 0..count {
-            for a in 0..npc {
-                for i in 0..3 {
-                    fe[3 * a + i] += contrib[a][i][q];
-                }
-            }
-        }
+        add_points(fe, &pp, &g, (w, vol), npc, count);
     }
 }
 
 /// [`super::hyper::element`]'s internal force (no tangent), the same numbers bit for
 /// bit, its quadrature points in vector lanes: the residual of every chord step.
-#[allow(clippy::too_many_arguments)]
 pub fn element_force(
     space: &Space,
     law: Law,
@@ -471,162 +451,10 @@ pub fn element_force(
     mu: f64,
     fe: &mut [f64],
 ) {
-    pulp::Arch::new().dispatch(ForceKernel {
-        space,
-        law,
-        c,
-        u,
-        lambda,
-        mu,
-        fe,
+    pulp::Arch::new().dispatch(StateKernel {
+        cell: CellState::new(space, law, c, u, lambda, mu),
+        out: Out::Force(fe),
     });
-}
-
-struct ForceKernel<'a> {
-    space: &'a Space,
-    law: Law,
-    c: usize,
-    u: &'a [f64],
-    lambda: f64,
-    mu: f64,
-    fe: &'a mut [f64],
-}
-
-impl pulp::WithSimd for ForceKernel<'_> {
-    type Output = ();
-
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        let ForceKernel {
-            space,
-            law,
-            c,
-            u,
-            lambda,
-            mu,
-            fe,
-        } = self;
-        element_force_lanes(space, law, c, u, lambda, mu, fe);
-    }
-}
-
-/// `det a` a lane, as [`super::hyper`]'s `det` computes it.
-#[inline(always)]
-fn det_v(a: &M3V) -> V {
-    std::array::from_fn(|l| {
-        a[0][0][l] * (a[1][1][l] * a[2][2][l] - a[1][2][l] * a[2][1][l])
-            - a[0][1][l] * (a[1][0][l] * a[2][2][l] - a[1][2][l] * a[2][0][l])
-            + a[0][2][l] * (a[1][0][l] * a[2][1][l] - a[1][1][l] * a[2][0][l])
-    })
-}
-
-/// The second Piola–Kirchhoff stress at `f`, as [`super::hyper`]'s `Law::state`
-/// computes it (NaN where `J ≤ 0` under the neo-Hookean law).
-#[inline(always)]
-fn stress(law: Law, f: &M3V, lambda: f64, mu: f64) -> M3V {
-    let mut c = ZERO;
-    for i in 0..3 {
-        for j in 0..3 {
-            for l in 0..L {
-                c[i][j][l] =
-                    f[0][i][l] * f[0][j][l] + f[1][i][l] * f[1][j][l] + f[2][i][l] * f[2][j][l];
-            }
-        }
-    }
-    let mut s = ZERO;
-    match law {
-        Law::Svk => {
-            for l in 0..L {
-                let tr = 0.5 * (c[0][0][l] + c[1][1][l] + c[2][2][l] - 3.0);
-                for i in 0..3 {
-                    for j in 0..3 {
-                        let e = 0.5 * (c[i][j][l] - if i == j { 1.0 } else { 0.0 });
-                        s[i][j][l] = 2.0 * mu * e + if i == j { lambda * tr } else { 0.0 };
-                    }
-                }
-            }
-        }
-        Law::NeoHookean => {
-            let j = det_v(f);
-            let ln_j: V = std::array::from_fn(|l| j[l].ln());
-            for l in 0..L {
-                let d = j[l] * j[l];
-                for a in 0..3 {
-                    for b in 0..3 {
-                        let (a1, a2) = ((b + 1) % 3, (b + 2) % 3);
-                        let (b1, b2) = ((a + 1) % 3, (a + 2) % 3);
-                        let ci = (c[a1][b1][l] * c[a2][b2][l] - c[a1][b2][l] * c[a2][b1][l]) / d;
-                        let id = if a == b { 1.0 } else { 0.0 };
-                        s[a][b][l] = mu * (id - ci) + lambda * ln_j[l] * ci;
-                    }
-                }
-                if j[l].is_nan() || j[l] <= 0.0 {
-                    for row in &mut s {
-                        for v in row.iter_mut() {
-                            v[l] = f64::NAN;
-                        }
-                    }
-                }
-            }
-        }
-    }
-    s
-}
-
-#[inline(always)]
-fn element_force_lanes(
-    space: &Space,
-    law: Law,
-    c: usize,
-    u: &[f64],
-    lambda: f64,
-    mu: f64,
-    fe: &mut [f64],
-) {
-    let p2 = space.element == Element::P2;
-    let npc = space.element.nodes_per_cell();
-    fe[..3 * npc].fill(0.0);
-    let cell = space.cell(c);
-    let (gl, vol) =
-        barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
-    let groups = if p2 { &*GROUPS_P2 } else { &*GROUPS_P1 };
-    let mut nodal = [[0.0; 3]; 10];
-    for a in 0..npc {
-        let n = cell[a] as usize;
-        nodal[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
-    }
-    let mut g = [[ZV; 3]; 10];
-    let mut contrib = [[ZV; 3]; 10];
-    for ((l, w), &count) in groups
-        .points
-        .iter()
-        .zip(&groups.weights)
-        .zip(&groups.counts)
-    {
-        gradients(p2, l, &gl, &mut g);
-        let mut f = ID;
-        add_gradient(&mut f, &nodal, &g, npc);
-        let s = stress(law, &f, lambda, mu);
-        let p = mul(&f, &s);
-        for a in 0..npc {
-            for i in 0..3 {
-                for q in 0..L {
-                    let wv = w[q] * vol;
-                    contrib[a][i][q] = wv
-                        * (p[i][0][q] * g[a][0][q]
-                            + p[i][1][q] * g[a][1][q]
-                            + p[i][2][q] * g[a][2][q]);
-                }
-            }
-        }
-        for q in 0..count {
-            for a in 0..npc {
-                for i in 0..3 {
-                    fe[3 * a + i] += contrib[a][i][q];
-                }
-            }
-        }
-    }
 }
 
 /// [`super::hyper::element`]'s tangent `ke` (row-major, `3·npc` square), the same
@@ -641,42 +469,110 @@ pub fn element_tangent(
     mu: f64,
     ke: &mut [f64],
 ) {
-    pulp::Arch::new().dispatch(TangentKernel {
-        space,
-        law,
-        c,
-        u,
-        lambda,
-        mu,
-        ke,
+    pulp::Arch::new().dispatch(StateKernel {
+        cell: CellState::new(space, law, c, u, lambda, mu),
+        out: Out::Tangent(ke),
     });
 }
 
-struct TangentKernel<'a> {
-    space: &'a Space,
+/// A cell at a displacement: what the force and the tangent both start from.
+struct CellState {
     law: Law,
-    c: usize,
-    u: &'a [f64],
+    p2: bool,
+    npc: usize,
+    gl: [[f64; 3]; 4],
+    vol: f64,
+    /// The cell's nodal displacements.
+    nodal: [[f64; 3]; 10],
     lambda: f64,
     mu: f64,
-    ke: &'a mut [f64],
 }
 
-impl pulp::WithSimd for TangentKernel<'_> {
+impl CellState {
+    fn new(space: &Space, law: Law, c: usize, u: &[f64], lambda: f64, mu: f64) -> Self {
+        let npc = space.element.nodes_per_cell();
+        let (gl, vol) = barycentric_gradients(space.cell_corners(c))
+            .expect("mesh has no degenerate tetrahedra");
+        let mut nodal = [[0.0; 3]; 10];
+        for (a, &n) in space.cell(c).iter().enumerate().take(npc) {
+            let n = n as usize;
+            nodal[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
+        }
+        CellState {
+            law,
+            p2: space.element == Element::P2,
+            npc,
+            gl,
+            vol,
+            nodal,
+            lambda,
+            mu,
+        }
+    }
+
+    fn groups(&self) -> &'static Groups {
+        if self.p2 { &GROUPS_P2 } else { &GROUPS_P1 }
+    }
+
+    /// At a group of points: the shape gradients (into `g`), `F` and the law's state.
+    #[inline(always)]
+    fn at(&self, l: &[V; 4], g: &mut [[V; 3]; 10]) -> (M3V, (M3V, M3V, V)) {
+        gradients(self.p2, l, &self.gl, g);
+        let mut f = ID;
+        add_gradient(&mut f, &self.nodal, g, self.npc);
+        let st = state(self.law, &f, self.lambda, self.mu);
+        (f, st)
+    }
+}
+
+enum Out<'a> {
+    Force(&'a mut [f64]),
+    Tangent(&'a mut [f64]),
+}
+
+/// The force or tangent kernel's arguments, so that [`pulp::Arch::dispatch`] inlines
+/// the whole body (see [`Kernel`]).
+struct StateKernel<'a> {
+    cell: CellState,
+    out: Out<'a>,
+}
+
+impl pulp::WithSimd for StateKernel<'_> {
     type Output = ();
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        let TangentKernel {
-            space,
-            law,
-            c,
-            u,
-            lambda,
-            mu,
-            ke,
-        } = self;
-        element_tangent_lanes(space, law, c, u, lambda, mu, ke);
+        match self.out {
+            Out::Force(fe) => element_force_lanes(&self.cell, fe),
+            Out::Tangent(ke) => element_tangent_lanes(&self.cell, ke),
+        }
+    }
+}
+
+/// `det a` a lane, as [`super::hyper`]'s `det` computes it.
+#[inline(always)]
+fn det_v(a: &M3V) -> V {
+    std::array::from_fn(|l| {
+        a[0][0][l] * (a[1][1][l] * a[2][2][l] - a[1][2][l] * a[2][1][l])
+            - a[0][1][l] * (a[1][0][l] * a[2][2][l] - a[1][2][l] * a[2][0][l])
+            + a[0][2][l] * (a[1][0][l] * a[2][1][l] - a[1][1][l] * a[2][0][l])
+    })
+}
+
+#[inline(always)]
+fn element_force_lanes(cell: &CellState, fe: &mut [f64]) {
+    let npc = cell.npc;
+    fe[..3 * npc].fill(0.0);
+    let groups = cell.groups();
+    let mut g = [[ZV; 3]; 10];
+    for ((l, w), &count) in groups
+        .points
+        .iter()
+        .zip(&groups.weights)
+        .zip(&groups.counts)
+    {
+        let (f, (s, _, _)) = cell.at(l, &mut g);
+        add_points(fe, &mul(&f, &s), &g, (w, cell.vol), npc, count);
     }
 }
 
@@ -744,28 +640,11 @@ fn state(law: Law, f: &M3V, lambda: f64, mu: f64) -> (M3V, M3V, V) {
 }
 
 #[inline(always)]
-fn element_tangent_lanes(
-    space: &Space,
-    law: Law,
-    c: usize,
-    u: &[f64],
-    lambda: f64,
-    mu: f64,
-    k: &mut [f64],
-) {
-    let p2 = space.element == Element::P2;
-    let npc = space.element.nodes_per_cell();
+fn element_tangent_lanes(cell: &CellState, k: &mut [f64]) {
+    let (law, lambda, npc) = (cell.law, cell.lambda, cell.npc);
     let m = 3 * npc;
     k[..m * m].fill(0.0);
-    let cell = space.cell(c);
-    let (gl, vol) =
-        barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
-    let groups = if p2 { &*GROUPS_P2 } else { &*GROUPS_P1 };
-    let mut nodal = [[0.0; 3]; 10];
-    for a in 0..npc {
-        let n = cell[a] as usize;
-        nodal[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
-    }
+    let groups = cell.groups();
     let mut g = [[ZV; 3]; 10];
     let mut de = [ZERO; 30];
     let mut lin = [ZV; 30];
@@ -776,11 +655,8 @@ fn element_tangent_lanes(
         .zip(&groups.weights)
         .zip(&groups.counts)
     {
-        gradients(p2, l, &gl, &mut g);
-        let wv: V = std::array::from_fn(|q| w[q] * vol);
-        let mut f = ID;
-        add_gradient(&mut f, &nodal, &g, npc);
-        let (s, ci, shear) = state(law, &f, lambda, mu);
+        let wv: V = std::array::from_fn(|q| w[q] * cell.vol);
+        let (f, (s, ci, shear)) = cell.at(l, &mut g);
         for a in 0..npc {
             for i in 0..3 {
                 let r = 3 * a + i;
@@ -885,6 +761,36 @@ fn element_tangent_lanes(
     }
 }
 
+/// `fe[a, i] += w vol Σ_K P[i][K] ∂_K N_a` for the group's first `count` points, added
+/// point by point in the rule's order as the scalar loop adds them.
+#[inline(always)]
+fn add_points(
+    fe: &mut [f64],
+    p: &M3V,
+    g: &[[V; 3]; 10],
+    (w, vol): (&V, f64),
+    npc: usize,
+    count: usize,
+) {
+    let mut contrib = [[ZV; 3]; 10];
+    for a in 0..npc {
+        for i in 0..3 {
+            for q in 0..L {
+                let wv = w[q] * vol;
+                contrib[a][i][q] = wv
+                    * (p[i][0][q] * g[a][0][q] + p[i][1][q] * g[a][1][q] + p[i][2][q] * g[a][2][q]);
+            }
+        }
+    }
+    for q in 0..count {
+        for a in 0..npc {
+            for i in 0..3 {
+                fe[3 * a + i] += contrib[a][i][q];
+            }
+        }
+    }
+}
+
 /// `h += Σ_a u_a ⊗ ∇N_a`, the nodes in order (as the scalar loop sums them).
 #[inline(always)]
 fn add_gradient(h: &mut M3V, u: &[[f64; 3]; 10], g: &[[V; 3]; 10], npc: usize) {
@@ -982,12 +888,14 @@ mod tests {
         );
     }
 
-    /// The internal force in lanes is the scalar one bit for bit, both laws and
-    /// elements, moderate and crushed states (NaN in both).
+    /// The internal force and the tangent in lanes are the scalar ones bit for bit
+    /// (every entry), both laws and elements, moderate and crushed states (NaN in
+    /// both).
     #[test]
-    fn lanes_match_the_scalar_internal_force_bit_for_bit() {
+    fn lanes_match_the_scalar_force_and_tangent_bit_for_bit() {
         let (lambda, mu) = Material::default().lame_n_per_mm2();
-        let mut nan_rows = 0;
+        let mut nan_entries = 0;
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
         for kind in [Element::P1, Element::P2] {
             let space = one_tet_space(kind);
             let m = 3 * kind.nodes_per_cell();
@@ -996,66 +904,20 @@ mod tests {
                 let size = if trial % 4 == 3 { 12.0 } else { 0.8 };
                 let u: Vec<f64> = (0..m).map(|_| rng.range(-size, size)).collect();
                 for law in [Law::Svk, Law::NeoHookean] {
-                    let mut want = vec![0.0; m];
-                    let mut got = vec![0.0; m];
-                    crate::fe::hyper::element(&space, law, 0, &u, lambda, mu, &mut want, None);
-                    element_force(&space, law, 0, &u, lambda, mu, &mut got);
-                    for r in 0..m {
-                        nan_rows += usize::from(want[r].is_nan());
-                        assert!(
-                            want[r].to_bits() == got[r].to_bits()
-                                || (want[r].is_nan() && got[r].is_nan()),
-                            "{law:?} {kind:?} trial {trial} row {r}: {} against {}",
-                            got[r],
-                            want[r]
-                        );
-                    }
-                }
-            }
-        }
-        assert!(
-            nan_rows > 0,
-            "the crushed states invert the tetrahedron somewhere"
-        );
-    }
-
-    /// The tangent in lanes is the scalar one bit for bit (every entry, both laws and
-    /// elements, moderate and crushed states).
-    #[test]
-    fn lanes_match_the_scalar_tangent_bit_for_bit() {
-        let (lambda, mu) = Material::default().lame_n_per_mm2();
-        let mut nan_entries = 0;
-        for kind in [Element::P1, Element::P2] {
-            let space = one_tet_space(kind);
-            let m = 3 * kind.nodes_per_cell();
-            let mut rng = Rng::seed(33);
-            for trial in 0..40 {
-                let size = if trial % 4 == 3 { 12.0 } else { 0.8 };
-                let u: Vec<f64> = (0..m).map(|_| rng.range(-size, size)).collect();
-                for law in [Law::Svk, Law::NeoHookean] {
-                    let mut fe = vec![0.0; m];
-                    let mut want = vec![0.0; m * m];
-                    let mut got = vec![7.0; m * m];
-                    crate::fe::hyper::element(
-                        &space,
-                        law,
-                        0,
-                        &u,
-                        lambda,
-                        mu,
-                        &mut fe,
-                        Some(&mut want),
-                    );
-                    element_tangent(&space, law, 0, &u, lambda, mu, &mut got);
-                    for r in 0..m * m {
-                        nan_entries += usize::from(want[r].is_nan());
-                        assert!(
-                            want[r].to_bits() == got[r].to_bits()
-                                || (want[r].is_nan() && got[r].is_nan()),
-                            "{law:?} {kind:?} trial {trial} entry {r}: {} against {}",
-                            got[r],
-                            want[r]
-                        );
+                    let (mut fe, mut ke) = (vec![0.0; m], vec![0.0; m * m]);
+                    let hyper = crate::fe::hyper::element;
+                    hyper(&space, law, 0, &u, lambda, mu, &mut fe, Some(&mut ke));
+                    let (mut got_fe, mut got_ke) = (vec![7.0; m], vec![7.0; m * m]);
+                    element_force(&space, law, 0, &u, lambda, mu, &mut got_fe);
+                    element_tangent(&space, law, 0, &u, lambda, mu, &mut got_ke);
+                    for (what, want, got) in [("force", &fe, &got_fe), ("tangent", &ke, &got_ke)] {
+                        for (r, (&w, &g)) in want.iter().zip(got).enumerate() {
+                            nan_entries += usize::from(w.is_nan());
+                            assert!(
+                                same(w, g),
+                                "{law:?} {kind:?} trial {trial} {what} entry {r}: {g} against {w}"
+                            );
+                        }
                     }
                 }
             }
