@@ -82,10 +82,11 @@
 //! once and sequentially so that the law does not depend on the threads (an earlier
 //! copy factored in parallel did). On a 60-press covering build of coarse P2 that copy
 //! took the build from 83.8 to 77.2 s, the file's answers at its held-out presses
-//! within 0.0014 mm and 1e-5 of the force of the double chord's. Measured on four spread vertices of coarse P2
-//! pressed to 15 mm: the same segments (14) and chord steps (117), states within
-//! 0.0014 mm and forces within 1e-4 of the double-precision ones; the build's time
-//! is in `docs/tissue-measurements.md` §4.
+//! within 0.0014 mm and 1e-5 of the force of the double chord's. The later segments'
+//! single-precision tangents, measured on four spread vertices of coarse P2 pressed
+//! to 15 mm: the same segments (14) and chord steps (117), states within 0.0014 mm
+//! and forces within 1e-4 of the double-precision ones; the build's time is in
+//! `docs/tissue-measurements.md` §4.
 
 use std::time::Instant;
 
