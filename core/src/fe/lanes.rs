@@ -389,26 +389,17 @@ fn element_coefficient_lanes<const N: usize>(
     mu: f64,
     fe: &mut [f64],
 ) {
-    let p2 = space.element == Element::P2;
-    let npc = space.element.nodes_per_cell();
+    let geo = Geometry::new(space, c);
+    let (p2, npc, gl, vol) = (geo.p2, geo.npc, geo.gl, geo.vol);
     fe[..3 * npc].fill(0.0);
-    let cell = space.cell(c);
-    let (gl, vol) =
-        barycentric_gradients(space.cell_corners(c)).expect("mesh has no degenerate tetrahedra");
-    let groups = if p2 { &*GROUPS_P2 } else { &*GROUPS_P1 };
+    let groups = geo.groups();
     // The cell's nodal values of u_0 and of each lower order (gathered once a cell).
     let mut nodal = [[[0.0; 3]; 10]; N];
-    let gather = |u: &[f64], out: &mut [[f64; 3]; 10]| {
-        for a in 0..npc {
-            let n = cell[a] as usize;
-            out[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
-        }
-    };
     if let Some(u) = base {
-        gather(u, &mut nodal[0]);
+        nodal[0] = geo.gather(space, c, u);
     }
     for k in 1..p {
-        gather(&lower[k - 1], &mut nodal[k]);
+        nodal[k] = geo.gather(space, c, &lower[k - 1]);
     }
     let mut g = [[ZV; 3]; 10];
     let mut f = [ZERO; N];
@@ -475,13 +466,45 @@ pub fn element_tangent(
     });
 }
 
-/// A cell at a displacement: what the force and the tangent both start from.
-struct CellState {
-    law: Law,
+/// A cell's element kind, corner gradients and volume: what every kernel starts from.
+struct Geometry {
     p2: bool,
     npc: usize,
     gl: [[f64; 3]; 4],
     vol: f64,
+}
+
+impl Geometry {
+    fn new(space: &Space, c: usize) -> Self {
+        let (gl, vol) = barycentric_gradients(space.cell_corners(c))
+            .expect("mesh has no degenerate tetrahedra");
+        Geometry {
+            p2: space.element == Element::P2,
+            npc: space.element.nodes_per_cell(),
+            gl,
+            vol,
+        }
+    }
+
+    fn groups(&self) -> &'static Groups {
+        if self.p2 { &GROUPS_P2 } else { &GROUPS_P1 }
+    }
+
+    /// Cell `c`'s nodal values of the all-node vector `u`.
+    fn gather(&self, space: &Space, c: usize, u: &[f64]) -> [[f64; 3]; 10] {
+        let mut nodal = [[0.0; 3]; 10];
+        for (a, &n) in space.cell(c).iter().enumerate().take(self.npc) {
+            let n = n as usize;
+            nodal[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
+        }
+        nodal
+    }
+}
+
+/// A cell at a displacement: what the force and the tangent both start from.
+struct CellState {
+    law: Law,
+    geo: Geometry,
     /// The cell's nodal displacements.
     nodal: [[f64; 3]; 10],
     lambda: f64,
@@ -490,36 +513,23 @@ struct CellState {
 
 impl CellState {
     fn new(space: &Space, law: Law, c: usize, u: &[f64], lambda: f64, mu: f64) -> Self {
-        let npc = space.element.nodes_per_cell();
-        let (gl, vol) = barycentric_gradients(space.cell_corners(c))
-            .expect("mesh has no degenerate tetrahedra");
-        let mut nodal = [[0.0; 3]; 10];
-        for (a, &n) in space.cell(c).iter().enumerate().take(npc) {
-            let n = n as usize;
-            nodal[a] = [u[3 * n], u[3 * n + 1], u[3 * n + 2]];
-        }
+        let geo = Geometry::new(space, c);
+        let nodal = geo.gather(space, c, u);
         CellState {
             law,
-            p2: space.element == Element::P2,
-            npc,
-            gl,
-            vol,
+            geo,
             nodal,
             lambda,
             mu,
         }
     }
 
-    fn groups(&self) -> &'static Groups {
-        if self.p2 { &GROUPS_P2 } else { &GROUPS_P1 }
-    }
-
     /// At a group of points: the shape gradients (into `g`), `F` and the law's state.
     #[inline(always)]
     fn at(&self, l: &[V; 4], g: &mut [[V; 3]; 10]) -> (M3V, (M3V, M3V, V)) {
-        gradients(self.p2, l, &self.gl, g);
+        gradients(self.geo.p2, l, &self.geo.gl, g);
         let mut f = ID;
-        add_gradient(&mut f, &self.nodal, g, self.npc);
+        add_gradient(&mut f, &self.nodal, g, self.geo.npc);
         let st = state(self.law, &f, self.lambda, self.mu);
         (f, st)
     }
@@ -561,9 +571,9 @@ fn det_v(a: &M3V) -> V {
 
 #[inline(always)]
 fn element_force_lanes(cell: &CellState, fe: &mut [f64]) {
-    let npc = cell.npc;
+    let npc = cell.geo.npc;
     fe[..3 * npc].fill(0.0);
-    let groups = cell.groups();
+    let groups = cell.geo.groups();
     let mut g = [[ZV; 3]; 10];
     for ((l, w), &count) in groups
         .points
@@ -572,7 +582,7 @@ fn element_force_lanes(cell: &CellState, fe: &mut [f64]) {
         .zip(&groups.counts)
     {
         let (f, (s, _, _)) = cell.at(l, &mut g);
-        add_points(fe, &mul(&f, &s), &g, (w, cell.vol), npc, count);
+        add_points(fe, &mul(&f, &s), &g, (w, cell.geo.vol), npc, count);
     }
 }
 
@@ -641,10 +651,10 @@ fn state(law: Law, f: &M3V, lambda: f64, mu: f64) -> (M3V, M3V, V) {
 
 #[inline(always)]
 fn element_tangent_lanes(cell: &CellState, k: &mut [f64]) {
-    let (law, lambda, npc) = (cell.law, cell.lambda, cell.npc);
+    let (law, lambda, npc) = (cell.law, cell.lambda, cell.geo.npc);
     let m = 3 * npc;
     k[..m * m].fill(0.0);
-    let groups = cell.groups();
+    let groups = cell.geo.groups();
     let mut g = [[ZV; 3]; 10];
     let mut de = [ZERO; 30];
     let mut lin = [ZV; 30];
@@ -655,7 +665,7 @@ fn element_tangent_lanes(cell: &CellState, k: &mut [f64]) {
         .zip(&groups.weights)
         .zip(&groups.counts)
     {
-        let wv: V = std::array::from_fn(|q| w[q] * cell.vol);
+        let wv: V = std::array::from_fn(|q| w[q] * cell.geo.vol);
         let (f, (s, ci, shear)) = cell.at(l, &mut g);
         for a in 0..npc {
             for i in 0..3 {
