@@ -24,8 +24,8 @@ for t in load_model network_file surface_file regions paths; do mkdir -p "fuzz/c
 cp tests/data/dsmts/*/*-sbml-l3v1.xml assets/networks/*.toml fuzz/corpus/network_file/
 cargo build --release --locked -q -p palpa-app --bin palpa
 palpa=target/release/palpa
-$palpa synth --rows 30 --modes 4 --out fuzz/corpus/load_model/seed-f64.palpa >/dev/null
-$palpa synth --rows 12 --modes 3 --precision f32 --out fuzz/corpus/load_model/seed-f32.palpa >/dev/null
+$palpa lab synth --rows 30 --modes 4 --out fuzz/corpus/load_model/seed-f64.palpa >/dev/null
+$palpa lab synth --rows 12 --modes 3 --precision f32 --out fuzz/corpus/load_model/seed-f32.palpa >/dev/null
 # Network models of each layout (short runs: small files) and a depth law.
 seed() { "$palpa" "$@" >/dev/null 2>"$tmp_err" || { cat "$tmp_err" >&2; echo "fuzz.sh: seeding failed: palpa $*" >&2; exit 1; }; }
 tmp_err="$(mktemp)"

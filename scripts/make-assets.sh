@@ -10,7 +10,7 @@
 # presses, about 4 h, then 441 more, about 1 h 15 min, then 627 more, about 1 h, then
 # 1 002 more, about 1 h 25 min, then 690 more, about 45 min, then 1 326 more, about
 # 1 h 10 min), each stage going on from the last one's file. The shipped file's weights
-# were rounded to halves between the fifth and sixth stages (`palpa tissue cut
+# were rounded to halves between the fifth and sixth stages (`palpa lab tissue cut
 # --half-weights`, its bound 0.1 → 0.107 mm); a rebuild stores halves from the start,
 # within 0.1 mm. Then the SUB worst of their sub-triangles are split again (the second
 # level, docs/methods.md §2e), and last the band next to the fixed region is pressed (25
@@ -40,17 +40,17 @@ if [ -n "${TISSUE:-}" ]; then
     --out target/assets/liver-coarse-base.tissue
   from=target/assets/liver-coarse-base.tissue
   for k in ${STAGES:-100 163 260 430 540 760}; do
-    $palpa tissue refine "$from" --triangles "$k" --out "target/assets/liver-coarse-$k.tissue"
+    $palpa lab tissue refine "$from" --triangles "$k" --out "target/assets/liver-coarse-$k.tissue"
     from="target/assets/liver-coarse-$k.tissue"
   done
   # The second level: the SUB worst sub-triangles of those split again (default 190:
   # 1 392 presses, about 4 h; its file, tissue format 12, was 7.98 MB).
-  $palpa tissue refine "$from" --sub-triangles "${SUB:-190}" \
+  $palpa lab tissue refine "$from" --sub-triangles "${SUB:-190}" \
     --out "target/assets/liver-coarse-sub${SUB:-190}.tissue"
   from="target/assets/liver-coarse-sub${SUB:-190}.tissue"
   # The band next to the fixed region, last (25 presses; format 13, 7.91 MB: with the
   # scene 11.4 MB of the 20 MB phone budget).
-  $palpa tissue band "$from" --out target/assets/liver-coarse-band.tissue
+  $palpa lab tissue band "$from" --out target/assets/liver-coarse-band.tissue
   from=target/assets/liver-coarse-band.tissue
   cp "$from" assets/liver-coarse.tissue
 fi

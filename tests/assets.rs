@@ -182,7 +182,7 @@ fn the_default_tissue_comes_from_the_current_code() {
     assert!(bytes("liver-coarse.palpa") + bytes("liver-coarse.tissue") < 20_000_000);
 
     // Its split triangles are a refinement stage of its own vertices and edges: the
-    // worst of its unsplit form by largest edge surplus, as `tissue refine --triangles`
+    // worst of its unsplit form by largest edge surplus, as `lab tissue refine --triangles`
     // picks them.
     let split = law.refinement.triangles.len();
     assert!(
@@ -237,7 +237,7 @@ fn the_default_tissue_comes_from_the_current_code() {
         .expect("a plan");
     assert_eq!(plan.names(), &sub.sub_triangles[..]);
 
-    // Its band next to the fixed region (`palpa tissue band`, the last stage): every
+    // Its band next to the fixed region (`palpa lab tissue band`, the last stage): every
     // palpable edge from a pressed vertex to one on the fixed region, pressed at its
     // midpoint, its other end held.
     let key = |p: [f64; 3]| p.map(|c| (c as f32).to_bits());

@@ -474,7 +474,7 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
     }
 }
 
-/// The plain law compressed, read back and split in place (`tissue refine`): every
+/// The plain law compressed, read back and split in place (`lab tissue refine`): every
 /// split press taken from the split build's log (the two share a key), the same
 /// triangles and points split, each surplus within the blend's share of the file's
 /// bound of the split build's, the file's own samples kept unchanged; the worst
@@ -745,7 +745,7 @@ fn blend_surplus_checked(
     }
 }
 
-/// `tissue refine --plan` says what the refinement did, before it: the same counts,
+/// `lab tissue refine --plan` says what the refinement did, before it: the same counts,
 /// every press found in the shared log (none without it), the one-triangle stage's
 /// triangle ranked first and the others not split by it; a point off the surface and
 /// a split law refused.

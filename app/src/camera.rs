@@ -26,6 +26,16 @@ pub struct OrbitCamera {
     pub lens_scale: Vec2,
 }
 
+/// The largest probe coordinate or direction component taken (mm): a kilometre, from
+/// the command line or a scripted probe path. Larger values are no organ's, and their
+/// squares (distances, lengths) overflow to infinity long before `f64::MAX`.
+pub const COORDINATE_MAX: f64 = 1e6;
+
+/// Whether `c` is a coordinate a probe can be given (see [`COORDINATE_MAX`]).
+pub fn coordinate_ok(c: f64) -> bool {
+    c.is_finite() && c.abs() <= COORDINATE_MAX
+}
+
 /// A ray in world space (mm), `dir` unit length.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ray {
@@ -163,7 +173,7 @@ impl OrbitCamera {
         let moved = self.target_mm + (-delta_px.x * right + delta_px.y * up) * mm_per_px;
         // Within the probe coordinates' bound: far past the organ, never infinite.
         if moved.is_finite() {
-            let bound = crate::pick::COORDINATE_MAX as f32;
+            let bound = COORDINATE_MAX as f32;
             self.target_mm = moved.clamp(Vec3::splat(-bound), Vec3::splat(bound));
         }
     }

@@ -9,15 +9,7 @@ use palpa_core::scene::{PalpationScene, ProbePoint};
 
 use crate::camera::{OrbitCamera, Ray};
 
-/// The largest probe coordinate or direction component taken (mm): a kilometre, from
-/// the command line or a scripted probe path. Larger values are no organ's, and their
-/// squares (distances, lengths) overflow to infinity long before `f64::MAX`.
-pub const COORDINATE_MAX: f64 = 1e6;
-
-/// Whether `c` is a coordinate a probe can be given (see [`COORDINATE_MAX`]).
-pub fn coordinate_ok(c: f64) -> bool {
-    c.is_finite() && c.abs() <= COORDINATE_MAX
-}
+pub use crate::camera::{COORDINATE_MAX, coordinate_ok};
 
 /// What a pointer position hits.
 #[derive(Debug, Clone, Copy, PartialEq)]

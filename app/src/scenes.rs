@@ -34,7 +34,7 @@ pub const BUILT_IN_SOURCE: &str = "built-in liver (assets/liver-coarse.palpa, ne
     the panel warns where the blend may miss)";
 
 /// The depths to which the built-in tissue meets the goals at all 112 held-out points
-/// measured, at every press it reaches (`palpa tissue points --seed 7` to `--seed 13`,
+/// measured, at every press it reaches (`palpa lab tissue points --seed 7` to `--seed 13`,
 /// 16 each;
 /// docs/tissue-measurements.md §1): both goals to 11.5 mm, the force goal to 14.6 mm
 /// (where the press reaches; the panel flags where it does not). The app's tissue

@@ -17,6 +17,7 @@ fn synth_then_info_describes_the_file() {
     let f = dir.path().join("s.palpa");
     let f = f.to_str().expect("utf-8 path");
     let out = palpa(&[
+        "lab",
         "synth",
         "--rows",
         "30",
@@ -69,7 +70,7 @@ fn info_on_a_foreign_file_fails_with_a_clear_message() {
     for (args, says) in [
         (vec!["tissue", "check", &scene], "is a palpa meta-model"),
         (
-            [&["depth-law", "eval", &tissue][..], &at[..]].concat(),
+            [&["lab", "depth-law", "eval", &tissue][..], &at[..]].concat(),
             "is a tissue vademecum",
         ),
         (
@@ -123,6 +124,7 @@ fn open_without_a_display_names_the_scene_that_did_not_open() {
 #[test]
 fn bench_eval_prints_one_json_object_per_configuration() {
     let out = palpa(&[
+        "lab",
         "bench",
         "eval",
         "--rows",
@@ -167,6 +169,7 @@ fn bench_eval_prints_one_json_object_per_configuration() {
 fn bench_dsmts_times_the_ssa_after_a_dense_product() {
     let suite = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/dsmts");
     let out = palpa(&[
+        "lab",
         "bench",
         "dsmts",
         "--suite",
@@ -195,6 +198,7 @@ fn bench_dsmts_times_the_ssa_after_a_dense_product() {
 #[test]
 fn bench_fe_ordering_compares_amd_and_nested_dissection() {
     let out = palpa(&[
+        "lab",
         "bench",
         "fe",
         "--only",
@@ -231,7 +235,7 @@ fn bench_fe_ordering_compares_amd_and_nested_dissection() {
 /// time).
 #[test]
 fn bench_fe_lanes_agree_bit_for_bit() {
-    let out = palpa(&["bench", "fe", "--only", "lanes"]);
+    let out = palpa(&["lab", "bench", "fe", "--only", "lanes"]);
     assert!(
         out.status.success(),
         "{}",
@@ -262,46 +266,61 @@ fn bench_fe_lanes_agree_bit_for_bit() {
 /// its table meaningless (some tables take an hour), naming the flag.
 #[test]
 fn benchmarks_refuse_bad_options_up_front() {
-    let cases: [(&[&str], &str); 13] = [
+    let cases: [(&[&str], &str); 12] = [
         (
-            &["bench", "eval", "--rows", "0", "--min-time-ms", "1"],
+            &["lab", "bench", "eval", "--rows", "0", "--min-time-ms", "1"],
             "must be positive",
         ),
         // 1.6 TB of values: refused rather than an allocation failure.
         (
-            &["bench", "eval", "--rows", "1000000000", "--modes", "400"],
+            &[
+                "lab",
+                "bench",
+                "eval",
+                "--rows",
+                "1000000000",
+                "--modes",
+                "400",
+            ],
             "memory available",
         ),
         (
-            &["bench", "fe", "--only", "dept"],
+            &["lab", "bench", "fe", "--only", "dept"],
             "--only dept: no such table",
         ),
-        (&["bench", "fe", "--depth-mm", "nan"], "--depth-mm NaN"),
-        (&["bench", "fe", "--series-positions", "11"], "at most 10"),
-        (&["bench", "fe", "--build-positions", "11"], "at most 10"),
-        (&["bench", "fe", "--build-positions", "0"], "at least 1"),
         (
-            &[
-                "bench",
-                "fe",
-                "--reduced-first",
-                "3",
-                "--reduced-triangles",
-                "2",
-            ],
-            "only 4",
+            &["lab", "bench", "fe", "--depth-mm", "nan"],
+            "--depth-mm NaN",
         ),
         (
-            &["bench", "deform", "--modes", "0"],
+            &["lab", "bench", "fe", "--series-positions", "11"],
+            "at most 10",
+        ),
+        (
+            &["lab", "bench", "fe", "--build-positions", "11"],
+            "at most 10",
+        ),
+        (
+            &["lab", "bench", "fe", "--build-positions", "0"],
+            "at least 1",
+        ),
+        (
+            &["lab", "bench", "deform", "--modes", "0"],
             "--modes 0: expected from 1",
         ),
         (
-            &["bench", "deform", "--modes", "99"],
+            &["lab", "bench", "deform", "--modes", "99"],
             "--modes 99: expected from 1",
         ),
-        (&["bench", "deform", "--depth-mm", "20"], "--depth-mm 20"),
-        (&["bench", "offline", "--modes", "0"], "--modes 0"),
-        (&["bench", "offline", "--block", "4,0"], "--block [4, 0]"),
+        (
+            &["lab", "bench", "deform", "--depth-mm", "20"],
+            "--depth-mm 20",
+        ),
+        (&["lab", "bench", "offline", "--modes", "0"], "--modes 0"),
+        (
+            &["lab", "bench", "offline", "--block", "4,0"],
+            "--block [4, 0]",
+        ),
     ];
     for (args, expected) in cases {
         let out = palpa(args);
@@ -476,11 +495,12 @@ fn offline_in_blocks_then_tradeoff_with_plot() {
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
 }
 
-/// `palpa bench offline`: PGD and the brute-force route timed in one run; the brute
+/// `palpa lab bench offline`: PGD and the brute-force route timed in one run; the brute
 /// force is the optimum, and the PGD stays within 1.25× of it.
 #[test]
 fn bench_offline_compares_pgd_with_brute_force() {
     let out = palpa(&[
+        "lab",
         "bench",
         "offline",
         "--level",
@@ -749,12 +769,13 @@ fn what_cannot_be_pressed_is_refused_by_flag() {
             "at least one mode",
         ),
         (
-            vec!["synth", "--rows", "0", "--out", out_s],
+            vec!["lab", "synth", "--rows", "0", "--out", out_s],
             "at least one row and one mode",
         ),
         // Once an aborted allocation (80 PB).
         (
             vec![
+                "lab",
                 "synth",
                 "--rows",
                 "100000000000",
@@ -1305,11 +1326,12 @@ fn cme_offline_then_eval_reproduces_fsp_and_solve_by_pgd_prints_the_same_json() 
     assert_eq!(v["marginals"].as_array().map(Vec::len), Some(2));
 }
 
-/// `palpa bench cme`: PGD, FSP and SSA in one run; the PGD model is closer to FSP than
+/// `palpa lab bench cme`: PGD, FSP and SSA in one run; the PGD model is closer to FSP than
 /// a small SSA run, so SSA needs more trajectories than it ran to match it.
 #[test]
 fn bench_cme_sets_pgd_against_ssa_at_equal_accuracy() {
     let out = palpa(&[
+        "lab",
         "bench",
         "cme",
         "toggle",

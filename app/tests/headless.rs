@@ -156,7 +156,7 @@ fn a_file_that_is_not_a_palpation_scene_is_refused_by_name() {
     let dir = tempfile::tempdir().expect("tempdir");
     let f = dir.path().join("s.palpa");
     let f = f.to_str().expect("utf-8");
-    let out = palpa(&["synth", "--rows", "30", "--modes", "4", "--out", f]);
+    let out = palpa(&["lab", "synth", "--rows", "30", "--modes", "4", "--out", f]);
     assert!(out.status.success());
     let out = palpa(&["headless", "--frames", "2", "--scene", f]);
     let err = String::from_utf8_lossy(&out.stderr);
@@ -361,7 +361,7 @@ fn a_session_without_a_runtime_folder_prints_no_loader_errors() {
 #[test]
 fn the_deformation_benchmark_measures_both_paths_on_the_same_frames() {
     let out = palpa(&[
-        "bench", "deform", "--modes", "1,5", "--frames", "3", "--json",
+        "lab", "bench", "deform", "--modes", "1,5", "--frames", "3", "--json",
     ]);
     let rows = common::json_lines_ok(&out);
     let paths: Vec<(u64, &str)> = rows

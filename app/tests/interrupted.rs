@@ -62,6 +62,7 @@ fn depth_law_resumes_from_its_sample_log() {
     let cut = dir.path().join("cut.law");
     let log = dir.path().join("cut.law.samples.log");
     let base = [
+        "lab",
         "depth-law",
         "build",
         "--element",
@@ -113,7 +114,7 @@ fn depth_law_resumes_from_its_sample_log() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("is a force law: `palpa depth-law eval`"),
+        err.contains("is a force law: `palpa lab depth-law eval`"),
         "{err}"
     );
     // A law of another element, or of another organ, is refused by the scene it would
@@ -127,7 +128,7 @@ fn depth_law_resumes_from_its_sample_log() {
         (kidney, "the force law does not fit this scene: 0 of its"),
     ] {
         let at = ["--at=-30,90,25", "--depth-mm", "1", "--scene", scene];
-        let out = run(&[&["depth-law", "eval", full_s][..], &at[..]].concat());
+        let out = run(&[&["lab", "depth-law", "eval", full_s][..], &at[..]].concat());
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
             !out.status.success() && err.contains(says),
@@ -206,8 +207,8 @@ fn tissue_build_resumes_from_its_press_log() {
     assert!(x == y, "the resumed law differs from the uninterrupted one");
 }
 
-/// The stages that press on a built file (`tissue refine` splitting triangles, the
-/// same splitting sub-triangles, `tissue band`), each killed after its first press is
+/// The stages that press on a built file (`lab tissue refine` splitting triangles, the
+/// same splitting sub-triangles, `lab tissue band`), each killed after its first press is
 /// logged: run again it takes that press from its log, presses the rest and writes the
 /// same law as an uninterrupted run (all but the timings). The band's log is removed
 /// then; a refinement's is kept, for a later, larger stage to reuse.
@@ -359,7 +360,9 @@ fn a_full_disk_keeps_the_previous_output() {
     let model = dir.path().join("m.palpa");
     let synth = |seed: &str| {
         args(
-            &["synth", "--rows", "300", "--modes", "8", "--seed", seed],
+            &[
+                "lab", "synth", "--rows", "300", "--modes", "8", "--seed", seed,
+            ],
             &model,
         )
     };
@@ -386,7 +389,15 @@ fn a_full_disk_keeps_the_previous_output() {
     let law = dir.path().join("l.law");
     let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
         .args(args(
-            &["depth-law", "build", "--element", "p1", "--samples", "4"],
+            &[
+                "lab",
+                "depth-law",
+                "build",
+                "--element",
+                "p1",
+                "--samples",
+                "4",
+            ],
             &law,
         ))
         .env(palpa_core::fsutil::FAULT_DISK_FULL_ENV, "100")

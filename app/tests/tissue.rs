@@ -74,14 +74,19 @@ fn path(p: &std::path::Path) -> String {
     p.to_str().expect("utf-8 path").to_string()
 }
 
-/// `palpa tissue cut INPUT FLAGS --out OUT`, which must succeed: its JSON summary.
+/// `palpa lab tissue cut INPUT FLAGS --out OUT`, which must succeed: its JSON summary.
 fn tissue_cut(input: &str, flags: &[&str], out: &std::path::Path) -> serde_json::Value {
     let out = path(out);
-    let args = [&["tissue", "cut", input][..], flags, &["--out", &out]].concat();
+    let args = [
+        &["lab", "tissue", "cut", input][..],
+        flags,
+        &["--out", &out],
+    ]
+    .concat();
     common::json_ok(&palpa(&args))
 }
 
-/// Writes the shipped tissue's unsplit form (`tissue cut --unsplit`) to `out`.
+/// Writes the shipped tissue's unsplit form (`lab tissue cut --unsplit`) to `out`.
 fn unsplit_shipped(out: &std::path::Path) {
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
     tissue_cut(shipped, &["--unsplit"], out);
@@ -712,7 +717,7 @@ fn tissue_check_separates_the_blend_from_the_press() {
     );
     assert!(dir.path().join("small.tissue").exists());
     eval_answers(&dir.path().join("small.tissue"), &exported);
-    // `palpa info` reads a tissue file; `palpa tissue cut` keeps one mode a sample and
+    // `palpa info` reads a tissue file; `palpa lab tissue cut` keeps one mode a sample and
     // every second depth, and says what that adds to the bound.
     let info = common::json_ok(&palpa(&["info", &path(&tissue), "--json"]));
     assert_eq!(info["kind"], "tissue");
@@ -759,6 +764,7 @@ fn tissue_check_separates_the_blend_from_the_press() {
     // A stride that does not divide the grid is refused by name, and writes nothing.
     let refused = dir.path().join("refused.tissue");
     let out = palpa(&[
+        "lab",
         "tissue",
         "cut",
         &path(&tissue),
@@ -977,7 +983,7 @@ fn a_nearly_incompressible_tissue_meets_the_goals_on_its_own_scene() {
 /// Bad build options are named before any press: a region that is not X,Y,Z,R, a
 /// bound that is not a length, bits other than 8 or 16, no press threads, a depth grid
 /// of no step (it once said "depth 0 mm is not finite").
-/// `tissue check` and `tissue points` likewise refuse depths that do not press (one
+/// `tissue check` and `lab tissue points` likewise refuse depths that do not press (one
 /// of −1 mm once ran Newton for minutes) and no points at all.
 #[test]
 fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
@@ -1081,22 +1087,43 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
     ] {
         let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
         let file: &[&str] = if args[0] == "check" { &[shipped] } else { &[] };
-        refused(&["tissue"], &[args, file].concat(), says);
+        let command: &[&str] = if args[0] == "check" {
+            &["tissue"]
+        } else {
+            &["lab", "tissue"]
+        };
+        refused(command, &[args, file].concat(), says);
     }
     // The force law keeps a sample by the change between its last two Padé forms, so
     // it needs five orders: refused before any sample is pressed.
     refused(
-        &["depth-law", "build", "--element", "p1", "--out", &out_s],
+        &[
+            "lab",
+            "depth-law",
+            "build",
+            "--element",
+            "p1",
+            "--out",
+            &out_s,
+        ],
         &["--orders", "4"],
         "4 orders: expected 5 to 30",
     );
     // More samples than palpable vertices: said before pressing (each vertex once).
     refused(
-        &["depth-law", "build", "--element", "p1", "--out", &out_s],
+        &[
+            "lab",
+            "depth-law",
+            "build",
+            "--element",
+            "p1",
+            "--out",
+            &out_s,
+        ],
         &["--orders", "4", "--samples", "100000"],
         "the palpable surface has 559 vertices; pressing each of them",
     );
-    // `tissue refine` likewise, and a file that is no tissue law is named.
+    // `lab tissue refine` likewise, and a file that is no tissue law is named.
     let shipped = dir.path().join("shipped.tissue");
     unsplit_shipped(&shipped);
     let shipped = path(&shipped);
@@ -1119,11 +1146,15 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
             "palpable triangle",
         ),
     ] {
-        refused(&["tissue", "refine", input, "--out", &out_s], bad, says);
+        refused(
+            &["lab", "tissue", "refine", input, "--out", &out_s],
+            bad,
+            says,
+        );
     }
 }
 
-/// `tissue refine --plan` on the shipped file: what a five-triangle stage would split
+/// `lab tissue refine --plan` on the shipped file: what a five-triangle stage would split
 /// and press, without pressing or writing anything, and where the triangle under a
 /// pressed vertex ranks, with its edge surplus at every grid depth (none at rest).
 #[test]
@@ -1137,7 +1168,7 @@ fn a_refinement_plan_presses_nothing_and_ranks_a_point() {
     unsplit_shipped(&shipped);
     let shipped = path(&shipped);
     let plan = |extra: &[&str]| {
-        let args = [&["tissue", "refine", &shipped, "--plan"][..], extra].concat();
+        let args = [&["lab", "tissue", "refine", &shipped, "--plan"][..], extra].concat();
         common::json_ok(&palpa(&args))
     };
     let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
@@ -1184,7 +1215,7 @@ fn a_refinement_plan_presses_nothing_and_ranks_a_point() {
     assert!(std::fs::read_dir(dir.path()).expect("dir").next().is_none());
 }
 
-/// `tissue refine --sub-triangles N --plan` on the shipped file's first level: four
+/// `lab tissue refine --sub-triangles N --plan` on the shipped file's first level: four
 /// candidates a split triangle, nine points a sub-triangle less those shared, the
 /// sub-triangle under a point ranked (from 1, the worst), the chosen ones' corners
 /// listed, nothing pressed or written;
@@ -1203,6 +1234,7 @@ fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
     law.save(&first_level).expect("saves");
     let num = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
     let plan = common::json_ok(&palpa(&[
+        "lab",
         "tissue",
         "refine",
         &path(&first_level),
@@ -1234,6 +1266,7 @@ fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
     let unsplit = input.path().join("unsplit.tissue");
     unsplit_shipped(&unsplit);
     let refused = palpa(&[
+        "lab",
         "tissue",
         "refine",
         &path(&unsplit),
@@ -1257,6 +1290,7 @@ fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
     let more = (had + 5).to_string();
     let plan_of = |file: &std::path::Path, n: &str| {
         palpa(&[
+            "lab",
             "tissue",
             "refine",
             &path(file),
@@ -1271,6 +1305,7 @@ fn a_sub_triangle_plan_presses_nothing_and_ranks_a_point() {
     assert_eq!(from_shipped, from_first);
     assert!(from_first["rank_to_mm"].is_null(), "every depth by default");
     let shallow = common::json_ok(&palpa(&[
+        "lab",
         "tissue",
         "refine",
         &path(&first_level),
@@ -1412,10 +1447,11 @@ fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
     assert!(num(plain, "presses_compared") >= 1.0, "{plain}");
 
     // A split file asked for no more triangles than it has (here every candidate is
-    // split) is refused by `tissue refine`, which names the ways on, among them the way
-    // back: `tissue cut --unsplit` drops the split points and keeps the vertex and edge
+    // split) is refused by `lab tissue refine`, which names the ways on, among them the way
+    // back: `lab tissue cut --unsplit` drops the split points and keeps the vertex and edge
     // samples, and the plan on that file splits the same triangles again.
-    let refine_plan = |file: &std::path::Path| palpa(&["tissue", "refine", &path(file), "--plan"]);
+    let refine_plan =
+        |file: &std::path::Path| palpa(&["lab", "tissue", "refine", &path(file), "--plan"]);
     let out = refine_plan(&tissue);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
@@ -1435,6 +1471,7 @@ fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
     }
     assert!(num(to, "presses") < num(from, "presses"), "{cut}");
     let again = common::json_ok(&palpa(&[
+        "lab",
         "tissue",
         "refine",
         &path(&unsplit),
@@ -1445,21 +1482,28 @@ fn a_sixteen_bit_law_is_measured_at_eight_bits_too() {
     assert_eq!(num(&again, "split_triangles"), split, "{again}");
 }
 
-/// The band next to the fixed region: `tissue points --next-to-fixed` draws inside
+/// The band next to the fixed region: `lab tissue points --next-to-fixed` draws inside
 /// triangles with a corner on the attachment, and there `palpa eval` counts the
 /// corners never pressed and warns (the measured tables leave the band out, and
 /// measured alone it misses the goals); clear of it, no corner and no warning.
 #[test]
 fn a_press_next_to_the_fixed_region_is_flagged() {
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
-    let out = palpa(&["tissue", "points", "--next-to-fixed", "--heldout", "4"]);
+    let out = palpa(&[
+        "lab",
+        "tissue",
+        "points",
+        "--next-to-fixed",
+        "--heldout",
+        "4",
+    ]);
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
     let band = String::from_utf8_lossy(&out.stdout).trim().to_string();
-    let clear = palpa(&["tissue", "points", "--heldout", "2"]);
+    let clear = palpa(&["lab", "tissue", "points", "--heldout", "2"]);
     let clear = String::from_utf8_lossy(&clear.stdout).trim().to_string();
     for (points, next_to_fixed) in [(band, true), (clear, false)] {
         let xyz: Vec<&str> = points.split(',').collect();
@@ -1480,8 +1524,8 @@ fn a_press_next_to_the_fixed_region_is_flagged() {
     }
 }
 
-/// `palpa tissue band`, one band edge (`--within` its midpoint), on the shipped file
-/// without its band (`tissue cut --no-band`): the edge from a pressed vertex to one on
+/// `palpa lab tissue band`, one band edge (`--within` its midpoint), on the shipped file
+/// without its band (`lab tissue cut --no-band`): the edge from a pressed vertex to one on
 /// the fixed region is pressed, and at its midpoint the file then answers Newton's force
 /// there (it was 6.8 % off), as the shipped file, whose band holds every such edge, does;
 /// away from the band nothing changes, bit for bit; a second band is refused.
@@ -1491,7 +1535,7 @@ fn the_band_next_to_the_fixed_region_is_pressed_and_answers_there() {
     let dir = tempfile::tempdir().expect("tempdir");
     let path = |name: &str| dir.path().join(name).to_str().expect("utf-8").to_string();
     let (base, banded) = (path("base.tissue"), path("band.tissue"));
-    let run = palpa(&["tissue", "cut", shipped, "--no-band", "--out", &base]);
+    let run = palpa(&["lab", "tissue", "cut", shipped, "--no-band", "--out", &base]);
     assert!(
         run.status.success(),
         "{}",
@@ -1501,7 +1545,7 @@ fn the_band_next_to_the_fixed_region_is_pressed_and_answers_there() {
     // (−77.9, −50.9, −15.9) (docs/tissue-measurements.md §11).
     let mid = "-76.2411,-49.2411,-20.2411";
     let within = format!("--within={mid},1");
-    let out = palpa(&["tissue", "band", &base, &within, "--out", &banded]);
+    let out = palpa(&["lab", "tissue", "band", &base, &within, "--out", &banded]);
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
         panic!("{e}: {}", String::from_utf8_lossy(&out.stderr));
     });
@@ -1545,21 +1589,22 @@ fn the_band_next_to_the_fixed_region_is_pressed_and_answers_there() {
     assert_eq!(force(&base, clear), force(&banded, clear));
     assert_eq!(force(&base, clear), force(shipped, clear));
     // A band is pressed once.
-    let again = palpa(&["tissue", "band", &banded, "--out", &banded]);
+    let again = palpa(&["lab", "tissue", "band", &banded, "--out", &banded]);
     assert!(!again.status.success());
     assert!(String::from_utf8_lossy(&again.stderr).contains("already holds a band"));
 }
 
 /// A point of a palpable triangle whose corners are all held (on the fixed region, as
-/// `tissue points --next-to-fixed` may draw) does not move: `palpa eval` says so by
+/// `lab tissue points --next-to-fixed` may draw) does not move: `palpa eval` says so by
 /// name (it once said "too few modes", of a table that has none), and `tissue check`
 /// reports the point as held and goes on (it once stopped the whole check there).
-/// `tissue points` says how many of its draw lie in such triangles (the seed-8 band
+/// `lab tissue points` says how many of its draw lie in such triangles (the seed-8 band
 /// draw of docs/tissue-measurements.md §11: two of eight, this point one of them).
 #[test]
 fn a_point_on_the_fixed_region_is_named_held() {
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
     let draw = palpa(&[
+        "lab",
         "tissue",
         "points",
         "--next-to-fixed",

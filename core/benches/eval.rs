@@ -1,6 +1,6 @@
 //! Criterion benches of on-line evaluation: full reconstruction, contact-node
 //! evaluation (particularize + 3 rows), for f32 and f64 storage.
-//! `palpa bench eval` prints the same figures with the bandwidth ratio.
+//! `palpa lab bench eval` prints the same figures with the bandwidth ratio.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use palpa_core::synthetic::palpation_like;

@@ -4,7 +4,7 @@
 //! entry of X is read once and used once, so its cost is bounded below by the time to
 //! stream the bytes of X from memory. [`stream_sum`] reads the same bytes front to back
 //! with the cheapest possible arithmetic (a sum in the storage type, no conversion) and
-//! is the bandwidth reference `palpa bench eval` divides by.
+//! is the bandwidth reference `palpa lab bench eval` divides by.
 //!
 //! Reconstruction accumulates in `f64` in independent partial sums: independent sums
 //! let the compiler vectorize without reassociating a single sum (which it may not do

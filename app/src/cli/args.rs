@@ -328,3 +328,19 @@ pub fn print_report(report: &serde_json::Value, json: bool) -> anyhow::Result<()
     }
     Ok(())
 }
+
+/// A hyperelastic law as the command line names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum NonlinearModel {
+    NeoHookean,
+    Svk,
+}
+
+impl NonlinearModel {
+    pub fn law(self) -> palpa_core::fe::hyper::Law {
+        match self {
+            NonlinearModel::NeoHookean => palpa_core::fe::hyper::Law::NeoHookean,
+            NonlinearModel::Svk => palpa_core::fe::hyper::Law::Svk,
+        }
+    }
+}

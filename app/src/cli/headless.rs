@@ -33,7 +33,7 @@ pub struct HeadlessArgs {
     colormap_mm: Option<f32>,
     /// Where the surface is deformed: `gpu` (the compute shader) or `cpu` (every row
     /// and the normals evaluated on the CPU and uploaded). Default: the CPU on a
-    /// software adapter, else the GPU; `palpa bench deform` measures both.
+    /// software adapter, else the GPU; `palpa lab bench deform` measures both.
     #[arg(long, value_name = "gpu|cpu")]
     deform: Option<DeformArg>,
     /// Frame pacing, frames per second, as a display's refresh would pace them

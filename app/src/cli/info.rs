@@ -24,7 +24,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         let summary = super::tissue::summary(&law, &args.file);
         return super::args::print_report(&summary, args.json);
     }
-    // A force law (`palpa depth-law build`) too.
+    // A force law (`palpa lab depth-law build`) too.
     if super::kinds::head(&args.file).starts_with(palpa_core::pgd::depthlaw::MAGIC) {
         let law = palpa_core::pgd::depthlaw::DepthLaw::load(&args.file)?;
         let o = &law.options;

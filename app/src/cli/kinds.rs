@@ -28,7 +28,7 @@ pub fn describe(head: &[u8]) -> Option<&'static str> {
         ),
         (
             palpa_core::pgd::depthlaw::MAGIC,
-            "a force law: `palpa depth-law eval` and `palpa info` read it",
+            "a force law: `palpa lab depth-law eval` and `palpa info` read it",
         ),
         (
             palpa_core::pgd::journal::MAGIC,

@@ -466,7 +466,7 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
         if let Some(k) = args.modes {
             bail!(
                 "--modes {k}: a tissue vademecum answers with the modes each press kept; \
-                 `palpa tissue cut --modes` cuts them (and `palpa tradeoff` measures the cut)"
+                 `palpa lab tissue cut --modes` cuts them (and `palpa tradeoff` measures the cut)"
             );
         }
         return super::tissue::eval(
@@ -977,7 +977,7 @@ pub fn export_scene(args: &ExportSceneArgs) -> anyhow::Result<()> {
 /// With a hyperelastic `--model`, the vademecum built beside the scene just written
 /// (`OUT.tissue`) and its summary; `None` for a linear tissue.
 fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>> {
-    use super::depthlaw::NonlinearModel;
+    use super::args::NonlinearModel;
     let model = match args.model {
         TissueModel::Linear => return Ok(None),
         TissueModel::NeoHookean => NonlinearModel::NeoHookean,

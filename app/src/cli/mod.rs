@@ -1,37 +1,19 @@
 //! The `palpa` command line.
 
 mod args;
-mod bench;
-mod bench_build;
-mod bench_cme;
-mod bench_deform;
-mod bench_dsmts;
-mod bench_fe;
-mod bench_lanes;
-mod bench_pgd;
-mod bench_reduced;
-mod bench_views;
 mod cme;
-mod depthlaw;
 mod fe;
 mod headless;
 mod info;
 mod kinds;
+mod lab;
 mod liver;
 mod memory;
 mod mesh;
 mod organ;
 mod plot;
 mod scene;
-mod synth;
 mod tissue;
-mod tissue_against;
-mod tissue_band;
-mod tissue_check;
-mod tissue_points;
-mod tissue_refine;
-mod tissue_subsplit;
-mod tissue_tradeoff;
 mod tradeoff;
 
 use std::process::ExitCode;
@@ -53,11 +35,6 @@ pub struct Cli {
 enum Command {
     /// Describe a meta-model file: axes, rows, modes, provenance, tradeoff table.
     Info(info::InfoArgs),
-    /// Benchmarks that print ratios measured in one run.
-    #[command(subcommand)]
-    Bench(bench::BenchCommand),
-    /// Write a seeded synthetic model file (benchmarks, fuzz seeds, trying the tools).
-    Synth(synth::SynthArgs),
     /// Mesh an organ and report counts, regions and element quality.
     Mesh(mesh::MeshArgs),
     /// Full finite-element solves (the reference for every accuracy claim).
@@ -74,9 +51,6 @@ enum Command {
     /// Gene-network models: the chemical master equation.
     #[command(subcommand)]
     Cme(cme::CmeCommand),
-    /// The hyperelastic force law of a palpation scene (depth in, force out).
-    #[command(subcommand)]
-    DepthLaw(depthlaw::DepthLawCommand),
     /// The hyperelastic vademecum of a palpation scene (force and surface, every
     /// palpable vertex): build it, check it against the full nonlinear FE.
     #[command(subcommand)]
@@ -88,6 +62,10 @@ enum Command {
     Open(OpenArgs),
     /// Render frames offscreen with a scripted probe while the force thread runs; report timings.
     Headless(headless::HeadlessArgs),
+    /// Tools for developing palpa: benchmarks, synthetic models, the depth law, the
+    /// tissue's staging tools.
+    #[command(subcommand)]
+    Lab(lab::LabCommand),
 }
 
 /// Parses `std::env::args` and runs the command; errors are printed with their causes.
@@ -178,8 +156,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Some(Command::Info(args)) => info::run(&args),
         Some(Command::Scene(cmd)) => scene::run(&cmd),
-        Some(Command::Bench(cmd)) => bench::run(&cmd),
-        Some(Command::Synth(args)) => synth::run(&args),
         Some(Command::Mesh(args)) => mesh::run(&args),
         Some(Command::Fe(cmd)) => fe::run(&cmd),
         Some(Command::Offline(args)) => liver::offline(&args),
@@ -188,7 +164,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Tradeoff(args)) => tradeoff::run(&args),
         Some(Command::Headless(args)) => headless::run_cmd(&args),
         Some(Command::Cme(cmd)) => cme::run(&cmd),
-        Some(Command::DepthLaw(cmd)) => depthlaw::run(&cmd),
+        Some(Command::Lab(cmd)) => lab::run(&cmd),
         Some(Command::Tissue(cmd)) => tissue::run(&cmd),
         Some(Command::Open(args)) => palpa_app::window::run(&args.scene),
         None => default_job(),

@@ -189,7 +189,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         bail!("--radius-mm {} must be a positive length", args.radius_mm);
     }
     // Before any stage: a build once meshed and solved for minutes, then drew 10⁸ points.
-    super::tissue_points::check_heldout(args.held_out)?;
+    super::tissue::points::check_heldout(args.held_out)?;
     // Likewise the force law's depth grid (once NaN built the whole scene and no law).
     let depth_max_mm = match (args.model, args.depth_max_mm) {
         (TissueModel::Linear, Some(_)) => bail!(

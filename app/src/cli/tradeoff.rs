@@ -11,7 +11,7 @@
 //! and direction).
 //!
 //! A tissue file (`X.tissue`) gets its own table, over its modes and depth step with
-//! errors at held-out points and depths against Newton (`tissue_tradeoff`); `--depths`,
+//! errors at held-out points and depths against Newton (`tissue::tradeoff`); `--depths`,
 //! `--scene`, `--seed` and the organ options apply to it only, `--svd` and `--plot` to a
 //! scene only; either given to the other kind is refused, not ignored.
 
@@ -65,7 +65,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         bail!("--held-out 0: expected at least one point to measure at");
     }
     if let Some(n) = args.held_out {
-        super::tissue_points::check_heldout(n)?;
+        super::tissue::points::check_heldout(n)?;
     }
     let o = &args.organ;
     let (tissue_only, scene_only) = (
@@ -85,14 +85,14 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
                 args.file.display()
             );
         }
-        let settings = super::tissue_tradeoff::Settings {
+        let settings = super::tissue::tradeoff::Settings {
             organ: &args.organ,
             scene: args.scene.as_deref().unwrap_or("liver"),
             heldout: args.held_out.unwrap_or(4),
             depths_mm: args.depths.as_deref().unwrap_or(&[2.6, 7.3, 12.7]),
             seed: args.seed.unwrap_or(7),
         };
-        return super::tissue_tradeoff::run(&args.file, &settings, args.json);
+        return super::tissue::tradeoff::run(&args.file, &settings, args.json);
     }
     let flag = first(&tissue_only).or_else(|| o.surface_flags().first().copied());
     if let Some(flag) = flag {

@@ -5,7 +5,7 @@
 //!
 //! The same buffers can instead be filled by the CPU ([`DeformOn::Cpu`]: the session
 //! evaluates every row and the normals itself and uploads 32 bytes a vertex). Which is
-//! faster depends on the device: `palpa bench deform` measures both on the adapter at
+//! faster depends on the device: `palpa lab bench deform` measures both on the adapter at
 //! hand, with how far apart their surfaces are.
 
 use bytemuck::{Pod, Zeroable};
@@ -37,7 +37,7 @@ pub enum DeformOn {
 impl DeformOn {
     /// The default for an adapter. On a software adapter (Mesa's lavapipe) the compute
     /// passes run on the CPU too, behind a dispatch: there the CPU path's frames were
-    /// about 3 % shorter (liver, 1280x720, `palpa headless`), and `palpa bench deform`
+    /// about 3 % shorter (liver, 1280x720, `palpa headless`), and `palpa lab bench deform`
     /// measured the deformation itself at 0.4–0.5 of the compute path's time. A GPU
     /// takes the rows off the CPU and runs beside it.
     pub fn preferred(software_adapter: bool) -> Self {

@@ -180,7 +180,7 @@ impl Renderer {
             solid,
         } = Pipelines::new(device, format, &layouts);
 
-        let (min, max) = crate::session::bounds(scene.vertices_mm());
+        let (min, max) = bounds(scene.vertices_mm());
         Renderer {
             deform,
             palpable,
@@ -477,4 +477,12 @@ pub fn clear_frame(device: &wgpu::Device, target: &wgpu::TextureView) -> wgpu::C
         multiview_mask: None,
     });
     encoder
+}
+
+/// Axis-aligned bounds of a point set.
+pub fn bounds(points: &[[f32; 3]]) -> (Vec3, Vec3) {
+    points.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(Vec3::from_array(*p)), hi.max(Vec3::from_array(*p))),
+    )
 }

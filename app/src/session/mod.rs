@@ -72,7 +72,7 @@ pub fn held_text(limit_mm: f64, why: Option<&str>) -> String {
 pub fn blend_surplus_text(eta_mm: f64) -> String {
     format!(
         "blend surplus {eta_mm:.2} mm here: the surface may be more than 0.5 mm off (refine \
-         this region: palpa tissue refine)"
+         this region: palpa lab tissue refine)"
     )
 }
 
@@ -400,10 +400,4 @@ impl Session {
     }
 }
 
-/// Axis-aligned bounds of a point set.
-pub fn bounds(points: &[[f32; 3]]) -> (Vec3, Vec3) {
-    points.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(Vec3::from_array(*p)), hi.max(Vec3::from_array(*p))),
-    )
-}
+pub use crate::render::bounds;

@@ -861,3 +861,38 @@ pub fn views_meta(network: &super::Network, views: &Views, provenance: Provenanc
     }
     probability_meta(VIEWS_KIND, &views.t, axes, provenance)
 }
+
+/// Reading views back belongs with the model that loads them (`views` knows nothing
+/// of files or of this error).
+impl Views {
+    /// The views of a file's contents (see [`crate::file::load_views`]), checked.
+    pub fn from_file(
+        meta: &ModelMeta,
+        views: Vec<(crate::file::ViewShape, Vec<f64>, Vec<f64>)>,
+    ) -> Result<Views, CmeModelError> {
+        use crate::axis::Discretization;
+        let t = match meta.axes.first().map(|a| &a.discretization) {
+            Some(Discretization::Grid { nodes }) => nodes.clone(),
+            _ => return Err(CmeModelError::NoTime),
+        };
+        let sizes = meta.axes[1..]
+            .iter()
+            .map(|a| a.discretization.node_count())
+            .collect();
+        let views = Views {
+            t,
+            sizes,
+            views: views
+                .into_iter()
+                .map(|(shape, time, values)| super::views::View {
+                    species: shape.species.iter().map(|&i| i as usize).collect(),
+                    rank: shape.rank as usize,
+                    time,
+                    values,
+                })
+                .collect(),
+        };
+        views.check().map_err(CmeModelError::BadViews)?;
+        Ok(views)
+    }
+}

@@ -458,23 +458,6 @@ impl Network {
         s
     }
 
-    /// A network file's text, SBML or TOML by its content.
-    pub fn from_text(text: &str, source_name: &str) -> Result<Self, NetworkError> {
-        if super::sbml::looks_like_sbml(text) {
-            super::sbml::from_sbml(text, source_name)
-        } else if text.trim_start().starts_with('<') {
-            // XML but not SBML: a TOML parser's complaint about `<` would mislead.
-            Err(NetworkError::Invalid {
-                source_name: source_name.to_string(),
-                what: "an XML document whose root is not <sbml>: expected an SBML model or \
-                       a TOML network"
-                    .to_string(),
-            })
-        } else {
-            Self::from_toml(text, source_name)
-        }
-    }
-
     /// Parses a TOML description; `source_name` names it in errors (a file path).
     pub fn from_toml(text: &str, source_name: &str) -> Result<Self, NetworkError> {
         let raw: RawNetwork = toml::from_str(text).map_err(|e| NetworkError::Syntax {

@@ -31,6 +31,27 @@ use super::network::{
     Factor, MAX_INITIAL, Network, NetworkError, Parameter, Reaction, Spacing, Species,
 };
 
+/// The reader that tells a network file's two formats apart lives with the one that
+/// needs telling apart (an SBML document), so `network` knows only its own TOML.
+impl Network {
+    /// A network file's text, SBML or TOML by its content.
+    pub fn from_text(text: &str, source_name: &str) -> Result<Self, NetworkError> {
+        if looks_like_sbml(text) {
+            from_sbml(text, source_name)
+        } else if text.trim_start().starts_with('<') {
+            // XML but not SBML: a TOML parser's complaint about `<` would mislead.
+            Err(NetworkError::Invalid {
+                source_name: source_name.to_string(),
+                what: "an XML document whose root is not <sbml>: expected an SBML model or \
+                       a TOML network"
+                    .to_string(),
+            })
+        } else {
+            Self::from_toml(text, source_name)
+        }
+    }
+}
+
 /// Whether `text` looks like SBML (an XML document whose root is `sbml`).
 pub fn looks_like_sbml(text: &str) -> bool {
     let head: String = text.chars().take(4096).collect();

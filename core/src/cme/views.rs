@@ -173,39 +173,6 @@ impl Views {
 }
 
 impl Views {
-    /// The views of a file's contents (see [`crate::file::load_views`]), checked.
-    pub fn from_file(
-        meta: &crate::separated::ModelMeta,
-        views: Vec<(crate::file::ViewShape, Vec<f64>, Vec<f64>)>,
-    ) -> Result<Views, super::model::CmeModelError> {
-        use crate::axis::Discretization;
-        let t = match meta.axes.first().map(|a| &a.discretization) {
-            Some(Discretization::Grid { nodes }) => nodes.clone(),
-            _ => return Err(super::model::CmeModelError::NoTime),
-        };
-        let sizes = meta.axes[1..]
-            .iter()
-            .map(|a| a.discretization.node_count())
-            .collect();
-        let views = Views {
-            t,
-            sizes,
-            views: views
-                .into_iter()
-                .map(|(shape, time, values)| View {
-                    species: shape.species.iter().map(|&i| i as usize).collect(),
-                    rank: shape.rank as usize,
-                    time,
-                    values,
-                })
-                .collect(),
-        };
-        views
-            .check()
-            .map_err(super::model::CmeModelError::BadViews)?;
-        Ok(views)
-    }
-
     /// Each view's file shape and blocks, for [`crate::file::save_views`].
     pub fn file_blocks(&self) -> Vec<(crate::file::ViewShape, &[f64], &[f64])> {
         self.views

@@ -37,7 +37,11 @@ const ID: M3V = [[ONE, ZV, ZV], [ZV, ONE, ZV], [ZV, ZV, ONE]];
 /// keeps the sign of a sum of negative zeros (so the lanes agree to the last bit).
 const SUM0: V = [-0.0; L];
 
-use super::series::MAX_ORDERS;
+/// The most orders a depth series may ask for (the kernels' series arrays hold this
+/// many and the constant term). The builds use 12–15; order `p`'s
+/// right-hand side costs `O(p²)` products a quadrature point, so 30 orders already cost
+/// several times the default series (200 ran past 100 s on coarse P2, unfinished).
+pub const MAX_ORDERS: usize = 30;
 const SERIES_LEN: usize = MAX_ORDERS + 1;
 /// Room for the builds' series (12 orders and the constant term).
 const SHORT: usize = 13;

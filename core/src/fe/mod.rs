@@ -32,7 +32,6 @@ pub mod newton;
 pub mod ordering;
 pub mod path;
 pub mod probe;
-pub mod reduced;
 pub mod series;
 pub mod shape;
 pub mod space;

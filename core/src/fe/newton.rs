@@ -547,7 +547,7 @@ impl<'a> Problem<'a> {
                     (chol.solve(&r).iter().map(|v| -v).collect::<Vec<_>>(), 0.0)
                 }
                 Some(n) => {
-                    let (chol, aug) = super::path::factor_bordered(
+                    let (chol, aug) = factor_bordered(
                         self.space,
                         self.law,
                         &self.pattern,
@@ -637,4 +637,87 @@ fn extent_mm(space: &Space) -> f64 {
     }
     let d2: f64 = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum();
     if d2.is_finite() { d2.sqrt() } else { 0.0 }
+}
+
+/// A tangent factored as `K_α = K + α n̂n̂ᵀ` (α > 0) where `K` alone is not positive
+/// definite: past a force limit point under depth control the equilibrium is stable
+/// (K is positive definite on `n̂·δu = 0`) while `K` has a negative direction, and
+/// Cholesky fails. Since every step also fixes `n̂·δu`, `K_α` gives the same
+/// corrections: `K_α δu = K δu + α n̂ (n̂·δu)` with `n̂·δu` known. `z = K_α⁻¹ n̂`.
+#[derive(Clone, Default)]
+pub(super) struct Augment {
+    pub(super) alpha: f64,
+    pub(super) z: Vec<f64>,
+}
+
+impl Augment {
+    /// `K_α⁻¹ (r + α g n̂)`: the chord's `K⁻¹ r` for a step that makes `n̂·δu = −g`.
+    pub(super) fn solve(&self, k: &Cholesky, r: &[f64], g: f64) -> Vec<f64> {
+        let mut x = k.solve(r);
+        if self.alpha > 0.0 {
+            x.iter_mut()
+                .zip(&self.z)
+                .for_each(|(a, b)| *a += self.alpha * g * b);
+        }
+        x
+    }
+}
+
+/// The tangent at `u` factored, augmented by `α n̂n̂ᵀ` where it is not positive
+/// definite (see [`Augment`]); `α` starts at a hundred times the largest diagonal
+/// entry on the probe's dofs and grows a hundredfold once. `None` where even that
+/// fails: the state is unstable under depth control too.
+pub(super) fn factor_bordered(
+    space: &Space,
+    law: Law,
+    pattern: &SymCsc,
+    u: &[f64],
+    (lambda, mu): (f64, f64),
+    probe: &[f64],
+    always: bool,
+) -> Result<Option<(Cholesky, Augment)>, FeError> {
+    // Single precision: the segment's factor only steers the corrections (see the
+    // module doc), so its rounding changes the steps, not the equilibrium.
+    let factor = |k: &SymCsc| Cholesky::factor_single(k, space.fixed_count());
+    let k = tangent(space, law, pattern, u, lambda, mu);
+    if !always {
+        match factor(&k) {
+            Ok(c) => return Ok(Some((c, Augment::default()))),
+            Err(FeError::NotPositiveDefinite { .. }) => {}
+            Err(e) => return Err(e),
+        }
+    }
+    let support: Vec<usize> = (0..probe.len()).filter(|&i| probe[i] != 0.0).collect();
+    let diagonal = |i: usize| {
+        let (lo, hi) = (k.col_ptr[i], k.col_ptr[i + 1]);
+        (lo..hi)
+            .find(|&q| k.row_idx[q] == i)
+            .map_or(0.0, |q| k.val[q].abs())
+    };
+    let top = support.iter().map(|&i| diagonal(i)).fold(0.0f64, f64::max);
+    for alpha in [1e2 * top, 1e4 * top] {
+        if !(alpha.is_finite() && alpha > 0.0) {
+            break;
+        }
+        let mut ka = k.clone();
+        for &c in &support {
+            for &r in support.iter().filter(|&&r| r >= c) {
+                if !ka.has(r, c) {
+                    // One face's nodes share a cell, so this does not happen; if it
+                    // did, the augmentation would not be rank one.
+                    return Ok(None);
+                }
+                ka.add(r, c, alpha * probe[r] * probe[c]);
+            }
+        }
+        match factor(&ka) {
+            Ok(chol) => {
+                let z = chol.solve(probe);
+                return Ok(Some((chol, Augment { alpha, z })));
+            }
+            Err(FeError::NotPositiveDefinite { .. }) => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(None)
 }

@@ -17,7 +17,7 @@
 //! order is expanded to the unknowns, `3i, 3i + 1, 3i + 2`.
 //!
 //! Measured on the liver's rest stiffness, P2, one thread, on the otherwise idle
-//! two-core machine (`palpa bench fe --only ordering`):
+//! two-core machine (`palpa lab bench fe --only ordering`):
 //!
 //! | mesh | unknowns | factor entries, AMD → ND | double factorization | one solve |
 //! |---|---|---|---|---|
@@ -35,7 +35,15 @@
 //! `metis` feature (the mobile libraries, which evaluate meta-models and factor
 //! nothing large).
 
-use super::sparse::SymCsc;
+/// The lower triangle's pattern of a symmetric matrix in compressed columns: column
+/// `c`'s rows are `row_idx[col_ptr[c]..col_ptr[c + 1]]`, sorted, the diagonal first.
+/// (`fe::sparse::SymCsc` lends its own; the ordering needs nothing else of a matrix.)
+#[derive(Debug, Clone, Copy)]
+pub struct Pattern<'a> {
+    pub n: usize,
+    pub col_ptr: &'a [usize],
+    pub row_idx: &'a [usize],
+}
 
 /// Below this many nodes (blocks) a matrix keeps faer's AMD: its factor is small
 /// whatever the order, and the unit tests' tiny matrices stay as they were.
@@ -45,7 +53,7 @@ pub const MIN_NODES: usize = 200;
 /// `i`-th unknown is `a`'s `fwd[i]`, and `inv` is its inverse (faer's convention). `None`
 /// where AMD is kept: a matrix under [`MIN_NODES`] nodes, a build without METIS, or a
 /// METIS failure (then AMD is still a correct order, only a denser one).
-pub fn nested_dissection(a: &SymCsc) -> Option<(Vec<usize>, Vec<usize>)> {
+pub fn nested_dissection(a: Pattern) -> Option<(Vec<usize>, Vec<usize>)> {
     let block = block_size(a);
     let nodes = a.n / block;
     if nodes < MIN_NODES {
@@ -67,8 +75,8 @@ pub fn nested_dissection(a: &SymCsc) -> Option<(Vec<usize>, Vec<usize>)> {
 }
 
 /// 3 when `a`'s pattern is made of 3 × 3 node blocks (every node's three columns hold
-/// the same rows below their diagonal block, as [`SymCsc::pattern`] makes them), else 1.
-fn block_size(a: &SymCsc) -> usize {
+/// the same rows below their diagonal block, as `SymCsc::pattern` makes them), else 1.
+fn block_size(a: Pattern) -> usize {
     if !a.n.is_multiple_of(3) || a.n == 0 {
         return 1;
     }
@@ -92,7 +100,7 @@ fn block_size(a: &SymCsc) -> usize {
 
 /// The graph of `a`'s blocks in METIS's compressed form: `adjncy[xadj[v]..xadj[v+1]]`
 /// are `v`'s neighbours, each edge both ways, no self-loops.
-fn node_graph(a: &SymCsc, block: usize) -> (Vec<usize>, Vec<usize>) {
+fn node_graph(a: Pattern, block: usize) -> (Vec<usize>, Vec<usize>) {
     let nodes = a.n / block;
     let mut adj: Vec<Vec<usize>> = vec![Vec::new(); nodes];
     for c in (0..a.n).step_by(block) {
@@ -190,6 +198,7 @@ mod metis {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fe::sparse::SymCsc;
 
     /// The 3-D grid Laplacian of `m³` nodes, each node a 3 × 3 identity-coupled block
     /// (the pattern of a vector problem), lower triangle.
@@ -242,7 +251,7 @@ mod tests {
     #[test]
     fn a_node_blocked_pattern_is_found_and_a_scalar_one_is_not() {
         let a = grid(4);
-        assert_eq!(block_size(&a), 3);
+        assert_eq!(block_size(a.pattern_ref()), 3);
         // Drop one off-block entry from a node's second column: no longer blocked.
         let mut b = a.clone();
         let c = 1;
@@ -252,7 +261,7 @@ mod tests {
         for p in &mut b.col_ptr[c + 1..] {
             *p -= 1;
         }
-        assert_eq!(block_size(&b), 1);
+        assert_eq!(block_size(b.pattern_ref()), 1);
     }
 
     /// The order is a permutation that keeps each node's unknowns together, on a 3-D
@@ -264,7 +273,7 @@ mod tests {
         use faer::perm::PermRef;
         use faer::sparse::linalg::cholesky::{SymmetricOrdering, factorize_symbolic_cholesky};
         let a = grid(14);
-        let (fwd, inv) = nested_dissection(&a).expect("large enough for METIS");
+        let (fwd, inv) = nested_dissection(a.pattern_ref()).expect("large enough for METIS");
         for (i, &f) in fwd.iter().enumerate() {
             assert_eq!(inv[f], i);
             assert_eq!(f % 3, i % 3, "a node's unknowns stay in order, together");
@@ -284,11 +293,11 @@ mod tests {
         let used = crate::fe::sparse::factor_entries(&a).expect("analysis");
         assert_eq!(used, nd as u64);
         // The same pattern, the same order.
-        assert_eq!(nested_dissection(&a).expect("again").0, fwd);
+        assert_eq!(nested_dissection(a.pattern_ref()).expect("again").0, fwd);
     }
 
     #[test]
     fn a_small_matrix_keeps_amd() {
-        assert!(nested_dissection(&grid(3)).is_none());
+        assert!(nested_dissection(grid(3).pattern_ref()).is_none());
     }
 }

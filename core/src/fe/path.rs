@@ -25,7 +25,7 @@
 //! off in force through near the liver's sharp border). It bounds the last correction,
 //! not the distance to the equilibrium: against the reference Newton at every grid depth
 //! of ten spread vertices the accepted states were within 0.14 mm and 0.87 % of the
-//! force (`palpa bench fe --only build_cost`), where the chord contracts slowly.
+//! force (`palpa lab bench fe --only build_cost`), where the chord contracts slowly.
 //!
 //! The chord contracts by about `‖I − K⁻¹K_t(u)‖` a step. On the liver (coarse P2,
 //! neo-Hookean, ν = 0.48) the plain chord *diverges* from a tangent 2–4 mm old: the
@@ -91,7 +91,7 @@
 use std::time::Instant;
 
 use super::hyper::Law;
-use super::newton::{NewtonSettings, continue_depth, internal_force, tangent};
+use super::newton::{Augment, NewtonSettings, continue_depth, factor_bordered, internal_force};
 use super::series::{DepthSeries, Expander, orders_about, solve_dense};
 use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
@@ -206,17 +206,6 @@ struct Segment<'a> {
     y: Vec<f64>,
     /// The augmentation, where the tangent alone was not positive definite.
     aug: Augment,
-}
-
-/// A tangent factored as `K_α = K + α n̂n̂ᵀ` (α > 0) where `K` alone is not positive
-/// definite: past a force limit point under depth control the equilibrium is stable
-/// (K is positive definite on `n̂·δu = 0`) while `K` has a negative direction, and
-/// Cholesky fails. Since every step also fixes `n̂·δu`, `K_α` gives the same
-/// corrections: `K_α δu = K δu + α n̂ (n̂·δu)` with `n̂·δu` known. `z = K_α⁻¹ n̂`.
-#[derive(Clone, Default)]
-pub(super) struct Augment {
-    alpha: f64,
-    z: Vec<f64>,
 }
 
 enum Tangent<'a> {
@@ -691,78 +680,6 @@ pub fn force_peak_passed(force_n: &[f64], tolerance: f64) -> Option<usize> {
         .enumerate()
         .max_by(|a, b| a.1.total_cmp(b.1))?;
     (last < (1.0 - tolerance) * top).then_some(k)
-}
-
-impl Augment {
-    /// `K_α⁻¹ (r + α g n̂)`: the chord's `K⁻¹ r` for a step that makes `n̂·δu = −g`.
-    pub(super) fn solve(&self, k: &Cholesky, r: &[f64], g: f64) -> Vec<f64> {
-        let mut x = k.solve(r);
-        if self.alpha > 0.0 {
-            x.iter_mut()
-                .zip(&self.z)
-                .for_each(|(a, b)| *a += self.alpha * g * b);
-        }
-        x
-    }
-}
-
-/// The tangent at `u` factored, augmented by `α n̂n̂ᵀ` where it is not positive
-/// definite (see [`Augment`]); `α` starts at a hundred times the largest diagonal
-/// entry on the probe's dofs and grows a hundredfold once. `None` where even that
-/// fails: the state is unstable under depth control too.
-pub(super) fn factor_bordered(
-    space: &Space,
-    law: Law,
-    pattern: &SymCsc,
-    u: &[f64],
-    (lambda, mu): (f64, f64),
-    probe: &[f64],
-    always: bool,
-) -> Result<Option<(Cholesky, Augment)>, FeError> {
-    // Single precision: the segment's factor only steers the corrections (see the
-    // module doc), so its rounding changes the steps, not the equilibrium.
-    let factor = |k: &SymCsc| Cholesky::factor_single(k, space.fixed_count());
-    let k = tangent(space, law, pattern, u, lambda, mu);
-    if !always {
-        match factor(&k) {
-            Ok(c) => return Ok(Some((c, Augment::default()))),
-            Err(FeError::NotPositiveDefinite { .. }) => {}
-            Err(e) => return Err(e),
-        }
-    }
-    let support: Vec<usize> = (0..probe.len()).filter(|&i| probe[i] != 0.0).collect();
-    let diagonal = |i: usize| {
-        let (lo, hi) = (k.col_ptr[i], k.col_ptr[i + 1]);
-        (lo..hi)
-            .find(|&q| k.row_idx[q] == i)
-            .map_or(0.0, |q| k.val[q].abs())
-    };
-    let top = support.iter().map(|&i| diagonal(i)).fold(0.0f64, f64::max);
-    for alpha in [1e2 * top, 1e4 * top] {
-        if !(alpha.is_finite() && alpha > 0.0) {
-            break;
-        }
-        let mut ka = k.clone();
-        for &c in &support {
-            for &r in support.iter().filter(|&&r| r >= c) {
-                if !ka.has(r, c) {
-                    // One face's nodes share a cell, so this does not happen; if it
-                    // did, the augmentation would not be rank one.
-                    return Ok(None);
-                }
-                ka.add(r, c, alpha * probe[r] * probe[c]);
-            }
-        }
-        match factor(&ka) {
-            Ok(chol) => {
-                let z = chol.solve(probe);
-                return Ok(Some((chol, Augment { alpha, z })));
-            }
-            Err(FeError::NotPositiveDefinite { .. }) => continue,
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(None)
 }
 
 /// How many times a step toward the next grid depth may be halved.

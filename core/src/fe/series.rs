@@ -732,10 +732,7 @@ impl<'a> Expander<'a> {
     }
 }
 
-/// The most orders a depth series may ask for. The builds use 12–15; order `p`'s
-/// right-hand side costs `O(p²)` products a quadrature point, so 30 orders already cost
-/// several times the default series (200 ran past 100 s on coarse P2, unfinished).
-pub const MAX_ORDERS: usize = 30;
+pub use super::lanes::MAX_ORDERS;
 
 /// Checks that a series may have `orders` orders, at least `min`.
 pub fn check_orders(orders: usize, min: usize) -> Result<(), FeError> {

@@ -26,6 +26,15 @@ pub struct SymCsc {
 }
 
 impl SymCsc {
+    /// The lower triangle's pattern, as the fill-reducing ordering reads it.
+    pub fn pattern_ref(&self) -> super::ordering::Pattern<'_> {
+        super::ordering::Pattern {
+            n: self.n,
+            col_ptr: &self.col_ptr,
+            row_idx: &self.row_idx,
+        }
+    }
+
     /// The pattern coupling every pair of free dofs that share a cell.
     pub fn pattern(space: &Space) -> SymCsc {
         let n = space.free_dofs;
@@ -233,7 +242,7 @@ fn symbolic(a: &SymCsc) -> Result<Arc<SymbolicCholesky<usize>>, FeError> {
 /// [`super::ordering`] gives one, else under faer's AMD.
 fn analyse(a: &SymCsc, nested: bool) -> Result<SymbolicCholesky<usize>, FeError> {
     let nd = nested
-        .then(|| super::ordering::nested_dissection(a))
+        .then(|| super::ordering::nested_dissection(a.pattern_ref()))
         .flatten();
     let ordering = match &nd {
         Some((fwd, inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, a.n)),
@@ -432,7 +441,7 @@ impl Cholesky {
 
 /// What one ordering costs on one matrix, measured on one thread: the factor's entries,
 /// the analysis, a numeric factorization and one solve in double and in single precision.
-/// `palpa bench fe --only ordering` prints it for AMD and nested dissection side by side.
+/// `palpa lab bench fe --only ordering` prints it for AMD and nested dissection side by side.
 #[derive(Debug, Clone, Copy)]
 pub struct OrderingCost {
     pub factor_entries: usize,

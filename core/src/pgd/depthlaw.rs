@@ -45,7 +45,7 @@ pub enum DepthLawFileError {
         path: std::path::PathBuf,
         source: std::io::Error,
     },
-    #[error("{path}: not a palpa depth-law file (expected the magic bytes \"PALPALAW\")")]
+    #[error("{path}: not a palpa lab depth-law file (expected the magic bytes \"PALPALAW\")")]
     Foreign { path: std::path::PathBuf },
     #[error("{path}: depth-law format version {found}, this palpa reads {VERSION}")]
     Version {
@@ -190,7 +190,7 @@ pub enum DepthLawBuildError {
 /// tetrahedra and regions, hashed).
 fn build_key(organ: &OrganMesh, o: &DepthLawOptions) -> String {
     format!(
-        "palpa depth-law v{VERSION} log 2 mesh {:016x} {o:?}",
+        "palpa lab depth-law v{VERSION} log 2 mesh {:016x} {o:?}",
         organ_hash(organ)
     )
 }
@@ -642,7 +642,7 @@ mod tests {
         assert!(e.contains("checksum"), "{e}");
         std::fs::write(&path, b"something else entirely").expect("writes");
         let e = DepthLaw::load(&path).expect_err("foreign").to_string();
-        assert!(e.contains("not a palpa depth-law file"), "{e}");
+        assert!(e.contains("not a palpa lab depth-law file"), "{e}");
         // Far from every sample the weights still sum to one (no underflow to NaN).
         let (g, _) = law.ratio([1e5, 0.0, 0.0], 4.0);
         assert!((g - (1.0 - 0.004 * 16.0)).abs() < 1e-12, "{g}");

@@ -1,5 +1,5 @@
 //! What a refinement would cost and where it would split, computed without pressing
-//! (`palpa tissue refine --plan`).
+//! (`palpa lab tissue refine --plan`).
 //!
 //! A refinement of the whole coarse surface presses about 6 000 points (hours on two
 //! cores), so a user refines in stages ([`SurfaceLaw::refine`] with the worst few

@@ -42,7 +42,7 @@ mod presser;
 mod refine;
 
 pub use press::{PointPress, follow_at, organ_vertex_normals, path_options, press_at, tool_load};
-pub(crate) use presser::logged_press_ids;
+pub(crate) use presser::{PressPoint, logged_press_ids};
 pub use refine::{
     BandEdge, COVER_SLACK_MM, DEFAULT_REFINE_ABOVE_MM, Refinement, covering_vertices,
 };
@@ -50,12 +50,12 @@ pub use refine::{
 /// The most points (depth 0 included) of a press's depth grid.
 pub const MAX_GRID_POINTS: usize = 256;
 pub(crate) use refine::{
-    PressPoint, Source, node_peak, palpable_at, refine_candidates, refine_plan, worst_first,
+    Source, node_peak, palpable_at, refine_candidates, refine_plan, worst_first,
 };
 
 use press::edge_id;
-use presser::{Presser, Stored, open_press_log};
-use refine::{Got, Logged, in_plan_order, split_triangles};
+use presser::{Logged, Presser, Stored, open_press_log};
+use refine::{Got, in_plan_order, split_triangles};
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -189,7 +189,7 @@ pub enum SurfaceLawBuildError {
     #[error(
         "the surface law already has {triangles} split triangles and this stage would split \
          {asked}: expected a stage of more (a larger --triangles, or a lower --refine-above-mm), \
-         or a law cut back to no split triangles first (`palpa tissue cut --unsplit`)"
+         or a law cut back to no split triangles first (`palpa lab tissue cut --unsplit`)"
     )]
     AlreadyRefined { triangles: usize, asked: usize },
     #[error(

@@ -115,7 +115,7 @@ impl TissueLaw {
         if !self.refinement.band.is_empty() {
             return Err(refused(
                 "it holds a band next to the fixed region, pressed last: split its \
-                 sub-triangles in the file the band was pressed on (`palpa tissue cut \
+                 sub-triangles in the file the band was pressed on (`palpa lab tissue cut \
                  --no-band` gives it back), then press the band again"
                     .into(),
             ));
@@ -129,7 +129,7 @@ impl TissueLaw {
         }
         if self.refinement.triangles.is_empty() {
             return Err(refused(
-                "it has no split triangles (expected a file refined by `palpa tissue refine`)"
+                "it has no split triangles (expected a file refined by `palpa lab tissue refine`)"
                     .into(),
             ));
         }

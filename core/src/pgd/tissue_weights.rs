@@ -13,7 +13,7 @@
 //!
 //! the triangle inequality over its modes. The compression rounds each weight before
 //! its stop rule measures the error, so a new law's bound already holds it; an older
-//! law's weights are rounded by `palpa tissue cut --half-weights`, whose bound grows
+//! law's weights are rounded by `palpa lab tissue cut --half-weights`, whose bound grows
 //! by the largest `δ` of any sample at any grid depth ([`TissueLaw::with_half_weights`]).
 //! A weight beyond the half range (65 504) is kept in f32 and the law stored so.
 //!

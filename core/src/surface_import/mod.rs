@@ -13,6 +13,7 @@
 //! vertex), which is exact for closed manifolds (Bærentzen & Aanæs 2005).
 
 pub mod frame;
+mod indexed;
 mod ply;
 pub mod read;
 pub mod repair;

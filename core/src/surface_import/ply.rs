@@ -4,7 +4,7 @@
 //! `vertex_index`) list.
 
 use super::SurfaceError;
-use super::read::Indexed;
+use super::indexed::Indexed;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Ty {

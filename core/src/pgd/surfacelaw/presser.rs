@@ -5,12 +5,22 @@ use std::path::Path;
 use std::sync::Mutex;
 
 use super::press::{path_options, point_press_prepared, prepare};
-use super::refine::{Logged, PressPoint};
 use super::{PressCount, SurfaceLawBuildError, SurfaceLawOptions, VertexPress};
 use crate::fe::path::PathOptions;
 use crate::fe::series::Expander;
 use crate::organ::OrganMesh;
 use crate::pgd::presslog::RecordLog;
+
+/// A surface point to press: where, along what, and its id in the press log.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PressPoint {
+    pub(crate) at: [f64; 3],
+    pub(crate) push: [f64; 3],
+    pub(crate) id: u32,
+}
+
+/// A logged press: what [`point_press`](super::press::point_press) gave at one log id.
+pub(super) type Logged = Result<VertexPress, String>;
 
 /// Opens a build's press log at `path` (see [`crate::pgd::presslog`]) and returns it with
 /// the presses already in it. The key names everything that determines a press, so a

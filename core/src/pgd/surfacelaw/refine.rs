@@ -3,8 +3,8 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::presser::Stored;
-use super::{SurfaceLawBuildError, VertexPress};
+use super::SurfaceLawBuildError;
+use super::presser::{Logged, PressPoint, Stored};
 use crate::organ::OrganMesh;
 use crate::pgd::subsplit::SubSplit;
 
@@ -77,14 +77,6 @@ pub struct BandEdge {
 /// whose edges a partial build had pressed, 318 (92 %) lie above it (260 above 0.5 mm,
 /// 81 above 1 mm): the default buys the accuracy with about six presses a triangle.
 pub const DEFAULT_REFINE_ABOVE_MM: f64 = 0.35;
-
-/// A surface point to press: where, along what, and its id in the press log.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct PressPoint {
-    pub(crate) at: [f64; 3],
-    pub(crate) push: [f64; 3],
-    pub(crate) id: u32,
-}
 
 /// A quarter or inner point of a split triangle (see [`Refinement`]).
 pub(super) struct RefinePoint {
@@ -570,6 +562,3 @@ pub(super) fn split_triangles(
         })
         .collect()
 }
-
-/// A logged press: what [`point_press`](super::press::point_press) gave at one log id.
-pub(super) type Logged = Result<VertexPress, String>;

@@ -1,6 +1,7 @@
 use std::collections::HashSet;
 
-use super::refine::{Logged, RefinePlan, RefinePoint, in_plan_order};
+use super::presser::Logged;
+use super::refine::{RefinePlan, RefinePoint, in_plan_order};
 use super::*;
 
 /// Two sampled vertices (0 and 1) of three, one row, depths 0, 1, 2 mm: the blend is

@@ -1,14 +1,13 @@
-//! `palpa tissue …`: the hyperelastic vademecum of a palpation scene (see
-//! `palpa_core::pgd::tissue`): build it off-line from every palpable vertex's depth
-//! series, cut it, and what the other stages share (the press log, the pool, the
-//! progress line, the file's summary). Checking it against the full nonlinear FE is
-//! `tissue_check`, drawing held-out points `tissue_points`.
+//! `palpa tissue build`: the hyperelastic vademecum of a palpation scene (see
+//! `palpa_core::pgd::tissue`) built off-line from every palpable vertex's depth
+//! series, and what the staging tools share (the press log, the pool, the progress
+//! line, the file's summary).
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
-use clap::{Args, Subcommand};
+use clap::Args;
 use palpa_core::fe::path::{StopKind, press_memory_bytes};
 use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::{Element, Material};
@@ -16,78 +15,11 @@ use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{
     DEFAULT_REFINE_ABOVE_MM, MAX_GRID_POINTS, PressCount, SurfaceLaw, SurfaceLawOptions,
 };
-use palpa_core::pgd::tissue::{
-    BLEND_SURPLUS_WARN_MM, BoundTissue, DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits,
-    TissueLaw,
-};
+use palpa_core::pgd::tissue::{DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits, TissueLaw};
 use serde_json::json;
 
-use super::args::OrganArgs;
-use super::depthlaw::NonlinearModel;
-use super::tissue_points::triples;
-
-#[derive(Debug, Subcommand)]
-pub enum TissueCommand {
-    /// Build the nonlinear vademecum off-line: every palpable vertex's press followed
-    /// to equilibrium on the depth grid, the surfaces compressed by an SVD; finished
-    /// presses are logged in `OUT.presses.log`, so a killed build run again goes on.
-    Build(BuildArgs),
-    /// Compare a built vademecum with the full nonlinear FE (Newton) at held-out
-    /// random points and depths, through a scene (what the app shows).
-    Check(super::tissue_check::CheckArgs),
-    /// Draw held-out points over the whole palpable surface (seeded) and print them as
-    /// `X,Y,Z,…` for `tissue build --cover` and `tissue check --at`: a whole-surface
-    /// accuracy table from the few triangles that hold them.
-    Points(super::tissue_points::PointsArgs),
-    /// Cut a built vademecum to fewer modes per sample (or per group of samples that
-    /// share them), fewer bits or a longer depth step (what `palpa tradeoff` measures)
-    /// and save it: a scene ships only what it shows. The stored bound grows by what the cut drops.
-    Cut(CutArgs),
-    /// Split the triangles of a file built without splitting (`--no-refine`): their
-    /// quarter and inner points pressed, the file's own presses kept as stored. Presses
-    /// are logged in `OUT.presses.log` under the same key as `tissue build`'s, so a
-    /// killed refinement run again goes on, and a larger `--triangles` later reuses them.
-    Refine(super::tissue_refine::RefineArgs),
-    /// Press the band next to the fixed region: the midpoint of every palpable edge from
-    /// a pressed vertex to one on the fixed region (which no press may push), each kept
-    /// as its surplus over its pressed end; the file's own presses kept as stored. The
-    /// last stage: a file with a band is not split further. Presses are logged in
-    /// `OUT.presses.log`, so a killed run again goes on.
-    Band(super::tissue_band::BandArgs),
-}
-
-#[derive(Debug, Args)]
-pub struct CutArgs {
-    /// A tissue file (from `palpa tissue build`).
-    tissue: PathBuf,
-    /// Most modes a sample (or a group of samples sharing them) keeps: its first, by
-    /// singular value.
-    #[arg(long, default_value_t = palpa_core::pgd::tissue::MAX_RANK)]
-    modes: usize,
-    /// Bits per stored shape entry: 8 or 16 (default: as built).
-    #[arg(long, value_parser = parse_bits)]
-    bits: Option<u32>,
-    /// Keep every k-th grid depth (k must divide the grid's intervals).
-    #[arg(long, default_value_t = 1)]
-    depth_stride: usize,
-    /// Drop the split triangles' quarter and inner points: the quadratic blend
-    /// everywhere, as a build with `--no-refine` stores the same presses (what `palpa
-    /// tissue refine` starts from).
-    #[arg(long)]
-    unsplit: bool,
-    /// Drop the band next to the fixed region (`palpa tissue band`): the file it was
-    /// pressed on. (`--unsplit` drops it too.)
-    #[arg(long)]
-    no_band: bool,
-    /// Round every weight to sixteen bits (IEEE half): what a build stores now (the
-    /// fifth-stage shipped law: 7.65 → 6.18 MB). The bound grows by the most that
-    /// moves a node (`weights_halved_mm`).
-    #[arg(long)]
-    half_weights: bool,
-    /// Where to write the cut law (atomically; it may be the input).
-    #[arg(long)]
-    out: PathBuf,
-}
+use super::points::triples;
+use crate::cli::args::{NonlinearModel, OrganArgs};
 
 #[derive(Debug, Args)]
 pub struct BuildArgs {
@@ -128,7 +60,7 @@ pub struct BuildArgs {
     pub within: Option<Vec<f64>>,
     /// Press only what answers at these points (X,Y,Z[,X,Y,Z…], mm, on the palpable
     /// surface): the triangles holding them, split as the whole build would split
-    /// them. There the file answers as a whole-surface build does (see `tissue points`).
+    /// them. There the file answers as a whole-surface build does (see `lab tissue points`).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub cover: Option<Vec<f64>>,
     #[arg(long, default_value_t = 160.0)]
@@ -197,52 +129,9 @@ pub fn parse_bits(s: &str) -> Result<u32, String> {
     }
 }
 
-pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
-    match cmd {
-        TissueCommand::Build(args) => build(args).map(|(_, summary)| println!("{summary}")),
-        TissueCommand::Check(args) => super::tissue_check::check(args),
-        TissueCommand::Points(args) => super::tissue_points::points(args),
-        TissueCommand::Cut(args) => cut(args),
-        TissueCommand::Refine(args) => super::tissue_refine::refine(args),
-        TissueCommand::Band(args) => super::tissue_band::band(args),
-    }
-}
-
-/// `palpa tissue cut`: a law with fewer modes, bits or depths, saved.
-fn cut(args: &CutArgs) -> anyhow::Result<()> {
-    let law = TissueLaw::load(&args.tissue)?;
-    let without = args.no_band.then(|| law.without_band());
-    let unsplit = args
-        .unsplit
-        .then(|| without.as_ref().unwrap_or(&law).unsplit())
-        .or(without);
-    let bits = match args.bits {
-        None => law.shape.bits(),
-        Some(b) => ShapeBits::from_count(b).context("--bits: expected 8 or 16")?,
-    };
-    let cut = unsplit
-        .as_ref()
-        .unwrap_or(&law)
-        .coarsened(args.modes, bits, args.depth_stride)
-        .map_err(|why| anyhow::anyhow!("cutting {}: {why}", args.tissue.display()))?;
-    let (out, halved_mm) = match args.half_weights {
-        true => cut.law.with_half_weights(),
-        false => (cut.law, 0.0),
-    };
-    out.save(&args.out)?;
-    let summary = json!({
-        "from": summary(&law, &args.tissue),
-        "out": summary(&out, &args.out),
-        "dropped_sigma_mm": cut.dropped_sigma_mm,
-        "requantized_mm": cut.requantized_mm,
-        "weights_halved_mm": halved_mm,
-    });
-    super::args::print_report(&summary, false)
-}
-
 /// The press log beside a build's output: an interrupted build run again with the same
 /// arguments goes on from the last finished press.
-pub(super) fn press_log(out: &std::path::Path) -> PathBuf {
+pub fn press_log(out: &std::path::Path) -> PathBuf {
     let mut log = out.as_os_str().to_owned();
     log.push(".presses.log");
     PathBuf::from(log)
@@ -250,7 +139,7 @@ pub(super) fn press_log(out: &std::path::Path) -> PathBuf {
 
 /// The threads a build presses on: `--jobs`, else one per core, fewer where the memory
 /// available would not hold them ([`default_jobs`]).
-pub(super) fn press_pool(
+pub fn press_pool(
     jobs: Option<usize>,
     organ: &OrganMesh,
     element: Element,
@@ -272,7 +161,7 @@ pub(super) fn press_pool(
 /// (`fe::path::press_memory_bytes`); at least one. Said on stderr with its figures.
 fn default_jobs(organ: &OrganMesh, element: Element) -> anyhow::Result<usize> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let Some(available) = super::memory::available_bytes() else {
+    let Some(available) = crate::cli::memory::available_bytes() else {
         return Ok(cores);
     };
     let (shared, each) = press_memory_bytes(&organ_space(organ, element))
@@ -302,7 +191,7 @@ fn jobs_that_fit(available: u64, shared: u64, each: u64) -> usize {
 
 /// A build's progress line, with an estimate of what is left from the presses this run
 /// computed (not those taken from the log, which cost nothing).
-pub(super) fn progress_line(c: PressCount, elapsed_s: f64) {
+pub fn progress_line(c: PressCount, elapsed_s: f64) {
     eprint!(
         "\rtissue: press {}/{}, {} elapsed{}   ",
         c.done,
@@ -337,13 +226,13 @@ fn stopped_by(stopped: &[String]) -> serde_json::Value {
 
 /// The depths a tissue is measured within the goals to, as JSON (null where unknown).
 /// They are f32 tenths of a millimetre, printed as the tenths they are.
-fn goals_json(goals: Option<palpa_app::session::GoalDepths>) -> serde_json::Value {
+pub(super) fn goals_json(goals: Option<palpa_app::session::GoalDepths>) -> serde_json::Value {
     let tenths = |mm: f32| (f64::from(mm) * 10.0).round() / 10.0;
     json!(goals.map(|g| json!({"both": tenths(g.both_mm), "force": tenths(g.force_mm)})))
 }
 
 /// What a tissue file holds: its samples, how far its presses reach, its bytes and
-/// bound (`palpa info X.tissue`, `palpa tissue cut`).
+/// bound (`palpa info X.tissue`, `palpa lab tissue cut`).
 pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
     let o = &law.options;
     let (stopped_short, shallowest) = reach_figures(&law.reach, law.steps, o.depth_step_mm);
@@ -381,7 +270,7 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
 
 /// Builds, compresses and saves; returns the law and a JSON summary.
 pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)> {
-    super::args::check_out(&args.out)?;
+    crate::cli::args::check_out(&args.out)?;
     let organ = args.organ.mesh()?;
     let within = match args.within.as_deref() {
         None => None,
@@ -501,157 +390,6 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             "worst_correction_mm": tissue.correction_mm.iter().copied().fold(0.0f32, f32::max),
             "most_segments": tissue.segments.iter().copied().max()});
     Ok((tissue, summary))
-}
-
-/// A tissue file loaded and bound to the scene it serves (`liver` or a `.palpa` file).
-pub(super) fn bound_to_scene(
-    file: &std::path::Path,
-    scene: &str,
-) -> anyhow::Result<(BoundTissue, palpa_core::scene::PalpationScene)> {
-    let law = TissueLaw::load(file)?;
-    let scene = palpa_app::scenes::load(scene)?.scene;
-    law.check_linear_model(&scene.model().provenance().mesh)?;
-    let bound = BoundTissue::bind(
-        law,
-        scene.vertices_mm(),
-        scene.axis_vertices_mm(),
-        scene.axis_triangles(),
-    )?;
-    Ok((bound, scene))
-}
-
-/// `palpa eval` on a tissue file: the press at the palpable point closest to `--at`,
-/// through the scene the file serves, depth in (force out) or force in (depth out),
-/// with the same keys as `palpa fe solve`. The vademecum presses along the surface's
-/// vertex normal (each vertex was pressed along its own), so `--dir` is refused.
-pub fn eval(
-    file: &std::path::Path,
-    probe: &super::args::ProbeArgs,
-    scene: &str,
-    out: Option<&std::path::Path>,
-    json_out: bool,
-) -> anyhow::Result<()> {
-    if probe.dir.is_some() {
-        bail!(
-            "--dir: a tissue vademecum presses along the surface normal, the direction its \
-             vertices were pressed in; leave --dir out"
-        );
-    }
-    let at = probe.at()?;
-    probe.check_press()?;
-    let (bound, scene) = bound_to_scene(file, scene)?;
-    let (point, distance_mm) = scene
-        .closest_palpable(at)
-        .context("the scene has no palpable surface")?;
-    super::args::warn_far_from_surface(distance_mm, scene.frame(&point).0);
-    let mut contact_scratch = scene.contact_scratch();
-    let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
-    let c = contact.compliance_mm_per_n;
-    let t = Instant::now();
-    let (depth, force, beyond) = match (probe.depth_mm, probe.force_n) {
-        (Some(d), _) => {
-            // Past the limit both the force and the surface are held at it.
-            let (f, beyond) = bound.force_n(&point, d, c);
-            (d.min(bound.limit_mm(&point).0), f, beyond)
-        }
-        (None, Some(f)) => {
-            let (d, beyond) = bound.depth_mm(&point, f, c);
-            // Held at the limit, the press is the one there: its force, not the one
-            // asked for (that is `requested_force_n`).
-            let f = if beyond {
-                bound.force_n(&point, d, c).0
-            } else {
-                f
-            };
-            (d, f, beyond)
-        }
-        (None, None) => bail!("give --depth-mm or --force-n"),
-    };
-    let force_eval_us = t.elapsed().as_secs_f64() * 1e6;
-    let mut coeffs = vec![0.0; scene.modes()];
-    let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
-    let mut scratch = bound.scratch();
-    let t = Instant::now();
-    let push = contact.push_dir.map(|d| d * depth / c);
-    scene.displacement(&point, push, &mut coeffs, &mut rows)?;
-    bound.add_surface(&point, depth, &mut scratch, &mut rows);
-    let surface_eval_us = t.elapsed().as_secs_f64() * 1e6;
-    let max = rows
-        .chunks_exact(3)
-        .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-        .fold(0.0, f64::max);
-    if let Some(out) = out {
-        use palpa_core::export::{FieldValue, PointField, write_surface_vtu};
-        let nodes: Vec<[f64; 3]> = scene
-            .vertices_mm()
-            .iter()
-            .map(|p| p.map(f64::from))
-            .collect();
-        let fields = [PointField {
-            name: "displacement".into(),
-            components: 3,
-            values: rows.clone(),
-        }];
-        let meta = [
-            FieldValue {
-                name: "force_n".into(),
-                value: force,
-            },
-            FieldValue {
-                name: "depth_mm".into(),
-                value: depth,
-            },
-        ];
-        write_surface_vtu(out, &nodes, scene.triangles(), &fields, &meta)
-            .with_context(|| format!("writing {}", out.display()))?;
-    }
-    let (limit_mm, stopped) = bound.limit_mm(&point);
-    if beyond {
-        let asked = match probe.force_n {
-            Some(f) => format!("{f:.2} N"),
-            None => format!("{:.2} mm", probe.depth_mm.unwrap_or(depth)),
-        };
-        eprintln!(
-            "warning: {} (asked {asked})",
-            palpa_app::session::held_text(limit_mm, stopped)
-        );
-    }
-    let surplus_mm = bound.blend_surplus_mm(&point, depth);
-    if let Some(eta) = surplus_mm.filter(|&e| e > BLEND_SURPLUS_WARN_MM) {
-        eprintln!("warning: {}", palpa_app::session::blend_surplus_text(eta));
-    }
-    // Past the depth the file is measured within the goals to, as the panel says it.
-    let goals = palpa_app::scenes::tissue_goals(file);
-    if let Some(g) = goals.filter(|g| depth > f64::from(g.both_mm)) {
-        eprintln!("warning: {}", g.past_text(depth as f32));
-    }
-    let unpressed = bound.unpressed_corners(&point);
-    if unpressed > 0 {
-        eprintln!(
-            "warning: {}",
-            palpa_app::session::next_to_fixed_text(unpressed)
-        );
-    }
-    let report = json!({
-        "model": "tissue", "law": bound.law.options.law.name(),
-        "element": bound.law.options.element.name(),
-        "at": scene.frame(&point).0,
-        // The keys of `palpa fe solve`, which presses along the same direction by default.
-        "probe_point": scene.frame(&point).0, "probe_projection_distance_mm": distance_mm,
-        "direction": contact.push_dir,
-        "control": if probe.force_n.is_some() { "force" } else { "depth" },
-        "probe_displacement_mm": depth, "force_n": force, "linear_force_n": depth / c,
-        "requested_force_n": probe.force_n, "requested_depth_mm": probe.depth_mm,
-        "max_displacement_mm": max, "depth_max_mm": bound.law.depth_max_mm(),
-        "beyond_depth_max": beyond,
-        "depth_limit_mm": limit_mm, "stopped": stopped,
-        "blend_surplus_mm": surplus_mm,
-        "unpressed_corners": unpressed,
-        // Measured within the goals to these depths (the built-in tissue), else null.
-        "goals_to_mm": goals_json(goals),
-        "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
-    });
-    super::args::print_report(&report, json_out)
 }
 
 #[cfg(test)]

@@ -20,10 +20,11 @@ use palpa_core::axis::ProbePoint;
 use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueLaw};
 use serde_json::json;
 
-use super::args::OrganArgs;
-use super::tissue::bound_to_scene;
-use super::tissue_check::{max_node_errors, newton_at_depths};
-use super::tissue_points::press_points;
+use super::against::max_node_errors;
+use super::check::newton_at_depths;
+use super::eval::bound_to_scene;
+use super::points::press_points;
+use crate::cli::args::OrganArgs;
 
 /// What the table is measured at.
 pub struct Settings<'a> {
@@ -218,7 +219,7 @@ pub fn run(file: &Path, s: &Settings, json_out: bool) -> anyhow::Result<()> {
         "depths_mm": s.depths_mm, "seed": s.seed, "rows": table,
         "linear": linear.json(), "newton_failed": newton_failed,
         "newton_reference_s": reference_s});
-    super::args::print_report(&report, json_out)
+    crate::cli::args::print_report(&report, json_out)
 }
 
 /// One setting's row: errors over all presses and per held-out depth, and the

@@ -1,4 +1,4 @@
-//! `palpa bench offline`: the off-line cost of a palpation vademecum, PGD against the
+//! `palpa lab bench offline`: the off-line cost of a palpation vademecum, PGD against the
 //! brute-force route (one FE solve per palpable vertex and direction, then the optimal
 //! separated form of that map), measured in one run on the same factored stiffness,
 //! with both results' errors over the whole map in the natural norm.
@@ -11,7 +11,7 @@ use palpa_core::pgd::linear::{Settings, Terms, map_error};
 use palpa_core::pgd::palpation::{brute_force, compute, setup};
 use serde_json::json;
 
-use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+use crate::cli::organ::{LevelArg, OrganName, mesh as mesh_organ};
 
 #[derive(Debug, Args)]
 pub struct OfflineBenchArgs {
@@ -88,5 +88,5 @@ pub fn run(args: &OfflineBenchArgs) -> anyhow::Result<()> {
         "brute_force": {"solves_s": solve_s, "eigen_s": eigen_s, "total_s": brute_s},
         "pgd": pgd_rows,
     });
-    super::args::print_report(&out, args.json)
+    crate::cli::args::print_report(&out, args.json)
 }

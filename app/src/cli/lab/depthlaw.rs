@@ -1,4 +1,4 @@
-//! `palpa depth-law …`: the hyperelastic force law `F(s, d)` of a palpation scene
+//! `palpa lab depth-law …`: the hyperelastic force law `F(s, d)` of a palpation scene
 //! (see `palpa_core::pgd::depthlaw`): build it off-line from depth series, evaluate it
 //! with a scene's linear compliance.
 
@@ -6,13 +6,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
-use clap::{Args, Subcommand, ValueEnum};
-use palpa_core::fe::hyper::Law;
+use clap::{Args, Subcommand};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
 use serde_json::json;
 
-use super::args::OrganArgs;
+use crate::cli::args::{NonlinearModel, OrganArgs};
 
 #[derive(Debug, Subcommand)]
 pub enum DepthLawCommand {
@@ -21,21 +20,6 @@ pub enum DepthLawCommand {
     /// Evaluate the force law at a probe point of a scene: depth in, force out, or the
     /// inverse (no solving).
     Eval(EvalArgs),
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum NonlinearModel {
-    NeoHookean,
-    Svk,
-}
-
-impl NonlinearModel {
-    pub fn law(self) -> Law {
-        match self {
-            NonlinearModel::NeoHookean => Law::NeoHookean,
-            NonlinearModel::Svk => Law::Svk,
-        }
-    }
 }
 
 #[derive(Debug, Args)]
@@ -69,7 +53,7 @@ pub struct BuildArgs {
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
-    /// A depth-law file (from `palpa depth-law build`).
+    /// A depth-law file (from `palpa lab depth-law build`).
     law: PathBuf,
     /// The scene whose linear compliance the law corrects: `liver` (built in) or a
     /// palpation `.palpa` file of the same organ.
@@ -101,7 +85,7 @@ pub fn run(cmd: &DepthLawCommand) -> anyhow::Result<()> {
 }
 
 fn build(args: &BuildArgs) -> anyhow::Result<()> {
-    super::args::check_out(&args.out)?;
+    crate::cli::args::check_out(&args.out)?;
     let organ = args.organ.mesh()?;
     let options = DepthLawOptions {
         law: args.model.law(),
@@ -164,10 +148,13 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
             args.at.len()
         );
     };
-    if ![x, y, z].iter().all(|&v| super::args::coordinate_ok(v)) {
+    if ![x, y, z]
+        .iter()
+        .all(|&v| crate::cli::args::coordinate_ok(v))
+    {
         bail!(
             "--at {x},{y},{z}: expected finite coordinates of magnitude at most {:e}",
-            super::args::COORDINATE_MAX
+            crate::cli::args::COORDINATE_MAX
         );
     }
     let loaded = palpa_app::scenes::load(&args.scene)?;
@@ -183,7 +170,7 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
         .context("the contact law at the probe point")?;
     let c = contact.compliance_mm_per_n;
     let at = contact.point_mm;
-    super::args::warn_far_from_surface(distance, at);
+    crate::cli::args::warn_far_from_surface(distance, at);
     let t = Instant::now();
     let (depth, force, clamped) = match (args.depth_mm, args.force_n) {
         (Some(d), None) if d.is_finite() && d >= 0.0 => {
@@ -211,5 +198,5 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
         "compliance_mm_per_n": c,
         "eval_us": eval_us,
     });
-    super::args::print_report(&out, args.json)
+    crate::cli::args::print_report(&out, args.json)
 }

@@ -1,4 +1,4 @@
-//! `palpa bench views`: the signaling cascade's views model over all t against the
+//! `palpa lab bench views`: the signaling cascade's views model over all t against the
 //! exact marginals of its first species, in one run.
 //!
 //! In `signaling-cascade-D` species `S_i` is produced at a rate set by `S_{i−1}` alone,
@@ -18,7 +18,7 @@ use palpa_core::cme::{Moments, Network, fsp};
 use palpa_core::rng::Rng;
 use serde_json::json;
 
-use super::cme::PgdArgs;
+use crate::cli::cme::PgdArgs;
 
 #[derive(Debug, Args)]
 pub struct ViewsBenchArgs {
@@ -194,5 +194,5 @@ pub fn run(args: &ViewsBenchArgs) -> anyhow::Result<()> {
             "eval_le_1_ms": eval_p50 <= EVAL_US_GOAL,
         },
     });
-    super::args::print_report(&out, args.json)
+    crate::cli::args::print_report(&out, args.json)
 }

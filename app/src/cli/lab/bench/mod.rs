@@ -1,4 +1,4 @@
-//! `palpa bench eval`: on-line evaluation speed against the memory-bandwidth bound,
+//! `palpa lab bench eval`: on-line evaluation speed against the memory-bandwidth bound,
 //! measured in the same run.
 //!
 //! For each (rows R, modes N, precision) a synthetic model of that size is built and
@@ -8,6 +8,15 @@
 //! disturbance on a shared machine hits neither more than the other.
 //! `particularize_ns` and `contact_ns` are means over a batch of calls at random
 //! probe positions and random contact nodes (cold rows, the conservative case).
+
+mod build;
+mod cme;
+mod deform;
+mod dsmts;
+mod fe;
+mod lanes;
+mod pgd;
+mod views;
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -26,21 +35,21 @@ pub enum BenchCommand {
     /// Reconstruction, particularization and contact-node evaluation timings.
     Eval(EvalArgs),
     /// Full FE cost per level and element, locking, SVK Newton (JSON lines).
-    Fe(super::bench_fe::FeBenchArgs),
+    Fe(fe::FeBenchArgs),
     /// Off-line vademecum cost: PGD (per block size) against brute force + SVD.
-    Offline(super::bench_pgd::OfflineBenchArgs),
+    Offline(pgd::OfflineBenchArgs),
     /// Gene-network meta-model: off-line and evaluation time, accuracy against FSP,
     /// and the SSA cost of the same marginal accuracy.
-    Cme(super::bench_cme::CmeBenchArgs),
+    Cme(cme::CmeBenchArgs),
     /// The signaling cascade's views model over all t: build time, file size, the
     /// leading marginals against their exact closed chain at every t, evaluation time.
-    Views(super::bench_views::ViewsBenchArgs),
+    Views(views::ViewsBenchArgs),
     /// The Discrete Stochastic Model Test Suite from its SBML files: FSP and PGD
     /// against the published mean and sd, the SSA by the suite's own test, times.
-    Dsmts(super::bench_dsmts::DsmtsBenchArgs),
+    Dsmts(dsmts::DsmtsBenchArgs),
     /// The palpation surface deformed on the GPU (compute shader) against on the CPU:
     /// time per frame and how far apart the two surfaces are, on the adapter at hand.
-    Deform(super::bench_deform::DeformBenchArgs),
+    Deform(deform::DeformBenchArgs),
 }
 
 #[derive(Debug, Args)]
@@ -80,12 +89,12 @@ struct EvalRow {
 pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Eval(args) => eval(args),
-        BenchCommand::Fe(args) => super::bench_fe::run(args),
-        BenchCommand::Deform(args) => super::bench_deform::run(args),
-        BenchCommand::Offline(args) => super::bench_pgd::run(args),
-        BenchCommand::Cme(args) => super::bench_cme::run(args),
-        BenchCommand::Views(args) => super::bench_views::run(args),
-        BenchCommand::Dsmts(args) => super::bench_dsmts::run(args),
+        BenchCommand::Fe(args) => fe::run(args),
+        BenchCommand::Deform(args) => deform::run(args),
+        BenchCommand::Offline(args) => pgd::run(args),
+        BenchCommand::Cme(args) => cme::run(args),
+        BenchCommand::Views(args) => views::run(args),
+        BenchCommand::Dsmts(args) => dsmts::run(args),
     }
 }
 
@@ -95,7 +104,7 @@ fn eval(args: &EvalArgs) -> anyhow::Result<()> {
     }
     // Each measured model holds rows × modes values: refuse what memory cannot hold
     // before the table starts, rather than abort on a failed allocation halfway.
-    let available = super::memory::available_bytes().map_or(f64::INFINITY, |b| b as f64);
+    let available = crate::cli::memory::available_bytes().map_or(f64::INFINITY, |b| b as f64);
     for &p in &args.precision {
         for &rows in &args.rows {
             for &modes in &args.modes {

@@ -1,4 +1,4 @@
-//! `palpa synth`: writes a seeded synthetic model file (for benchmarks, fuzz seeds and
+//! `palpa lab synth`: writes a seeded synthetic model file (for benchmarks, fuzz seeds and
 //! trying the file tools without running a solver). Its values mean nothing physically.
 
 use std::path::PathBuf;
@@ -34,7 +34,7 @@ pub fn run(args: &SynthArgs) -> anyhow::Result<()> {
     // The spatial block alone is rows × modes values: refuse what memory cannot hold
     // rather than abort on a failed allocation.
     let bytes = (args.rows as f64) * (args.modes as f64) * args.precision.bytes() as f64;
-    let available = super::memory::available_bytes().map_or(f64::INFINITY, |b| b as f64);
+    let available = crate::cli::memory::available_bytes().map_or(f64::INFINITY, |b| b as f64);
     if bytes > available / 2.0 {
         anyhow::bail!(
             "--rows {} --modes {}: {:.1} GB of values, {:.1} GB of memory available: expected a \

@@ -1,4 +1,4 @@
-//! `palpa bench fe --only lanes`: the element kernels of a press, one quadrature point
+//! `palpa lab bench fe --only lanes`: the element kernels of a press, one quadrature point
 //! at a time against four in vector lanes (`fe::lanes`), measured in one run.
 //!
 //! A real press: the pressable vertex nearest the anterior point of coarse P2, pushed
@@ -24,7 +24,7 @@ use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, organ_vertex_normals, tool_load};
 use serde_json::json;
 
-use super::bench_build::nearest_vertex;
+use super::build::nearest_vertex;
 
 /// Residuals timed a row (one is a few milliseconds).
 const RESIDUALS: usize = 20;

@@ -14,10 +14,10 @@ use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, follow_at, press_at};
 use palpa_core::pgd::tissue::{BLEND_SURPLUS_WARN_MM, PointIndex};
 use serde_json::json;
 
-use super::args::OrganArgs;
-use super::tissue::bound_to_scene;
-use super::tissue_against::{Against, Answer};
-use super::tissue_points::press_points;
+use super::against::{Against, Answer, max_node_errors, worst_node};
+use super::eval::bound_to_scene;
+use super::points::press_points;
+use crate::cli::args::OrganArgs;
 
 #[derive(Debug, Args)]
 pub struct CheckArgs {
@@ -359,76 +359,4 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
             "against": against.as_ref().map(Against::summary)})
     );
     Ok(())
-}
-
-/// Over the organ's surface nodes drawn by the scene (`vertex_of`: a node's render
-/// vertex by rest position): each candidate's largest nodal distance from the
-/// reference field `reference` (organ node order; candidates in the scene's row
-/// order), and the reference's largest displacement (mm).
-pub(super) fn max_node_errors<const N: usize>(
-    organ: &OrganMesh,
-    vertex_of: &PointIndex,
-    reference: &[f64],
-    candidates: [&[f64]; N],
-) -> ([f64; N], f64) {
-    let (mut worst, mut top) = ([0.0f64; N], 0.0f64);
-    for v in organ.surface_nodes() {
-        let Some(r) = vertex_of.find(organ.mesh.vertices[v as usize]) else {
-            continue;
-        };
-        let (i, r) = (3 * v as usize, 3 * r as usize);
-        let dist = |rows: &[f64]| {
-            (0..3)
-                .map(|k| (rows[r + k] - reference[i + k]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-        };
-        for (w, rows) in worst.iter_mut().zip(candidates) {
-            *w = w.max(dist(rows));
-        }
-        top = top.max((0..3).map(|k| reference[i + k].powi(2)).sum::<f64>().sqrt());
-    }
-    (worst, top)
-}
-
-/// Where the vademecum's surface errs most at one press, and how the error falls off
-/// away from the tool: the worst node's distance from the probe and the part of its
-/// error along the push (a depth error) against the rest (tissue sliding sideways
-/// under the tool), and the largest error in shells 0–1, 1–2, 2–4, 4–8 and past 8 tool
-/// radii from the probe.
-fn worst_node(
-    organ: &OrganMesh,
-    vertex_of: &PointIndex,
-    reference: &[f64],
-    rows: &[f64],
-    at: [f64; 3],
-    push: [f64; 3],
-    tool_radius_mm: f64,
-) -> serde_json::Value {
-    const RINGS: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
-    let mut ring_max = [0.0f64; RINGS.len() + 1];
-    let (mut worst, mut from_probe, mut along) = (0.0f64, 0.0, 0.0);
-    for v in organ.surface_nodes() {
-        let x = organ.mesh.vertices[v as usize];
-        let Some(r) = vertex_of.find(x) else {
-            continue;
-        };
-        let (i, r) = (3 * v as usize, 3 * r as usize);
-        let e = [0, 1, 2].map(|k| rows[r + k] - reference[i + k]);
-        let size = e.iter().map(|c| c * c).sum::<f64>().sqrt();
-        let dist = (0..3).map(|k| (x[k] - at[k]).powi(2)).sum::<f64>().sqrt();
-        let ring = RINGS
-            .iter()
-            .position(|&m| dist <= m * tool_radius_mm)
-            .unwrap_or(RINGS.len());
-        ring_max[ring] = ring_max[ring].max(size);
-        if size > worst {
-            worst = size;
-            from_probe = dist;
-            along = (0..3).map(|k| e[k] * push[k]).sum();
-        }
-    }
-    json!({"error_mm": worst, "from_probe_mm": from_probe, "along_push_mm": along,
-        "max_error_mm_by_tool_radii": {"0-1": ring_max[0], "1-2": ring_max[1],
-            "2-4": ring_max[2], "4-8": ring_max[3], "8-": ring_max[4]}})
 }

@@ -1,4 +1,4 @@
-//! `palpa tissue band`: a built file's band next to the fixed region pressed, its own
+//! `palpa lab tissue band`: a built file's band next to the fixed region pressed, its own
 //! presses kept.
 
 use std::path::PathBuf;
@@ -10,8 +10,8 @@ use palpa_core::pgd::surfacelaw::PressCount;
 use palpa_core::pgd::tissue::TissueLaw;
 use serde_json::json;
 
-use super::args::OrganArgs;
-use super::tissue::{press_log, press_pool, progress_line, summary};
+use crate::cli::args::OrganArgs;
+use crate::cli::tissue::{press_log, press_pool, progress_line, summary};
 
 #[derive(Debug, Args)]
 pub struct BandArgs {
@@ -31,9 +31,9 @@ pub struct BandArgs {
     out: PathBuf,
 }
 
-/// `palpa tissue band`.
+/// `palpa lab tissue band`.
 pub fn band(args: &BandArgs) -> anyhow::Result<()> {
-    super::args::check_out(&args.out)?;
+    crate::cli::args::check_out(&args.out)?;
     let within = match args.within.as_deref() {
         None => None,
         Some(&[x, y, z, r]) if [x, y, z, r].iter().all(|v| v.is_finite()) && r > 0.0 => {
@@ -50,7 +50,7 @@ pub fn band(args: &BandArgs) -> anyhow::Result<()> {
     if !base.refinement.band.is_empty() {
         bail!(
             "{} already holds a band next to the fixed region ({} edges): expected a file \
-             without one (`palpa tissue cut --no-band` gives the file it was pressed on)",
+             without one (`palpa lab tissue cut --no-band` gives the file it was pressed on)",
             args.tissue.display(),
             base.refinement.band.len()
         );
@@ -88,5 +88,5 @@ pub fn band(args: &BandArgs) -> anyhow::Result<()> {
         "resumed_presses": report.resumed, "press_s": press_s,
         "file": summary(&banded, &args.out),
     });
-    super::args::print_report(&report, false)
+    crate::cli::args::print_report(&report, false)
 }

@@ -1,4 +1,4 @@
-//! `palpa bench dsmts`: the Discrete Stochastic Model Test Suite, case by case, in one
+//! `palpa lab bench dsmts`: the Discrete Stochastic Model Test Suite, case by case, in one
 //! run: whether the SBML imports (or why not), exact FSP's and the default PGD's
 //! distance to the published mean and sd, the SSA's Z/Y statistics, and the times.
 

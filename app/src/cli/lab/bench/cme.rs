@@ -1,4 +1,4 @@
-//! `palpa bench cme`: the gene-network meta-model against stochastic simulation, in
+//! `palpa lab bench cme`: the gene-network meta-model against stochastic simulation, in
 //! one run. The PGD model is built (timed), evaluated (timed per call), and both it
 //! and an SSA run with K trajectories are compared with the exact FSP marginals. SSA's
 //! marginal error falls like 1/√K (checked here with K/4 and K), so the trajectories
@@ -12,7 +12,7 @@ use clap::Args;
 use palpa_core::cme::{Moments, fsp, ssa};
 use serde_json::json;
 
-use super::cme::{PgdArgs, load_network, model_coordinates, parse_params};
+use crate::cli::cme::{PgdArgs, load_network, model_coordinates, parse_params};
 
 #[derive(Debug, Args)]
 pub struct CmeBenchArgs {
@@ -116,5 +116,5 @@ pub fn run(args: &CmeBenchArgs) -> anyhow::Result<()> {
         "ssa_over_pgd_offline_time": ssa_needed_s / offline_s,
         "note": "SSA cost at the PGD's accuracy is extrapolated with the 1/sqrt(K) law from the measured run",
     });
-    super::args::print_report(&out, args.json)
+    crate::cli::args::print_report(&out, args.json)
 }

@@ -1,98 +1,16 @@
-//! `palpa tissue points`: seeded held-out points for `tissue build --cover` and
-//! `tissue check --at`, over the whole palpable surface, the band next to the fixed
-//! region or a file's split triangles; and the points a check presses at.
-
-use std::path::PathBuf;
+//! Seeded held-out points over the whole palpable surface, the band next to the fixed
+//! region or a file's split triangles: the points a check presses at (and `palpa lab
+//! tissue points` prints).
 
 use anyhow::{Context, bail};
-use clap::Args;
 use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::tissue::{PointIndex, TissueLaw};
 use palpa_core::rng::Rng;
 
-use super::args::OrganArgs;
-
-#[derive(Debug, Args)]
-pub struct PointsArgs {
-    #[command(flatten)]
-    organ: OrganArgs,
-    #[arg(long, default_value_t = 16)]
-    heldout: usize,
-    #[arg(long, default_value_t = 7)]
-    seed: u64,
-    /// Draw them inside the split triangles of this tissue file only: what a
-    /// refinement buys, measured where it split (`tissue check --at` on the file and
-    /// on the one it refined).
-    #[arg(long)]
-    split_of: Option<PathBuf>,
-    /// Draw them inside the palpable triangles that touch the fixed region only (a
-    /// corner fixed, so never pressed: the blend there renormalizes over the pressed
-    /// corners). The default draw leaves this band out.
-    #[arg(long, conflicts_with = "split_of")]
-    next_to_fixed: bool,
-}
-
-/// `palpa tissue points`.
-pub fn points(args: &PointsArgs) -> anyhow::Result<()> {
-    if args.heldout == 0 {
-        bail!("--heldout 0: expected at least one point");
-    }
-    let organ = args.organ.mesh()?;
-    let points = match &args.split_of {
-        None if args.next_to_fixed => {
-            let faces = faces_next_to_fixed(&organ);
-            if faces.is_empty() {
-                bail!("this organ has no palpable triangle with a fixed corner");
-            }
-            let palpable: Vec<usize> = (0..organ.boundary.len())
-                .filter(|&f| organ.palpable[f])
-                .collect();
-            let all_held = |tri: &[u32; 3]| tri.iter().all(|&v| organ.fixed[v as usize]);
-            let held_faces = faces
-                .iter()
-                .filter(|&&f| all_held(&organ.boundary[f]))
-                .count();
-            eprintln!(
-                "tissue points: {} triangles touch the fixed region, {:.1} % of the \
-                 palpable surface's area ({held_faces} with all three corners held)",
-                faces.len(),
-                100.0 * faces_area(&organ, &faces) / faces_area(&organ, &palpable)
-            );
-            // Drawn as `points_in` draws them (the same seed gives the same points),
-            // keeping each point's triangle to say which lie where nothing moves.
-            check_heldout(args.heldout)?;
-            let mut rng = Rng::seed(args.seed);
-            let drawn: Vec<_> = (0..args.heldout)
-                .map(|_| super::bench_fe::heldout_point(&organ, &faces, &mut rng))
-                .collect();
-            let held = drawn.iter().filter(|(_, tri, _)| all_held(tri)).count();
-            if held > 0 {
-                eprintln!(
-                    "tissue points: {held} of the {} points lie in a triangle whose three \
-                     corners are held: nothing moves there (`tissue check` reports them as \
-                     held)",
-                    drawn.len()
-                );
-            }
-            drawn.into_iter().map(|(p, _, _)| p).collect()
-        }
-        None => surface_points(&organ, args.heldout, args.seed)?,
-        Some(file) => {
-            let law = TissueLaw::load(file)?;
-            law.check_organ(&organ)?;
-            let faces = split_faces(&organ, &law)?;
-            points_in(&organ, &faces, args.heldout, args.seed)?
-        }
-    };
-    let text: Vec<String> = points.iter().flatten().map(|c| format!("{c:.4}")).collect();
-    println!("{}", text.join(","));
-    Ok(())
-}
-
 /// The points a check presses at: `at` (X,Y,Z triples) where given, else `heldout`
 /// seeded random points inside organ triangles whose three corners were pressed
 /// (never a sample itself).
-pub(super) fn press_points(
+pub(crate) fn press_points(
     organ: &OrganMesh,
     law: &TissueLaw,
     at: Option<&[f64]>,
@@ -119,7 +37,7 @@ pub(super) fn press_points(
 
 /// `n` seeded random points in `faces`: a face drawn uniformly, then a point uniformly
 /// inside it.
-fn points_in(
+pub(crate) fn points_in(
     organ: &OrganMesh,
     faces: &[usize],
     n: usize,
@@ -128,17 +46,17 @@ fn points_in(
     check_heldout(n)?;
     let mut rng = Rng::seed(seed);
     Ok((0..n)
-        .map(|_| super::bench_fe::heldout_point(organ, faces, &mut rng).0)
+        .map(|_| heldout_point(organ, faces, &mut rng).0)
         .collect())
 }
 
 /// The most held-out points a command draws. Each is checked with a full FE solve
 /// (seconds to minutes), so more is no run anyone waits for; 10⁹ points would need
-/// 24 GB for the points alone (`tissue points` was still drawing them after 30 s).
+/// 24 GB for the points alone (`lab tissue points` was still drawing them after 30 s).
 pub(super) const MAX_HELDOUT: usize = 10_000;
 
 /// Refuses more held-out points than [`MAX_HELDOUT`].
-pub(super) fn check_heldout(n: usize) -> anyhow::Result<()> {
+pub(crate) fn check_heldout(n: usize) -> anyhow::Result<()> {
     if n > MAX_HELDOUT {
         bail!("{n} held-out points: expected at most {MAX_HELDOUT} (each is a full FE solve)");
     }
@@ -146,8 +64,8 @@ pub(super) fn check_heldout(n: usize) -> anyhow::Result<()> {
 }
 
 /// A flag's `X,Y,Z[,X,Y,Z…]` list as points, or what was wrong with it.
-pub(super) fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
-    use super::args::{COORDINATE_MAX, coordinate_ok};
+pub(crate) fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
+    use crate::cli::args::{COORDINATE_MAX, coordinate_ok};
     if v.is_empty() || !v.len().is_multiple_of(3) || !v.iter().all(|&x| coordinate_ok(x)) {
         bail!(
             "{flag}: expected X,Y,Z triples of finite numbers of magnitude at most \
@@ -160,7 +78,7 @@ pub(super) fn triples(flag: &str, v: &[f64]) -> anyhow::Result<Vec<[f64; 3]>> {
 /// `n` seeded random points over the whole palpable surface: a triangle drawn
 /// uniformly among the palpable ones with no fixed corner (those a whole build
 /// presses), then a point uniformly inside it.
-pub(super) fn surface_points(
+pub(crate) fn surface_points(
     organ: &OrganMesh,
     n: usize,
     seed: u64,
@@ -176,19 +94,19 @@ pub(super) fn surface_points(
 
 /// The palpable boundary faces with at least one fixed corner: the band along the
 /// fixed region, where a probe's blend has a corner that was never pressed.
-fn faces_next_to_fixed(organ: &OrganMesh) -> Vec<usize> {
+pub(crate) fn faces_next_to_fixed(organ: &OrganMesh) -> Vec<usize> {
     (0..organ.boundary.len())
         .filter(|&f| organ.palpable[f] && touches_fixed(organ, f))
         .collect()
 }
 
 /// Whether boundary face `f` has a corner on the fixed region.
-fn touches_fixed(organ: &OrganMesh, f: usize) -> bool {
+pub(crate) fn touches_fixed(organ: &OrganMesh, f: usize) -> bool {
     organ.boundary[f].iter().any(|&v| organ.fixed[v as usize])
 }
 
 /// The total area of some boundary faces (mm²).
-fn faces_area(organ: &OrganMesh, faces: &[usize]) -> f64 {
+pub(crate) fn faces_area(organ: &OrganMesh, faces: &[usize]) -> f64 {
     let v = |i: u32| glam::DVec3::from_array(organ.mesh.vertices[i as usize]);
     faces
         .iter()
@@ -201,7 +119,7 @@ fn faces_area(organ: &OrganMesh, faces: &[usize]) -> f64 {
 
 /// The organ's boundary faces that a tissue file split (by its corners' rest
 /// positions), or why there are none.
-fn split_faces(organ: &OrganMesh, law: &TissueLaw) -> anyhow::Result<Vec<usize>> {
+pub(crate) fn split_faces(organ: &OrganMesh, law: &TissueLaw) -> anyhow::Result<Vec<usize>> {
     let index = PointIndex::new(organ.mesh.vertices.iter().copied());
     let mut split: Vec<[u32; 3]> = Vec::new();
     for tri in &law.refinement.triangles {
@@ -227,4 +145,27 @@ fn split_faces(organ: &OrganMesh, law: &TissueLaw) -> anyhow::Result<Vec<usize>>
         bail!("the tissue file splits no triangle of this organ mesh");
     }
     Ok(faces)
+}
+
+/// A random point of a random palpable triangle (one of `faces`): the point, the
+/// triangle's vertices and the barycentric weights.
+pub(crate) fn heldout_point(
+    coarse: &OrganMesh,
+    faces: &[usize],
+    rng: &mut Rng,
+) -> ([f64; 3], [u32; 3], [f64; 3]) {
+    let tri = coarse.boundary[faces[rng.below(faces.len())]];
+    let (a, b) = (rng.uniform(), rng.uniform());
+    let (a, b) = if a + b > 1.0 {
+        (1.0 - a, 1.0 - b)
+    } else {
+        (a, b)
+    };
+    let bary = [1.0 - a - b, a, b];
+    let p = [0, 1, 2].map(|k| {
+        (0..3)
+            .map(|i| bary[i] * coarse.mesh.vertices[tri[i] as usize][k])
+            .sum::<f64>()
+    });
+    (p, tri, bary)
 }

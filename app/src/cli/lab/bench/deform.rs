@@ -1,4 +1,4 @@
-//! `palpa bench deform`: the surface deformed on the GPU (compute shader) against on
+//! `palpa lab bench deform`: the surface deformed on the GPU (compute shader) against on
 //! the CPU, on the adapter at hand, measured in one run.
 //!
 //! A session presses the scene at its default probe; for each count of modes kept and

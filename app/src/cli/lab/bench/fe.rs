@@ -1,4 +1,4 @@
-//! `palpa bench fe`: the cost of the full FE reference, and its behaviour at the
+//! `palpa lab bench fe`: the cost of the full FE reference, and its behaviour at the
 //! extremes. One JSON object per line, each with a `table` field:
 //! - `cost`: per level and element, assembly / factorization / solve seconds, dofs and
 //!   peak memory (Linux VmHWM, reset before each run);
@@ -30,10 +30,10 @@ use palpa_core::fe::probe::{
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
-use super::memory::{peak_bytes, reset_peak};
+use crate::cli::memory::{peak_bytes, reset_peak};
 use palpa_core::organ::OrganMesh;
 
-use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+use crate::cli::organ::{LevelArg, OrganName, mesh as mesh_organ};
 
 #[derive(Debug, Args)]
 pub struct FeBenchArgs {
@@ -44,7 +44,7 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson, series, depth_law, surface_law, reduced, build_cost, ordering,
+    /// depth_poisson, series, depth_law, surface_law, build_cost, ordering,
     /// lanes).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
@@ -75,17 +75,6 @@ pub struct FeBenchArgs {
     /// `surface_law` table: depths of the held-out presses (mm), comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = [4.0, 8.5])]
     surface_depths: Vec<f64>,
-    /// `reduced` table: palpable triangles measured (each about ten minutes).
-    #[arg(long, default_value_t = 2)]
-    reduced_triangles: usize,
-    /// `reduced` table: the first of the listed triangles measured (0: the anterior
-    /// lobe's, 1: mid-anterior, ...).
-    #[arg(long, default_value_t = 0)]
-    reduced_first: usize,
-    /// `reduced` table: corrections a depth may take before the reduced tangent is
-    /// formed again (between, Broyden's update keeps it).
-    #[arg(long, default_value_t = 3)]
-    reduced_refresh: usize,
     /// `build_cost` table: the first N of the ten positions (each a few minutes).
     #[arg(long, default_value_t = 3)]
     build_positions: usize,
@@ -103,7 +92,7 @@ pub struct FeBenchArgs {
 }
 
 /// The tables `--only` may name.
-const TABLES: [&str; 14] = [
+const TABLES: [&str; 13] = [
     "cost",
     "poisson",
     "positions",
@@ -114,7 +103,6 @@ const TABLES: [&str; 14] = [
     "series",
     "depth_law",
     "surface_law",
-    "reduced",
     "build_cost",
     "ordering",
     "lanes",
@@ -147,8 +135,6 @@ impl FeBenchArgs {
             ("--law-samples", self.law_samples),
             ("--law-heldout", self.law_heldout),
             ("--surface-heldout", self.surface_heldout),
-            ("--reduced-triangles", self.reduced_triangles),
-            ("--reduced-refresh", self.reduced_refresh),
             ("--build-positions", self.build_positions),
         ] {
             if n == 0 {
@@ -165,14 +151,6 @@ impl FeBenchArgs {
                     DEPTH_POSITIONS.len()
                 );
             }
-        }
-        let near = super::bench_reduced::NEAR.len();
-        if self.reduced_first + self.reduced_triangles > near {
-            bail!(
-                "--reduced-first {} --reduced-triangles {}: only {near} triangles are listed",
-                self.reduced_first,
-                self.reduced_triangles
-            );
         }
         Ok(())
     }
@@ -240,22 +218,14 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     if args.wants("svk") {
         svk(&coarse);
     }
-    if args.wants("reduced") {
-        super::bench_reduced::reduced(
-            &coarse,
-            args.reduced_first,
-            args.reduced_triangles,
-            args.reduced_refresh,
-        )?;
-    }
     if args.wants("ordering") {
         ordering(&args.ordering_levels)?;
     }
     if args.wants("lanes") {
-        super::bench_lanes::lanes_table(&coarse, ANTERIOR)?;
+        super::lanes::lanes_table(&coarse, ANTERIOR)?;
     }
     if args.wants("build_cost") {
-        super::bench_build::build_cost(
+        super::build::build_cost(
             &coarse,
             &DEPTH_POSITIONS[..args.build_positions],
             args.build_from_rest,
@@ -607,7 +577,7 @@ fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
     let mut rng = Rng::seed(77);
     let mut worst = 0.0f64;
     for _ in 0..args.law_heldout {
-        let (p, _, _) = heldout_point(coarse, &faces, &mut rng);
+        let (p, _, _) = crate::cli::tissue::points::heldout_point(coarse, &faces, &mut rng);
         let depth = rng.range(2.0, 15.0);
         let unit = solve_linear(coarse, Element::P2, Material::default(), &req(p, 1.0))?;
         let compliance = unit.probe_displacement_mm;
@@ -661,29 +631,6 @@ fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A random point of a random palpable triangle (one of `faces`): the point, the
-/// triangle's vertices and the barycentric weights.
-pub(super) fn heldout_point(
-    coarse: &OrganMesh,
-    faces: &[usize],
-    rng: &mut palpa_core::rng::Rng,
-) -> ([f64; 3], [u32; 3], [f64; 3]) {
-    let tri = coarse.boundary[faces[rng.below(faces.len())]];
-    let (a, b) = (rng.uniform(), rng.uniform());
-    let (a, b) = if a + b > 1.0 {
-        (1.0 - a, 1.0 - b)
-    } else {
-        (a, b)
-    };
-    let bary = [1.0 - a - b, a, b];
-    let p = [0, 1, 2].map(|k| {
-        (0..3)
-            .map(|i| bary[i] * coarse.mesh.vertices[tri[i] as usize][k])
-            .sum::<f64>()
-    });
-    (p, tri, bary)
-}
-
 /// The nonlinear surface (neo-Hookean, coarse): residuals from every palpable vertex's
 /// continued depth series, blended barycentrically at held-out random points, against
 /// Newton's surface there; beside it the linear surface at the same depth (what the
@@ -720,7 +667,7 @@ fn surface_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
     let mut rng = Rng::seed(91);
     let (mut worst_law, mut worst_linear) = (0.0f64, 0.0f64);
     for _ in 0..args.surface_heldout {
-        let (p, tri, bary) = heldout_point(coarse, &faces, &mut rng);
+        let (p, tri, bary) = crate::cli::tissue::points::heldout_point(coarse, &faces, &mut rng);
         let unit = solve_linear(coarse, options.element, options.material, &req(p, 1.0))?;
         let c = unit.probe_displacement_mm;
         for &depth in &args.surface_depths {

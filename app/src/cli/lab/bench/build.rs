@@ -1,4 +1,4 @@
-//! `palpa bench fe --only build_cost`: what one press of the nonlinear build costs
+//! `palpa lab bench fe --only build_cost`: what one press of the nonlinear build costs
 //! against the brute-force route, measured in one run.
 //!
 //! The build (`palpa tissue build`) follows each press along its depth grid with the

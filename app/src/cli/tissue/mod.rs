@@ -1,0 +1,38 @@
+//! `palpa tissue build|check`: the hyperelastic vademecum of a palpation scene (force
+//! and surface at every palpable point and depth), built off-line from full nonlinear
+//! presses and checked against the full nonlinear FE at held-out points.
+//!
+//! `build` presses and compresses; `check` compares a file with Newton (and with another
+//! file, `against`); `eval` reads a file bound to its scene; `points` draws the seeded
+//! held-out points a check presses at; `tradeoff` measures a file's cost against its
+//! accuracy for `palpa tradeoff`. The staging tools (cut, refine, band) are in `lab`.
+
+mod against;
+mod build;
+mod check;
+mod eval;
+pub(crate) mod points;
+pub(crate) mod tradeoff;
+
+use clap::Subcommand;
+
+pub use build::{BuildArgs, build, parse_bits, press_log, press_pool, progress_line, summary};
+pub use eval::eval;
+
+#[derive(Debug, Subcommand)]
+pub enum TissueCommand {
+    /// Build the nonlinear vademecum off-line: every palpable vertex's press followed
+    /// to equilibrium on the depth grid, the surfaces compressed by an SVD; finished
+    /// presses are logged in `OUT.presses.log`, so a killed build run again goes on.
+    Build(BuildArgs),
+    /// Compare a built vademecum with the full nonlinear FE (Newton) at held-out
+    /// random points and depths, through a scene (what the app shows).
+    Check(check::CheckArgs),
+}
+
+pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
+    match cmd {
+        TissueCommand::Build(args) => build(args).map(|(_, summary)| println!("{summary}")),
+        TissueCommand::Check(args) => check::check(args),
+    }
+}
