@@ -21,28 +21,10 @@ pub const BUILT_IN_LIVER: &[u8] = include_bytes!("../../assets/liver-coarse.palp
 /// again: docs/methods.md §2e).
 pub const BUILT_IN_TISSUE: &[u8] = include_bytes!("../../assets/liver-coarse.tissue");
 
-/// Where the built-in scene comes from, and how far its tissue is measured to meet
-/// the goals (surface within 0.5 mm, force within 5 % of Newton at held-out points: at
-/// 9.3 and 11.5 mm at every press the tissue reaches of 112 points of seven seeds, and
-/// at 12.7 mm 108 of 111, the worst 0.92 mm and 3.2 %; the force alone at 14.6 mm at
-/// all 99 presses the tissue reaches there, 3.1 %;
-/// docs/tissue-measurements.md §1;
-/// `the_default_tissue_meets_the_goals_at_held_out_points` checks two of them).
-pub const BUILT_IN_SOURCE: &str = "built-in liver (assets/liver-coarse.palpa, neo-Hookean \
-    tissue assets/liver-coarse.tissue: within 0.5 mm and 5 % of the full FE to 11.5 mm deep \
-    at 112 random points, up to 0.92 mm and 3.2 % at 12.7 mm, the force within 5 % to 14.6 mm; \
-    the panel warns where the blend may miss)";
-
-/// The depths to which the built-in tissue meets the goals at all 112 held-out points
-/// measured, at every press it reaches (`palpa lab tissue points --seed 7` to `--seed 13`,
-/// 16 each;
-/// docs/tissue-measurements.md §1): both goals to 11.5 mm, the force goal to 14.6 mm
-/// (where the press reaches; the panel flags where it does not). The app's tissue
-/// test presses both there.
-pub const BUILT_IN_GOALS_TO_MM: GoalDepths = GoalDepths {
-    both_mm: 11.5,
-    force_mm: 14.6,
-};
+/// Where the built-in scene comes from (what its tissue is measured to be worth is
+/// recorded in the tissue file and shown from there).
+pub const BUILT_IN_SOURCE: &str =
+    "built-in liver (assets/liver-coarse.palpa, neo-Hookean tissue assets/liver-coarse.tissue)";
 
 /// A loaded scene and where it came from.
 #[derive(Debug)]
@@ -117,7 +99,7 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
         PalpationScene::new(model).with_context(|| format!("{spec} is not a palpation scene"))?;
     let law = sidecar_tissue(path, &scene)?;
     let goals_to_mm = match &law {
-        Some(Tissue::Vademecum(_)) => tissue_goals(&path.with_extension("tissue")),
+        Some(Tissue::Vademecum(bound)) => GoalDepths::of(&bound.law),
         _ => None,
     };
     Ok(LoadedScene {
@@ -126,15 +108,6 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
         law,
         goals_to_mm,
     })
-}
-
-/// The depths a tissue file is measured within the goals to, where known: the
-/// built-in tissue's, for its bytes wherever they lie (`assets/liver-coarse.tissue`
-/// opened by path, or copied); `None` for any other file.
-pub fn tissue_goals(path: &Path) -> Option<GoalDepths> {
-    let same_size = std::fs::metadata(path).ok()?.len() == BUILT_IN_TISSUE.len() as u64;
-    let bytes = same_size.then(|| std::fs::read(path).ok()).flatten()?;
-    (bytes == BUILT_IN_TISSUE).then_some(BUILT_IN_GOALS_TO_MM)
 }
 
 /// A scene of either kind, ready for its room.
@@ -231,11 +204,12 @@ pub fn built_in() -> anyhow::Result<LoadedScene> {
     let name = "assets/liver-coarse.tissue";
     let law = TissueLaw::from_bytes(BUILT_IN_TISSUE, Path::new(name))
         .with_context(|| format!("the built-in tissue ({name})"))?;
+    let goals_to_mm = GoalDepths::of(&law);
     let law = bind(law, &scene, name)?;
     Ok(LoadedScene {
         scene,
         source: BUILT_IN_SOURCE.into(),
         law: Some(law),
-        goals_to_mm: Some(BUILT_IN_GOALS_TO_MM),
+        goals_to_mm,
     })
 }

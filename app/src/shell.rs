@@ -338,7 +338,13 @@ mod tests {
         let Room::Palpation(session) = &shell.room else {
             panic!("the built-in liver is a palpation scene")
         };
-        let goals = Some(crate::scenes::BUILT_IN_GOALS_TO_MM);
+        let goals = match session.law.as_deref() {
+            Some(palpa_core::pgd::tissue::Tissue::Vademecum(b)) => {
+                crate::session::GoalDepths::of(&b.law)
+            }
+            _ => None,
+        };
+        assert!(goals.is_some(), "the built-in tissue records its checks");
         assert_eq!(session.goals_to_mm, goals);
         let dir = tempfile::tempdir().expect("tempdir");
         let toml = dir.path().join("net.toml");

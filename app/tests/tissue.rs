@@ -58,6 +58,7 @@ pub(crate) fn hand_made(scene: &PalpationScene) -> TissueLaw {
         build_s: 0.0,
         compress_s: 0.0,
         mesh_xxh3: None,
+        accuracy: Default::default(),
     };
     law.check().expect("a consistent hand-made law");
     law
@@ -430,9 +431,8 @@ fn the_default_tissue_meets_the_goals_at_held_out_points() {
     };
     assert_eq!(law.law.options.law.name(), "neo-hookean");
     assert!(
-        loaded.source.contains("to 11.5 mm deep"),
-        "{}",
-        loaded.source
+        law.law.accuracy.points() >= 16,
+        "the shipped tissue records the checks it is measured by"
     );
     // The panel counts every press (vertices, edge midpoints, split points), not the
     // vertices alone: a closed surface has three edges a vertex.
@@ -1653,45 +1653,38 @@ fn a_point_on_the_fixed_region_is_named_held() {
     assert_eq!(summary["presses_compared"], 0, "{summary}");
 }
 
-/// The shipped tissue, wherever its bytes lie (its own path, a copy, the scene beside
-/// it opened by path), carries the depths it is measured within the goals to: `palpa
-/// eval` reports them and warns past them as the panel does.
+/// The shipped tissue carries what `palpa tissue check --record` measured of it,
+/// wherever its bytes lie (its own path, a copy, the scene beside it opened by path):
+/// `palpa eval` and `palpa info` report the depths to which the goals hold, and eval
+/// warns past them as the panel does.
 #[test]
 fn the_shipped_tissue_says_how_deep_it_is_measured() {
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let law = TissueLaw::load(std::path::Path::new(shipped)).expect("the shipped tissue");
+    let goals = palpa_app::session::GoalDepths::of(&law).expect("recorded checks");
+    let tenths = |mm: f32| (f64::from(mm) * 10.0).round() / 10.0;
     let dir = tempfile::tempdir().expect("tempdir");
     let copy = dir.path().join("copy.tissue");
     std::fs::copy(shipped, &copy).expect("copies");
-    let goals = scenes::BUILT_IN_GOALS_TO_MM;
+    let past = format!("deeper than {:.1} mm", goals.both_mm);
     for file in [shipped, copy.to_str().expect("utf-8")] {
-        for (depth, past) in [("9", false), ("13", true)] {
-            let out = palpa(&["eval", file, "--at=60,10,0", "--depth-mm", depth, "--json"]);
+        for (depth, warned) in [(goals.both_mm - 1.0, false), (goals.both_mm + 0.5, true)] {
+            let depth = format!("{depth}");
+            let out = palpa(&["eval", file, "--at=60,10,0", "--depth-mm", &depth, "--json"]);
             let v = common::json_ok(&out);
-            assert_eq!(v["goals_to_mm"]["both"], f64::from(goals.both_mm), "{v}");
-            assert_eq!(v["goals_to_mm"]["force"], 14.6, "{v}");
+            assert_eq!(v["goals_to_mm"]["both"], tenths(goals.both_mm), "{v}");
+            assert_eq!(v["goals_to_mm"]["force"], tenths(goals.force_mm), "{v}");
             let said = String::from_utf8_lossy(&out.stderr);
-            assert_eq!(
-                said.contains("deeper than 11.5 mm"),
-                past,
-                "{depth} mm: {said}"
-            );
+            assert_eq!(said.contains(&past), warned, "{depth} mm: {said}");
         }
     }
     let info = common::json_ok(&palpa(&["info", shipped, "--json"]));
-    assert_eq!(
-        info["goals_to_mm"]["both"],
-        f64::from(goals.both_mm),
-        "{info}"
-    );
+    assert_eq!(info["goals_to_mm"]["both"], tenths(goals.both_mm), "{info}");
+    assert_eq!(info["accuracy"]["points"], law.accuracy.points(), "{info}");
+    assert_eq!(info["mesh_xxh3"], "af6314ada9186eda", "{info}");
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.palpa");
     let opened = scenes::load(scene).expect("the shipped scene by path");
     assert_eq!(opened.goals_to_mm, Some(goals));
-    // Changed by a byte, it is another tissue.
-    let mut bytes = std::fs::read(&copy).expect("reads");
-    let last = bytes.len() - 1;
-    bytes[last] ^= 1;
-    std::fs::write(&copy, bytes).expect("writes");
-    assert_eq!(scenes::tissue_goals(&copy), None);
 }
 
 /// Your own organ's tissue: built from the surface with the flags its scene was built

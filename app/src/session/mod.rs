@@ -40,6 +40,17 @@ pub struct GoalDepths {
     pub force_mm: f32,
 }
 
+impl GoalDepths {
+    /// What the tissue file records (`palpa tissue check --record`), where it records
+    /// any check.
+    pub fn of(law: &palpa_core::pgd::tissue::TissueLaw) -> Option<GoalDepths> {
+        law.accuracy.goals_to_mm().map(|g| GoalDepths {
+            both_mm: g.both_mm as f32,
+            force_mm: g.force_mm as f32,
+        })
+    }
+}
+
 /// What the panel and `palpa eval` say of a press in a triangle with `unpressed`
 /// corners on the fixed region: the measured tables leave that band out, and
 /// measured on its own, its edges pressed, it still misses the goals nearest the
@@ -47,8 +58,8 @@ pub struct GoalDepths {
 pub fn next_to_fixed_text(unpressed: usize) -> String {
     format!(
         "next to the fixed region ({unpressed} corner{} never pressed): the tool bears on \
-         the attachment, and here the built-in liver's tissue was measured up to 13 % and \
-         1.6 mm off at 2.6 mm, nearest the attachment (docs/tissue-measurements.md §11)",
+         the attachment, where the tissue's blend is least sure and its recorded checks \
+         do not press",
         if unpressed == 1 { "" } else { "s" },
     )
 }

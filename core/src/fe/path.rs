@@ -98,7 +98,7 @@ use super::sparse::{Cholesky, SymCsc};
 use super::{FeError, Material};
 
 /// How a press is followed.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct PathOptions {
     /// Orders of the rest series (the first segment's predictor).
     pub orders: usize,

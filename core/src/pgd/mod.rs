@@ -31,6 +31,5 @@ pub mod tissue_predict;
 mod tissue_refine;
 pub mod tissue_shapes;
 pub mod tissue_subsplit;
-mod tissue_v7;
 pub mod tissue_weights;
 pub mod tradeoff;

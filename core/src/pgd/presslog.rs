@@ -66,41 +66,6 @@ impl RecordLog {
         Ok((RecordLog { file }, records))
     }
 
-    /// Carries a log made under an earlier `previous` key over to `key`, keeping the
-    /// records `keep` accepts: for a build whose key changed in a way that leaves some
-    /// of its records exactly what the new build would make (the caller says which).
-    /// The kept frames are copied byte for byte after the new key line and the file is
-    /// replaced atomically (a kill leaves the old log whole). Returns how many records
-    /// were kept and dropped, or `None` where the file is missing or not of `previous`.
-    pub fn upgrade<T: DeserializeOwned>(
-        path: &Path,
-        previous: &str,
-        key: &str,
-        keep: impl Fn(&T) -> bool,
-    ) -> io::Result<Option<(usize, usize)>> {
-        let previous_line = format!("{}\n", previous.replace('\n', " "));
-        let Ok(bytes) = std::fs::read(path) else {
-            return Ok(None);
-        };
-        if !bytes.starts_with(previous_line.as_bytes()) {
-            return Ok(None);
-        }
-        let (mut at, mut kept, mut dropped) = (previous_line.len(), Vec::new(), 0);
-        while let Some((_, value, next)) = frame::<T>(&bytes, at) {
-            if keep(&value) {
-                kept.push(at..next);
-            } else {
-                dropped += 1;
-            }
-            at = next;
-        }
-        crate::fsutil::atomic_write(path, |w| {
-            w.write_all(format!("{}\n", key.replace('\n', " ")).as_bytes())?;
-            kept.iter().try_for_each(|r| w.write_all(&bytes[r.clone()]))
-        })?;
-        Ok(Some((kept.len(), dropped)))
-    }
-
     /// The indices of the records a log at `path` for `key` holds, read without
     /// changing the file (a build may be appending to it): none where it is missing or
     /// of another build.
@@ -222,40 +187,5 @@ mod tests {
         assert_eq!(ids("key a"), vec![4, 1]);
         assert!(ids("key b").is_empty());
         assert_eq!(std::fs::read(&path).expect("read"), torn, "left as it was");
-    }
-
-    #[test]
-    fn an_upgraded_log_keeps_the_records_asked_for_under_its_new_key() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("build.presses.log");
-        assert_eq!(
-            RecordLog::upgrade::<Vec<f32>>(&path, "old", "new", |_| true).expect("missing"),
-            None
-        );
-        let (mut log, _) = RecordLog::open::<Vec<f32>>(&path, "old").expect("open");
-        for (i, n) in [(3u32, 2usize), (1, 5), (8, 1), (4, 6)] {
-            log.push(i, &vec![i as f32; n]).expect("push");
-        }
-        drop(log);
-        let before = std::fs::read(&path).expect("read");
-        // Another key is not upgraded, and the file is left alone.
-        assert_eq!(
-            RecordLog::upgrade::<Vec<f32>>(&path, "other", "new", |_| true).expect("other"),
-            None
-        );
-        assert_eq!(std::fs::read(&path).expect("read"), before);
-        let upgraded =
-            RecordLog::upgrade::<Vec<f32>>(&path, "old", "new", |v| v.len() > 1).expect("upgrade");
-        assert_eq!(upgraded, Some((3, 1)));
-        let (_, records) = RecordLog::open::<Vec<f32>>(&path, "new").expect("reopen");
-        assert_eq!(
-            records,
-            vec![(3, vec![3.0; 2]), (1, vec![1.0; 5]), (4, vec![4.0; 6])]
-        );
-        // Done once: the new log is not of the old key any more.
-        assert_eq!(
-            RecordLog::upgrade::<Vec<f32>>(&path, "old", "new", |_| true).expect("again"),
-            None
-        );
     }
 }

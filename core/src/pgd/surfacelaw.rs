@@ -321,7 +321,7 @@ impl SurfaceLaw {
         candidates.dedup();
         let (log, finished) = match log {
             Some(path) => {
-                let (l, r) = open_press_log(organ, &o, rows.len(), steps, cover, path)?;
+                let (l, r) = open_press_log(organ, &o, rows.len(), cover, path)?;
                 (Some((Mutex::new(l), path)), r)
             }
             None => (None, Vec::new()),
@@ -621,7 +621,7 @@ impl SurfaceLaw {
         let expander = Expander::new(&space, o.law, o.material)?;
         let (log, finished) = match log {
             Some(path) => {
-                let (l, r) = open_press_log(organ, &o, self.rows.len(), steps, None, path)?;
+                let (l, r) = open_press_log(organ, &o, self.rows.len(), None, path)?;
                 (Some((Mutex::new(l), path)), r)
             }
             None => (None, Vec::new()),

@@ -78,8 +78,10 @@
 //! The file is bound to a scene by the rest positions of its rows and samples, so a
 //! law built on the organ mesh serves any scene exported from the same mesh.
 
+mod accuracy;
 mod bound;
 mod surplus;
+pub use accuracy::{Accuracy, CheckRun, DepthFigures, GOAL_FORCE_REL, GOAL_SURFACE_MM, GoalDepths};
 pub use bound::{BoundTissue, TissueScratch};
 pub use surplus::BLEND_SURPLUS_WARN_MM;
 
@@ -104,16 +106,15 @@ use crate::tensor::dense::thin_svd;
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
-/// The file's format version (14: version 13's, then the organ mesh's fingerprint
-/// ([`TissueLaw::mesh_xxh3`]); 13: version 12's, then the band next to the fixed region
-/// ([`BandEdge`]); 12: version 11's, the shapes stored as what their
-/// neighbours do not predict ([`super::tissue_predict`]); 11: version 10's, then the
-/// sub-triangles split again ([`SubSplit`]); 10: version 9's, the weights stored after the other
-/// fields, in halves where every one is a half ([`super::tissue_weights`]); 9: version
-/// 8's fields, the shapes stored by coordinate plane ([`Shapes::to_planes`]) and the
-/// body LZMA-compressed. Versions 9 and 8 (deflated) still load as they are, and 7,
-/// deflated, and 6, plain, each sample its own group).
-pub const VERSION: u32 = 14;
+/// The file's format version. There has been no release, so there is one: a file of
+/// another version is refused by name, with the command that builds it anew. The body
+/// (LZMA) holds the law's fields, its weights apart ([`super::tissue_weights`]: in
+/// halves where every one is a half), the sub-triangles split again ([`SubSplit`]),
+/// the band next to the fixed region ([`BandEdge`]), the organ mesh's fingerprint
+/// ([`TissueLaw::mesh_xxh3`]) and what `palpa tissue check --record` measured of it
+/// ([`Accuracy`]); the shapes are stored as what their neighbours do not predict
+/// ([`super::tissue_predict`]).
+pub const VERSION: u32 = 15;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
 #[derive(Debug, thiserror::Error)]
@@ -130,8 +131,16 @@ pub enum TissueError {
     BandOffScene { at_mm: [f32; 3] },
     #[error("{path}: not a palpa tissue file (expected the magic bytes \"PALPATIS\")")]
     Foreign { path: PathBuf },
-    #[error("{path}: tissue format version {found}, this palpa reads versions 6 to {VERSION}")]
+    #[error(
+        "{path}: tissue format version {found}, this palpa reads version {VERSION} only: build \
+         it anew with `palpa tissue build` (the shipped liver's: scripts/make-assets.sh)"
+    )]
     Version { path: PathBuf, found: u32 },
+    #[error(
+        "{path}: the tissue law records no organ mesh fingerprint: expected one (every \
+         `palpa tissue build` records it)"
+    )]
+    NoFingerprint { path: PathBuf },
     #[error("{path}: corrupt tissue law: {why}")]
     Corrupt { path: PathBuf, why: String },
     #[error("cannot refine this tissue law: {why}")]
@@ -237,9 +246,14 @@ pub struct TissueLaw {
     /// The fingerprint of the organ mesh the presses were made on
     /// ([`crate::pgd::palpation::mesh_hash`]: vertices, tetrahedra and the fixed and
     /// palpable flags), compared with a scene's or an organ's before they are used
-    /// together. `None` in files before format 14, which are not compared.
+    /// together. Every file holds one (a law made in memory by a test may not, and is
+    /// then not saved).
     #[serde(skip)]
     pub mesh_xxh3: Option<u64>,
+    /// What `palpa tissue check --record` measured of this law against the full
+    /// nonlinear FE (see [`Accuracy`]); empty until a check is recorded.
+    #[serde(skip)]
+    pub accuracy: Accuracy,
 }
 
 /// The shares of the tolerance one mode's rounding may take (node error in mm at the
@@ -414,7 +428,7 @@ fn node_max(a: faer::MatRef<'_, f64>) -> f64 {
     worst.sqrt()
 }
 
-/// Which samples share their modes (format 8).
+/// Which samples share their modes.
 ///
 /// A split triangle's quarter and inner points lie within a few millimetres of each
 /// other, and their surpluses over the quadratic blend are not local (on coarse P2 a
@@ -520,7 +534,7 @@ impl TissueLaw {
     /// this law was built on: every row (surface vertex) must be one of its vertices.
     /// Another level's mesh would otherwise show only as "no triangle pressed", or
     /// as Newton references on a different surface. A law that records its mesh's
-    /// fingerprint (format 14 on) must match the organ's too: the same surface with
+    /// fingerprint must match the organ's too: the same surface with
     /// other fixed or palpable regions is another organ.
     pub fn check_organ(&self, organ: &OrganMesh) -> Result<(), TissueError> {
         let vertices_mm = &organ.mesh.vertices;
@@ -711,6 +725,7 @@ impl TissueLaw {
             build_s: law.build_s,
             compress_s: t0.elapsed().as_secs_f64(),
             mesh_xxh3: Some(crate::pgd::palpation::mesh_hash(organ)),
+            accuracy: Default::default(),
         };
         debug_assert_eq!(tissue.check(), Ok(()));
         Ok(tissue)
@@ -877,6 +892,11 @@ impl TissueLaw {
 
     /// Writes the law atomically (a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), TissueError> {
+        let Some(mesh_xxh3) = self.mesh_xxh3 else {
+            return Err(TissueError::NoFingerprint {
+                path: path.to_path_buf(),
+            });
+        };
         let mut stored = self.clone();
         stored.shape = RowPrediction::new(&self.rows_mm)
             .encode(&self.shape)
@@ -895,7 +915,8 @@ impl TissueLaw {
                 &weights,
                 sub,
                 &self.refinement.band,
-                self.mesh_xxh3,
+                mesh_xxh3,
+                &self.accuracy,
             ),
         )
         .map_err(|source| TissueError::Io {
@@ -921,91 +942,25 @@ impl TissueLaw {
             FramedError::Version(found) => TissueError::Version { path: p(), found },
             FramedError::Corrupt(why) => TissueError::Corrupt { path: p(), why },
         };
-        let read = crate::framed::read::<(TissueLaw, Weights, SubSplit, Vec<BandEdge>, Option<u64>)>(
-            bytes,
-            MAGIC,
-            &[(VERSION, Body::Lzma)],
-        );
-        let with_weights = |mut law: TissueLaw, weights: Weights| {
-            law.coeffs = weights
-                .unpack()
-                .map_err(|why| TissueError::Corrupt { path: p(), why })?;
-            Ok::<_, TissueError>(law)
-        };
-        // Formats 12 and 13: the shapes stored as what their neighbours do not predict.
-        let predicted = |law: TissueLaw, weights: Weights, sub: SubSplit, band: Vec<BandEdge>| {
-            let mut law = with_weights(law, weights)?;
-            law.shape = RowPrediction::new(&law.rows_mm)
-                .decode(&law.shape)
-                .ok_or_else(|| TissueError::Corrupt {
-                    path: p(),
-                    why: shape_length_why(&law.shape, law.rows_mm.len()),
-                })?;
-            law.refinement.sub = sub;
-            law.refinement.band = band;
-            Ok::<_, TissueError>(law)
-        };
-        let law: TissueLaw = match read {
-            Ok((law, weights, sub, band, mesh)) => TissueLaw {
-                mesh_xxh3: mesh,
-                ..predicted(law, weights, sub, band)?
-            },
-            Err(FramedError::Version(13)) => {
-                let (law, weights, sub, band) =
-                    crate::framed::read::<(TissueLaw, Weights, SubSplit, Vec<BandEdge>)>(
-                        bytes,
-                        MAGIC,
-                        &[(13, Body::Lzma)],
-                    )
-                    .map_err(named)?;
-                predicted(law, weights, sub, band)?
-            }
-            Err(FramedError::Version(12)) => {
-                let (law, weights, sub) = crate::framed::read::<(TissueLaw, Weights, SubSplit)>(
-                    bytes,
-                    MAGIC,
-                    &[(12, Body::Lzma)],
-                )
-                .map_err(named)?;
-                predicted(law, weights, sub, Vec::new())?
-            }
-            Err(FramedError::Version(11)) => {
-                let (law, weights, sub) = crate::framed::read::<(TissueLaw, Weights, SubSplit)>(
-                    bytes,
-                    MAGIC,
-                    &[(11, Body::Lzma)],
-                )
-                .map_err(named)?;
-                let mut law = with_weights(law, weights)?;
-                law.shape = law.shape.from_planes();
-                law.refinement.sub = sub;
-                law
-            }
-            Err(FramedError::Version(10)) => {
-                let (law, weights) =
-                    crate::framed::read::<(TissueLaw, Weights)>(bytes, MAGIC, &[(10, Body::Lzma)])
-                        .map_err(named)?;
-                let mut law = with_weights(law, weights)?;
-                law.shape = law.shape.from_planes();
-                law
-            }
-            Err(FramedError::Version(9)) => {
-                let mut law: TissueLaw =
-                    crate::framed::read(bytes, MAGIC, &[(9, Body::Lzma)]).map_err(named)?;
-                law.shape = law.shape.from_planes();
-                law
-            }
-            Err(FramedError::Version(8)) => {
-                crate::framed::read(bytes, MAGIC, &[(8, Body::Deflated)]).map_err(named)?
-            }
-            Err(FramedError::Version(7 | 6)) => {
-                let reads = [(7, Body::Deflated), (6, Body::Plain)];
-                let old: super::tissue_v7::TissueLawV7 =
-                    crate::framed::read(bytes, MAGIC, &reads).map_err(named)?;
-                old.into()
-            }
-            Err(e) => return Err(named(e)),
-        };
+        type Body5 = (TissueLaw, Weights, SubSplit, Vec<BandEdge>, u64, Accuracy);
+        let (mut law, weights, sub, band, mesh_xxh3, accuracy) =
+            match crate::framed::read::<Body5>(bytes, MAGIC, &[(VERSION, Body::Lzma)]) {
+                Ok(body) => body,
+                Err(e) => return Err(named(e)),
+            };
+        law.coeffs = weights
+            .unpack()
+            .map_err(|why| TissueError::Corrupt { path: p(), why })?;
+        law.shape = RowPrediction::new(&law.rows_mm)
+            .decode(&law.shape)
+            .ok_or_else(|| TissueError::Corrupt {
+                path: p(),
+                why: shape_length_why(&law.shape, law.rows_mm.len()),
+            })?;
+        law.refinement.sub = sub;
+        law.refinement.band = band;
+        law.mesh_xxh3 = Some(mesh_xxh3);
+        law.accuracy = accuracy;
         law.check()
             .map_err(|why| TissueError::Corrupt { path: p(), why })?;
         Ok(law)

@@ -157,6 +157,8 @@ impl TissueLaw {
             shape_scale,
             coeffs,
             truncation_bound_mm: self.truncation_bound_mm + dropped + requantized,
+            // Checks measured the law before the cut.
+            accuracy: Default::default(),
             ..self.clone()
         };
         law.check()?;
@@ -233,6 +235,8 @@ impl TissueLaw {
             shape: self.shape.prefix(modes * m),
             shape_scale: self.shape_scale[..modes].to_vec(),
             coeffs: self.coeffs[..self.coeff_start[n] as usize].to_vec(),
+            // Checks measured the law with all its samples.
+            accuracy: Default::default(),
             ..self.clone()
         }
     }
@@ -299,7 +303,8 @@ pub(super) mod tests {
             tolerance_mm: 0.05,
             build_s: 0.0,
             compress_s: 0.0,
-            mesh_xxh3: None,
+            mesh_xxh3: Some(0x0123_4567_89ab_cdef),
+            accuracy: Default::default(),
         }
     }
 

@@ -1,5 +1,5 @@
 //! The tissue file's mode shapes coded as what their neighbours do not predict
-//! (format 12): lossless, about an eighth of the file less.
+//! (as a tissue file stores them): lossless, about an eighth of the file less.
 //!
 //! A mode shape is a smooth field over the surface away from the tool: a node's stored
 //! integer `q_i` is close to its near neighbours'. The file therefore stores, for each
@@ -104,7 +104,7 @@ impl RowPrediction {
         }
     }
 
-    /// `shapes` (modes × rows × 3 entries) as format 12 stores them: by coordinate
+    /// `shapes` (modes × rows × 3 entries) as a tissue file stores them: by coordinate
     /// plane, each mode's rows in storage order, each entry its prediction's miss.
     /// `None` where the length is not a whole number of modes over these rows.
     pub fn encode(&self, shapes: &Shapes) -> Option<Shapes> {
@@ -304,8 +304,8 @@ mod tests {
             mean_abs(&stored),
             mean_abs(&s)
         );
-        let (coded, planes) = (lzma_len(&stored), lzma_len(&s.to_planes()));
-        assert!(coded < planes * 4 / 5, "{coded} vs {planes} bytes");
+        let (coded, plain) = (lzma_len(&stored), lzma_len(&s));
+        assert!(coded < plain * 4 / 5, "{coded} vs {plain} bytes");
         assert_eq!(p.decode(&stored), Some(s));
     }
 

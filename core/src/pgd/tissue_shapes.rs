@@ -96,27 +96,6 @@ impl Shapes {
         }
     }
 
-    /// The entries in the order a file stores them since tissue format 9: entry
-    /// `3k + c` (coordinate `c` of node row `k`, all modes one after another) at
-    /// `c·n + k`, `n` a third of the entries: every x, then every y, then every z. The
-    /// values of one coordinate are alike, so the file's coder finds more to reuse
-    /// (the shipped law: 0.22 MB less under LZMA). A length that is not a multiple of
-    /// three (no law's) is left as it is.
-    pub fn to_planes(&self) -> Shapes {
-        match self {
-            Shapes::Eight(v) => Shapes::Eight(to_planes(v)),
-            Shapes::Sixteen(v) => Shapes::Sixteen(to_planes(v)),
-        }
-    }
-
-    /// The inverse of [`to_planes`](Self::to_planes).
-    pub fn from_planes(&self) -> Shapes {
-        match self {
-            Shapes::Eight(v) => Shapes::Eight(from_planes(v)),
-            Shapes::Sixteen(v) => Shapes::Sixteen(from_planes(v)),
-        }
-    }
-
     /// Entry `i` as stored (multiply by its mode's scale for mm per unit weight).
     pub fn get(&self, i: usize) -> f64 {
         match self {
@@ -194,25 +173,6 @@ impl Shapes {
     }
 }
 
-fn to_planes<T: Copy>(v: &[T]) -> Vec<T> {
-    if !v.len().is_multiple_of(3) {
-        return v.to_vec();
-    }
-    (0..3)
-        .flat_map(|c| v.iter().skip(c).step_by(3).copied())
-        .collect()
-}
-
-fn from_planes<T: Copy>(v: &[T]) -> Vec<T> {
-    if !v.len().is_multiple_of(3) {
-        return v.to_vec();
-    }
-    let n = v.len() / 3;
-    (0..n)
-        .flat_map(|k| [v[k], v[n + k], v[2 * n + k]])
-        .collect()
-}
-
 fn add<T: Copy + Into<f64>>(shape: &[T], weight: f64, vertex_of_row: &[u32], rows_mm: &mut [f64]) {
     for (row, &v) in vertex_of_row.iter().enumerate() {
         if v == u32::MAX {
@@ -230,22 +190,6 @@ fn add<T: Copy + Into<f64>>(shape: &[T], weight: f64, vertex_of_row: &[u32], row
 mod tests {
     use super::*;
     use crate::rng::Rng;
-
-    /// The planes order puts each coordinate together and comes back exactly.
-    #[test]
-    fn planes_order_comes_back() {
-        let s = Shapes::Eight((0..12).map(|i| i as i8).collect());
-        assert_eq!(
-            s.to_planes(),
-            Shapes::Eight(vec![0, 3, 6, 9, 1, 4, 7, 10, 2, 5, 8, 11])
-        );
-        assert_eq!(s.to_planes().from_planes(), s);
-        let wide = Shapes::Sixteen((0..300).map(|i| (i * 37 % 1000) as i16).collect());
-        assert_eq!(wide.to_planes().from_planes(), wide);
-        let odd = Shapes::Eight(vec![1, 2, 3, 4]);
-        assert_eq!(odd.to_planes(), odd);
-        assert_eq!(odd.from_planes(), odd);
-    }
 
     fn random_mode(seed: u64, n: usize) -> Vec<f64> {
         let mut rng = Rng::seed(seed);

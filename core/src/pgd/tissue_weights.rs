@@ -41,7 +41,7 @@ fn all_half(weights: &[f32]) -> bool {
         .all(|&w| f16::from_f32(w).to_f32().to_bits() == w.to_bits())
 }
 
-/// The weights as format 10 stores them.
+/// The weights as a tissue file stores them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub(super) enum Weights {
     /// Some weight is not a half: every one in f32.
@@ -124,6 +124,8 @@ impl TissueLaw {
         let law = TissueLaw {
             coeffs,
             truncation_bound_mm: self.truncation_bound_mm + moved,
+            // Checks measured the weights as they were.
+            accuracy: Default::default(),
             ..self.clone()
         };
         (law, moved)

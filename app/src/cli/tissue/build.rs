@@ -242,8 +242,7 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
         "file": path, "kind": "tissue",
         "law": o.law.name(), "element": o.element.name(),
         "young_kpa": o.material.young_kpa, "poisson": o.material.poisson,
-        // The mesh the presses were made on, as a scene's provenance names it
-        // (`mesh_xxh3`); null in files before format 14.
+        // The mesh the presses were made on, as a scene's provenance names it.
         "mesh_xxh3": law.mesh_xxh3.map(|h| format!("{h:016x}")),
         "depth_max_mm": law.depth_max_mm(), "depth_step_mm": o.depth_step_mm,
         "vertices": vertices, "vertices_skipped": law.skipped_mm.len(),
@@ -263,8 +262,35 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
         "payload_bytes": law.payload_bytes(),
         "file_bytes": std::fs::metadata(path).map(|m| m.len()).unwrap_or(0),
         "build_s": law.build_s,
-        // Measured against the full FE to these depths (the built-in tissue's bytes).
-        "goals_to_mm": goals_json(palpa_app::scenes::tissue_goals(path)),
+        // What `palpa tissue check --record` measured against the full FE.
+        "goals_to_mm": goals_json(palpa_app::session::GoalDepths::of(law)),
+        "accuracy": accuracy_json(&law.accuracy),
+    })
+}
+
+/// A tissue file's recorded checks (see `palpa_core::pgd::tissue::Accuracy`): each run
+/// as measured, and every run merged depth by depth, with the goals they judge by.
+fn accuracy_json(a: &palpa_core::pgd::tissue::Accuracy) -> serde_json::Value {
+    use palpa_core::pgd::tissue::{DepthFigures, GOAL_FORCE_REL, GOAL_SURFACE_MM};
+    let depth = |d: &DepthFigures| {
+        json!({"depth_mm": d.depth_mm, "presses": d.presses, "past_limit": d.past_limit,
+            "worst_force_rel_error": d.worst_force_rel,
+            "worst_surface_max_error_mm": d.worst_surface_mm})
+    };
+    let runs: Vec<_> = a
+        .runs
+        .iter()
+        .map(|r| {
+            json!({"seed": r.seed, "points": r.points, "held_points": r.held_points,
+                "scene": r.scene, "left_out": r.left_out,
+                "depths": r.depths.iter().map(depth).collect::<Vec<_>>()})
+        })
+        .collect();
+    json!({
+        "goal_surface_mm": GOAL_SURFACE_MM, "goal_force_rel": GOAL_FORCE_REL,
+        "points": a.points(), "runs": runs,
+        "merged": a.merged().iter().map(depth).collect::<Vec<_>>(),
+        "goals_to_mm": a.goals_to_mm().map(|g| json!({"both": g.both_mm, "force": g.force_mm})),
     })
 }
 

@@ -11,7 +11,9 @@ use palpa_core::fe::probe::{ProbeRequest, ProbeSolution, organ_space, solve_hype
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::organ::OrganMesh;
 use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, follow_at, press_at};
-use palpa_core::pgd::tissue::{BLEND_SURPLUS_WARN_MM, PointIndex};
+use palpa_core::pgd::tissue::{
+    BLEND_SURPLUS_WARN_MM, CheckRun, DepthFigures, PointIndex, TissueLaw,
+};
 use serde_json::json;
 
 use super::against::{Against, Answer, max_node_errors, worst_node};
@@ -58,6 +60,12 @@ pub struct CheckArgs {
     /// from the checked file's at all).
     #[arg(long)]
     against: Option<PathBuf>,
+    /// Write what this check measured into the tissue file (atomically), beside what
+    /// earlier checks recorded there (the same draw measured again replaces its own):
+    /// `palpa info` then shows it under `accuracy`, and the panel and `palpa eval` read
+    /// the depths to which the goals hold from it.
+    #[arg(long)]
+    record: bool,
 }
 
 /// The reference at one point: Newton at every depth, as one path (each depth from the
@@ -110,6 +118,13 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
     if args.at.is_none() && args.heldout == 0 {
         bail!("--heldout 0: expected at least one point (or points given by --at)");
     }
+    // The bytes checked: `--record` writes only into the file they still are.
+    let checked_bytes = match args.record {
+        true => {
+            Some(std::fs::read(&args.tissue).with_context(|| args.tissue.display().to_string())?)
+        }
+        false => None,
+    };
     let (bound, scene) = bound_to_scene(&args.tissue, &args.scene)?;
     let o = bound.law.options;
     // Past its deepest depth the vademecum holds and flags; a check a little beyond
@@ -133,6 +148,18 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
     // The scene's render vertex of each organ vertex (by rest position).
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let (mut worst_force, mut worst_surface) = (0.0f64, 0.0f64);
+    // The same figures depth by depth, for `--record`.
+    let mut per_depth: Vec<DepthFigures> = args
+        .depths
+        .iter()
+        .map(|&depth_mm| DepthFigures {
+            depth_mm,
+            presses: 0,
+            past_limit: 0,
+            worst_force_rel: 0.0,
+            worst_surface_mm: 0.0,
+        })
+        .collect();
     // Presses Newton answered: with none, no goal is met or missed.
     let mut compared = 0usize;
     // Presses deeper than the vademecum answers at their point (a press of its blend
@@ -153,6 +180,7 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
         None => None,
     };
     let points = press_points(&organ, law, args.at.as_deref(), args.heldout, args.seed)?;
+    let drawn = points.len();
     // Points on the fixed region (a palpable triangle whose corners are all held):
     // nothing there moves, so there is no press to compare.
     let mut held_points = 0usize;
@@ -199,7 +227,9 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
             _ => None,
         };
         let references = newton_at_depths(&organ, &o, at, contact.push_dir, &args.depths);
-        for (&depth, reference) in args.depths.iter().zip(references) {
+        for ((&depth, reference), figures) in
+            args.depths.iter().zip(references).zip(per_depth.iter_mut())
+        {
             let newton_s = reference.as_ref().map_or(0.0, |(_, r)| r.seconds);
             let mut row = json!({"at": at, "depth_mm": depth, "newton_s": newton_s});
             let (limit, stopped) = bound.limit_mm(&point);
@@ -212,6 +242,7 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
                 Err(e) => {
                     row["newton_error"] = json!(e);
                     past_limit += usize::from(depth > limit);
+                    figures.past_limit += u32::from(depth > limit);
                     println!("{row}");
                     continue;
                 }
@@ -232,10 +263,14 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
             let surplus = bound.blend_surplus_mm(&point, depth);
             if depth > limit {
                 past_limit += 1;
+                figures.past_limit += 1;
             } else {
                 worst_force = worst_force.max(force_err);
                 worst_surface = worst_surface.max(e_tissue);
                 compared += 1;
+                figures.presses += 1;
+                figures.worst_force_rel = figures.worst_force_rel.max(force_err);
+                figures.worst_surface_mm = figures.worst_surface_mm.max(e_tissue);
                 // The panel warns where the surplus is large and next to the fixed
                 // region (a corner never pressed).
                 let warn = surplus.is_some_and(|e| e > BLEND_SURPLUS_WARN_MM)
@@ -358,5 +393,35 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
             "surface_misses_unwarned": missed_unwarned,
             "against": against.as_ref().map(Against::summary)})
     );
+    if let Some(checked_bytes) = checked_bytes {
+        let mut run = CheckRun {
+            seed: args.at.is_none().then_some(args.seed),
+            points: drawn as u32,
+            held_points: held_points as u32,
+            scene: args.scene.clone(),
+            left_out: "palpable triangles with a corner that was not pressed (the band next \
+                       to the fixed region)"
+                .into(),
+            depths: per_depth,
+        };
+        run.depths.sort_by(|a, b| a.depth_mm.total_cmp(&b.depth_mm));
+        let now = std::fs::read(&args.tissue).with_context(|| args.tissue.display().to_string())?;
+        if now != checked_bytes {
+            bail!(
+                "{}: the file changed while it was checked: nothing recorded",
+                args.tissue.display()
+            );
+        }
+        let mut file = TissueLaw::from_bytes(&now, &args.tissue)?;
+        file.accuracy.record(run);
+        file.save(&args.tissue)?;
+        eprintln!(
+            "recorded in {}: {} points over {} checks, goals to {:?}",
+            args.tissue.display(),
+            file.accuracy.points(),
+            file.accuracy.runs.len(),
+            file.accuracy.goals_to_mm()
+        );
+    }
     Ok(())
 }

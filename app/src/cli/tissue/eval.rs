@@ -127,7 +127,7 @@ pub fn eval(
         eprintln!("warning: {}", palpa_app::session::blend_surplus_text(eta));
     }
     // Past the depth the file is measured within the goals to, as the panel says it.
-    let goals = palpa_app::scenes::tissue_goals(file);
+    let goals = palpa_app::session::GoalDepths::of(&bound.law);
     if let Some(g) = goals.filter(|g| depth > f64::from(g.both_mm)) {
         eprintln!("warning: {}", g.past_text(depth as f32));
     }

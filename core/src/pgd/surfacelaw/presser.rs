@@ -6,7 +6,6 @@ use std::sync::Mutex;
 
 use super::press::{path_options, point_press_prepared, prepare};
 use super::{PressCount, SurfaceLawBuildError, SurfaceLawOptions, VertexPress};
-use crate::fe::path::PathOptions;
 use crate::fe::series::Expander;
 use crate::organ::OrganMesh;
 use crate::pgd::presslog::RecordLog;
@@ -30,7 +29,6 @@ pub(super) fn open_press_log(
     organ: &OrganMesh,
     o: &SurfaceLawOptions,
     rows: usize,
-    steps: usize,
     cover: Option<&[u32]>,
     path: &Path,
 ) -> Result<(RecordLog, Vec<(u32, Logged)>), SurfaceLawBuildError> {
@@ -38,13 +36,7 @@ pub(super) fn open_press_log(
         path: path.to_path_buf(),
         source,
     };
-    let (key, previous) = press_log_key(organ, o, rows, cover);
-    for (previous, whole) in previous {
-        RecordLog::upgrade::<Logged>(path, &previous, &key, |p| {
-            whole || p.as_ref().is_ok_and(|p| p.reach as usize == steps)
-        })
-        .map_err(log_error)?;
-    }
+    let key = press_log_key(organ, o, rows, cover);
     RecordLog::open::<Logged>(path, &key).map_err(log_error)
 }
 
@@ -56,28 +48,22 @@ pub(crate) fn logged_press_ids(
     rows: usize,
     path: &Path,
 ) -> Result<Vec<u32>, SurfaceLawBuildError> {
-    let (key, previous) = press_log_key(organ, o, rows, None);
-    let log_error = |source| SurfaceLawBuildError::Log {
+    let key = press_log_key(organ, o, rows, None);
+    RecordLog::finished_ids::<Logged>(path, &key).map_err(|source| SurfaceLawBuildError::Log {
         path: path.to_path_buf(),
         source,
-    };
-    let mut ids = RecordLog::finished_ids::<Logged>(path, &key).map_err(log_error)?;
-    // A log of an earlier key whose presses are all taken over counts as well.
-    for (previous, _) in previous.iter().filter(|(_, whole)| *whole) {
-        ids.extend(RecordLog::finished_ids::<Logged>(path, previous).map_err(log_error)?);
-    }
-    Ok(ids)
+    })
 }
 
-/// A build's press-log key (everything that determines its presses), and the keys of
-/// earlier versions it takes presses over from: all of them (`true`) or those that
-/// reached every depth.
+/// A build's press-log key: everything that determines its presses (the code's
+/// version, the organ mesh's fingerprint, the rows, the options and the way a press is
+/// followed, serialized and hashed, and a covering build's vertices).
 fn press_log_key(
     organ: &OrganMesh,
     o: &SurfaceLawOptions,
     rows: usize,
     cover: Option<&[u32]>,
-) -> (String, Vec<(String, bool)>) {
+) -> String {
     let po = path_options(o);
     let covered = cover.map_or(String::new(), |c| {
         let bytes: Vec<u8> = c.iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -87,35 +73,19 @@ fn press_log_key(
             xxhash_rust::xxh3::xxh3_64(&bytes)
         )
     });
-    let key_of = |version: u32, path: String| {
-        format!(
-            "palpa tissue-build log {version} mesh {:016x} rows {rows} {o:?} {path}{covered}",
-            crate::pgd::depthlaw::organ_hash(organ),
-        )
-    };
-    let key = key_of(7, format!("{po:?}"));
-    // Versions 3 (before the path follower's Newton fallback), 4 (which stopped a
-    // press at any dip of its force) and 5 (no factorization budget) differ from this
-    // build only where a press stopped short, or reached every depth through a
-    // fallback longer than the budget (none seen: every fallback measured that spent
-    // past it failed): their presses that reached every depth are kept, the others
-    // pressed again.
-    // Version 6 also tried Newton from rest where Newton from the last state failed:
-    // it differs from this build only where that found an equilibrium, which it did at
-    // none of the 26 presses measured (`fe::path`), so its presses are all taken over.
-    let budget = PathOptions::default().max_factorizations;
-    let mut previous = vec![(key_of(6, format!("{po:?}")), true)];
-    if po.newton_fallback && po.stop_past_force_peak && po.max_factorizations == budget {
-        let v5 = format!("{po:?}").replace(&format!(", max_factorizations: {budget}"), "");
-        let v3 = v5.replace(", newton_fallback: true", "");
-        previous.extend([
-            (key_of(3, v3), false),
-            (key_of(4, v5.clone()), false),
-            (key_of(5, v5), false),
-        ]);
-    }
-    (key, previous)
+    let options = bincode::serde::encode_to_vec((o, &po), bincode::config::standard())
+        .expect("plain numbers and flags always encode");
+    format!(
+        "palpa tissue-build log {LOG_VERSION} palpa {} mesh {:016x} rows {rows} options {:016x}{covered}",
+        env!("CARGO_PKG_VERSION"),
+        crate::pgd::palpation::mesh_hash(organ),
+        xxhash_rust::xxh3::xxh3_64(&options),
+    )
 }
+
+/// The press log's own version: a record's layout ([`Logged`]) and what a press's
+/// answer means. A log of another version is started afresh.
+const LOG_VERSION: u32 = 8;
 
 /// Presses a task expands together (see [`Presser::press`]).
 const PRESS_BATCH: usize = crate::fe::series::SOLVE_WIDTH;
@@ -324,26 +294,32 @@ mod tests {
     use crate::organ::Level;
     use crate::organ::catalogue::{OrganName, mesh};
 
-    /// A log left under version 6 (before the fallback from rest was dropped) counts
-    /// as this build's: its presses are all taken over, and a plan says so.
+    /// The key names what determines a press and nothing else: another option, rows
+    /// or cover is another key; the same ones the same key.
     #[test]
-    fn a_version_6_log_counts_as_logged() {
+    fn the_key_changes_with_what_determines_a_press() {
         let organ = mesh(OrganName::Liver, Level::Coarse);
         let o = SurfaceLawOptions::default();
+        let key = press_log_key(&organ, &o, 10, None);
+        assert!(key.starts_with("palpa tissue-build log 8 palpa "), "{key}");
+        assert_eq!(press_log_key(&organ, &o, 10, None), key);
+        assert_ne!(press_log_key(&organ, &o, 11, None), key);
+        assert_ne!(press_log_key(&organ, &o, 10, Some(&[1, 2])), key);
+        let deeper = SurfaceLawOptions {
+            depth_max_mm: o.depth_max_mm + 1.0,
+            ..o
+        };
+        assert_ne!(press_log_key(&organ, &deeper, 10, None), key);
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("x.tissue.presses.log");
-        let (key, previous) = press_log_key(&organ, &o, 10, None);
-        assert!(key.starts_with("palpa tissue-build log 7 "), "{key}");
-        let (v6, whole) = &previous[0];
-        assert_eq!(v6, &key.replacen("log 7 ", "log 6 ", 1));
-        assert!(*whole);
-        let (mut log, _) = RecordLog::open::<Logged>(&path, v6).expect("open");
+        let (mut log, _) = RecordLog::open::<Logged>(&path, &key).expect("open");
         log.push(5, &Logged::Err("held".into())).expect("push");
         drop(log);
         assert_eq!(logged_press_ids(&organ, &o, 10, &path).expect("ids"), [5]);
-        // Opened by the build, it is carried over whole under the new key.
-        let (_, records) = open_press_log(&organ, &o, 10, 16, None, &path).expect("open");
-        assert_eq!(records.len(), 1);
-        assert_eq!(logged_press_ids(&organ, &o, 10, &path).expect("ids"), [5]);
+        assert!(
+            logged_press_ids(&organ, &o, 11, &path)
+                .expect("ids")
+                .is_empty()
+        );
     }
 }

@@ -39,12 +39,12 @@ pub struct Refinement {
     /// one it lies nearest first, the others in the triangle's order.
     pub inner_corners: Vec<[u32; 3]>,
     /// Sub-triangles split again, their points' samples after the inner points'.
-    /// Stored apart in a tissue file (format 11), after the weights.
+    /// Stored apart in a tissue file, after the weights.
     #[serde(skip)]
     pub sub: SubSplit,
     /// Edges from a pressed vertex to one never pressed (on the fixed region), pressed
     /// at their midpoints: their samples come last, after every other stage's (see
-    /// [`BandEdge`]). Stored apart in a tissue file (format 13), after the second level.
+    /// [`BandEdge`]). Stored apart in a tissue file, after the second level.
     #[serde(skip)]
     pub band: Vec<BandEdge>,
 }

@@ -77,7 +77,8 @@ pub(in crate::pgd) fn one_row_law_with_ratio(
         tolerance_mm: 0.05,
         build_s: 0.0,
         compress_s: 0.0,
-        mesh_xxh3: None,
+        mesh_xxh3: Some(0x0123_4567_89ab_cdef),
+        accuracy: Default::default(),
     };
     law.check().expect("consistent");
     law
@@ -162,7 +163,8 @@ fn a_press_that_stopped_short_limits_only_the_probes_that_blend_it() {
         tolerance_mm: 0.05,
         build_s: 0.0,
         compress_s: 0.0,
-        mesh_xxh3: None,
+        mesh_xxh3: Some(0x0123_4567_89ab_cdef),
+        accuracy: Default::default(),
     };
     law.check().expect("consistent");
     let mut bad = law.clone();
@@ -477,9 +479,9 @@ fn a_band_off_the_scene_is_refused() {
     );
 }
 
-/// A law remembers the organ mesh it was pressed on (format 14) and refuses a scene of
-/// another, such as the same surface with another fixed region; a scene or a law that
-/// does not record it is not compared.
+/// A law remembers the organ mesh it was pressed on and refuses a scene of another,
+/// such as the same surface with another fixed region; a scene that does not record
+/// it is not compared.
 #[test]
 fn a_law_remembers_its_mesh_and_refuses_a_scene_of_another() {
     let mut law = one_row_law(
@@ -508,7 +510,10 @@ fn a_law_remembers_its_mesh_and_refuses_a_scene_of_another() {
         back.check_linear_model("organ=user element=p2 young_kpa=160 poisson=0.48")
             .is_ok()
     );
-    let mut old = back.clone();
-    old.mesh_xxh3 = None;
-    assert!(old.check_linear_model(&line("0123456789abcdee")).is_ok());
+    // A law without a fingerprint (made in memory) is not written: every file has one.
+    let mut bare = back.clone();
+    bare.mesh_xxh3 = None;
+    let err = bare.save(&path).expect_err("no fingerprint");
+    assert!(matches!(err, TissueError::NoFingerprint { .. }), "{err}");
+    assert_eq!(TissueLaw::load(&path).expect("kept"), back);
 }
