@@ -24,7 +24,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
-use palpa_core::pgd::tissue::Tissue;
+use palpa_core::pgd::nonlinear::Tissue;
 use palpa_core::scene::{PalpationScene, ProbePoint};
 
 use crate::latest::Latest;

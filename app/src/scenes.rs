@@ -7,7 +7,8 @@ use std::path::Path;
 
 use anyhow::Context;
 use palpa_core::pgd::depthlaw::DepthLaw;
-use palpa_core::pgd::tissue::{BoundTissue, Tissue, TissueLaw};
+use palpa_core::pgd::nonlinear::Tissue;
+use palpa_core::pgd::tissue::{BoundTissue, TissueLaw};
 use palpa_core::scene::PalpationScene;
 
 use crate::session::GoalDepths;

@@ -170,7 +170,7 @@ fn blend_surplus(ui: &mut egui::Ui, session: &Session) {
 /// (dashed), with the current press marked.
 fn depth_curve(
     ui: &mut egui::Ui,
-    law: &palpa_core::pgd::tissue::Tissue,
+    law: &palpa_core::pgd::nonlinear::Tissue,
     s: &crate::force::ForceSample,
 ) {
     let c = f64::from(s.compliance_mm_per_n);

@@ -379,7 +379,7 @@ fn the_force_loop_uses_the_tissue_law_both_ways() {
     let fl = ForceLoop::spawn(
         s.clone(),
         Some(std::sync::Arc::new(
-            palpa_core::pgd::tissue::Tissue::ForceLaw(law),
+            palpa_core::pgd::nonlinear::Tissue::ForceLaw(law),
         )),
         Box::new(NoHaptics),
         LoopTiming::default(),

@@ -10,8 +10,9 @@ use palpa_app::force::{NoHaptics, PressMode};
 use palpa_app::offscreen::settle;
 use palpa_app::scenes;
 use palpa_app::session::Session;
+use palpa_core::pgd::nonlinear::Tissue;
 use palpa_core::pgd::surfacelaw::{Refinement, SurfaceLawOptions};
-use palpa_core::pgd::tissue::{BoundTissue, Tissue, TissueLaw};
+use palpa_core::pgd::tissue::{BoundTissue, TissueLaw};
 use palpa_core::scene::PalpationScene;
 
 /// A hand-made vademecum on the shipped scene: at every palpable vertex the force is

@@ -8,7 +8,8 @@
 use std::sync::Arc;
 
 use glam::Vec3;
-use palpa_core::pgd::tissue::{Tissue, TissueScratch};
+use palpa_core::pgd::nonlinear::Tissue;
+use palpa_core::pgd::tissue::TissueScratch;
 use palpa_core::scene::{PalpationScene, ProbePoint};
 
 #[cfg(doc)]

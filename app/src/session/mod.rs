@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use palpa_core::pgd::tissue::Tissue;
+use palpa_core::pgd::nonlinear::Tissue;
 use palpa_core::scene::PalpationScene;
 
 use crate::camera::OrbitCamera;

@@ -18,6 +18,7 @@ pub mod heldout;
 pub mod journal;
 pub mod linear;
 pub mod nodal;
+pub mod nonlinear;
 pub mod palpation;
 pub mod presslog;
 pub mod refine_preview;

@@ -24,6 +24,7 @@
 
 use super::tissue::TissueLaw;
 use super::tissue_shapes::{ShapeBits, Shapes};
+use super::tissue_weights::to_half;
 
 /// A law with fewer modes, fewer bits or a longer depth step, and what the modes
 /// dropped and the requantization weigh.
@@ -239,6 +240,54 @@ impl TissueLaw {
             accuracy: Default::default(),
             ..self.clone()
         }
+    }
+}
+
+impl TissueLaw {
+    /// The law with every weight rounded to a half ([`to_half`]), and the most that
+    /// moves a node of any sample at any grid depth (`δ` of the module docs, mm),
+    /// which its bound grows by. A law already in halves comes back as it is, `δ = 0`.
+    pub fn with_half_weights(&self) -> (TissueLaw, f64) {
+        let (steps, m) = (self.steps as usize, 3 * self.rows_mm.len());
+        // Each mode's largest node displacement per unit weight (mm).
+        let node_max: Vec<f64> = self
+            .shape_scale
+            .iter()
+            .enumerate()
+            .map(|(mode, &scale)| {
+                let peak = (0..m / 3)
+                    .map(|n| {
+                        (0..3)
+                            .map(|c| self.shape.get(mode * m + 3 * n + c).powi(2))
+                            .sum::<f64>()
+                    })
+                    .fold(0.0, f64::max);
+                peak.sqrt() * f64::from(scale)
+            })
+            .collect();
+        let coeffs: Vec<f32> = self.coeffs.iter().map(|&w| to_half(w)).collect();
+        let mut moved = 0.0f64;
+        for (s, &g) in self.group.iter().enumerate() {
+            let modes =
+                self.mode_start[g as usize] as usize..self.mode_start[g as usize + 1] as usize;
+            let start = self.coeff_start[s] as usize;
+            for j in 0..steps {
+                // Folded from +0 (a float sum starts at −0, which a report would print).
+                let at = modes.clone().enumerate().fold(0.0f64, |at, (k, mode)| {
+                    let i = start + k * steps + j;
+                    at + f64::from(self.coeffs[i] - coeffs[i]).abs() * node_max[mode]
+                });
+                moved = moved.max(at);
+            }
+        }
+        let law = TissueLaw {
+            coeffs,
+            truncation_bound_mm: self.truncation_bound_mm + moved,
+            // Checks measured the weights as they were.
+            accuracy: Default::default(),
+            ..self.clone()
+        };
+        (law, moved)
     }
 }
 

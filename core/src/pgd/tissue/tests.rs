@@ -1,4 +1,5 @@
 use super::*;
+use crate::axis::ProbePoint;
 
 /// `law` (its vertices at `corners`) bound to the triangles `[0, 1, 2]` and
 /// `[1, 0, 3]`, which share the edge 0–1.
