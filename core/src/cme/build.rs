@@ -272,8 +272,15 @@ impl Recipe {
         }
     }
 
-    /// A key that changes when the network or anything in the recipe does.
+    /// A key that changes when the network, anything in the recipe, palpa's version or
+    /// the model file's format does: a cache made by another build of palpa is not
+    /// taken for this one's.
     pub fn hash(&self, network: &Network) -> u64 {
-        xxhash_rust::xxh3::xxh3_64(format!("{network:?}{self:?}").as_bytes())
+        let code = format!(
+            "palpa {} file {}",
+            env!("CARGO_PKG_VERSION"),
+            file::FORMAT_VERSION
+        );
+        xxhash_rust::xxh3::xxh3_64(format!("{code} {network:?} {self:?}").as_bytes())
     }
 }
