@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Every test of the workspace: unit, integration, property, doc tests, GPU tests on
-# Mesa's software Vulkan driver (lavapipe), and each benchmark run once in test mode.
+# Mesa's software Vulkan driver (lavapipe), and each benchmark run once in test mode;
+# before them rustfmt, clippy with warnings as errors (core's `unwrap` ban included),
+# and the mobile library as the phones build it (no default features).
 # This is exactly what CI runs (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,5 +22,8 @@ fi
 # minutes for the integration tests, 7.1 → 6.6 for the app's (fewer, larger code
 # generation units in our crates). `cargo test` by hand keeps incremental builds.
 export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
+cargo fmt --all --check
+cargo clippy --locked --workspace --all-targets -- -D warnings
+cargo check --locked -p palpa-app --lib --no-default-features
 cargo test --locked --workspace --all-targets
 cargo test --locked --workspace --doc
