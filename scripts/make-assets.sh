@@ -17,7 +17,7 @@
 # edge midpoints, about 13 min). Each step
 # logs its presses beside its output, so a killed run, run again, goes on from the last
 # finished press. The shipped file's presses also tried Newton from rest before stopping
-# (since dropped, docs/tissue-measurements.md §3): a rebuild differs only where that try
+# (since dropped, docs/lab/tissue-measurements.md §3): a rebuild differs only where that try
 # would have found an equilibrium, which none measured did.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,4 +1,4 @@
-//! Numerical extremes, each with the figure the README's extremes table states:
+//! Numerical extremes, each with the figure docs/accuracy.md's extremes table states:
 //! near-incompressible tissue (ν → 0.5) on P1 and P2, ν = 0.5 itself refused, an
 //! exact CME solve long past its stationary time, rates so small nothing happens, and
 //! a box too large for the exact solver refused by name.

@@ -148,7 +148,7 @@ pub fn center_view(
 
 /// The vademecum's finest surplus under the probe at the sample's depth: where it is
 /// large the blend between pressed points may miss the surface goal here, however
-/// shallow the press (docs/tissue-measurements.md §1).
+/// shallow the press (docs/lab/tissue-measurements.md §1).
 fn blend_surplus(ui: &mut egui::Ui, session: &Session) {
     use palpa_core::pgd::tissue::BLEND_SURPLUS_WARN_MM;
     let Some(eta) = session.blend_surplus_mm() else {

@@ -1779,3 +1779,29 @@ fn eval_warns_when_the_point_lies_far_from_the_surface() {
         assert!(!stderr.contains("palpable surface"), "{file}: {stderr}");
     }
 }
+
+/// docs/accuracy.md shows what the shipped files record: its generated part is what
+/// `palpa lab accuracy` prints from them now.
+#[test]
+fn docs_accuracy_is_what_the_shipped_files_record() {
+    let out = palpa(&["lab", "accuracy"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let generated = String::from_utf8(out.stdout).expect("utf-8");
+    let doc = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../docs/accuracy.md"
+    ))
+    .expect("docs/accuracy.md");
+    let (begin, end) = (
+        "<!-- palpa lab accuracy: begin -->\n",
+        "<!-- palpa lab accuracy: end -->",
+    );
+    let start = doc.find(begin).expect("the begin marker") + begin.len();
+    let stop = doc.find(end).expect("the end marker");
+    assert_eq!(
+        &doc[start..stop],
+        generated,
+        "run `palpa lab accuracy --write docs/accuracy.md`"
+    );
+    assert!(generated.contains("### Its neo-Hookean tissue"), "{generated}");
+}

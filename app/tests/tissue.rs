@@ -1543,7 +1543,7 @@ fn the_band_next_to_the_fixed_region_is_pressed_and_answers_there() {
         String::from_utf8_lossy(&run.stderr)
     );
     // The midpoint of the edge from vertex (−74.6, −47.6, −24.6) to the held
-    // (−77.9, −50.9, −15.9) (docs/tissue-measurements.md §11).
+    // (−77.9, −50.9, −15.9) (docs/lab/tissue-measurements.md §11).
     let mid = "-76.2411,-49.2411,-20.2411";
     let within = format!("--within={mid},1");
     let out = palpa(&["lab", "tissue", "band", &base, &within, "--out", &banded]);
@@ -1600,7 +1600,7 @@ fn the_band_next_to_the_fixed_region_is_pressed_and_answers_there() {
 /// name (it once said "too few modes", of a table that has none), and `tissue check`
 /// reports the point as held and goes on (it once stopped the whole check there).
 /// `lab tissue points` says how many of its draw lie in such triangles (the seed-8 band
-/// draw of docs/tissue-measurements.md §11: two of eight, this point one of them).
+/// draw of docs/lab/tissue-measurements.md §11: two of eight, this point one of them).
 #[test]
 fn a_point_on_the_fixed_region_is_named_held() {
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");

@@ -775,7 +775,7 @@ impl<'a> Evaluated<'a> {
 /// The deepest press (mm) a linear model's answer is reported without a flag. At 2.6 mm
 /// the linear tissue's force was within 5.8 % and its surface within 0.21 mm of the
 /// neo-Hookean tissue's at 16 held-out points of coarse P2, at 7.3 mm 18.8 % and
-/// 1.53 mm (docs/tissue-measurements.md §1).
+/// 1.53 mm (docs/lab/tissue-measurements.md §1).
 const LINEAR_AGREES_MM: f64 = 2.6;
 
 /// Builds the report (the common keys, then `extra`'s), adds the maximum

@@ -70,6 +70,7 @@ enum Command {
 
 /// Parses `std::env::args` and runs the command; errors are printed with their causes.
 pub fn main() -> ExitCode {
+    quiet_on_a_closed_pipe();
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
@@ -103,6 +104,27 @@ pub fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// A report piped into a reader that stops early (`palpa info F | head`) ends the
+/// process quietly, as the shell's own tools do, instead of a panic and its backtrace:
+/// `println!` panics when its pipe is closed, and this hook turns that one panic into
+/// an exit (141, a shell's code for a broken pipe). Every other panic is reported as
+/// before.
+fn quiet_on_a_closed_pipe() {
+    let report = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let message = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+            std::process::exit(141);
+        }
+        report(info);
+    }));
 }
 
 /// The command line, every subcommand reading `-1` as a value: depths, forces,

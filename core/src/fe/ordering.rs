@@ -25,7 +25,7 @@
 //! | medium | 178 869 | 520 M → 265 M | 47.9 → 14.7 s | 337 → 188 ms |
 //!
 //! A tissue build's presses are about a quarter cheaper on coarse and two and a half
-//! times on medium, in about half the memory (docs/tissue-measurements.md §4).
+//! times on medium, in about half the memory (docs/lab/tissue-measurements.md §4).
 //!
 //! The ordering is deterministic: METIS seeds its own generator with a fixed seed
 //! (4321 where none is set), so the same pattern always gets the same order, and a

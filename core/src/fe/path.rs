@@ -86,7 +86,7 @@
 //! single-precision tangents, measured on four spread vertices of coarse P2 pressed
 //! to 15 mm: the same segments (14) and chord steps (117), states within 0.0014 mm
 //! and forces within 1e-4 of the double-precision ones; the build's time is in
-//! `docs/tissue-measurements.md` §4.
+//! `docs/lab/tissue-measurements.md` §4.
 
 use std::time::Instant;
 
@@ -506,7 +506,7 @@ pub fn follow_from(
                 // From the last state only. Newton from rest (where the reference solve
                 // starts) came after it until it was measured: tried in 26 presses of
                 // the kidney and the liver's band, it never found an equilibrium, and it
-                // took 12-20 % of those presses' time (docs/tissue-measurements.md §3).
+                // took 12-20 % of those presses' time (docs/lab/tissue-measurements.md §3).
                 let left = budget_left(&out);
                 if o.newton_fallback && left > 0 {
                     match continue_depth(
@@ -647,7 +647,7 @@ impl StopKind {
 /// (`L` = 41.5 million) 0.87 and 1.28 GB, medium P2 (517 million) 8.9 and 13.8 GB, so
 /// 8–11 bytes an entry shared and about 10 a press; two medium presses falling back
 /// on Newton at once peaked at 21.7 GB (about 17 a press). The constants (12 and 16)
-/// put two medium presses at 22.8 GB (docs/tissue-measurements.md §5). Those were
+/// put two medium presses at 22.8 GB (docs/lab/tissue-measurements.md §5). Those were
 /// measured under AMD; under the nested-dissection order (`super::ordering`) the
 /// factors hold 25.7 and 265 million entries, and the same bytes an entry held: the
 /// two-at-a-time coarse covering build peaked at 0.94 GB (estimate 1.13 GB), one medium

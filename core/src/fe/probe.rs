@@ -80,7 +80,7 @@ pub fn locate(
 /// contact law (`PalpationScene::frame`) and of every press a tissue build makes. It
 /// is smooth across edges, where a face's own normal (`locate`'s default) jumps by
 /// the dihedral angle: next to the fixed region the two differ enough to change the
-/// force by 15 % (docs/tissue-measurements.md §11). `at` is projected as `locate`
+/// force by 15 % (docs/lab/tissue-measurements.md §11). `at` is projected as `locate`
 /// projects it.
 pub fn smooth_inward_dir(organ: &OrganMesh, at: [f64; 3]) -> Result<[f64; 3], FeError> {
     let space = organ_space(organ, Element::P1);

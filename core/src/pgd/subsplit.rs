@@ -236,7 +236,7 @@ pub fn quarter_midpoints(s: &LevelSamples, q: usize) -> [u32; 3] {
 /// a first stage's split edges): the first stage's blend erred less with this fade
 /// than with one reaching the far corner (`along`), on average and at the worst point,
 /// and less on average than with none (which jumps at the edge), level with `along³`
-/// (docs/tissue-measurements.md §1).
+/// (docs/lab/tissue-measurements.md §1).
 pub fn carried(along: f64) -> f64 {
     (2.0 * along - 1.0).max(0.0)
 }

@@ -259,7 +259,7 @@ pub struct TissueLaw {
 /// A mode's step is then coarser than `bits` allow wherever its weights are small, and
 /// fewer levels deflate to fewer bytes (the entries stay `bits` wide); the stop rule
 /// measures the error exactly, so the bound keeps its meaning. Measured on the whole
-/// coarse surface's 2 147 presses (8 bits, 0.1 mm; docs/tissue-measurements.md §6), one share for
+/// coarse surface's 2 147 presses (8 bits, 0.1 mm; docs/lab/tissue-measurements.md §6), one share for
 /// every press: 0 (the plain 8-bit step) 4 134 modes, 6.15 MB; 0.1: 4 152, 3.77 MB;
 /// 0.2: 4 177, 2.82 MB; 0.3: 4 232, 2.31 MB; 0.4: 4 352, 2.01 MB; 0.5 left a press at
 /// 0.11 mm. A split triangle's shared modes, refitted to their own rounding, often
@@ -438,7 +438,7 @@ fn node_max(a: faer::MatRef<'_, f64>) -> f64 {
 /// One group for all 56 points there took 40 modes, but its weights outweighed the
 /// shapes saved (258 KB). Vertex and edge presses, 8–12 mm apart, share little
 /// (grouped with the split points of their triangle: 89 modes in all against 94), and
-/// are kept alone. See docs/methods.md §2e and docs/tissue-measurements.md §6.
+/// are kept alone. See docs/methods.md §2e and docs/lab/tissue-measurements.md §6.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Grouping {
     /// Every sample its own modes (what formats 6 and 7 stored).
@@ -522,7 +522,7 @@ pub const MAX_RANK: usize = 256;
 /// The compression's default bound on any node's residual (mm) and bits per stored
 /// shape entry. Eight bits halve the file; at held-out presses on coarse P2 they
 /// changed the worst surface error by at most 0.02 mm against sixteen, while the blend
-/// between presses errs by 0.2–0.7 mm (docs/tissue-measurements.md §8). Their quantization costs a node
+/// between presses errs by 0.2–0.7 mm (docs/lab/tissue-measurements.md §8). Their quantization costs a node
 /// about 0.06 mm, so the bound is 0.1 mm (a fifth of the surface goal), not 0.05.
 pub const DEFAULT_TOLERANCE_MM: f64 = 0.1;
 pub const DEFAULT_BITS: ShapeBits = ShapeBits::Eight;

@@ -25,7 +25,7 @@
 //! 5.61 MB; the three nearest earlier rows by inverse distance 5.34 MB; four by inverse
 //! distance squared 5.30 MB; six 5.28 MB. An affine fit through six or eight neighbours
 //! was worse (5.6–5.9 MB): it extrapolates the rounding. See
-//! docs/tissue-measurements.md §6.
+//! docs/lab/tissue-measurements.md §6.
 
 use super::tissue_shapes::Shapes;
 

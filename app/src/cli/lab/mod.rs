@@ -2,6 +2,7 @@
 //! benchmarks that print ratios measured in one run, seeded synthetic models, the depth
 //! law, and the tissue's staging tools (held-out points, cut, refine, band).
 
+pub mod accuracy;
 mod band;
 mod bench;
 mod cut;
@@ -14,6 +15,9 @@ use clap::Subcommand;
 
 #[derive(Debug, Subcommand)]
 pub enum LabCommand {
+    /// Today's accuracy of the shipped scenes, from what their files record, as
+    /// Markdown (the generated part of docs/accuracy.md).
+    Accuracy(accuracy::AccuracyArgs),
     /// Benchmarks that print ratios measured in one run.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -53,6 +57,7 @@ pub enum TissueStage {
 
 pub fn run(cmd: &LabCommand) -> anyhow::Result<()> {
     match cmd {
+        LabCommand::Accuracy(args) => accuracy::run(args),
         LabCommand::Bench(cmd) => bench::run(cmd),
         LabCommand::Synth(args) => synth::run(args),
         LabCommand::DepthLaw(cmd) => depthlaw::run(cmd),

@@ -3,7 +3,7 @@
 //! A palpable triangle with a corner on the fixed region has that corner never pressed
 //! (a press there would push a held node), so its blend renormalizes over the corners
 //! it has and carries no press from the side of the attachment, where the tissue
-//! stiffens fastest (docs/tissue-measurements.md §11). This stage presses the
+//! stiffens fastest (docs/lab/tissue-measurements.md §11). This stage presses the
 //! midpoint of every palpable edge from a pressed vertex to an unpressed one on the
 //! fixed region, and stores each as its surplus over the pressed end
 //! ([`BandEdge`]); the blend adds it with `4 λ_a λ_b` as it adds an edge's.

@@ -26,7 +26,7 @@ use crate::pgd::subsplit::SubSplit;
 /// quarter terms depend on that edge alone, so a neighbour that was not split blends
 /// them too (with the same weights on the edge, fading out halfway to its far corner)
 /// and the surface does not jump as the probe crosses it. Measured on the anterior lobe's worst triangle (sides 8.6–12 mm)
-/// at 7 mm: 0.19–0.48 mm quadratic, 0.05–0.11 mm split (docs/tissue-measurements.md §2).
+/// at 7 mm: 0.19–0.48 mm quadratic, 0.05–0.11 mm split (docs/lab/tissue-measurements.md §2).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Refinement {
     /// The threshold the build used (mm); `None`: no triangle is split.

@@ -293,7 +293,7 @@ impl BoundTissue {
     /// on the fixed region, where a press would push a held node. The blend there
     /// leans on the other corners alone, and the band it covers, where the tool also
     /// bears on the attachment, stiffens faster than any pressed point says
-    /// (docs/tissue-measurements.md §11). `3` off the palpable surface. Allocation-free.
+    /// (docs/lab/tissue-measurements.md §11). `3` off the palpable surface. Allocation-free.
     pub fn unpressed_corners(&self, p: &ProbePoint) -> usize {
         self.corner_samples
             .get(p.triangle as usize)

@@ -24,14 +24,14 @@
 //! held-out presses 12.7 mm deep that met the goal (errors 0.07–0.25 mm at `η_2`
 //! 0.49–0.97 mm). How fast the surplus fell from one level to the next is the usual
 //! estimate of how fast it goes on falling, so the second level's is scaled by that
-//! ratio (docs/tissue-measurements.md §1).
+//! ratio (docs/lab/tissue-measurements.md §1).
 //!
 //! It is not a bound: on the unsplit coarse file, at 16
 //! held-out points pressed 8.4 and 9.3 mm deep, the surface error ran at 0.06–1.12 of
 //! `η`, every press that missed 0.5 mm had `η` above 0.7 mm and every press with `η`
 //! up to 0.6 mm was within 0.37 mm; on the shipped file (its 163 worst triangles
 //! split) every miss at 8.4 and 9.3 mm was warned, and at 12.7 mm one press with
-//! `η` = 0.57 mm missed, by 0.53 mm (docs/tissue-measurements.md §1). It belongs to the triangle
+//! `η` = 0.57 mm missed, by 0.53 mm (docs/lab/tissue-measurements.md §1). It belongs to the triangle
 //! (or quarter) holding the probe, so it steps where the probe crosses an edge, and at
 //! a vertex or on an edge it is that of the triangle the probe was located in.
 
@@ -45,7 +45,7 @@ use crate::pgd::subsplit::{quarter_midpoints, sub_of};
 /// below it (η 0.56 and 0.57 mm). Over all 238 presses checked against Newton on the
 /// shipped file's stages (seeds 7 to 9, 2.6 to 12.7 mm) every miss had η above 0.5 mm;
 /// the error ran at up to 1.54 η, so this is a warning, not a bound. It was fixed
-/// before a fresh seed was checked (docs/tissue-measurements.md §1).
+/// before a fresh seed was checked (docs/lab/tissue-measurements.md §1).
 pub const BLEND_SURPLUS_WARN_MM: f64 = 0.5;
 
 impl BoundTissue {

@@ -1,0 +1,150 @@
+//! `palpa lab accuracy`: today's accuracy of the shipped scenes, as Markdown, read
+//! from what the files themselves record (their tradeoff tables, measured by `palpa
+//! tradeoff` against the full FE at held-out presses, and the tissue's checks, recorded
+//! by `palpa tissue check --record`). `docs/accuracy.md` holds its output between two
+//! markers, and a test keeps the two the same.
+
+use std::fmt::Write;
+use std::io::Write as _;
+
+use anyhow::Context;
+
+use clap::Args;
+use palpa_core::pgd::tissue::{GOAL_FORCE_REL, GOAL_SURFACE_MM, TissueLaw};
+use palpa_core::separated::ModelMeta;
+
+#[derive(Debug, Args)]
+pub struct AccuracyArgs {
+    /// Write it between the markers of this Markdown file (atomically) instead of
+    /// printing it: `palpa lab accuracy --write docs/accuracy.md`.
+    #[arg(long)]
+    write: Option<std::path::PathBuf>,
+}
+
+/// The lines around the generated part of a Markdown file.
+pub const BEGIN: &str = "<!-- palpa lab accuracy: begin -->\n";
+pub const END: &str = "<!-- palpa lab accuracy: end -->";
+
+/// The kidney example's scene, as shipped.
+const KIDNEY: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../assets/kidney/kidney-coarse.palpa"
+);
+
+pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
+    let text = markdown()?;
+    let Some(path) = &args.write else {
+        print!("{text}");
+        return Ok(());
+    };
+    let doc = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+    let (Some(begin), Some(end)) = (doc.find(BEGIN), doc.find(END)) else {
+        anyhow::bail!(
+            "{}: expected the markers `{}` and `{END}` around the generated part",
+            path.display(),
+            BEGIN.trim_end()
+        );
+    };
+    let rewritten = format!("{}{text}{}", &doc[..begin + BEGIN.len()], &doc[end..]);
+    palpa_core::fsutil::atomic_write(path, |w| w.write_all(rewritten.as_bytes()))
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// The generated part of `docs/accuracy.md`.
+pub fn markdown() -> anyhow::Result<String> {
+    let mut out = String::new();
+    let liver = palpa_core::file::load_any_from_bytes(palpa_app::scenes::BUILT_IN_LIVER)?;
+    let tissue = TissueLaw::from_bytes(
+        palpa_app::scenes::BUILT_IN_TISSUE,
+        std::path::Path::new("assets/liver-coarse.tissue"),
+    )?;
+    let kidney = palpa_core::file::read_header(std::path::Path::new(KIDNEY))?;
+    writeln!(
+        out,
+        "### The default liver (`assets/liver-coarse.palpa`, linear, coarse P2)\n"
+    )?;
+    tradeoff_table(&mut out, &liver.meta())?;
+    writeln!(
+        out,
+        "\n### Its neo-Hookean tissue (`assets/liver-coarse.tissue`)\n"
+    )?;
+    tissue_table(&mut out, &tissue)?;
+    writeln!(
+        out,
+        "\n### The kidney example (`assets/kidney/kidney-coarse.palpa`, linear, coarse P2)\n"
+    )?;
+    tradeoff_table(&mut out, &kidney.meta)?;
+    Ok(out)
+}
+
+/// A scene's tradeoff rows: each count of modes against the full FE at the held-out
+/// presses `palpa tradeoff` measured.
+fn tradeoff_table(out: &mut String, meta: &ModelMeta) -> anyhow::Result<()> {
+    writeln!(
+        out,
+        "| modes | surface, relative L2 | largest node error at 1 N | compliance | surface evaluation |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|")?;
+    let opt = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map_or("—".to_string(), f);
+    for r in &meta.tradeoff {
+        writeln!(
+            out,
+            "| {} | {:.2} % | {} | {} | {:.0} µs |",
+            r.modes,
+            100.0 * r.surface_rel_error,
+            opt(r.surface_max_nodal_error_mm, &|v| format!("{v:.3} mm")),
+            opt(r.compliance_rel_error, &|v| format!("{:.2} %", 100.0 * v)),
+            r.surface_eval_us,
+        )?;
+    }
+    Ok(())
+}
+
+/// A tissue's recorded checks, merged depth by depth.
+fn tissue_table(out: &mut String, law: &TissueLaw) -> anyhow::Result<()> {
+    let a = &law.accuracy;
+    if a.runs.is_empty() {
+        writeln!(out, "No check recorded (`palpa tissue check --record`).")?;
+        return Ok(());
+    }
+    let seeds: Vec<String> = a
+        .runs
+        .iter()
+        .map(|r| r.seed.map_or("given points".into(), |s| s.to_string()))
+        .collect();
+    writeln!(
+        out,
+        "Against the full nonlinear FE (Newton) at {} held-out random points (seeds {}; \
+         left out: {}). Goals: the surface within {GOAL_SURFACE_MM} mm and the force within \
+         {:.0} %.\n",
+        a.points(),
+        seeds.join(", "),
+        a.runs[0].left_out,
+        100.0 * GOAL_FORCE_REL,
+    )?;
+    writeln!(
+        out,
+        "| depth | presses compared | past the tissue's reach | worst force error | worst surface error |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|")?;
+    for d in a.merged() {
+        writeln!(
+            out,
+            "| {} mm | {} | {} | {:.1} % | {:.2} mm |",
+            d.depth_mm,
+            d.presses,
+            d.past_limit,
+            100.0 * d.worst_force_rel,
+            d.worst_surface_mm
+        )?;
+    }
+    match a.goals_to_mm() {
+        Some(g) => writeln!(
+            out,
+            "\nBoth goals hold at every press measured to {} mm, the force goal to {} mm.",
+            g.both_mm, g.force_mm
+        )?,
+        None => writeln!(out, "\nThe goals hold at no depth measured.")?,
+    }
+    Ok(())
+}
