@@ -16,7 +16,9 @@
 # level, docs/methods.md §2e), and last the band next to the fixed region is pressed (25
 # edge midpoints, about 13 min). Each step
 # logs its presses beside its output, so a killed run, run again, goes on from the last
-# finished press. The shipped file's presses also tried Newton from rest before stopping
+# finished press. With TISSUE=1 or RECORD=1 the shipped tissue's accuracy is measured
+# and recorded in it (`palpa tissue check --record`), and docs/accuracy.md rewritten.
+# The shipped file's presses also tried Newton from rest before stopping
 # (since dropped, docs/lab/tissue-measurements.md §3): a rebuild differs only where that try
 # would have found an equilibrium, which none measured did.
 set -euo pipefail
@@ -53,6 +55,16 @@ if [ -n "${TISSUE:-}" ]; then
   $palpa lab tissue band "$from" --out target/assets/liver-coarse-band.tissue
   from=target/assets/liver-coarse-band.tissue
   cp "$from" assets/liver-coarse.tissue
+fi
+# What the shipped tissue is measured to be worth, written into it: seeded held-out
+# points against the full nonlinear FE (about 15 minutes a seed on 2 cores).
+# SEEDS overrides the draws (default "7 8 9 10").
+if [ -n "${TISSUE:-}${RECORD:-}" ]; then
+  for seed in ${SEEDS:-7 8 9 10}; do
+    $palpa tissue check assets/liver-coarse.tissue --heldout 16 --seed "$seed" \
+      --depths 2.6,7.3,9.3,11.5,12.7,14.6 --record > /dev/null
+  done
+  $palpa lab accuracy --write docs/accuracy.md
 fi
 echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"
 cat "$tmp/tradeoff.json"

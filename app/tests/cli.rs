@@ -1785,13 +1785,14 @@ fn eval_warns_when_the_point_lies_far_from_the_surface() {
 #[test]
 fn docs_accuracy_is_what_the_shipped_files_record() {
     let out = palpa(&["lab", "accuracy"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let generated = String::from_utf8(out.stdout).expect("utf-8");
-    let doc = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../docs/accuracy.md"
-    ))
-    .expect("docs/accuracy.md");
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/accuracy.md"))
+        .expect("docs/accuracy.md");
     let (begin, end) = (
         "<!-- palpa lab accuracy: begin -->\n",
         "<!-- palpa lab accuracy: end -->",
@@ -1803,5 +1804,8 @@ fn docs_accuracy_is_what_the_shipped_files_record() {
         generated,
         "run `palpa lab accuracy --write docs/accuracy.md`"
     );
-    assert!(generated.contains("### Its neo-Hookean tissue"), "{generated}");
+    assert!(
+        generated.contains("### Its neo-Hookean tissue"),
+        "{generated}"
+    );
 }
