@@ -330,7 +330,7 @@ fn benchmarks_refuse_bad_options_up_front() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
     // A zero minimum time still measures each quantity once (no `inf`).
-    let args = "bench eval --rows 30 --modes 4 --precision f32 --min-time-ms 0 --json";
+    let args = "lab bench eval --rows 30 --modes 4 --precision f32 --min-time-ms 0 --json";
     let out = palpa(&args.split(' ').collect::<Vec<_>>());
     assert!(out.status.success());
     let row: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON row");

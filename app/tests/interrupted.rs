@@ -245,7 +245,7 @@ fn tissue_stages_resume_from_their_press_logs() {
         ("band", vec!["band", base, within], &["band_edges"]),
     ];
     for (name, stage, counts) in stages {
-        let stage: Vec<&str> = ["tissue"]
+        let stage: Vec<&str> = ["lab", "tissue"]
             .into_iter()
             .chain(stage)
             .chain(["--jobs", "1"])

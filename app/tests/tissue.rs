@@ -58,7 +58,13 @@ pub(crate) fn hand_made(scene: &PalpationScene) -> TissueLaw {
         tolerance_mm: 0.05,
         build_s: 0.0,
         compress_s: 0.0,
-        mesh_xxh3: None,
+        // The scene's own organ mesh, as a build on it would record.
+        mesh_xxh3: palpa_core::pgd::palpation::describe_get(
+            &scene.model().provenance().mesh,
+            "mesh_xxh3",
+        )
+        .and_then(|h| u64::from_str_radix(h, 16).ok())
+        .or(Some(0)),
         accuracy: Default::default(),
     };
     law.check().expect("a consistent hand-made law");
