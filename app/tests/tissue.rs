@@ -1103,30 +1103,23 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
     }
     // The force law keeps a sample by the change between its last two Padé forms, so
     // it needs five orders: refused before any sample is pressed.
+    let depth_law_build = [
+        "lab",
+        "depth-law",
+        "build",
+        "--element",
+        "p1",
+        "--out",
+        &out_s,
+    ];
     refused(
-        &[
-            "lab",
-            "depth-law",
-            "build",
-            "--element",
-            "p1",
-            "--out",
-            &out_s,
-        ],
+        &depth_law_build,
         &["--orders", "4"],
         "4 orders: expected 5 to 30",
     );
     // More samples than palpable vertices: said before pressing (each vertex once).
     refused(
-        &[
-            "lab",
-            "depth-law",
-            "build",
-            "--element",
-            "p1",
-            "--out",
-            &out_s,
-        ],
+        &depth_law_build,
         &["--orders", "4", "--samples", "100000"],
         "the palpable surface has 559 vertices; pressing each of them",
     );
