@@ -441,7 +441,7 @@ fn node_max(a: faer::MatRef<'_, f64>) -> f64 {
 /// are kept alone. See docs/methods.md §2e and docs/lab/tissue-measurements.md §6.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Grouping {
-    /// Every sample its own modes (what formats 6 and 7 stored).
+    /// Every sample its own modes (`palpa tissue build --separate-modes`).
     Sample,
     /// The quarter and inner points of each split triangle share one set of modes (a
     /// quarter point on an edge between two split triangles goes with the first);
