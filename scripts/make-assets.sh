@@ -33,9 +33,16 @@ if [ -z "$palpa" ]; then
   cargo build --release --locked -q -p palpa-app --bin palpa
   palpa=target/release/palpa
 fi
-$palpa offline liver --level coarse --element p2 "${modes[@]}" --out "$tmp/full.palpa"
-$palpa tradeoff "$tmp/full.palpa" --json > "$tmp/tradeoff.json"
-$palpa export-scene "$tmp/full.palpa" --surface-only --precision f32 --out assets/liver-coarse.palpa
+mkdir -p target/assets
+offline="palpa offline liver --level coarse --element p2 ${modes[*]} --out target/assets/liver-coarse-full.palpa"
+tradeoff="palpa tradeoff target/assets/liver-coarse-full.palpa --json"
+export="palpa export-scene target/assets/liver-coarse-full.palpa --surface-only --precision f32 --out assets/liver-coarse.palpa"
+$palpa ${offline#palpa }
+$palpa ${tradeoff#palpa } > "$tmp/tradeoff.json"
+$palpa ${export#palpa }
+# Its hashes and the commands that made it, in assets/manifest.json.
+$palpa lab asset record assets/liver-coarse.palpa \
+  --command "$offline" --command "$tradeoff" --command "$export"
 if [ -n "${TISSUE:-}" ]; then
   mkdir -p target/assets
   $palpa tissue build --level coarse --model neo-hookean --depth-max-mm 15 --no-refine \
@@ -65,6 +72,20 @@ if [ -n "${TISSUE:-}${RECORD:-}" ]; then
       --depths 2.6,7.3,9.3,11.5,12.7,14.6 --record > /dev/null
   done
   $palpa lab accuracy --write docs/accuracy.md
+  # The tissue's hashes and the commands that made it (this script's, in order).
+  cmds=(--command "palpa tissue build --level coarse --model neo-hookean --depth-max-mm 15 --no-refine --out target/assets/liver-coarse-base.tissue")
+  from=target/assets/liver-coarse-base.tissue
+  for k in ${STAGES:-100 163 260 430 540 760}; do
+    cmds+=(--command "palpa lab tissue refine $from --triangles $k --out target/assets/liver-coarse-$k.tissue")
+    from="target/assets/liver-coarse-$k.tissue"
+  done
+  cmds+=(--command "palpa lab tissue refine $from --sub-triangles ${SUB:-190} --out target/assets/liver-coarse-sub${SUB:-190}.tissue")
+  cmds+=(--command "palpa lab tissue band target/assets/liver-coarse-sub${SUB:-190}.tissue --out target/assets/liver-coarse-band.tissue")
+  cmds+=(--command "cp target/assets/liver-coarse-band.tissue assets/liver-coarse.tissue")
+  for seed in ${SEEDS:-7 8 9 10}; do
+    cmds+=(--command "palpa tissue check assets/liver-coarse.tissue --heldout 16 --seed $seed --depths 2.6,7.3,9.3,11.5,12.7,14.6 --record")
+  done
+  $palpa lab asset record assets/liver-coarse.tissue "${cmds[@]}"
 fi
 echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"
 cat "$tmp/tradeoff.json"

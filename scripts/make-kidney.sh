@@ -10,9 +10,15 @@ if [ -z "$palpa" ]; then
   cargo build --release --locked -q -p palpa-app --bin palpa
   palpa=target/release/palpa
 fi
-$palpa scene shape kidney --out assets/kidney/kidney.obj
+shape="palpa scene shape kidney --out assets/kidney/kidney.obj"
 # Attached on its posterior face (it lies on the posterior abdominal wall), pressed
 # from the front and sides.
-$palpa scene build --surface assets/kidney/kidney.obj --units cm --up y --anterior z \
-  --fixed normal:posterior:50 --palpable normal:anterior:85 \
-  --level coarse --out assets/kidney/kidney-coarse.palpa --json
+build="palpa scene build --surface assets/kidney/kidney.obj --units cm --up y --anterior z \
+--fixed normal:posterior:50 --palpable normal:anterior:85 --level coarse \
+--out assets/kidney/kidney-coarse.palpa --json"
+# Each file's hashes and the command that made it go to assets/manifest.json; a test
+# runs these commands again and compares.
+$palpa ${shape#palpa }
+$palpa lab asset record assets/kidney/kidney.obj --command "$shape"
+$palpa ${build#palpa }
+$palpa lab asset record assets/kidney/kidney-coarse.palpa --command "$shape" --command "$build"

@@ -56,13 +56,14 @@ fn the_default_scene_matches_the_current_mesh_and_settings() {
         !model.tradeoff().is_empty(),
         "the tradeoff table the accuracy knob reads"
     );
-    // A phone budget of 20 MB; the near and far fields in sixteen bits (format 8, what
+    // A phone budget of 20 MB; the near and far fields in sixteen bits (what
     // `palpa export-scene` writes by default).
     assert!(std::fs::metadata(&path).expect("size").len() < 20_000_000);
-    let bytes = std::fs::read(&path).expect("read");
-    assert_eq!(
-        u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes")),
-        8,
+    assert!(
+        matches!(
+            file::read_header(&path).expect("header").layout,
+            file::Layout::SeparatedNearQ16 { .. }
+        ),
         "the shipped scene stores its near and far fields in sixteen bits"
     );
 }

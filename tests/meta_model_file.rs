@@ -117,6 +117,28 @@ fn a_newer_version_is_refused_with_the_versions() {
 }
 
 #[test]
+fn an_older_version_is_refused_with_the_command_that_rebuilds_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (path, _) = saved(dir.path());
+    let mut b = fs::read(&path).expect("read");
+    for old in [1, FORMAT_VERSION - 1] {
+        b[8..12].copy_from_slice(&old.to_le_bytes());
+        let p = write(dir.path(), "old.palpa", &b);
+        match file::load::<f64>(&p) {
+            Err(e @ FileError::OlderVersion { found, current, .. }) => {
+                assert_eq!((found, current), (old, FORMAT_VERSION));
+                let msg = e.to_string();
+                assert!(
+                    msg.contains("palpa offline") && msg.contains("palpa cme offline"),
+                    "{msg}"
+                );
+            }
+            other => panic!("expected OlderVersion, got {other:?}"),
+        }
+    }
+}
+
+#[test]
 fn truncation_anywhere_is_reported_as_truncated() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (path, _) = saved(dir.path());

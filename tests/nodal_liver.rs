@@ -4,7 +4,6 @@
 //! and close between them, a truncated model keeps the near field exact under the tool,
 //! and the file round trip keeps the near field.
 
-use palpa_core::farfield::{FarBlocks, FarField, NestedFar};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::heldout::{self, nodal_errors};
 use palpa_core::pgd::nodal::{NodalSettings, build, setup};
@@ -19,79 +18,6 @@ fn press(
     kind: &'static str,
 ) -> heldout::Case {
     heldout::press(&s.space, &s.problem, face, bary, s.radius_mm, kind).expect("FE solve")
-}
-
-/// The flat (version-4) form of a nested far field: each block's `V` rows written out
-/// per load node (`V_γ B_bᵀ`, with `V_γ` lifted from the leaf through the transfers).
-fn flat_of(n: &NestedFar) -> FarBlocks {
-    let mut f = FarBlocks {
-        tolerance: n.tolerance,
-        eta: n.eta,
-        row_ptr: vec![0],
-        rank: n.rank.clone(),
-        u_ptr: vec![0],
-        col_ptr: vec![0],
-        ..FarBlocks::default()
-    };
-    for b in 0..n.blocks() {
-        f.rows.extend_from_slice(n.block_rows(b));
-        f.row_ptr.push(f.rows.len() as u32);
-        f.u.extend(n.explicit_a(b));
-        f.u_ptr.push(f.u.len() as u32);
-    }
-    for j in 0..n.leaf_of.len() {
-        let mut g = n.leaf_of[j];
-        if g != u32::MAX {
-            let k = n.basis_rank[g as usize] as usize;
-            let at = n.basis_ptr[g as usize] as usize + 3 * n.leaf_slot[j] as usize * k;
-            // v[c][kk]: the load node's row of V_g.
-            let mut v: Vec<Vec<f64>> = (0..3)
-                .map(|c| {
-                    (0..k)
-                        .map(|kk| f64::from(n.basis[at + c * k + kk]))
-                        .collect()
-                })
-                .collect();
-            loop {
-                let gi = g as usize;
-                let kg = n.basis_rank[gi] as usize;
-                for b in n.block_ptr[gi] as usize..n.block_ptr[gi + 1] as usize {
-                    let r = n.rank[b] as usize;
-                    let bm = &n.b[n.b_ptr[b] as usize..n.b_ptr[b + 1] as usize];
-                    f.col_block.push(b as u32);
-                    f.v_off.push(f.v.len() as u32);
-                    for vc in &v {
-                        for rr in 0..r {
-                            let x: f64 =
-                                (0..kg).map(|kk| vc[kk] * f64::from(bm[rr * kg + kk])).sum();
-                            f.v.push(x as f32);
-                        }
-                    }
-                }
-                let p = n.parent[gi];
-                if p == u32::MAX || n.basis_rank[p as usize] == 0 {
-                    break;
-                }
-                let (kp, off) = (n.basis_rank[p as usize] as usize, n.kid_offset[gi] as usize);
-                let e = &n.basis[n.basis_ptr[p as usize] as usize..];
-                v = v
-                    .iter()
-                    .map(|vc| {
-                        (0..kp)
-                            .map(|kk| {
-                                (0..kg)
-                                    .map(|i| vc[i] * f64::from(e[(off + i) * kp + kk]))
-                                    .sum()
-                            })
-                            .collect()
-                    })
-                    .collect();
-                g = p;
-            }
-        }
-        f.col_ptr.push(f.col_block.len() as u32);
-    }
-    f
 }
 
 #[test]
@@ -186,69 +112,17 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
         let b = std::fs::read(p).expect("read");
         u32::from_le_bytes(b[8..12].try_into().expect("4 bytes"))
     };
-    assert_eq!(
-        version(&path),
-        6,
-        "a far field with shared row bases is format version 6"
-    );
-    // The same far field in the flat form of version 4 acts the same and still opens.
-    let Some(FarField::Nested(nested)) = small.near().and_then(|n| n.far.as_deref()) else {
-        panic!("the builder writes the nested form");
+    assert_eq!(version(&path), file::FORMAT_VERSION);
+    let Some(nested) = small.near().and_then(|n| n.far.as_deref()) else {
+        panic!("the builder writes a far field");
     };
     assert!(
         nested.group_rank.iter().any(|&k| k > 0),
         "some row groups share a basis"
     );
-    // Written for builds that read up to version 5 (every block's rows written out),
-    // it opens and acts the same.
-    let v5_path = dir.path().join("v5.palpa");
-    file::save_v5(&small, &v5_path).expect("save v5");
-    assert_eq!(version(&v5_path), 5);
-    let back_v5: SeparatedModel<f64> = file::load(&v5_path).expect("load v5");
-    let Some(FarField::Nested(from_v5)) = back_v5.near().and_then(|n| n.far.as_deref()) else {
-        panic!("a version-5 far field opens in the nested form");
-    };
-    assert!(from_v5.group_rank.iter().all(|&k| k == 0));
-    let flat = flat_of(nested);
-    flat.validate(nested.leaf_of.len(), small.rows() / 3)
-        .expect("valid flat form");
-    let mut rng = palpa_core::rng::Rng::seed(5);
-    for _ in 0..20 {
-        let shares: Vec<(u32, f64)> = (0..6)
-            .map(|_| (rng.below(nested.leaf_of.len()) as u32, rng.range(0.0, 1.0)))
-            .collect();
-        let mix = [
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-        ];
-        let (mut a, mut b) = (vec![0.0; small.rows()], vec![0.0; small.rows()]);
-        nested.add(&shares, mix, &mut a);
-        flat.add(&shares, mix, &mut b);
-        let mut c = vec![0.0; small.rows()];
-        from_v5.add(&shares, mix, &mut c);
-        let scale = a.iter().fold(1e-12f64, |m, v| m.max(v.abs()));
-        assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= 1e-5 * scale));
-        assert!(a.iter().zip(&c).all(|(x, y)| (x - y).abs() <= 1e-5 * scale));
-    }
-    let mut old = small.clone().without_near();
-    let mut old_near = small.near().expect("near").clone();
-    old_near.far = Some(Box::new(FarField::Flat(Box::new(flat))));
-    old = old.with_near(old_near).expect("consistent");
-    let old_path = dir.path().join("v4.palpa");
-    file::save(&old, &old_path).expect("save");
-    assert_eq!(
-        version(&old_path),
-        4,
-        "a flat far field is format version 4"
-    );
-    let back_old: SeparatedModel<f64> = file::load(&old_path).expect("load v4");
-    assert_eq!(back_old.near(), old.near());
-    // Without the far field the model is written as version 3 (what older builds
-    // read) and opens with its band only.
+    // Without the far field the model opens with its band only.
     let band_path = dir.path().join("band.palpa");
     file::save(&band_only, &band_path).expect("save");
-    assert_eq!(version(&band_path), 3);
     let back: SeparatedModel<f64> = file::load(&band_path).expect("load");
     assert!(back.near().is_some_and(|n| n.far.is_none()));
     assert_eq!(back.near(), band_only.near());
@@ -262,7 +136,7 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
             .iter()
             .all(|&x| (x as usize) < surface.len())
     );
-    let Some(FarField::Nested(far)) = near.far.as_deref() else {
+    let Some(far) = near.far.as_deref() else {
         panic!("far field kept");
     };
     assert!(far.group_rows.iter().all(|&x| (x as usize) < surface.len()));
@@ -283,7 +157,7 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
             assert!((a - b).abs() <= 1e-5 * scale, "node {x}: {a} vs {b}");
         }
     }
-    // In sixteen bits (format version 8, what `palpa export-scene` writes): the near
+    // In sixteen bits (what `palpa export-scene` writes): the near
     // and far fields in about half the bytes, a probe's correction within 1e-3 of its
     // largest entry (a tenth of the far field's own tolerance; measured 1.8e-4), and
     // the accuracy against the reference unchanged.
@@ -291,7 +165,6 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     let (q_path, f_path) = (dir.path().join("q16.palpa"), dir.path().join("f32.palpa"));
     file::save_q16(&f32_scene, &q_path).expect("save q16");
     file::save(&f32_scene, &f_path).expect("save f32");
-    assert_eq!(version(&q_path), 8);
     let f32_near = f32_scene.near().expect("near");
     let near_bytes = f32_near.bytes() as u64;
     eprintln!(
@@ -318,6 +191,7 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     );
     let q16: SeparatedModel<f32> = file::load(&q_path).expect("load q16");
     let mut worst = 0.0f64;
+    let mut rng = palpa_core::rng::Rng::seed(5);
     let palpable: Vec<usize> = (0..f32_near.table_block.len())
         .filter(|&f| f32_near.table_block[f] != u32::MAX)
         .collect();
@@ -361,7 +235,6 @@ fn a_full_rank_model_is_exact_at_and_between_vertices_and_a_truncated_one_keeps_
     // Without a far field too (the band and table alone).
     let q_band = dir.path().join("q16-band.palpa");
     file::save_q16(&band_only, &q_band).expect("save q16");
-    assert_eq!(version(&q_band), 8);
     let back: SeparatedModel<f64> = file::load(&q_band).expect("load");
     assert!(back.near().is_some_and(|n| n.far.is_none()
         && n.band_values.len() == band_only.near().expect("near").band_values.len()));

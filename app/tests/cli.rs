@@ -567,6 +567,17 @@ fn eval_on_the_default_scene() {
     assert!(v["probe_displacement_mm"].as_f64().expect("number") > 0.0);
     let text = std::fs::read_to_string(&vtu).expect("vtu written");
     assert!(text.starts_with("<?xml") && text.contains("Name=\"displacement\""));
+    // The scene stores its surface, and the file holds it and says so: as many points
+    // as the scene has rows' nodes, each on a triangle.
+    assert!(
+        text.contains("the organ's surface only"),
+        "{}",
+        &text[..400]
+    );
+    assert!(text.contains(r#"Name="palpa_holds_volume" NumberOfTuples="1" format="ascii">0<"#));
+    let header = palpa_core::file::read_header(std::path::Path::new(scene)).expect("header");
+    let points = format!("NumberOfPoints=\"{}\"", header.rows / 3);
+    assert!(text.contains(&points), "expected {points}");
 }
 
 /// What cannot be pressed or measured is refused before any work, naming the flag: an

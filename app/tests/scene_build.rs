@@ -295,3 +295,86 @@ fn regions_come_from_selectors_and_region_files() {
     assert!(err.contains("expected at most 10000"), "{err}");
     assert!(!err.contains("[2/6]"), "refused before meshing: {err}");
 }
+
+/// Every file made for `assets/` is listed in `assets/manifest.json` with the hash of
+/// its bytes and the commands that made it, and the kidney example (the cheapest to
+/// make: 16 s here) made again by its recorded commands is the recorded file: its
+/// surface byte for byte, its scene's content (all but the build date and timings)
+/// to the bit.
+#[test]
+fn the_shipped_files_are_what_their_recorded_commands_make() {
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets");
+    let text = std::fs::read_to_string(assets.join("manifest.json")).expect("manifest");
+    let manifest: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let entries = manifest["assets"].as_array().expect("assets");
+    let entry = |path: &str| {
+        entries
+            .iter()
+            .find(|e| e["path"] == path)
+            .unwrap_or_else(|| panic!("{path} is not in assets/manifest.json"))
+    };
+    let xxh3 = |p: &Path| {
+        format!(
+            "{:016x}",
+            xxhash_rust::xxh3::xxh3_64(&std::fs::read(p).expect("read"))
+        )
+    };
+    // Every made file (not the hand-written networks and READMEs) is listed, and is
+    // the file recorded.
+    let mut made = Vec::new();
+    for dir in [assets.clone(), assets.join("kidney")] {
+        for f in std::fs::read_dir(&dir).expect("assets") {
+            let p = f.expect("entry").path();
+            if matches!(
+                p.extension().and_then(|e| e.to_str()),
+                Some("palpa" | "tissue" | "obj")
+            ) {
+                made.push(p);
+            }
+        }
+    }
+    assert!(made.len() >= 4, "{made:?}");
+    for p in &made {
+        let rel = p.strip_prefix(&assets).expect("under assets");
+        let rel = rel.to_str().expect("utf-8").replace('\\', "/");
+        let e = entry(&rel);
+        assert_eq!(
+            e["file_xxh3"].as_str(),
+            Some(xxh3(p).as_str()),
+            "{rel} changed since it was recorded: run the script that makes it"
+        );
+        assert!(
+            !e["commands"].as_array().expect("commands").is_empty(),
+            "{rel}"
+        );
+    }
+    // The kidney scene, made again where its commands put it.
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::create_dir_all(dir.path().join("assets/kidney")).expect("mkdir");
+    let scene = entry("kidney/kidney-coarse.palpa");
+    for cmd in scene["commands"].as_array().expect("commands") {
+        let words: Vec<&str> = cmd.as_str().expect("text").split_whitespace().collect();
+        assert_eq!(words[0], "palpa", "{cmd}");
+        let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args(&words[1..])
+            .current_dir(dir.path())
+            .output()
+            .expect("palpa runs");
+        assert!(
+            out.status.success(),
+            "{cmd}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let remade = dir.path().join("assets/kidney");
+    assert_eq!(
+        entry("kidney/kidney.obj")["file_xxh3"].as_str(),
+        Some(xxh3(&remade.join("kidney.obj")).as_str())
+    );
+    let header = palpa_core::file::read_header(&remade.join("kidney-coarse.palpa")).expect("scene");
+    assert_eq!(
+        scene["content_xxh3"].as_str(),
+        Some(format!("{:016x}", header.content_xxh3()).as_str()),
+        "the kidney scene made again differs from the one recorded"
+    );
+}

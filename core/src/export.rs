@@ -57,6 +57,28 @@ fn join(values: impl Iterator<Item = String>) -> String {
     s
 }
 
+/// What a written grid holds of the organ. The file says it twice: in an XML comment a
+/// reader sees, and as the field value `palpa_holds_volume` (0 or 1) a script reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Holds {
+    /// The organ's surface only: its nodes and triangles (what a scene stores).
+    Surface,
+    /// Every node of the volume; the cells are the tetrahedra, or, for a model that
+    /// stores no tetrahedra, the boundary triangles (the inner nodes are points).
+    Volume,
+}
+
+impl Holds {
+    fn comment(self) -> &'static str {
+        match self {
+            Holds::Surface => {
+                "palpa: the organ's surface only (its nodes and triangles), as the model stores it"
+            }
+            Holds::Volume => "palpa: every node of the organ's volume, as the model stores it",
+        }
+    }
+}
+
 /// Writes a `.vtu` (VTK XML, ASCII) of a finite-element space.
 pub fn write_vtu(
     path: &Path,
@@ -75,22 +97,25 @@ pub fn write_vtu(
         &space.cells,
         space.element.nodes_per_cell(),
         vtk_type,
+        Holds::Volume,
         fields,
         meta,
     )
 }
 
-/// Writes a `.vtu` of triangles (VTK type 5) over `nodes`, e.g. a scene's surface.
+/// Writes a `.vtu` of triangles (VTK type 5) over `nodes`, e.g. a scene's surface;
+/// `holds` says whether `nodes` are the surface's or the whole volume's.
 pub fn write_surface_vtu(
     path: &Path,
     nodes: &[[f64; 3]],
     triangles: &[[u32; 3]],
+    holds: Holds,
     fields: &[PointField],
     meta: &[FieldValue],
 ) -> io::Result<()> {
     check(nodes.len(), fields)?;
     let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
-    write_cells_vtu(path, nodes, &flat, 3, 5, fields, meta)
+    write_cells_vtu(path, nodes, &flat, 3, 5, holds, fields, meta)
 }
 
 fn write_cells_vtu(
@@ -99,6 +124,7 @@ fn write_cells_vtu(
     cells: &[u32],
     npc: usize,
     vtk_type: u8,
+    holds: Holds,
     fields: &[PointField],
     meta: &[FieldValue],
 ) -> io::Result<()> {
@@ -109,7 +135,13 @@ fn write_cells_vtu(
         s,
         r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#
     );
+    let _ = writeln!(s, "<!-- {} -->", holds.comment());
     let _ = writeln!(s, "<UnstructuredGrid>\n<FieldData>");
+    let _ = writeln!(
+        s,
+        r#"<DataArray type="Float64" Name="palpa_holds_volume" NumberOfTuples="1" format="ascii">{}</DataArray>"#,
+        u8::from(holds == Holds::Volume)
+    );
     for m in meta {
         let _ = writeln!(
             s,

@@ -5,24 +5,18 @@
 //! ```text
 //! offset  size  field
 //!      0     8  magic  b"PALPAMM\x1a"   (\x1a catches text-mode mangling, as in PNG)
-//!      8     4  format version (u32)    — this build reads versions ≤ FORMAT_VERSION
+//!      8     4  format version (u32)    — this build reads FORMAT_VERSION only
 //!     12     4  reserved, 0
 //!     16     8  header length H (u64)
 //!     24     8  xxh3-64 of the header bytes
 //!     32     H  header: bincode 2 (standard config) of [`Header`]
 //!      …        zero padding to a multiple of 64
 //!      P        payload, each block row-major, little-endian f32 or f64, padded to 64
-//!               bytes. Separated layout (version 1): X (rows × modes), then each
-//!               axis's values (nodes × modes). Tensor-train layout (version 2, the
-//!               header's `layout` names the ranks): one core per axis, r_{k−1} ×
-//!               nodes × r_k, f64. Version 3 adds the separated layout with a near
-//!               field (band and compliance table, f32, carried in the header; see
-//!               `nearfield`), and is the version of every model with a nodal-load
-//!               axis, which older builds cannot decode. Version 4 adds the far
-//!               field's flat low-rank blocks, version 5 its nested-basis form,
-//!               version 6 that form with shared row bases (all in the header, f32),
-//!               version 7 a gene network's views, version 8 the near and far fields'
-//!               values in sixteen bits (`quant16`)
+//!               bytes. The header's `layout` says what the blocks are: separated
+//!               (X rows × modes, then each axis's values nodes × modes), with or
+//!               without a nodal-load vademecum's near and far fields (carried in the
+//!               header, f32 or sixteen bits, `quant16`); a tensor train (one core
+//!               per axis, r_{k−1} × nodes × r_k, f64); a gene network's views
 //! P + len       end of file (trailing bytes are an error)
 //! ```
 //!
@@ -33,7 +27,7 @@
 //!
 //! The loader never trusts a length before checking it against the file size, decodes
 //! the header with a byte limit, and returns a [`FileError`] naming the file and the
-//! problem for each kind of bad input: not a palpa file, a newer version, truncated,
+//! problem for each kind of bad input: not a palpa file, another version, truncated,
 //! corrupted header, corrupted payload, inconsistent header, trailing bytes, a
 //! precision other than the one asked for.
 
@@ -46,7 +40,7 @@ use thiserror::Error;
 use xxhash_rust::xxh3::{Xxh3, xxh3_64};
 
 use crate::axis::Discretization;
-use crate::farfield::{FarBlocks, FarField, NestedFar, NestedFarV5};
+use crate::farfield::NestedFar;
 use crate::fsutil::atomic_write;
 use crate::nearfield::NearField;
 use crate::quant16::Q16;
@@ -55,18 +49,10 @@ use crate::separated::{ModelError, ModelMeta, SeparatedModel};
 use crate::tensor::tt::Core;
 
 pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
-/// Version 1: separated (sum-of-products) models. Version 2 adds [`Layout`] to the
-/// header, for tensor trains; separated models are still written as version 1 so older
-/// builds keep reading them. Version 3: nodal-load axes and the near field
-/// ([`Layout::SeparatedNear`]); only models that use them are written as version 3.
-/// Version 4: the near field with its hierarchical far field
-/// ([`Layout::SeparatedNearFar`]). Version 5: the far field with nested column bases
-/// ([`Layout::SeparatedNearNested`]). Version 6: those plus shared row bases
-/// ([`Layout::SeparatedNearShared`]), what the builder writes now. Version 7: a gene
-/// network's views ([`Layout::Views`]). Version 8: the near and far fields in sixteen
-/// bits ([`Layout::SeparatedNearQ16`], what `palpa export-scene` writes). Each is
-/// written only for models that have it.
-pub const FORMAT_VERSION: u32 = 8;
+/// The one format this build reads and writes. Until a release there is one current
+/// version: a change to the layout bumps it, and older files are refused by name with
+/// the command that rebuilds them ([`FileError::OlderVersion`]).
+pub const FORMAT_VERSION: u32 = 9;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);
@@ -85,6 +71,26 @@ pub struct Header {
     pub layout: Layout,
 }
 
+impl Header {
+    /// The xxh3-64 of what the file computes: the header without its wall-clock
+    /// fields (the build's date, the tradeoff table's timings), which holds the
+    /// payload's own checksum. Two builds of the same inputs have the same value
+    /// (`palpa info F --json` reports it as `content_xxh3`; the asset manifest records it).
+    pub fn content_xxh3(&self) -> u64 {
+        let mut h = self.clone();
+        h.meta.provenance.created_unix_s = 0;
+        for r in &mut h.meta.tradeoff {
+            r.surface_eval_us = 0.0;
+            r.contact_eval_ns = 0.0;
+        }
+        match bincode::serde::encode_to_vec(&h, bincode_config()) {
+            Ok(bytes) => xxh3_64(&bytes),
+            // A header that decoded encodes again; this is never reached.
+            Err(_) => 0,
+        }
+    }
+}
+
 /// How the payload's arrays make the model.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub enum Layout {
@@ -94,30 +100,17 @@ pub enum Layout {
     /// One core per axis, `r_{k−1} × nodes_k × r_k` row-major; `ranks` holds
     /// `r_0 = 1, r_1, …, r_d = 1`. No `X` block.
     TensorTrain { ranks: Vec<u64> },
-    /// As `Separated`, plus the near field of a nodal-load vademecum (version 3).
-    SeparatedNear { near: Box<NearField> },
-    /// As `SeparatedNear`, plus the far field's low-rank blocks (version 4).
-    SeparatedNearFar {
+    /// As `Separated`, plus the near field of a nodal-load vademecum and, if it has
+    /// one, its far field with nested column bases and shared row bases.
+    SeparatedNear {
         near: Box<NearField>,
-        far: Box<FarBlocks>,
+        far: Option<Box<NestedFar>>,
     },
-    /// As `SeparatedNear`, plus the far field with nested column bases (version 5).
-    SeparatedNearNested {
-        near: Box<NearField>,
-        far: Box<NestedFarV5>,
-    },
-    /// As `SeparatedNear`, plus the far field with nested column bases and shared row
-    /// bases (version 6).
-    SeparatedNearShared {
-        near: Box<NearField>,
-        far: Box<NestedFar>,
-    },
-    /// A gene network's views over time (version 7, [`crate::cme::views`]): per view,
+    /// A gene network's views over time ([`crate::cme::views`]): per view,
     /// its time factor (`nodes × rank`) then its values (`rank × m`), f64.
     Views { views: Vec<ViewShape> },
-    /// As `SeparatedNear` or `SeparatedNearShared`, with the near field's band and
-    /// compliance table and the far field's bases and factors in sixteen bits
-    /// ([`crate::quant16`], version 8): those arrays are left empty in `near` and `far`
+    /// As `SeparatedNear`, with the near field's band and compliance table and the
+    /// far field's bases and factors in sixteen bits ([`crate::quant16`]): those arrays are left empty in `near` and `far`
     /// and held in `q`. What `palpa export-scene` writes by default.
     SeparatedNearQ16 {
         near: Box<NearField>,
@@ -213,12 +206,7 @@ impl Layout {
     pub fn is_separated(&self) -> bool {
         matches!(
             self,
-            Layout::Separated
-                | Layout::SeparatedNear { .. }
-                | Layout::SeparatedNearFar { .. }
-                | Layout::SeparatedNearNested { .. }
-                | Layout::SeparatedNearShared { .. }
-                | Layout::SeparatedNearQ16 { .. }
+            Layout::Separated | Layout::SeparatedNear { .. } | Layout::SeparatedNearQ16 { .. }
         )
     }
 
@@ -227,13 +215,9 @@ impl Layout {
     /// stores them in variable-length integers); `None` without a near field.
     pub fn near_field_bytes(&self) -> Option<(u32, usize)> {
         Some(match self {
-            Layout::SeparatedNear { near } => (32, near.bytes()),
-            Layout::SeparatedNearFar { near, far } => (32, near.bytes() + far.bytes()),
-            Layout::SeparatedNearNested { near, far } => {
-                let far: NestedFar = far.as_ref().clone().into();
-                (32, near.bytes() + far.bytes())
+            Layout::SeparatedNear { near, far } => {
+                (32, near.bytes() + far.as_ref().map_or(0, |f| f.bytes()))
             }
-            Layout::SeparatedNearShared { near, far } => (32, near.bytes() + far.bytes()),
             Layout::SeparatedNearQ16 { near, far, q } => (
                 16,
                 near.bytes() + far.as_ref().map_or(0, |f| f.bytes()) + q.bytes(),
@@ -241,17 +225,6 @@ impl Layout {
             _ => return None,
         })
     }
-}
-
-/// The version-1 header (no layout: always separated).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct HeaderV1 {
-    meta: ModelMeta,
-    precision: Precision,
-    rows: u64,
-    modes: u64,
-    payload_len: u64,
-    payload_xxh3: u64,
 }
 
 /// Why a meta-model file could not be read or written.
@@ -270,12 +243,20 @@ pub enum FileError {
         found: Vec<u8>,
     },
     #[error(
-        "{path}: format version {found} is newer than this palpa reads (≤ {supported}); update palpa"
+        "{path}: format version {found} is newer than the one this palpa reads ({supported}); update palpa"
     )]
     NewerVersion {
         path: PathBuf,
         found: u32,
         supported: u32,
+    },
+    #[error(
+        "{path}: format version {found} is older than the one this palpa reads ({current}), and no release wrote it; rebuild the file: `palpa offline` or `palpa scene build` for a palpation scene, `palpa cme offline` for a gene network (scripts/make-assets.sh and scripts/make-kidney.sh remake the shipped scenes)"
+    )]
+    OlderVersion {
+        path: PathBuf,
+        found: u32,
+        current: u32,
     },
     #[error("{path}: truncated: {what} needs {needed} bytes, the file has {actual}")]
     Truncated {
@@ -409,9 +390,9 @@ pub fn save<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), Fil
     save_as(model, path, Form::Full)
 }
 
-/// As [`save`], with the near field's band and table and a nested far field's arrays
-/// in sixteen bits (format version 8, [`crate::quant16`]): about half their bytes. A
-/// model without a near field, or with a flat far field, is written as by [`save`].
+/// As [`save`], with the near field's band and table and the far field's arrays in
+/// sixteen bits ([`crate::quant16`]): about half their bytes. A model without a near
+/// field is written as by [`save`].
 pub fn save_q16<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
     save_as(model, path, Form::Q16)
 }
@@ -420,15 +401,7 @@ pub fn save_q16<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(),
 #[derive(Clone, Copy, PartialEq)]
 enum Form {
     Full,
-    V5,
     Q16,
-}
-
-/// As [`save`], but a far field with shared row bases is written out per block as
-/// format version 5, for builds that read only up to version 5 (a larger file that
-/// evaluates the same).
-pub fn save_v5<T: Scalar>(model: &SeparatedModel<T>, path: &Path) -> Result<(), FileError> {
-    save_as(model, path, Form::V5)
 }
 
 fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, form: Form) -> Result<(), FileError> {
@@ -439,10 +412,6 @@ fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, form: Form) -> Res
         .collect();
     let (payload_len, payload_xxh3) = payload_sum(&blocks);
     let meta = model.meta();
-    let load_axis = meta
-        .axes
-        .iter()
-        .any(|a| matches!(a.discretization, Discretization::SurfaceLoad { .. }));
     let header = Header {
         meta,
         precision: T::PRECISION,
@@ -453,64 +422,19 @@ fn save_as<T: Scalar>(model: &SeparatedModel<T>, path: &Path, form: Form) -> Res
         layout: match model.near() {
             Some(near) => {
                 let mut near = Box::new(near.clone());
-                near.tradeoff_extra = model
-                    .tradeoff()
-                    .iter()
-                    .map(|r| {
-                        [
-                            f64::from(r.modes),
-                            r.compliance_rel_error.unwrap_or(f64::NAN),
-                            r.surface_max_nodal_error_mm.unwrap_or(f64::NAN),
-                        ]
-                    })
-                    .collect();
-                match near.far.take().map(|f| *f) {
-                    Some(FarField::Flat(far)) => Layout::SeparatedNearFar { near, far },
-                    Some(FarField::Nested(far)) if form == Form::V5 => {
-                        Layout::SeparatedNearNested {
-                            near,
-                            far: Box::new(NestedFarV5::from(&*far)),
-                        }
+                let mut far = near.far.take();
+                match form {
+                    Form::Q16 => {
+                        let q = Box::new(NearQ16::take(&mut near, far.as_deref_mut()));
+                        Layout::SeparatedNearQ16 { near, far, q }
                     }
-                    Some(FarField::Nested(mut far)) if form == Form::Q16 => {
-                        let q = Box::new(NearQ16::take(&mut near, Some(&mut far)));
-                        Layout::SeparatedNearQ16 {
-                            near,
-                            far: Some(far),
-                            q,
-                        }
-                    }
-                    None if form == Form::Q16 => {
-                        let q = Box::new(NearQ16::take(&mut near, None));
-                        Layout::SeparatedNearQ16 { near, far: None, q }
-                    }
-                    Some(FarField::Nested(far)) => Layout::SeparatedNearShared { near, far },
-                    None => Layout::SeparatedNear { near },
+                    Form::Full => Layout::SeparatedNear { near, far },
                 }
             }
             None => Layout::Separated,
         },
     };
-    if model.near().is_none() && !load_axis {
-        // Version 1, so older builds keep reading plain separated models.
-        let h = HeaderV1 {
-            meta: header.meta,
-            precision: header.precision,
-            rows: header.rows,
-            modes: header.modes,
-            payload_len,
-            payload_xxh3,
-        };
-        return write_file(path, 1, &h, &blocks);
-    }
-    let version = match header.layout {
-        Layout::SeparatedNearFar { .. } => 4,
-        Layout::SeparatedNearNested { .. } => 5,
-        Layout::SeparatedNearShared { .. } => 6,
-        Layout::SeparatedNearQ16 { .. } => 8,
-        _ => 3,
-    };
-    write_file(path, version, &header, &blocks)
+    write_file(path, &header, &blocks)
 }
 
 /// Writes a tensor-train model (f64 cores, one per axis of `meta`) atomically.
@@ -557,7 +481,7 @@ pub fn save_train(meta: &ModelMeta, cores: &[Core], path: &Path) -> Result<(), F
         payload_xxh3,
         layout: Layout::TensorTrain { ranks },
     };
-    write_file(path, 2, &header, &blocks)
+    write_file(path, &header, &blocks)
 }
 
 /// Writes a gene network's views atomically: `meta` has the time axis, then one
@@ -612,7 +536,7 @@ pub fn save_views(
         payload_xxh3,
         ..header
     };
-    write_file(path, 7, &header, &blocks)
+    write_file(path, &header, &blocks)
 }
 
 /// The contents of a views file: metadata, and per view its shape, time factor and
@@ -668,12 +592,7 @@ fn payload_sum(blocks: &[&[u8]]) -> (u64, u64) {
     (payload_len, hasher.digest())
 }
 
-fn write_file<H: Serialize>(
-    path: &Path,
-    version: u32,
-    header: &H,
-    blocks: &[&[u8]],
-) -> Result<(), FileError> {
+fn write_file(path: &Path, header: &Header, blocks: &[&[u8]]) -> Result<(), FileError> {
     // Little-endian on disk; every supported target is little-endian, and a big-endian
     // host would need a byte swap here (see Scalar::le_to_native for the read side).
     const _: () = assert!(
@@ -689,7 +608,7 @@ fn write_file<H: Serialize>(
     let header_end = PREAMBLE as u64 + header_bytes.len() as u64;
     atomic_write(path, |w| {
         w.write_all(&MAGIC)?;
-        w.write_all(&version.to_le_bytes())?;
+        w.write_all(&FORMAT_VERSION.to_le_bytes())?;
         w.write_all(&0u32.to_le_bytes())?;
         w.write_all(&(header_bytes.len() as u64).to_le_bytes())?;
         w.write_all(&xxh3_64(&header_bytes).to_le_bytes())?;
@@ -792,10 +711,11 @@ fn read_header_from<R: Read>(path: &Path, f: &mut Opened<R>) -> Result<Located, 
             supported: FORMAT_VERSION,
         });
     }
-    if version == 0 {
-        return Err(FileError::HeaderCorrupt {
+    if version < FORMAT_VERSION {
+        return Err(FileError::OlderVersion {
             path: p(),
-            reason: "format version 0 does not exist".into(),
+            found: version,
+            current: FORMAT_VERSION,
         });
     }
     if pre[12..16] != [0; 4] {
@@ -845,24 +765,8 @@ fn read_header_from<R: Read>(path: &Path, f: &mut Opened<R>) -> Result<Located, 
         path: p(),
         reason: format!("cannot decode: {e}"),
     };
-    let (header, used): (Header, usize) = if version == 1 {
-        let (h, used): (HeaderV1, usize) =
-            bincode::serde::decode_from_slice(&hbytes, cfg).map_err(corrupt)?;
-        (
-            Header {
-                meta: h.meta,
-                precision: h.precision,
-                rows: h.rows,
-                modes: h.modes,
-                payload_len: h.payload_len,
-                payload_xxh3: h.payload_xxh3,
-                layout: Layout::Separated,
-            },
-            used,
-        )
-    } else {
-        bincode::serde::decode_from_slice(&hbytes, cfg).map_err(corrupt)?
-    };
+    let (header, used): (Header, usize) =
+        bincode::serde::decode_from_slice(&hbytes, cfg).map_err(corrupt)?;
     if used != hbytes.len() {
         return Err(FileError::HeaderCorrupt {
             path: p(),
@@ -929,22 +833,9 @@ fn load_payload<T: Scalar, R: Read>(
         });
     }
     let near = match &located.header.layout {
-        Layout::SeparatedNear { near } => Some(near.as_ref().clone()),
-        Layout::SeparatedNearFar { near, far } => {
+        Layout::SeparatedNear { near, far } => {
             let mut near = near.as_ref().clone();
-            near.far = Some(Box::new(FarField::Flat(far.clone())));
-            Some(near)
-        }
-        Layout::SeparatedNearNested { near, far } => {
-            let mut near = near.as_ref().clone();
-            near.far = Some(Box::new(FarField::Nested(Box::new(
-                far.as_ref().clone().into(),
-            ))));
-            Some(near)
-        }
-        Layout::SeparatedNearShared { near, far } => {
-            let mut near = near.as_ref().clone();
-            near.far = Some(Box::new(FarField::Nested(far.clone())));
+            near.far = far.clone();
             Some(near)
         }
         Layout::SeparatedNearQ16 { near, far, q } => {
@@ -952,7 +843,7 @@ fn load_payload<T: Scalar, R: Read>(
             let mut far = far.clone();
             q.restore(&mut near, far.as_deref_mut())
                 .map_err(|reason| FileError::Inconsistent { path: p(), reason })?;
-            near.far = far.map(|f| Box::new(FarField::Nested(f)));
+            near.far = far;
             Some(near)
         }
         _ => None,
@@ -966,18 +857,6 @@ fn load_payload<T: Scalar, R: Read>(
     let mut model = SeparatedModel::new(header.meta, rows, modes, x, arrays.collect())
         .map_err(|source| FileError::Model { path: p(), source })?;
     if let Some(near) = near {
-        let mut rows = model.tradeoff().to_vec();
-        for r in &mut rows {
-            if let Some(x) = near
-                .tradeoff_extra
-                .iter()
-                .find(|x| x[0] == f64::from(r.modes))
-            {
-                r.compliance_rel_error = x[1].is_finite().then_some(x[1]);
-                r.surface_max_nodal_error_mm = x[2].is_finite().then_some(x[2]);
-            }
-        }
-        model.set_tradeoff(rows);
         model = model
             .with_near(near)
             .map_err(|source| FileError::Model { path: p(), source })?;

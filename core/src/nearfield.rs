@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::disk::lagrange_tri;
-use crate::farfield::{FarField, FarFieldError};
+use crate::farfield::{FarFieldError, NestedFar};
 
 /// Why a near-field part is inconsistent with its model.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -68,13 +68,10 @@ pub struct NearField {
     pub table_block: Vec<u32>,
     /// Blocks of `(q+1)(q+2)/2` lattice points × 9 tensor entries `[d][c]`.
     pub table_values: Vec<f32>,
-    /// The tradeoff columns only nodal models have, one per tradeoff row:
-    /// `[modes, compliance_rel_error, surface_max_nodal_error_mm]` (NaN = not measured).
-    pub tradeoff_extra: Vec<[f64; 3]>,
-    /// The hierarchical far field, if the model has one (stored in its own layout
-    /// part, so files without it keep their encoding).
+    /// The hierarchical far field, if the model has one (the file stores it in its
+    /// own layout part, beside the near field).
     #[serde(skip)]
-    pub far: Option<Box<FarField>>,
+    pub far: Option<Box<NestedFar>>,
 }
 
 impl NearField {

@@ -87,12 +87,9 @@ pub struct TradeoffRow {
     pub surface_eval_us: f64,
     pub contact_eval_ns: f64,
     pub bytes: u64,
-    /// Nodal-load models: max relative compliance error over held-out points (stored
-    /// in the near field's part of a version-3 header, so older headers decode).
-    #[serde(skip)]
+    /// Nodal-load models: max relative compliance error over held-out points.
     pub compliance_rel_error: Option<f64>,
     /// Nodal-load models: largest surface nodal error at 1 N over held-out points, mm.
-    #[serde(skip)]
     pub surface_max_nodal_error_mm: Option<f64>,
 }
 

@@ -75,6 +75,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         "field": { "name": m.field.name, "unit": m.field.unit, "components": m.field.components },
         "axes": axes,
         "payload_bytes": h.payload_len,
+        "content_xxh3": format!("{:016x}", h.content_xxh3()),
         "file_bytes": std::fs::metadata(&args.file).map(|x| x.len()).ok(),
         // A nodal scene's near and far fields: most of its bytes.
         "near_field": h.layout.near_field_bytes().map(|(bits, bytes)| json!({"bits": bits, "bytes": bytes})),

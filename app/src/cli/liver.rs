@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 use palpa_core::axis::{Discretization, closest_point};
-use palpa_core::export::{FieldValue, PointField, write_surface_vtu};
+use palpa_core::export::{FieldValue, Holds, PointField, write_surface_vtu};
 use palpa_core::fe::{Element, Material};
 use palpa_core::file;
 use palpa_core::mesh::triangle_normal;
@@ -449,8 +449,9 @@ pub struct EvalArgs {
     /// Modes to use (default: all the file holds).
     #[arg(long)]
     modes: Option<usize>,
-    /// Write the evaluated displacement of the rows the file holds (.vtu: its
-    /// surface triangles when it has them, else its nodes as points).
+    /// Write the evaluated displacement of the nodes the file holds (.vtu): a scene's
+    /// surface, or every node of a full model with its boundary triangles as cells;
+    /// the file says which.
     #[arg(long)]
     out: Option<PathBuf>,
     /// For a tissue file (`palpa tissue build`): the scene it serves, `liver` (built
@@ -831,13 +832,20 @@ fn report_eval<T: Scalar>(
                 value: e.modes.used as f64,
             },
         ];
-        let cells: Vec<[u32; 3]> = if g.surface.is_empty() {
-            // No surface: degenerate triangles would mislead; write points only.
-            Vec::new()
+        // A scene keeps its surface's nodes only; a full model every node of the
+        // volume, its boundary triangles as cells (it stores no tetrahedra).
+        let mut on_surface = vec![false; g.nodes.len()];
+        for &v in g.surface.iter().flatten() {
+            if let Some(x) = on_surface.get_mut(v as usize) {
+                *x = true;
+            }
+        }
+        let holds = if !g.surface.is_empty() && on_surface.iter().all(|&x| x) {
+            Holds::Surface
         } else {
-            g.surface.clone()
+            Holds::Volume
         };
-        write_surface_vtu(out, &g.nodes, &cells, &fields, &meta)
+        write_surface_vtu(out, &g.nodes, &g.surface, holds, &fields, &meta)
             .with_context(|| format!("writing {}", out.display()))?;
     }
     report["max_displacement_mm"] = json!(max);
@@ -887,8 +895,7 @@ pub struct ExportSceneArgs {
     #[arg(long)]
     modes: Option<usize>,
     /// Bits of the near and far fields' stored values: 16 (half the bytes of 32, each
-    /// within 1.5e-5 of its 256-value chunk's largest; format version 8) or 32 (f32,
-    /// as versions up to 7, for older builds).
+    /// within 1.5e-5 of its 256-value chunk's largest) or 32 (f32).
     #[arg(long, default_value = "16", value_parser = parse_near_bits)]
     near_bits: u32,
     #[arg(long)]

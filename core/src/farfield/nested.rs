@@ -1,4 +1,4 @@
-//! The far field with nested column bases and shared row bases (file format version 6).
+//! The far field with nested column bases and shared row bases.
 //!
 //! Every column patch (cluster of load nodes) `γ` that takes part in a low-rank block
 //! carries a basis `V_γ` (3·|γ| × k_γ, f32) of the load side of all its far blocks,
@@ -16,7 +16,7 @@
 //! (`c_γ += E_γ[rows of child]ᵀ c_child`, children before parents: clusters are
 //! numbered so that a parent comes first), and adds `A (B c_γ)` for every block of
 //! every patch reached. A load node's `V` rows are stored once, not once per block on
-//! its path as in the flat form; the on-line work stays about `rows × r` per block.
+//! its path; the on-line work stays about `rows × r` per block.
 //!
 //! The row side is shared too. The blocks of one row patch `ρ` (one per column patch
 //! it is admissible against, five or so) form a *row group*. Where it saves numbers, the

@@ -64,6 +64,25 @@ pub struct OrganMesh {
 }
 
 impl OrganMesh {
+    /// The mesh's fingerprint (`mesh_xxh3` in the files built on it): the xxh3-64 of
+    /// its vertices, tetrahedra, boundary and fixed and palpable flags, so the same
+    /// surface meshed with other regions differs. Every file and log that depends on
+    /// the mesh records this one value.
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        h.update(bytemuck::cast_slice(&self.mesh.vertices));
+        h.update(bytemuck::cast_slice(&self.mesh.tets));
+        h.update(bytemuck::cast_slice(&self.boundary));
+        let flags: Vec<u8> = self
+            .fixed
+            .iter()
+            .chain(&self.palpable)
+            .map(|&b| u8::from(b))
+            .collect();
+        h.update(&flags);
+        h.digest()
+    }
+
     /// The vertices a probe can press: corners of palpable boundary triangles, outside
     /// the fixed region (a tool there moves nothing), sorted, each once.
     pub fn pressable_vertices(&self) -> Vec<u32> {

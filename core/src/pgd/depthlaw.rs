@@ -191,23 +191,8 @@ pub enum DepthLawBuildError {
 fn build_key(organ: &OrganMesh, o: &DepthLawOptions) -> String {
     format!(
         "palpa lab depth-law v{VERSION} log 2 mesh {:016x} {o:?}",
-        organ_hash(organ)
+        organ.fingerprint()
     )
-}
-
-/// The hash of what a press on `organ` depends on: its nodes, tets, fixed and palpable
-/// flags (a log of presses on another mesh is not taken).
-pub(crate) fn organ_hash(organ: &OrganMesh) -> u64 {
-    let mut bytes: Vec<u8> = Vec::new();
-    for p in &organ.mesh.vertices {
-        p.iter().for_each(|v| bytes.extend(v.to_le_bytes()));
-    }
-    for t in &organ.mesh.tets {
-        t.iter().for_each(|v| bytes.extend(v.to_le_bytes()));
-    }
-    bytes.extend(organ.fixed.iter().map(|&b| u8::from(b)));
-    bytes.extend(organ.palpable.iter().map(|&b| u8::from(b)));
-    xxhash_rust::xxh3::xxh3_64(&bytes)
 }
 
 /// One sample's press: empty when the tool does not move its centre, the Padé change

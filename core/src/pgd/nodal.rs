@@ -40,7 +40,7 @@ use super::cluster::{FarSettings, compress};
 use super::palpation::vademecum_meta;
 use crate::axis::{AxisError, Discretization, MAX_LOAD_NODES};
 use crate::disk::{lattice, tri_shape};
-use crate::farfield::FarField;
+use crate::farfield::NestedFar;
 use crate::fe::elasticity::LinearProblem;
 use crate::fe::probe::organ_space;
 use crate::fe::space::Space;
@@ -437,7 +437,7 @@ fn remainder_parts(
     res: &Mat<f64>,
     scale: &[f64],
     report: &mut NodalReport,
-) -> (Band, Option<Box<FarField>>) {
+) -> (Band, Option<Box<NestedFar>>) {
     let m = s.load_nodes.len();
     let positions = s.positions();
     let surf_pos: Vec<[f64; 3]> = s
@@ -462,7 +462,7 @@ fn remainder_parts(
             );
             report.far_blocks = c.far.blocks();
             report.far_bytes = c.far.bytes();
-            (c.dense, Some(Box::new(FarField::Nested(Box::new(c.far)))))
+            (c.dense, Some(Box::new(c.far)))
         }
         None => {
             let radius = settings.band_radius_mm;
@@ -723,7 +723,6 @@ pub fn build(
         table_degree: q as u32,
         table_block,
         table_values,
-        tradeoff_extra: Vec::new(),
         far,
     };
     report.near_bytes = near.bytes();

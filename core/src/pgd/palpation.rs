@@ -513,31 +513,13 @@ fn describe_named(
 ) -> String {
     format!(
         "organ={name} level={level} mesh_xxh3={:016x} element={} young_kpa={} poisson={} radius_mm={} update={}",
-        mesh_hash(organ),
+        organ.fingerprint(),
         element.name(),
         material.young_kpa,
         material.poisson,
         radius_mm,
         update
     )
-}
-
-/// The organ mesh's fingerprint (`mesh_xxh3` in [`describe`]): its vertices,
-/// tetrahedra, boundary and fixed and palpable flags, so the same surface meshed with
-/// other regions differs.
-pub fn mesh_hash(organ: &OrganMesh) -> u64 {
-    let mut h = xxhash_rust::xxh3::Xxh3::new();
-    h.update(bytemuck::cast_slice(&organ.mesh.vertices));
-    h.update(bytemuck::cast_slice(&organ.mesh.tets));
-    h.update(bytemuck::cast_slice(&organ.boundary));
-    let flags: Vec<u8> = organ
-        .fixed
-        .iter()
-        .chain(&organ.palpable)
-        .map(|&b| u8::from(b))
-        .collect();
-    h.update(&flags);
-    h.digest()
 }
 
 /// Reads `key=value` from a description made by [`describe`].

@@ -242,7 +242,7 @@ pub struct TissueLaw {
     pub build_s: f64,
     pub compress_s: f64,
     /// The fingerprint of the organ mesh the presses were made on
-    /// ([`crate::pgd::palpation::mesh_hash`]: vertices, tetrahedra and the fixed and
+    /// ([`crate::organ::OrganMesh::fingerprint`]: vertices, tetrahedra and the fixed and
     /// palpable flags), compared with a scene's or an organ's before they are used
     /// together. Every file holds one (a law made in memory by a test may not, and is
     /// then not saved).
@@ -543,7 +543,7 @@ impl TissueLaw {
             .filter(|p| index.find(p.map(f64::from)).is_some())
             .count();
         if matched == self.rows_mm.len() {
-            let organ_hash = crate::pgd::palpation::mesh_hash(organ);
+            let organ_hash = organ.fingerprint();
             match self.mesh_xxh3 {
                 Some(law) if law != organ_hash => Err(TissueError::MeshDiffers {
                     law,
@@ -722,7 +722,7 @@ impl TissueLaw {
             tolerance_mm,
             build_s: law.build_s,
             compress_s: t0.elapsed().as_secs_f64(),
-            mesh_xxh3: Some(crate::pgd::palpation::mesh_hash(organ)),
+            mesh_xxh3: Some(organ.fingerprint()),
             accuracy: Default::default(),
         };
         debug_assert_eq!(tissue.check(), Ok(()));

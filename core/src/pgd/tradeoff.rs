@@ -151,7 +151,7 @@ pub fn nodal_table(
         });
     }
     let mut far_rows = Vec::new();
-    if let Some(t) = near.far.as_ref().map(|f| f.tolerance()) {
+    if let Some(t) = near.far.as_ref().map(|f| f.tolerance) {
         let tols = [1.0, 2.0, 5.0, 10.0, 30.0].map(|f| Some(f * t));
         for tolerance in tols.into_iter().chain([None]) {
             let m = model.clone().with_far_tolerance(tolerance);

@@ -1,8 +1,10 @@
 //! `palpa lab …`: the tools of those who develop palpa, apart from what users run:
 //! benchmarks that print ratios measured in one run, seeded synthetic models, the depth
-//! law, and the tissue's staging tools (held-out points, cut, refine, band).
+//! law, the tissue's staging tools (held-out points, cut, refine, band), and the record
+//! of what made each shipped file.
 
 pub mod accuracy;
+pub mod asset;
 mod band;
 mod bench;
 mod cut;
@@ -18,6 +20,9 @@ pub enum LabCommand {
     /// Today's accuracy of the shipped scenes, from what their files record, as
     /// Markdown (the generated part of docs/accuracy.md).
     Accuracy(accuracy::AccuracyArgs),
+    /// What made each shipped file: its hashes and commands in `assets/manifest.json`.
+    #[command(subcommand)]
+    Asset(AssetCommand),
     /// Benchmarks that print ratios measured in one run.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -29,6 +34,13 @@ pub enum LabCommand {
     /// The tissue's staging tools: held-out points, cut, refine, band.
     #[command(subcommand)]
     Tissue(TissueStage),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum AssetCommand {
+    /// Record a file just written under `assets/`: the xxh3 of its bytes (and of a
+    /// `.palpa` file's payload) and the commands that made it.
+    Record(asset::RecordArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -58,6 +70,7 @@ pub enum TissueStage {
 pub fn run(cmd: &LabCommand) -> anyhow::Result<()> {
     match cmd {
         LabCommand::Accuracy(args) => accuracy::run(args),
+        LabCommand::Asset(AssetCommand::Record(args)) => asset::record(args),
         LabCommand::Bench(cmd) => bench::run(cmd),
         LabCommand::Synth(args) => synth::run(args),
         LabCommand::DepthLaw(cmd) => depthlaw::run(cmd),

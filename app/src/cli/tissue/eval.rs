@@ -87,7 +87,7 @@ pub fn eval(
         .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
         .fold(0.0, f64::max);
     if let Some(out) = out {
-        use palpa_core::export::{FieldValue, PointField, write_surface_vtu};
+        use palpa_core::export::{FieldValue, Holds, PointField, write_surface_vtu};
         let nodes: Vec<[f64; 3]> = scene
             .vertices_mm()
             .iter()
@@ -108,8 +108,15 @@ pub fn eval(
                 value: depth,
             },
         ];
-        write_surface_vtu(out, &nodes, scene.triangles(), &fields, &meta)
-            .with_context(|| format!("writing {}", out.display()))?;
+        write_surface_vtu(
+            out,
+            &nodes,
+            scene.triangles(),
+            Holds::Surface,
+            &fields,
+            &meta,
+        )
+        .with_context(|| format!("writing {}", out.display()))?;
     }
     let (limit_mm, stopped) = bound.limit_mm(&point);
     if beyond {

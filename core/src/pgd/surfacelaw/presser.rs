@@ -78,7 +78,7 @@ fn press_log_key(
     format!(
         "palpa tissue-build log {LOG_VERSION} palpa {} mesh {:016x} rows {rows} options {:016x}{covered}",
         env!("CARGO_PKG_VERSION"),
-        crate::pgd::palpation::mesh_hash(organ),
+        organ.fingerprint(),
         xxhash_rust::xxh3::xxh3_64(&options),
     )
 }
