@@ -151,7 +151,7 @@ fn bad_requests_get_clear_errors() {
 
 mod hyperelastic {
     use super::*;
-    use palpa_core::fe::hyper::Law;
+    use palpa_core::fe::law::Law;
     use palpa_core::fe::newton::NewtonSettings;
     use palpa_core::fe::probe::{
         solve_hyperelastic, solve_hyperelastic_depths, solve_linear_depth,

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use palpa_core::fe::hyper::Law;
+use palpa_core::fe::law::Law;
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};

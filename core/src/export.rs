@@ -95,8 +95,7 @@ pub fn write_vtu(
         path,
         &space.nodes,
         &space.cells,
-        space.element.nodes_per_cell(),
-        vtk_type,
+        (space.element.nodes_per_cell(), vtk_type),
         Holds::Volume,
         fields,
         meta,
@@ -115,15 +114,14 @@ pub fn write_surface_vtu(
 ) -> io::Result<()> {
     check(nodes.len(), fields)?;
     let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
-    write_cells_vtu(path, nodes, &flat, 3, 5, holds, fields, meta)
+    write_cells_vtu(path, nodes, &flat, (3, 5), holds, fields, meta)
 }
 
 fn write_cells_vtu(
     path: &Path,
     nodes: &[[f64; 3]],
     cells: &[u32],
-    npc: usize,
-    vtk_type: u8,
+    (npc, vtk_type): (usize, u8),
     holds: Holds,
     fields: &[PointField],
     meta: &[FieldValue],

@@ -337,10 +337,10 @@ pub enum NonlinearModel {
 }
 
 impl NonlinearModel {
-    pub fn law(self) -> palpa_core::fe::hyper::Law {
+    pub fn law(self) -> palpa_core::fe::law::Law {
         match self {
-            NonlinearModel::NeoHookean => palpa_core::fe::hyper::Law::NeoHookean,
-            NonlinearModel::Svk => palpa_core::fe::hyper::Law::Svk,
+            NonlinearModel::NeoHookean => palpa_core::fe::law::Law::NeoHookean,
+            NonlinearModel::Svk => palpa_core::fe::law::Law::Svk,
         }
     }
 }

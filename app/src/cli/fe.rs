@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::export::{FieldValue, PointField, write_by_extension};
-use palpa_core::fe::hyper::Law;
+use palpa_core::fe::law::Law;
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{
     ProbeRequest, organ_space, smooth_inward_dir, solve_hyperelastic, solve_linear,

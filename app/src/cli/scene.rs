@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
-use palpa_core::fe::hyper::Law;
+use palpa_core::fe::law::Law;
 use palpa_core::fe::{Element, Material};
 use palpa_core::file;
 use palpa_core::mesh::quality;

@@ -1,22 +1,11 @@
-//! Hyperelastic laws and their element force and tangent (Total Lagrangian).
+//! The element force and tangent of a hyperelastic law (Total Lagrangian), one
+//! quadrature point at a time: the plain statement of the arithmetic that
+//! [`super::lanes`] runs four points at a time.
 //!
-//! With `F = I + ∇u` (gradients in the reference configuration), `C = FᵀF`,
-//! `J = det F`, Green strain `E = ½(C − I)`, the second Piola–Kirchhoff stress `S` and
-//! its material tangent `ℂ = ∂S/∂E` are:
-//!
-//! ```text
-//! Saint Venant–Kirchhoff   S = λ tr(E) I + 2μ E
-//!                          ℂ = λ I⊗I + 2μ 𝕀
-//! neo-Hookean (compressible, W = μ/2 (tr C − 3) − μ ln J + λ/2 (ln J)²)
-//!                          S = μ (I − C⁻¹) + λ ln J C⁻¹
-//!                          ℂ = λ C⁻¹⊗C⁻¹ + 2(μ − λ ln J) 𝕀_{C⁻¹},
-//!                          𝕀_{C⁻¹} : X = C⁻¹ X C⁻¹ for symmetric X
-//! ```
-//!
-//! Both reduce to linear elasticity with the same λ, μ at small strain. SVK's energy
-//! does not grow without bound as the volume goes to zero, so it loses stability in
-//! strong compression; the neo-Hookean energy does (`ln J → −∞`), which is why it is
-//! the usual soft-tissue choice for deep presses.
+//! With `F = I + ∇u` (gradients in the reference configuration), `C = FᵀF` and the
+//! Green strain `E = ½(C − I)`, a law ([`super::law`]: SVK, neo-Hookean) gives the
+//! second Piola–Kirchhoff stress `S` and its material tangent `ℂ = ∂S/∂E`. Both laws
+//! reduce to linear elasticity with the same λ, μ at small strain.
 //!
 //! ```text
 //! internal force   f_int[a,i]      = ∫ (F S)_iK ∂_K N_a dV
@@ -29,71 +18,11 @@
 //! gradients). A quadrature point with `J ≤ 0` (an inverted element) makes the
 //! neo-Hookean force non-finite, which the Newton line search rejects.
 
-use serde::{Deserialize, Serialize};
-
 use super::Element;
+use super::law::{HyperLaw, Law, PointState, with_law};
+use super::m3::M3;
 use super::shape::{TET_DEGREE1, TET_DEGREE4, barycentric_gradients, tet_gradients};
 use super::space::Space;
-
-pub(super) type M3 = [[f64; 3]; 3];
-
-/// A hyperelastic law (both take the Lamé parameters of [`super::Material`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Law {
-    /// Saint Venant–Kirchhoff (the paper's liver).
-    Svk,
-    /// Compressible neo-Hookean.
-    NeoHookean,
-}
-
-impl Law {
-    pub fn name(self) -> &'static str {
-        match self {
-            Law::Svk => "svk",
-            Law::NeoHookean => "neo-hookean",
-        }
-    }
-}
-
-impl std::str::FromStr for Law {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "svk" => Ok(Law::Svk),
-            "neo-hookean" | "neohookean" => Ok(Law::NeoHookean),
-            o => Err(format!(
-                "unknown hyperelastic law '{o}', expected svk or neo-hookean"
-            )),
-        }
-    }
-}
-
-/// The stress at one quadrature point and what its tangent needs.
-struct PointState {
-    s: M3,
-    /// `C⁻¹` (neo-Hookean) and the factor `μ − λ ln J`; unused for SVK.
-    c_inv: M3,
-    shear: f64,
-}
-
-pub(super) fn det(a: &M3) -> f64 {
-    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
-}
-
-/// `a⁻¹` given `d = det a`.
-pub(super) fn inverse(a: &M3, d: f64) -> M3 {
-    let mut inv = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            let (i1, i2) = ((j + 1) % 3, (j + 2) % 3);
-            let (j1, j2) = ((i + 1) % 3, (i + 2) % 3);
-            inv[i][j] = (a[i1][j1] * a[i2][j2] - a[i1][j2] * a[i2][j1]) / d;
-        }
-    }
-    inv
-}
 
 impl Law {
     fn state(self, f: &M3, lambda: f64, mu: f64) -> PointState {
@@ -103,47 +32,7 @@ impl Law {
                 c[i][j] = (0..3).map(|k| f[k][i] * f[k][j]).sum();
             }
         }
-        match self {
-            Law::Svk => {
-                let tr = 0.5 * (c[0][0] + c[1][1] + c[2][2] - 3.0);
-                let mut s = [[0.0; 3]; 3];
-                for i in 0..3 {
-                    for j in 0..3 {
-                        let e = 0.5 * (c[i][j] - if i == j { 1.0 } else { 0.0 });
-                        s[i][j] = 2.0 * mu * e + if i == j { lambda * tr } else { 0.0 };
-                    }
-                }
-                PointState {
-                    s,
-                    c_inv: [[0.0; 3]; 3],
-                    shear: mu,
-                }
-            }
-            Law::NeoHookean => {
-                let j = det(f);
-                if j.is_nan() || j <= 0.0 {
-                    return PointState {
-                        s: [[f64::NAN; 3]; 3],
-                        c_inv: [[f64::NAN; 3]; 3],
-                        shear: f64::NAN,
-                    };
-                }
-                let ln_j = j.ln();
-                let ci = inverse(&c, j * j);
-                let mut s = [[0.0; 3]; 3];
-                for a in 0..3 {
-                    for b in 0..3 {
-                        let id = if a == b { 1.0 } else { 0.0 };
-                        s[a][b] = mu * (id - ci[a][b]) + lambda * ln_j * ci[a][b];
-                    }
-                }
-                PointState {
-                    s,
-                    c_inv: ci,
-                    shear: mu - lambda * ln_j,
-                }
-            }
-        }
+        with_law!(self, L => L::state(f, &c, lambda, mu))
     }
 }
 
@@ -214,21 +103,7 @@ pub fn element(
                         d[jj][kk] = 0.5 * (f[i][jj] * g[a][kk] + f[i][kk] * g[a][jj]);
                     }
                 }
-                match law {
-                    Law::Svk => lin[r] = d[0][0] + d[1][1] + d[2][2],
-                    Law::NeoHookean => {
-                        let ci = &st.c_inv;
-                        lin[r] = (0..3)
-                            .flat_map(|x| (0..3).map(move |y| (x, y)))
-                            .map(|(x, y)| ci[x][y] * d[x][y])
-                            .sum();
-                        for x in 0..3 {
-                            for y in 0..3 {
-                                cde[r][x][y] = (0..3).map(|z| ci[x][z] * d[z][y]).sum();
-                            }
-                        }
-                    }
-                }
+                with_law!(law, L => L::linearize(&st, d, &mut lin[r], &mut cde[r]));
             }
         }
         // The tangent is symmetric: fill the upper triangle (col ≥ r), mirror after.
@@ -243,24 +118,7 @@ pub fn element(
                 // δE_r : 𝕀 : δE_col (SVK) or δE_r : 𝕀_{C⁻¹} : δE_col
                 // = tr(C⁻¹δE_r C⁻¹δE_col) (neo-Hookean).
                 let mut dd = 0.0;
-                match law {
-                    Law::Svk => {
-                        let dc = &de[col];
-                        for x in 0..3 {
-                            for y in 0..3 {
-                                dd += dr[x][y] * dc[x][y];
-                            }
-                        }
-                    }
-                    Law::NeoHookean => {
-                        let cc = &cde[col];
-                        for x in 0..3 {
-                            for y in 0..3 {
-                                dd += cr[x][y] * cc[y][x];
-                            }
-                        }
-                    }
-                }
+                with_law!(law, L => L::contract(dr, cr, &de[col], &cde[col], &mut dd));
                 let mut v = wv * (lambda * lr * lin[col] + 2.0 * st.shear * dd);
                 if i == kc {
                     v += wv * (g[b][0] * sg[a][0] + g[b][1] * sg[a][1] + g[b][2] * sg[a][2]);

@@ -20,22 +20,10 @@
 //! registers here), with no `unsafe` code of ours.
 
 use super::Element;
-use super::hyper::{Law, M3, det, inverse};
+use super::law::{HyperLaw, Law, with_law};
+use super::m3v::{ID, L, M3V, ONE, V, ZERO, ZV, add_scaled, mul, mul_tn};
 use super::shape::{TET_DEGREE1, TET_DEGREE4, barycentric_gradients};
 use super::space::Space;
-
-/// Quadrature points a group holds.
-const L: usize = 4;
-type V = [f64; L];
-type M3V = [[V; 3]; 3];
-
-const ZV: V = [0.0; L];
-const ZERO: M3V = [[ZV; 3]; 3];
-const ONE: V = [1.0; L];
-const ID: M3V = [[ONE, ZV, ZV], [ZV, ONE, ZV], [ZV, ZV, ONE]];
-/// The start of a scalar `Iterator::sum` of `f64`: `-0.0`, the additive identity that
-/// keeps the sign of a sum of negative zeros (so the lanes agree to the last bit).
-const SUM0: V = [-0.0; L];
 
 /// The most orders a depth series may ask for (the kernels' series arrays hold this
 /// many and the constant term). The builds use 12–15; order `p`'s
@@ -45,78 +33,6 @@ pub const MAX_ORDERS: usize = 30;
 const SERIES_LEN: usize = MAX_ORDERS + 1;
 /// Room for the builds' series (12 orders and the constant term).
 const SHORT: usize = 13;
-
-#[inline(always)]
-fn mul(a: &M3V, b: &M3V) -> M3V {
-    let mut c = ZERO;
-    for i in 0..3 {
-        for j in 0..3 {
-            for l in 0..L {
-                c[i][j][l] =
-                    a[i][0][l] * b[0][j][l] + a[i][1][l] * b[1][j][l] + a[i][2][l] * b[2][j][l];
-            }
-        }
-    }
-    c
-}
-
-#[inline(always)]
-fn mul_tn(a: &M3V, b: &M3V) -> M3V {
-    let mut c = ZERO;
-    for i in 0..3 {
-        for j in 0..3 {
-            for l in 0..L {
-                c[i][j][l] =
-                    a[0][i][l] * b[0][j][l] + a[1][i][l] * b[1][j][l] + a[2][i][l] * b[2][j][l];
-            }
-        }
-    }
-    c
-}
-
-/// `acc += s a`, `s` one value a lane.
-#[inline(always)]
-fn add_scaled(acc: &mut M3V, s: &V, a: &M3V) {
-    for i in 0..3 {
-        for j in 0..3 {
-            for l in 0..L {
-                acc[i][j][l] += s[l] * a[i][j][l];
-            }
-        }
-    }
-}
-
-/// `acc += a b` on the upper triangle only.
-#[inline(always)]
-fn add_upper(acc: &mut M3V, a: &M3V, b: &M3V) {
-    for i in 0..3 {
-        for j in i..3 {
-            for l in 0..L {
-                acc[i][j][l] +=
-                    a[i][0][l] * b[0][j][l] + a[i][1][l] * b[1][j][l] + a[i][2][l] * b[2][j][l];
-            }
-        }
-    }
-}
-
-const PERMS: [([usize; 3], f64); 6] = [
-    ([0, 1, 2], 1.0),
-    ([1, 2, 0], 1.0),
-    ([2, 0, 1], 1.0),
-    ([0, 2, 1], -1.0),
-    ([2, 1, 0], -1.0),
-    ([1, 0, 2], -1.0),
-];
-
-fn lane(m: &M3V, l: usize) -> M3 {
-    let mut out = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            out[i][j] = m[i][j][l];
-        }
-    }
-    out
-}
 
 /// [`super::series`]'s `stress_series`, four points a call.
 #[inline(always)]
@@ -147,129 +63,7 @@ fn stress_series<const N: usize>(
             add_scaled(ck, &ONE, &mul_tn(&f[k / 2], &f[k / 2]));
         }
     }
-    match law {
-        Law::Svk => {
-            for (k, (sk, ck)) in s.iter_mut().zip(&c).take(p + 1).enumerate() {
-                let mut e = *ck;
-                if k == 0 {
-                    for (i, row) in e.iter_mut().enumerate() {
-                        for l in 0..L {
-                            row[i][l] -= 1.0;
-                        }
-                    }
-                }
-                for l in 0..L {
-                    let tr = 0.5 * (e[0][0][l] + e[1][1][l] + e[2][2][l]);
-                    for i in 0..3 {
-                        for j in 0..3 {
-                            sk[i][j][l] = mu * e[i][j][l] + if i == j { lambda * tr } else { 0.0 };
-                        }
-                    }
-                }
-            }
-        }
-        Law::NeoHookean => {
-            let mut jac = [ZV; N];
-            let mut pair = [ZV; N];
-            for (perm, sign) in PERMS {
-                for (k, q) in pair.iter_mut().enumerate().take(p + 1) {
-                    *q = SUM0;
-                    for a in 0..=k {
-                        for l in 0..L {
-                            q[l] += f[a][0][perm[0]][l] * f[k - a][1][perm[1]][l];
-                        }
-                    }
-                }
-                for (k, jk) in jac.iter_mut().enumerate().take(p + 1) {
-                    let mut sum = SUM0;
-                    for m in 0..=k {
-                        for l in 0..L {
-                            sum[l] += pair[m][l] * f[k - m][2][perm[2]][l];
-                        }
-                    }
-                    for l in 0..L {
-                        jk[l] += sign * sum[l];
-                    }
-                }
-            }
-            let inverted: [bool; L] =
-                std::array::from_fn(|l| jac[0][l].is_nan() || jac[0][l] <= 0.0);
-            let mut ln_j = [ZV; N];
-            let ln0: V = std::array::from_fn(|l| jac[0][l].ln());
-            ln_j.fill(ln0);
-            for k in 1..=p {
-                let mut sum = SUM0;
-                for m in 1..k {
-                    for l in 0..L {
-                        sum[l] += m as f64 * ln_j[m][l] * jac[k - m][l];
-                    }
-                }
-                for l in 0..L {
-                    ln_j[k][l] = (jac[k][l] - sum[l] / k as f64) / jac[0][l];
-                }
-            }
-            let at_rest = c[0] == ID;
-            let mut y = [ZERO; N];
-            y[0] = if at_rest {
-                ID
-            } else {
-                let mut y0 = ZERO;
-                for l in 0..L {
-                    let c0 = lane(&c[0], l);
-                    let inv = inverse(&c0, det(&c0));
-                    for i in 0..3 {
-                        for j in 0..3 {
-                            y0[i][j][l] = inv[i][j];
-                        }
-                    }
-                }
-                y0
-            };
-            for k in 1..=p {
-                let mut acc = ZERO;
-                if at_rest {
-                    for i in 1..=k {
-                        add_upper(&mut acc, &c[i], &y[k - i]);
-                    }
-                } else {
-                    for i in 1..=k {
-                        add_scaled(&mut acc, &ONE, &mul(&c[i], &y[k - i]));
-                    }
-                    acc = mul(&y[0], &acc);
-                }
-                for a in 0..3 {
-                    for b in a..3 {
-                        for l in 0..L {
-                            y[k][a][b][l] = -acc[a][b][l];
-                            y[k][b][a][l] = -acc[a][b][l];
-                        }
-                    }
-                }
-            }
-            let mmu: V = [-mu; L];
-            let pmu: V = [mu; L];
-            for (k, sk) in s.iter_mut().enumerate().take(p + 1) {
-                *sk = ZERO;
-                add_scaled(sk, &mmu, &y[k]);
-                if k == 0 {
-                    add_scaled(sk, &pmu, &ID);
-                }
-                for m in 0..=k {
-                    let lj: V = std::array::from_fn(|l| lambda * ln_j[m][l]);
-                    add_scaled(sk, &lj, &y[k - m]);
-                }
-            }
-            for (l, _) in inverted.iter().enumerate().filter(|(_, bad)| **bad) {
-                for sk in s.iter_mut().take(p + 1) {
-                    for row in sk.iter_mut() {
-                        for v in row.iter_mut() {
-                            v[l] = f64::NAN;
-                        }
-                    }
-                }
-            }
-        }
-    }
+    with_law!(law, L => L::stress_series_v(f, &c, p, lambda, mu, s));
 }
 
 /// The lanes' barycentric coordinates and weights for a rule of `n` points, in groups
@@ -563,16 +357,6 @@ impl pulp::WithSimd for StateKernel<'_> {
     }
 }
 
-/// `det a` a lane, as [`super::hyper`]'s `det` computes it.
-#[inline(always)]
-fn det_v(a: &M3V) -> V {
-    std::array::from_fn(|l| {
-        a[0][0][l] * (a[1][1][l] * a[2][2][l] - a[1][2][l] * a[2][1][l])
-            - a[0][1][l] * (a[1][0][l] * a[2][2][l] - a[1][2][l] * a[2][0][l])
-            + a[0][2][l] * (a[1][0][l] * a[2][1][l] - a[1][1][l] * a[2][0][l])
-    })
-}
-
 #[inline(always)]
 fn element_force_lanes(cell: &CellState, fe: &mut [f64]) {
     let npc = cell.geo.npc;
@@ -606,50 +390,7 @@ fn state(law: Law, f: &M3V, lambda: f64, mu: f64) -> (M3V, M3V, V) {
     let mut s = ZERO;
     let mut ci = ZERO;
     let mut shear = [mu; L];
-    match law {
-        Law::Svk => {
-            for l in 0..L {
-                let tr = 0.5 * (c[0][0][l] + c[1][1][l] + c[2][2][l] - 3.0);
-                for i in 0..3 {
-                    for j in 0..3 {
-                        let e = 0.5 * (c[i][j][l] - if i == j { 1.0 } else { 0.0 });
-                        s[i][j][l] = 2.0 * mu * e + if i == j { lambda * tr } else { 0.0 };
-                    }
-                }
-            }
-        }
-        Law::NeoHookean => {
-            let j = det_v(f);
-            let ln_j: V = std::array::from_fn(|l| j[l].ln());
-            for l in 0..L {
-                let d = j[l] * j[l];
-                for a in 0..3 {
-                    for b in 0..3 {
-                        let (a1, a2) = ((b + 1) % 3, (b + 2) % 3);
-                        let (b1, b2) = ((a + 1) % 3, (a + 2) % 3);
-                        ci[a][b][l] =
-                            (c[a1][b1][l] * c[a2][b2][l] - c[a1][b2][l] * c[a2][b1][l]) / d;
-                    }
-                }
-                for a in 0..3 {
-                    for b in 0..3 {
-                        let id = if a == b { 1.0 } else { 0.0 };
-                        s[a][b][l] = mu * (id - ci[a][b][l]) + lambda * ln_j[l] * ci[a][b][l];
-                    }
-                }
-                shear[l] = mu - lambda * ln_j[l];
-                if j[l].is_nan() || j[l] <= 0.0 {
-                    for (sr, cr) in s.iter_mut().zip(ci.iter_mut()) {
-                        for (sv, cv) in sr.iter_mut().zip(cr.iter_mut()) {
-                            sv[l] = f64::NAN;
-                            cv[l] = f64::NAN;
-                        }
-                    }
-                    shear[l] = f64::NAN;
-                }
-            }
-        }
-    }
+    with_law!(law, L => L::state_v(f, &c, lambda, mu, &mut s, &mut ci, &mut shear));
     (s, ci, shear)
 }
 
@@ -683,33 +424,7 @@ fn element_tangent_lanes(cell: &CellState, k: &mut [f64]) {
                         }
                     }
                 }
-                match law {
-                    Law::Svk => {
-                        for q in 0..L {
-                            lin[r][q] = d[0][0][q] + d[1][1][q] + d[2][2][q];
-                        }
-                    }
-                    Law::NeoHookean => {
-                        let mut acc = SUM0;
-                        for x in 0..3 {
-                            for y in 0..3 {
-                                for q in 0..L {
-                                    acc[q] += ci[x][y][q] * d[x][y][q];
-                                }
-                            }
-                        }
-                        lin[r] = acc;
-                        for x in 0..3 {
-                            for y in 0..3 {
-                                for q in 0..L {
-                                    cde[r][x][y][q] = ci[x][0][q] * d[0][y][q]
-                                        + ci[x][1][q] * d[1][y][q]
-                                        + ci[x][2][q] * d[2][y][q];
-                                }
-                            }
-                        }
-                    }
-                }
+                with_law!(law, L => L::linearize_v(&ci, d, &mut lin[r], &mut cde[r]));
             }
         }
         let mut sg = [[ZV; 3]; 10];
@@ -730,28 +445,7 @@ fn element_tangent_lanes(cell: &CellState, k: &mut [f64]) {
             for col in r..m {
                 let (b, kc) = (col / 3, col % 3);
                 let mut dd = ZV;
-                match law {
-                    Law::Svk => {
-                        let dc = &de[col];
-                        for x in 0..3 {
-                            for y in 0..3 {
-                                for q in 0..L {
-                                    dd[q] += dr[x][y][q] * dc[x][y][q];
-                                }
-                            }
-                        }
-                    }
-                    Law::NeoHookean => {
-                        let cc = &cde[col];
-                        for x in 0..3 {
-                            for y in 0..3 {
-                                for q in 0..L {
-                                    dd[q] += cr[x][y][q] * cc[y][x][q];
-                                }
-                            }
-                        }
-                    }
-                }
+                with_law!(law, L => L::contract_v(dr, cr, &de[col], &cde[col], &mut dd));
                 let mut v: V =
                     std::array::from_fn(|q| wv[q] * (lr[q] * lin[col][q] + sh2[q] * dd[q]));
                 if i == kc {

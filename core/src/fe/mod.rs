@@ -27,7 +27,10 @@
 pub mod elasticity;
 pub mod hyper;
 pub mod lanes;
+pub mod law;
 pub mod load;
+mod m3;
+mod m3v;
 pub mod newton;
 pub mod ordering;
 pub mod path;

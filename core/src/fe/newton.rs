@@ -35,7 +35,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::elasticity::{assemble, cell_dofs};
-use super::hyper::Law;
+use super::law::Law;
 use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
 use super::{FeError, Material, StepFailure};

@@ -90,7 +90,7 @@
 
 use std::time::Instant;
 
-use super::hyper::Law;
+use super::law::Law;
 use super::newton::{Augment, NewtonSettings, continue_depth, factor_bordered, internal_force};
 use super::series::{DepthSeries, Expander, orders_about, solve_dense};
 use super::space::Space;

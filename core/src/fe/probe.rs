@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use super::elasticity::LinearProblem;
-use super::hyper::Law;
+use super::law::Law;
 use super::load::probe_functional;
 use super::load::{SurfacePoint, probe_load, project, value_at};
 use super::newton::{self, Control, NewtonReport, NewtonSettings};

@@ -36,63 +36,13 @@
 
 use std::time::Instant;
 
-use super::hyper::Law;
+use super::law::{HyperLaw, Law, with_law};
 use super::shape::{TET_DEGREE1, TET_DEGREE4, barycentric_gradients, tet_gradients};
 use super::space::Space;
 use super::sparse::{Cholesky, SymCsc};
 use super::{Element, FeError, Material};
 
-use super::hyper::{M3, det, inverse};
-
-const ID: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-const ZERO: M3 = [[0.0; 3]; 3];
-
-fn mul(a: &M3, b: &M3) -> M3 {
-    let mut c = ZERO;
-    for i in 0..3 {
-        for j in 0..3 {
-            c[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-        }
-    }
-    c
-}
-
-fn mul_tn(a: &M3, b: &M3) -> M3 {
-    let mut c = ZERO;
-    for i in 0..3 {
-        for j in 0..3 {
-            c[i][j] = a[0][i] * b[0][j] + a[1][i] * b[1][j] + a[2][i] * b[2][j];
-        }
-    }
-    c
-}
-
-fn add_scaled(acc: &mut M3, s: f64, a: &M3) {
-    for i in 0..3 {
-        for j in 0..3 {
-            acc[i][j] += s * a[i][j];
-        }
-    }
-}
-
-/// `acc += a b` on the upper triangle only (for sums known to be symmetric).
-fn add_upper(acc: &mut M3, a: &M3, b: &M3) {
-    for i in 0..3 {
-        for j in i..3 {
-            acc[i][j] += a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-        }
-    }
-}
-
-/// Permutations of (0, 1, 2) with their signs (the determinant's six terms).
-const PERMS: [([usize; 3], f64); 6] = [
-    ([0, 1, 2], 1.0),
-    ([1, 2, 0], 1.0),
-    ([2, 0, 1], 1.0),
-    ([0, 2, 1], -1.0),
-    ([2, 1, 0], -1.0),
-    ([1, 0, 2], -1.0),
-];
+use super::m3::{ID, M3, ZERO, add_scaled, mul, mul_tn};
 
 /// The coefficients `0..=p` of the second Piola–Kirchhoff stress for the deformation
 /// gradient series `f[0..=p]`, into `s[0..=p]`. `f[0]` is `I` about the rest state, or
@@ -120,94 +70,7 @@ fn stress_series(law: Law, f: &[M3], lambda: f64, mu: f64, s: &mut [M3]) {
             add_scaled(ck, 1.0, &mul_tn(&f[k / 2], &f[k / 2]));
         }
     }
-    match law {
-        Law::Svk => {
-            for (k, (sk, ck)) in s.iter_mut().zip(&c).take(p + 1).enumerate() {
-                // E_0 = ½(C_0 − I), E_k = ½ C_k.
-                let mut e = *ck;
-                if k == 0 {
-                    for (i, row) in e.iter_mut().enumerate() {
-                        row[i] -= 1.0;
-                    }
-                }
-                let tr = 0.5 * (e[0][0] + e[1][1] + e[2][2]);
-                for i in 0..3 {
-                    for j in 0..3 {
-                        sk[i][j] = mu * e[i][j] + if i == j { lambda * tr } else { 0.0 };
-                    }
-                }
-            }
-        }
-        Law::NeoHookean => {
-            // J = det F: each permutation's product of three entry series, as two
-            // Cauchy products (the first two rows' entries, then the third's): O(p²)
-            // a permutation where the triple sum is O(p³).
-            let mut jac = [0.0; SERIES_LEN];
-            let mut pair = [0.0; SERIES_LEN];
-            for (perm, sign) in PERMS {
-                for (k, q) in pair.iter_mut().enumerate().take(p + 1) {
-                    *q = (0..=k)
-                        .map(|a| f[a][0][perm[0]] * f[k - a][1][perm[1]])
-                        .sum();
-                }
-                for (k, jk) in jac.iter_mut().enumerate().take(p + 1) {
-                    let sum: f64 = (0..=k).map(|m| pair[m] * f[k - m][2][perm[2]]).sum();
-                    *jk += sign * sum;
-                }
-            }
-            if jac[0].is_nan() || jac[0] <= 0.0 {
-                // An inverted expansion point: no series (the Newton reference rejects
-                // the same state).
-                s[..=p].fill([[f64::NAN; 3]; 3]);
-                return;
-            }
-            // (ln J)' = J'/J: k L_k J_0 = k J_k − Σ_{m=1..k−1} m L_m J_{k−m}.
-            let mut ln_j = [jac[0].ln(); SERIES_LEN];
-            for k in 1..=p {
-                let sum: f64 = (1..k).map(|m| m as f64 * ln_j[m] * jac[k - m]).sum();
-                ln_j[k] = (jac[k] - sum / k as f64) / jac[0];
-            }
-            // C Y = I: Y_0 = C_0⁻¹, Y_k = −Y_0 Σ_{i=1..k} C_i Y_{k−i}. Every Y_k is
-            // symmetric (C⁻¹ is, for every depth); about the rest state Y_0 = I, so the
-            // sum is −Y_k and only its upper triangle is formed.
-            let at_rest = c[0] == ID;
-            let mut y = [ZERO; SERIES_LEN];
-            y[0] = if at_rest {
-                ID
-            } else {
-                inverse(&c[0], det(&c[0]))
-            };
-            for k in 1..=p {
-                let mut acc = ZERO;
-                if at_rest {
-                    for i in 1..=k {
-                        add_upper(&mut acc, &c[i], &y[k - i]);
-                    }
-                } else {
-                    for i in 1..=k {
-                        add_scaled(&mut acc, 1.0, &mul(&c[i], &y[k - i]));
-                    }
-                    acc = mul(&y[0], &acc);
-                }
-                for a in 0..3 {
-                    for b in a..3 {
-                        y[k][a][b] = -acc[a][b];
-                        y[k][b][a] = -acc[a][b];
-                    }
-                }
-            }
-            for (k, sk) in s.iter_mut().enumerate().take(p + 1) {
-                *sk = ZERO;
-                add_scaled(sk, -mu, &y[k]);
-                if k == 0 {
-                    add_scaled(sk, mu, &ID);
-                }
-                for m in 0..=k {
-                    add_scaled(sk, lambda * ln_j[m], &y[k - m]);
-                }
-            }
-        }
-    }
+    with_law!(law, L => L::stress_series(f, &c, p, lambda, mu, s));
 }
 
 /// Room for a series of [`MAX_ORDERS`] orders and its constant term.

@@ -23,7 +23,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use crate::fe::hyper::Law;
+use crate::fe::law::Law;
 use crate::fe::load::{probe_functional, probe_load};
 use crate::fe::probe::{ProbeRequest, locate, organ_space};
 use crate::fe::series::Expander;

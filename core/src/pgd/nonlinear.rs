@@ -18,7 +18,7 @@ pub enum Tissue {
 }
 
 impl Tissue {
-    pub fn law(&self) -> crate::fe::hyper::Law {
+    pub fn law(&self) -> crate::fe::law::Law {
         match self {
             Tissue::ForceLaw(l) => l.options.law,
             Tissue::Vademecum(t) => t.law.options.law,

@@ -62,7 +62,7 @@ use std::path::Path;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use crate::fe::hyper::Law;
+use crate::fe::law::Law;
 use crate::fe::probe::organ_space;
 use crate::fe::series::Expander;
 use crate::fe::{Element, FeError, Material};

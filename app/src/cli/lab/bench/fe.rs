@@ -22,7 +22,7 @@ use std::time::Instant;
 
 use anyhow::bail;
 use clap::Args;
-use palpa_core::fe::hyper::Law;
+use palpa_core::fe::law::Law;
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{
     ProbeRequest, organ_space, solve_hyperelastic, solve_linear, solve_series,

@@ -13,8 +13,9 @@
 use std::time::Instant;
 
 use palpa_core::fe::elasticity::assemble;
-use palpa_core::fe::hyper::{Law, element};
+use palpa_core::fe::hyper::element;
 use palpa_core::fe::lanes;
+use palpa_core::fe::law::Law;
 use palpa_core::fe::newton::assemble_vector_on;
 use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::series::{Expander, element_coefficient};
