@@ -30,6 +30,7 @@ const FLOORS: &[(&str, u32)] = &[
     ("scene", 5),
     ("cme", 5),
     ("pgd", 5),
+    ("tissue", 6),
 ];
 
 fn sources(path: &Path, out: &mut Vec<PathBuf>) {
@@ -361,6 +362,89 @@ fn no_import_loops_between_files() {
         }
     }
     assert!(found.is_empty(), "import loops:\n{}", found.join("\n"));
+}
+
+/// The floors inside core's two largest folders, as ARCHITECTURE.md draws them: each
+/// file (or sub-folder) names only files of its own floor or below. `fe`: assembly below
+/// the nonlinear solver, below the press; `tissue`: a press below the stages, below the
+/// file, below what the app evaluates on-line.
+const FOLDER_FLOORS: &[(&str, &[&[&str]])] = &[
+    (
+        "fe",
+        &[
+            &["shape", "m3", "ordering"],
+            &["space", "m3v"],
+            &["sparse", "law", "load"],
+            &["elasticity", "hyper", "lanes"],
+            &["newton"],
+            &["series"],
+            &["path", "probe"],
+        ],
+    ),
+    (
+        "tissue",
+        &[
+            &[
+                "options",
+                "presslog",
+                "samplelog",
+                "shapes",
+                "weights",
+                "accuracy",
+                "subsplit",
+            ],
+            &["press", "predict"],
+            &["presser"],
+            &["refine"],
+            &["surface"],
+            &["band", "refine_plan", "law"],
+            &["bound", "band_file", "refine_file"],
+            &["surplus", "knobs", "subsplit_file", "depthlaw"],
+            &["online"],
+        ],
+    ),
+];
+
+#[test]
+fn files_inside_core_folders_import_only_their_floor_or_below() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../core/src");
+    let mut files = Vec::new();
+    sources(&src, &mut files);
+    let modules: BTreeMap<Vec<String>, PathBuf> = files
+        .iter()
+        .map(|f| (module_path(&src, f), f.clone()))
+        .collect();
+    let mut bad = Vec::new();
+    for (folder, floors) in FOLDER_FLOORS {
+        let floor_of = |name: &str| floors.iter().position(|f| f.contains(&name));
+        for (m, file) in &modules {
+            if m.len() < 2 || m[0] != *folder || m.last().is_some_and(|l| l == "tests") {
+                continue;
+            }
+            let Some(floor) = floor_of(&m[1]) else {
+                panic!("`{}` has no floor in FOLDER_FLOORS", m.join("::"));
+            };
+            let code = code_of(&std::fs::read_to_string(file).expect("source"));
+            for target in module_imports(&code, m, &modules) {
+                if target.len() < 2 || target[0] != *folder || target[1] == m[1] {
+                    continue;
+                }
+                let to = floor_of(&target[1]).unwrap_or(usize::MAX);
+                if to > floor {
+                    bad.push(format!(
+                        "{} (floor {floor}) imports {} (floor {to})",
+                        m.join("::"),
+                        target.join("::")
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "imports against the floors:\n{}",
+        bad.join("\n")
+    );
 }
 
 /// The loop finder finds a loop: two files naming each other, one through a `use`

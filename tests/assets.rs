@@ -147,9 +147,9 @@ fn the_kidney_example_matches_its_shipped_surface() {
 /// force ratio and (within the stored bound) its surface.
 #[test]
 fn the_default_tissue_comes_from_the_current_code() {
-    use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
-    use palpa_core::pgd::tissue::TissueLaw;
     use palpa_core::scene::PalpationScene;
+    use palpa_core::tissue::law::TissueLaw;
+    use palpa_core::tissue::surface::{SurfaceLaw, SurfaceLawOptions};
 
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets");
     let path = root.join("liver-coarse.tissue");

@@ -517,7 +517,7 @@ mod hyperelastic {
     #[test]
     fn the_shared_tangent_continuation_is_as_good_as_the_exact_one() {
         use palpa_core::fe::series::{Expander, SplitTangent};
-        use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, press_at};
+        use palpa_core::tissue::surface::{SurfaceLawOptions, press_at};
         let organ = coarse_liver();
         let options = SurfaceLawOptions {
             element: Element::P1,
@@ -721,7 +721,7 @@ mod hyperelastic {
     /// Newton at points it never saw, and its inverse.
     #[test]
     fn the_force_law_matches_newton_at_held_out_points() {
-        use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
+        use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
         let organ = coarse_liver();
         let options = DepthLawOptions {
             element: Element::P1,

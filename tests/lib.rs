@@ -68,7 +68,7 @@ pub fn small_model<T: Scalar>(nodes: usize, modes: usize, seed: u64) -> Separate
 /// `sample` from the first `kept` modes of its group against the residual a press
 /// computed, `computed(j)` at grid depth `j` (mm).
 pub fn stored_error<'a>(
-    t: &palpa_core::pgd::tissue::TissueLaw,
+    t: &palpa_core::tissue::law::TissueLaw,
     sample: usize,
     kept: usize,
     computed: impl Fn(usize) -> &'a [f32],

@@ -1,4 +1,4 @@
-//! The hyperelastic vademecum (`palpa_core::pgd::tissue`), built on coarse P2 in a
+//! The hyperelastic vademecum (`palpa_core::tissue::law`), built on coarse P2 in a
 //! small region and bound to the shipped scene: against Newton at a held-out point
 //! (force and surface), and the extremes: depth 0, past the grid, the inverse, a
 //! corrupt file, a law of another mesh. The region's plain build is made once and
@@ -14,14 +14,15 @@ use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic};
 use palpa_core::fe::series::Expander;
 use palpa_core::file;
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{
+use palpa_core::scene::PalpationScene;
+use palpa_core::tissue::bound::BoundTissue;
+use palpa_core::tissue::law::{
+    Grouping, PointIndex, QUANT_SHARES, ShapeBits, TissueError, TissueLaw,
+};
+use palpa_core::tissue::surface::{
     PressCount, SurfaceLaw, SurfaceLawBuildError, SurfaceLawOptions, follow_at,
     organ_vertex_normals,
 };
-use palpa_core::pgd::tissue::{
-    BoundTissue, Grouping, PointIndex, QUANT_SHARES, ShapeBits, TissueError, TissueLaw,
-};
-use palpa_core::scene::PalpationScene;
 use palpa_tests::{coarse_liver, stored_error};
 
 mod subsplit;
@@ -600,7 +601,7 @@ fn refined_onward(
         .refine(organ, 0.0, None, Some(log), none)
         .expect("goes on");
     let points =
-        |r: &palpa_core::pgd::surfacelaw::Refinement| r.quarter_ends.len() + r.inner_corners.len();
+        |r: &palpa_core::tissue::surface::Refinement| r.quarter_ends.len() + r.inner_corners.len();
     assert_eq!(
         resumed,
         points(r) - points(&one.refinement),
@@ -753,7 +754,7 @@ fn refine_previewed(
     organ: &OrganMesh,
     base: &TissueLaw,
     one: &SurfaceLaw,
-    r: &palpa_core::pgd::surfacelaw::Refinement,
+    r: &palpa_core::tissue::surface::Refinement,
     log: &Path,
 ) {
     let law = base.surface_law(organ).expect("reads back");

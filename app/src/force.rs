@@ -24,8 +24,8 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
-use palpa_core::pgd::nonlinear::Tissue;
 use palpa_core::scene::{PalpationScene, ProbePoint};
+use palpa_core::tissue::online::Tissue;
 
 use crate::latest::Latest;
 

@@ -6,10 +6,11 @@
 use std::path::Path;
 
 use anyhow::Context;
-use palpa_core::pgd::depthlaw::DepthLaw;
-use palpa_core::pgd::nonlinear::Tissue;
-use palpa_core::pgd::tissue::{BoundTissue, TissueLaw};
 use palpa_core::scene::PalpationScene;
+use palpa_core::tissue::bound::BoundTissue;
+use palpa_core::tissue::depthlaw::DepthLaw;
+use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::online::Tissue;
 
 use crate::session::GoalDepths;
 
@@ -88,7 +89,7 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
              cascade, signaling-cascade-D)"
         );
     }
-    if palpa_core::pgd::tissue::is_tissue_file(path) {
+    if palpa_core::tissue::law::is_tissue_file(path) {
         anyhow::bail!(
             "cannot open the scene {spec}: a tissue vademecum, which travels beside its scene \
              (open the X.palpa it sits next to)"

@@ -339,7 +339,7 @@ mod tests {
             panic!("the built-in liver is a palpation scene")
         };
         let goals = match session.law.as_deref() {
-            Some(palpa_core::pgd::nonlinear::Tissue::Vademecum(b)) => {
+            Some(palpa_core::tissue::online::Tissue::Vademecum(b)) => {
                 crate::session::GoalDepths::of(&b.law)
             }
             _ => None,

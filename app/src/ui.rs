@@ -150,7 +150,7 @@ pub fn center_view(
 /// large the blend between pressed points may miss the surface goal here, however
 /// shallow the press (docs/lab/tissue-measurements.md §1).
 fn blend_surplus(ui: &mut egui::Ui, session: &Session) {
-    use palpa_core::pgd::tissue::BLEND_SURPLUS_WARN_MM;
+    use palpa_core::tissue::surplus::BLEND_SURPLUS_WARN_MM;
     let Some(eta) = session.blend_surplus_mm() else {
         return;
     };
@@ -170,7 +170,7 @@ fn blend_surplus(ui: &mut egui::Ui, session: &Session) {
 /// (dashed), with the current press marked.
 fn depth_curve(
     ui: &mut egui::Ui,
-    law: &palpa_core::pgd::nonlinear::Tissue,
+    law: &palpa_core::tissue::online::Tissue,
     s: &crate::force::ForceSample,
 ) {
     let c = f64::from(s.compliance_mm_per_n);

@@ -361,7 +361,7 @@ fn the_force_loop_keeps_its_schedule_under_load() {
 /// flags a depth past the law's range.
 #[test]
 fn the_force_loop_uses_the_tissue_law_both_ways() {
-    use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
+    use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
     let s = std::sync::Arc::new(scene());
     // A law that softens by 0.4 % per 0.25 mm everywhere (a uniform curve).
     let steps = 61;
@@ -379,7 +379,7 @@ fn the_force_loop_uses_the_tissue_law_both_ways() {
     let fl = ForceLoop::spawn(
         s.clone(),
         Some(std::sync::Arc::new(
-            palpa_core::pgd::nonlinear::Tissue::ForceLaw(law),
+            palpa_core::tissue::online::Tissue::ForceLaw(law),
         )),
         Box::new(NoHaptics),
         LoopTiming::default(),

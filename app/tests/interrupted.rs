@@ -94,8 +94,8 @@ fn depth_law_resumes_from_its_sample_log() {
         "{resumed} of {logged}"
     );
     assert!(!log.exists(), "the log is removed once the law is saved");
-    let x = palpa_core::pgd::depthlaw::DepthLaw::load(&full).expect("full");
-    let y = palpa_core::pgd::depthlaw::DepthLaw::load(&cut).expect("resumed");
+    let x = palpa_core::tissue::depthlaw::DepthLaw::load(&full).expect("full");
+    let y = palpa_core::tissue::depthlaw::DepthLaw::load(&cut).expect("resumed");
     assert_eq!(x.samples, y.samples);
     let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&x.ratio), bits(&y.ratio));
@@ -197,8 +197,8 @@ fn tissue_build_resumes_from_its_press_log() {
         "{resumed} of {presses} presses taken from the log"
     );
     assert!(!log.exists(), "the log is removed once the law is saved");
-    let x = palpa_core::pgd::tissue::TissueLaw::load(&full).expect("full");
-    let mut y = palpa_core::pgd::tissue::TissueLaw::load(&cut).expect("resumed");
+    let x = palpa_core::tissue::law::TissueLaw::load(&full).expect("full");
+    let mut y = palpa_core::tissue::law::TissueLaw::load(&cut).expect("resumed");
     (y.build_s, y.compress_s) = (x.build_s, x.compress_s);
     assert!(x == y, "the resumed law differs from the uninterrupted one");
 }
@@ -273,8 +273,8 @@ fn tissue_stages_resume_from_their_press_logs() {
             name != "band",
             "{name}: the log kept once the law is saved"
         );
-        let x = palpa_core::pgd::tissue::TissueLaw::load(&full).expect("uninterrupted");
-        let mut y = palpa_core::pgd::tissue::TissueLaw::load(&cut).expect("resumed");
+        let x = palpa_core::tissue::law::TissueLaw::load(&full).expect("uninterrupted");
+        let mut y = palpa_core::tissue::law::TissueLaw::load(&cut).expect("resumed");
         (y.build_s, y.compress_s) = (x.build_s, x.compress_s);
         assert!(
             x == y,

@@ -10,10 +10,11 @@ use palpa_app::force::{NoHaptics, PressMode};
 use palpa_app::offscreen::settle;
 use palpa_app::scenes;
 use palpa_app::session::Session;
-use palpa_core::pgd::nonlinear::Tissue;
-use palpa_core::pgd::surfacelaw::{Refinement, SurfaceLawOptions};
-use palpa_core::pgd::tissue::{BoundTissue, TissueLaw};
 use palpa_core::scene::PalpationScene;
+use palpa_core::tissue::bound::BoundTissue;
+use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::online::Tissue;
+use palpa_core::tissue::surface::{Refinement, SurfaceLawOptions};
 
 /// A hand-made vademecum on the shipped scene: at every palpable vertex the force is
 /// 0.9 of the linear one at 5 mm and 0.8 at 10 mm, and the residual moves render
@@ -51,7 +52,7 @@ pub(crate) fn hand_made(scene: &PalpationScene) -> TissueLaw {
         mode_start: (0..=samples as u32).collect(),
         group: (0..samples as u32).collect(),
         coeff_start: (0..=samples as u32).map(|s| 3 * s).collect(),
-        shape: palpa_core::pgd::tissue::Shapes::Sixteen(shape),
+        shape: palpa_core::tissue::law::Shapes::Sixteen(shape),
         shape_scale: vec![1.0 / f32::from(i16::MAX); samples],
         coeffs: [0.0, 1.0, 2.0].repeat(samples),
         truncation_bound_mm: 0.0,
@@ -604,7 +605,7 @@ fn tissue_check_separates_the_blend_from_the_press() {
         .expect("a mode count");
     // Built with the default eight bits, the table offers no sixteen (nothing to
     // gain from requantizing up); eight against sixteen is tested on a law built
-    // with sixteen (`tests/tissue.rs`, `tissue_knobs`).
+    // with sixteen (`tests/tissue.rs`, `tissue::knobs`).
     assert!(table_rows.iter().all(|r| r["bits"] == 8), "{table}");
     let row = |modes: u64, step: f64| {
         table_rows

@@ -61,6 +61,7 @@ pub mod surface_import;
 pub mod synthetic;
 pub mod tensor;
 pub mod timing;
+pub mod tissue;
 
 pub use axis::{AxisError, Discretization, ParamValue, Stencil};
 pub use file::{AnyModel, FileError};

@@ -22,10 +22,10 @@ fuzz_target!(|data: &[u8]| {
         let at: Vec<(String, f64)> = m.parameters().into_iter().map(|(n, lo, _)| (n, lo)).collect();
         let _ = m.evaluate(0.0, &at, 4);
     }
-    if let Ok(law) = palpa_core::pgd::depthlaw::DepthLaw::from_bytes(data, std::path::Path::new("<memory>")) {
+    if let Ok(law) = palpa_core::tissue::depthlaw::DepthLaw::from_bytes(data, std::path::Path::new("<memory>")) {
         let _ = law.check();
     }
-    if let Ok(t) = palpa_core::pgd::tissue::TissueLaw::from_bytes(data, std::path::Path::new("<memory>")) {
+    if let Ok(t) = palpa_core::tissue::law::TissueLaw::from_bytes(data, std::path::Path::new("<memory>")) {
         let _ = t.check();
     }
 });

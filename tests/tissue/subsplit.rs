@@ -1,4 +1,4 @@
-//! Sub-triangles split again (`palpa_core::pgd::subsplit`) through the whole chain:
+//! Sub-triangles split again (`palpa_core::tissue::subsplit`) through the whole chain:
 //! plan, presses, surpluses over the file's blend, compression, file and blend.
 
 use std::path::Path;
@@ -6,10 +6,11 @@ use std::path::Path;
 use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::series::Expander;
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{
+use palpa_core::tissue::bound::BoundTissue;
+use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::surface::{
     PressCount, SurfaceLawBuildError, SurfaceLawOptions, follow_at, organ_vertex_normals,
 };
-use palpa_core::pgd::tissue::{BoundTissue, TissueLaw};
 
 use super::{blend_error, shipped_scene};
 
@@ -39,7 +40,7 @@ pub(super) fn sub_split_in_place(
     // Ranked to a shallower depth, each candidate's surplus is at most its surplus
     // over every depth, and smaller somewhere (the residual grows with depth); ranked
     // to the deepest grid depth, the same ranking; at zero depth nothing is missed.
-    let surplus_of = |p: &palpa_core::pgd::tissue_subsplit::SubSplitPlan| {
+    let surplus_of = |p: &palpa_core::tissue::subsplit_file::SubSplitPlan| {
         let mut v: Vec<_> = p
             .candidates
             .iter()

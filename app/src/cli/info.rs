@@ -19,14 +19,14 @@ pub struct InfoArgs {
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     // A tissue vademecum (`palpa tissue build`) has its own format.
-    if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
-        let law = palpa_core::pgd::tissue::TissueLaw::load(&args.file)?;
+    if palpa_core::tissue::law::is_tissue_file(&args.file) {
+        let law = palpa_core::tissue::law::TissueLaw::load(&args.file)?;
         let summary = super::tissue::summary(&law, &args.file);
         return super::args::print_report(&summary, args.json);
     }
     // A force law (`palpa lab depth-law build`) too.
-    if super::kinds::head(&args.file).starts_with(palpa_core::pgd::depthlaw::MAGIC) {
-        let law = palpa_core::pgd::depthlaw::DepthLaw::load(&args.file)?;
+    if super::kinds::head(&args.file).starts_with(palpa_core::tissue::depthlaw::MAGIC) {
+        let law = palpa_core::tissue::depthlaw::DepthLaw::load(&args.file)?;
         let o = &law.options;
         let kept = law.pade_change.iter().copied().filter(|c| c.is_finite());
         let summary = json!({

@@ -8,8 +8,8 @@ use std::path::Path;
 
 use palpa_core::cme::model::CmeLoadError;
 use palpa_core::file::FileError;
-use palpa_core::pgd::depthlaw::DepthLawFileError;
-use palpa_core::pgd::tissue::TissueError;
+use palpa_core::tissue::depthlaw::DepthLawFileError;
+use palpa_core::tissue::law::TissueError;
 
 /// What a file starting with `head` is, and which commands read it; `None` for bytes
 /// no palpa command writes.
@@ -22,12 +22,12 @@ pub fn describe(head: &[u8]) -> Option<&'static str> {
              `palpa cme eval` networks",
         ),
         (
-            palpa_core::pgd::tissue::MAGIC,
+            palpa_core::tissue::law::MAGIC,
             "a tissue vademecum, which travels beside its scene: `palpa eval`, `palpa info` \
              and `palpa tissue check|refine|cut` read it",
         ),
         (
-            palpa_core::pgd::depthlaw::MAGIC,
+            palpa_core::tissue::depthlaw::MAGIC,
             "a force law: `palpa lab depth-law eval` and `palpa info` read it",
         ),
         (

@@ -242,7 +242,7 @@ pub fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
         palpa_core::fe::depth_grid_points(
             args.depth_max_mm(),
             1.0,
-            palpa_core::pgd::surfacelaw::MAX_GRID_POINTS,
+            palpa_core::tissue::surface::MAX_GRID_POINTS,
         )
         .context("--depth-max-mm")?;
     }
@@ -463,7 +463,7 @@ pub struct EvalArgs {
 }
 
 pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
-    if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
+    if palpa_core::tissue::law::is_tissue_file(&args.file) {
         if let Some(k) = args.modes {
             bail!(
                 "--modes {k}: a tissue vademecum answers with the modes each press kept; \
@@ -990,7 +990,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         TissueModel::NeoHookean => NonlinearModel::NeoHookean,
         TissueModel::Svk => NonlinearModel::Svk,
     };
-    let defaults = palpa_core::pgd::surfacelaw::SurfaceLawOptions::default();
+    let defaults = palpa_core::tissue::surface::SurfaceLawOptions::default();
     let material = args.material()?;
     let build = super::tissue::BuildArgs {
         organ: super::args::OrganArgs {
@@ -1006,8 +1006,8 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
         depth_max_mm: args.depth_max_mm(),
         depth_step_mm: 1.0,
         orders: defaults.orders,
-        tolerance_mm: palpa_core::pgd::tissue::DEFAULT_TOLERANCE_MM,
-        bits: palpa_core::pgd::tissue::DEFAULT_BITS.count(),
+        tolerance_mm: palpa_core::tissue::law::DEFAULT_TOLERANCE_MM,
+        bits: palpa_core::tissue::law::DEFAULT_BITS.count(),
         active_cutoff: defaults.active_cutoff,
         within: args.within.clone(),
         cover: None,

@@ -21,11 +21,11 @@ use palpa_core::mesh::quality;
 use palpa_core::organ::Level;
 use palpa_core::organ::user::{self, SurfaceOptions};
 use palpa_core::pgd::cluster::FarSettings;
-use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
 use palpa_core::pgd::nodal::{self, NodalSettings};
 use palpa_core::pgd::palpation::describe_user;
 use palpa_core::pgd::tradeoff::nodal_table;
 use palpa_core::surface_import::frame::Units;
+use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
 use serde_json::json;
 
 use super::args::{PlaceArgs, RegionArgs};
@@ -202,7 +202,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         palpa_core::fe::depth_grid_points(
             depth_max_mm,
             DepthLawOptions::default().depth_step_mm,
-            palpa_core::pgd::depthlaw::MAX_DEPTHS,
+            palpa_core::tissue::depthlaw::MAX_DEPTHS,
         )
         .context("--depth-max-mm")?;
     }
@@ -423,7 +423,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     // (another level or other regions): the app would refuse it when opening the scene.
     let tissue_out = args.out.with_extension("tissue");
     if tissue_out.exists() {
-        let fits = palpa_core::pgd::tissue::TissueLaw::load(&tissue_out)
+        let fits = palpa_core::tissue::law::TissueLaw::load(&tissue_out)
             .and_then(|t| t.check_linear_model(&desc));
         if let Err(why) = fits {
             eprintln!(

@@ -77,7 +77,7 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         [("--svd", args.svd), ("--plot", args.plot.is_some())],
     );
     let first = |flags: &[(&'static str, bool)]| flags.iter().find(|f| f.1).map(|f| f.0);
-    if palpa_core::pgd::tissue::is_tissue_file(&args.file) {
+    if palpa_core::tissue::law::is_tissue_file(&args.file) {
         if let Some(flag) = first(&scene_only) {
             bail!(
                 "{flag} applies to a scene's table (modes against the linear FE); {} is a \

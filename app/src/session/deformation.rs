@@ -8,9 +8,9 @@
 use std::sync::Arc;
 
 use glam::Vec3;
-use palpa_core::pgd::nonlinear::Tissue;
-use palpa_core::pgd::tissue::TissueScratch;
 use palpa_core::scene::{PalpationScene, ProbePoint};
+use palpa_core::tissue::bound::TissueScratch;
+use palpa_core::tissue::online::Tissue;
 
 #[cfg(doc)]
 use crate::render::deform::DeformOn;

@@ -11,8 +11,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use palpa_core::pgd::nonlinear::Tissue;
 use palpa_core::scene::PalpationScene;
+use palpa_core::tissue::online::Tissue;
 
 use crate::camera::OrbitCamera;
 use crate::force::{ForceLoop, ForceSample, HapticDevice, LoopTiming, SampleStatus};
@@ -43,7 +43,7 @@ pub struct GoalDepths {
 impl GoalDepths {
     /// What the tissue file records (`palpa tissue check --record`), where it records
     /// any check.
-    pub fn of(law: &palpa_core::pgd::tissue::TissueLaw) -> Option<GoalDepths> {
+    pub fn of(law: &palpa_core::tissue::law::TissueLaw) -> Option<GoalDepths> {
         law.accuracy.goals_to_mm().map(|g| GoalDepths {
             both_mm: g.both_mm as f32,
             force_mm: g.force_mm as f32,
@@ -167,7 +167,7 @@ impl Session {
     }
 
     /// As [`Self::new`], with the tissue's nonlinear model (see
-    /// `palpa_core::pgd::tissue`): the force loop answers depth with its force, and
+    /// `palpa_core::tissue::law`): the force loop answers depth with its force, and
     /// force with its depth.
     pub fn with_law(
         scene: PalpationScene,

@@ -13,24 +13,9 @@
 
 pub mod block;
 pub mod cluster;
-pub mod depthlaw;
 pub mod heldout;
 pub mod journal;
 pub mod linear;
 pub mod nodal;
-pub mod nonlinear;
 pub mod palpation;
-pub mod presslog;
-pub mod refine_preview;
-pub mod samplelog;
-pub mod subsplit;
-pub mod surfacelaw;
-pub mod tissue;
-mod tissue_band;
-pub mod tissue_knobs;
-pub mod tissue_predict;
-mod tissue_refine;
-pub mod tissue_shapes;
-pub mod tissue_subsplit;
-pub mod tissue_weights;
 pub mod tradeoff;

@@ -10,8 +10,9 @@ use std::io::Write as _;
 use anyhow::Context;
 
 use clap::Args;
-use palpa_core::pgd::tissue::{GOAL_FORCE_REL, GOAL_SURFACE_MM, TissueLaw};
 use palpa_core::separated::ModelMeta;
+use palpa_core::tissue::accuracy::{GOAL_FORCE_REL, GOAL_SURFACE_MM};
+use palpa_core::tissue::law::TissueLaw;
 
 #[derive(Debug, Args)]
 pub struct AccuracyArgs {

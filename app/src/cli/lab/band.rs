@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::Args;
-use palpa_core::pgd::surfacelaw::PressCount;
-use palpa_core::pgd::tissue::TissueLaw;
+use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::surface::PressCount;
 use serde_json::json;
 
 use crate::cli::args::OrganArgs;

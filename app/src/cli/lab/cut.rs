@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use palpa_core::pgd::tissue::{ShapeBits, TissueLaw};
+use palpa_core::tissue::law::{ShapeBits, TissueLaw};
 use serde_json::json;
 
 use crate::cli::tissue::{parse_bits, summary};
@@ -16,7 +16,7 @@ pub struct CutArgs {
     tissue: PathBuf,
     /// Most modes a sample (or a group of samples sharing them) keeps: its first, by
     /// singular value.
-    #[arg(long, default_value_t = palpa_core::pgd::tissue::MAX_RANK)]
+    #[arg(long, default_value_t = palpa_core::tissue::law::MAX_RANK)]
     modes: usize,
     /// Bits per stored shape entry: 8 or 16 (default: as built).
     #[arg(long, value_parser = parse_bits)]

@@ -1,5 +1,5 @@
 //! `palpa lab depth-law …`: the hyperelastic force law `F(s, d)` of a palpation scene
-//! (see `palpa_core::pgd::depthlaw`): build it off-line from depth series, evaluate it
+//! (see `palpa_core::tissue::depthlaw`): build it off-line from depth series, evaluate it
 //! with a scene's linear compliance.
 
 use std::path::{Path, PathBuf};
@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
 use palpa_core::fe::{Element, Material};
-use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
+use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
 use serde_json::json;
 
 use crate::cli::args::{NonlinearModel, OrganArgs};

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::bail;
 use clap::Args;
-use palpa_core::pgd::tissue::TissueLaw;
 use palpa_core::rng::Rng;
+use palpa_core::tissue::law::TissueLaw;
 
 use crate::cli::args::OrganArgs;
 use crate::cli::tissue::points::{

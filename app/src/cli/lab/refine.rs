@@ -7,8 +7,8 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::Args;
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{DEFAULT_REFINE_ABOVE_MM, PressCount};
-use palpa_core::pgd::tissue::TissueLaw;
+use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::surface::{DEFAULT_REFINE_ABOVE_MM, PressCount};
 use serde_json::json;
 
 use crate::cli::args::OrganArgs;

@@ -14,8 +14,9 @@ use std::path::Path;
 
 use anyhow::{Context, bail};
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex, TissueScratch};
 use palpa_core::scene::ProbePoint;
+use palpa_core::tissue::bound::{BoundTissue, TissueScratch};
+use palpa_core::tissue::law::PointIndex;
 use serde_json::json;
 
 use super::eval::bound_to_scene;

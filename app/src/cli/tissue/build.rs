@@ -1,5 +1,5 @@
 //! `palpa tissue build`: the hyperelastic vademecum of a palpation scene (see
-//! `palpa_core::pgd::tissue`) built off-line from every palpable vertex's depth
+//! `palpa_core::tissue::law`) built off-line from every palpable vertex's depth
 //! series, and what the staging tools share (the press log, the pool, the progress
 //! line, the file's summary).
 
@@ -12,10 +12,10 @@ use palpa_core::fe::path::{StopKind, press_memory_bytes};
 use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{
+use palpa_core::tissue::law::{DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits, TissueLaw};
+use palpa_core::tissue::surface::{
     DEFAULT_REFINE_ABOVE_MM, MAX_GRID_POINTS, PressCount, SurfaceLaw, SurfaceLawOptions,
 };
-use palpa_core::pgd::tissue::{DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits, TissueLaw};
 use serde_json::json;
 
 use super::points::triples;
@@ -268,10 +268,10 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
     })
 }
 
-/// A tissue file's recorded checks (see `palpa_core::pgd::tissue::Accuracy`): each run
+/// A tissue file's recorded checks (see `palpa_core::tissue::accuracy::Accuracy`): each run
 /// as measured, and every run merged depth by depth, with the goals they judge by.
-fn accuracy_json(a: &palpa_core::pgd::tissue::Accuracy) -> serde_json::Value {
-    use palpa_core::pgd::tissue::{DepthFigures, GOAL_FORCE_REL, GOAL_SURFACE_MM};
+fn accuracy_json(a: &palpa_core::tissue::accuracy::Accuracy) -> serde_json::Value {
+    use palpa_core::tissue::accuracy::{DepthFigures, GOAL_FORCE_REL, GOAL_SURFACE_MM};
     let depth = |d: &DepthFigures| {
         json!({"depth_mm": d.depth_mm, "presses": d.presses, "past_limit": d.past_limit,
             "worst_force_rel_error": d.worst_force_rel,

@@ -10,10 +10,10 @@ use palpa_core::fe::newton::{NewtonReport, NewtonSettings};
 use palpa_core::fe::probe::{ProbeRequest, ProbeSolution, organ_space, solve_hyperelastic_depths};
 use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, follow_at, press_at};
-use palpa_core::pgd::tissue::{
-    BLEND_SURPLUS_WARN_MM, CheckRun, DepthFigures, PointIndex, TissueLaw,
-};
+use palpa_core::tissue::accuracy::{CheckRun, DepthFigures};
+use palpa_core::tissue::law::{PointIndex, TissueLaw};
+use palpa_core::tissue::surface::{SurfaceLawOptions, follow_at, press_at};
+use palpa_core::tissue::surplus::BLEND_SURPLUS_WARN_MM;
 use serde_json::json;
 
 use super::against::{Against, Answer, max_node_errors, worst_node};

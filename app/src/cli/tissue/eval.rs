@@ -4,7 +4,9 @@
 use std::time::Instant;
 
 use anyhow::{Context, bail};
-use palpa_core::pgd::tissue::{BLEND_SURPLUS_WARN_MM, BoundTissue, TissueLaw};
+use palpa_core::tissue::bound::BoundTissue;
+use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::surplus::BLEND_SURPLUS_WARN_MM;
 use serde_json::json;
 
 use super::build::goals_json;

@@ -4,8 +4,8 @@
 
 use anyhow::{Context, bail};
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::tissue::{PointIndex, TissueLaw};
 use palpa_core::rng::Rng;
+use palpa_core::tissue::law::{PointIndex, TissueLaw};
 
 /// The points a check presses at: `at` (X,Y,Z triples) where given, else `heldout`
 /// seeded random points inside organ triangles whose three corners were pressed

@@ -2,7 +2,7 @@
 //! vademecum over its knobs, the modes each sample keeps, the bits of each stored
 //! shape entry (eight beside a sixteen-bit law's own), the depth grid's step and, for a
 //! law with split triangles, the same presses without their quarter and inner points
-//! (`split_triangles: 0`; `palpa_core::pgd::tissue_knobs`), with the errors at
+//! (`split_triangles: 0`; `palpa_core::tissue::knobs`), with the errors at
 //! held-out points *and* depths (the λ axis) against the full nonlinear FE.
 //!
 //! The reference is computed once: Newton under depth control at each held-out press
@@ -17,7 +17,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use palpa_core::axis::ProbePoint;
-use palpa_core::pgd::tissue::{BoundTissue, PointIndex, ShapeBits, TissueLaw};
+use palpa_core::tissue::bound::BoundTissue;
+use palpa_core::tissue::law::{PointIndex, ShapeBits, TissueLaw};
 use serde_json::json;
 
 use super::against::max_node_errors;

@@ -21,7 +21,7 @@ use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::series::Expander;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, follow_at, organ_vertex_normals, tool_load};
+use palpa_core::tissue::surface::{SurfaceLawOptions, follow_at, organ_vertex_normals, tool_load};
 use serde_json::json;
 
 /// Largest nodal distance between two all-node states (mm).

@@ -552,8 +552,8 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
 /// against Newton at held-out random surface points and depths in [2, 15] mm; with
 /// the time of a forward (depth in, force out) and an inverse evaluation.
 fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
-    use palpa_core::pgd::depthlaw::{DepthLaw, DepthLawOptions};
     use palpa_core::rng::Rng;
+    use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
     let options = DepthLawOptions {
         samples: args.law_samples,
         ..DepthLawOptions::default()
@@ -636,8 +636,8 @@ fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
 /// Newton's surface there; beside it the linear surface at the same depth (what the
 /// app draws without it), the build's time and bytes.
 fn surface_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
-    use palpa_core::pgd::surfacelaw::{SurfaceLaw, SurfaceLawOptions};
     use palpa_core::rng::Rng;
+    use palpa_core::tissue::surface::{SurfaceLaw, SurfaceLawOptions};
     let depth_max = args
         .surface_depths
         .iter()

@@ -22,7 +22,7 @@ use palpa_core::fe::series::{Expander, element_coefficient};
 use palpa_core::fe::sparse::SymCsc;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
-use palpa_core::pgd::surfacelaw::{SurfaceLawOptions, organ_vertex_normals, tool_load};
+use palpa_core::tissue::surface::{SurfaceLawOptions, organ_vertex_normals, tool_load};
 use serde_json::json;
 
 use super::build::nearest_vertex;

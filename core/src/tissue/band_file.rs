@@ -1,18 +1,18 @@
 //! A built tissue file with its band next to the fixed region pressed
-//! ([`SurfaceLaw::press_band`](crate::pgd::surfacelaw::SurfaceLaw::press_band)): the
+//! ([`SurfaceLaw::press_band`](crate::tissue::surface::SurfaceLaw::press_band)): the
 //! file's own samples kept as stored (their modes, weights and bound), only the band's
 //! surpluses compressed, each alone. Each band surplus is measured against its pressed
 //! end as the file stores it (decompressed), so at a band edge's midpoint the file
 //! answers that midpoint's own press up to the new surplus's compression.
 
 use crate::organ::OrganMesh;
-use crate::pgd::surfacelaw::SurfaceLaw;
-use crate::pgd::tissue::{TissueError, TissueLaw};
+use crate::tissue::law::{TissueError, TissueLaw};
+use crate::tissue::surface::SurfaceLaw;
 
 impl TissueLaw {
     /// This file with the band `law` pressed: `law` is this file's
     /// [`surface_law`](Self::surface_law) after
-    /// [`SurfaceLaw::press_band`](crate::pgd::surfacelaw::SurfaceLaw::press_band).
+    /// [`SurfaceLaw::press_band`](crate::tissue::surface::SurfaceLaw::press_band).
     pub fn banded(&self, organ: &OrganMesh, law: &SurfaceLaw) -> Result<TissueLaw, TissueError> {
         let old = self.reach.len();
         let band = law.refinement.band.len();

@@ -20,7 +20,7 @@ use std::collections::HashSet;
 use std::path::Path;
 
 use crate::organ::OrganMesh;
-use crate::pgd::surfacelaw::{
+use crate::tissue::surface::{
     Source, SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak, palpable_at,
     refine_candidates, refine_plan, worst_first,
 };

@@ -1,6 +1,6 @@
 //! Split triangles' sub-triangles split again: the second level of refinement.
 //!
-//! [`Refinement`](super::surfacelaw::Refinement) splits a palpable triangle into four
+//! [`Refinement`](super::surface::Refinement) splits a palpable triangle into four
 //! sub-triangles and blends each one quadratically from its six presses. Where a
 //! sub-triangle is still too coarse for that (deep presses, where the tissue under the
 //! tool slides sideways between presses 3–6 mm apart), the same construction is made
@@ -24,7 +24,7 @@
 //! triangle's (if that was split), or the neighbouring triangle itself. Whichever it is,
 //! if it is not split again it carries the point's surplus in with the first level's
 //! weights on the edge, fading out halfway to its far corner (see
-//! [`super::tissue`]'s `carried`): a sub-triangle in its own `μ`, an unsplit triangle in
+//! [`super::law`]'s `carried`): a sub-triangle in its own `μ`, an unsplit triangle in
 //! its `λ`, where the point lies at 1/8, 3/8, 5/8 or 7/8 of its edge and weighs
 //! `4 ν (1 − ν)`, `ν` the position along that edge's quarter which holds the probe.
 //!
@@ -313,8 +313,8 @@ pub fn edge_eighth_terms(l: [f64; 3], edges: &[[u32; 4]; 3]) -> [(u32, f64); 3] 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pgd::surfacelaw::Refinement;
-    use crate::pgd::tissue::tests::{bind_two, one_row_law, row_x};
+    use crate::tissue::law::tests::{bind_two, one_row_law, row_x};
+    use crate::tissue::surface::Refinement;
 
     /// A smooth field over the plane, sampled by the presses below.
     fn f(p: [f64; 2]) -> f64 {

@@ -8,13 +8,13 @@
 //! - **Modes.** A group's residuals over the depths (one sample, or a split
 //!   triangle's points) are `R ≈ A C` with `A`'s columns the SVD's left vectors in
 //!   order of their singular values, and `C = Σ Vᵀ`, whose row `k` has norm `σ_k`
-//!   over all the group's members (see [`super::tissue`]). Keeping the first `q` modes
+//!   over all the group's members (see [`crate::tissue::law`]). Keeping the first `q` modes
 //!   errs by at most `σ_{q+1}` in any column, and so at any node, on top of the
 //!   stored bound: the largest dropped `σ` is reported with the cut.
 //! - **Precision.** Each kept mode is quantized again to the bits asked for (a cut
 //!   to the bits it has copies it): its node error per unit weight times its largest
 //!   weight is what that adds to a node, reported with the cut (see
-//!   [`super::tissue_shapes`]).
+//!   [`crate::tissue::shapes`]).
 //! - **Depth step.** Keeping every `k`-th grid depth, `d_{kj'}`, is the law a build
 //!   with the `k` times longer step would have stored (each grid state is an
 //!   equilibrium of its own depth, not of the path between), blended linearly in `d`
@@ -22,9 +22,9 @@
 //!   reaches `⌊(r − 1)/k⌋ + 1` kept ones; a cut that would leave a press with depth 0
 //!   alone is refused.
 
-use super::tissue::TissueLaw;
-use super::tissue_shapes::{ShapeBits, Shapes};
-use super::tissue_weights::to_half;
+use crate::tissue::law::TissueLaw;
+use crate::tissue::shapes::{ShapeBits, Shapes};
+use crate::tissue::weights::to_half;
 
 /// A law with fewer modes, fewer bits or a longer depth step, and what the modes
 /// dropped and the requantization weigh.
@@ -175,10 +175,10 @@ impl TissueLaw {
     /// (the split points' samples come last, so the others keep their indices).
     pub fn unsplit(&self) -> TissueLaw {
         let n = self.samples_mm.len() + self.edge_ends.len();
-        self.first_samples(n, super::surfacelaw::Refinement::default())
+        self.first_samples(n, crate::tissue::surface::Refinement::default())
     }
 
-    /// The law without its second level ([`super::subsplit::SubSplit`]): the file its
+    /// The law without its second level ([`crate::tissue::subsplit::SubSplit`]): the file its
     /// sub-triangles were split from (their samples come last).
     pub fn without_sub_split(&self) -> TissueLaw {
         let r = &self.refinement;
@@ -186,7 +186,7 @@ impl TissueLaw {
             + self.edge_ends.len()
             + r.quarter_ends.len()
             + r.inner_corners.len();
-        let refinement = super::surfacelaw::Refinement {
+        let refinement = crate::tissue::surface::Refinement {
             sub: Default::default(),
             band: Vec::new(),
             ..r.clone()
@@ -195,11 +195,11 @@ impl TissueLaw {
     }
 
     /// The law without its band next to the fixed region
-    /// ([`super::surfacelaw::BandEdge`]): the file the band was pressed on (its samples
+    /// ([`crate::tissue::surface::BandEdge`]): the file the band was pressed on (its samples
     /// come last).
     pub fn without_band(&self) -> TissueLaw {
         let r = &self.refinement;
-        let refinement = super::surfacelaw::Refinement {
+        let refinement = crate::tissue::surface::Refinement {
             band: Vec::new(),
             ..r.clone()
         };
@@ -208,7 +208,7 @@ impl TissueLaw {
 
     /// The law of its first `n` samples (whose groups of modes come first, see
     /// `Grouping`), with `refinement` listing what they hold.
-    fn first_samples(&self, n: usize, refinement: super::surfacelaw::Refinement) -> TissueLaw {
+    fn first_samples(&self, n: usize, refinement: crate::tissue::surface::Refinement) -> TissueLaw {
         let (steps, m) = (self.steps as usize, 3 * self.rows_mm.len());
         let groups = self.group[..n]
             .iter()
@@ -295,12 +295,12 @@ impl TissueLaw {
 pub(super) mod tests {
     use super::*;
     use crate::axis::ProbePoint;
-    use crate::pgd::surfacelaw::{Refinement, SurfaceLawOptions};
-    use crate::pgd::tissue::BoundTissue;
+    use crate::tissue::bound::BoundTissue;
+    use crate::tissue::surface::{Refinement, SurfaceLawOptions};
 
     /// Three corners, depths 0–4 mm, two modes each (x and y of one row); corner 2's
     /// press reached 3 mm. Mode 0's x residual is `d²/4`, mode 1's y is `0.1 d`.
-    pub(in crate::pgd) fn law() -> TissueLaw {
+    pub(crate) fn law() -> TissueLaw {
         let x: Vec<f32> = (0..5).map(|j| (j * j) as f32 / 4.0).collect();
         let y: Vec<f32> = (0..5).map(|j| 0.1 * j as f32).collect();
         let held = |v: &[f32]| [&v[..4], &[v[3]]].concat();
@@ -358,7 +358,7 @@ pub(super) mod tests {
     }
 
     /// The surface row of `law` evaluated on its one triangle at `bary` and a depth.
-    pub(in crate::pgd) fn surface(law: TissueLaw, bary: [f64; 3], depth_mm: f64) -> [f64; 3] {
+    pub(crate) fn surface(law: TissueLaw, bary: [f64; 3], depth_mm: f64) -> [f64; 3] {
         let axis = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
         let bound = BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &[[0, 1, 2]]).expect("binds");
         let mut rows = [0.0; 3];

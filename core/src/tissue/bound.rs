@@ -2,9 +2,9 @@
 
 use std::collections::HashMap;
 
-use super::{PointIndex, TissueError, TissueLaw};
 use crate::axis::ProbePoint;
-use crate::pgd::subsplit::{
+use crate::tissue::law::{PointIndex, TissueError, TissueLaw};
+use crate::tissue::subsplit::{
     EighthPoint, LevelSamples, SubSplit, edge_eighth_terms, level_terms, split_points, sub_corners,
     sub_name, sub_of,
 };
@@ -85,7 +85,7 @@ pub struct BoundTissue {
     /// or `u32::MAX` where the edge was not pressed.
     pub(super) edge_samples: Vec<[u32; 3]>,
     /// Per palpable triangle: whether it was split into four (see
-    /// [`Refinement`](crate::pgd::surfacelaw::Refinement)).
+    /// [`Refinement`](crate::tissue::surface::Refinement)).
     split: Vec<bool>,
     /// Per palpable triangle and edge `k` (corners `k`, `k + 1`): the surplus samples of
     /// its quarter points near corner `k` and near corner `k + 1`, or `u32::MAX`.
@@ -245,7 +245,7 @@ impl BoundTissue {
 
     /// Palpable triangle `t`'s corner samples and, where it was split, its first
     /// level's samples.
-    pub(in crate::pgd) fn first_level(&self, t: usize) -> ([u32; 3], Option<LevelSamples>) {
+    pub(crate) fn first_level(&self, t: usize) -> ([u32; 3], Option<LevelSamples>) {
         let split = LevelSamples {
             split: true,
             quarters: self.quarter_samples[t],
@@ -256,7 +256,7 @@ impl BoundTissue {
 
     /// Sub-triangle `sub` of palpable triangle `t`'s second-level samples, where it
     /// has any.
-    pub(in crate::pgd) fn second_level(&self, t: usize, sub: usize) -> Option<LevelSamples> {
+    pub(crate) fn second_level(&self, t: usize, sub: usize) -> Option<LevelSamples> {
         self.sub_samples[t].as_ref().map(|s| s[sub])
     }
 
@@ -316,10 +316,10 @@ impl BoundTissue {
     /// surpluses with `4 λ_a λ_b` (the quadratic hierarchical blend), then the split
     /// triangle's sub-triangle surpluses with `4 μ_i μ_j`, or, in a triangle not split,
     /// the quarter points of its split edges (see
-    /// [`Refinement`](crate::pgd::surfacelaw::Refinement)), then the same again one level
+    /// [`Refinement`](crate::tissue::surface::Refinement)), then the same again one level
     /// down ([`SubSplit`]); unused entries have weight 0. `None` when no corner was
     /// sampled.
-    pub(in crate::pgd) fn terms(&self, p: &ProbePoint) -> Option<Terms> {
+    pub(crate) fn terms(&self, p: &ProbePoint) -> Option<Terms> {
         let t = p.triangle as usize;
         let samples = self.corner_samples.get(t)?;
         let total: f64 = (0..3)

@@ -27,7 +27,7 @@
 //! was worse (5.6–5.9 MB): it extrapolates the rounding. See
 //! docs/lab/tissue-measurements.md §6.
 
-use super::tissue_shapes::Shapes;
+use crate::tissue::shapes::Shapes;
 
 /// How many earlier rows predict a row.
 const NEIGHBOURS: usize = 4;

@@ -35,9 +35,9 @@
 //! (or quarter) holding the probe, so it steps where the probe crosses an edge, and at
 //! a vertex or on an edge it is that of the triangle the probe was located in.
 
-use super::BoundTissue;
 use crate::axis::ProbePoint;
-use crate::pgd::subsplit::{quarter_midpoints, sub_of};
+use crate::tissue::bound::BoundTissue;
+use crate::tissue::subsplit::{quarter_midpoints, sub_of};
 
 /// The finest surplus above which the app says the blend may miss the 0.5 mm surface
 /// goal at the probe (mm): the goal itself. It was 0.6 mm, set from 32 presses of one

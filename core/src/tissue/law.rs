@@ -14,7 +14,7 @@
 //! ```
 //!
 //! keeping the fewest modes `q` whose stored reconstruction (shapes in 16 or 8 bits
-//! with their scales, weights in f32: [`super::tissue_shapes`]) leaves no node of any
+//! with their scales, weights in f32: [`super::shapes`]) leaves no node of any
 //! grid depth more than `tol` from the computed residual. That error is measured
 //! exactly, node by node, as evaluation will see it; between grid depths both are
 //! blended linearly, so it bounds every depth: the stored bound is a guarantee on the
@@ -78,12 +78,7 @@
 //! The file is bound to a scene by the rest positions of its rows and samples, so a
 //! law built on the organ mesh serves any scene exported from the same mesh.
 
-mod accuracy;
-mod bound;
-mod surplus;
-pub use accuracy::{Accuracy, CheckRun, DepthFigures, GOAL_FORCE_REL, GOAL_SURFACE_MM, GoalDepths};
-pub use bound::{BoundTissue, TissueScratch};
-pub use surplus::BLEND_SURPLUS_WARN_MM;
+use crate::tissue::accuracy::Accuracy;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -95,23 +90,23 @@ use serde::{Deserialize, Serialize};
 use crate::fe::{Element, Material};
 use crate::framed::Body;
 use crate::organ::OrganMesh;
-use crate::pgd::subsplit::{SubSplit, sub_triangle_keys};
-use crate::pgd::surfacelaw::{BandEdge, Refinement, SurfaceLaw, SurfaceLawOptions};
-use crate::pgd::tissue_predict::RowPrediction;
-pub use crate::pgd::tissue_shapes::{ShapeBits, Shapes};
-use crate::pgd::tissue_weights::{Weights, to_half};
 use crate::tensor::dense::thin_svd;
+use crate::tissue::predict::RowPrediction;
+pub use crate::tissue::shapes::{ShapeBits, Shapes};
+use crate::tissue::subsplit::{SubSplit, sub_triangle_keys};
+use crate::tissue::surface::{BandEdge, Refinement, SurfaceLaw, SurfaceLawOptions};
+use crate::tissue::weights::{Weights, to_half};
 
 /// The first bytes of a tissue file.
 pub const MAGIC: &[u8; 8] = b"PALPATIS";
 /// The file's format version. There has been no release, so there is one: a file of
 /// another version is refused by name, with the command that builds it anew. The body
-/// (LZMA) holds the law's fields, its weights apart ([`super::tissue_weights`]: in
+/// (LZMA) holds the law's fields, its weights apart ([`super::weights`]: in
 /// halves where every one is a half), the sub-triangles split again ([`SubSplit`]),
 /// the band next to the fixed region ([`BandEdge`]), the organ mesh's fingerprint
 /// ([`TissueLaw::mesh_xxh3`]) and what `palpa tissue check --record` measured of it
 /// ([`Accuracy`]); the shapes are stored as what their neighbours do not predict
-/// ([`super::tissue_predict`]).
+/// ([`super::predict`]).
 pub const VERSION: u32 = 15;
 
 /// Why a tissue file could not be made, read, written or bound to a scene.
@@ -225,7 +220,7 @@ pub struct TissueLaw {
     /// mode by mode); `coeff_start[samples]` is `coeffs.len()`.
     pub coeff_start: Vec<u32>,
     /// Each mode's surface shape (unit norm), quantized to 16 or 8 bits (see
-    /// [`super::tissue_shapes`]): entry `mode · 3·rows + row3` times
+    /// [`super::shapes`]): entry `mode · 3·rows + row3` times
     /// `shape_scale[mode]`. What quantizing costs a node is in the stored bound.
     pub shape: Shapes,
     pub shape_scale: Vec<f32>,
@@ -234,7 +229,7 @@ pub struct TissueLaw {
     pub coeffs: Vec<f32>,
     /// The largest node error of any sample's stored reconstruction at any grid depth,
     /// measured exactly when compressed (grown by what a cut drops, see
-    /// [`super::tissue_knobs`]): no node's compressed residual is farther than this
+    /// [`super::knobs`]): no node's compressed residual is farther than this
     /// from the computed one, mm.
     pub truncation_bound_mm: f64,
     /// The tolerance asked for, mm.
@@ -278,7 +273,7 @@ pub(super) struct GroupModes {
 /// Compresses one group's residual columns `a` (`members` samples, depths 1.. each).
 ///
 /// The modes as stored (shape in `bits` with an f32 scale, weights in halves: see
-/// [`super::tissue_weights`]) are added one by one until no node of any grid depth of
+/// [`super::weights`]) are added one by one until no node of any grid depth of
 /// any member errs by more than the tolerance: the error measured exactly, as
 /// evaluation will see it, not bounded by `σ_{q+1}` plus each mode's quantization
 /// (that bound is loose by the spread of the error over nodes and modes: on coarse P2
@@ -1074,4 +1069,4 @@ fn cell(p: [f64; 3]) -> [i64; 3] {
 }
 
 #[cfg(test)]
-pub(in crate::pgd) mod tests;
+pub(crate) mod tests;

@@ -30,7 +30,7 @@ use crate::fe::series::Expander;
 use crate::fe::{Element, FeError, Material};
 use crate::framed::Body;
 use crate::organ::OrganMesh;
-use crate::pgd::samplelog::SampleLog;
+use crate::tissue::samplelog::SampleLog;
 
 /// The first bytes of a depth-law file.
 pub const MAGIC: &[u8; 8] = b"PALPALAW";
@@ -76,11 +76,7 @@ pub enum DepthLawFitError {
     LinearModel { law: String, scene: String },
 }
 
-/// The largest relative change of a sample's Padé force at the deepest point from the
-/// next lower form (its error indicator) for the sample to be kept.
-/// (The indicator is pessimistic: at the ten bench positions changes up to 8.5 % went
-/// with force errors below 0.6 %.)
-pub const PADE_CHANGE_MAX: f64 = 0.1;
+pub use crate::tissue::press::PADE_CHANGE_MAX;
 
 /// The fewest series orders a law may be built from: two Padé forms to compare.
 pub const MIN_ORDERS: usize = 5;
@@ -454,7 +450,7 @@ impl DepthLaw {
         scene_mesh_line: &str,
     ) -> Result<(), DepthLawFitError> {
         let index =
-            crate::pgd::tissue::PointIndex::new(vertices_mm.iter().map(|p| p.map(f64::from)));
+            crate::tissue::law::PointIndex::new(vertices_mm.iter().map(|p| p.map(f64::from)));
         let matched = self
             .samples
             .iter()
@@ -467,7 +463,7 @@ impl DepthLaw {
             });
         }
         let o = &self.options;
-        match crate::pgd::tissue::linear_model_mismatch(o.element, &o.material, scene_mesh_line) {
+        match crate::tissue::law::linear_model_mismatch(o.element, &o.material, scene_mesh_line) {
             Some((law, scene)) => Err(DepthLawFitError::LinearModel { law, scene }),
             None => Ok(()),
         }

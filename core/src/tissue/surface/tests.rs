@@ -1,8 +1,8 @@
 use std::collections::HashSet;
 
-use super::presser::Logged;
-use super::refine::{RefinePlan, RefinePoint, in_plan_order};
 use super::*;
+use crate::tissue::presser::Logged;
+use crate::tissue::refine::{RefinePlan, RefinePoint, in_plan_order};
 
 /// Two sampled vertices (0 and 1) of three, one row, depths 0, 1, 2 mm: the blend is
 /// exact at a vertex, renormalizes over the sampled corners, is linear in depth and

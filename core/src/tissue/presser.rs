@@ -4,11 +4,11 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Mutex;
 
-use super::press::{path_options, point_press_prepared, prepare};
-use super::{PressCount, SurfaceLawBuildError, SurfaceLawOptions, VertexPress};
 use crate::fe::series::Expander;
 use crate::organ::OrganMesh;
-use crate::pgd::presslog::RecordLog;
+use crate::tissue::options::{PressCount, SurfaceLawBuildError, SurfaceLawOptions, VertexPress};
+use crate::tissue::press::{path_options, point_press_prepared, prepare};
+use crate::tissue::presslog::RecordLog;
 
 /// A surface point to press: where, along what, and its id in the press log.
 #[derive(Debug, Clone, Copy)]
@@ -21,7 +21,7 @@ pub(crate) struct PressPoint {
 /// A logged press: what [`point_press`](super::press::point_press) gave at one log id.
 pub(super) type Logged = Result<VertexPress, String>;
 
-/// Opens a build's press log at `path` (see [`crate::pgd::presslog`]) and returns it with
+/// Opens a build's press log at `path` (see [`crate::tissue::presslog`]) and returns it with
 /// the presses already in it. The key names everything that determines a press, so a
 /// build and a refinement of the same options share their presses (a covering build's
 /// key also names its vertices: its edge ids count its own edges).

@@ -25,14 +25,15 @@ use std::path::Path;
 
 use crate::axis::ProbePoint;
 use crate::organ::OrganMesh;
-use crate::pgd::subsplit::{
+use crate::tissue::bound::BoundTissue;
+use crate::tissue::law::{TissueError, TissueLaw};
+use crate::tissue::subsplit::{
     EighthPoint, PointKey, SubSplit, quarter_midpoints, split_points, sub_corners, sub_name,
 };
-use crate::pgd::surfacelaw::{
+use crate::tissue::surface::{
     PressCount, PressPoint, SurfaceLaw, SurfaceLawBuildError, logged_press_ids, node_peak,
     organ_vertex_normals,
 };
-use crate::pgd::tissue::{BoundTissue, TissueError, TissueLaw};
 
 /// A sub-triangle that could be split again.
 #[derive(Debug, Clone)]
@@ -91,7 +92,7 @@ impl SubSplitPlan {
     /// (0: the worst); `None` where that point's triangle was not split.
     pub fn rank_at(&self, organ: &OrganMesh, p_mm: [f64; 3]) -> Option<(usize, &SubCandidate)> {
         let hit = crate::axis::closest_point(&organ.mesh.vertices, &organ.boundary, p_mm)?;
-        let (sub, _) = crate::pgd::subsplit::sub_of(hit.bary);
+        let (sub, _) = crate::tissue::subsplit::sub_of(hit.bary);
         self.candidates
             .iter()
             .enumerate()

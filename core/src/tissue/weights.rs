@@ -1,7 +1,7 @@
 //! The tissue vademecum's mode weights in sixteen bits (IEEE 754 half precision).
 //!
 //! A sample's residual at grid depth `d_j` is `Σ_k c_k(d_j) s_k q_k` (weight, scale,
-//! quantized shape; see [`super::tissue`]). The weights were stored as f32: 721 200 of
+//! quantized shape; see [`super::law`]). The weights were stored as f32: 721 200 of
 //! them on the shipped law of 5 637 presses, 2.54 MB of its 7.65 MB after LZMA, since
 //! their low mantissa bits are noise to the coder. A half keeps 11 significant bits,
 //! so rounding moves a weight by at most `2⁻¹¹ |c|` (by at most `2⁻²⁵` below the
@@ -85,7 +85,7 @@ impl Weights {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pgd::tissue_knobs::tests::surface;
+    use crate::tissue::knobs::tests::surface;
 
     #[test]
     fn a_half_reads_back_within_its_eleven_bits() {
@@ -133,7 +133,7 @@ mod tests {
     #[test]
     fn half_weights_move_a_node_by_no_more_than_the_bound_grows() {
         // Weights d²/4 and 0.1·d: 0.1, 0.3 and 0.7 are not halves.
-        let law = crate::pgd::tissue_knobs::tests::law();
+        let law = crate::tissue::knobs::tests::law();
         let (half, moved) = law.with_half_weights();
         assert!(moved > 0.0 && moved < 1e-3, "{moved}");
         assert!((half.truncation_bound_mm - (law.truncation_bound_mm + moved)).abs() < 1e-15);

@@ -29,10 +29,10 @@
 //! runs without keeping the press log between them.
 
 use crate::organ::OrganMesh;
-use crate::pgd::surfacelaw::SurfaceLaw;
-use crate::pgd::tissue::{
+use crate::tissue::law::{
     GroupModes, Grouping, PointIndex, QUANT_SHARES, SAME_POINT_MM, Shapes, TissueError, TissueLaw,
 };
+use crate::tissue::surface::SurfaceLaw;
 
 impl TissueLaw {
     /// The surface law this file stores, read back on `organ` (the mesh it was built

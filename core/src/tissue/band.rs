@@ -13,9 +13,11 @@
 
 use std::path::Path;
 
-use super::refine::BandEdge;
-use super::{PressCount, PressPoint, SurfaceLaw, SurfaceLawBuildError, organ_vertex_normals};
 use crate::organ::OrganMesh;
+use crate::tissue::refine::BandEdge;
+use crate::tissue::surface::{
+    PressCount, PressPoint, SurfaceLaw, SurfaceLawBuildError, organ_vertex_normals,
+};
 
 /// What pressing the band did.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,16 +1,17 @@
 use super::*;
 use crate::axis::ProbePoint;
+use crate::tissue::bound::{BoundTissue, TissueScratch};
 
 /// `law` (its vertices at `corners`) bound to the triangles `[0, 1, 2]` and
 /// `[1, 0, 3]`, which share the edge 0–1.
-pub(in crate::pgd) fn bind_two(law: TissueLaw, corners: &[[f64; 2]]) -> BoundTissue {
+pub(crate) fn bind_two(law: TissueLaw, corners: &[[f64; 2]]) -> BoundTissue {
     let axis: Vec<[f64; 3]> = corners.iter().map(|p| [p[0], p[1], 0.0]).collect();
     let triangles = [[0, 1, 2], [1, 0, 3]];
     BoundTissue::bind(law, &[[0.0, 0.0, 5.0]], &axis, &triangles).expect("binds")
 }
 
 /// The one row's x at 1 mm, pressed at `bary` of `triangle`.
-pub(in crate::pgd) fn row_x(
+pub(crate) fn row_x(
     bound: &BoundTissue,
     scratch: &mut TissueScratch,
     triangle: u32,
@@ -25,7 +26,7 @@ pub(in crate::pgd) fn row_x(
 /// A law of one row and depths 0 and 1 mm whose samples (vertices at `corners`,
 /// in the plane z = 0, then `edge_ends`' and `refinement`'s) each hold one mode:
 /// the row's x residual `x[s]` at 1 mm, force ratio 0.5 there.
-pub(in crate::pgd) fn one_row_law(
+pub(crate) fn one_row_law(
     corners: &[[f64; 2]],
     edge_ends: Vec<[u32; 2]>,
     refinement: Refinement,
@@ -35,7 +36,7 @@ pub(in crate::pgd) fn one_row_law(
 }
 
 /// [`one_row_law`] with sample `s`'s force ratio `g[s]` at 1 mm.
-pub(in crate::pgd) fn one_row_law_with_ratio(
+pub(crate) fn one_row_law_with_ratio(
     corners: &[[f64; 2]],
     edge_ends: Vec<[u32; 2]>,
     refinement: Refinement,
@@ -377,7 +378,7 @@ fn a_split_triangle_blends_each_quarter_quadratically_and_its_neighbour_agrees()
 /// the pressed corner alone, as before; a saved file keeps the band.
 #[test]
 fn the_band_next_to_the_fixed_region_blends_its_midpoints() {
-    use crate::pgd::surfacelaw::BandEdge;
+    use crate::tissue::surface::BandEdge;
     let corners = [[0.0, 0.0], [10.0, 0.0]];
     // Samples: two vertices, edge 0–1's surplus, then the band edges from 0 and 1.
     let g1 = [0.9, 0.7, 0.05, 0.2, 0.3];
@@ -458,7 +459,7 @@ fn the_band_next_to_the_fixed_region_blends_its_midpoints() {
 /// A band edge whose other end is no vertex of the scene is refused by name.
 #[test]
 fn a_band_off_the_scene_is_refused() {
-    use crate::pgd::surfacelaw::BandEdge;
+    use crate::tissue::surface::BandEdge;
     let refinement = Refinement {
         band: vec![BandEdge {
             end: 0,

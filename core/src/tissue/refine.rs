@@ -3,10 +3,10 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::SurfaceLawBuildError;
-use super::presser::{Logged, PressPoint, Stored};
 use crate::organ::OrganMesh;
-use crate::pgd::subsplit::SubSplit;
+use crate::tissue::options::{COVER_SLACK_MM, SurfaceLawBuildError};
+use crate::tissue::presser::{Logged, PressPoint, Stored};
+use crate::tissue::subsplit::SubSplit;
 
 /// Triangles split once into four where the quadratic blend is too coarse: a palpable
 /// triangle (corners `a, b, c`, edge midpoints `m_ab, m_bc, m_ca`, all pressed) whose
@@ -198,10 +198,6 @@ pub(super) fn in_plan_order(order: &[usize], pressed: Vec<Logged>) -> Vec<Logged
         .map(|p| p.expect("press_order lists every point once"))
         .collect()
 }
-
-/// How far a covered point may lie from the palpable surface (mm): a point drawn on a
-/// triangle and printed to a few decimals lands within it.
-pub const COVER_SLACK_MM: f64 = 0.1;
 
 /// The corners of the palpable triangle closest to each of `points` (sorted, each
 /// once, fixed vertices left out as a build leaves them), or which point lies off the

@@ -35,93 +35,32 @@
 //! is held at its largest before it, so the curve never falls. An
 //! edge's surplus reaches as far as its midpoint and both its ends.
 
-mod band;
-pub use band::BandReport;
-mod press;
-mod presser;
-mod refine;
-
-pub use press::{PointPress, follow_at, organ_vertex_normals, path_options, press_at, tool_load};
-pub(crate) use presser::{PressPoint, logged_press_ids};
-pub use refine::{
-    BandEdge, COVER_SLACK_MM, DEFAULT_REFINE_ABOVE_MM, Refinement, covering_vertices,
+use crate::tissue::options::VertexPress;
+pub use crate::tissue::options::{
+    COVER_SLACK_MM, MAX_GRID_POINTS, PressCount, SurfaceLawBuildError, SurfaceLawOptions,
 };
+pub use crate::tissue::press::{
+    PointPress, follow_at, organ_vertex_normals, path_options, press_at, tool_load,
+};
+pub(crate) use crate::tissue::presser::{PressPoint, logged_press_ids};
+pub use crate::tissue::refine::{BandEdge, DEFAULT_REFINE_ABOVE_MM, Refinement, covering_vertices};
 
-/// The most points (depth 0 included) of a press's depth grid.
-pub const MAX_GRID_POINTS: usize = 256;
-pub(crate) use refine::{
+pub(crate) use crate::tissue::refine::{
     Source, node_peak, palpable_at, refine_candidates, refine_plan, worst_first,
 };
 
-use press::edge_id;
-use presser::{Logged, Presser, Stored, open_press_log};
-use refine::{Got, in_plan_order, split_triangles};
+use crate::tissue::press::edge_id;
+use crate::tissue::presser::{Logged, Presser, Stored, open_press_log};
+use crate::tissue::refine::{Got, in_plan_order, split_triangles};
 
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use crate::fe::law::Law;
 use crate::fe::probe::organ_space;
 use crate::fe::series::Expander;
-use crate::fe::{Element, FeError, Material};
 use crate::organ::OrganMesh;
-
-/// How the surface law is built.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct SurfaceLawOptions {
-    pub law: Law,
-    pub material: Material,
-    pub element: Element,
-    pub depth_max_mm: f64,
-    /// Grid depths `j · step`, `j = 0..=depth_max/step`.
-    pub depth_step_mm: f64,
-    pub orders: usize,
-    /// The continuation's split, as a fraction of the largest depth.
-    pub split_fraction: f64,
-    pub tool_radius_mm: f64,
-    /// The higher orders are assembled only on cells where the press's first order
-    /// varies by at least this fraction of its peak (see
-    /// [`crate::fe::series::active_cells`]); 0 assembles every cell.
-    pub active_cutoff: f64,
-    /// Press only the palpable vertices within this ball (centre, radius; mm): a
-    /// scene that shows one region models only that region. `None`: all of them.
-    pub within: Option<([f64; 3], f64)>,
-    /// Also press the midpoint of every palpable edge whose ends are pressed, and
-    /// store its surplus over the ends' mean: the blend becomes quadratic (see the
-    /// module docs). About three times the presses.
-    pub edges: bool,
-}
-
-impl Default for SurfaceLawOptions {
-    fn default() -> Self {
-        SurfaceLawOptions {
-            law: Law::NeoHookean,
-            material: Material::default(),
-            element: Element::P2,
-            depth_max_mm: 10.0,
-            depth_step_mm: 1.0,
-            orders: 12,
-            split_fraction: 0.55,
-            tool_radius_mm: 5.0,
-            active_cutoff: 0.01,
-            within: None,
-            edges: true,
-        }
-    }
-}
-
-/// A build's progress: presses done of those planned so far (the split triangles'
-/// are planned once the vertices and edges are pressed, so `total` grows then), and
-/// how many of the done were taken from the log rather than computed by this run:
-/// an estimate of the time left divides by the computed ones only.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct PressCount {
-    pub done: usize,
-    pub total: usize,
-    pub from_log: usize,
-}
 
 /// The built residuals.
 #[derive(Debug, Clone)]
@@ -171,67 +110,6 @@ pub struct SurfaceLaw {
     pub correction_mm: Vec<f64>,
     pub segments: Vec<u32>,
     pub build_s: f64,
-}
-
-/// Why a surface law could not be built.
-#[derive(Debug, thiserror::Error)]
-pub enum SurfaceLawBuildError {
-    #[error(transparent)]
-    Fe(#[from] FeError),
-    #[error(
-        "the point {point_mm:?} lies {distance_mm:.3} mm from the organ's palpable surface: \
-         expected a point on a palpable triangle (within {COVER_SLACK_MM} mm)"
-    )]
-    OffSurface {
-        point_mm: [f64; 3],
-        distance_mm: f64,
-    },
-    #[error(
-        "the surface law already has {triangles} split triangles and this stage would split \
-         {asked}: expected a stage of more (a larger --triangles, or a lower --refine-above-mm), \
-         or a law cut back to no split triangles first (`palpa lab tissue cut --unsplit`)"
-    )]
-    AlreadyRefined { triangles: usize, asked: usize },
-    #[error(
-        "{missing} of the law's split triangles are not split candidates on this organ mesh \
-         (their corners and edges pressed): expected the mesh the law was built on"
-    )]
-    EarlierStage { missing: usize },
-    #[error(
-        "the surface law has {sub_triangles} sub-triangles split again, and a stage of split \
-         triangles would change the blend their surpluses were measured against: expected the \
-         file they were split from (refine that, then split sub-triangles again)"
-    )]
-    SubSplitFirst { sub_triangles: usize },
-    #[error(
-        "the surface law holds a band next to the fixed region, pressed last: {what} would \
-         not keep its samples last: expected the file the band was pressed on (`palpa tissue \
-         cut --no-band` gives it back)"
-    )]
-    BandLast { what: &'static str },
-    #[error("the build's press log {path}: {source}")]
-    Log {
-        path: std::path::PathBuf,
-        source: std::io::Error,
-    },
-}
-
-/// What one palpable vertex's press gives: its residual surface and force ratio at
-/// every grid depth.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct VertexPress {
-    /// `steps × 3·rows`, mm.
-    residual: Vec<f32>,
-    /// `g(d_j) = F(d_j) / (d_j · F₁)`, `g(0) = 1`.
-    ratio: Vec<f64>,
-    stiffness_n_per_mm: f64,
-    correction_mm: f64,
-    segments: u32,
-    /// Grid depths reached (depth 0 included); past them `residual` and `ratio` hold
-    /// the last one reached.
-    reach: u32,
-    /// Why the press stopped short of the grid (empty where it did not).
-    stopped: String,
 }
 
 impl SurfaceLaw {
@@ -485,7 +363,7 @@ impl SurfaceLaw {
     /// inner points pressed (in parallel, logged at `log` under the same key as a whole
     /// build of the same options, so either takes the other's presses) and kept as
     /// surpluses over *this* law's quadratic blend. A law decompressed from a tissue
-    /// file ([`super::tissue::TissueLaw::surface_law`]) thus gets the split a whole
+    /// file ([`super::law::TissueLaw::surface_law`]) thus gets the split a whole
     /// build would give without pressing its vertices and edges again, each split
     /// point's surplus measured against the blend the file answers with.
     ///

@@ -5,8 +5,8 @@
 
 use crate::axis::ProbePoint;
 use crate::fe::Material;
-use crate::pgd::depthlaw::DepthLaw;
-use crate::pgd::tissue::BoundTissue;
+use crate::tissue::bound::BoundTissue;
+use crate::tissue::depthlaw::DepthLaw;
 
 /// A scene's nonlinear tissue, as the on-line loops use it: the force law alone
 /// ([`DepthLaw`], samples spread over the surface; the surface drawn is linear), or
