@@ -26,13 +26,12 @@ cargo build --release --locked -q -p palpa-app --bin palpa
 palpa=target/release/palpa
 $palpa lab synth --rows 30 --modes 4 --out fuzz/corpus/load_model/seed-f64.palpa >/dev/null
 $palpa lab synth --rows 12 --modes 3 --precision f32 --out fuzz/corpus/load_model/seed-f32.palpa >/dev/null
-# Network models of each layout (short runs: small files) and a depth law.
+# Network models of each layout (short runs: small files).
 seed() { "$palpa" "$@" >/dev/null 2>"$tmp_err" || { cat "$tmp_err" >&2; echo "fuzz.sh: seeding failed: palpa $*" >&2; exit 1; }; }
 tmp_err="$(mktemp)"
 seed cme offline toggle --t-end 2 --out fuzz/corpus/load_model/seed-tt.palpa
 seed cme offline toggle --t-end 2 --keep views --out fuzz/corpus/load_model/seed-views.palpa
 seed cme offline toggle --t-end 2 --solver greedy --out fuzz/corpus/load_model/seed-greedy.palpa
-seed depth-law build --element p1 --samples 4 --out fuzz/corpus/load_model/seed.law
 rm -f "$tmp_err"
 for f in sphere.obj sphere.stl sphere.ply; do
   $palpa scene shape sphere --subdivisions 1 --out "fuzz/corpus/surface_file/$f" >/dev/null

@@ -717,51 +717,6 @@ mod hyperelastic {
         }
     }
 
-    /// The force law built from a few sampled depth series (P1 for speed) against
-    /// Newton at points it never saw, and its inverse.
-    #[test]
-    fn the_force_law_matches_newton_at_held_out_points() {
-        use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
-        let organ = coarse_liver();
-        let options = DepthLawOptions {
-            element: Element::P1,
-            samples: 12,
-            depth_max_mm: 8.0,
-            orders: 11,
-            ..DepthLawOptions::default()
-        };
-        let law = DepthLaw::build(&organ, options, &mut |_, _| {}).expect("builds");
-        law.check().expect("consistent");
-        for (at, depth) in [(POINTS[0], 6.5), (POINTS[1], 3.0), (POINTS[2], 7.5)] {
-            let req = press(at, f64::NAN);
-            let unit = solve_linear(&organ, Element::P1, Material::default(), &press(at, 1.0))
-                .expect("linear");
-            let c = unit.probe_displacement_mm;
-            let (newton, _) = p1_press(
-                &organ,
-                Law::NeoHookean,
-                &req,
-                Some(depth),
-                NewtonSettings::default(),
-            )
-            .expect("newton");
-            let p = unit.probe.point;
-            let (force, beyond) = law.force_n(p, depth, c);
-            assert!(!beyond);
-            let rel = (force - newton.force_n) / newton.force_n;
-            let linear = (depth / c - newton.force_n) / newton.force_n;
-            eprintln!(
-                "{at:?} {depth} mm: law {force:.4} N, Newton {:.4} N ({rel:.1e}; linear {linear:.1e})",
-                newton.force_n
-            );
-            assert!(rel.abs() < 0.05, "{rel}");
-            let (back, _) = law.depth_mm(p, force, c);
-            assert!((back - depth).abs() < 1e-9, "{back}");
-        }
-        let (_, beyond) = law.force_n(POINTS[0], 9.0, 1.0);
-        assert!(beyond, "past the built range: flagged");
-    }
-
     /// A depth that is not finite is named, not solved.
     #[test]
     fn a_non_finite_depth_is_refused() {

@@ -488,7 +488,7 @@ impl Worker {
                     // Past the law's limit there both are held at it (the surface is
                     // drawn at the same depth).
                     (Some(law), PressMode::Depth) => {
-                        let (f, beyond) = law.force_n(&cmd.point(), c.point_mm, target, comp);
+                        let (f, beyond) = law.force_n(&cmd.point(), target, comp);
                         (f, target.min(law.limit_mm(&cmd.point()).0), beyond)
                     }
                     // The trigger's force in, the depth that needs it out. Past the
@@ -496,9 +496,9 @@ impl Worker {
                     // tissue's at the held depth, not the trigger's (the asked force
                     // stays in the sample's command), so the sample lies on the curve.
                     (Some(law), PressMode::Force) => {
-                        let (d, beyond) = law.depth_mm(&cmd.point(), c.point_mm, target, comp);
+                        let (d, beyond) = law.depth_mm(&cmd.point(), target, comp);
                         let force = if beyond {
-                            law.force_n(&cmd.point(), c.point_mm, d, comp).0
+                            law.force_n(&cmd.point(), d, comp).0
                         } else {
                             target
                         };

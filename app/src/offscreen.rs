@@ -366,13 +366,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         final_beyond_range: session.sample.beyond_law != 0,
         tissue: session.law.as_ref().map_or_else(
             || "linear elastic".to_string(),
-            |l| {
-                if l.has_surface() {
-                    format!("{} vademecum", l.law().name())
-                } else {
-                    format!("{} force law", l.law().name())
-                }
-            },
+            |l| format!("{} vademecum", l.law().name()),
         ),
         rss_mb_after_warmup: rss_after_warmup.map(|b| b as f64 / 1e6),
         rss_mb_end: crate::stats::resident_bytes().map(|b| b as f64 / 1e6),

@@ -8,7 +8,6 @@ use std::path::Path;
 use anyhow::Context;
 use palpa_core::scene::PalpationScene;
 use palpa_core::tissue::bound::BoundTissue;
-use palpa_core::tissue::depthlaw::DepthLaw;
 use palpa_core::tissue::law::TissueLaw;
 use palpa_core::tissue::online::Tissue;
 
@@ -33,9 +32,9 @@ pub const BUILT_IN_SOURCE: &str =
 pub struct LoadedScene {
     pub scene: PalpationScene,
     pub source: String,
-    /// The tissue's nonlinear model: the vademecum `X.tissue` beside a scene
-    /// `X.palpa` (from `palpa tissue build`), else the force law `X.law` (from `palpa
-    /// depth-law build`), if there is one; else the tissue is linear.
+    /// The tissue's nonlinear model: the vademecum `X.tissue` beside a scene `X.palpa`
+    /// (from `palpa tissue build` or `palpa scene build --model`), if there is one;
+    /// else the tissue is linear.
     pub law: Option<Tissue>,
     /// The depths to which `law` is measured within the goals (surface within
     /// 0.5 mm, force within 5 % of the full FE at held-out points), where known: the
@@ -52,15 +51,7 @@ pub fn sidecar_tissue(scene_path: &Path, scene: &PalpationScene) -> anyhow::Resu
             .with_context(|| format!("the tissue beside {}", scene_path.display()))?;
         return bind(law, scene, &path.display().to_string()).map(Some);
     }
-    let path = scene_path.with_extension("law");
-    if !path.exists() {
-        return Ok(None);
-    }
-    let law = DepthLaw::load(&path)
-        .with_context(|| format!("the force law beside {}", scene_path.display()))?;
-    law.check_scene(scene.vertices_mm(), &scene.model().provenance().mesh)
-        .with_context(|| format!("binding {} to its scene", path.display()))?;
-    Ok(Some(Tissue::ForceLaw(law)))
+    Ok(None)
 }
 
 /// `law` bound to `scene` (the same mesh, element and material), named `name` in errors.
@@ -74,7 +65,7 @@ fn bind(law: TissueLaw, scene: &PalpationScene, name: &str) -> anyhow::Result<Ti
         scene.axis_triangles(),
     )
     .with_context(|| format!("binding {name} to its scene"))?;
-    Ok(Tissue::Vademecum(Box::new(bound)))
+    Ok(Tissue::new(bound))
 }
 
 /// `"liver"` (the built-in default) or a path to a palpation `.palpa` file.
@@ -100,10 +91,7 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
     let scene =
         PalpationScene::new(model).with_context(|| format!("{spec} is not a palpation scene"))?;
     let law = sidecar_tissue(path, &scene)?;
-    let goals_to_mm = match &law {
-        Some(Tissue::Vademecum(bound)) => GoalDepths::of(&bound.law),
-        _ => None,
-    };
+    let goals_to_mm = law.as_ref().and_then(|t| GoalDepths::of(&t.bound.law));
     Ok(LoadedScene {
         scene,
         source: path.display().to_string(),

@@ -338,12 +338,10 @@ mod tests {
         let Room::Palpation(session) = &shell.room else {
             panic!("the built-in liver is a palpation scene")
         };
-        let goals = match session.law.as_deref() {
-            Some(palpa_core::tissue::online::Tissue::Vademecum(b)) => {
-                crate::session::GoalDepths::of(&b.law)
-            }
-            _ => None,
-        };
+        let goals = session
+            .law
+            .as_deref()
+            .and_then(|t| crate::session::GoalDepths::of(&t.bound.law));
         assert!(goals.is_some(), "the built-in tissue records its checks");
         assert_eq!(session.goals_to_mm, goals);
         let dir = tempfile::tempdir().expect("tempdir");

@@ -177,7 +177,6 @@ fn depth_curve(
     if c.is_nan() || c <= 0.0 {
         return;
     }
-    let at = s.point_mm.map(f64::from);
     let p = s.command.point();
     // To the depth the law answers here (less than its grid where a press stopped).
     let top = law.limit_mm(&p).0;
@@ -185,7 +184,7 @@ fn depth_curve(
     let nonlinear: Vec<[f64; 2]> = (0..=n)
         .map(|k| {
             let d = top * f64::from(k) / f64::from(n);
-            [d, law.force_n(&p, at, d, c).0]
+            [d, law.force_n(&p, d, c).0]
         })
         .collect();
     let linear: Vec<[f64; 2]> = vec![[0.0, 0.0], [top, top / c]];
@@ -256,15 +255,10 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     ui.heading("Probe");
     match &session.law {
         Some(law) => ui.label(format!(
-            "tissue: {} (E {:.0} kPa, ν {}), {} to {:.0} mm from {} presses",
+            "tissue: {} (E {:.0} kPa, ν {}), force and surface to {:.0} mm from {} presses",
             law.law().name(),
             law.material().young_kpa,
             law.material().poisson,
-            if law.has_surface() {
-                "force and surface"
-            } else {
-                "force law (surface drawn linear)"
-            },
             law.depth_max_mm(),
             law.samples()
         )),

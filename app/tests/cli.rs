@@ -70,10 +70,6 @@ fn info_on_a_foreign_file_fails_with_a_clear_message() {
     for (args, says) in [
         (vec!["tissue", "check", &scene], "is a palpa meta-model"),
         (
-            [&["lab", "depth-law", "eval", &tissue][..], &at[..]].concat(),
-            "is a tissue vademecum",
-        ),
-        (
             vec!["cme", "eval", &tissue, "--t", "1"],
             "is a tissue vademecum",
         ),

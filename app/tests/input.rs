@@ -356,31 +356,17 @@ fn the_force_loop_keeps_its_schedule_under_load() {
     );
 }
 
-/// With a force law the loop answers a depth with the law's force and a force with
-/// the law's depth, publishes the linear force at that depth for the surface, and
-/// flags a depth past the law's range.
+/// With the tissue the loop answers a depth with the tissue's force and a force with
+/// its depth, publishes the linear force at that depth for the surface, and flags a
+/// depth past the tissue's range.
 #[test]
 fn the_force_loop_uses_the_tissue_law_both_ways() {
-    use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
-    let s = std::sync::Arc::new(scene());
-    // A law that softens by 0.4 % per 0.25 mm everywhere (a uniform curve).
-    let steps = 61;
-    let curve: Vec<f64> = (0..steps).map(|j| 1.0 - 0.004 * j as f64).collect();
-    let law = DepthLaw {
-        options: DepthLawOptions::default(),
-        samples: vec![[0.0, 0.0, 0.0], [60.0, 0.0, 0.0]],
-        sigma_mm: 30.0,
-        ratio: [curve.clone(), curve].concat(),
-        pade_change: vec![0.0; 2],
-        stiffness_n_per_mm: vec![1.0; 2],
-        build_s: 0.0,
-    };
-    law.check().expect("consistent");
+    let loaded = scenes::built_in().expect("built-in scene");
+    let law = std::sync::Arc::new(loaded.law.expect("the built-in liver has its tissue"));
+    let s = std::sync::Arc::new(loaded.scene);
     let fl = ForceLoop::spawn(
         s.clone(),
-        Some(std::sync::Arc::new(
-            palpa_core::tissue::online::Tissue::ForceLaw(law),
-        )),
+        Some(law.clone()),
         Box::new(NoHaptics),
         LoopTiming::default(),
     )
@@ -396,12 +382,16 @@ fn the_force_loop_uses_the_tissue_law_both_ways() {
     std::thread::sleep(Duration::from_millis(100));
     let d = fl.latest();
     assert_eq!(d.status(), SampleStatus::Ok);
-    let g = 1.0 - 0.004 * 20.0;
+    let comp = f64::from(d.compliance_mm_per_n);
+    let (f, beyond) = law.force_n(&c.command().point(), 5.0, comp);
+    assert!(!beyond);
+    // The tissue's force, not the linear one (it stiffens or softens by a few %).
     assert!(
-        (d.magnitude_n - d.linear_n * g).abs() < 1e-4 * d.linear_n,
-        "{d:?}"
+        (f64::from(d.magnitude_n) - f).abs() < 1e-4 * f,
+        "{d:?} against {f} N"
     );
-    assert!((d.linear_n * d.compliance_mm_per_n - 5.0).abs() < 1e-4);
+    assert!((f64::from(d.linear_n) * comp - 5.0).abs() < 1e-4);
+    assert!((f64::from(d.magnitude_n) - f64::from(d.linear_n)).abs() > 1e-3 * f);
     assert_eq!(d.beyond_law, 0);
     // Force in: the depth that needs it.
     c.mode = PressMode::Force;

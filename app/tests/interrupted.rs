@@ -52,102 +52,6 @@ fn others(dir: &Path, keep: &[&Path]) -> Vec<PathBuf> {
         .collect()
 }
 
-/// The depth law (the nonlinear build): killed after a few samples, run again it
-/// takes those samples from its log, computes the rest, and writes a law equal bit
-/// for bit to an uninterrupted build's; the log is removed.
-#[test]
-fn depth_law_resumes_from_its_sample_log() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let full = dir.path().join("full.law");
-    let cut = dir.path().join("cut.law");
-    let log = dir.path().join("cut.law.samples.log");
-    let base = [
-        "lab",
-        "depth-law",
-        "build",
-        "--element",
-        "p1",
-        "--samples",
-        "24",
-        "--orders",
-        "10",
-    ];
-    let a = common::json_ok(&palpa(&args(&base, &full)));
-    assert_eq!(a["resumed_samples"], 0);
-
-    let count = || {
-        std::fs::read_to_string(&log)
-            .map(|s| s.lines().count().saturating_sub(1))
-            .unwrap_or(0)
-    };
-    run_and_kill(&args(&base, &cut), || count() >= 4);
-    let logged = count();
-    assert!(
-        !cut.exists(),
-        "no law is written before every sample is done"
-    );
-    let b = common::json_ok(&palpa(&args(&base, &cut)));
-    let resumed = b["resumed_samples"].as_u64().expect("count") as usize;
-    // The last line may have been torn by the kill.
-    assert!(
-        resumed + 1 >= logged && resumed >= 3,
-        "{resumed} of {logged}"
-    );
-    assert!(!log.exists(), "the log is removed once the law is saved");
-    let x = palpa_core::tissue::depthlaw::DepthLaw::load(&full).expect("full");
-    let y = palpa_core::tissue::depthlaw::DepthLaw::load(&cut).expect("resumed");
-    assert_eq!(x.samples, y.samples);
-    let bits = |v: &[f64]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&x.ratio), bits(&y.ratio));
-    assert_eq!(bits(&x.pade_change), bits(&y.pade_change));
-    assert_eq!(bits(&x.stiffness_n_per_mm), bits(&y.stiffness_n_per_mm));
-
-    // `palpa info` describes a force law; a scene's command handed one names it.
-    let full_s = full.to_str().expect("utf-8");
-    let run = |a: &[&str]| palpa(&a.iter().map(|s| s.to_string()).collect::<Vec<_>>());
-    let info = common::json_ok(&run(&["info", full_s, "--json"]));
-    assert_eq!(info["samples"], a["samples"], "{info}");
-    assert_eq!(info["samples_asked"], 24, "{info}");
-    assert_eq!(info["orders"], 10, "{info}");
-    assert_eq!(info["law"], "neo-hookean", "{info}");
-    let out = run(&["eval", full_s, "--at", "0,0,0", "--depth-mm", "1"]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("is a force law: `palpa lab depth-law eval`"),
-        "{err}"
-    );
-    // A law of another element, or of another organ, is refused by the scene it would
-    // scale (a liver's law once answered on the kidney).
-    let kidney = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../assets/kidney/kidney-coarse.palpa"
-    );
-    for (scene, says) in [
-        ("liver", "the force law was built with p1, E = 160 kPa"),
-        (kidney, "the force law does not fit this scene: 0 of its"),
-    ] {
-        let at = ["--at=-30,90,25", "--depth-mm", "1", "--scene", scene];
-        let out = run(&[&["lab", "depth-law", "eval", full_s][..], &at[..]].concat());
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            !out.status.success() && err.contains(says),
-            "{scene}: {err}"
-        );
-    }
-    // The same beside a scene: opening it says so, never presses linearly instead.
-    let k = dir.path().join("k.palpa");
-    std::fs::copy(kidney, &k).expect("copy");
-    std::fs::copy(&full, dir.path().join("k.law")).expect("copy");
-    let k = k.to_str().expect("utf-8");
-    let out = run(&["headless", "--scene", k, "--frames", "1", "--size", "64x48"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && err.contains("does not fit this scene"),
-        "{err}"
-    );
-}
-
 /// The tissue build (every vertex's press followed to equilibrium): killed after a
 /// few presses are logged, run again it takes those from its binary log, presses the
 /// rest and writes the same law as an uninterrupted build (all but the timings); the
@@ -348,7 +252,7 @@ fn killed_builds_run_again_to_the_same_file() {
     }
 }
 
-/// A disk that fills up while a model, a depth law or a scene is written: the command
+/// A disk that fills up while a model is written: the command
 /// fails naming the file and the cause, and the file that was there is unchanged.
 #[test]
 fn a_full_disk_keeps_the_previous_output() {
@@ -380,30 +284,4 @@ fn a_full_disk_keeps_the_previous_output() {
     );
     assert_eq!(std::fs::read(&model).expect("model"), before);
     assert_eq!(others(dir.path(), &[&model]), Vec::<PathBuf>::new());
-
-    // The same through the depth law's writer, with nothing there before.
-    let law = dir.path().join("l.law");
-    let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
-        .args(args(
-            &[
-                "lab",
-                "depth-law",
-                "build",
-                "--element",
-                "p1",
-                "--samples",
-                "4",
-            ],
-            &law,
-        ))
-        .env(palpa_core::fsutil::FAULT_DISK_FULL_ENV, "100")
-        .output()
-        .expect("palpa runs");
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("No space left on device") && err.contains("nothing was written"),
-        "{err}"
-    );
-    assert!(!law.exists());
 }

@@ -206,7 +206,7 @@ fn the_frame_draws_the_vademecum_surface_at_the_press_depth() {
         scene.axis_triangles(),
     )
     .expect("binds to its own scene");
-    let mut nonlinear = pressed(Some(Tissue::Vademecum(Box::new(bound))));
+    let mut nonlinear = pressed(Some(Tissue::new(bound)));
     let mut linear = pressed(None);
     let (sn, sl) = (nonlinear.sample, linear.sample);
     assert_eq!(sn.depth_mm, 5.0);
@@ -432,11 +432,11 @@ fn the_default_scene_presses_with_its_tissue_both_ways() {
 #[test]
 fn the_default_tissue_meets_the_goals_at_held_out_points() {
     let loaded = scenes::built_in().expect("built-in scene");
-    let law = match &loaded.law {
-        Some(Tissue::Vademecum(b)) => b,
-        Some(_) => panic!("the default scene's tissue is a force law, not a vademecum"),
-        None => panic!("the default scene has no tissue"),
-    };
+    let law = &loaded
+        .law
+        .as_ref()
+        .expect("the default scene has its tissue")
+        .bound;
     assert_eq!(law.law.options.law.name(), "neo-hookean");
     assert!(
         law.law.accuracy.points() >= 16,
@@ -1102,28 +1102,6 @@ fn a_tissue_build_with_bad_options_says_which_and_writes_nothing() {
         };
         refused(command, &[args, file].concat(), says);
     }
-    // The force law keeps a sample by the change between its last two Padé forms, so
-    // it needs five orders: refused before any sample is pressed.
-    let depth_law_build = [
-        "lab",
-        "depth-law",
-        "build",
-        "--element",
-        "p1",
-        "--out",
-        &out_s,
-    ];
-    refused(
-        &depth_law_build,
-        &["--orders", "4"],
-        "4 orders: expected 5 to 30",
-    );
-    // More samples than palpable vertices: said before pressing (each vertex once).
-    refused(
-        &depth_law_build,
-        &["--orders", "4", "--samples", "100000"],
-        "the palpable surface has 559 vertices; pressing each of them",
-    );
     // `lab tissue refine` likewise, and a file that is no tissue law is named.
     let shipped = dir.path().join("shipped.tissue");
     unsplit_shipped(&shipped);

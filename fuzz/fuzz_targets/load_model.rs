@@ -1,7 +1,7 @@
 //! Fuzzes the meta-model loaders: any byte string must give a model or an error, never
 //! a panic, an abort, or an allocation larger than the input justifies. Every kind is
 //! tried: separated palpation and network models (f32, f64), tensor trains, views
-//! models, depth laws and tissue (hyperelastic vademecum) files.
+//! models and tissue (hyperelastic vademecum) files.
 //! Run: `cargo fuzz run load_model` (see scripts/fuzz.sh).
 #![no_main]
 
@@ -21,9 +21,6 @@ fuzz_target!(|data: &[u8]| {
         // lower ends.
         let at: Vec<(String, f64)> = m.parameters().into_iter().map(|(n, lo, _)| (n, lo)).collect();
         let _ = m.evaluate(0.0, &at, 4);
-    }
-    if let Ok(law) = palpa_core::tissue::depthlaw::DepthLaw::from_bytes(data, std::path::Path::new("<memory>")) {
-        let _ = law.check();
     }
     if let Ok(t) = palpa_core::tissue::law::TissueLaw::from_bytes(data, std::path::Path::new("<memory>")) {
         let _ = t.check();

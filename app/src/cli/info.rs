@@ -24,22 +24,6 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         let summary = super::tissue::summary(&law, &args.file);
         return super::args::print_report(&summary, args.json);
     }
-    // A force law (`palpa lab depth-law build`) too.
-    if super::kinds::head(&args.file).starts_with(palpa_core::tissue::depthlaw::MAGIC) {
-        let law = palpa_core::tissue::depthlaw::DepthLaw::load(&args.file)?;
-        let o = &law.options;
-        let kept = law.pade_change.iter().copied().filter(|c| c.is_finite());
-        let summary = json!({
-            "file": args.file, "kind": "force law (depth-law)", "law": o.law.name(),
-            "element": o.element.name(), "young_kpa": o.material.young_kpa,
-            "poisson": o.material.poisson, "samples": law.samples.len(),
-            "samples_asked": o.samples, "depth_max_mm": o.depth_max_mm,
-            "depth_step_mm": o.depth_step_mm, "orders": o.orders,
-            "tool_radius_mm": o.tool_radius_mm, "sigma_mm": law.sigma_mm,
-            "worst_pade_change": kept.fold(0.0, f64::max), "build_s": law.build_s,
-        });
-        return super::args::print_report(&summary, args.json);
-    }
     let h = file::read_header(&args.file)
         .with_context(|| format!("reading the header of {}", args.file.display()))?;
     let m = &h.meta;

@@ -8,7 +8,6 @@ use std::path::Path;
 
 use palpa_core::cme::model::CmeLoadError;
 use palpa_core::file::FileError;
-use palpa_core::tissue::depthlaw::DepthLawFileError;
 use palpa_core::tissue::law::TissueError;
 
 /// What a file starting with `head` is, and which commands read it; `None` for bytes
@@ -27,8 +26,9 @@ pub fn describe(head: &[u8]) -> Option<&'static str> {
              and `palpa tissue check|refine|cut` read it",
         ),
         (
-            palpa_core::tissue::depthlaw::MAGIC,
-            "a force law: `palpa lab depth-law eval` and `palpa info` read it",
+            b"PALPALAW",
+            "a force law of an earlier palpa, which no longer reads it: the tissue that \
+             replaced it is made by `palpa scene build --model` or `palpa tissue build`",
         ),
         (
             palpa_core::pgd::journal::MAGIC,
@@ -79,9 +79,6 @@ pub fn hint(e: &anyhow::Error) -> Option<String> {
         if let Some(TissueError::Foreign { path }) = cause.downcast_ref::<TissueError>() {
             return Some(path.clone());
         }
-        if let Some(DepthLawFileError::Foreign { path }) = cause.downcast_ref() {
-            return Some(path.clone());
-        }
         None
     })?;
     let what = describe(&head(&path)).or_else(|| by_extension(&path))?;
@@ -117,7 +114,7 @@ mod tests {
     fn every_kind_palpa_writes_is_named() {
         assert!(describe(&palpa_core::file::MAGIC).is_some_and(|d| d.contains("meta-model")));
         assert!(describe(b"PALPATIS\x0c\0\0\0").is_some_and(|d| d.contains("tissue")));
-        assert!(describe(b"PALPALAW").is_some_and(|d| d.contains("depth-law eval")));
+        assert!(describe(b"PALPALAW").is_some_and(|d| d.contains("tissue build")));
         assert!(describe(b"<?xml ve").is_some_and(|d| d.contains("SBML")));
         assert!(describe(b"ply\nform").is_some_and(|d| d.contains("surface")));
         assert_eq!(describe(b"PALPAXYZ"), None);

@@ -2,11 +2,13 @@
 //!
 //! Stages: surface (read, repair, units, axes, validate) → mesh (tetrahedra, regions)
 //! → vademecum (the nodal-load linear vademecum, as `palpa offline liver`) → tradeoff
-//! (held-out presses against full FE) → force law (with `--model neo-hookean|svk`)
-//! → scene (surface rows, f32, with the tradeoff table in its header). The slow
-//! stages' results are kept in `OUT.build/`, keyed by everything that determines
-//! them, so an interrupted build run again with the same arguments goes on from the
-//! last finished stage; the folder is removed when the scene is written.
+//! (held-out presses against full FE) → scene (surface rows, f32, with the tradeoff
+//! table in its header) → tissue (with `--model neo-hookean|svk`: `palpa tissue build`
+//! of the same organ and flags, its recipe's stages, `OUT.tissue`). The slow stages'
+//! results are kept in `OUT.build/` (the tissue's presses in its logs), keyed by
+//! everything that determines them, so an interrupted build run again with the same
+//! arguments goes on from the last finished stage; the folder is removed when the
+//! scene is written.
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -25,7 +27,6 @@ use palpa_core::pgd::nodal::{self, NodalSettings};
 use palpa_core::pgd::palpation::describe_user;
 use palpa_core::pgd::tradeoff::nodal_table;
 use palpa_core::surface_import::frame::Units;
-use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
 use serde_json::json;
 
 use super::args::{PlaceArgs, RegionArgs};
@@ -91,9 +92,9 @@ fn shape(args: &ShapeArgs) -> anyhow::Result<()> {
 pub enum TissueModel {
     /// Linear elasticity (the vademecum alone).
     Linear,
-    /// The vademecum plus a compressible neo-Hookean force law (`OUT.law`).
+    /// The vademecum plus a compressible neo-Hookean tissue (`OUT.tissue`).
     NeoHookean,
-    /// The vademecum plus a Saint Venant–Kirchhoff force law (`OUT.law`).
+    /// The vademecum plus a Saint Venant–Kirchhoff tissue (`OUT.tissue`).
     Svk,
 }
 
@@ -115,10 +116,15 @@ pub struct BuildArgs {
     element: Element,
     #[arg(long, value_enum, default_value = "linear")]
     model: TissueModel,
-    /// Deepest press the force law covers (mm), with `--model neo-hookean|svk`
+    /// Deepest press the tissue covers (mm), with `--model neo-hookean|svk`
     /// [default: 15].
     #[arg(long)]
     depth_max_mm: Option<f64>,
+    /// The tissue's recipe, with `--model neo-hookean|svk` (see `palpa tissue build
+    /// --recipe`): `default`, `quick` (a first look in a third of the presses) or
+    /// `shipped`.
+    #[arg(long)]
+    recipe: Option<String>,
     /// Probe tool radius (mm).
     #[arg(long, default_value_t = 5.0)]
     radius_mm: f64,
@@ -143,18 +149,19 @@ pub fn run(cmd: &SceneCommand) -> anyhow::Result<()> {
 struct Progress {
     t0: Instant,
     stage: usize,
+    /// Stages in all: five, six with a tissue.
+    stages: usize,
     times: Vec<(&'static str, f64)>,
     last: f64,
 }
-
-const STAGES: usize = 6;
 
 impl Progress {
     fn start(&mut self, name: &'static str, what: &str) {
         self.stage += 1;
         eprintln!(
-            "palpa: [{}/{STAGES}] {name}: {what} ({:.1} s)",
+            "palpa: [{}/{}] {name}: {what} ({:.1} s)",
             self.stage,
+            self.stages,
             self.t0.elapsed().as_secs_f64()
         );
         let _ = std::io::stderr().flush();
@@ -180,6 +187,11 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     let mut pr = Progress {
         t0: Instant::now(),
         stage: 0,
+        stages: if args.model == TissueModel::Linear {
+            5
+        } else {
+            6
+        },
         times: Vec::new(),
         last: 0.0,
     };
@@ -190,19 +202,27 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     }
     // Before any stage: a build once meshed and solved for minutes, then drew 10⁸ points.
     super::tissue::points::check_heldout(args.held_out)?;
-    // Likewise the force law's depth grid (once NaN built the whole scene and no law).
-    let depth_max_mm = match (args.model, args.depth_max_mm) {
-        (TissueModel::Linear, Some(_)) => bail!(
-            "--depth-max-mm shapes the force law: it applies with --model neo-hookean or svk, \
-             not the linear tissue"
-        ),
-        (_, d) => d.unwrap_or(DepthLawOptions::default().depth_max_mm),
+    // Likewise the tissue's arguments (once a NaN depth built the whole scene and no
+    // tissue): parsed as `palpa tissue build` parses them, before any stage.
+    let law = match args.model {
+        TissueModel::Linear => {
+            if args.depth_max_mm.is_some() || args.recipe.is_some() {
+                bail!(
+                    "--depth-max-mm and --recipe shape the tissue: they apply with --model \
+                     neo-hookean or svk, not the linear tissue"
+                );
+            }
+            None
+        }
+        TissueModel::NeoHookean => Some(Law::NeoHookean),
+        TissueModel::Svk => Some(Law::Svk),
     };
-    if args.model != TissueModel::Linear {
+    let tissue_args = law.map(|l| tissue_args(args, l)).transpose()?;
+    if let Some(t) = &tissue_args {
         palpa_core::fe::depth_grid_points(
-            depth_max_mm,
-            DepthLawOptions::default().depth_step_mm,
-            palpa_core::tissue::depthlaw::MAX_DEPTHS,
+            t.depth_max_mm,
+            t.depth_step_mm,
+            palpa_core::tissue::surface::MAX_GRID_POINTS,
         )
         .context("--depth-max-mm")?;
     }
@@ -332,67 +352,6 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         .collect();
     pr.done();
 
-    let law_out = args.out.with_extension("law");
-    let law = match args.model {
-        TissueModel::Linear => None,
-        TissueModel::NeoHookean => Some(Law::NeoHookean),
-        TissueModel::Svk => Some(Law::Svk),
-    };
-    let mut law_json = serde_json::Value::Null;
-    if let Some(law) = law {
-        let lpath = dir.join("scene.law");
-        let key_path = dir.join("law.key");
-        let key = format!("{desc} law={} depth_max_mm={}", law.name(), depth_max_mm);
-        let cached = std::fs::read_to_string(&key_path).ok().as_deref() == Some(key.as_str())
-            && DepthLaw::load(&lpath).is_ok();
-        pr.start(
-            "force law",
-            if cached {
-                "from the build folder"
-            } else {
-                law.name()
-            },
-        );
-        if !cached {
-            let options = DepthLawOptions {
-                law,
-                material,
-                element: args.element,
-                tool_radius_mm: args.radius_mm,
-                depth_max_mm,
-                ..DepthLawOptions::default()
-            };
-            let log = dir.join("law-samples.log");
-            let (built, _) = DepthLaw::build_logged(&organ, options, Some(&log), &mut |k, n| {
-                eprint!("\rpalpa:       sample {k}/{n}   ");
-            })
-            .context("building the force law")?;
-            eprintln!();
-            built.save(&lpath)?;
-            palpa_core::fsutil::atomic_write(&key_path, |w| w.write_all(key.as_bytes()))
-                .with_context(|| format!("writing {}", key_path.display()))?;
-        }
-        let l = DepthLaw::load(&lpath)?;
-        let asked = l.options.samples;
-        if 2 * l.samples.len() < asked {
-            // Samples are dropped where the depth series does not settle by the
-            // deepest press: the organ is too thin for it there.
-            eprintln!(
-                "palpa: warning: the force law kept {} of {asked} sample positions (the others' \
-                 depth series do not settle by {} mm: the organ is thin for that depth; try a \
-                 smaller --depth-max-mm)",
-                l.samples.len(),
-                l.options.depth_max_mm
-            );
-        }
-        law_json = json!({"law": law.name(), "samples": l.samples.len(), "samples_asked": asked,
-                          "depth_max_mm": l.options.depth_max_mm, "build_s": l.build_s});
-        pr.done();
-    } else {
-        pr.start("force law", "none (linear tissue)");
-        pr.done();
-    }
-
     pr.start(
         "scene",
         "surface rows, f32; near and far fields in sixteen bits",
@@ -403,26 +362,19 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         .context("selecting the surface rows")?
         .convert::<f32>();
     file::save_q16(&scene, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
-    match law {
-        Some(_) => {
-            let bytes = std::fs::read(dir.join("scene.law"))?;
-            palpa_core::fsutil::atomic_write(&law_out, |w| w.write_all(&bytes))
-                .with_context(|| format!("writing {}", law_out.display()))?;
-        }
-        // A law left from an earlier nonlinear build would make the app nonlinear.
-        None => {
-            if law_out.exists() {
-                std::fs::remove_file(&law_out)
-                    .with_context(|| format!("removing the old {}", law_out.display()))?;
-            }
-        }
-    }
     pr.done();
     std::fs::remove_dir_all(&dir).with_context(|| format!("removing {}", dir.display()))?;
-    // A tissue left beside the scene from an earlier build may be of another mesh
-    // (another level or other regions): the app would refuse it when opening the scene.
     let tissue_out = args.out.with_extension("tissue");
-    if tissue_out.exists() {
+    let mut tissue_json = serde_json::Value::Null;
+    if let Some(t) = &tissue_args {
+        pr.start("tissue", &format!("the {} recipe", t.recipe));
+        let (_, summary) = super::tissue::build(t).context("building the tissue")?;
+        tissue_json = summary;
+        pr.done();
+    } else if tissue_out.exists() {
+        // A tissue left beside the scene from an earlier build may be of another mesh
+        // (another level or other regions): the app would refuse it when opening the
+        // scene.
         let fits = palpa_core::tissue::law::TissueLaw::load(&tissue_out)
             .and_then(|t| t.check_linear_model(&desc));
         if let Err(why) = fits {
@@ -437,7 +389,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
     let (lo, hi) = sr.bbox_mm;
     let summary = json!({
         "out": args.out,
-        "law_out": law.map(|_| &law_out),
+        "tissue_out": law.map(|_| &tissue_out),
         "source": {
             "file": sr.file_name, "xxh3": sr.source_xxh3, "format": sr.format,
             "units": sr.units.name(), "axes": sr.axes.to_string(), "mirrored": sr.mirrored,
@@ -465,28 +417,42 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         },
         "modes": scene.modes(),
         "tradeoff": {"rows": rows, "measured": tradeoff_json},
-        "force_law": law_json,
+        "tissue": tissue_json,
         "tissue_command": law.map(|l| tissue_command(args, l)),
         "resumed": {"vademecum": resumed_vademecum, "tradeoff": resumed_tradeoff},
         "bytes": std::fs::metadata(&args.out).map(|m| m.len()).ok(),
         "seconds": pr.times.iter().map(|(n, s)| (n.to_string(), json!(s))).collect::<serde_json::Map<_, _>>(),
         "total_s": pr.t0.elapsed().as_secs_f64(),
     });
-    if let Some(l) = law {
-        eprintln!(
-            "palpa: the scene presses with its force law; its surface under deep presses comes \
-             from a tissue vademecum of this organ, built with the same flags:\n  {}\n(hours on \
-             two cores for a whole surface; --cover X,Y,Z,… presses only the triangles at given \
-             points)",
-            tissue_command(args, l)
-        );
-    }
     super::args::print_report(&summary, args.json)
 }
 
-/// The `palpa tissue build` that presses this scene's organ: the same surface,
-/// placing, regions, level, element and model, its output beside the scene.
+/// The `palpa tissue build` that presses this scene's organ (what `--model` runs): the
+/// same surface, placing, regions, level, element, model and recipe, its output beside
+/// the scene.
 fn tissue_command(args: &BuildArgs, law: Law) -> String {
+    tissue_words(args, law)
+        .iter()
+        .map(|w| shell_word(w))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// [`tissue_command`]'s arguments, parsed as `palpa tissue build` parses them.
+fn tissue_args(args: &BuildArgs, law: Law) -> anyhow::Result<super::tissue::BuildArgs> {
+    #[derive(Debug, clap::Parser)]
+    struct TissueBuild {
+        #[command(flatten)]
+        args: super::tissue::BuildArgs,
+    }
+    let words = tissue_words(args, law);
+    <TissueBuild as clap::Parser>::try_parse_from(&words[2..])
+        .map(|t| t.args)
+        .map_err(|e| anyhow::anyhow!("the tissue's arguments: {e}"))
+}
+
+/// The words of [`tissue_command`].
+fn tissue_words(args: &BuildArgs, law: Law) -> Vec<String> {
     let mut words: Vec<String> = ["palpa", "tissue", "build", "--surface"]
         .map(String::from)
         .to_vec();
@@ -532,15 +498,14 @@ fn tissue_command(args: &BuildArgs, law: Law) -> String {
     if let Some(d) = args.depth_max_mm {
         words.extend(["--depth-max-mm".into(), d.to_string()]);
     }
+    if let Some(r) = &args.recipe {
+        words.extend(["--recipe".into(), r.clone()]);
+    }
     words.extend([
         "--out".into(),
         args.out.with_extension("tissue").display().to_string(),
     ]);
     words
-        .iter()
-        .map(|w| shell_word(w))
-        .collect::<Vec<_>>()
-        .join(" ")
 }
 
 /// `w` as one word for a POSIX shell: as it is where it holds only plain characters,
@@ -626,6 +591,8 @@ mod tests {
             "p1",
             "--model",
             "svk",
+            "--recipe",
+            "quick",
             "--out",
             "dir/kidney.palpa",
         ])
@@ -653,5 +620,9 @@ mod tests {
         assert_eq!(tissue.element, Element::P1);
         assert_eq!(tissue.model.law(), Law::Svk);
         assert_eq!(tissue.out, Path::new("dir/kidney.tissue"));
+        assert_eq!(tissue.recipe, "quick");
+        // What `scene build --model` runs is this command, parsed the same way.
+        let run = tissue_args(&scene, Law::Svk).expect("parses");
+        assert_eq!((run.out, run.recipe), (tissue.out, tissue.recipe));
     }
 }

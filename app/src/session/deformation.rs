@@ -43,12 +43,9 @@ pub type Press<'a> = (&'a ProbePoint, [f64; 3], f64);
 impl Deformation {
     pub fn new(scene: &PalpationScene, tissue: Option<Arc<Tissue>>) -> Self {
         let rows = scene.model().rows();
-        let tissue = tissue.and_then(|t| {
-            let scratch = match &*t {
-                Tissue::Vademecum(b) => b.scratch(),
-                Tissue::ForceLaw(_) => return None,
-            };
-            Some((t, scratch))
+        let tissue = tissue.map(|t| {
+            let scratch = t.bound.scratch();
+            (t, scratch)
         });
         Deformation {
             tissue,
@@ -122,10 +119,10 @@ impl Deformation {
         {
             self.near_rows.fill(0.0);
         }
-        if let (Some((p, _, depth_mm)), Some((tissue, scratch))) = (probe, self.tissue.as_mut())
-            && let Tissue::Vademecum(bound) = &**tissue
-        {
-            bound.add_surface(p, depth_mm, scratch, &mut self.near_rows);
+        if let (Some((p, _, depth_mm)), Some((tissue, scratch))) = (probe, self.tissue.as_mut()) {
+            tissue
+                .bound
+                .add_surface(p, depth_mm, scratch, &mut self.near_rows);
         }
         for (g, r) in self.near_gpu.iter_mut().zip(self.near_rows.chunks_exact(3)) {
             *g = [r[0] as f32, r[1] as f32, r[2] as f32, 0.0];

@@ -242,7 +242,7 @@ impl Session {
         if s.status() != SampleStatus::Ok {
             return None;
         }
-        self.law.as_ref()?.unpressed_corners(&s.command.point())
+        Some(self.law.as_ref()?.unpressed_corners(&s.command.point()))
     }
 
     /// Turns the region mode on (the probe is lifted) or off.

@@ -434,7 +434,7 @@ fn node_max(a: faer::MatRef<'_, f64>) -> f64 {
 /// shapes saved (258 KB). Vertex and edge presses, 8–12 mm apart, share little
 /// (grouped with the split points of their triangle: 89 modes in all against 94), and
 /// are kept alone. See docs/methods.md §2e and docs/lab/tissue-measurements.md §6.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum Grouping {
     /// Every sample its own modes (`palpa tissue build --separate-modes`).
     Sample,

@@ -20,15 +20,13 @@
 //!    as what their neighbours do not predict, the weights in halves; the knobs a scene
 //!    turns (modes, bits, depth step).
 //! 4. **File** ([`law`]: [`TissueLaw`], the `.tissue` format, and [`accuracy`]: what
-//!    `palpa tissue check --record` measured of it, kept in the file).
+//!    `palpa tissue check --record` measured of it, kept in the file). [`recipe`]: a
+//!    whole build as one value, the stages it runs and how it compresses (what `palpa
+//!    tissue build --recipe` runs, the shipped file's among them).
 //! 5. **On-line** ([`bound`]: [`BoundTissue`], the law bound to one scene's rows, what
 //!    the 1 kHz force loop and the 25 Hz surface evaluate, allocation-free;
 //!    [`surplus`]: how far the blend may be from the tissue where the probe is;
 //!    [`online`]: [`online::Tissue`], the scene's nonlinear model as the loops ask it).
-//!
-//! [`depthlaw`] (with its log, [`samplelog`]) is the older nonlinear model: the force
-//! law alone, from presses spread over the surface, the surface drawn linear. `palpa
-//! scene build --model` still builds it; it is to become the tissue's quick recipe.
 
 pub mod options;
 pub mod press;
@@ -52,13 +50,11 @@ pub mod weights;
 
 pub mod accuracy;
 pub mod law;
+pub mod recipe;
 
 pub mod bound;
 pub mod online;
 pub mod surplus;
-
-pub mod depthlaw;
-pub mod samplelog;
 
 pub use bound::BoundTissue;
 pub use law::TissueLaw;

@@ -12,9 +12,9 @@ use crate::organ::OrganMesh;
 
 pub use crate::fe::probe::organ_vertex_normals;
 
-/// The largest relative change of a sample's Padé force at the deepest point from the
-/// next lower form (its error indicator) for the sample to be kept.
-/// (The indicator is pessimistic: at the ten bench positions changes up to 8.5 % went
+/// The largest relative change of a press's Padé force at the deepest point from the
+/// next lower form (its error indicator) for the press to be kept.
+/// (The indicator is pessimistic: at ten bench positions changes up to 8.5 % went
 /// with force errors below 0.6 %.)
 pub const PADE_CHANGE_MAX: f64 = 0.1;
 

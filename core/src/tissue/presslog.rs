@@ -13,8 +13,7 @@
 //! Each frame is written whole and synced before the call returns. On opening, frames
 //! are read until one is cut short or fails its checksum (the kill's torn write); the
 //! file is cut back to the last good frame and appended to from there. A log with
-//! another key is started afresh. [`super::samplelog`] is the text form of the same idea
-//! for records of a few numbers.
+//! another key is started afresh.
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, Write};

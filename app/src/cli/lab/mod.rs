@@ -1,14 +1,13 @@
 //! `palpa lab …`: the tools of those who develop palpa, apart from what users run:
-//! benchmarks that print ratios measured in one run, seeded synthetic models, the depth
-//! law, the tissue's staging tools (held-out points, cut, refine, band), and the record
-//! of what made each shipped file.
+//! benchmarks that print ratios measured in one run, seeded synthetic models, the
+//! tissue's staging tools (held-out points, cut, refine, band), and the record of what
+//! made each shipped file.
 
 pub mod accuracy;
 pub mod asset;
 mod band;
 mod bench;
 mod cut;
-mod depthlaw;
 mod points;
 mod refine;
 mod synth;
@@ -28,9 +27,6 @@ pub enum LabCommand {
     Bench(bench::BenchCommand),
     /// Write a seeded synthetic model file (benchmarks, fuzz seeds, trying the tools).
     Synth(synth::SynthArgs),
-    /// The hyperelastic force law of a palpation scene (depth in, force out).
-    #[command(subcommand)]
-    DepthLaw(depthlaw::DepthLawCommand),
     /// The tissue's staging tools: held-out points, cut, refine, band.
     #[command(subcommand)]
     Tissue(TissueStage),
@@ -73,7 +69,6 @@ pub fn run(cmd: &LabCommand) -> anyhow::Result<()> {
         LabCommand::Asset(AssetCommand::Record(args)) => asset::record(args),
         LabCommand::Bench(cmd) => bench::run(cmd),
         LabCommand::Synth(args) => synth::run(args),
-        LabCommand::DepthLaw(cmd) => depthlaw::run(cmd),
         LabCommand::Tissue(TissueStage::Points(args)) => points::points(args),
         LabCommand::Tissue(TissueStage::Cut(args)) => cut::cut(args),
         LabCommand::Tissue(TissueStage::Refine(args)) => refine::refine(args),

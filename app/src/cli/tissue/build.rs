@@ -13,6 +13,7 @@ use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
 use palpa_core::tissue::law::{DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits, TissueLaw};
+use palpa_core::tissue::recipe::{Recipe, Stage};
 use palpa_core::tissue::surface::{
     DEFAULT_REFINE_ABOVE_MM, MAX_GRID_POINTS, PressCount, SurfaceLaw, SurfaceLawOptions,
 };
@@ -25,6 +26,17 @@ use crate::cli::args::{NonlinearModel, OrganArgs};
 pub struct BuildArgs {
     #[command(flatten)]
     pub organ: OrganArgs,
+    /// What is pressed, stage by stage: `default` (every palpable vertex and edge
+    /// midpoint, the triangles whose edge surplus exceeds --refine-above-mm split in the
+    /// same pass, then the band next to the fixed region), `shipped` (what made the
+    /// shipped liver tissue: the worst triangles split in six stages, 190 of their
+    /// sub-triangles again, then the band; hours on coarse), `quick` (the vertices only,
+    /// a linear blend between them: a first look in a third of the presses).
+    #[arg(long, default_value = "default", value_parser = parse_recipe)]
+    pub recipe: String,
+    /// Leave out the band next to the fixed region (the recipe's last stage).
+    #[arg(long)]
+    pub no_band: bool,
     #[arg(long, value_enum, default_value = "neo-hookean")]
     pub model: NonlinearModel,
     #[arg(long, default_value = "p2")]
@@ -116,6 +128,17 @@ fn time_left(c: PressCount, elapsed_s: f64) -> String {
             ", about {} left",
             minutes(elapsed_s / computed as f64 * c.total.saturating_sub(c.done) as f64)
         ),
+    }
+}
+
+/// `--recipe`: one of the named recipes.
+fn parse_recipe(s: &str) -> Result<String, String> {
+    match Recipe::named(s) {
+        Some(_) => Ok(s.to_string()),
+        None => Err(format!(
+            "{s}: expected one of {} (the stages a build runs)",
+            palpa_core::tissue::recipe::NAMES.join(", ")
+        )),
     }
 }
 
@@ -294,6 +317,119 @@ fn accuracy_json(a: &palpa_core::tissue::accuracy::Accuracy) -> serde_json::Valu
     })
 }
 
+/// The recipe the arguments ask for: the named one, its presses' settings from the flags
+/// (whose defaults are the recipes'), the first pass's split from `--refine-above-mm`
+/// and `--no-refine` (the default recipe's; another names its own), without the band
+/// under `--no-band`; refused, naming why, where it cannot run.
+fn recipe_of(args: &BuildArgs, within: Option<([f64; 3], f64)>) -> anyhow::Result<Recipe> {
+    let mut r = Recipe::named(&args.recipe)
+        .with_context(|| format!("--recipe {}: not a recipe", args.recipe))?;
+    if args.recipe != "default" && (args.refine_above_mm.is_some() || args.no_refine) {
+        bail!(
+            "--recipe {}: it names its own splits; expected --refine-above-mm and --no-refine \
+             with the default recipe only",
+            args.recipe
+        );
+    }
+    r.options = SurfaceLawOptions {
+        law: args.model.law(),
+        material: Material {
+            young_kpa: args.young_kpa,
+            poisson: args.poisson,
+        },
+        element: args.element,
+        depth_max_mm: args.depth_max_mm,
+        depth_step_mm: args.depth_step_mm,
+        orders: args.orders,
+        active_cutoff: args.active_cutoff,
+        within,
+        edges: r.options.edges && !args.no_edges,
+        ..r.options
+    };
+    if args.recipe == "default" {
+        let above = args.refine_above_mm.unwrap_or(DEFAULT_REFINE_ABOVE_MM);
+        if !(above.is_finite() && above >= 0.0) {
+            bail!("--refine-above-mm {above}: expected a length of at least 0");
+        }
+        r.split_above_mm = (!args.no_refine && !args.no_edges).then_some(above);
+    }
+    if args.no_band {
+        r.stages.retain(|s| *s != Stage::Band);
+    }
+    r.tolerance_mm = args.tolerance_mm;
+    r.bits = ShapeBits::from_count(args.bits).context("--bits: expected 8 or 16")?;
+    r.grouping = if args.separate_modes {
+        Grouping::Sample
+    } else {
+        Grouping::SplitTriangle
+    };
+    if let Some(why) = r.check() {
+        bail!("--recipe {}: {why}", args.recipe);
+    }
+    Ok(r)
+}
+
+/// The press log of a recipe's stage `k` (from 1; the first pass's is [`press_log`]).
+pub fn stage_log(out: &std::path::Path, k: usize) -> PathBuf {
+    let mut log = out.as_os_str().to_owned();
+    log.push(format!(".stage-{k}.presses.log"));
+    PathBuf::from(log)
+}
+
+/// One stage after the first pass on the compressed file `tissue`: its points pressed
+/// (logged at `log`), the file's own samples kept; the new file and what the stage did.
+pub fn run_stage(
+    organ: &OrganMesh,
+    tissue: &TissueLaw,
+    stage: Stage,
+    within: Option<([f64; 3], f64)>,
+    log: &std::path::Path,
+    progress: &(dyn Fn(PressCount) + Sync),
+) -> anyhow::Result<(TissueLaw, serde_json::Value)> {
+    let t0 = Instant::now();
+    Ok(match stage {
+        Stage::Split { triangles } => {
+            let law = tissue.surface_law(organ)?;
+            let (law, resumed, above) = law.refine(
+                organ,
+                DEFAULT_REFINE_ABOVE_MM,
+                Some(triangles),
+                Some(log),
+                progress,
+            )?;
+            let next = tissue.refined(organ, &law)?;
+            let report = json!({"stage": "split", "triangles": law.refinement.triangles.len(),
+                "candidates": above, "resumed_presses": resumed,
+                "refine_skipped": law.refine_skip_reasons.len(), "press_s": t0.elapsed().as_secs_f64()});
+            (next, report)
+        }
+        Stage::SubSplit { sub_triangles } => {
+            let (base, mut law, plan) = tissue.second_level_plan(organ, sub_triangles, None)?;
+            let (kept, resumed) = law.press_sub_split(organ, &plan, Some(log), progress)?;
+            let skipped = kept.iter().filter(|k| k.is_err()).count();
+            let next = base.sub_split(organ, law, &plan, &kept)?;
+            let report = json!({"stage": "sub-split", "sub_triangles": plan.chosen,
+                "presses": plan.presses(), "resumed_presses": resumed, "skipped": skipped,
+                "press_s": t0.elapsed().as_secs_f64()});
+            (next, report)
+        }
+        Stage::Band => {
+            let law = tissue.surface_law(organ)?;
+            let (law, r) = law.press_band(organ, within, Some(log), progress)?;
+            // An organ whose palpable region does not reach the fixed one has no band.
+            let next = if r.edges == 0 {
+                tissue.clone()
+            } else {
+                tissue.banded(organ, &law)?
+            };
+            let report = json!({"stage": "band", "band_edges": r.edges, "band_kept": r.kept,
+                "band_failed": r.failed, "resumed_presses": r.resumed,
+                "press_s": t0.elapsed().as_secs_f64()});
+            (next, report)
+        }
+    })
+}
+
 /// Builds, compresses and saves; returns the law and a JSON summary.
 pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)> {
     crate::cli::args::check_out(&args.out)?;
@@ -333,28 +469,11 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     }
     palpa_core::fe::depth_grid_points(args.depth_max_mm, args.depth_step_mm, MAX_GRID_POINTS)
         .context("--depth-max-mm, --depth-step-mm")?;
-    let options = SurfaceLawOptions {
-        law: args.model.law(),
-        material: Material {
-            young_kpa: args.young_kpa,
-            poisson: args.poisson,
-        },
-        element: args.element,
-        depth_max_mm: args.depth_max_mm,
-        depth_step_mm: args.depth_step_mm,
-        orders: args.orders,
-        active_cutoff: args.active_cutoff,
-        within,
-        edges: !args.no_edges,
-        ..SurfaceLawOptions::default()
-    };
+    let recipe = recipe_of(args, within)?;
+    let options = recipe.options;
     let log = press_log(&args.out);
     let started = Instant::now();
-    let refine_above_mm = args.refine_above_mm.unwrap_or(DEFAULT_REFINE_ABOVE_MM);
-    if !(refine_above_mm.is_finite() && refine_above_mm >= 0.0) {
-        bail!("--refine-above-mm {refine_above_mm}: expected a length of at least 0");
-    }
-    let refine = (!args.no_refine && !args.no_edges).then_some(refine_above_mm);
+    let refine = recipe.split_above_mm;
     let pool = press_pool(args.jobs, &organ, options.element)?;
     let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
     let cover = args
@@ -387,16 +506,38 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     // reach of the presses it blends).
     let (stopped_short, shallowest) =
         reach_figures(&law.reach, law.steps() as u32, options.depth_step_mm);
-    let bits = ShapeBits::from_count(args.bits).context("--bits: expected 8 or 16")?;
-    let grouping = if args.separate_modes {
-        Grouping::Sample
-    } else {
-        Grouping::SplitTriangle
-    };
-    let tissue = TissueLaw::compress_grouped(&organ, &law, args.tolerance_mm, bits, grouping)?;
+    let mut tissue = TissueLaw::compress_grouped(
+        &organ,
+        &law,
+        recipe.tolerance_mm,
+        recipe.bits,
+        recipe.grouping,
+    )?;
+    let mut stages = Vec::new();
+    let mut logs = vec![log];
+    for (k, stage) in recipe.stages.iter().enumerate() {
+        let log = stage_log(&args.out, k + 1);
+        eprintln!(
+            "tissue: stage {} of {}: {}",
+            k + 2,
+            recipe.stages.len() + 1,
+            stage.describe()
+        );
+        let started = Instant::now();
+        let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
+        let (next, report) = pool
+            .install(|| run_stage(&organ, &tissue, *stage, options.within, &log, &progress))
+            .with_context(|| format!("stage {}: {}", k + 2, stage.describe()))?;
+        eprintln!();
+        tissue = next;
+        stages.push(report);
+        logs.push(log);
+    }
     tissue.save(&args.out)?;
-    let _ = std::fs::remove_file(&log);
-    let summary = json!({"out": args.out, "law": options.law.name(), "element": options.element.name(),
+    for log in &logs {
+        let _ = std::fs::remove_file(log);
+    }
+    let summary = json!({"out": args.out, "recipe": args.recipe, "law": options.law.name(), "element": options.element.name(),
             "samples": tissue.samples_mm.len(), "edges": tissue.edge_ends.len(),
             "edges_skipped": law.edge_skip_reasons.len(), "skipped": tissue.skipped_mm.len(),
             "refine_above_mm": refine, "split_triangles": law.refinement.triangles.len(),
@@ -414,7 +555,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             "file_bytes": std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
             "build_s": tissue.build_s, "resumed_presses": resumed, "compress_s": tissue.compress_s,
             "worst_correction_mm": tissue.correction_mm.iter().copied().fold(0.0f32, f32::max),
-            "most_segments": tissue.segments.iter().copied().max()});
+            "most_segments": tissue.segments.iter().copied().max(),
+            "stages": stages});
     Ok((tissue, summary))
 }
 

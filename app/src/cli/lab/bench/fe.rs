@@ -44,8 +44,7 @@ pub struct FeBenchArgs {
     #[arg(long)]
     no_svk: bool,
     /// Run only these tables (cost, poisson, positions, svk, svk_limit, depth,
-    /// depth_poisson, series, depth_law, surface_law, build_cost, ordering,
-    /// lanes).
+    /// depth_poisson, series, surface_law, build_cost, ordering, lanes).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Depth of the `depth` table (mm).
@@ -60,12 +59,6 @@ pub struct FeBenchArgs {
     /// `series` table: the first N of the ten positions.
     #[arg(long, default_value_t = 10)]
     series_positions: usize,
-    /// `depth_law` table: sample positions of the force law.
-    #[arg(long, default_value_t = 48)]
-    law_samples: usize,
-    /// `depth_law` table: held-out presses compared with Newton.
-    #[arg(long, default_value_t = 8)]
-    law_heldout: usize,
     /// `surface_law` table: the element (p1 builds in minutes, p2 in about an hour).
     #[arg(long, default_value = "p2")]
     surface_element: Element,
@@ -92,7 +85,7 @@ pub struct FeBenchArgs {
 }
 
 /// The tables `--only` may name.
-const TABLES: [&str; 13] = [
+const TABLES: [&str; 12] = [
     "cost",
     "poisson",
     "positions",
@@ -101,7 +94,6 @@ const TABLES: [&str; 13] = [
     "depth",
     "depth_poisson",
     "series",
-    "depth_law",
     "surface_law",
     "build_cost",
     "ordering",
@@ -132,8 +124,6 @@ impl FeBenchArgs {
         for (flag, n) in [
             ("--series-orders", self.series_orders),
             ("--series-positions", self.series_positions),
-            ("--law-samples", self.law_samples),
-            ("--law-heldout", self.law_heldout),
             ("--surface-heldout", self.surface_heldout),
             ("--build-positions", self.build_positions),
         ] {
@@ -208,9 +198,6 @@ pub fn run(args: &FeBenchArgs) -> anyhow::Result<()> {
     }
     if args.wants("series") {
         series(args, &coarse)?;
-    }
-    if args.wants("depth_law") {
-        depth_law(args, &coarse)?;
     }
     if args.wants("surface_law") {
         surface_law(args, &coarse)?;
@@ -545,89 +532,6 @@ fn series(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
             }
         }
     }
-    Ok(())
-}
-
-/// The force law `F(s, d)` (neo-Hookean, coarse P2) built from sampled depth series,
-/// against Newton at held-out random surface points and depths in [2, 15] mm; with
-/// the time of a forward (depth in, force out) and an inverse evaluation.
-fn depth_law(args: &FeBenchArgs, coarse: &OrganMesh) -> anyhow::Result<()> {
-    use palpa_core::rng::Rng;
-    use palpa_core::tissue::depthlaw::{DepthLaw, DepthLawOptions};
-    let options = DepthLawOptions {
-        samples: args.law_samples,
-        ..DepthLawOptions::default()
-    };
-    let law = DepthLaw::build(coarse, options, &mut |k, n| {
-        eprint!("\rdepth law: sample {k}/{n}   ");
-    })?;
-    eprintln!();
-    println!(
-        "{}",
-        json!({"table": "depth_law", "level": "coarse", "element": "p2", "law": options.law.name(),
-            "samples": law.samples.len(), "orders": options.orders, "sigma_mm": law.sigma_mm,
-            "build_s": law.build_s,
-            "worst_pade_change": law.pade_change.iter().copied().filter(|c| c.is_finite()).fold(0.0, f64::max)})
-    );
-    // Held-out points: random palpable triangles, random barycentric points, random
-    // depths; the FE linear compliance there isolates the nonlinear law's error.
-    let faces: Vec<usize> = (0..coarse.palpable.len())
-        .filter(|&f| coarse.palpable[f])
-        .collect();
-    let mut rng = Rng::seed(77);
-    let mut worst = 0.0f64;
-    for _ in 0..args.law_heldout {
-        let (p, _, _) = crate::cli::tissue::points::heldout_point(coarse, &faces, &mut rng);
-        let depth = rng.range(2.0, 15.0);
-        let unit = solve_linear(coarse, Element::P2, Material::default(), &req(p, 1.0))?;
-        let compliance = unit.probe_displacement_mm;
-        let t = Instant::now();
-        let reps = 20_000;
-        let mut acc = 0.0;
-        for k in 0..reps {
-            acc += law
-                .force_n(p, depth + 1e-9 * f64::from(k % 7), compliance)
-                .0;
-        }
-        let forward_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
-        let (force, _) = law.force_n(p, depth, compliance);
-        let t = Instant::now();
-        for k in 0..reps {
-            acc += law
-                .depth_mm(p, force + 1e-9 * f64::from(k % 7), compliance)
-                .0;
-        }
-        let inverse_us = t.elapsed().as_secs_f64() * 1e6 / f64::from(reps);
-        std::hint::black_box(acc);
-        let t = Instant::now();
-        let mut row = json!({"table": "depth_law", "position": p, "depth_mm": depth,
-            "law_force_n": force, "linear_force_n": depth / compliance,
-            "forward_us": forward_us, "inverse_us": inverse_us});
-        match solve_hyperelastic(
-            coarse,
-            Element::P2,
-            Material::default(),
-            options.law,
-            &req(p, f64::NAN),
-            Some(depth),
-            NewtonSettings::default(),
-        ) {
-            Ok((sol, _)) => {
-                let rel = (force - sol.force_n) / sol.force_n;
-                worst = worst.max(rel.abs());
-                row["newton_force_n"] = json!(sol.force_n);
-                row["force_rel_error"] = json!(rel);
-                row["linear_rel_error"] = json!((depth / compliance - sol.force_n) / sol.force_n);
-            }
-            Err(e) => row["newton_error"] = json!(e.to_string()),
-        }
-        row["newton_s"] = json!(t.elapsed().as_secs_f64());
-        println!("{row}");
-    }
-    println!(
-        "{}",
-        json!({"table": "depth_law", "summary": true, "worst_force_rel_error": worst, "goal_5_percent": worst <= 0.05})
-    );
     Ok(())
 }
 
