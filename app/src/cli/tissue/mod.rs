@@ -21,9 +21,11 @@ pub use eval::eval;
 
 #[derive(Debug, Subcommand)]
 pub enum TissueCommand {
-    /// Build the nonlinear vademecum off-line: every palpable vertex's press followed
-    /// to equilibrium on the depth grid, the surfaces compressed by an SVD; finished
-    /// presses are logged in `OUT.presses.log`, so a killed build run again goes on.
+    /// Build the nonlinear vademecum off-line by a recipe: every palpable vertex's (and
+    /// edge midpoint's) press followed to equilibrium on the depth grid, the surfaces
+    /// compressed by an SVD, then the recipe's stages (split triangles, the band next
+    /// to the fixed region); finished presses are logged in `OUT.presses.log` and
+    /// `OUT.stage-K.presses.log`, so a killed build run again goes on.
     Build(BuildArgs),
     /// Compare a built vademecum with the full nonlinear FE (Newton) at held-out
     /// random points and depths, through a scene (what the app shows).
