@@ -126,6 +126,7 @@ fn tissue_stages_resume_from_their_press_logs() {
         "--depth-max-mm",
         "8",
         "--no-refine",
+        "--no-band",
         within,
     ];
     common::json_ok(&palpa(&args(&build, &path("base.tissue"))));
