@@ -4,7 +4,7 @@
 # phone needs: the surface rows, f32, the near and far fields in sixteen bits. The asset test checks that the result's recorded
 # inputs (mesh hash, element, material, tool) match the current code.
 # With TISSUE=1 it also rebuilds the scene's hyperelastic tissue, assets/liver-coarse.tissue,
-# by `palpa tissue build --recipe shipped` (the stages below, about 14 h on 2 cores). The
+# by `palpa tissue build --recipe shipped` (the stages below, about 17 h on 2 cores). The
 # shipped file was made by those stages run one by one (`palpa lab tissue refine|band`),
 # its weights rounded to halves between the fifth and sixth split stages (`palpa lab
 # tissue cut --half-weights`, its bound 0.1 -> 0.107 mm), and its presses also tried
@@ -40,7 +40,8 @@ if [ -n "${TISSUE:-}" ]; then
   # The shipped recipe (`palpa tissue build --recipe shipped`): every palpable vertex
   # and edge midpoint pressed to 15 mm, the worst triangles split in six stages (100,
   # 163, 260, 430, 540, 760 in all), the 190 worst of their sub-triangles split again,
-  # then the band next to the fixed region: 8 380 presses, about 14 h on 2 cores. Each
+  # then the band next to the fixed region: 8 380 presses, about 17 h on 2 cores by the sum of
+  # its stages' times. Each
   # stage logs its presses beside the output, so a killed run goes on.
   $palpa ${tissue#palpa }
 fi
