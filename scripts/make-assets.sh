@@ -40,9 +40,9 @@ if [ -n "${TISSUE:-}" ]; then
   # The shipped recipe (`palpa tissue build --recipe shipped`): every palpable vertex
   # and edge midpoint pressed to 15 mm, the worst triangles split in six stages (100,
   # 163, 260, 430, 540, 760 in all), the 190 worst of their sub-triangles split again,
-  # then the band next to the fixed region: 8 380 presses, about 17 h on 2 cores by the sum of
-  # its stages' times. Each
-  # stage logs its presses beside the output, so a killed run goes on.
+  # then the band next to the fixed region: 8 380 presses, about 17 h on 2 cores by
+  # the sum of its stages' times. Each stage logs its presses beside the output, so a
+  # killed run goes on.
   $palpa ${tissue#palpa }
 fi
 # What the shipped tissue is measured to be worth, written into it: seeded held-out
