@@ -130,7 +130,10 @@ fn a_scene_builds_from_a_surface_resumes_after_kill_and_opens() {
         assert!(v["seconds"][stage].is_number(), "{stage}: {v}");
     }
     // A linear scene has no tissue stage.
-    assert!(v["seconds"]["tissue"].is_null() && v["tissue"].is_null(), "{v}");
+    assert!(
+        v["seconds"]["tissue"].is_null() && v["tissue"].is_null(),
+        "{v}"
+    );
 
     let info = ok(&palpa(&["info", s(&scene), "--json"]));
     assert_eq!(info["source"]["file"], "e.ply");
