@@ -370,7 +370,7 @@ fn recipe_of(args: &BuildArgs, within: Option<([f64; 3], f64)>) -> anyhow::Resul
 }
 
 /// The press log of a recipe's stage `k` (from 1; the first pass's is [`press_log`]).
-pub fn stage_log(out: &std::path::Path, k: usize) -> PathBuf {
+fn stage_log(out: &std::path::Path, k: usize) -> PathBuf {
     let mut log = out.as_os_str().to_owned();
     log.push(format!(".stage-{k}.presses.log"));
     PathBuf::from(log)
@@ -378,7 +378,7 @@ pub fn stage_log(out: &std::path::Path, k: usize) -> PathBuf {
 
 /// One stage after the first pass on the compressed file `tissue`: its points pressed
 /// (logged at `log`), the file's own samples kept; the new file and what the stage did.
-pub fn run_stage(
+fn run_stage(
     organ: &OrganMesh,
     tissue: &TissueLaw,
     stage: Stage,
