@@ -1779,3 +1779,83 @@ fn a_tissue_of_your_own_organ_is_built_with_its_scenes_regions() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("another organ mesh"), "{stderr}");
 }
+
+/// The recipes: the default one presses the vertices, the edge midpoints and, last, the
+/// band next to the fixed region (where the ball reaches it); `--no-band` leaves the
+/// band out and `quick` presses the vertices only; a recipe out of place is refused
+/// before any press.
+#[test]
+fn a_tissue_build_runs_its_recipe_stage_by_stage() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // A few vertices of coarse P1 next to the fixed region, to 4 mm.
+    let build = |name: &str, extra: &[&str]| {
+        let out = path(&dir.path().join(name));
+        let args = [
+            "tissue",
+            "build",
+            "--element",
+            "p1",
+            "--depth-max-mm",
+            "4",
+            "--within=4.06,-39.49,-34.90,15",
+            "--out",
+            &out,
+        ];
+        palpa(&[&args[..], extra].concat())
+    };
+    let full = common::json_ok(&build("default.tissue", &[]));
+    assert_eq!(full["recipe"], "default");
+    let stages = full["stages"].as_array().expect("stages");
+    assert_eq!(stages.len(), 1, "{full}");
+    assert_eq!(stages[0]["stage"], "band");
+    let band = full["band_edges"].as_u64().expect("band edges");
+    assert!(band > 0, "{full}");
+    assert_eq!(stages[0]["band_kept"].as_u64(), Some(band), "{full}");
+    assert!(full["edges"].as_u64().is_some_and(|e| e > 0), "{full}");
+    // The file holds what the summary says, and no stage's log is left.
+    let file = palpa_core::tissue::law::TissueLaw::load(&dir.path().join("default.tissue"))
+        .expect("loads");
+    assert_eq!(file.refinement.band.len() as u64, band);
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("dir")
+        .map(|e| e.expect("entry").file_name())
+        .filter(|n| n.to_string_lossy().contains(".log"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+
+    let no_band = common::json_ok(&build("no-band.tissue", &["--no-band"]));
+    assert_eq!(no_band["stages"].as_array().map(Vec::len), Some(0));
+    assert_eq!(no_band["band_edges"], 0);
+    assert_eq!(no_band["samples"], full["samples"]);
+
+    let quick = common::json_ok(&build("quick.tissue", &["--recipe", "quick"]));
+    assert_eq!(
+        (quick["edges"].as_u64(), quick["split_triangles"].as_u64()),
+        (Some(0), Some(0))
+    );
+    assert_eq!(quick["stages"].as_array().map(Vec::len), Some(0));
+
+    // The splits of another recipe are its own; a recipe that does not exist is named.
+    for (extra, says) in [
+        (
+            &["--recipe", "quick", "--no-refine"][..],
+            "names its own splits",
+        ),
+        (
+            &["--recipe", "shipped", "--no-edges"][..],
+            "edge midpoints pressed",
+        ),
+        (
+            &["--recipe", "fast"][..],
+            "expected one of default, shipped, quick",
+        ),
+    ] {
+        let out = build("bad.tissue", extra);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(says),
+            "{extra:?}: {err}"
+        );
+        assert!(!dir.path().join("bad.tissue").exists());
+    }
+}
