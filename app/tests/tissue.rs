@@ -1813,8 +1813,7 @@ fn a_tissue_build_runs_its_recipe_stage_by_stage() {
     assert_eq!(stages[0]["band_kept"].as_u64(), Some(band), "{full}");
     assert!(full["edges"].as_u64().is_some_and(|e| e > 0), "{full}");
     // The file holds what the summary says, and no stage's log is left.
-    let file = palpa_core::tissue::law::TissueLaw::load(&dir.path().join("default.tissue"))
-        .expect("loads");
+    let file = TissueLaw::load(&dir.path().join("default.tissue")).expect("loads");
     assert_eq!(file.refinement.band.len() as u64, band);
     let left: Vec<_> = std::fs::read_dir(dir.path())
         .expect("dir")
