@@ -164,22 +164,32 @@ fn p1_scene_with_tissue(scene: &std::path::Path, model: &str, within: &str) -> s
     ]))
 }
 
-/// `palpa tissue build` of a small anterior region on coarse P1 to 3 mm, with `extra`
-/// flags, into `out`: its JSON.
-fn p1_tissue(out: &std::path::Path, extra: &[&str]) -> serde_json::Value {
-    let out = path(out);
+/// `palpa tissue build` on coarse P1 to `depth_mm`, pressing within the ball `within`
+/// (`X,Y,Z,R`), with `extra` flags, into `out`.
+fn p1_build(
+    out: &std::path::Path,
+    depth_mm: &str,
+    within: &str,
+    extra: &[&str],
+) -> std::process::Output {
+    let (out, within) = (path(out), format!("--within={within}"));
     let args = [
         "tissue",
         "build",
         "--element",
         "p1",
         "--depth-max-mm",
-        "3",
-        "--within=-30.3,70.7,16.9,8",
+        depth_mm,
+        &within,
         "--out",
         &out,
     ];
-    common::json_ok(&palpa(&[&args[..], extra].concat()))
+    palpa(&[&args[..], extra].concat())
+}
+
+/// [`p1_build`] of a small anterior region to 3 mm: its JSON.
+fn p1_tissue(out: &std::path::Path, extra: &[&str]) -> serde_json::Value {
+    common::json_ok(&p1_build(out, "3", "-30.3,70.7,16.9,8", extra))
 }
 
 /// A session pressing 5 mm at its starting probe point, once the loop has answered.
@@ -1789,19 +1799,7 @@ fn a_tissue_build_runs_its_recipe_stage_by_stage() {
     let dir = tempfile::tempdir().expect("tempdir");
     // A few vertices of coarse P1 next to the fixed region, to 4 mm.
     let build = |name: &str, extra: &[&str]| {
-        let out = path(&dir.path().join(name));
-        let args = [
-            "tissue",
-            "build",
-            "--element",
-            "p1",
-            "--depth-max-mm",
-            "4",
-            "--within=4.06,-39.49,-34.90,15",
-            "--out",
-            &out,
-        ];
-        palpa(&[&args[..], extra].concat())
+        p1_build(&dir.path().join(name), "4", "4.06,-39.49,-34.90,15", extra)
     };
     let full = common::json_ok(&build("default.tissue", &[]));
     assert_eq!(full["recipe"], "default");
