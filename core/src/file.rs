@@ -52,7 +52,7 @@ pub const MAGIC: [u8; 8] = *b"PALPAMM\x1a";
 /// The one format this build reads and writes. Until a release there is one current
 /// version: a change to the layout bumps it, and older files are refused by name with
 /// the command that rebuilds them ([`FileError::OlderVersion`]).
-pub const FORMAT_VERSION: u32 = 9;
+pub const FORMAT_VERSION: u32 = 10;
 const PREAMBLE: usize = 32;
 const ALIGN: u64 = 64;
 /// Headers hold metadata and small discretizations (a surface of ~10⁵ vertices at most);

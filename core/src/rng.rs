@@ -51,6 +51,12 @@ impl Rng {
         lo + (hi - lo) * self.uniform()
     }
 
+    /// A standard normal draw (Box–Muller; one of the pair is discarded).
+    pub fn normal(&mut self) -> f64 {
+        let u = 1.0 - self.uniform(); // in (0, 1]: the log is finite
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * self.uniform()).cos()
+    }
+
     /// Uniform integer in [0, n); `n` must be positive.
     #[inline]
     pub fn below(&mut self, n: usize) -> usize {

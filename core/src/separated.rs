@@ -57,6 +57,9 @@ pub struct Provenance {
     pub palpa_version: String,
     /// Hash of the inputs the model was computed from (mesh, material, solver settings).
     pub input_hash: String,
+    /// The gene network a CME meta-model was built from, as palpa's TOML (what `palpa
+    /// cme fit` solves exactly to check itself); empty for an organ's model.
+    pub network: String,
 }
 
 impl Provenance {
@@ -72,6 +75,7 @@ impl Provenance {
                 .map_or(0, |d| d.as_secs()),
             palpa_version: env!("CARGO_PKG_VERSION").into(),
             input_hash: String::new(),
+            network: String::new(),
         }
     }
 }

@@ -20,6 +20,11 @@ pub enum CmeCommand {
     Eval(EvalArgs),
     /// Read a network (SBML or TOML) and write it as palpa's TOML: what was understood.
     Convert(ConvertArgs),
+    /// Snapshot data from exact sample paths: counts in single cells at a few times (CSV).
+    Simulate(super::cme_fit::SimulateArgs),
+    /// Fit a meta-model's rates to snapshot data: maximum likelihood, 95 % intervals,
+    /// posterior (no solving).
+    Fit(super::cme_fit::FitArgs),
 }
 
 #[derive(Debug, Args)]
@@ -585,6 +590,8 @@ pub fn run(cmd: &CmeCommand) -> anyhow::Result<()> {
         CmeCommand::Offline(args) => offline(args),
         CmeCommand::Eval(args) => eval(args),
         CmeCommand::Convert(args) => convert(args),
+        CmeCommand::Simulate(args) => super::cme_fit::simulate(args),
+        CmeCommand::Fit(args) => super::cme_fit::fit_command(args),
     }
 }
 

@@ -2,6 +2,7 @@
 
 mod args;
 mod cme;
+mod cme_fit;
 mod fe;
 mod headless;
 mod info;

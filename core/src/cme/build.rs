@@ -73,18 +73,28 @@ impl ViewOptions {
 }
 
 impl Built {
-    /// Writes the meta-model atomically.
+    /// Writes the meta-model atomically, with the network it was built from in its
+    /// provenance (so a fit can solve it exactly at the rates it finds).
     pub fn save(&self, network: &Network, out: &Path) -> Result<(), FileError> {
+        let with_network = |p: &Provenance| Provenance {
+            network: network.to_toml(),
+            ..p.clone()
+        };
         match &self.form {
-            Form::Separated { model, .. } => file::save(model, out),
+            Form::Separated { model, .. } => {
+                let mut model = model.clone();
+                model.set_provenance(with_network(model.provenance()));
+                file::save(&model, out)
+            }
             Form::Train {
                 history,
                 provenance,
                 ..
-            } => model::save_train(network, history, provenance.clone(), out),
+            } => model::save_train(network, history, with_network(provenance), out),
             Form::Views {
                 views, provenance, ..
             } => {
+                let provenance = &with_network(provenance);
                 views.check().map_err(|reason| FileError::Inconsistent {
                     path: out.to_path_buf(),
                     reason,

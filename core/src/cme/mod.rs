@@ -20,6 +20,9 @@
 //!   Lagrange weights that read it; [`tteval`] evaluates it on-line, [`model`] wraps
 //!   either form as one meta-model that a scene or `palpa cme eval` queries.
 //!
+//! - [`fit`]: rates from data: the likelihood of single-cell snapshots through a
+//!   meta-model, its maximum, intervals and posterior.
+//!
 //! [`Moments`] holds what every solver reports at each output time: the marginals,
 //! means, variances and the covariance of the first two species.
 
@@ -27,6 +30,7 @@ pub mod build;
 pub mod conservation;
 pub mod cp;
 pub mod dsmts;
+pub mod fit;
 pub mod fsp;
 pub mod greedy;
 pub mod history;

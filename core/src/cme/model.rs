@@ -302,6 +302,14 @@ impl CmeModel {
         }
     }
 
+    /// The tensor-train history, for a model that keeps one (what a fit reads).
+    pub fn history(&self) -> Option<&History> {
+        match &self.repr {
+            Repr::Train(t) => Some(&t.history),
+            _ => None,
+        }
+    }
+
     /// The numbers stored (terms × axis sizes, or the train's cores).
     pub fn stored_values(&self) -> usize {
         match &self.repr {

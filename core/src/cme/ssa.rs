@@ -61,6 +61,43 @@ pub fn simulate_within(
     seed: u64,
     max_run_events: u64,
 ) -> SsaSolution {
+    let paths = paths(network, p, times, trajectories, seed, max_run_events);
+    let moments = times
+        .iter()
+        .enumerate()
+        .map(|(j, &t)| {
+            let states: Vec<Vec<i64>> = paths.states.iter().map(|s| s[j].clone()).collect();
+            Moments::from_samples(t, &states)
+        })
+        .collect();
+    SsaSolution {
+        moments,
+        trajectories,
+        events: paths.events,
+        truncated: paths.truncated,
+    }
+}
+
+/// Sample paths' states at the output times.
+#[derive(Debug, Clone)]
+pub struct Paths {
+    /// `states[k][j]`: trajectory `k`'s copy numbers at `times[j]`.
+    pub states: Vec<Vec<Vec<i64>>>,
+    pub events: u64,
+    /// Trajectories stopped by the event bounds (their later states are the last
+    /// reached).
+    pub truncated: usize,
+}
+
+/// The states of `trajectories` paths at `times`, as [`simulate_within`] draws them.
+pub fn paths(
+    network: &Network,
+    p: &[f64],
+    times: &[f64],
+    trajectories: usize,
+    seed: u64,
+    max_run_events: u64,
+) -> Paths {
     let d = network.species.len();
     let run_events = AtomicU64::new(0);
     let results: Vec<(Vec<Vec<i64>>, u64, bool)> = (0..trajectories)
@@ -118,17 +155,8 @@ pub fn simulate_within(
         .collect();
     let events = results.iter().map(|r| r.1).sum();
     let truncated = results.iter().filter(|r| r.2).count();
-    let moments = times
-        .iter()
-        .enumerate()
-        .map(|(j, &t)| {
-            let states: Vec<Vec<i64>> = results.iter().map(|r| r.0[j].clone()).collect();
-            Moments::from_samples(t, &states)
-        })
-        .collect();
-    SsaSolution {
-        moments,
-        trajectories,
+    Paths {
+        states: results.into_iter().map(|r| r.0).collect(),
         events,
         truncated,
     }
