@@ -21,8 +21,8 @@ const REFUSED: [(&str, &str); 5] = [
 /// FSP and the PGD against the published values: `|a − b| / max(|b|, 1)`.
 const FSP_TOL: f64 = 1e-5;
 const PGD_TOL: f64 = 1e-3;
-/// FSP's leak target at every output time.
-const MAX_LEAK: f64 = 1e-9;
+/// FSP's leak target at every output time: the command line's default.
+const MAX_LEAK: f64 = palpa_core::cme::fsp::DEFAULT_MAX_LEAK;
 /// The SSA's paths and seed (the suite suggests 10⁴ or more).
 const TRAJECTORIES: usize = 10_000;
 const SEED: u64 = 1;

@@ -434,8 +434,9 @@ pub struct SolveArgs {
     /// distribution spreads until the leak stays below --max-leak.
     #[arg(long)]
     auto_box: bool,
-    /// FSP: the leak above which the box is reported as too small.
-    #[arg(long, default_value_t = 1e-6, allow_hyphen_values = true)]
+    /// FSP: the leak above which the box is reported as too small (an automatic box
+    /// grows until it leaks less).
+    #[arg(long, default_value_t = fsp::DEFAULT_MAX_LEAK, allow_hyphen_values = true)]
     max_leak: f64,
     /// Print one JSON object.
     #[arg(long)]

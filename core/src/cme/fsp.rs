@@ -22,6 +22,12 @@ use thiserror::Error;
 use super::moments::Moments;
 use super::network::Network;
 
+/// The leak an automatic box is grown to stay below at every output time when none is
+/// asked. 10⁻⁶ left the DSMTS birth–death cases' standard deviations 1.9·10⁻⁵ from the
+/// published values (the suite's bar is 10⁻⁵); 10⁻⁹ meets it in the same box (288
+/// states on case 00001 to t = 50) for about 15 % more uniformization steps.
+pub const DEFAULT_MAX_LEAK: f64 = 1e-9;
+
 /// Largest box the exact solver accepts.
 pub const MAX_STATES: usize = 10_000_000;
 
