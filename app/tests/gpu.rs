@@ -248,6 +248,9 @@ fn the_network_scene_matches_the_reference_image() {
         ui: true,
         path: None,
         display: Default::default(),
+        data: None,
+        fit: false,
+        posterior: None,
     })
     .expect("renders");
     // The drawer ends at x = 352 (see `layout::DRAWER_WIDTH_PT`).

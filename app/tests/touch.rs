@@ -70,6 +70,9 @@ fn network(size: (u32, u32), d: Display) -> LayoutReport {
         ui: true,
         path: None,
         display: d,
+        data: None,
+        fit: false,
+        posterior: None,
     })
     .expect("renders");
     report.layout.expect("a layout report")

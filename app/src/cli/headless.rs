@@ -51,6 +51,18 @@ pub struct HeadlessArgs {
     /// report its L1 distance to the meta-model.
     #[arg(long)]
     exact_check: bool,
+    /// Network scenes: snapshot data (CSV `t,<species>…`) over the model: its
+    /// histograms drawn, its log-likelihood reported.
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Network scenes: fit the rates to --data before the last frame (the sliders
+    /// moved to the maximum).
+    #[arg(long)]
+    fit: bool,
+    /// Network scenes: Metropolis–Hastings steps per chain on --data before the last
+    /// frame (the posterior's density drawn).
+    #[arg(long)]
+    posterior: Option<usize>,
     /// Physical pixels per interface point: 1 on a desktop monitor, 2 or 3 on tablets
     /// and phones (which also get touch sizes when the short side is ≤ 900 points).
     #[arg(long, default_value_t = 1.0)]
@@ -145,6 +157,9 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
         [
             ("--coordinate-path", args.coordinate_path.is_some()),
             ("--exact-check", args.exact_check),
+            ("--data", args.data.is_some()),
+            ("--fit", args.fit),
+            ("--posterior", args.posterior.is_some()),
         ],
         [
             ("--probe-path", args.probe_path != "default"),
@@ -220,6 +235,9 @@ fn run_network(args: &HeadlessArgs, size: (u32, u32)) -> anyhow::Result<()> {
         ui: !args.no_ui,
         path: args.coordinate_path.clone(),
         display: args.display()?,
+        data: args.data.clone(),
+        fit: args.fit,
+        posterior: args.posterior,
     };
     let (report, _) = run(&opts)?;
     if !print_json(args.json, &report)? {

@@ -8,6 +8,7 @@
 
 pub mod build;
 pub mod check;
+pub mod data;
 pub mod job;
 pub mod offscreen;
 pub mod path;
@@ -208,6 +209,9 @@ pub struct NetworkRoom {
     pub camera: crate::camera::OrbitCamera,
     /// The two species whose joint is shown (the others summed out in the model).
     pub pair: (usize, usize),
+    /// Snapshot data loaded over the model, and the path typed in the panel.
+    pub data: Option<data::DataOverlay>,
+    pub data_path: String,
 }
 
 impl NetworkRoom {
@@ -253,6 +257,8 @@ impl NetworkRoom {
                 .pairs()
                 .and_then(|p| p.first().copied())
                 .unwrap_or((0, 1)),
+            data: None,
+            data_path: String::new(),
             camera: crate::camera::OrbitCamera::framing(
                 glam::Vec3::ZERO,
                 glam::Vec3::new(LANDSCAPE_SIDE, LANDSCAPE_SIDE, LANDSCAPE_HEIGHT),
@@ -274,6 +280,38 @@ impl NetworkRoom {
         let rate = live(right_x) + live(trigger).max(0.0);
         let t = &mut self.time;
         t.value = (t.value + rate * (t.hi - t.lo) / 5.0 * dt).clamp(t.lo, t.hi);
+    }
+
+    /// Loads snapshot data (CSV) over the model and evaluates its log-likelihood at
+    /// the current rates.
+    pub fn load_data(&mut self, path: &std::path::Path) -> anyhow::Result<()> {
+        let mut d = data::DataOverlay::load(&self.model, path)?;
+        d.evaluate(&self.params);
+        self.data = Some(d);
+        Ok(())
+    }
+
+    /// Fits the rates to the loaded data and moves the sliders to the maximum.
+    pub fn fit_data(&mut self) -> anyhow::Result<()> {
+        let d = self.data.as_mut().context("load a data file first")?;
+        if self.params.is_empty() {
+            anyhow::bail!("the model has no rates to fit (no range parameters)");
+        }
+        let mle = d.fit(&self.params);
+        for (c, v) in self.params.iter_mut().zip(mle) {
+            c.value = v;
+        }
+        Ok(())
+    }
+
+    /// The posterior of the rates given the loaded data (`steps` per chain).
+    pub fn sample_posterior(&mut self, steps: usize) -> anyhow::Result<()> {
+        let d = self.data.as_mut().context("load a data file first")?;
+        if self.params.is_empty() {
+            anyhow::bail!("the model has no rates to sample (no range parameters)");
+        }
+        d.sample(&self.params, steps, 0x5eed);
+        Ok(())
     }
 
     /// Starts the exact (FSP) check at the current coordinates, replacing a running one.
@@ -463,6 +501,9 @@ impl NetworkRoom {
                 return;
             }
         }
+        if let Some(d) = &mut self.data {
+            d.evaluate(&self.params);
+        }
         let sizes = self.model.box_sizes();
         let (a, b) = self.pair;
         if a != b && a < sizes.len() && b < sizes.len() {
@@ -482,10 +523,14 @@ impl NetworkRoom {
     }
 }
 
-/// The built-in network a model names in its provenance (`network NAME; …`), if its
-/// species and boxes are the model's.
+/// The network a model was built from: the one its file keeps, else the built-in
+/// network it names in its provenance (`network NAME; …`), if its species and boxes
+/// are the model's.
 fn network_of(model: &CmeModel) -> Option<Network> {
     let meta = model.meta();
+    if let Ok(network) = Network::from_toml(&meta.provenance.network, "the model's network") {
+        return Some(network);
+    }
     let name = meta
         .provenance
         .mesh

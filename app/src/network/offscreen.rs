@@ -36,6 +36,34 @@ pub struct NetworkHeadless {
     pub path: Option<PathBuf>,
     /// Density, safe area and panel state of the interface.
     pub display: crate::layout::Display,
+    /// Snapshot data loaded over the model (its histograms drawn, its log-likelihood
+    /// reported), fitted before the last frame with `fit`, sampled with `posterior`
+    /// steps a chain.
+    pub data: Option<PathBuf>,
+    pub fit: bool,
+    pub posterior: Option<usize>,
+}
+
+/// What the data did in a headless run.
+#[derive(Debug, Clone, Serialize)]
+pub struct DataReport {
+    pub source: String,
+    pub cells: usize,
+    /// At the last frame's rates (after a fit, the maximum).
+    pub log_likelihood: Option<f64>,
+    pub likelihood_us: f64,
+    /// Each rate's maximum and profile interval, when fitted.
+    pub estimates: Vec<EstimateValue>,
+    /// The posterior's largest R-hat and smallest effective sample size.
+    pub posterior_rhat: Option<f64>,
+    pub posterior_ess: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct EstimateValue {
+    pub name: String,
+    pub mle: f64,
+    pub profile_ci95: [f64; 2],
 }
 
 /// The coordinates of a frame.
@@ -73,6 +101,7 @@ pub struct NetworkReport {
     pub out: Option<String>,
     /// The interface's layout in the last frame (with the interface on).
     pub layout: Option<crate::layout::LayoutReport>,
+    pub data: Option<DataReport>,
 }
 
 /// Renders the frames; returns the report and the last image.
@@ -80,6 +109,11 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
     crate::offscreen::check_frames(opts.size, opts.frames)?;
     let (w, h) = opts.size;
     let mut room = open_blocking(&opts.scene)?;
+    if let Some(d) = &opts.data {
+        room.load_data(d)?;
+    } else if opts.fit || opts.posterior.is_some() {
+        bail!("--fit and --posterior need --data (the cells to fit)");
+    }
     let path = match &opts.path {
         Some(p) => {
             let path = super::path::CoordinatePath::load(p)?;
@@ -101,6 +135,12 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
             None => room.time.value = sweep(&room, i, opts.frames),
         }
         let last = i + 1 == opts.frames;
+        if last && opts.fit {
+            room.fit_data()?;
+        }
+        if last && let Some(steps) = opts.posterior {
+            room.sample_posterior(steps)?;
+        }
         if last && opts.exact_check {
             room.start_check()?;
             let waited = Instant::now();
@@ -195,6 +235,29 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
         exact_s: room.check_result.as_ref().map(|r| r.exact_s),
         adapter: gpu.report(),
         out: opts.out.as_ref().map(|p| p.display().to_string()),
+        data: room.data.as_ref().map(|d| DataReport {
+            source: d.source.clone(),
+            cells: d.snapshots.cell_count(),
+            log_likelihood: d.log_likelihood,
+            likelihood_us: d.likelihood_us,
+            estimates: d.fit.as_ref().map_or_else(Vec::new, |(e, _)| {
+                e.iter()
+                    .map(|e| EstimateValue {
+                        name: e.name.clone(),
+                        mle: e.mle,
+                        profile_ci95: e.profile_ci95,
+                    })
+                    .collect()
+            }),
+            posterior_rhat: d
+                .posterior
+                .as_ref()
+                .map(|(p, _)| p.rates.iter().map(|r| r.rhat).fold(0.0, f64::max)),
+            posterior_ess: d
+                .posterior
+                .as_ref()
+                .map(|(p, _)| p.rates.iter().map(|r| r.ess).fold(f64::INFINITY, f64::min)),
+        }),
         layout: opts.ui.then(|| {
             crate::layout::report(
                 &overlay.ctx,

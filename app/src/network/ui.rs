@@ -121,6 +121,8 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
     ui.separator();
     exact_check(ui, room);
     ui.separator();
+    data_panel(ui, room);
+    ui.separator();
     let us = |r: &crate::stats::Ring| r.quantile(0.5);
 
     ui.label(format!(
@@ -132,6 +134,140 @@ fn controls(ui: &mut egui::Ui, room: &mut NetworkRoom, hud: &mut Hud) {
         "frame {:.2} ms (median)",
         hud.frame_ms.quantile(0.5)
     ));
+}
+
+/// The data's colour: histograms over the marginals, the posterior's density.
+const DATA_COLOUR: Color32 = Color32::from_rgb(255, 170, 60);
+
+/// Snapshot data: a file to load, the log-likelihood at the sliders' rates, "Fit"
+/// (the sliders moved to the maximum, the intervals listed) and the posterior of the
+/// first two rates as a density.
+fn data_panel(ui: &mut egui::Ui, room: &mut NetworkRoom) {
+    ui.horizontal(|ui| {
+        ui.label("data");
+        ui.add(
+            egui::TextEdit::singleline(&mut room.data_path)
+                .hint_text("cells.csv (t,<species>…)")
+                .desired_width(150.0),
+        );
+        if ui.button("load").clicked() {
+            let path = std::path::PathBuf::from(room.data_path.trim());
+            match room.load_data(&path) {
+                Ok(()) => room.error = None,
+                Err(e) => room.error = Some(format!("{e:#}")),
+            }
+        }
+    });
+    let Some(d) = &room.data else {
+        ui.label(RichText::new("snapshot counts in single cells: fit the rates to them").small());
+        return;
+    };
+    ui.label(format!(
+        "{}: {} cells at {} times, observed {}",
+        d.source,
+        d.snapshots.cell_count(),
+        d.snapshots.times.len(),
+        d.snapshots.species.join(", ")
+    ));
+    if let Some(l) = d.log_likelihood {
+        ui.label(format!(
+            "log-likelihood {l:.2} at these rates ({:.1} µs)",
+            d.likelihood_us
+        ));
+    }
+    let mut act = None;
+    ui.horizontal(|ui| {
+        if ui.button("Fit").clicked() {
+            act = Some(false);
+        }
+        if ui.button("Posterior").clicked() {
+            act = Some(true);
+        }
+    });
+    match act {
+        Some(false) => {
+            if let Err(e) = room.fit_data() {
+                room.error = Some(format!("{e:#}"));
+            }
+        }
+        Some(true) => {
+            if let Err(e) = room.sample_posterior(2_000) {
+                room.error = Some(format!("{e:#}"));
+            }
+        }
+        None => {}
+    }
+    let Some(d) = &room.data else { return };
+    if let Some((estimates, seconds)) = &d.fit {
+        egui::Grid::new("fit").striped(true).show(ui, |ui| {
+            ui.label("rate");
+            ui.label("MLE");
+            ui.label("95 % (profile)");
+            ui.end_row();
+            for e in estimates {
+                ui.label(&e.name);
+                ui.label(format!("{:.5}", e.mle));
+                let mut text = format!("{:.5} – {:.5}", e.profile_ci95[0], e.profile_ci95[1]);
+                if !e.identifiable {
+                    text = "unidentifiable".into();
+                } else if e.at_range_end || e.profile_open.iter().any(|o| *o) {
+                    text += " (range end)";
+                }
+                ui.label(text);
+                ui.end_row();
+            }
+        });
+        ui.label(RichText::new(format!("fitted in {:.0} ms", seconds * 1e3)).small());
+    }
+    if let Some((post, density)) = &d.posterior {
+        let rhat = post.rates.iter().map(|r| r.rhat).fold(0.0, f64::max);
+        let ess = post
+            .rates
+            .iter()
+            .map(|r| r.ess)
+            .fold(f64::INFINITY, f64::min);
+        ui.label(format!(
+            "posterior: {} chains × {} steps, R-hat ≤ {rhat:.3}, ESS ≥ {ess:.0}",
+            post.chains, post.steps
+        ));
+        posterior_density(ui, density);
+    }
+}
+
+/// The density as a grid of cells coloured by the ramp, its axes' ends labelled.
+fn posterior_density(ui: &mut egui::Ui, d: &super::data::Density) {
+    let n = super::data::DENSITY_CELLS;
+    let side = ui.available_width().clamp(120.0, 240.0);
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(side, side), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    let cell = side / n as f32;
+    for j in 0..n {
+        for i in 0..n {
+            let v = d.cells[j * n + i];
+            if v <= 0.0 {
+                continue;
+            }
+            let min = rect.left_bottom() + egui::vec2(i as f32 * cell, -((j + 1) as f32) * cell);
+            painter.rect_filled(
+                egui::Rect::from_min_size(min, egui::vec2(cell, cell)),
+                0.0,
+                ramp(v),
+            );
+        }
+    }
+    painter.rect_stroke(
+        rect,
+        0.0,
+        egui::Stroke::new(1.0, DATA_COLOUR),
+        egui::StrokeKind::Inside,
+    );
+    ui.label(
+        RichText::new(format!(
+            "{} {:.4} … {:.4} →   {} {:.4} … {:.4} ↑",
+            d.names[0], d.x[0], d.x[1], d.names[1], d.y[0], d.y[1]
+        ))
+        .small(),
+    );
 }
 
 /// Each species' mean and standard deviation.
@@ -371,6 +507,11 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
                     .map(|[z, p]| egui_plot::Bar::new(z, p).width(1.0))
                     .collect();
                 let exact = (room.check_result.as_ref()).map(|r| points(&r.exact.marginals[i]));
+                let observed = room
+                    .data
+                    .as_ref()
+                    .and_then(|d| d.histogram(room.time.value, i, m.len()))
+                    .map(|(t, h)| (t, points(&h)));
                 let sampled = (room.ssa_result.as_ref()).map(|r| points(&r.sampled.marginals[i]));
                 egui_plot::Plot::new(format!("marginal-{i}"))
                     .width(plot_width)
@@ -396,6 +537,12 @@ fn views(ui: &mut egui::Ui, room: &mut NetworkRoom) {
                                 egui_plot::Points::new("SSA", points)
                                     .radius(1.5)
                                     .color(Color32::from_rgb(120, 220, 255)),
+                            );
+                        }
+                        if let Some((t, points)) = observed {
+                            plot.line(
+                                egui_plot::Line::new(format!("data, t = {t}"), points)
+                                    .color(DATA_COLOUR),
                             );
                         }
                     });
