@@ -262,14 +262,40 @@ impl MetaLikelihood {
         let combos: usize = pcores.iter().map(|c| c.n).product();
         let rl = pcores[0].r0;
         let rr = pcores[pcores.len() - 1].r1;
-        let table_values = combos * (pairs.len() + right.len() * rl);
+        // Meet in the middle: the left vectors go through the parameter cores before a
+        // split, the right vectors through those after it, and each table entry is one
+        // dot product across the split's bond. The split is the cheapest by count.
+        let m = pcores.len();
+        let bond = |s: usize| if s == m { rr } else { pcores[s].r0 };
+        let nodes = |r: std::ops::Range<usize>| -> usize { pcores[r].iter().map(|c| c.n).product() };
+        let cost = |s: usize| -> f64 {
+            let through_left: f64 = (0..s)
+                .map(|q| (left.len() * nodes(0..q + 1) * pcores[q].r0 * pcores[q].r1) as f64)
+                .sum();
+            let through_right: f64 = (s..m)
+                .map(|q| (right.len() * nodes(q..m) * pcores[q].r0 * pcores[q].r1) as f64)
+                .sum();
+            through_left + through_right + (pairs.len() * combos * bond(s)) as f64
+        };
+        let split = (0..=m)
+            .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
+            .unwrap_or(0);
+        let table_values = combos * pairs.len()
+            + bond(split) * (left.len() * nodes(0..split) + right.len() * nodes(split..m));
         let form = if table_values <= TABLE_BUDGET {
-            // Every right vector through every node combination, last core fastest.
-            let mut through: Vec<Vec<Vec<f64>>> = right.iter().map(|b| vec![b.clone()]).collect();
-            let mut strides = vec![0; pcores.len()];
-            for (q, c) in pcores.iter().enumerate().rev() {
-                strides[q] = through[0].len();
-                for list in &mut through {
+            // Combination index: earlier cores slower, `c = c_left · nodes(split..) + c_right`.
+            let mut lefts: Vec<Vec<Vec<f64>>> = left.iter().map(|a| vec![a.clone()]).collect();
+            for c in &pcores[..split] {
+                for list in &mut lefts {
+                    *list = list
+                        .iter()
+                        .flat_map(|v| (0..c.n).map(move |j| row_through(v, c, Some(j as u32))))
+                        .collect();
+                }
+            }
+            let mut rights: Vec<Vec<Vec<f64>>> = right.iter().map(|b| vec![b.clone()]).collect();
+            for c in pcores[split..].iter().rev() {
+                for list in &mut rights {
                     let mut next = Vec::with_capacity(c.n * list.len());
                     for j in 0..c.n {
                         for v in list.iter() {
@@ -279,14 +305,16 @@ impl MetaLikelihood {
                     *list = next;
                 }
             }
+            let strides: Vec<usize> = (0..m).map(|q| nodes(q + 1..m)).collect();
             let mut q = Vec::with_capacity(pairs.len() * combos);
             for &(li, ri) in &pairs {
-                let a = &left[li];
-                q.extend(
-                    through[ri]
-                        .iter()
-                        .map(|v| a.iter().zip(v).map(|(x, y)| x * y).sum::<f64>()),
-                );
+                for a in &lefts[li] {
+                    q.extend(
+                        rights[ri]
+                            .iter()
+                            .map(|v| a.iter().zip(v).map(|(x, y)| x * y).sum::<f64>()),
+                    );
+                }
             }
             Form::Table { strides, combos, q }
         } else {
