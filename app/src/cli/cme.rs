@@ -370,8 +370,13 @@ impl PgdArgs {
 
 #[derive(Debug, Args)]
 pub struct OfflineArgs {
-    /// A built-in network or a TOML file.
+    /// A built-in network, or a TOML or SBML file.
     model: String,
+    /// Make a rate a coordinate of the model: NAME=LO:HI[:POINTS], a linear grid of
+    /// POINTS nodes [17] (repeatable; what a `range` in the TOML does, for an SBML file
+    /// without editing it).
+    #[arg(long = "range")]
+    ranges: Vec<String>,
     #[command(flatten)]
     pgd: PgdArgs,
     /// Output meta-model file.
@@ -688,6 +693,9 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
                 );
             }
             let sol = ssa::simulate(&network, &p, &args.t, args.trajectories, args.seed);
+            if let Some(why) = &sol.overflow {
+                bail!("{why}");
+            }
             if sol.truncated > 0 {
                 warnings.push(format!(
                     "{} of {} trajectories were stopped by the event limit ({:.0e} reactions a \
@@ -869,9 +877,50 @@ fn run_pgd(network: &Network, options: &greedy::Options) -> anyhow::Result<build
     Ok(out)
 }
 
+/// `--range NAME=LO:HI[:POINTS]` applied to `network`'s parameters.
+fn apply_ranges(network: &mut Network, ranges: &[String]) -> anyhow::Result<()> {
+    for spec in ranges {
+        let expected = "expected NAME=LO:HI or NAME=LO:HI:POINTS, e.g. delta=0.01:0.05:17";
+        let (name, rest) = spec
+            .split_once('=')
+            .with_context(|| format!("--range {spec:?}: {expected}"))?;
+        let parts: Vec<&str> = rest.split(':').collect();
+        let num = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
+        let (lo, hi, points) = match parts[..] {
+            [lo, hi] => (num(lo), num(hi), Some(17)),
+            [lo, hi, n] => (num(lo), num(hi), n.trim().parse::<usize>().ok()),
+            _ => (None, None, None),
+        };
+        let (Some(lo), Some(hi), Some(points)) = (lo, hi, points) else {
+            bail!("--range {spec:?}: {expected}");
+        };
+        if !(0.0 <= lo && lo < hi) || points < 2 {
+            bail!("--range {spec:?}: expected 0 ≤ LO < HI and at least 2 POINTS");
+        }
+        let known = network
+            .parameters
+            .iter()
+            .map(|p| p.name.clone())
+            .collect::<Vec<_>>()
+            .join(", ");
+        let p = network
+            .parameters
+            .iter_mut()
+            .find(|p| p.name == name)
+            .with_context(|| format!("--range {spec:?}: no parameter {name:?}; the network has {known}"))?;
+        p.range = Some((lo, hi, points));
+        p.spacing = palpa_core::cme::network::Spacing::Linear;
+        if !(lo..=hi).contains(&p.value) {
+            p.value = 0.5 * (lo + hi);
+        }
+    }
+    Ok(())
+}
+
 fn offline(args: &OfflineArgs) -> anyhow::Result<()> {
     super::args::check_out(&args.out)?;
-    let network = load_network(&args.model)?;
+    let mut network = load_network(&args.model)?;
+    apply_ranges(&mut network, &args.ranges)?;
     let built = args.pgd.build(&network, 300.0)?;
     built.save(&network, &args.out)?;
     let mut report = built.report;

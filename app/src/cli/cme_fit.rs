@@ -143,6 +143,9 @@ pub fn simulate(args: &SimulateArgs) -> anyhow::Result<()> {
         // Each time its own cells: a snapshot destroys what it measures.
         let seed = args.seed ^ (k as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03);
         let paths = ssa::paths(&network, &p, &[t], args.cells, seed, ssa::MAX_RUN_EVENTS);
+        if let Some(why) = &paths.overflow {
+            bail!("{why}");
+        }
         if paths.truncated > 0 {
             bail!(
                 "t = {t}: {} of {} sample paths hit the event bound ({} reactions a path): the \
@@ -527,8 +530,8 @@ pub fn fit_command(args: &FitArgs) -> anyhow::Result<()> {
         );
     }
     println!(
-        "fit {:.3} s ({} evaluations); likelihood {likelihood_us:.1} µs, by FSP {:.0} µs: {:.0}× faster",
-        fit_seconds,
+        "fit {:.1} ms ({} evaluations); likelihood {likelihood_us:.1} µs, by FSP {:.0} µs: {:.0}× faster",
+        fit_seconds * 1e3,
         result.evaluations,
         fsp_likelihood_us,
         fsp_likelihood_us / likelihood_us

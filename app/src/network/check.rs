@@ -110,6 +110,9 @@ pub fn start_sampled(
                 break;
             }
             let sol = ssa::simulate(&network, &p, &[t.max(0.0)], n, seed ^ (b as u64 + 1));
+            if let Some(why) = sol.overflow {
+                return Err(why);
+            }
             let m = &sol.moments[0];
             for (sum, (marginal, &size)) in sums.iter_mut().zip(m.marginals.iter().zip(&sizes)) {
                 for (z, &q) in marginal.iter().enumerate() {

@@ -44,6 +44,8 @@ pub enum FspError {
     Times(Vec<f64>),
     #[error("the box has {got} sizes but the network has {species} species")]
     BoxShape { got: usize, species: usize },
+    #[error("{0}")]
+    Overflow(String),
 }
 
 /// The number of states of the box `sizes` and its strides (species 0 fastest), or
@@ -117,6 +119,9 @@ impl Generator {
             }
             for (r, re) in network.reactions.iter().enumerate() {
                 let out = network.propensity(r, &z, p);
+                if !out.is_finite() {
+                    return Err(FspError::Overflow(network.overflow_message(r, &z, out)));
+                }
                 diag[row] -= out;
                 let leaves = re.change.iter().enumerate().any(|(i, &c)| {
                     let y = z[i] + i64::from(c);
@@ -203,7 +208,11 @@ impl Generator {
             decode(queue[head], &mut z);
             head += 1;
             for (r, re) in network.reactions.iter().enumerate() {
-                if network.propensity(r, &z, p) <= 0.0 {
+                let a = network.propensity(r, &z, p);
+                if !a.is_finite() {
+                    return Err(FspError::Overflow(network.overflow_message(r, &z, a)));
+                }
+                if a <= 0.0 {
                     continue;
                 }
                 if let Some(to) = target(&z, re)

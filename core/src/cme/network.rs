@@ -234,6 +234,52 @@ impl Network {
         a
     }
 
+    /// What to say of reaction `r`'s propensity `a` at state `z` when it is not a finite
+    /// number (rates so large that they overflow double precision): the solvers refuse
+    /// it with this message instead of stepping forever or drawing NaN.
+    pub fn overflow_message(&self, r: usize, z: &[i64], a: f64) -> String {
+        let state = self
+            .species
+            .iter()
+            .zip(z)
+            .map(|(s, v)| format!("{} = {v}", s.name))
+            .collect::<Vec<_>>()
+            .join(", ");
+        format!(
+            "reaction {:?}: its propensity at ({state}) is {a}, beyond double precision \
+             (largest {:e}): the rates overflow; lower them or measure time in smaller units",
+            self.reactions[r].name,
+            f64::MAX
+        )
+    }
+
+    /// The first reaction whose propensity can overflow on the box `sizes` at the
+    /// parameter values `p`: each factor at its largest over its species' box. What the
+    /// separated solvers multiply is exactly these per-species factors.
+    pub fn overflow_on_box(&self, p: &[f64], sizes: &[usize]) -> Option<String> {
+        for (r, re) in self.reactions.iter().enumerate() {
+            let mut a = re.constant;
+            let mut at = vec![0i64; self.species.len()];
+            for &q in &re.params {
+                a *= p[q];
+            }
+            for (i, &m) in sizes.iter().enumerate() {
+                if !re.factors.iter().any(|(s, _)| *s == i) {
+                    continue;
+                }
+                let (z, f) = (0..m)
+                    .map(|z| (z, re.species_factor(i, z as f64).abs()))
+                    .fold((0, 0.0f64), |best, x| if x.1 > best.1 { x } else { best });
+                at[i] = z as i64;
+                a *= f;
+            }
+            if !a.is_finite() {
+                return Some(self.overflow_message(r, &at, a));
+            }
+        }
+        None
+    }
+
     /// Refuses a reaction that could take a species below zero: where it lowers
     /// species i by `c`, its factors of i must vanish at every `z_i < c`.
     fn check_no_negative_counts(&self) -> Result<(), NetworkError> {
@@ -246,7 +292,9 @@ impl Network {
                 if let Some(z) = (0..need).find(|&z| re.species_factor(i, f64::from(z)) != 0.0) {
                     let s = &self.species[i].name;
                     return Err(self.invalid(format!(
-                        "{}: lowers {s} by {need} but its propensity does not vanish at {s} = {z},                          so {s} could go below zero; give it a factor of {s} that is zero there                          (linear for one copy, binomial with k = {need} for {need})",
+                        "{}: lowers {s} by {need} but its propensity does not vanish at {s} = {z}, \
+                         so {s} could go below zero; give it a factor of {s} that is zero \
+                         there (linear for one copy, binomial with k = {need} for {need})",
                         re.name
                     )));
                 }

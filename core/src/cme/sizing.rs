@@ -33,6 +33,8 @@ pub enum SizingError {
     Fsp(#[from] FspError),
     #[error("sizing the automatic boxes: t_end = {0}: expected a finite end time > 0")]
     TEnd(f64),
+    #[error("{0}")]
+    Overflow(String),
 }
 
 /// How the boxes were found.
@@ -80,6 +82,19 @@ pub fn parameter_corners(network: &Network) -> Vec<Vec<f64>> {
 /// `network` with a box for every species (see the module doc), and how they were
 /// found.
 pub fn with_boxes(network: &Network, t_end: f64) -> Result<(Network, Sized), SizingError> {
+    let (sized, how) = boxes(network, t_end)?;
+    // A separated solver multiplies each species' factors over its whole box: a rate
+    // that overflows there would make NaN (or a zero first step) deep inside it.
+    let sizes: Vec<usize> = sized.species.iter().map(|s| s.max.unwrap_or(1)).collect();
+    for p in parameter_corners(&sized) {
+        if let Some(why) = sized.overflow_on_box(&p, &sizes) {
+            return Err(SizingError::Overflow(why));
+        }
+    }
+    Ok((sized, how))
+}
+
+fn boxes(network: &Network, t_end: f64) -> Result<(Network, Sized), SizingError> {
     if network.species.iter().all(|s| s.max.is_some()) {
         return Ok((network.clone(), Sized::Given));
     }

@@ -36,6 +36,8 @@ pub struct SsaSolution {
     /// Trajectories stopped by [`MAX_EVENTS`] or [`MAX_RUN_EVENTS`] (their later
     /// states are the last reached).
     pub truncated: usize,
+    /// A propensity that overflowed, said (the paths stopped there).
+    pub overflow: Option<String>,
 }
 
 /// Simulates `trajectories` paths with parameter values `p`, recording at `times`
@@ -75,6 +77,7 @@ pub fn simulate_within(
         trajectories,
         events: paths.events,
         truncated: paths.truncated,
+        overflow: paths.overflow,
     }
 }
 
@@ -87,6 +90,8 @@ pub struct Paths {
     /// Trajectories stopped by the event bounds (their later states are the last
     /// reached).
     pub truncated: usize,
+    /// The first propensity that overflowed (its path stopped there), said.
+    pub overflow: Option<String>,
 }
 
 /// The states of `trajectories` paths at `times`, as [`simulate_within`] draws them.
@@ -100,7 +105,7 @@ pub fn paths(
 ) -> Paths {
     let d = network.species.len();
     let run_events = AtomicU64::new(0);
-    let results: Vec<(Vec<Vec<i64>>, u64, bool)> = (0..trajectories)
+    let results: Vec<(Vec<Vec<i64>>, u64, bool, Option<String>)> = (0..trajectories)
         .into_par_iter()
         .map(|k| {
             crate::cpu::clear_upper_halves();
@@ -111,11 +116,16 @@ pub fn paths(
             let mut out = Vec::with_capacity(times.len());
             let mut events = 0u64;
             let mut stopped = false;
+            let mut overflow = None;
             for &t_out in times {
                 loop {
                     let mut a0 = 0.0;
                     for (r, ar) in a.iter_mut().enumerate() {
                         *ar = network.propensity(r, &z, p);
+                        if !ar.is_finite() && overflow.is_none() {
+                            overflow = Some(network.overflow_message(r, &z, *ar));
+                            stopped = true;
+                        }
                         a0 += *ar;
                     }
                     if a0 <= 0.0 || stopped {
@@ -150,14 +160,16 @@ pub fn paths(
                 t = t_out;
                 out.push(z.clone());
             }
-            (out, events, stopped)
+            (out, events, stopped, overflow)
         })
         .collect();
     let events = results.iter().map(|r| r.1).sum();
     let truncated = results.iter().filter(|r| r.2).count();
+    let overflow = results.iter().find_map(|r| r.3.clone());
     Paths {
         states: results.into_iter().map(|r| r.0).collect(),
         events,
         truncated,
+        overflow,
     }
 }

@@ -93,6 +93,9 @@ pub fn run(args: &CmeBenchArgs) -> anyhow::Result<()> {
     for k in [args.trajectories / 4, args.trajectories] {
         let ts = Instant::now();
         let sol = ssa::simulate(&network, &p, &args.t, k, args.seed);
+        if let Some(why) = &sol.overflow {
+            anyhow::bail!("{why}");
+        }
         let secs = ts.elapsed().as_secs_f64();
         ssa_runs.push((k, secs, marginal_l1(&sol.moments, &exact.moments)));
     }
