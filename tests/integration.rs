@@ -4,6 +4,7 @@
 mod architecture;
 mod assets;
 mod cme;
+mod cme_fit;
 mod cme_greedy;
 mod cme_kinetics;
 mod cme_tt;

@@ -907,7 +907,9 @@ fn apply_ranges(network: &mut Network, ranges: &[String]) -> anyhow::Result<()> 
             .parameters
             .iter_mut()
             .find(|p| p.name == name)
-            .with_context(|| format!("--range {spec:?}: no parameter {name:?}; the network has {known}"))?;
+            .with_context(|| {
+                format!("--range {spec:?}: no parameter {name:?}; the network has {known}")
+            })?;
         p.range = Some((lo, hi, points));
         p.spacing = palpa_core::cme::network::Spacing::Linear;
         if !(lo..=hi).contains(&p.value) {

@@ -267,7 +267,8 @@ impl MetaLikelihood {
         // dot product across the split's bond. The split is the cheapest by count.
         let m = pcores.len();
         let bond = |s: usize| if s == m { rr } else { pcores[s].r0 };
-        let nodes = |r: std::ops::Range<usize>| -> usize { pcores[r].iter().map(|c| c.n).product() };
+        let nodes =
+            |r: std::ops::Range<usize>| -> usize { pcores[r].iter().map(|c| c.n).product() };
         let cost = |s: usize| -> f64 {
             let through_left: f64 = (0..s)
                 .map(|q| (left.len() * nodes(0..q + 1) * pcores[q].r0 * pcores[q].r1) as f64)
