@@ -14,6 +14,7 @@ mod cme;
 mod deform;
 mod dsmts;
 mod fe;
+mod fit;
 mod lanes;
 mod pgd;
 mod views;
@@ -47,6 +48,10 @@ pub enum BenchCommand {
     /// The Discrete Stochastic Model Test Suite from its SBML files: FSP and PGD
     /// against the published mean and sd, the SSA by the suite's own test, times.
     Dsmts(dsmts::DsmtsBenchArgs),
+    /// Rates from data: coverage of the 95 % intervals on seeded synthetic data sets,
+    /// the maximum against the exact-FSP likelihood's, likelihood, fit and posterior
+    /// costs against FSP's.
+    Fit(fit::FitBenchArgs),
     /// The palpation surface deformed on the GPU (compute shader) against on the CPU:
     /// time per frame and how far apart the two surfaces are, on the adapter at hand.
     Deform(deform::DeformBenchArgs),
@@ -95,6 +100,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Cme(args) => cme::run(args),
         BenchCommand::Views(args) => views::run(args),
         BenchCommand::Dsmts(args) => dsmts::run(args),
+        BenchCommand::Fit(args) => fit::run(args),
     }
 }
 
