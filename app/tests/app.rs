@@ -6,6 +6,7 @@
 mod common;
 
 mod cli;
+mod fit;
 mod gpu;
 mod headless;
 mod input;
