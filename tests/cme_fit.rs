@@ -231,12 +231,12 @@ fn a_true_rate_on_the_range_end_is_flagged() {
 #[test]
 fn data_outside_the_model_are_refused_by_name() {
     let beyond_box = Snapshots::parse("t,z1,z2\n5,3,4\n5,80,2\n", "d.csv").expect("parses");
-    let e = prepared(&beyond_box).err().expect("refused").to_string();
+    let e = prepared(&beyond_box).expect_err("refused").to_string();
     assert!(e.contains("z1 = 80") && e.contains("box of 80"), "{e}");
     let beyond_time = Snapshots::parse("t,z1\n5,3\n41,2\n", "d.csv").expect("parses");
-    let e = prepared(&beyond_time).err().expect("refused").to_string();
+    let e = prepared(&beyond_time).expect_err("refused").to_string();
     assert!(e.contains("t = 41") && e.contains("[0, 40]"), "{e}");
     let unknown = Snapshots::parse("t,z3\n5,3\n", "d.csv").expect("parses");
-    let e = prepared(&unknown).err().expect("refused").to_string();
+    let e = prepared(&unknown).expect_err("refused").to_string();
     assert!(e.contains("\"z3\"") && e.contains("z1, z2"), "{e}");
 }

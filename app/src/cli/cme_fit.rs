@@ -537,7 +537,35 @@ pub fn fit_command(args: &FitArgs) -> anyhow::Result<()> {
         fsp_likelihood_us / likelihood_us
     );
     if let Some(p) = report["posterior"].as_object() {
-        println!("posterior: {}", Value::Object(p.clone()));
+        println!(
+            "posterior: {} chains × {} steps ({} warm-up), acceptance {}, {:.2} s",
+            p["chains"],
+            p["steps"],
+            p["warmup"],
+            p["acceptance"]
+                .as_array()
+                .map(|a| a
+                    .iter()
+                    .map(|x| format!("{:.2}", x.as_f64().unwrap_or(f64::NAN)))
+                    .collect::<Vec<_>>()
+                    .join(" "))
+                .unwrap_or_default(),
+            p["seconds"].as_f64().unwrap_or(f64::NAN)
+        );
+        if let Some(rates) = p["rates"].as_object() {
+            for (name, r) in rates {
+                let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+                println!(
+                    "  {name:<10} mean {:.6} sd {:.2e}  95 % [{:.5}, {:.5}]  R-hat {:.4}  ESS {:.0}",
+                    f("mean"),
+                    f("sd"),
+                    r["ci95"][0].as_f64().unwrap_or(f64::NAN),
+                    r["ci95"][1].as_f64().unwrap_or(f64::NAN),
+                    f("rhat"),
+                    f("ess")
+                );
+            }
+        }
     }
     if !check.is_null() {
         println!("check by FSP: {check}");

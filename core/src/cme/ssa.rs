@@ -105,7 +105,9 @@ pub fn paths(
 ) -> Paths {
     let d = network.species.len();
     let run_events = AtomicU64::new(0);
-    let results: Vec<(Vec<Vec<i64>>, u64, bool, Option<String>)> = (0..trajectories)
+    // Each path: its states, events, whether it stopped early, an overflow said.
+    type Path = (Vec<Vec<i64>>, u64, bool, Option<String>);
+    let results: Vec<Path> = (0..trajectories)
         .into_par_iter()
         .map(|k| {
             crate::cpu::clear_upper_halves();

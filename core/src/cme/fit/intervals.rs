@@ -174,7 +174,7 @@ pub fn spd_inverse(a: &[f64], d: usize) -> Option<Vec<f64>> {
         for j in 0..=i {
             let s = a[i * d + j] - (0..j).map(|k| l[i * d + k] * l[j * d + k]).sum::<f64>();
             if i == j {
-                if !(s > 0.0) || !s.is_finite() {
+                if s.is_nan() || s <= 0.0 || !s.is_finite() {
                     return None;
                 }
                 l[i * d + i] = s.sqrt();

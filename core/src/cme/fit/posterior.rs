@@ -251,7 +251,7 @@ mod tests {
             c.acceptance
         );
         // Chains stuck apart show in R-hat.
-        let stuck = vec![vec![0.1; 100], vec![0.9; 100]];
+        let stuck = [vec![0.1; 100], vec![0.9; 100]];
         let jitter: Vec<Vec<f64>> = stuck
             .iter()
             .map(|c| {
