@@ -199,6 +199,11 @@ fn weights(grid: &[f64], x: f64) -> Vec<(usize, f64)> {
 impl MetaLikelihood {
     /// Prepares `obs` on the train `h` (see the module doc for what is contracted).
     pub fn new(h: &History, obs: &Observations) -> Result<Self, FitError> {
+        Self::with_budget(h, obs, TABLE_BUDGET)
+    }
+
+    /// As [`Self::new`], tabling only when the table holds at most `budget` values.
+    pub fn with_budget(h: &History, obs: &Observations, budget: usize) -> Result<Self, FitError> {
         let cores = &h.tt.cores;
         let params: Vec<usize> = h
             .order
@@ -283,7 +288,7 @@ impl MetaLikelihood {
             .unwrap_or(0);
         let table_values = combos * pairs.len()
             + bond(split) * (left.len() * nodes(0..split) + right.len() * nodes(split..m));
-        let form = if table_values <= TABLE_BUDGET {
+        let form = if table_values <= budget {
             // Combination index: earlier cores slower, `c = c_left · nodes(split..) + c_right`.
             let mut lefts: Vec<Vec<Vec<f64>>> = left.iter().map(|a| vec![a.clone()]).collect();
             for c in &pcores[..split] {
