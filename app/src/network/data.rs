@@ -32,8 +32,12 @@ pub struct DataOverlay {
     pub likelihood_us: f64,
     /// The last fit: an estimate per rate (model order), its seconds.
     pub fit: Option<(Vec<Estimate>, f64)>,
-    /// The last posterior and the density of its first two rates.
+    /// The last posterior and the density of its two chosen rates.
     pub posterior: Option<(Posterior, Density)>,
+    /// The two rates (model order) whose joint density is drawn.
+    pub pair: (usize, usize),
+    /// The ranges the posterior was sampled over.
+    sampled_over: Vec<Rate>,
 }
 
 /// A posterior density of two rates over a grid (first rate fastest), normalized to
@@ -71,6 +75,8 @@ impl DataOverlay {
             likelihood_us: f64::NAN,
             fit: None,
             posterior: None,
+            pair: (0, 1),
+            sampled_over: Vec::new(),
         })
     }
 
@@ -141,13 +147,23 @@ impl DataOverlay {
                 seed,
             },
         );
-        let density = density(&post, &rates);
+        let density = density(&post, &rates, self.pair);
         self.posterior = Some((post, density));
+        self.sampled_over = rates;
+    }
+
+    /// Draws the density of rates `i` and `j` (model order) from the same chains.
+    pub fn show_pair(&mut self, i: usize, j: usize) {
+        self.pair = (i, j);
+        if let Some((post, d)) = &mut self.posterior {
+            *d = density(post, &self.sampled_over, (i, j));
+        }
     }
 }
 
-/// The first two rates' draws binned over their 95 % posterior span widened by half.
-fn density(post: &Posterior, rates: &[Rate]) -> Density {
+/// Two rates' draws binned over their 95 % posterior spans widened by half (one rate:
+/// along x only).
+fn density(post: &Posterior, rates: &[Rate], (a, b): (usize, usize)) -> Density {
     let span = |i: usize| -> [f64; 2] {
         match post.rates.get(i) {
             Some(r) => {
@@ -160,13 +176,13 @@ fn density(post: &Posterior, rates: &[Rate]) -> Density {
             None => [0.0, 1.0],
         }
     };
-    let (x, y) = (span(0), span(1));
+    let (x, y) = (span(a), span(b));
     let n = DENSITY_CELLS;
     let mut cells = vec![0.0f32; n * n];
     let bin = |v: f64, r: [f64; 2]| ((v - r[0]) / (r[1] - r[0]) * n as f64).floor();
     for d in &post.draws {
-        let i = bin(d[0], x);
-        let j = d.get(1).map_or(0.0, |&v| bin(v, y));
+        let i = d.get(a).map_or(-1.0, |&v| bin(v, x));
+        let j = d.get(b).map_or(0.0, |&v| bin(v, y));
         if (0.0..n as f64).contains(&i) && (0.0..n as f64).contains(&j) {
             cells[j as usize * n + i as usize] += 1.0;
         }
@@ -175,9 +191,70 @@ fn density(post: &Posterior, rates: &[Rate]) -> Density {
     cells.iter_mut().for_each(|c| *c /= top);
     let name = |i: usize| rates.get(i).map_or(String::new(), |r| r.name.clone());
     Density {
-        names: [name(0), name(1)],
+        names: [name(a), name(b)],
         x,
         y,
         cells,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use palpa_core::cme::fit::RatePosterior;
+
+    /// Draws on a line `y = x` in rates 0 and 2 (rate 1 constant): the density of
+    /// (0, 2) lies on its diagonal, of (0, 1) on one row.
+    #[test]
+    fn the_density_shows_the_chosen_pair() {
+        let rate = |name: &str| Rate {
+            name: name.into(),
+            lo: 0.0,
+            hi: 1.0,
+        };
+        let rates = [rate("a"), rate("b"), rate("c")];
+        let draws: Vec<Vec<f64>> = (0..1000)
+            .map(|k| {
+                let x = 0.3 + 0.4 * k as f64 / 1000.0;
+                vec![x, 0.5, x]
+            })
+            .collect();
+        let summary = |lo: f64, hi: f64, name: &str| RatePosterior {
+            name: name.into(),
+            mean: 0.5,
+            sd: 0.1,
+            ci95: [lo, hi],
+            rhat: 1.0,
+            ess: 1000.0,
+        };
+        let post = Posterior {
+            chains: 1,
+            steps: 1000,
+            warmup: 0,
+            acceptance: vec![0.3],
+            rates: vec![
+                summary(0.3, 0.7, "a"),
+                summary(0.49, 0.51, "b"),
+                summary(0.3, 0.7, "c"),
+            ],
+            draws,
+            evaluations: 1000,
+        };
+        let n = DENSITY_CELLS;
+        let d = density(&post, &rates, (0, 2));
+        assert_eq!(d.names, ["a".to_string(), "c".to_string()]);
+        for j in 0..n {
+            for i in 0..n {
+                assert!(
+                    i == j || d.cells[j * n + i] == 0.0,
+                    "off the diagonal at ({i}, {j})"
+                );
+            }
+        }
+        let d = density(&post, &rates, (0, 1));
+        let rows: Vec<usize> = (0..n)
+            .filter(|&j| (0..n).any(|i| d.cells[j * n + i] > 0.0))
+            .collect();
+        assert_eq!(rows.len(), 1, "{rows:?}");
     }
 }

@@ -249,14 +249,8 @@ pub fn run(opts: &NetworkHeadless) -> anyhow::Result<(NetworkReport, Image)> {
                     })
                     .collect()
             }),
-            posterior_rhat: d
-                .posterior
-                .as_ref()
-                .map(|(p, _)| p.rates.iter().map(|r| r.rhat).fold(0.0, f64::max)),
-            posterior_ess: d
-                .posterior
-                .as_ref()
-                .map(|(p, _)| p.rates.iter().map(|r| r.ess).fold(f64::INFINITY, f64::min)),
+            posterior_rhat: d.posterior.as_ref().map(|(p, _)| p.worst_rhat()),
+            posterior_ess: d.posterior.as_ref().map(|(p, _)| p.least_ess()),
         }),
         layout: opts.ui.then(|| {
             crate::layout::report(

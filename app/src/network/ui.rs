@@ -220,17 +220,42 @@ fn data_panel(ui: &mut egui::Ui, room: &mut NetworkRoom) {
         ui.label(RichText::new(format!("fitted in {:.0} ms", seconds * 1e3)).small());
     }
     if let Some((post, density)) = &d.posterior {
-        let rhat = post.rates.iter().map(|r| r.rhat).fold(0.0, f64::max);
-        let ess = post
-            .rates
-            .iter()
-            .map(|r| r.ess)
-            .fold(f64::INFINITY, f64::min);
+        let (rhat, ess) = (post.worst_rhat(), post.least_ess());
         ui.label(format!(
             "posterior: {} chains × {} steps, R-hat ≤ {rhat:.3}, ESS ≥ {ess:.0}",
             post.chains, post.steps
         ));
+        let names: Vec<String> = post.rates.iter().map(|r| r.name.clone()).collect();
         posterior_density(ui, density);
+        if names.len() > 2 {
+            // More than two rates: which two the density shows.
+            let mut pair = d.pair;
+            ui.horizontal(|ui| {
+                ui.label("density of");
+                for (id, slot) in [("post-a", 0), ("post-b", 1)] {
+                    let current = if slot == 0 { pair.0 } else { pair.1 };
+                    egui::ComboBox::from_id_salt(id)
+                        .selected_text(names[current].as_str())
+                        .show_ui(ui, |ui| {
+                            for (i, n) in names.iter().enumerate() {
+                                let mut pick = current;
+                                if ui.selectable_value(&mut pick, i, n).clicked() {
+                                    if slot == 0 && pick != pair.1 {
+                                        pair.0 = pick;
+                                    } else if slot == 1 && pick != pair.0 {
+                                        pair.1 = pick;
+                                    }
+                                }
+                            }
+                        });
+                }
+            });
+            if pair != d.pair
+                && let Some(d) = room.data.as_mut()
+            {
+                d.show_pair(pair.0, pair.1);
+            }
+        }
     }
 }
 

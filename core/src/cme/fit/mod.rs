@@ -187,6 +187,21 @@ pub struct Posterior {
     pub evaluations: usize,
 }
 
+impl Posterior {
+    /// The largest R-hat over the rates (near 1: the chains agree).
+    pub fn worst_rhat(&self) -> f64 {
+        self.rates.iter().map(|r| r.rhat).fold(0.0, f64::max)
+    }
+
+    /// The smallest effective sample size over the rates.
+    pub fn least_ess(&self) -> f64 {
+        self.rates
+            .iter()
+            .map(|r| r.ess)
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
 /// Chains from the fit's maximum, proposals shaped by its Fisher covariance.
 pub fn sample(
     loglik: &mut dyn FnMut(&[f64]) -> f64,

@@ -212,12 +212,7 @@ pub fn run(args: &FitBenchArgs) -> anyhow::Result<()> {
                 },
             );
             let posterior_s = s2.elapsed().as_secs_f64();
-            let rhat = post.rates.iter().map(|r| r.rhat).fold(0.0, f64::max);
-            let ess = post
-                .rates
-                .iter()
-                .map(|r| r.ess)
-                .fold(f64::INFINITY, f64::min);
+            let (rhat, ess) = (post.worst_rhat(), post.least_ess());
             timing = Some((us[100], fsp_us[1], posterior_s, rhat, ess));
         }
         let mle: Vec<f64> = result.estimates.iter().map(|e| e.mle).collect();
