@@ -374,7 +374,7 @@ const FOLDER_FLOORS: &[(&str, &[&[&str]])] = &[
         &[
             &["shape", "m3", "ordering"],
             &["space", "m3v"],
-            &["sparse", "law", "load"],
+            &["sparse", "law", "load", "nodule"],
             &["elasticity", "hyper", "lanes"],
             &["newton"],
             &["series"],

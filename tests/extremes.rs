@@ -24,6 +24,7 @@ fn near_incompressible_tissue_p2_converges_and_p1_locks() {
         force_n: 1.0,
         dir: None,
         radius_mm: 5.0,
+        nodule: None,
     };
     let nus = [0.48, 0.49, 0.499, 0.4999];
     let depth = |element, poisson| {

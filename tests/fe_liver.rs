@@ -25,6 +25,7 @@ fn press(at: [f64; 3], force_n: f64) -> ProbeRequest {
         force_n,
         dir: None,
         radius_mm: 5.0,
+        nodule: None,
     }
 }
 
@@ -40,6 +41,7 @@ fn the_consistent_load_sums_to_the_applied_force() {
                     force_n: 3.0,
                     dir: Some([0.2, -1.0, 0.3]),
                     radius_mm,
+                    nodule: None,
                 };
                 let (probe, dir) = locate(&space, &organ, &req).expect("palpable surface exists");
                 let f = probe_load(&space, &probe, dir, 3.0, radius_mm).expect("valid load");
@@ -121,6 +123,7 @@ fn bad_requests_get_clear_errors() {
             force_n: 1.0,
             dir: None,
             radius_mm: 5.0,
+            nodule: None,
         },
         press(POINTS[0], f64::INFINITY),
         ProbeRequest {
@@ -128,12 +131,14 @@ fn bad_requests_get_clear_errors() {
             force_n: 1.0,
             dir: Some([0.0; 3]),
             radius_mm: 5.0,
+            nodule: None,
         },
         ProbeRequest {
             at: POINTS[0],
             force_n: 1.0,
             dir: None,
             radius_mm: -1.0,
+            nodule: None,
         },
     ];
     for req in bad {
@@ -219,6 +224,7 @@ mod hyperelastic {
                 force_n,
                 dir: None,
                 radius_mm: 5.0,
+                nodule: None,
             };
             let lin = solve_linear(&organ, Element::P1, Material::default(), &req).expect("linear");
             let (nl, _) =
@@ -744,6 +750,7 @@ fn probe_displacement_converges_under_refinement() {
         force_n: 1.0,
         dir: None,
         radius_mm: 5.0,
+        nodule: None,
     };
     let d: Vec<f64> = [Level::Coarse, Level::Medium, Level::Fine]
         .iter()

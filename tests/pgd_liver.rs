@@ -97,6 +97,7 @@ fn held_out_probe_positions_match_full_fe_solves() {
             force_n: 1.0,
             dir: None,
             radius_mm: 5.0,
+            nodule: None,
         };
         let fe = solve_linear(&organ, Element::P1, Material::default(), &req).expect("fe");
         let (_, dir) = locate(&s.space, &organ, &req).expect("locate");

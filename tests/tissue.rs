@@ -190,6 +190,7 @@ fn the_tissue_vademecum_matches_newton_at_a_held_out_point() {
             force_n: f64::NAN,
             dir: Some(contact.push_dir),
             radius_mm: options.tool_radius_mm,
+            nodule: None,
         },
         Some(depth),
         NewtonSettings::default(),

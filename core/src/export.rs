@@ -91,6 +91,13 @@ pub fn write_vtu(
         Element::P1 => 10,
         Element::P2 => 24,
     };
+    // A space with a material field (a nodule) carries it as cell data.
+    let cell_fields: Vec<(&str, &[f64])> = space
+        .stiffness
+        .as_deref()
+        .map(|s| ("stiffness_factor", s))
+        .into_iter()
+        .collect();
     write_cells_vtu(
         path,
         &space.nodes,
@@ -98,6 +105,7 @@ pub fn write_vtu(
         (space.element.nodes_per_cell(), vtk_type),
         Holds::Volume,
         fields,
+        &cell_fields,
         meta,
     )
 }
@@ -114,9 +122,12 @@ pub fn write_surface_vtu(
 ) -> io::Result<()> {
     check(nodes.len(), fields)?;
     let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
-    write_cells_vtu(path, nodes, &flat, (3, 5), holds, fields, meta)
+    write_cells_vtu(path, nodes, &flat, (3, 5), holds, fields, &[], meta)
 }
 
+/// `cell_fields`: one value per cell each (a material field: each cell's Young's
+/// modulus over the tissue's, `stiffness_factor`).
+#[allow(clippy::too_many_arguments)]
 fn write_cells_vtu(
     path: &Path,
     nodes: &[[f64; 3]],
@@ -124,6 +135,7 @@ fn write_cells_vtu(
     (npc, vtk_type): (usize, u8),
     holds: Holds,
     fields: &[PointField],
+    cell_fields: &[(&str, &[f64])],
     meta: &[FieldValue],
 ) -> io::Result<()> {
     let ncells = cells.len() / npc;
@@ -186,7 +198,20 @@ fn write_cells_vtu(
         s.push_str(&join(f.values.iter().map(|v| format!("{v:e}"))));
         let _ = writeln!(s, "\n</DataArray>");
     }
-    let _ = writeln!(s, "</PointData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>");
+    let _ = writeln!(s, "</PointData>");
+    if !cell_fields.is_empty() {
+        let _ = writeln!(s, "<CellData>");
+        for (name, values) in cell_fields {
+            let _ = writeln!(
+                s,
+                r#"<DataArray type="Float64" Name="{name}" NumberOfComponents="1" format="ascii">"#
+            );
+            s.push_str(&join(values.iter().map(|v| format!("{v:e}"))));
+            let _ = writeln!(s, "\n</DataArray>");
+        }
+        let _ = writeln!(s, "</CellData>");
+    }
+    let _ = writeln!(s, "</Piece>\n</UnstructuredGrid>\n</VTKFile>");
     atomic_write(path, |w| w.write_all(s.as_bytes()))
 }
 

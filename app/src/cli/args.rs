@@ -225,6 +225,41 @@ pub struct ProbeArgs {
     pub dir: Option<Vec<f64>>,
 }
 
+/// A nodule in the organ: `--nodule-at X,Y,Z [--nodule-radius-mm R] [--nodule-ratio B]`.
+#[derive(Debug, Args)]
+pub struct NoduleArgs {
+    /// A nodule's centre X,Y,Z (mm): a sphere stiffer than the tissue around it, at
+    /// least 2 mm below the organ's surface.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub nodule_at: Option<Vec<f64>>,
+    /// The nodule's radius (mm) [default: 7.5].
+    #[arg(long)]
+    pub nodule_radius_mm: Option<f64>,
+    /// The nodule's Young's modulus over the tissue's [default: 4.4, malignant liver
+    /// tumours by MR elastography].
+    #[arg(long)]
+    pub nodule_ratio: Option<f64>,
+}
+
+impl NoduleArgs {
+    /// The nodule asked for, if any (checked against the organ by the solve).
+    pub fn nodule(&self) -> anyhow::Result<Option<palpa_core::fe::nodule::Nodule>> {
+        let Some(at) = &self.nodule_at else {
+            if self.nodule_radius_mm.is_some() || self.nodule_ratio.is_some() {
+                bail!(
+                    "--nodule-radius-mm and --nodule-ratio describe a nodule: give its centre with --nodule-at X,Y,Z"
+                );
+            }
+            return Ok(None);
+        };
+        Ok(Some(palpa_core::fe::nodule::Nodule {
+            center_mm: to3(at, "--nodule-at")?,
+            radius_mm: self.nodule_radius_mm.unwrap_or(7.5),
+            ratio: self.nodule_ratio.unwrap_or(4.4),
+        }))
+    }
+}
+
 impl ProbeArgs {
     pub fn at(&self) -> anyhow::Result<[f64; 3]> {
         to3(&self.at, "--at")

@@ -9,13 +9,13 @@ use palpa_core::export::{FieldValue, PointField, write_by_extension};
 use palpa_core::fe::law::Law;
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::probe::{
-    ProbeRequest, organ_space, smooth_inward_dir, solve_hyperelastic, solve_linear,
+    ProbeRequest, request_space, smooth_inward_dir, solve_hyperelastic, solve_linear,
     solve_linear_depth, solve_series,
 };
 use palpa_core::fe::{Element, Material};
 use serde_json::json;
 
-use super::args::{OrganArgs, ProbeArgs};
+use super::args::{NoduleArgs, OrganArgs, ProbeArgs};
 
 #[derive(Debug, Subcommand)]
 pub enum FeCommand {
@@ -54,6 +54,8 @@ pub struct SolveArgs {
     organ: OrganArgs,
     #[command(flatten)]
     probe: ProbeArgs,
+    #[command(flatten)]
+    nodule: NoduleArgs,
     /// Tool radius (mm): the force is spread over the surface within it.
     #[arg(long, default_value_t = 5.0)]
     radius_mm: f64,
@@ -109,7 +111,10 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         force_n: args.probe.force_n.unwrap_or(f64::NAN),
         dir,
         radius_mm: args.radius_mm,
+        nodule: args.nodule.nodule()?,
     };
+    // The nodule checked and put on the mesh once, before any solve.
+    let space = request_space(&organ, args.element, &req).context("placing the nodule")?;
     let depth = args.probe.depth_mm;
     let mut series_report = serde_json::Value::Null;
     if args.method == Method::Series && (args.model.law().is_none() || depth.is_none()) {
@@ -192,7 +197,13 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         "max_displacement_mm": sol.max_displacement_mm,
         "newton_iterations": newton_iterations,
         "load_steps": load_steps,
-        "dofs": organ_space(&organ, args.element).free_dofs,
+        "dofs": space.free_dofs,
+        "nodule": req.nodule.map(|n| json!({
+            "center_mm": n.center_mm,
+            "radius_mm": n.radius_mm,
+            "ratio": n.ratio,
+            "cells_stiffened": space.stiffness.as_ref().map_or(0, |s| s.iter().filter(|&&f| f != 1.0).count()),
+        })),
         "assembly_s": sol.assembly_s,
         "factor_s": sol.factor_s,
         "solve_s": sol.solve_s,
@@ -200,7 +211,6 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         "series": series_report,
     });
     if let Some(out) = &args.out {
-        let space = organ_space(&organ, args.element);
         let fields = [
             PointField {
                 name: "displacement".into(),

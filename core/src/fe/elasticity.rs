@@ -21,6 +21,7 @@ use super::{Element, FeError, Material};
 
 /// Element stiffness (row-major, `3·npc` square) of cell `c`.
 pub fn element_stiffness(space: &Space, c: usize, lambda: f64, mu: f64, ke: &mut [f64]) {
+    let (lambda, mu) = space.lame_in(c, lambda, mu);
     let p2 = space.element == Element::P2;
     let npc = space.element.nodes_per_cell();
     let m = 3 * npc;

@@ -49,6 +49,7 @@ pub fn element(
     fe: &mut [f64],
     ke: Option<&mut [f64]>,
 ) {
+    let (lambda, mu) = space.lame_in(c, lambda, mu);
     let p2 = space.element == Element::P2;
     let npc = space.element.nodes_per_cell();
     let m = 3 * npc;

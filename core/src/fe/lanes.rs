@@ -120,6 +120,7 @@ pub fn element_coefficient(
         p <= MAX_ORDERS,
         "a series of {p} orders (at most {MAX_ORDERS})"
     );
+    let (lambda, mu) = space.lame_in(c, lambda, mu);
     pulp::Arch::new().dispatch(Kernel {
         space,
         law,
@@ -311,6 +312,7 @@ struct CellState {
 
 impl CellState {
     fn new(space: &Space, law: Law, c: usize, u: &[f64], lambda: f64, mu: f64) -> Self {
+        let (lambda, mu) = space.lame_in(c, lambda, mu);
         let geo = Geometry::new(space, c);
         let nodal = geo.gather(space, c, u);
         CellState {

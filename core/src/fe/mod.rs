@@ -32,6 +32,7 @@ pub mod load;
 mod m3;
 mod m3v;
 pub mod newton;
+pub mod nodule;
 pub mod ordering;
 pub mod path;
 pub mod probe;
@@ -192,6 +193,34 @@ pub enum FeError {
         "the stiffness is not positive definite (is the body fixed anywhere? {fixed_nodes} fixed nodes): {detail}"
     )]
     NotPositiveDefinite { fixed_nodes: usize, detail: String },
+    #[error(
+        "nodule ratio {ratio}: expected the nodule's Young's modulus over the tissue's, \
+         between 0.01 and 1000"
+    )]
+    NoduleRatio { ratio: f64 },
+    #[error("nodule at {center_mm:?} mm, radius {radius_mm} mm: expected finite values")]
+    NoduleNotFinite { center_mm: [f64; 3], radius_mm: f64 },
+    #[error(
+        "nodule radius {radius_mm} mm: this mesh (spacing {h_mm:.1} mm) resolves radii from \
+         {min_mm:.1} mm; use a finer level for a smaller nodule"
+    )]
+    NoduleTooSmall {
+        radius_mm: f64,
+        min_mm: f64,
+        h_mm: f64,
+    },
+    #[error("nodule centre {center_mm:?} mm: outside the organ (expected a point inside it)")]
+    NoduleOutside { center_mm: [f64; 3] },
+    #[error(
+        "the nodule comes {depth_mm:.2} mm from {region} (near {at_mm:.1?} mm): expected \
+         it at least 2 mm below the organ's surface everywhere (a smaller radius or a \
+         deeper centre)"
+    )]
+    NoduleTooShallow {
+        depth_mm: f64,
+        region: &'static str,
+        at_mm: [f64; 3],
+    },
     #[error("the organ has no palpable surface (no boundary face is marked palpable)")]
     NoPalpableSurface,
     #[error("invalid load: force {force_n} N is not finite")]

@@ -23,6 +23,8 @@ pub struct ProbeRequest {
     /// Load direction; `None` = the inward normal at the probe point.
     pub dir: Option<[f64; 3]>,
     pub radius_mm: f64,
+    /// A nodule in the organ (checked against it before the solve), or none.
+    pub nodule: Option<super::nodule::Nodule>,
 }
 
 /// A solved probe problem.
@@ -49,6 +51,23 @@ pub struct ProbeSolution {
 /// The space of an organ mesh; its faces are the organ's boundary triangles, in order.
 pub fn organ_space(organ: &OrganMesh, element: Element) -> Space {
     Space::new(&organ.mesh, &organ.boundary, &organ.fixed, element)
+}
+
+/// The space of a request: the organ's, with the request's nodule (checked) on its
+/// cells.
+pub fn request_space(
+    organ: &OrganMesh,
+    element: Element,
+    req: &ProbeRequest,
+) -> Result<Space, FeError> {
+    let space = organ_space(organ, element);
+    match &req.nodule {
+        Some(n) => {
+            n.check(organ)?;
+            Ok(space.with_nodule(n))
+        }
+        None => Ok(space),
+    }
 }
 
 /// Projects the request onto the palpable region and builds its unit direction.
@@ -89,6 +108,7 @@ pub fn smooth_inward_dir(organ: &OrganMesh, at: [f64; 3]) -> Result<[f64; 3], Fe
         force_n: f64::NAN,
         dir: None,
         radius_mm: 0.0,
+        nodule: None,
     };
     let (probe, face_inward) = locate(&space, organ, &req)?;
     let normals = organ_vertex_normals(organ);
@@ -127,7 +147,7 @@ pub fn solve_linear(
     material: Material,
     req: &ProbeRequest,
 ) -> Result<ProbeSolution, FeError> {
-    let space = organ_space(organ, element);
+    let space = request_space(organ, element, req)?;
     let (probe, dir) = locate(&space, organ, req)?;
     let load = probe_load(&space, &probe, dir, req.force_n, req.radius_mm)?;
     let problem = LinearProblem::new(&space, material)?;
@@ -196,7 +216,7 @@ pub fn solve_hyperelastic(
     depth_mm: Option<f64>,
     settings: NewtonSettings,
 ) -> Result<(ProbeSolution, NewtonReport), FeError> {
-    let space = organ_space(organ, element);
+    let space = request_space(organ, element, req)?;
     let (probe, dir) = locate(&space, organ, req)?;
     let control = match depth_mm {
         None => Control::Force(probe_load(&space, &probe, dir, req.force_n, req.radius_mm)?),
@@ -273,7 +293,7 @@ pub fn solve_hyperelastic_depths(
     if let Some(&d) = depths_mm.iter().find(|d| !d.is_finite()) {
         return Err(FeError::DepthNotFinite { depth_mm: d });
     }
-    let space = organ_space(organ, element);
+    let space = request_space(organ, element, req)?;
     let (probe, dir) = locate(&space, organ, req)?;
     let shape = probe_load(&space, &probe, dir, 1.0, req.radius_mm)?;
     let functional = probe_functional(&space, &probe, dir);
@@ -380,7 +400,7 @@ pub fn solve_series(
         return Err(FeError::DepthNotFinite { depth_mm });
     }
     super::series::check_orders(orders, 1)?;
-    let space = organ_space(organ, element);
+    let space = request_space(organ, element, req)?;
     let (probe, dir) = locate(&space, organ, req)?;
     let shape = probe_load(&space, &probe, dir, 1.0, req.radius_mm)?;
     let functional = probe_functional(&space, &probe, dir);

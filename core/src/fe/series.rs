@@ -96,6 +96,7 @@ pub fn element_coefficient(
     mu: f64,
     fe: &mut [f64],
 ) {
+    let (lambda, mu) = space.lame_in(c, lambda, mu);
     let p2 = space.element == Element::P2;
     let npc = space.element.nodes_per_cell();
     fe[..3 * npc].fill(0.0);
@@ -1009,6 +1010,7 @@ mod tests {
                     force_n: 1.0,
                     dir: Some(normals[v].map(|c| -f64::from(c))),
                     radius_mm: 5.0,
+                    nodule: None,
                 };
                 let (probe, dir) = locate(&space, &organ, &req).expect("on the surface");
                 let shape = probe_load(&space, &probe, dir, 1.0, 5.0).expect("a load");

@@ -25,6 +25,9 @@ pub struct Space {
     pub free_dofs: usize,
     /// Number of mesh vertices (the first nodes).
     pub vertices: usize,
+    /// Each cell's Young's modulus as a multiple of the material's (same ν): a
+    /// nodule's stiffness on the mesh ([`super::nodule`]). `None`: one material.
+    pub stiffness: Option<Vec<f64>>,
 }
 
 impl Space {
@@ -88,6 +91,17 @@ impl Space {
             dof,
             free_dofs: next as usize,
             vertices: nv,
+            stiffness: None,
+        }
+    }
+
+    /// The Lamé parameters of cell `c` for a material of `(lambda, mu)`: scaled by the
+    /// cell's stiffness factor where the space has one.
+    #[inline]
+    pub fn lame_in(&self, c: usize, lambda: f64, mu: f64) -> (f64, f64) {
+        match &self.stiffness {
+            Some(s) => (lambda * s[c], mu * s[c]),
+            None => (lambda, mu),
         }
     }
 

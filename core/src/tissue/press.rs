@@ -232,6 +232,7 @@ pub fn tool_load(
         force_n: 1.0,
         dir: Some(push),
         radius_mm: o.tool_radius_mm,
+        nodule: None,
     };
     let (probe, dir) = locate(space, organ, &req)?;
     let shape = probe_load(space, &probe, dir, 1.0, o.tool_radius_mm)?;

@@ -84,6 +84,7 @@ pub(super) fn newton_at_depths(
         force_n: f64::NAN,
         dir: Some(push),
         radius_mm: o.tool_radius_mm,
+        nodule: None,
     };
     let settings = NewtonSettings::default();
     match solve_hyperelastic_depths(

@@ -227,6 +227,7 @@ fn req(at: [f64; 3], force_n: f64) -> ProbeRequest {
         force_n,
         dir: None,
         radius_mm: 5.0,
+        nodule: None,
     }
 }
 

@@ -16,6 +16,7 @@ mod dsmts;
 mod fe;
 mod fit;
 mod lanes;
+mod nodule;
 mod pgd;
 mod views;
 
@@ -52,6 +53,9 @@ pub enum BenchCommand {
     /// the maximum against the exact-FSP likelihood's, likelihood, fit and posterior
     /// costs against FSP's.
     Fit(fit::FitBenchArgs),
+    /// A nodule's effect on the probe force per radius and mesh level: its mesh
+    /// convergence, and which radii a level resolves.
+    Nodule(nodule::NoduleBenchArgs),
     /// The palpation surface deformed on the GPU (compute shader) against on the CPU:
     /// time per frame and how far apart the two surfaces are, on the adapter at hand.
     Deform(deform::DeformBenchArgs),
@@ -101,6 +105,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Views(args) => views::run(args),
         BenchCommand::Dsmts(args) => dsmts::run(args),
         BenchCommand::Fit(args) => fit::run(args),
+        BenchCommand::Nodule(args) => nodule::run(args),
     }
 }
 

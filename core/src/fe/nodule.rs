@@ -1,0 +1,280 @@
+//! A nodule: a sphere inside the organ whose Young's modulus is `ratio` times the
+//! tissue's (the same Poisson's ratio), what palpation is for finding.
+//!
+//! **On the fixed mesh** the sphere is a field of stiffness factors, one per cell:
+//! `E_c = E (1 + (β − 1) φ_c)`, with `φ_c` the fraction of the cell's volume inside the
+//! sphere (a Voigt mix of the two materials where the sphere's boundary cuts a cell).
+//! `φ_c` is measured at 128 points spread evenly over the cell (a low-discrepancy
+//! sequence), each counted by a ramp one point spacing wide across the sphere's surface,
+//! so `φ`, and
+//! with it every response, moves continuously with the nodule's centre and radius (a
+//! stepped count would make the vademecum's nodule coordinates jump). A cell whose four
+//! corners lie inside is wholly inside (`φ = 1`); one farther from the centre than the
+//! radius plus its own size is wholly outside.
+//!
+//! **Refused**, naming what was expected: a centre outside the organ, a nodule closer
+//! than [`MIN_DEPTH_MM`] to the organ's surface (naming the fixed region or the
+//! palpable surface where that is what it approaches), a radius below what the level's
+//! mesh resolves ([`min_radius_mm`]), a ratio that is not a positive stiffness.
+
+use super::FeError;
+use super::space::Space;
+use crate::organ::OrganMesh;
+
+/// How close a nodule's surface may come to the organ's surface (mm).
+pub const MIN_DEPTH_MM: f64 = 2.0;
+
+/// The stiffness ratios accepted (softer inclusions included; beyond 10³ the
+/// stiffness' conditioning, not the tissue, sets the answer).
+pub const RATIO_RANGE: std::ops::RangeInclusive<f64> = 0.01..=1000.0;
+
+/// The smallest radius a mesh of spacing `h_mm` resolves, as a multiple of it: see
+/// [`min_radius_mm`].
+pub const MIN_RADIUS_PER_H: f64 = 0.5;
+
+/// The smallest radius resolved on a mesh of spacing `h_mm`: the nodule's effect on the
+/// probe force converges with the mesh from about half a cell on (docs/methods.md §2f).
+pub fn min_radius_mm(h_mm: f64) -> f64 {
+    MIN_RADIUS_PER_H * h_mm
+}
+
+/// A stiff (or soft) sphere in the organ.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Nodule {
+    pub center_mm: [f64; 3],
+    pub radius_mm: f64,
+    /// Its Young's modulus over the tissue's.
+    pub ratio: f64,
+}
+
+/// Points per cell that measure its volume inside the sphere.
+const SAMPLES: usize = 128;
+
+/// [`SAMPLES`] points spread evenly over a tetrahedron, as barycentric coordinates: the
+/// R₃ low-discrepancy sequence in the unit cube (Roberts 2018), each point's three
+/// coordinates sorted, which maps the cube's uniform law onto the simplex's.
+fn simplex_points() -> Vec<[f64; 4]> {
+    // The plastic number's cube analogue: x³ = x + 1.
+    let g = 1.220_744_084_605_759_5_f64;
+    let a = [1.0 / g, 1.0 / (g * g), 1.0 / (g * g * g)];
+    (1..=SAMPLES)
+        .map(|n| {
+            let mut x = a.map(|ai| (0.5 + ai * n as f64).fract());
+            x.sort_by(f64::total_cmp);
+            [x[0], x[1] - x[0], x[2] - x[1], 1.0 - x[2]]
+        })
+        .collect()
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// Whether `p` lies in the tetrahedron `t` (barycentric coordinates ≥ −1e-12).
+fn in_tet(p: [f64; 3], t: [[f64; 3]; 4]) -> bool {
+    let det3 = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
+        a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0])
+    };
+    let (e1, e2, e3) = (sub(t[1], t[0]), sub(t[2], t[0]), sub(t[3], t[0]));
+    let d = det3(e1, e2, e3);
+    if d == 0.0 {
+        return false;
+    }
+    let q = sub(p, t[0]);
+    let l1 = det3(q, e2, e3) / d;
+    let l2 = det3(e1, q, e3) / d;
+    let l3 = det3(e1, e2, q) / d;
+    let tol = -1e-12;
+    l1 >= tol && l2 >= tol && l3 >= tol && 1.0 - l1 - l2 - l3 >= tol
+}
+
+impl Nodule {
+    /// Checks the nodule against the organ: a positive ratio, a radius the mesh
+    /// resolves, the centre inside, the sphere at least [`MIN_DEPTH_MM`] below the
+    /// surface.
+    pub fn check(&self, organ: &OrganMesh) -> Result<(), FeError> {
+        let c = self.center_mm;
+        if !(self.ratio.is_finite() && RATIO_RANGE.contains(&self.ratio)) {
+            return Err(FeError::NoduleRatio { ratio: self.ratio });
+        }
+        if c.iter().any(|v| !v.is_finite()) || !self.radius_mm.is_finite() {
+            return Err(FeError::NoduleNotFinite {
+                center_mm: c,
+                radius_mm: self.radius_mm,
+            });
+        }
+        let min = min_radius_mm(organ.h_mm);
+        if self.radius_mm < min {
+            return Err(FeError::NoduleTooSmall {
+                radius_mm: self.radius_mm,
+                min_mm: min,
+                h_mm: organ.h_mm,
+            });
+        }
+        let v = &organ.mesh.vertices;
+        let inside = organ
+            .mesh
+            .tets
+            .iter()
+            .any(|t| in_tet(c, t.map(|i| v[i as usize])));
+        if !inside {
+            return Err(FeError::NoduleOutside { center_mm: c });
+        }
+        let hit = crate::axis::closest_point(v, &organ.boundary, c)
+            .ok_or(FeError::NoduleOutside { center_mm: c })?;
+        let depth_mm = hit.distance - self.radius_mm;
+        if depth_mm < MIN_DEPTH_MM {
+            let tri = organ.boundary[hit.triangle as usize];
+            let region = if tri.iter().any(|&i| organ.fixed[i as usize]) {
+                "the fixed region"
+            } else if tri.iter().any(|&i| organ.palpable[i as usize]) {
+                "the palpable surface"
+            } else {
+                "the organ's surface"
+            };
+            return Err(FeError::NoduleTooShallow {
+                depth_mm,
+                region,
+                at_mm: hit.point,
+            });
+        }
+        Ok(())
+    }
+
+    /// The fraction of each cell's volume inside the sphere (see the module doc).
+    pub fn cell_fractions(&self, space: &Space) -> Vec<f64> {
+        let points = simplex_points();
+        (0..space.cell_count())
+            .map(|cell| {
+                let t = space.cell_corners(cell);
+                let dist = |p: [f64; 3]| norm(sub(p, self.center_mm));
+                let size = (1..4).map(|i| norm(sub(t[i], t[0]))).fold(0.0, f64::max);
+                if t.iter().all(|&p| dist(p) <= self.radius_mm) {
+                    return 1.0;
+                }
+                if dist(t[0]) > self.radius_mm + size {
+                    return 0.0;
+                }
+                // Each point stands for 1/N of the volume: a ramp about as wide as the
+                // spacing between points.
+                // A ramp of width w about radius ρ holds the volume of a sphere of
+                // `ρ³ + ρ w²/4` (to second order): centred at `ρ = R − w²/(12 R)` it holds
+                // the sphere's own.
+                let ramp = size / (SAMPLES as f64).cbrt();
+                let r = self.radius_mm;
+                let rho = r - ramp * ramp / (12.0 * r);
+                points
+                    .iter()
+                    .map(|l| {
+                        let p = [0, 1, 2].map(|d| (0..4).map(|a| l[a] * t[a][d]).sum());
+                        ((rho - dist(p)) / ramp + 0.5).clamp(0.0, 1.0)
+                    })
+                    .sum::<f64>()
+                    / SAMPLES as f64
+            })
+            .collect()
+    }
+
+    /// Each cell's stiffness factor `1 + (β − 1) φ_c`.
+    pub fn stiffness(&self, space: &Space) -> Vec<f64> {
+        self.cell_fractions(space)
+            .into_iter()
+            .map(|phi| 1.0 + (self.ratio - 1.0) * phi)
+            .collect()
+    }
+}
+
+impl Space {
+    /// The space with `nodule`'s stiffness on its cells (see [`Nodule`]); the nodule
+    /// is checked by [`Nodule::check`] first.
+    pub fn with_nodule(mut self, nodule: &Nodule) -> Space {
+        self.stiffness = Some(nodule.stiffness(&self));
+        self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fe::Element;
+    use crate::mesh::TetMesh;
+
+    /// A cube of side 20 mm cut into 6 tetrahedra per 10 mm block (8 blocks).
+    fn cube() -> Space {
+        let n = 3;
+        let mut vertices = Vec::new();
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    vertices.push([10.0 * i as f64, 10.0 * j as f64, 10.0 * k as f64]);
+                }
+            }
+        }
+        let id = |i: usize, j: usize, k: usize| (i + n * (j + n * k)) as u32;
+        let mut tets = Vec::new();
+        for k in 0..n - 1 {
+            for j in 0..n - 1 {
+                for i in 0..n - 1 {
+                    let c = [0, 1, 2, 3, 4, 5, 6, 7]
+                        .map(|b: usize| id(i + (b & 1), j + ((b >> 1) & 1), k + ((b >> 2) & 1)));
+                    // Kuhn's six tetrahedra around the diagonal 0–7.
+                    for (a, b) in [(1, 3), (3, 2), (2, 6), (6, 4), (4, 5), (5, 1)] {
+                        tets.push([c[0], c[a], c[b], c[7]]);
+                    }
+                }
+            }
+        }
+        let mesh = TetMesh { vertices, tets };
+        let fixed = vec![false; mesh.vertices.len()];
+        Space::new(&mesh, &[], &fixed, Element::P1)
+    }
+
+    #[test]
+    fn the_volume_inside_is_the_sphere_s_and_moves_continuously() {
+        let space = cube();
+        let volume = |c: usize| {
+            let t = space.cell_corners(c);
+            let (a, b, d) = (sub(t[1], t[0]), sub(t[2], t[0]), sub(t[3], t[0]));
+            (a[0] * (b[1] * d[2] - b[2] * d[1]) - a[1] * (b[0] * d[2] - b[2] * d[0])
+                + a[2] * (b[0] * d[1] - b[1] * d[0]))
+                .abs()
+                / 6.0
+        };
+        let inside = |n: &Nodule| -> f64 {
+            n.cell_fractions(&space)
+                .iter()
+                .enumerate()
+                .map(|(c, phi)| phi * volume(c))
+                .sum()
+        };
+        // A 6 mm sphere in the middle: 905 mm³, measured 910 (0.6 %).
+        let n = Nodule {
+            center_mm: [10.0, 10.0, 10.0],
+            radius_mm: 6.0,
+            ratio: 4.0,
+        };
+        let exact = 4.0 / 3.0 * std::f64::consts::PI * 216.0;
+        let got = inside(&n);
+        println!("inside {got:.1} mm³ of {exact:.1}");
+        assert!((got / exact - 1.0).abs() < 0.02, "{got} vs {exact}");
+        // Moving the centre by 0.01 mm moves the volume by little: no jumps.
+        let mut last = got;
+        for s in 1..=50 {
+            let m = Nodule {
+                center_mm: [10.0 + 0.01 * s as f64, 10.0, 10.0],
+                ..n
+            };
+            let v = inside(&m);
+            assert!((v - last).abs() < 0.01 * exact, "step {s}: {last} → {v}");
+            last = v;
+        }
+        // Ratio 1: every factor exactly 1.
+        let one = Nodule { ratio: 1.0, ..n };
+        assert!(one.stiffness(&space).iter().all(|&s| s == 1.0));
+    }
+}
