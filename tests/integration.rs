@@ -14,6 +14,7 @@ mod evaluation;
 mod extremes;
 mod fe_convergence;
 mod fe_liver;
+mod fe_nodule;
 mod meta_model_file;
 mod nodal_liver;
 mod pgd_liver;

@@ -114,7 +114,8 @@ fn solve(args: &SolveArgs) -> anyhow::Result<()> {
         nodule: args.nodule.nodule()?,
     };
     // The nodule checked and put on the mesh once, before any solve.
-    let space = request_space(&organ, args.element, &req).context("placing the nodule")?;
+    let space =
+        request_space(&organ, args.element, material, &req).context("placing the nodule")?;
     let depth = args.probe.depth_mm;
     let mut series_report = serde_json::Value::Null;
     if args.method == Method::Series && (args.model.law().is_none() || depth.is_none()) {

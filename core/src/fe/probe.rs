@@ -58,13 +58,14 @@ pub fn organ_space(organ: &OrganMesh, element: Element) -> Space {
 pub fn request_space(
     organ: &OrganMesh,
     element: Element,
+    material: Material,
     req: &ProbeRequest,
 ) -> Result<Space, FeError> {
     let space = organ_space(organ, element);
     match &req.nodule {
         Some(n) => {
             n.check(organ)?;
-            Ok(space.with_nodule(n))
+            Ok(space.with_nodule(n, material.poisson))
         }
         None => Ok(space),
     }
@@ -147,7 +148,7 @@ pub fn solve_linear(
     material: Material,
     req: &ProbeRequest,
 ) -> Result<ProbeSolution, FeError> {
-    let space = request_space(organ, element, req)?;
+    let space = request_space(organ, element, material, req)?;
     let (probe, dir) = locate(&space, organ, req)?;
     let load = probe_load(&space, &probe, dir, req.force_n, req.radius_mm)?;
     let problem = LinearProblem::new(&space, material)?;
@@ -216,7 +217,7 @@ pub fn solve_hyperelastic(
     depth_mm: Option<f64>,
     settings: NewtonSettings,
 ) -> Result<(ProbeSolution, NewtonReport), FeError> {
-    let space = request_space(organ, element, req)?;
+    let space = request_space(organ, element, material, req)?;
     let (probe, dir) = locate(&space, organ, req)?;
     let control = match depth_mm {
         None => Control::Force(probe_load(&space, &probe, dir, req.force_n, req.radius_mm)?),
@@ -293,7 +294,7 @@ pub fn solve_hyperelastic_depths(
     if let Some(&d) = depths_mm.iter().find(|d| !d.is_finite()) {
         return Err(FeError::DepthNotFinite { depth_mm: d });
     }
-    let space = request_space(organ, element, req)?;
+    let space = request_space(organ, element, material, req)?;
     let (probe, dir) = locate(&space, organ, req)?;
     let shape = probe_load(&space, &probe, dir, 1.0, req.radius_mm)?;
     let functional = probe_functional(&space, &probe, dir);
@@ -400,7 +401,7 @@ pub fn solve_series(
         return Err(FeError::DepthNotFinite { depth_mm });
     }
     super::series::check_orders(orders, 1)?;
-    let space = request_space(organ, element, req)?;
+    let space = request_space(organ, element, material, req)?;
     let (probe, dir) = locate(&space, organ, req)?;
     let shape = probe_load(&space, &probe, dir, 1.0, req.radius_mm)?;
     let functional = probe_functional(&space, &probe, dir);

@@ -108,7 +108,11 @@ pub fn run(args: &NoduleBenchArgs) -> anyhow::Result<()> {
     let mut effects = vec![vec![f64::NAN; args.radii.len()]; levels.len()];
     let mut rows = Vec::new();
     for (li, &level) in levels.iter().enumerate() {
-        let organ = catalogue::mesh(OrganName::Liver, level);
+        let mut organ = catalogue::mesh(OrganName::Liver, level);
+        // Measured below the level's smallest resolved radius too: that floor is what
+        // this table sets (`fe::nodule::MIN_RADIUS_PER_H`), so it is lifted here.
+        let h_mm = organ.h_mm;
+        organ.h_mm = 0.0;
         let dir = smooth_inward_dir(&organ, at).context("placing the probe")?;
         let centre = [0, 1, 2].map(|d| at[d] + args.centre_depth_mm * dir[d]);
         let t0 = Instant::now();
@@ -127,7 +131,7 @@ pub fn run(args: &NoduleBenchArgs) -> anyhow::Result<()> {
             };
             effects[li][ri] = effect;
             rows.push(json!({
-                "level": level.name(), "h_mm": organ.h_mm, "radius_mm": r, "ratio": args.ratio,
+                "level": level.name(), "h_mm": h_mm, "radius_mm": r, "ratio": args.ratio,
                 "force_without_n": without, "effect": effect,
                 "seconds": t.elapsed().as_secs_f64(), "base_seconds": base_s, "refused": note,
             }));
