@@ -1816,3 +1816,55 @@ fn docs_accuracy_is_what_the_shipped_files_record() {
         "{generated}"
     );
 }
+
+/// `fe solve` with a nodule: echoed in the JSON, its stiffness field in the `.vtu` as
+/// cell data, the force of a press raised; a nodule too near the surface refused
+/// before any solve, naming the expectation.
+#[test]
+fn fe_solve_takes_a_nodule_and_writes_its_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let vtu = dir.path().join("u.vtu").display().to_string();
+    let base = [
+        "fe",
+        "solve",
+        "--at",
+        "-7,69.34,7",
+        "--depth-mm",
+        "5",
+        "--json",
+    ];
+    let without = common::json_ok(&palpa(&base));
+    let with = common::json_ok(&palpa(
+        &[
+            &base[..],
+            &[
+                "--nodule-at=-7,50,7",
+                "--nodule-radius-mm",
+                "8",
+                "--nodule-ratio",
+                "4.4",
+                "--out",
+                &vtu,
+            ],
+        ]
+        .concat(),
+    ));
+    assert_eq!(with["nodule"]["radius_mm"], 8.0, "{with}");
+    assert!(
+        with["nodule"]["cells_stiffened"].as_u64() > Some(0),
+        "{with}"
+    );
+    let f = |v: &serde_json::Value| v["force_n"].as_f64().expect("force");
+    assert!(f(&with) > f(&without), "{with} vs {without}");
+    let text = std::fs::read_to_string(&vtu).expect("written");
+    assert!(text.contains(r#"<CellData>"#) && text.contains(r#"Name="stiffness_factor""#));
+    let out = palpa(&[&base[..], &["--nodule-at=-7,66,7"]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("at least 2 mm"),
+        "{err}"
+    );
+    let out = palpa(&[&base[..], &["--nodule-ratio", "3"]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--nodule-at"), "{err}");
+}
