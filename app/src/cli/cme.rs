@@ -8,6 +8,9 @@ use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use palpa_core::cme::model::{self, CmeModel};
 use palpa_core::cme::{Moments, Network, build, conservation, fsp, greedy, sizing, ssa, ttsolve};
+
+use super::networks::network_file;
+pub use super::networks::{load_network, parse_params};
 use serde::Serialize;
 
 #[derive(Debug, Subcommand)]
@@ -487,31 +490,6 @@ struct Report {
     eval_us: Option<f64>,
 }
 
-/// A built-in name, or a network file: SBML or TOML, told apart by content.
-pub fn load_network(model: &str) -> anyhow::Result<Network> {
-    let path = Path::new(model);
-    let is_file = [".toml", ".xml", ".sbml"]
-        .iter()
-        .any(|e| model.ends_with(e));
-    if is_file || path.exists() {
-        network_file(path)
-    } else {
-        Ok(Network::built_in(model)?)
-    }
-}
-
-/// A network file, SBML or TOML by its content; a file named `.xml` or `.sbml` must be
-/// SBML (a TOML parser's complaint about its first line would mislead).
-fn network_file(path: &Path) -> anyhow::Result<Network> {
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {name}"))?;
-    let sbml_name = [".xml", ".sbml"].iter().any(|e| name.ends_with(e));
-    if sbml_name && !palpa_core::cme::sbml::looks_like_sbml(&text) {
-        bail!("{name}: not an SBML document (expected XML whose root element is <sbml>)");
-    }
-    Ok(Network::from_text(&text, &name)?)
-}
-
 /// `network` with a box for every species (an FSP pre-pass sizes the automatic ones),
 /// saying on stderr how they were found.
 pub fn sized(network: &Network, t_end: f64) -> anyhow::Result<Network> {
@@ -573,21 +551,6 @@ fn parse_pairs(list: &str, network: &Network) -> anyhow::Result<Vec<(usize, usiz
     pairs.sort_unstable();
     pairs.dedup();
     Ok(pairs)
-}
-
-pub fn parse_params(list: &[String]) -> anyhow::Result<Vec<(String, f64)>> {
-    list.iter()
-        .map(|s| {
-            let (k, v) = s
-                .split_once('=')
-                .with_context(|| format!("--param {s:?}: expected NAME=VALUE"))?;
-            let v: f64 = v
-                .trim()
-                .parse()
-                .with_context(|| format!("--param {s:?}: {v:?} is not a number"))?;
-            Ok((k.trim().to_string(), v))
-        })
-        .collect()
 }
 
 pub fn run(cmd: &CmeCommand) -> anyhow::Result<()> {

@@ -14,7 +14,7 @@ use palpa_core::cme::model::{self, CmeModel};
 use palpa_core::cme::{Network, ssa};
 use serde_json::{Value, json};
 
-use super::cme::{load_network, parse_params};
+use super::networks::{load_network, parse_params};
 
 #[derive(Debug, Args)]
 pub struct SimulateArgs {

@@ -11,6 +11,7 @@ mod lab;
 mod liver;
 mod memory;
 mod mesh;
+mod networks;
 mod organ;
 mod plot;
 mod scene;

@@ -12,7 +12,8 @@ use clap::Args;
 use palpa_core::cme::{Moments, fsp, ssa};
 use serde_json::json;
 
-use crate::cli::cme::{PgdArgs, load_network, model_coordinates, parse_params};
+use crate::cli::cme::{PgdArgs, model_coordinates};
+use crate::cli::networks::{load_network, parse_params};
 
 #[derive(Debug, Args)]
 pub struct CmeBenchArgs {
