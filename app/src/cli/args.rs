@@ -232,7 +232,7 @@ pub struct NoduleArgs {
     /// least 2 mm below the organ's surface.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub nodule_at: Option<Vec<f64>>,
-    /// The nodule's radius (mm) [default: 7.5].
+    /// The nodule's radius (mm) [default: 10, resolved on every level].
     #[arg(long)]
     pub nodule_radius_mm: Option<f64>,
     /// The nodule's Young's modulus over the tissue's [default: 4.4, malignant liver
@@ -254,7 +254,7 @@ impl NoduleArgs {
         };
         Ok(Some(palpa_core::fe::nodule::Nodule {
             center_mm: to3(at, "--nodule-at")?,
-            radius_mm: self.nodule_radius_mm.unwrap_or(7.5),
+            radius_mm: self.nodule_radius_mm.unwrap_or(10.0),
             ratio: self.nodule_ratio.unwrap_or(4.4),
         }))
     }
