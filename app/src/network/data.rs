@@ -30,6 +30,7 @@ pub struct DataOverlay {
     /// The log-likelihood at the sliders' rates, and its evaluation time, µs.
     pub log_likelihood: Option<f64>,
     pub likelihood_us: f64,
+    evaluated_at: Vec<f64>,
     /// The last fit: an estimate per rate (model order), its seconds.
     pub fit: Option<(Vec<Estimate>, f64)>,
     /// The last posterior and the density of its two chosen rates.
@@ -73,6 +74,7 @@ impl DataOverlay {
             scratch: Vec::new(),
             log_likelihood: None,
             likelihood_us: f64::NAN,
+            evaluated_at: Vec::new(),
             fit: None,
             posterior: None,
             pair: (0, 1),
@@ -99,9 +101,14 @@ impl DataOverlay {
         Some((self.snapshots.times[k], h))
     }
 
-    /// The log-likelihood at `params` (every model parameter, in order), kept.
+    /// The log-likelihood at `params` (every model parameter, in order), kept; not
+    /// evaluated again while the rates stay (moving time does not change it).
     pub fn evaluate(&mut self, params: &[Coordinate]) {
         let theta: Vec<f64> = params.iter().map(|c| c.value.clamp(c.lo, c.hi)).collect();
+        if self.log_likelihood.is_some() && self.evaluated_at == theta {
+            return;
+        }
+        self.evaluated_at = theta.clone();
         let t0 = Instant::now();
         let l = self.meta.log_likelihood(&theta, &mut self.scratch);
         self.likelihood_us = t0.elapsed().as_secs_f64() * 1e6;
