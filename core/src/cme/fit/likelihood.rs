@@ -152,14 +152,18 @@ enum Form {
     },
 }
 
+/// The indices `z` of a core, or all of them (`None`: summed over).
+fn indices(c: &Core, z: Option<u32>) -> std::ops::Range<usize> {
+    match z {
+        Some(z) => z as usize..z as usize + 1,
+        None => 0..c.n,
+    }
+}
+
 /// `v · G[z]` (or `v · Σ_z G[z]` with `z = None`): a row vector through a core.
 fn row_through(v: &[f64], c: &Core, z: Option<u32>) -> Vec<f64> {
     let mut out = vec![0.0; c.r1];
-    let zs: Box<dyn Iterator<Item = usize>> = match z {
-        Some(z) => Box::new(std::iter::once(z as usize)),
-        None => Box::new(0..c.n),
-    };
-    for z in zs {
+    for z in indices(c, z) {
         for (a, &va) in v.iter().enumerate() {
             let row = &c.v[(a * c.n + z) * c.r1..][..c.r1];
             for (o, x) in out.iter_mut().zip(row) {
@@ -173,12 +177,8 @@ fn row_through(v: &[f64], c: &Core, z: Option<u32>) -> Vec<f64> {
 /// `G[z] · v` (or `Σ_z G[z] · v`): a column vector through a core.
 fn column_through(c: &Core, z: Option<u32>, v: &[f64]) -> Vec<f64> {
     let mut out = vec![0.0; c.r0];
-    let zs: Vec<usize> = match z {
-        Some(z) => vec![z as usize],
-        None => (0..c.n).collect(),
-    };
     for (a, o) in out.iter_mut().enumerate() {
-        for &z in &zs {
+        for z in indices(c, z) {
             let row = &c.v[(a * c.n + z) * c.r1..][..c.r1];
             *o += row.iter().zip(v).map(|(x, y)| x * y).sum::<f64>();
         }
