@@ -17,5 +17,6 @@ pub mod heldout;
 pub mod journal;
 pub mod linear;
 pub mod nodal;
+pub mod nodule;
 pub mod palpation;
 pub mod tradeoff;

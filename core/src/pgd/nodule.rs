@@ -1,0 +1,400 @@
+//! The nodal vademecum with a nodule as coordinates: any nodule inside declared ranges
+//! answered exactly, without a solve, from stored interior responses.
+//!
+//! **The identity.** A nodule changes the stiffness only on the cells it touches
+//! ([`crate::fe::nodule`]: cell `e` gets the factor `s_e`, a function of the nodule's
+//! centre, radius and ratio). Element stiffness is linear in the modulus, so
+//!
+//! ```text
+//! K(n) = K₀ + U C Uᵀ,   C = Σ_e (s_e − 1) K_e   (m × m, on the m free unknowns of those cells)
+//! ```
+//!
+//! with `U` selecting those unknowns. For any load `f`, with `G = K₀⁻¹` and `u₀ = G f`,
+//! Woodbury's identity gives the displacement with the nodule exactly:
+//!
+//! ```text
+//! u = u₀ − G_{:,p} z,   (I + C G_pp) z = C u₀|_p .
+//! ```
+//!
+//! Every block of `G` on the right has its columns on the nodule's unknowns `p`:
+//! `G_pp`, the rows a probe reads and a scene draws (`G_{L,p}`, `G_{S,p}`), and by
+//! symmetry `u₀|_p = G_{p,L} f = (G_{L,p})ᵀ f`. So a store of `G`'s columns on every
+//! unknown a nodule in the ranges can touch, at the rows of the load nodes, the surface
+//! nodes and those unknowns, answers every such nodule: placing one is an `m × m`
+//! factorization, a probe's compliance correction `δc = −φᵀ G_{:,p} z` a few `m`-long
+//! products (`φ` the probe point's functional, itself a combination of load rows).
+//!
+//! **Off-line**: one solve per stored column, over the nodal build's factor of `K₀`.
+//! **On-line**: [`InteriorResponses::place`] (the cells' factors, `C`, `G_pp`, the LU of
+//! `I + C G_pp`) and [`PlacedNodule::correction`]. Nothing is approximated but the
+//! storage of `G` in single precision.
+
+use std::time::Instant;
+
+use faer::Mat;
+use faer::linalg::solvers::Solve;
+use rayon::prelude::*;
+use thiserror::Error;
+
+use super::nodal::NodalSetup;
+use crate::fe::elasticity::{cell_dofs, element_stiffness};
+use crate::fe::nodule::Nodule;
+use crate::fe::space::Space;
+use crate::mesh::{norm, sub};
+
+/// Why a nodule could not be answered by a store.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum NoduleStoreError {
+    #[error(
+        "the nodule's centre {center_mm:?} mm is {distance_mm:.1} mm from the stored region's centre {region_mm:?}; the store answers centres within {reach_mm:.1} mm"
+    )]
+    CentreOutside {
+        center_mm: [f64; 3],
+        region_mm: [f64; 3],
+        distance_mm: f64,
+        reach_mm: f64,
+    },
+    #[error("nodule radius {radius_mm} mm is outside the store's range {lo} to {hi} mm")]
+    Radius { radius_mm: f64, lo: f64, hi: f64 },
+    #[error("nodule ratio {ratio} is outside the store's range {lo} to {hi}")]
+    Ratio { ratio: f64, lo: f64, hi: f64 },
+    #[error(
+        "the nodule touches cell {cell}, whose unknowns the store does not hold (its responses were stored for centres within {reach_mm:.1} mm and radii to {radius_mm:.1} mm)"
+    )]
+    CellNotStored {
+        cell: usize,
+        reach_mm: f64,
+        radius_mm: f64,
+    },
+    #[error("the nodule's correction is singular (I + C G_pp has no inverse): ratio {ratio}")]
+    Singular { ratio: f64 },
+}
+
+/// The nodules a store answers: centres within `reach_mm` of `center_mm` (each also
+/// checked against the organ by [`Nodule::check`] before a solve would be), radii and
+/// ratios in their closed ranges.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoduleRanges {
+    pub center_mm: [f64; 3],
+    /// `f64::INFINITY`: anywhere in the organ.
+    pub reach_mm: f64,
+    pub radius_mm: (f64, f64),
+    pub ratio: (f64, f64),
+}
+
+/// `G`'s columns on every free unknown a nodule in the ranges can touch, at the rows of
+/// the load nodes, the surface nodes and those unknowns, in single precision.
+#[derive(Debug, Clone)]
+pub struct InteriorResponses {
+    pub ranges: NoduleRanges,
+    /// Free unknowns whose unit-load responses are stored, ascending.
+    pub cols: Vec<u32>,
+    /// Free unknowns at which they are stored, ascending.
+    pub rows: Vec<u32>,
+    /// For each free unknown: its row, or `u32::MAX`.
+    row_of: Vec<u32>,
+    /// For each free unknown: its column, or `u32::MAX`.
+    col_of: Vec<u32>,
+    /// `G[rows, cols]`, one column after another.
+    g: Vec<f32>,
+    /// The space of `K₀` (no nodule), for the cells' element stiffness.
+    space: Space,
+    lambda: f64,
+    mu: f64,
+    poisson: f64,
+    pub build_s: f64,
+}
+
+/// Longest edge of cell `c`'s corners from its first corner, as
+/// [`Nodule::cell_fractions`] bounds a cell (mm).
+fn cell_size(space: &Space, c: usize) -> f64 {
+    let t = space.cell_corners(c);
+    (1..4).map(|i| norm(sub(t[i], t[0]))).fold(0.0, f64::max)
+}
+
+impl InteriorResponses {
+    /// Solves `K₀ g = e_j` for every free unknown `j` of the cells a nodule in `ranges`
+    /// can touch (those [`Nodule::cell_fractions`] can give a share: first corner within
+    /// the radius plus the cell's size of a centre), keeping the rows of `setup`'s load
+    /// and surface nodes and of those unknowns.
+    pub fn build(setup: &NodalSetup, ranges: NoduleRanges) -> InteriorResponses {
+        let t0 = Instant::now();
+        let space = &setup.space;
+        let n = space.free_dofs;
+        let mut col_of = vec![u32::MAX; n];
+        let mut dofs = Vec::new();
+        for c in 0..space.cell_count() {
+            let first = space.cell_corners(c)[0];
+            let d = norm(sub(first, ranges.center_mm));
+            if d <= ranges.reach_mm + ranges.radius_mm.1 + cell_size(space, c) {
+                cell_dofs(space, c, &mut dofs);
+                for &d in dofs.iter().filter(|&&d| d != usize::MAX) {
+                    col_of[d] = 0;
+                }
+            }
+        }
+        let cols: Vec<u32> = (0..n as u32).filter(|&d| col_of[d as usize] == 0).collect();
+        for (k, &d) in cols.iter().enumerate() {
+            col_of[d as usize] = k as u32;
+        }
+        let mut row_of = vec![u32::MAX; n];
+        for &d in &cols {
+            row_of[d as usize] = 0;
+        }
+        for &node in setup.load_nodes.iter().chain(&setup.surface_nodes) {
+            let d = space.dof[node as usize];
+            if d != u32::MAX {
+                for k in 0..3 {
+                    row_of[d as usize + k] = 0;
+                }
+            }
+        }
+        let rows: Vec<u32> = (0..n as u32).filter(|&d| row_of[d as usize] == 0).collect();
+        for (k, &d) in rows.iter().enumerate() {
+            row_of[d as usize] = k as u32;
+        }
+        let nr = rows.len();
+        let mut g = vec![0.0f32; nr * cols.len()];
+        // Batches of columns, each one multi-right-hand-side pass over the factor.
+        const BATCH: usize = 96;
+        let threads = rayon::current_num_threads().max(1);
+        for (group_index, group) in cols.chunks(BATCH * threads).enumerate() {
+            let solved: Vec<Mat<f64>> = group
+                .par_chunks(BATCH)
+                .map(|chunk| {
+                    let mut rhs = Mat::<f64>::zeros(n, chunk.len());
+                    for (b, &d) in chunk.iter().enumerate() {
+                        rhs[(d as usize, b)] = 1.0;
+                    }
+                    setup.problem.factor.solve_many(&mut rhs);
+                    rhs
+                })
+                .collect();
+            let first = group_index * BATCH * threads;
+            for (k, rhs) in solved.iter().enumerate() {
+                for b in 0..rhs.ncols() {
+                    let col = first + k * BATCH + b;
+                    let out = &mut g[col * nr..(col + 1) * nr];
+                    for (r, &d) in rows.iter().enumerate() {
+                        out[r] = rhs[(d as usize, b)] as f32;
+                    }
+                }
+            }
+        }
+        let (lambda, mu) = setup.problem.material.lame_n_per_mm2();
+        let mut base = setup.space.clone();
+        base.stiffness = None;
+        InteriorResponses {
+            ranges,
+            cols,
+            rows,
+            row_of,
+            col_of,
+            g,
+            space: base,
+            lambda,
+            mu,
+            poisson: setup.problem.material.poisson,
+            build_s: t0.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// Bytes of the stored responses.
+    pub fn bytes(&self) -> usize {
+        self.g.len() * size_of::<f32>()
+    }
+
+    /// `G[dof, col]`, or `None` where `dof` is not a stored row.
+    #[inline]
+    fn at(&self, dof: u32, col: usize) -> Option<f32> {
+        let r = self.row_of[dof as usize];
+        (r != u32::MAX).then(|| self.g[col * self.rows.len() + r as usize])
+    }
+
+    /// Whether every free unknown of a sparse vector is a stored row.
+    pub fn holds_rows(&self, v: &[(u32, f64)]) -> bool {
+        v.iter().all(|&(d, _)| self.row_of[d as usize] != u32::MAX)
+    }
+
+    /// Places `nodule`: its cells' stiffness factors, `C`, `G_pp` and the LU of
+    /// `I + C G_pp`. The nodule is assumed checked against the organ
+    /// ([`Nodule::check`]); here it is checked against the store's ranges.
+    pub fn place(&self, nodule: &Nodule) -> Result<PlacedNodule, NoduleStoreError> {
+        let t0 = Instant::now();
+        let r = &self.ranges;
+        let distance_mm = norm(sub(nodule.center_mm, r.center_mm));
+        if distance_mm > r.reach_mm {
+            return Err(NoduleStoreError::CentreOutside {
+                center_mm: nodule.center_mm,
+                region_mm: r.center_mm,
+                distance_mm,
+                reach_mm: r.reach_mm,
+            });
+        }
+        if !(r.radius_mm.0..=r.radius_mm.1).contains(&nodule.radius_mm) {
+            return Err(NoduleStoreError::Radius {
+                radius_mm: nodule.radius_mm,
+                lo: r.radius_mm.0,
+                hi: r.radius_mm.1,
+            });
+        }
+        if !(r.ratio.0..=r.ratio.1).contains(&nodule.ratio) {
+            return Err(NoduleStoreError::Ratio {
+                ratio: nodule.ratio,
+                lo: r.ratio.0,
+                hi: r.ratio.1,
+            });
+        }
+        let factors = nodule.stiffness(&self.space, self.poisson);
+        let cells: Vec<usize> = (0..factors.len()).filter(|&c| factors[c] != 1.0).collect();
+        // The nodule's unknowns, ascending, and each one's place among them.
+        let mut dofs: Vec<u32> = Vec::new();
+        let mut local = Vec::new();
+        for &c in &cells {
+            cell_dofs(&self.space, c, &mut local);
+            for &d in local.iter().filter(|&&d| d != usize::MAX) {
+                if self.col_of[d] == u32::MAX {
+                    return Err(NoduleStoreError::CellNotStored {
+                        cell: c,
+                        reach_mm: r.reach_mm,
+                        radius_mm: r.radius_mm.1,
+                    });
+                }
+                dofs.push(d as u32);
+            }
+        }
+        dofs.sort_unstable();
+        dofs.dedup();
+        let m = dofs.len();
+        let index = |d: usize| dofs.binary_search(&(d as u32)).ok();
+        // C = Σ_e (s_e − 1) K_e on the nodule's unknowns.
+        let npc = self.space.element.nodes_per_cell();
+        let mut ke = vec![0.0; 9 * npc * npc];
+        let mut c_mat = Mat::<f64>::zeros(m, m);
+        for &c in &cells {
+            element_stiffness(&self.space, c, self.lambda, self.mu, &mut ke);
+            cell_dofs(&self.space, c, &mut local);
+            let w = factors[c] - 1.0;
+            let at: Vec<Option<usize>> = local
+                .iter()
+                .map(|&d| (d != usize::MAX).then(|| index(d)).flatten())
+                .collect();
+            let k = local.len();
+            for (i, ai) in at.iter().enumerate() {
+                let Some(ai) = ai else { continue };
+                for (j, aj) in at.iter().enumerate() {
+                    if let Some(aj) = aj {
+                        c_mat[(*ai, *aj)] += w * ke[i * k + j];
+                    }
+                }
+            }
+        }
+        let cols: Vec<usize> = dofs
+            .iter()
+            .map(|&d| self.col_of[d as usize] as usize)
+            .collect();
+        // G_pp from the stored columns (rows of p are stored: p ⊂ cols ⊂ rows).
+        let nr = self.rows.len();
+        let g_pp = Mat::<f64>::from_fn(m, m, |i, j| {
+            f64::from(self.g[cols[j] * nr + self.row_of[dofs[i] as usize] as usize])
+        });
+        let mut system = &c_mat * &g_pp;
+        for i in 0..m {
+            system[(i, i)] += 1.0;
+        }
+        let lu = system.partial_piv_lu();
+        // A singular system shows as a non-finite solve of a probe vector.
+        let mut probe = Mat::<f64>::from_fn(m, 1, |i, _| 1.0 + i as f64 / m as f64);
+        lu.solve_in_place(probe.as_mut());
+        if (0..m).any(|i| !probe[(i, 0)].is_finite()) {
+            return Err(NoduleStoreError::Singular {
+                ratio: nodule.ratio,
+            });
+        }
+        Ok(PlacedNodule {
+            nodule: *nodule,
+            dofs,
+            cols,
+            c: c_mat,
+            lu,
+            cells: cells.len(),
+            place_s: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// `G_{p,:} v` for a sparse vector `v` on stored rows: the response at the placed
+    /// nodule's unknowns (by symmetry) to the load `v`.
+    fn at_nodule(&self, placed: &PlacedNodule, v: &[(u32, f64)]) -> Vec<f64> {
+        placed
+            .cols
+            .iter()
+            .map(|&col| {
+                v.iter()
+                    .map(|&(d, x)| x * f64::from(self.at(d, col).unwrap_or(0.0)))
+                    .sum()
+            })
+            .collect()
+    }
+}
+
+/// A nodule placed in a store: what every probe with it reuses.
+#[derive(Debug)]
+pub struct PlacedNodule {
+    pub nodule: Nodule,
+    /// The free unknowns of the cells it touches, ascending.
+    pub dofs: Vec<u32>,
+    /// Their columns in the store.
+    cols: Vec<usize>,
+    c: Mat<f64>,
+    lu: faer::linalg::solvers::PartialPivLu<f64>,
+    /// Cells it touches.
+    pub cells: usize,
+    pub place_s: f64,
+}
+
+impl PlacedNodule {
+    /// `z` of the module doc for the load `f` (free unknown, value; every unknown a
+    /// stored row): `(I + C G_pp) z = C G_{p,:} f`.
+    pub fn solve(&self, store: &InteriorResponses, f: &[(u32, f64)]) -> Vec<f64> {
+        let u0 = store.at_nodule(self, f);
+        let m = self.dofs.len();
+        let u0 = Mat::<f64>::from_fn(m, 1, |i, _| u0[i]);
+        let mut z = &self.c * &u0;
+        self.lu.solve_in_place(z.as_mut());
+        (0..m).map(|i| z[(i, 0)]).collect()
+    }
+
+    /// The change the nodule makes to `φᵀ u` under the load `f`: `−φᵀ G_{:,p} z`
+    /// (both sparse on stored rows). With `φ` the probe point's functional and `f` the
+    /// unit probe load, the change of the probe's compliance (mm/N).
+    pub fn correction(
+        &self,
+        store: &InteriorResponses,
+        f: &[(u32, f64)],
+        phi: &[(u32, f64)],
+    ) -> f64 {
+        let z = self.solve(store, f);
+        let g = store.at_nodule(self, phi);
+        -g.iter().zip(&z).map(|(a, b)| a * b).sum::<f64>()
+    }
+
+    /// The change the nodule makes to the displacement at the free unknowns `at` (every
+    /// one a stored row) under the load whose `z` is given.
+    pub fn displacement_change(
+        &self,
+        store: &InteriorResponses,
+        z: &[f64],
+        at: &[u32],
+    ) -> Vec<f64> {
+        at.iter()
+            .map(|&d| {
+                -self
+                    .cols
+                    .iter()
+                    .zip(z)
+                    .map(|(&col, zi)| zi * f64::from(store.at(d, col).unwrap_or(0.0)))
+                    .sum::<f64>()
+            })
+            .collect()
+    }
+}
