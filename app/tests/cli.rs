@@ -1868,3 +1868,34 @@ fn fe_solve_takes_a_nodule_and_writes_its_field() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--nodule-at"), "{err}");
 }
+
+/// The nodule store's bench on the smallest store (one centre, one radius): the placed
+/// nodule's compliance equals the FE's with it (measured 8e-10) and the table names the
+/// unknowns it touched.
+#[test]
+fn bench_nodule_store_matches_the_fe() {
+    let out = palpa(&[
+        "lab",
+        "bench",
+        "nodule-store",
+        "--radii",
+        "8",
+        "--reach-mm",
+        "0",
+        "--repeats",
+        "1",
+        "--json",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object a line"))
+        .collect();
+    assert_eq!(rows.len(), 2, "{text}");
+    assert!(rows[0]["columns"].as_u64().unwrap_or(0) > 0, "{text}");
+    let gap = rows[1]["compliance_gap"].as_f64().expect("a gap");
+    assert!(gap < 3e-9, "{text}");
+    assert!(rows[1]["unknowns"].as_u64().unwrap_or(0) > 100, "{text}");
+    assert!(rows[1]["effect"].as_f64().unwrap_or(0.0) > 0.01, "{text}");
+}

@@ -267,10 +267,11 @@ impl InteriorResponses {
         dofs.dedup();
         let m = dofs.len();
         let index = |d: usize| dofs.binary_search(&(d as u32)).ok();
-        // C = Σ_e (s_e − 1) K_e on the nodule's unknowns.
+        // C = Σ_e (s_e − 1) K_e on the nodule's unknowns, by rows (sparse: a row
+        // couples an unknown to those of its own cells only).
         let npc = self.space.element.nodes_per_cell();
         let mut ke = vec![0.0; 9 * npc * npc];
-        let mut c_mat = Mat::<f64>::zeros(m, m);
+        let mut c_dense = Mat::<f64>::zeros(m, m);
         for &c in &cells {
             element_stiffness(&self.space, c, self.lambda, self.mu, &mut ke);
             cell_dofs(&self.space, c, &mut local);
@@ -284,25 +285,56 @@ impl InteriorResponses {
                 let Some(ai) = ai else { continue };
                 for (j, aj) in at.iter().enumerate() {
                     if let Some(aj) = aj {
-                        c_mat[(*ai, *aj)] += w * ke[i * k + j];
+                        c_dense[(*ai, *aj)] += w * ke[i * k + j];
                     }
                 }
             }
         }
+        // C is symmetric: its columns are its rows.
+        let c_rows: Vec<Vec<(u32, f64)>> = (0..m)
+            .map(|j| {
+                let col = c_dense.col(j);
+                (0..m)
+                    .filter(|&i| col[i] != 0.0)
+                    .map(|i| (i as u32, col[i]))
+                    .collect()
+            })
+            .collect();
         let cols: Vec<usize> = dofs
             .iter()
             .map(|&d| self.col_of[d as usize] as usize)
             .collect();
-        // G_pp from the stored columns (rows of p are stored: p ⊂ cols ⊂ rows).
+        // G_pp from the stored columns (rows of p are stored: p ⊂ cols ⊂ rows), one
+        // contiguous column at a time.
         let nr = self.rows.len();
-        let g_pp = Mat::<f64>::from_fn(m, m, |i, j| {
-            f64::from(self.g[cols[j] * nr + self.row_of[dofs[i] as usize] as usize])
-        });
-        let mut system = &c_mat * &g_pp;
-        for i in 0..m {
-            system[(i, i)] += 1.0;
+        let rows_p: Vec<usize> = dofs
+            .iter()
+            .map(|&d| self.row_of[d as usize] as usize)
+            .collect();
+        // G_pp, one column after another.
+        let mut g_pp = vec![0.0; m * m];
+        for (j, out) in g_pp.chunks_exact_mut(m).enumerate() {
+            let g = &self.g[cols[j] * nr..(cols[j] + 1) * nr];
+            for (x, &r) in out.iter_mut().zip(&rows_p) {
+                *x = f64::from(g[r]);
+            }
         }
+        // G_pp and C are symmetric, so (C G_pp)ᵀ = G_pp C, whose column j is the sum of
+        // G_pp's columns weighted by C's row j: contiguous sums.
+        let mut gc = vec![0.0; m * m];
+        for (j, dst) in gc.chunks_exact_mut(m).enumerate() {
+            for &(k, v) in &c_rows[j] {
+                let src = &g_pp[k as usize * m..(k as usize + 1) * m];
+                for (d, s) in dst.iter_mut().zip(src) {
+                    *d += v * s;
+                }
+            }
+        }
+        // I + C G_pp = (I + G_pp C)ᵀ: entry (i, j) is column i's entry j.
+        let system = Mat::<f64>::from_fn(m, m, |i, j| gc[i * m + j] + f64::from(u8::from(i == j)));
+        let t_factor = Instant::now();
         let lu = system.partial_piv_lu();
+        let factor_s = t_factor.elapsed().as_secs_f64();
         // A singular system shows as a non-finite solve of a probe vector.
         let mut probe = Mat::<f64>::from_fn(m, 1, |i, _| 1.0 + i as f64 / m as f64);
         lu.solve_in_place(probe.as_mut());
@@ -315,9 +347,10 @@ impl InteriorResponses {
             nodule: *nodule,
             dofs,
             cols,
-            c: c_mat,
+            c_rows,
             lu,
             cells: cells.len(),
+            factor_s,
             place_s: t0.elapsed().as_secs_f64(),
         })
     }
@@ -345,11 +378,14 @@ pub struct PlacedNodule {
     pub dofs: Vec<u32>,
     /// Their columns in the store.
     cols: Vec<usize>,
-    c: Mat<f64>,
+    /// `C` by rows: (column among `dofs`, value).
+    c_rows: Vec<Vec<(u32, f64)>>,
     lu: faer::linalg::solvers::PartialPivLu<f64>,
     /// Cells it touches.
     pub cells: usize,
+    /// Seconds of placing it, and of those the LU factorization's.
     pub place_s: f64,
+    pub factor_s: f64,
 }
 
 impl PlacedNodule {
@@ -358,8 +394,12 @@ impl PlacedNodule {
     pub fn solve(&self, store: &InteriorResponses, f: &[(u32, f64)]) -> Vec<f64> {
         let u0 = store.at_nodule(self, f);
         let m = self.dofs.len();
-        let u0 = Mat::<f64>::from_fn(m, 1, |i, _| u0[i]);
-        let mut z = &self.c * &u0;
+        let mut z = Mat::<f64>::from_fn(m, 1, |i, _| {
+            self.c_rows[i]
+                .iter()
+                .map(|&(k, v)| v * u0[k as usize])
+                .sum()
+        });
         self.lu.solve_in_place(z.as_mut());
         (0..m).map(|i| z[(i, 0)]).collect()
     }

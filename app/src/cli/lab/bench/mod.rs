@@ -17,6 +17,7 @@ mod fe;
 mod fit;
 mod lanes;
 mod nodule;
+mod nodule_store;
 mod pgd;
 mod views;
 
@@ -56,6 +57,10 @@ pub enum BenchCommand {
     /// A nodule's effect on the probe force per radius and mesh level: its mesh
     /// convergence, and which radii a level resolves.
     Nodule(nodule::NoduleBenchArgs),
+    /// A nodule as coordinates of the linear vademecum (stored interior responses and
+    /// Woodbury's identity) against one FE solve per configuration: store size and
+    /// build, placing a nodule on one core, a probe's correction, and their gap.
+    NoduleStore(nodule_store::NoduleStoreBenchArgs),
     /// The palpation surface deformed on the GPU (compute shader) against on the CPU:
     /// time per frame and how far apart the two surfaces are, on the adapter at hand.
     Deform(deform::DeformBenchArgs),
@@ -106,6 +111,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Dsmts(args) => dsmts::run(args),
         BenchCommand::Fit(args) => fit::run(args),
         BenchCommand::Nodule(args) => nodule::run(args),
+        BenchCommand::NoduleStore(args) => nodule_store::run(args),
     }
 }
 
