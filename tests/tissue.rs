@@ -19,6 +19,7 @@ use palpa_core::tissue::bound::BoundTissue;
 use palpa_core::tissue::law::{
     Grouping, PointIndex, QUANT_SHARES, ShapeBits, TissueError, TissueLaw,
 };
+use palpa_core::tissue::presser::PressLog;
 use palpa_core::tissue::surface::{
     PressCount, SurfaceLaw, SurfaceLawBuildError, SurfaceLawOptions, follow_at,
     organ_vertex_normals,
@@ -59,9 +60,14 @@ fn region() -> &'static Region {
         // A log left by an earlier run would be taken as this build's presses.
         let _ = std::fs::remove_file(&log);
         let none = &|_: PressCount| {};
-        let (law, resumed) =
-            SurfaceLaw::build_logged(&coarse_liver(), region_options(), None, Some(&log), none)
-                .expect("builds");
+        let (law, resumed) = SurfaceLaw::build_logged(
+            &coarse_liver(),
+            region_options(),
+            None,
+            Some(&PressLog::at(&log)),
+            none,
+        )
+        .expect("builds");
         assert_eq!(resumed, 0);
         Region { law, log }
     })
@@ -285,8 +291,14 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
     // estimate of the time left divides by), while the split phase grows the total.
     let counts = std::sync::Mutex::new(Vec::new());
     let record = |c: PressCount| counts.lock().expect("one test thread").push(c);
-    let (split, resumed) =
-        SurfaceLaw::build_logged(&organ, options, Some(0.0), Some(&log), &record).expect("splits");
+    let (split, resumed) = SurfaceLaw::build_logged(
+        &organ,
+        options,
+        Some(0.0),
+        Some(&PressLog::at(&log)),
+        &record,
+    )
+    .expect("splits");
     let first = plain.samples.len() + plain.edges.len();
     assert!(
         resumed >= first,
@@ -319,7 +331,8 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
     );
     let total = first + r.quarter_ends.len() + r.inner_corners.len();
     let (again, resumed) =
-        SurfaceLaw::build_logged(&organ, options, Some(0.0), Some(&log), none).expect("again");
+        SurfaceLaw::build_logged(&organ, options, Some(0.0), Some(&PressLog::at(&log)), none)
+            .expect("again");
     assert!(resumed >= total, "{resumed} of {total} from the log");
     for s in 0..total {
         for j in 0..split.steps() {
@@ -501,7 +514,7 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
         }
     }
     let (refined, resumed, above) = back
-        .refine(organ, 0.0, None, Some(log), none)
+        .refine(organ, 0.0, None, Some(&PressLog::at(log)), none)
         .expect("refines");
     assert_eq!(resumed, total - first, "every split press from the log");
     assert_eq!(above, r.triangles.len());
@@ -557,7 +570,7 @@ fn refined_in_place(organ: &OrganMesh, plain: &SurfaceLaw, split: &SurfaceLaw, l
         .fold(0.0, f64::max);
     let partial = |most| {
         let law = base.surface_law(organ).expect("reads back");
-        law.refine(organ, 0.0, Some(most), Some(log), none)
+        law.refine(organ, 0.0, Some(most), Some(&PressLog::at(log)), none)
             .expect("refines")
     };
     let (one, _, above) = partial(1);
@@ -599,7 +612,7 @@ fn refined_onward(
     let r = &all.refinement;
     let (onward, resumed, _) = back
         .clone()
-        .refine(organ, 0.0, None, Some(log), none)
+        .refine(organ, 0.0, None, Some(&PressLog::at(log)), none)
         .expect("goes on");
     let points =
         |r: &palpa_core::tissue::surface::Refinement| r.quarter_ends.len() + r.inner_corners.len();

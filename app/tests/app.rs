@@ -15,5 +15,6 @@ mod lifecycle;
 mod mobile;
 mod paint;
 mod scene_build;
+mod shard;
 mod tissue;
 mod touch;

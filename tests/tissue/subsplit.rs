@@ -8,6 +8,7 @@ use palpa_core::fe::series::Expander;
 use palpa_core::organ::OrganMesh;
 use palpa_core::tissue::bound::BoundTissue;
 use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::presser::PressLog;
 use palpa_core::tissue::surface::{
     PressCount, SurfaceLawBuildError, SurfaceLawOptions, follow_at, organ_vertex_normals,
 };
@@ -73,7 +74,7 @@ pub(super) fn sub_split_in_place(
         "one sub-triangle: six quarter and three inner points"
     );
     let (kept, resumed) = law
-        .press_sub_split(organ, &plan, Some(log), none)
+        .press_sub_split(organ, &plan, Some(&PressLog::at(log)), none)
         .expect("presses");
     assert_eq!(resumed, 0);
     assert!(kept.iter().all(Result::is_ok), "{kept:?}");
@@ -161,7 +162,7 @@ pub(super) fn sub_split_in_place(
     assert_eq!(again.names(), plan.names());
     let mut law = law;
     let (kept, resumed) = law
-        .press_sub_split(organ, &again, Some(log), none)
+        .press_sub_split(organ, &again, Some(&PressLog::at(log)), none)
         .expect("from the log");
     assert_eq!(resumed, 9);
     let mut same = first

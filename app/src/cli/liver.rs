@@ -993,6 +993,7 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
     let defaults = palpa_core::tissue::surface::SurfaceLawOptions::default();
     let material = args.material()?;
     let build = super::tissue::BuildArgs {
+        shard: None,
         recipe: "default".into(),
         no_band: false,
         organ: super::args::OrganArgs {

@@ -11,8 +11,6 @@
 //! It comes last: its samples follow every other stage's, and a law that holds a band
 //! is not split further (split it first, then press the band).
 
-use std::path::Path;
-
 use crate::organ::OrganMesh;
 use crate::tissue::refine::BandEdge;
 use crate::tissue::surface::{
@@ -74,7 +72,7 @@ impl SurfaceLaw {
         mut self,
         organ: &OrganMesh,
         within: Option<([f64; 3], f64)>,
-        log: Option<&Path>,
+        log: Option<&crate::tissue::presser::PressLog>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, BandReport), SurfaceLawBuildError> {
         if !self.refinement.band.is_empty() {

@@ -883,6 +883,26 @@ impl TissueLaw {
         self.shape.bytes() + 4 * (self.shape_scale.len() + self.coeffs.len() + self.ratio.len())
     }
 
+    /// The xxh3 of everything the file holds but the build's wall-clock times: equal for
+    /// two builds of the same presses however they ran (sharded and merged, resumed
+    /// after a kill, on another machine).
+    pub fn payload_xxh3(&self) -> u64 {
+        let mut law = self.clone();
+        (law.build_s, law.compress_s) = (0.0, 0.0);
+        let bytes = bincode::serde::encode_to_vec(
+            (
+                &law,
+                &self.refinement.sub,
+                &self.refinement.band,
+                self.mesh_xxh3,
+                &self.accuracy,
+            ),
+            bincode::config::standard(),
+        )
+        .expect("a loaded or built law always encodes");
+        xxhash_rust::xxh3::xxh3_64(&bytes)
+    }
+
     /// Writes the law atomically (a temporary file renamed into place).
     pub fn save(&self, path: &Path) -> Result<(), TissueError> {
         let Some(mesh_xxh3) = self.mesh_xxh3 else {

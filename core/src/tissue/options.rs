@@ -103,6 +103,18 @@ pub enum SurfaceLawBuildError {
          cut --no-band` gives it back)"
     )]
     BandLast { what: &'static str },
+    #[error("{}", shard_waiting(*index, *count, *pressed, *present, *total, waiting))]
+    ShardWaiting {
+        /// This run's shard (0: the merge).
+        index: u32,
+        count: u32,
+        /// Presses this run made, and those of the call already logged.
+        pressed: usize,
+        present: usize,
+        total: usize,
+        /// Each shard whose presses are not logged yet, with their ids.
+        waiting: Vec<(u32, Vec<u32>)>,
+    },
     #[error("the build's press log {path}: {source}")]
     Log {
         path: std::path::PathBuf,
@@ -126,4 +138,35 @@ pub(super) struct VertexPress {
     pub(super) reach: u32,
     /// Why the press stopped short of the grid (empty where it did not).
     pub(super) stopped: String,
+}
+
+/// What a sharded run waits for, in words: which shards, how many of their presses, and
+/// the first of their ids.
+fn shard_waiting(
+    index: u32,
+    count: u32,
+    pressed: usize,
+    present: usize,
+    total: usize,
+    waiting: &[(u32, Vec<u32>)],
+) -> String {
+    let who = waiting
+        .iter()
+        .map(|(s, ids)| {
+            let first: Vec<String> = ids.iter().take(8).map(u32::to_string).collect();
+            let more = if ids.len() > 8 { ", …" } else { "" };
+            format!(
+                "shard {s} of {count}: {} presses (ids {}{more})",
+                ids.len(),
+                first.join(", ")
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    let this = if index == 0 {
+        "the merge".to_string()
+    } else {
+        format!("shard {index} of {count} pressed {pressed} of its own, and")
+    };
+    format!("{this} waits for presses of this step ({present} of {total} logged) from {who}")
 }

@@ -1,7 +1,7 @@
 //! The build's presses: logged as each finishes, so a killed build goes on.
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use crate::fe::series::Expander;
@@ -21,23 +21,112 @@ pub(crate) struct PressPoint {
 /// A logged press: what [`point_press`](super::press::point_press) gave at one log id.
 pub(super) type Logged = Result<VertexPress, String>;
 
-/// Opens a build's press log at `path` (see [`crate::tissue::presslog`]) and returns it with
-/// the presses already in it. The key names everything that determines a press, so a
-/// build and a refinement of the same options share their presses (a covering build's
-/// key also names its vertices: its edge ids count its own edges).
+/// One of `count` shards of a build (`index` from 1): each call's presses are dealt to
+/// the shards in turn, in the call's own order (a stage's presses cost alike, so turns
+/// balance them), so every shard that sees the same earlier presses deals alike.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Shard {
+    /// The shard (from 1) that presses the `k`-th press of a call.
+    pub fn owner(count: u32, k: usize) -> u32 {
+        (k % count as usize) as u32 + 1
+    }
+}
+
+/// How a sharded build runs: a shard presses its own presses into its own log; the
+/// merge presses none and reads the build's log and the shards' (`logs`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ShardRun {
+    Press { shard: Shard, own_log: PathBuf },
+    Merge { count: u32, logs: Vec<PathBuf> },
+}
+
+/// Where a build's presses are logged: its log at `path`, and where it is sharded, how
+/// (a shard and the merge read the log at `path` and do not write it).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PressLog {
+    pub path: PathBuf,
+    pub shard: Option<ShardRun>,
+}
+
+impl PressLog {
+    /// One log, written as the presses finish.
+    pub fn at(path: &Path) -> PressLog {
+        PressLog {
+            path: path.to_path_buf(),
+            shard: None,
+        }
+    }
+
+    /// The shards and which one this run is (index 0: the merge, pressing none).
+    fn shard(&self) -> Option<Shard> {
+        match &self.shard {
+            None => None,
+            Some(ShardRun::Press { shard, .. }) => Some(*shard),
+            Some(ShardRun::Merge { count, .. }) => Some(Shard {
+                index: 0,
+                count: *count,
+            }),
+        }
+    }
+}
+
+/// What [`open_press_log`] opens: the log to append to and its path, the shards, and
+/// the presses already logged.
+pub(super) type Opened = (
+    Option<(RecordLog, PathBuf)>,
+    Option<Shard>,
+    Vec<(u32, Logged)>,
+);
+
+/// Opens a build's press log (see [`crate::tissue::presslog`]) and returns the log to
+/// append to (a shard's own; none for the merge, which presses nothing), the shards,
+/// and the presses already logged (a shard's: the build's log's and its own). The key
+/// names everything that determines a press, so a build and a refinement of the same
+/// options share their presses (a covering build's key also names its vertices: its
+/// edge ids count its own edges).
 pub(super) fn open_press_log(
     organ: &OrganMesh,
     o: &SurfaceLawOptions,
     rows: usize,
     cover: Option<&[u32]>,
-    path: &Path,
-) -> Result<(RecordLog, Vec<(u32, Logged)>), SurfaceLawBuildError> {
-    let log_error = |source| SurfaceLawBuildError::Log {
-        path: path.to_path_buf(),
-        source,
+    log: &PressLog,
+) -> Result<Opened, SurfaceLawBuildError> {
+    let log_error = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| SurfaceLawBuildError::Log { path, source }
     };
     let key = press_log_key(organ, o, rows, cover);
-    RecordLog::open::<Logged>(path, &key).map_err(log_error)
+    match &log.shard {
+        None => {
+            let (l, r) =
+                RecordLog::open::<Logged>(&log.path, &key).map_err(log_error(&log.path))?;
+            Ok((Some((l, log.path.clone())), None, r))
+        }
+        Some(run) => {
+            let mut records =
+                RecordLog::read::<Logged>(&log.path, &key).map_err(log_error(&log.path))?;
+            let own = match run {
+                ShardRun::Press { own_log, .. } => {
+                    let (l, r) =
+                        RecordLog::open::<Logged>(own_log, &key).map_err(log_error(own_log))?;
+                    records.extend(r);
+                    Some((l, own_log.clone()))
+                }
+                ShardRun::Merge { logs, .. } => {
+                    for l in logs {
+                        records.extend(RecordLog::read::<Logged>(l, &key).map_err(log_error(l))?);
+                    }
+                    None
+                }
+            };
+            Ok((own, log.shard(), records))
+        }
+    }
 }
 
 /// The ids a build's press log at `path` already holds, read without changing it
@@ -100,6 +189,8 @@ pub(super) struct Presser<'a> {
     pub(super) rows: &'a [u32],
     pub(super) steps: usize,
     pub(super) log: Option<(&'a Mutex<RecordLog>, &'a Path)>,
+    /// Where the build is sharded: which presses are this run's.
+    pub(super) shard: Option<Shard>,
     pub(super) done: std::sync::atomic::AtomicUsize,
     pub(super) from_log: std::sync::atomic::AtomicUsize,
     pub(super) progress: &'a (dyn Fn(PressCount) + Sync),
@@ -125,7 +216,23 @@ impl Presser<'_> {
             total,
             from_log: logged,
         });
-        let todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
+        let mut todo: Vec<usize> = (0..points.len()).filter(|&k| out[k].is_none()).collect();
+        // A shard presses its own; what the others press is waited for.
+        let mut waiting: Vec<(u32, Vec<u32>)> = Vec::new();
+        if let Some(shard) = self.shard {
+            for &k in todo
+                .iter()
+                .filter(|&&k| Shard::owner(shard.count, k) != shard.index)
+            {
+                let owner = Shard::owner(shard.count, k);
+                match waiting.iter_mut().find(|w| w.0 == owner) {
+                    Some(w) => w.1.push(points[k].id),
+                    None => waiting.push((owner, vec![points[k].id])),
+                }
+            }
+            waiting.sort_unstable_by_key(|w| w.0);
+            todo.retain(|&k| Shard::owner(shard.count, k) == shard.index);
+        }
         // A few presses a task, taken in `points`' order: their rest series are
         // expanded together (one pass over the rest factor solves all of them), then
         // each is followed and logged in turn. Few, because a task's presses run on
@@ -174,6 +281,17 @@ impl Presser<'_> {
                 Ok(done)
             })
             .collect::<Result<_, _>>()?;
+        let pressed = computed.iter().map(Vec::len).sum::<usize>();
+        if let (Some(shard), false) = (self.shard, waiting.is_empty()) {
+            return Err(SurfaceLawBuildError::ShardWaiting {
+                index: shard.index,
+                count: shard.count,
+                pressed,
+                present: resumed,
+                total: points.len(),
+                waiting,
+            });
+        }
         for (k, press) in computed.into_iter().flatten() {
             out[k] = Some(press);
         }

@@ -341,7 +341,7 @@ impl SurfaceLaw {
         &mut self,
         organ: &OrganMesh,
         plan: &SubSplitPlan,
-        log: Option<&Path>,
+        log: Option<&crate::tissue::presser::PressLog>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(Vec<Result<(), String>>, usize), SurfaceLawBuildError> {
         self.press_surpluses(organ, &plan.points, &plan.bases, log, progress)

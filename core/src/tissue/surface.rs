@@ -50,11 +50,10 @@ pub(crate) use crate::tissue::refine::{
 };
 
 use crate::tissue::press::edge_id;
-use crate::tissue::presser::{Logged, Presser, Stored, open_press_log};
+use crate::tissue::presser::{Logged, PressLog, Presser, Stored, open_press_log};
 use crate::tissue::refine::{Got, in_plan_order, split_triangles};
 
 use std::collections::HashMap;
-use std::path::Path;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -138,7 +137,7 @@ impl SurfaceLaw {
         organ: &OrganMesh,
         options: SurfaceLawOptions,
         refine_above_mm: Option<f64>,
-        log: Option<&Path>,
+        log: Option<&PressLog>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         Self::build_selected(organ, options, refine_above_mm, log, None, progress)
@@ -157,7 +156,7 @@ impl SurfaceLaw {
         options: SurfaceLawOptions,
         refine_above_mm: Option<f64>,
         points: &[[f64; 3]],
-        log: Option<&Path>,
+        log: Option<&PressLog>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
         let cover = covering_vertices(organ, points)?;
@@ -170,7 +169,7 @@ impl SurfaceLaw {
         organ: &OrganMesh,
         options: SurfaceLawOptions,
         refine_above_mm: Option<f64>,
-        log: Option<&Path>,
+        log: Option<&PressLog>,
         cover: Option<&[u32]>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize), SurfaceLawBuildError> {
@@ -197,12 +196,12 @@ impl SurfaceLaw {
             .collect();
         candidates.sort_unstable();
         candidates.dedup();
-        let (log, finished) = match log {
-            Some(path) => {
-                let (l, r) = open_press_log(organ, &o, rows.len(), cover, path)?;
-                (Some((Mutex::new(l), path)), r)
+        let (log, shard, finished) = match log {
+            Some(spec) => {
+                let (l, shard, r) = open_press_log(organ, &o, rows.len(), cover, spec)?;
+                (l.map(|(l, p)| (Mutex::new(l), p)), shard, r)
             }
-            None => (None, Vec::new()),
+            None => (None, None, Vec::new()),
         };
         // Logged presses by id (a later record of an id wins), those of another grid
         // or row set dropped.
@@ -258,7 +257,8 @@ impl SurfaceLaw {
             o: &o,
             rows: &rows,
             steps,
-            log: log.as_ref().map(|(l, p)| (l, *p)),
+            log: log.as_ref().map(|(l, p)| (l, p.as_path())),
+            shard,
             done: AtomicUsize::new(0),
             from_log: AtomicUsize::new(0),
             progress,
@@ -382,7 +382,7 @@ impl SurfaceLaw {
         organ: &OrganMesh,
         above_mm: f64,
         most: Option<usize>,
-        log: Option<&Path>,
+        log: Option<&PressLog>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(SurfaceLaw, usize, usize), SurfaceLawBuildError> {
         let t0 = Instant::now();
@@ -461,7 +461,7 @@ impl SurfaceLaw {
         organ: &OrganMesh,
         points: &[PressPoint],
         bases: &[Vec<(usize, f64)>],
-        log: Option<&Path>,
+        log: Option<&PressLog>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(Vec<Result<(), String>>, usize), SurfaceLawBuildError> {
         let t0 = Instant::now();
@@ -490,19 +490,19 @@ impl SurfaceLaw {
         &self,
         organ: &OrganMesh,
         points: &[PressPoint],
-        log: Option<&Path>,
+        log: Option<&PressLog>,
         progress: &(dyn Fn(PressCount) + Sync),
     ) -> Result<(Vec<Logged>, usize), SurfaceLawBuildError> {
         use std::sync::atomic::AtomicUsize;
         let (o, steps) = (self.options, self.steps);
         let space = organ_space(organ, o.element);
         let expander = Expander::new(&space, o.law, o.material)?;
-        let (log, finished) = match log {
-            Some(path) => {
-                let (l, r) = open_press_log(organ, &o, self.rows.len(), None, path)?;
-                (Some((Mutex::new(l), path)), r)
+        let (log, shard, finished) = match log {
+            Some(spec) => {
+                let (l, shard, r) = open_press_log(organ, &o, self.rows.len(), None, spec)?;
+                (l.map(|(l, p)| (Mutex::new(l), p)), shard, r)
             }
-            None => (None, Vec::new()),
+            None => (None, None, Vec::new()),
         };
         let mut finished: HashMap<u32, Logged> = finished.into_iter().collect();
         let presser = Presser {
@@ -512,7 +512,8 @@ impl SurfaceLaw {
             o: &o,
             rows: &self.rows,
             steps,
-            log: log.as_ref().map(|(l, p)| (l, *p)),
+            log: log.as_ref().map(|(l, p)| (l, p.as_path())),
+            shard,
             done: AtomicUsize::new(0),
             from_log: AtomicUsize::new(0),
             progress,

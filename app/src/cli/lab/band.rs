@@ -7,6 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::Args;
 use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::presser::PressLog;
 use palpa_core::tissue::surface::PressCount;
 use serde_json::json;
 
@@ -63,7 +64,7 @@ pub fn band(args: &BandArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
     let (law, report) = pool
-        .install(|| law.press_band(&organ, within, Some(&log), &progress))
+        .install(|| law.press_band(&organ, within, Some(&PressLog::at(&log)), &progress))
         .context("pressing the band next to the fixed region")?;
     eprintln!();
     if report.edges == 0 {

@@ -8,6 +8,7 @@ use anyhow::{Context, bail};
 use clap::Args;
 use palpa_core::organ::OrganMesh;
 use palpa_core::tissue::law::TissueLaw;
+use palpa_core::tissue::presser::PressLog;
 use palpa_core::tissue::surface::{DEFAULT_REFINE_ABOVE_MM, PressCount};
 use serde_json::json;
 
@@ -143,7 +144,7 @@ pub fn refine(args: &RefineArgs) -> anyhow::Result<()> {
                 &organ,
                 refine_above_mm,
                 args.triangles,
-                Some(&log),
+                Some(&PressLog::at(&log)),
                 &progress,
             )
         })
@@ -230,7 +231,7 @@ pub fn refine_sub(args: &RefineArgs, most: usize) -> anyhow::Result<()> {
     let started = Instant::now();
     let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
     let (kept, resumed) = pool
-        .install(|| law.press_sub_split(&organ, &plan, Some(&log), &progress))
+        .install(|| law.press_sub_split(&organ, &plan, Some(&PressLog::at(&log)), &progress))
         .context("pressing the sub-triangles' points")?;
     eprintln!();
     let press_s = started.elapsed().as_secs_f64();

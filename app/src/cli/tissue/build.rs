@@ -13,6 +13,8 @@ use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
 use palpa_core::tissue::law::{DEFAULT_BITS, DEFAULT_TOLERANCE_MM, Grouping, ShapeBits, TissueLaw};
+use palpa_core::tissue::options::SurfaceLawBuildError;
+use palpa_core::tissue::presser::{PressLog, Shard, ShardRun};
 use palpa_core::tissue::recipe::{Recipe, Stage};
 use palpa_core::tissue::surface::{
     DEFAULT_REFINE_ABOVE_MM, MAX_GRID_POINTS, PressCount, SurfaceLaw, SurfaceLawOptions,
@@ -101,6 +103,14 @@ pub struct BuildArgs {
     /// two at once peaked at 21.7 GB. Default: one per core.
     #[arg(long)]
     pub jobs: Option<usize>,
+    /// Press only shard I of N (I from 1): every step's presses dealt to the N shards
+    /// in turn, this one's logged in `OUT.shard-I-of-N.log` (a stage's in
+    /// `OUT.stage-K.shard-I-of-N.log`). It stops where a step needs the other shards'
+    /// presses; `palpa tissue merge` then gathers them and either writes OUT (the same
+    /// payload as one unsharded build) or says the shards are to run again for the next
+    /// step. Run again after a kill, a shard goes on from its log.
+    #[arg(long, value_parser = super::shard::parse_shard)]
+    pub shard: Option<Shard>,
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -283,6 +293,7 @@ pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
         "bits": law.shape.bits().count(),
         "truncation_bound_mm": law.truncation_bound_mm, "tolerance_mm": law.tolerance_mm,
         "payload_bytes": law.payload_bytes(),
+        "payload_xxh3": format!("{:016x}", law.payload_xxh3()),
         "file_bytes": std::fs::metadata(path).map(|m| m.len()).unwrap_or(0),
         "build_s": law.build_s,
         // What `palpa tissue check --record` measured against the full FE.
@@ -370,7 +381,7 @@ fn recipe_of(args: &BuildArgs, within: Option<([f64; 3], f64)>) -> anyhow::Resul
 }
 
 /// The press log of a recipe's stage `k` (from 1; the first pass's is [`press_log`]).
-fn stage_log(out: &std::path::Path, k: usize) -> PathBuf {
+pub(super) fn stage_log(out: &std::path::Path, k: usize) -> PathBuf {
     let mut log = out.as_os_str().to_owned();
     log.push(format!(".stage-{k}.presses.log"));
     PathBuf::from(log)
@@ -383,7 +394,7 @@ fn run_stage(
     tissue: &TissueLaw,
     stage: Stage,
     within: Option<([f64; 3], f64)>,
-    log: &std::path::Path,
+    log: &PressLog,
     progress: &(dyn Fn(PressCount) + Sync),
 ) -> anyhow::Result<(TissueLaw, serde_json::Value)> {
     let t0 = Instant::now();
@@ -432,6 +443,85 @@ fn run_stage(
 
 /// Builds, compresses and saves; returns the law and a JSON summary.
 pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)> {
+    if args.shard.is_some() {
+        bail!("--shard: a shard's build runs as `palpa tissue build … --shard I/N`, not here");
+    }
+    match build_run(args, None)? {
+        Built::File(law, summary) => Ok((*law, summary)),
+        Built::Waiting(v) => bail!("the build waits for other shards: {v}"),
+    }
+}
+
+/// What a build run ends with: the file written, or a sharded run's step waiting for
+/// other shards (what it did and waits for).
+pub enum Built {
+    File(Box<TissueLaw>, serde_json::Value),
+    Waiting(serde_json::Value),
+}
+
+/// Where a run's presses of step `stage` (0: the first pass) are logged.
+fn press_logs(out: &std::path::Path, stage: usize, sharding: Option<&Sharding>) -> PressLog {
+    let path = if stage == 0 {
+        press_log(out)
+    } else {
+        stage_log(out, stage)
+    };
+    let shard = sharding.map(|s| match s {
+        Sharding::Shard(shard) => ShardRun::Press {
+            shard: *shard,
+            own_log: super::shard::shard_log(out, stage, *shard),
+        },
+        Sharding::Merge(count) => ShardRun::Merge {
+            count: *count,
+            logs: (1..=*count)
+                .map(|index| {
+                    super::shard::shard_log(
+                        out,
+                        stage,
+                        Shard {
+                            index,
+                            count: *count,
+                        },
+                    )
+                })
+                .collect(),
+        },
+    });
+    PressLog { path, shard }
+}
+
+/// How a build runs sharded: as one shard, or as the merge of N.
+#[derive(Debug, Clone, Copy)]
+pub enum Sharding {
+    Shard(Shard),
+    Merge(u32),
+}
+
+/// A sharded run's step that waits for other shards, as JSON; any other error as it is.
+fn waiting(e: anyhow::Error, stage: usize, describe: &str) -> anyhow::Result<serde_json::Value> {
+    match e.downcast_ref::<SurfaceLawBuildError>() {
+        Some(
+            w @ SurfaceLawBuildError::ShardWaiting {
+                index,
+                count,
+                pressed,
+                present,
+                total,
+                waiting,
+            },
+        ) => Ok(
+            json!({"waiting": true, "step": stage + 1, "stage": describe,
+            "shard": index, "shards": count, "pressed": pressed, "logged": present,
+            "presses": total,
+            "waiting_for": waiting.iter().map(|(s, ids)| json!({"shard": s, "presses": ids.len(), "ids": ids})).collect::<Vec<_>>(),
+            "message": w.to_string()}),
+        ),
+        _ => Err(e),
+    }
+}
+
+/// [`build`], or one shard's run of it, or the merge's (`sharding`).
+pub fn build_run(args: &BuildArgs, sharding: Option<Sharding>) -> anyhow::Result<Built> {
     crate::cli::args::check_out(&args.out)?;
     let organ = args.organ.mesh()?;
     let within = match args.within.as_deref() {
@@ -471,7 +561,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         .context("--depth-max-mm, --depth-step-mm")?;
     let recipe = recipe_of(args, within)?;
     let options = recipe.options;
-    let log = press_log(&args.out);
+    let log = press_logs(&args.out, 0, sharding.as_ref());
     let started = Instant::now();
     let refine = recipe.split_above_mm;
     let pool = press_pool(args.jobs, &organ, options.element)?;
@@ -481,14 +571,23 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         .as_deref()
         .map(|v| triples("--cover", v))
         .transpose()?;
-    let (law, resumed) = pool
-        .install(|| match &cover {
-            None => SurfaceLaw::build_logged(&organ, options, refine, Some(&log), &progress),
-            Some(points) => {
-                SurfaceLaw::build_covering(&organ, options, refine, points, Some(&log), &progress)
-            }
-        })
-        .context("pressing the palpable vertices")?;
+    let first = pool.install(|| match &cover {
+        None => SurfaceLaw::build_logged(&organ, options, refine, Some(&log), &progress),
+        Some(points) => {
+            SurfaceLaw::build_covering(&organ, options, refine, points, Some(&log), &progress)
+        }
+    });
+    let (law, resumed) = match first {
+        Ok(done) => done,
+        Err(e) => {
+            eprintln!();
+            return Ok(Built::Waiting(waiting(
+                anyhow::Error::from(e).context("pressing the palpable vertices"),
+                0,
+                "the first pass: vertices, edges and split triangles' points",
+            )?));
+        }
+    };
     eprintln!();
     let mut reasons = std::collections::BTreeMap::<&str, usize>::new();
     for r in law
@@ -514,9 +613,9 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         recipe.grouping,
     )?;
     let mut stages = Vec::new();
-    let mut logs = vec![log];
+    let mut logs = vec![log.path.clone()];
     for (k, stage) in recipe.stages.iter().enumerate() {
-        let log = stage_log(&args.out, k + 1);
+        let log = press_logs(&args.out, k + 1, sharding.as_ref());
         eprintln!(
             "tissue: stage {} of {}: {}",
             k + 2,
@@ -525,13 +624,17 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         );
         let started = Instant::now();
         let progress = |c: PressCount| progress_line(c, started.elapsed().as_secs_f64());
-        let (next, report) = pool
+        let ran = pool
             .install(|| run_stage(&organ, &tissue, *stage, options.within, &log, &progress))
-            .with_context(|| format!("stage {}: {}", k + 2, stage.describe()))?;
+            .with_context(|| format!("stage {}: {}", k + 2, stage.describe()));
         eprintln!();
+        let (next, report) = match ran {
+            Ok(done) => done,
+            Err(e) => return Ok(Built::Waiting(waiting(e, k + 1, &stage.describe())?)),
+        };
         tissue = next;
         stages.push(report);
-        logs.push(log);
+        logs.push(log.path.clone());
     }
     tissue.save(&args.out)?;
     for log in &logs {
@@ -559,8 +662,8 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
             "build_s": tissue.build_s, "resumed_presses": resumed, "compress_s": tissue.compress_s,
             "worst_correction_mm": tissue.correction_mm.iter().copied().fold(0.0f32, f32::max),
             "most_segments": tissue.segments.iter().copied().max(),
-            "stages": stages});
-    Ok((tissue, summary))
+            "stages": stages, "payload_xxh3": format!("{:016x}", tissue.payload_xxh3())});
+    Ok(Built::File(Box::new(tissue), summary))
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@ mod build;
 mod check;
 mod eval;
 pub(crate) mod points;
+mod shard;
 pub(crate) mod tradeoff;
 
 use clap::Subcommand;
@@ -27,6 +28,10 @@ pub enum TissueCommand {
     /// to the fixed region); finished presses are logged in `OUT.presses.log` and
     /// `OUT.stage-K.presses.log`, so a killed build run again goes on.
     Build(BuildArgs),
+    /// Gather the logs of a build's shards (`tissue build … --shard I/N`) into the
+    /// build's and go on: write the file (the same payload as one unsharded build), or
+    /// say which step the shards are to run next; refused while a shard is incomplete.
+    Merge(shard::MergeArgs),
     /// Compare a built vademecum with the full nonlinear FE (Newton) at held-out
     /// random points and depths, through a scene (what the app shows).
     Check(check::CheckArgs),
@@ -34,7 +39,11 @@ pub enum TissueCommand {
 
 pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
     match cmd {
-        TissueCommand::Build(args) => build(args).map(|(_, summary)| println!("{summary}")),
+        TissueCommand::Build(args) => match args.shard {
+            Some(shard) => shard::run_shard(args, shard).map(|v| println!("{v}")),
+            None => build(args).map(|(_, summary)| println!("{summary}")),
+        },
+        TissueCommand::Merge(args) => shard::merge(args).map(|v| println!("{v}")),
         TissueCommand::Check(args) => check::check(args),
     }
 }
