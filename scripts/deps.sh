@@ -2,6 +2,8 @@
 # Installs what palpa needs to build and test, each thing only when it is missing.
 #   scripts/deps.sh            the Rust toolchain (and Debian packages for it)
 #   scripts/deps.sh --gpu      plus Mesa's software Vulkan driver, libudev and Xvfb
+#   scripts/deps.sh --cluster  plus Slurm (slurmctld, slurmd, the client) and munge, for
+#                              the single-node cluster the Slurm test starts
 # Safe to run repeatedly; does nothing when everything is present.
 set -euo pipefail
 
@@ -11,8 +13,17 @@ APT_BASE=(ca-certificates curl gcc libc6-dev pkg-config)
 # Packages the GPU, gamepad and window tests need (software Vulkan: lavapipe).
 APT_GPU=(mesa-vulkan-drivers libvulkan1 libudev-dev xvfb xauth)
 
+# Packages the Slurm test needs (a single-node cluster run as root).
+APT_CLUSTER=(slurmctld slurmd slurm-client munge)
+
 want=("${APT_BASE[@]}")
-[[ "${1:-}" == "--gpu" ]] && want+=("${APT_GPU[@]}")
+for flag in "$@"; do
+  case "$flag" in
+    --gpu) want+=("${APT_GPU[@]}") ;;
+    --cluster) want+=("${APT_CLUSTER[@]}") ;;
+    *) echo "deps.sh: unknown flag $flag (expected --gpu, --cluster)" >&2; exit 2 ;;
+  esac
+done
 
 missing=()
 if command -v dpkg-query >/dev/null 2>&1; then

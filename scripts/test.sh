@@ -6,8 +6,9 @@
 # This is exactly what CI runs (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# --gpu: lavapipe for the rendering tests, libudev for gilrs.
-scripts/deps.sh --gpu
+# --gpu: lavapipe for the rendering tests, libudev for gilrs; --cluster: Slurm and
+# munge for the sharded build's test on a real (single-node) cluster.
+scripts/deps.sh --gpu --cluster
 [[ -f "$HOME/.cargo/env" ]] && source "$HOME/.cargo/env"
 export CARGO_TERM_COLOR=never
 # Mesa wants a private runtime folder; without one it prints a harmless complaint.

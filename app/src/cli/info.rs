@@ -60,6 +60,9 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         "axes": axes,
         "payload_bytes": h.payload_len,
         "content_xxh3": format!("{:016x}", h.content_xxh3()),
+        // What two builds of the same model share however they ran: all but the build
+        // date and timings (for a scene, its content).
+        "payload_xxh3": format!("{:016x}", h.content_xxh3()),
         "file_bytes": std::fs::metadata(&args.file).map(|x| x.len()).ok(),
         // A nodal scene's near and far fields: most of its bytes.
         "near_field": h.layout.near_field_bytes().map(|(bits, bytes)| json!({"bits": bits, "bytes": bytes})),
