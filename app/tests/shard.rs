@@ -173,3 +173,46 @@ fn a_merge_refuses_what_is_not_one_complete_build() {
         "{err}"
     );
 }
+
+/// `--plan` presses nothing but a few samples: its first step's count is exactly what
+/// the build presses there (25 vertices and edge midpoints in this region), its split
+/// step is flagged as assumed, and more cores never predict a longer build.
+#[test]
+fn a_plan_counts_the_first_pass_exactly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("p.tissue");
+    let out_s = out.to_str().expect("utf-8");
+    let v = common::json_ok(&palpa(
+        &[
+            &BUILD[..],
+            &[
+                "--plan",
+                "--plan-presses",
+                "2",
+                "--plan-cores",
+                "1,2,7",
+                "--json",
+                "--out",
+                out_s,
+            ],
+        ]
+        .concat(),
+    ));
+    assert!(!out.exists(), "a plan writes no file");
+    let steps = v["steps"].as_array().expect("steps");
+    assert_eq!(steps[0]["presses"], 25, "{v}");
+    assert_eq!(steps[0]["exact"], true);
+    assert_eq!(steps[1]["exact"], false, "the split is assumed: {v}");
+    let times: Vec<f64> = v["predicted"]
+        .as_array()
+        .expect("predicted")
+        .iter()
+        .map(|r| r["predicted_s"].as_f64().expect("seconds"))
+        .collect();
+    assert!(
+        times.windows(2).all(|w| w[1] <= w[0]) && times[2] > 0.0,
+        "{v}"
+    );
+    let bad = palpa(&[&BUILD[..], &["--plan", "--plan-cores", "0", "--out", out_s]].concat());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("cores ≥ 1"));
+}

@@ -994,6 +994,10 @@ fn tissue_beside(args: &OfflineArgs) -> anyhow::Result<Option<serde_json::Value>
     let material = args.material()?;
     let build = super::tissue::BuildArgs {
         shard: None,
+        plan: false,
+        plan_presses: 2,
+        plan_cores: Vec::new(),
+        json: false,
         recipe: "default".into(),
         no_band: false,
         organ: super::args::OrganArgs {

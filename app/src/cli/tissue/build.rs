@@ -111,12 +111,25 @@ pub struct BuildArgs {
     /// step. Run again after a kill, a shard goes on from its log.
     #[arg(long, value_parser = super::shard::parse_shard)]
     pub shard: Option<Shard>,
+    /// Press nothing: count the recipe's presses, measure a few presses and a shard's
+    /// setup here, and print the predicted wall time on each of --plan-cores cores.
+    #[arg(long)]
+    pub plan: bool,
+    /// Presses measured for --plan (pressed together, as a build presses them).
+    #[arg(long, default_value_t = 8)]
+    pub plan_presses: usize,
+    /// Core counts --plan predicts for.
+    #[arg(long, value_delimiter = ',', default_values_t = [2, 16, 64, 256])]
+    pub plan_cores: Vec<usize>,
+    /// With --plan, JSON instead of the table (a build always prints JSON).
+    #[arg(long)]
+    pub json: bool,
     #[arg(long)]
     pub out: PathBuf,
 }
 
 /// A duration for a progress line: `42 s`, `17 min`, `3 h 05 min`.
-fn minutes(seconds: f64) -> String {
+pub(super) fn minutes(seconds: f64) -> String {
     let s = seconds.max(0.0).round() as u64;
     match s {
         0..60 => format!("{s} s"),
@@ -450,6 +463,26 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
         Built::File(law, summary) => Ok((*law, summary)),
         Built::Waiting(v) => bail!("the build waits for other shards: {v}"),
     }
+}
+
+/// `--plan`: the recipe's presses counted, a few measured, the wall time predicted.
+pub fn plan(args: &BuildArgs) -> anyhow::Result<serde_json::Value> {
+    let organ = args.organ.mesh()?;
+    let within = match args.within.as_deref() {
+        None => None,
+        Some(&[x, y, z, r]) if [x, y, z, r].iter().all(|v| v.is_finite()) && r > 0.0 => {
+            Some(([x, y, z], r))
+        }
+        Some(v) => bail!("--within: expected X,Y,Z,R (finite, R > 0), got {v:?}"),
+    };
+    let recipe = recipe_of(args, within)?;
+    super::plan::plan(
+        &organ,
+        &recipe,
+        args.plan_presses,
+        &args.plan_cores,
+        &format!("{:?}", args.organ.level).to_lowercase(),
+    )
 }
 
 /// What a build run ends with: the file written, or a sharded run's step waiting for

@@ -11,6 +11,7 @@ mod against;
 mod build;
 mod check;
 mod eval;
+mod plan;
 pub(crate) mod points;
 mod shard;
 pub(crate) mod tradeoff;
@@ -39,6 +40,15 @@ pub enum TissueCommand {
 
 pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
     match cmd {
+        TissueCommand::Build(args) if args.plan => {
+            let v = build::plan(args)?;
+            if args.json {
+                println!("{v}");
+            } else {
+                plan::print(&v);
+            }
+            Ok(())
+        }
         TissueCommand::Build(args) => match args.shard {
             Some(shard) => shard::run_shard(args, shard).map(|v| println!("{v}")),
             None => build(args).map(|(_, summary)| println!("{summary}")),
