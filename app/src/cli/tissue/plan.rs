@@ -158,8 +158,7 @@ pub fn plan(
         .install(|| SurfaceLaw::build_logged(organ, some, None, None, &|_| {}))
         .context("pressing the sample vertices")?;
     let pressed = law.samples.len() + law.skipped.len();
-    let press_s = vec![(t.elapsed().as_secs_f64() - setup_s).max(0.0) / pressed.max(1) as f64];
-    let per_press = press_s[0];
+    let per_press = (t.elapsed().as_secs_f64() - setup_s).max(0.0) / pressed.max(1) as f64;
     let total: usize = steps.iter().map(|s| s.presses).sum();
     let predict = |n: usize| -> f64 {
         steps
