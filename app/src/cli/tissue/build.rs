@@ -115,8 +115,9 @@ pub struct BuildArgs {
     /// setup here, and print the predicted wall time on each of --plan-cores cores.
     #[arg(long)]
     pub plan: bool,
-    /// Presses measured for --plan (pressed together, as a build presses them).
-    #[arg(long, default_value_t = 8)]
+    /// Points whose presses --plan measures (each with its triangle's corners and
+    /// edges, spread over the build's candidates, on every core here).
+    #[arg(long, default_value_t = 4)]
     pub plan_presses: usize,
     /// Core counts --plan predicts for.
     #[arg(long, value_delimiter = ',', default_values_t = [2, 16, 64, 256])]

@@ -13,7 +13,7 @@ use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::series::Expander;
 use palpa_core::organ::OrganMesh;
 use palpa_core::tissue::recipe::{Recipe, Stage};
-use palpa_core::tissue::surface::{SurfaceLaw, SurfaceLawOptions};
+use palpa_core::tissue::surface::{PressCount, SurfaceLaw, SurfaceLawOptions};
 use serde_json::json;
 
 /// Presses a split triangle adds at most: two quarter points on each edge and three
@@ -132,33 +132,54 @@ pub fn plan(
     Expander::new(&space, o.law, o.material).context("factoring the rest stiffness")?;
     let setup_s = t.elapsed().as_secs_f64();
     drop(space);
-    // The `samples` candidates nearest the middle one, pressed as a build presses them
-    // (a few a task, their rest series expanded together), on one core.
-    let mut candidates = organ.pressable_vertices();
+    // Presses where this build presses: `samples` of its own candidates spread over
+    // them, each with the corners and edges of the triangle it lies on (what a
+    // covering build presses), run as a build runs them, every core here busy (as
+    // every core of a cluster's node is), so a press's cost includes its neighbours'
+    // contention for memory.
+    let inside = |v: &u32| {
+        o.within.is_none_or(|(c, r)| {
+            let p = organ.mesh.vertices[*v as usize];
+            (0..3).map(|k| (p[k] - c[k]).powi(2)).sum::<f64>() <= r * r
+        })
+    };
+    let mut candidates: Vec<u32> = organ
+        .pressable_vertices()
+        .into_iter()
+        .filter(inside)
+        .collect();
     candidates.sort_unstable();
-    let centre = organ.mesh.vertices[candidates[candidates.len() / 2] as usize];
-    let dist = |v: &u32| {
-        let p = organ.mesh.vertices[*v as usize];
-        (0..3)
-            .map(|k| (p[k] - centre[k]).powi(2))
-            .sum::<f64>()
-            .sqrt()
-    };
-    let mut by_distance: Vec<f64> = candidates.iter().map(dist).collect();
-    by_distance.sort_by(f64::total_cmp);
-    let radius = by_distance[samples.min(by_distance.len()) - 1] + 1e-6;
-    let some = SurfaceLawOptions {
-        within: Some((centre, radius)),
-        edges: false,
-        ..o
-    };
+    candidates.dedup();
+    if candidates.is_empty() {
+        bail!("the recipe presses no vertex here: nothing to plan");
+    }
+    let points: Vec<[f64; 3]> = (0..samples.min(candidates.len()))
+        .map(|k| {
+            let v =
+                candidates[(2 * k + 1) * candidates.len() / (2 * samples.min(candidates.len()))];
+            organ.mesh.vertices[v as usize]
+        })
+        .collect();
+    let here = rayon::current_num_threads().max(1);
+    let done = std::sync::atomic::AtomicUsize::new(0);
     let t = Instant::now();
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let (law, _) = pool
-        .install(|| SurfaceLaw::build_logged(organ, some, None, None, &|_| {}))
-        .context("pressing the sample vertices")?;
-    let pressed = law.samples.len() + law.skipped.len();
-    let per_press = (t.elapsed().as_secs_f64() - setup_s).max(0.0) / pressed.max(1) as f64;
+    let count = |c: PressCount| {
+        done.fetch_max(c.done, std::sync::atomic::Ordering::Relaxed);
+    };
+    SurfaceLaw::build_covering(
+        organ,
+        SurfaceLawOptions { within: None, ..o },
+        None,
+        &points,
+        None,
+        &count,
+    )
+    .context("pressing the sample points")?;
+    let pressed = done.into_inner();
+    // Core-seconds a press: the run's wall time less its setup, over the presses each
+    // core made.
+    let per_press =
+        (t.elapsed().as_secs_f64() - setup_s).max(0.0) * here as f64 / pressed.max(1) as f64;
     let total: usize = steps.iter().map(|s| s.presses).sum();
     let predict = |n: usize| -> f64 {
         steps
