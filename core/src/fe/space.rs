@@ -105,6 +105,22 @@ impl Space {
         }
     }
 
+    /// The non-zero entries of an all-node vector (`3 × nodes`) at the free unknowns,
+    /// as (unknown, value), ascending.
+    pub fn free_entries(&self, v: &[f64]) -> Vec<(u32, f64)> {
+        let mut out = Vec::new();
+        for (node, &d) in self.dof.iter().enumerate() {
+            if d != u32::MAX {
+                for k in 0..3 {
+                    if v[3 * node + k] != 0.0 {
+                        out.push((d + k as u32, v[3 * node + k]));
+                    }
+                }
+            }
+        }
+        out
+    }
+
     pub fn cell_count(&self) -> usize {
         self.cells.len() / self.element.nodes_per_cell()
     }

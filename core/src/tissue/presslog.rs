@@ -42,6 +42,25 @@ impl RecordLog {
         path: &Path,
         key: &str,
     ) -> io::Result<(RecordLog, Vec<(u32, T)>)> {
+        Self::open_with(path, key, frame::<T>)
+    }
+
+    /// [`open`](Self::open) for a caller that copies records without reading them: the
+    /// log and the indices it holds (frames checked by their checksums only).
+    pub fn open_ids(path: &Path, key: &str) -> io::Result<(RecordLog, Vec<u32>)> {
+        let (log, records) = Self::open_with(path, key, |b, at| {
+            raw_frame(b, at).map(|(index, _, next)| (index, (), next))
+        })?;
+        Ok((log, records.into_iter().map(|(index, ())| index).collect()))
+    }
+
+    /// [`open`](Self::open) with the frames read by `frame`: the good frames kept, a
+    /// torn last one cut off, a log of another key started afresh.
+    fn open_with<R>(
+        path: &Path,
+        key: &str,
+        frame: impl Fn(&[u8], usize) -> Option<(u32, R, usize)>,
+    ) -> io::Result<(RecordLog, Vec<(u32, R)>)> {
         let key_line = format!("{}\n", key.replace('\n', " "));
         let bytes = std::fs::read(path).unwrap_or_default();
         let mut records = Vec::new();
@@ -49,7 +68,7 @@ impl RecordLog {
         if bytes.starts_with(key_line.as_bytes()) {
             let mut at = key_line.len();
             good = at;
-            while let Some((index, value, next)) = frame::<T>(&bytes, at) {
+            while let Some((index, value, next)) = frame(&bytes, at) {
                 records.push((index, value));
                 at = next;
                 good = next;
@@ -67,35 +86,6 @@ impl RecordLog {
         }
         let file = OpenOptions::new().append(true).open(path)?;
         Ok((RecordLog { file }, records))
-    }
-
-    /// [`open`](Self::open) for a caller that copies records without reading them: the
-    /// log and the indices it holds (frames checked by their checksums only).
-    pub fn open_ids(path: &Path, key: &str) -> io::Result<(RecordLog, Vec<u32>)> {
-        let key_line = format!("{}\n", key.replace('\n', " "));
-        let bytes = std::fs::read(path).unwrap_or_default();
-        let mut ids = Vec::new();
-        let mut good = 0;
-        if bytes.starts_with(key_line.as_bytes()) {
-            let mut at = key_line.len();
-            good = at;
-            while let Some((index, _, next)) = raw_frame(&bytes, at) {
-                ids.push(index);
-                at = next;
-                good = next;
-            }
-        }
-        if good == 0 {
-            let mut file = File::create(path)?;
-            file.write_all(key_line.as_bytes())?;
-            file.sync_all()?;
-        } else if good < bytes.len() {
-            let file = OpenOptions::new().write(true).open(path)?;
-            file.set_len(good as u64)?;
-            file.sync_all()?;
-        }
-        let file = OpenOptions::new().append(true).open(path)?;
-        Ok((RecordLog { file }, ids))
     }
 
     /// The indices of the records a log at `path` for `key` holds, read without

@@ -466,16 +466,21 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
     }
 }
 
-/// `--plan`: the recipe's presses counted, a few measured, the wall time predicted.
-pub fn plan(args: &BuildArgs) -> anyhow::Result<serde_json::Value> {
-    let organ = args.organ.mesh()?;
-    let within = match args.within.as_deref() {
+/// `--within X,Y,Z,R` as a ball, checked.
+fn within_of(args: &BuildArgs) -> anyhow::Result<Option<([f64; 3], f64)>> {
+    Ok(match args.within.as_deref() {
         None => None,
         Some(&[x, y, z, r]) if [x, y, z, r].iter().all(|v| v.is_finite()) && r > 0.0 => {
             Some(([x, y, z], r))
         }
         Some(v) => bail!("--within: expected X,Y,Z,R (finite, R > 0), got {v:?}"),
-    };
+    })
+}
+
+/// `--plan`: the recipe's presses counted, a few measured, the wall time predicted.
+pub fn plan(args: &BuildArgs) -> anyhow::Result<serde_json::Value> {
+    let organ = args.organ.mesh()?;
+    let within = within_of(args)?;
     let recipe = recipe_of(args, within)?;
     super::plan::plan(
         &organ,
@@ -558,13 +563,7 @@ fn waiting(e: anyhow::Error, stage: usize, describe: &str) -> anyhow::Result<ser
 pub fn build_run(args: &BuildArgs, sharding: Option<Sharding>) -> anyhow::Result<Built> {
     crate::cli::args::check_out(&args.out)?;
     let organ = args.organ.mesh()?;
-    let within = match args.within.as_deref() {
-        None => None,
-        Some(&[x, y, z, r]) if [x, y, z, r].iter().all(|v| v.is_finite()) && r > 0.0 => {
-            Some(([x, y, z], r))
-        }
-        Some(v) => bail!("--within: expected X,Y,Z,R (finite, R > 0), got {v:?}"),
-    };
+    let within = within_of(args)?;
     // A ball that holds no palpable vertex would end in "the surface law is empty".
     if let Some((c, r)) = within {
         let nearest = organ

@@ -11,7 +11,6 @@ use clap::Args;
 use palpa_core::fe::load::{probe_functional, probe_load};
 use palpa_core::fe::nodule::Nodule;
 use palpa_core::fe::probe::{ProbeRequest, locate, smooth_inward_dir, solve_linear};
-use palpa_core::fe::space::Space;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::Level;
 use palpa_core::organ::catalogue::{self, OrganName};
@@ -43,21 +42,6 @@ pub struct NoduleStoreBenchArgs {
     repeats: usize,
     #[arg(long)]
     json: bool,
-}
-
-/// The non-zero free entries of an all-node vector.
-fn sparse_free(space: &Space, v: &[f64]) -> Vec<(u32, f64)> {
-    let mut out = Vec::new();
-    for (node, &d) in space.dof.iter().enumerate() {
-        if d != u32::MAX {
-            for k in 0..3 {
-                if v[3 * node + k] != 0.0 {
-                    out.push((d + k as u32, v[3 * node + k]));
-                }
-            }
-        }
-    }
-    out
 }
 
 pub fn run(args: &NoduleStoreBenchArgs) -> anyhow::Result<()> {
@@ -102,8 +86,12 @@ pub fn run(args: &NoduleStoreBenchArgs) -> anyhow::Result<()> {
         nodule: None,
     };
     let (probe, pdir) = locate(&s.space, &organ, &req)?;
-    let f = sparse_free(&s.space, &probe_load(&s.space, &probe, pdir, 1.0, 5.0)?);
-    let phi = sparse_free(&s.space, &probe_functional(&s.space, &probe, pdir));
+    let f = s
+        .space
+        .free_entries(&probe_load(&s.space, &probe, pdir, 1.0, 5.0)?);
+    let phi = s
+        .space
+        .free_entries(&probe_functional(&s.space, &probe, pdir));
     let free = solve_linear(&organ, Element::P2, material, &req)?;
     // One core: the dense algebra of a placement without threads.
     let threads = faer::get_global_parallelism();
