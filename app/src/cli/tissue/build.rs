@@ -3,7 +3,7 @@
 //! series, and what the staging tools share (the press log, the pool, the progress
 //! line, the file's summary).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
@@ -109,7 +109,7 @@ pub struct BuildArgs {
     /// presses; `palpa tissue merge` then gathers them and either writes OUT (the same
     /// payload as one unsharded build) or says the shards are to run again for the next
     /// step. Run again after a kill, a shard goes on from its log.
-    #[arg(long, value_parser = super::shard::parse_shard)]
+    #[arg(long, value_parser = parse_shard)]
     pub shard: Option<Shard>,
     /// Press nothing: count the recipe's presses, measure a few presses and a shard's
     /// setup here, and print the predicted wall time on each of --plan-cores cores.
@@ -178,7 +178,7 @@ pub fn parse_bits(s: &str) -> Result<u32, String> {
 
 /// The press log beside a build's output: an interrupted build run again with the same
 /// arguments goes on from the last finished press.
-pub fn press_log(out: &std::path::Path) -> PathBuf {
+pub fn press_log(out: &Path) -> PathBuf {
     let mut log = out.as_os_str().to_owned();
     log.push(".presses.log");
     PathBuf::from(log)
@@ -280,7 +280,7 @@ pub(super) fn goals_json(goals: Option<palpa_app::session::GoalDepths>) -> serde
 
 /// What a tissue file holds: its samples, how far its presses reach, its bytes and
 /// bound (`palpa info X.tissue`, `palpa lab tissue cut`).
-pub fn summary(law: &TissueLaw, path: &std::path::Path) -> serde_json::Value {
+pub fn summary(law: &TissueLaw, path: &Path) -> serde_json::Value {
     let o = &law.options;
     let (stopped_short, shallowest) = reach_figures(&law.reach, law.steps, o.depth_step_mm);
     let vertices = law.samples_mm.len();
@@ -346,7 +346,10 @@ fn accuracy_json(a: &palpa_core::tissue::accuracy::Accuracy) -> serde_json::Valu
 /// (whose defaults are the recipes'), the first pass's split from `--refine-above-mm`
 /// and `--no-refine` (the default recipe's; another names its own), without the band
 /// under `--no-band`; refused, naming why, where it cannot run.
-fn recipe_of(args: &BuildArgs, within: Option<([f64; 3], f64)>) -> anyhow::Result<Recipe> {
+pub(super) fn recipe_of(
+    args: &BuildArgs,
+    within: Option<([f64; 3], f64)>,
+) -> anyhow::Result<Recipe> {
     let mut r = Recipe::named(&args.recipe)
         .with_context(|| format!("--recipe {}: not a recipe", args.recipe))?;
     if args.recipe != "default" && (args.refine_above_mm.is_some() || args.no_refine) {
@@ -394,8 +397,33 @@ fn recipe_of(args: &BuildArgs, within: Option<([f64; 3], f64)>) -> anyhow::Resul
     Ok(r)
 }
 
+/// `I/N`, I from 1 to N.
+pub fn parse_shard(s: &str) -> Result<Shard, String> {
+    let bad = || format!("{s}: expected I/N, a shard I from 1 to N (e.g. 3/8)");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (index, count): (u32, u32) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if count == 0 || index == 0 || index > count {
+        return Err(bad());
+    }
+    Ok(Shard { index, count })
+}
+
+/// Shard `shard`'s own log of step `stage` (0: the first pass):
+/// `OUT.shard-I-of-N.log`, `OUT.stage-K.shard-I-of-N.log`.
+pub fn shard_log(out: &Path, stage: usize, shard: Shard) -> PathBuf {
+    let mut p = out.as_os_str().to_owned();
+    if stage > 0 {
+        p.push(format!(".stage-{stage}"));
+    }
+    p.push(format!(".shard-{}-of-{}.log", shard.index, shard.count));
+    PathBuf::from(p)
+}
+
 /// The press log of a recipe's stage `k` (from 1; the first pass's is [`press_log`]).
-pub(super) fn stage_log(out: &std::path::Path, k: usize) -> PathBuf {
+pub(super) fn stage_log(out: &Path, k: usize) -> PathBuf {
     let mut log = out.as_os_str().to_owned();
     log.push(format!(".stage-{k}.presses.log"));
     PathBuf::from(log)
@@ -467,7 +495,7 @@ pub fn build(args: &BuildArgs) -> anyhow::Result<(TissueLaw, serde_json::Value)>
 }
 
 /// `--within X,Y,Z,R` as a ball, checked.
-fn within_of(args: &BuildArgs) -> anyhow::Result<Option<([f64; 3], f64)>> {
+pub(super) fn within_of(args: &BuildArgs) -> anyhow::Result<Option<([f64; 3], f64)>> {
     Ok(match args.within.as_deref() {
         None => None,
         Some(&[x, y, z, r]) if [x, y, z, r].iter().all(|v| v.is_finite()) && r > 0.0 => {
@@ -475,20 +503,6 @@ fn within_of(args: &BuildArgs) -> anyhow::Result<Option<([f64; 3], f64)>> {
         }
         Some(v) => bail!("--within: expected X,Y,Z,R (finite, R > 0), got {v:?}"),
     })
-}
-
-/// `--plan`: the recipe's presses counted, a few measured, the wall time predicted.
-pub fn plan(args: &BuildArgs) -> anyhow::Result<serde_json::Value> {
-    let organ = args.organ.mesh()?;
-    let within = within_of(args)?;
-    let recipe = recipe_of(args, within)?;
-    super::plan::plan(
-        &organ,
-        &recipe,
-        args.plan_presses,
-        &args.plan_cores,
-        &format!("{:?}", args.organ.level).to_lowercase(),
-    )
 }
 
 /// What a build run ends with: the file written, or a sharded run's step waiting for
@@ -499,7 +513,7 @@ pub enum Built {
 }
 
 /// Where a run's presses of step `stage` (0: the first pass) are logged.
-fn press_logs(out: &std::path::Path, stage: usize, sharding: Option<&Sharding>) -> PressLog {
+fn press_logs(out: &Path, stage: usize, sharding: Option<&Sharding>) -> PressLog {
     let path = if stage == 0 {
         press_log(out)
     } else {
@@ -508,13 +522,13 @@ fn press_logs(out: &std::path::Path, stage: usize, sharding: Option<&Sharding>) 
     let shard = sharding.map(|s| match s {
         Sharding::Shard(shard) => ShardRun::Press {
             shard: *shard,
-            own_log: super::shard::shard_log(out, stage, *shard),
+            own_log: shard_log(out, stage, *shard),
         },
         Sharding::Merge(count) => ShardRun::Merge {
             count: *count,
             logs: (1..=*count)
                 .map(|index| {
-                    super::shard::shard_log(
+                    shard_log(
                         out,
                         stage,
                         Shard {

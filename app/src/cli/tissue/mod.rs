@@ -41,7 +41,7 @@ pub enum TissueCommand {
 pub fn run(cmd: &TissueCommand) -> anyhow::Result<()> {
     match cmd {
         TissueCommand::Build(args) if args.plan => {
-            let v = build::plan(args)?;
+            let v = plan::run(args)?;
             if args.json {
                 println!("{v}");
             } else {

@@ -16,6 +16,8 @@ use palpa_core::tissue::recipe::{Recipe, Stage};
 use palpa_core::tissue::surface::{PressCount, SurfaceLaw, SurfaceLawOptions};
 use serde_json::json;
 
+use super::build::{BuildArgs, minutes};
+
 /// Presses a split triangle adds at most: two quarter points on each edge and three
 /// inner points (neighbours that are split too share their edge's quarter points).
 const POINTS_PER_SPLIT: usize = 9;
@@ -111,6 +113,20 @@ fn steps(organ: &OrganMesh, recipe: &Recipe) -> Vec<Step> {
         }
     }
     out
+}
+
+/// `--plan`: the recipe's presses counted, a few measured, the wall time predicted.
+pub fn run(args: &BuildArgs) -> anyhow::Result<serde_json::Value> {
+    let organ = args.organ.mesh()?;
+    let within = super::build::within_of(args)?;
+    let recipe = super::build::recipe_of(args, within)?;
+    plan(
+        &organ,
+        &recipe,
+        args.plan_presses,
+        &args.plan_cores,
+        &format!("{:?}", args.organ.level).to_lowercase(),
+    )
 }
 
 /// The plan of a build: printed as a table (or JSON); nothing is written.
@@ -233,7 +249,7 @@ pub fn print(v: &serde_json::Value) {
         println!(
             "{:>8} {:>14} {:>9.1}",
             r["cores"].as_u64().unwrap_or(0),
-            super::build::minutes(secs),
+            minutes(secs),
             r["speedup"].as_f64().unwrap_or(f64::NAN)
         );
     }

@@ -21,31 +21,6 @@ use serde_json::json;
 
 use super::build::{BuildArgs, Built, Sharding, build_run, press_log, stage_log};
 
-/// `I/N`, I from 1 to N.
-pub fn parse_shard(s: &str) -> Result<Shard, String> {
-    let bad = || format!("{s}: expected I/N, a shard I from 1 to N (e.g. 3/8)");
-    let (i, n) = s.split_once('/').ok_or_else(bad)?;
-    let (index, count): (u32, u32) = (
-        i.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if count == 0 || index == 0 || index > count {
-        return Err(bad());
-    }
-    Ok(Shard { index, count })
-}
-
-/// Shard `shard`'s own log of step `stage` (0: the first pass):
-/// `OUT.shard-I-of-N.log`, `OUT.stage-K.shard-I-of-N.log`.
-pub fn shard_log(out: &Path, stage: usize, shard: Shard) -> PathBuf {
-    let mut p = out.as_os_str().to_owned();
-    if stage > 0 {
-        p.push(format!(".stage-{stage}"));
-    }
-    p.push(format!(".shard-{}-of-{}.log", shard.index, shard.count));
-    PathBuf::from(p)
-}
-
 /// The build's arguments, beside its output.
 fn plan_path(out: &Path) -> PathBuf {
     let mut p = out.as_os_str().to_owned();
@@ -271,6 +246,7 @@ pub fn merge(args: &MergeArgs) -> anyhow::Result<serde_json::Value> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cli::tissue::build::{parse_shard, shard_log};
 
     #[test]
     fn shards_and_their_logs_are_named_both_ways() {
