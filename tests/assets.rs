@@ -96,6 +96,7 @@ fn the_kidney_example_matches_its_shipped_surface() {
             axes: Axes::from_up_anterior("y", "z").expect("axes"),
             close_holes_max_edges: 0,
             largest_component: false,
+            strict: false,
         },
     )
     .expect("the kidney surface is a closed manifold");

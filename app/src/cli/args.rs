@@ -59,6 +59,7 @@ impl OrganArgs {
             axes: self.place.axes()?,
             close_holes_max_edges: self.regions.close_holes,
             largest_component: self.regions.largest_component,
+            strict: self.regions.strict,
         };
         let (solid, report) = user::prepare(path, &options)
             .with_context(|| format!("preparing {}", path.display()))?;
@@ -128,16 +129,21 @@ pub struct RegionArgs {
     /// Keep the largest piece of a surface in several pieces.
     #[arg(long, requires = "surface")]
     pub largest_component: bool,
+    /// Refuse a surface that is not a closed, non-self-intersecting 2-manifold instead
+    /// of reading its inside by the winding number.
+    #[arg(long, requires = "surface")]
+    pub strict: bool,
 }
 
 impl RegionArgs {
-    fn given(&self) -> [(&'static str, bool); 5] {
+    fn given(&self) -> [(&'static str, bool); 6] {
         [
             ("--fixed", !self.fixed.is_empty()),
             ("--palpable", !self.palpable.is_empty()),
             ("--regions", self.regions.is_some()),
             ("--close-holes", self.close_holes != 0),
             ("--largest-component", self.largest_component),
+            ("--strict", self.strict),
         ]
     }
 

@@ -2,6 +2,15 @@
 //! reported (what was read, repaired, scaled, turned, meshed) so a summary can show
 //! it and a wrong unit or axis is seen before an hour of off-line solving.
 //!
+//! A surface that is not a closed 2-manifold (it crosses itself, has holes,
+//! non-manifold edges, bow-tie vertices or stray pieces, as segmentation leaves them)
+//! is read by its generalized winding number ([`crate::surface_import::winding`]):
+//! stray pieces apart from the largest are dropped, every defect is reported, and the
+//! volume inside (`w > ½`) is what the mesh is checked against. A surface with no clear
+//! inside (an open sheet, a soup: the winding number far from an integer over more
+//! than [`MAX_AMBIGUOUS_SHARE`] of it) is refused by name. `strict` refuses any defect,
+//! as validation names it.
+//!
 //! Checks after meshing, each an error naming the cause: the lattice must fill the
 //! solid (a solid thinner than about two lattice cells leaves almost no tetrahedra:
 //! the meshed volume is compared with the enclosed one), some boundary must be fixed
@@ -15,8 +24,16 @@ use thiserror::Error;
 use super::{Level, OrganMesh, Selector, mesh_organ, spacing_for_diagonal};
 use crate::mesh::{norm, sub};
 use crate::surface_import::frame::{Axes, Units, size_warning, to_patient};
-use crate::surface_import::repair::{HoleReport, close_holes, keep_largest};
-use crate::surface_import::{SurfaceError, SurfaceSolid, read};
+use crate::surface_import::repair::{HoleReport, close_holes, drop_stray, keep_largest};
+use crate::surface_import::winding::{InsideVolume, Winding};
+use crate::surface_import::{SurfaceError, SurfaceSolid, TriSurface, read};
+
+/// Lines per side of the grid along which the winding number's inside is integrated.
+const VOLUME_LINES: usize = 160;
+
+/// A surface whose winding number is more than [`crate::surface_import::winding::AMBIGUOUS`]
+/// from an integer over more than this share of its inside has no clear inside.
+pub const MAX_AMBIGUOUS_SHARE: f64 = 0.02;
 
 /// How to read and place a surface.
 #[derive(Debug, Clone)]
@@ -27,6 +44,19 @@ pub struct SurfaceOptions {
     pub close_holes_max_edges: usize,
     /// Keep the largest piece when there are several.
     pub largest_component: bool,
+    /// Refuse any defect instead of reading the surface by its winding number.
+    pub strict: bool,
+}
+
+/// How a surface that is not a closed manifold was read.
+#[derive(Debug, Clone)]
+pub struct WindingReport {
+    /// What the surface had, one line each (see [`crate::surface_import::Defects`]).
+    pub defects: Vec<String>,
+    pub degenerate_dropped: usize,
+    /// Triangle counts of stray pieces dropped.
+    pub stray_dropped: Vec<usize>,
+    pub inside: InsideVolume,
 }
 
 /// What preparing the surface found and did.
@@ -46,7 +76,11 @@ pub struct SurfaceReport {
     pub axes: Axes,
     pub mirrored: bool,
     pub bbox_mm: ([f64; 3], [f64; 3]),
+    /// The volume the surface encloses: by the divergence theorem for a closed
+    /// manifold, else the winding number's inside.
     pub enclosed_volume_mm3: f64,
+    /// Set where the surface was read by its winding number.
+    pub winding: Option<WindingReport>,
     pub warnings: Vec<String>,
 }
 
@@ -64,6 +98,17 @@ pub enum UserOrganError {
         h_mm: f64,
         meshed_ml: f64,
         enclosed_ml: f64,
+    },
+    #[error(
+        "the surface has no clear inside: its winding number is far from a whole number over \
+         {ambiguous_ml:.2} ml of the {inside_ml:.2} ml it seems to enclose (an open sheet or a \
+         loose soup of triangles, not a solid); it {}",
+        defects.join("; ")
+    )]
+    NoInside {
+        inside_ml: f64,
+        ambiguous_ml: f64,
+        defects: Vec<String>,
     },
     #[error(
         "no boundary triangle is fixed: the organ would be free to move (give --fixed \
@@ -98,13 +143,20 @@ pub fn prepare(
         Vec::new()
     };
     to_patient(&mut s, o.units, &o.axes);
-    let v = s.validate()?;
+    let (flipped, winding) = match s.validate() {
+        Ok(v) => (v.flipped, None),
+        Err(e) if o.strict || !by_winding_reads(&e) => return Err(e.into()),
+        Err(_) => {
+            let (flipped, report, w) = read_by_winding(&mut s)?;
+            (flipped, Some((report, w)))
+        }
+    };
     let (lo, hi) = crate::mesh::bounds_of(&s.vertices);
     let mut warnings = Vec::new();
     if let Some(w) = size_warning(norm(sub(hi, lo)), o.units) {
         warnings.push(w);
     }
-    if v.flipped {
+    if flipped {
         warnings.push("the surface was inside-out; it was turned outward".into());
     }
     let report = SurfaceReport {
@@ -119,15 +171,68 @@ pub fn prepare(
         polygons_split: r.polygons_split,
         holes,
         pieces_dropped,
-        flipped: v.flipped,
+        flipped,
         units: o.units,
         axes: o.axes,
         mirrored: o.axes.is_mirror(),
         bbox_mm: (lo, hi),
-        enclosed_volume_mm3: s.volume(),
+        enclosed_volume_mm3: winding
+            .as_ref()
+            .map_or_else(|| s.volume(), |(r, _)| r.inside.volume_mm3),
+        winding: winding.as_ref().map(|(r, _)| r.clone()),
         warnings,
     };
-    Ok((SurfaceSolid::new(s), report))
+    let solid = match winding {
+        Some((r, w)) => SurfaceSolid::by_winding(s, w, r.inside.volume_mm3),
+        None => SurfaceSolid::new(s),
+    };
+    Ok((solid, report))
+}
+
+/// Defects the winding number reads through; a coordinate out of range or an empty
+/// surface is refused whatever the mode.
+fn by_winding_reads(e: &SurfaceError) -> bool {
+    matches!(
+        e,
+        SurfaceError::Degenerate { .. }
+            | SurfaceError::Open { .. }
+            | SurfaceError::NonManifoldEdge { .. }
+            | SurfaceError::NonManifoldVertex { .. }
+            | SurfaceError::Components { .. }
+            | SurfaceError::Orientation { .. }
+            | SurfaceError::SelfIntersecting { .. }
+    )
+}
+
+/// Reads a surface that failed validation by its winding number: degenerate
+/// triangles and stray pieces dropped, turned outward if it encloses a negative
+/// volume, its inside measured; refused if it has none that is clear.
+fn read_by_winding(s: &mut TriSurface) -> Result<(bool, WindingReport, Winding), UserOrganError> {
+    let degenerate_dropped = s.drop_degenerate();
+    let stray_dropped = drop_stray(s);
+    let defects = s.defects().lines();
+    let flipped = s.volume() < 0.0;
+    if flipped {
+        for t in &mut s.triangles {
+            t.swap(1, 2);
+        }
+    }
+    let w = Winding::new(s);
+    let inside = w.inside_volume(VOLUME_LINES);
+    if inside.volume_mm3 <= 0.0 || inside.ambiguous_mm3 > MAX_AMBIGUOUS_SHARE * inside.volume_mm3 {
+        return Err(UserOrganError::NoInside {
+            inside_ml: inside.volume_mm3 / 1000.0,
+            ambiguous_ml: inside.ambiguous_mm3 / 1000.0,
+            defects,
+        });
+    }
+    let report = WindingReport {
+        defects,
+        degenerate_dropped,
+        stray_dropped,
+        inside,
+    };
+    Ok((flipped, report, w))
 }
 
 /// Meshes a prepared surface at a level with the given regions, and checks the result.
@@ -141,7 +246,7 @@ pub fn mesh(
     let (lo, hi) = solid.bounds();
     let h = spacing_for_diagonal(level, norm(sub(hi, lo)));
     let organ = mesh_organ(solid, h, fixed, palpable);
-    let enclosed = solid.surface().volume();
+    let enclosed = solid.enclosed_volume_mm3();
     let meshed = organ.mesh.volume();
     // Isosurface stuffing's volume is within a few per cent of the solid's when the
     // lattice resolves it; half is lost only when the solid is about one cell thick.

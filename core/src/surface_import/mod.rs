@@ -19,6 +19,7 @@ pub mod read;
 pub mod repair;
 pub mod shapes;
 mod solid;
+pub mod winding;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -238,10 +239,17 @@ impl TriSurface {
 
 impl TriSurface {
     /// Two triangles that share no vertex and cross (an edge of one passes through
-    /// the other), with a crossing point. Broad phase: a uniform grid of about four
-    /// triangles per cell over the bounding boxes. Coplanar overlaps are not looked
-    /// for (a closed manifold that only touches itself in a plane is rare; it meshes).
+    /// the other), with a crossing point.
     fn first_crossing(&self) -> Option<(usize, usize, [f64; 3])> {
+        self.crossings(1).1.into_iter().next()
+    }
+
+    /// How many pairs of triangles that share no vertex cross, and the first `keep`
+    /// of them (lowest triangle pair first) with a crossing point. Broad phase: a
+    /// uniform grid of about four triangles per cell over the bounding boxes.
+    /// Coplanar overlaps are not looked for (a closed manifold that only touches
+    /// itself in a plane is rare; it meshes).
+    pub fn crossings(&self, keep: usize) -> (usize, Vec<(usize, usize, [f64; 3])>) {
         let tri = |t: usize| self.triangles[t].map(|v| self.vertices[v as usize]);
         let (lo, hi) = crate::mesh::bounds_of(&self.vertices);
         let n = self.triangles.len();
@@ -263,6 +271,7 @@ impl TriSurface {
             }
         }
         let mut seen = std::collections::HashSet::new();
+        let mut found = Vec::new();
         for members in grid.values() {
             for (x, &t) in members.iter().enumerate() {
                 for &u in &members[x + 1..] {
@@ -272,12 +281,128 @@ impl TriSurface {
                     }
                     let (tp, tq) = (tri(t), tri(u));
                     if let Some(at) = edges_cross(&tp, &tq).or_else(|| edges_cross(&tq, &tp)) {
-                        return Some((t.min(u), t.max(u), at));
+                        found.push((t.min(u), t.max(u), at));
                     }
                 }
             }
         }
-        None
+        found.sort_by_key(|&(a, b, _)| (a, b));
+        let count = found.len();
+        found.truncate(keep);
+        (count, found)
+    }
+
+    /// Every defect [`TriSurface::validate`] refuses, counted, so that a surface
+    /// meshed by its winding number can say what it had.
+    pub fn defects(&self) -> Defects {
+        let mut edges: HashMap<(u32, u32), (usize, usize)> = HashMap::new();
+        for tri in &self.triangles {
+            for e in 0..3 {
+                let (a, b) = (tri[e], tri[(e + 1) % 3]);
+                let entry = edges.entry((a.min(b), a.max(b))).or_default();
+                if a < b { entry.0 += 1 } else { entry.1 += 1 }
+            }
+        }
+        let mut d = Defects::default();
+        for &(fwd, back) in edges.values() {
+            match fwd + back {
+                1 => d.open_edges += 1,
+                2 if fwd != 1 => d.orientation_conflicts += 1,
+                2 => {}
+                _ => d.non_manifold_edges += 1,
+            }
+        }
+        let mut around: Vec<Vec<usize>> = vec![Vec::new(); self.vertices.len()];
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for &v in tri {
+                around[v as usize].push(t);
+            }
+        }
+        d.bow_tie_vertices = around
+            .iter()
+            .enumerate()
+            .filter(|(v, tris)| tris.len() >= 2 && count_fans(*v as u32, tris, &self.triangles) > 1)
+            .count();
+        let (count, first) = self.crossings(5);
+        d.crossings = count;
+        d.crossing_at = first.iter().map(|c| c.2).collect();
+        d.pieces = repair::components(self).iter().map(Vec::len).collect();
+        d
+    }
+
+    /// Drops the triangles of zero area or with a repeated vertex; returns how many.
+    pub fn drop_degenerate(&mut self) -> usize {
+        let before = self.triangles.len();
+        let v = &self.vertices;
+        self.triangles.retain(|t| {
+            let [a, b, c] = t.map(|i| v[i as usize]);
+            t[0] != t[1] && t[1] != t[2] && t[0] != t[2] && norm(cross(sub(b, a), sub(c, a))) > 0.0
+        });
+        before - self.triangles.len()
+    }
+}
+
+/// What a surface has that a closed 2-manifold has not ([`TriSurface::defects`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Defects {
+    /// Pairs of triangles that cross, and up to five crossing points.
+    pub crossings: usize,
+    pub crossing_at: Vec<[f64; 3]>,
+    /// Edges of one triangle (holes).
+    pub open_edges: usize,
+    /// Edges of three or more triangles.
+    pub non_manifold_edges: usize,
+    /// Vertices joining separate fans of triangles.
+    pub bow_tie_vertices: usize,
+    /// Edges its two triangles traverse the same way.
+    pub orientation_conflicts: usize,
+    /// Triangles of each edge-connected piece, largest first.
+    pub pieces: Vec<usize>,
+}
+
+impl Defects {
+    /// One line per defect found, in words.
+    pub fn lines(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.crossings > 0 {
+            let at = self.crossing_at[0].map(|x| (x * 10.0).round() / 10.0);
+            out.push(format!(
+                "crosses itself: {} pairs of triangles cross (the first near {at:?} mm)",
+                self.crossings
+            ));
+        }
+        if self.open_edges > 0 {
+            out.push(format!(
+                "has holes: {} edges belong to one triangle only",
+                self.open_edges
+            ));
+        }
+        if self.non_manifold_edges > 0 {
+            out.push(format!(
+                "{} edges are shared by three or more triangles",
+                self.non_manifold_edges
+            ));
+        }
+        if self.bow_tie_vertices > 0 {
+            out.push(format!(
+                "{} vertices join separate fans of triangles",
+                self.bow_tie_vertices
+            ));
+        }
+        if self.orientation_conflicts > 0 {
+            out.push(format!(
+                "{} edges are traversed the same way by both their triangles (orientation flips)",
+                self.orientation_conflicts
+            ));
+        }
+        if self.pieces.len() > 1 {
+            out.push(format!(
+                "{} separate pieces of {:?} triangles",
+                self.pieces.len(),
+                self.pieces
+            ));
+        }
+        out
     }
 }
 

@@ -141,3 +141,39 @@ pub fn keep_largest(s: &mut TriSurface) -> Vec<usize> {
     *s = welded;
     dropped
 }
+
+/// Drops the pieces that lie wholly apart from the largest (their bounding boxes do
+/// not meet): stray islands a segmentation leaves. Pieces that meet the largest (a
+/// duplicate sheet, a fold, a vessel through it) stay, for the winding number to
+/// read. Returns the triangle counts of the pieces dropped.
+pub fn drop_stray(s: &mut TriSurface) -> Vec<usize> {
+    let comps = components(s);
+    if comps.len() <= 1 {
+        return Vec::new();
+    }
+    let bounds = |c: &[usize]| {
+        let pts: Vec<[f64; 3]> = c
+            .iter()
+            .flat_map(|&t| s.triangles[t])
+            .map(|v| s.vertices[v as usize])
+            .collect();
+        crate::mesh::bounds_of(&pts)
+    };
+    let (lo, hi) = bounds(&comps[0]);
+    let mut dropped = Vec::new();
+    let mut kept: Vec<[u32; 3]> = Vec::new();
+    for (k, c) in comps.iter().enumerate() {
+        let (a, b) = bounds(c);
+        let apart = (0..3).any(|d| a[d] > hi[d] || b[d] < lo[d]);
+        if k > 0 && apart {
+            dropped.push(c.len());
+        } else {
+            kept.extend(c.iter().map(|&t| s.triangles[t]));
+        }
+    }
+    if !dropped.is_empty() {
+        let (welded, _) = super::read::weld(&s.vertices, &kept);
+        *s = welded;
+    }
+    dropped
+}

@@ -1,8 +1,11 @@
-//! A validated closed surface as an implicit solid: the signed distance.
+//! A surface as an implicit solid: the signed distance, its sign from the closest
+//! feature's pseudo-normal (a validated closed manifold) or from the generalized
+//! winding number (a surface as segmentation gives it: [`super::winding`]).
 
 use std::collections::HashMap;
 
 use super::TriSurface;
+use super::winding::Winding;
 use crate::mesh::stuffing::Implicit;
 use crate::mesh::{cross, dot, norm, sub};
 
@@ -18,12 +21,39 @@ pub struct SurfaceSolid {
     face_n: Vec<[f64; 3]>,
     edge_n: HashMap<(u32, u32), [f64; 3]>,
     vert_n: Vec<[f64; 3]>,
+    /// Where set, the sign is the winding number's (inside where `w > ½`), with the
+    /// volume inside.
+    winding: Option<(Winding, f64)>,
 }
 
 impl SurfaceSolid {
-    /// Builds the distance acceleration and pseudo-normals. The surface must have
-    /// passed [`TriSurface::validate`].
+    /// A surface that passed [`TriSurface::validate`]: the sign from pseudo-normals.
     pub fn new(s: TriSurface) -> SurfaceSolid {
+        Self::build(s, None)
+    }
+
+    /// Any triangle soup with a clear inside (see [`Winding::inside_volume`]): the sign
+    /// from its winding number.
+    /// `inside_mm3`: the volume where `w > ½` ([`Winding::inside_volume`]).
+    pub fn by_winding(s: TriSurface, winding: Winding, inside_mm3: f64) -> SurfaceSolid {
+        Self::build(s, Some((winding, inside_mm3)))
+    }
+
+    /// The volume the solid encloses (mm³): by the divergence theorem for a validated
+    /// surface, the winding number's inside otherwise.
+    pub fn enclosed_volume_mm3(&self) -> f64 {
+        self.winding
+            .as_ref()
+            .map_or_else(|| self.s.volume(), |w| w.1)
+    }
+
+    /// Whether the sign comes from the winding number.
+    pub fn signed_by_winding(&self) -> bool {
+        self.winding.is_some()
+    }
+
+    /// Builds the distance acceleration and pseudo-normals.
+    fn build(s: TriSurface, winding: Option<(Winding, f64)>) -> SurfaceSolid {
         let (lo, hi) = crate::mesh::bounds_of(&s.vertices);
         let diag = norm(sub(hi, lo));
         let cell = (diag / 48.0).max(1e-9);
@@ -78,6 +108,7 @@ impl SurfaceSolid {
             face_n,
             edge_n,
             vert_n,
+            winding,
         }
     }
 
@@ -139,6 +170,9 @@ impl SurfaceSolid {
 impl Implicit for SurfaceSolid {
     fn value(&self, p: [f64; 3]) -> f64 {
         let (t, bary, dist) = self.closest(p);
+        if let Some((w, _)) = &self.winding {
+            return if w.at(p) > 0.5 { -dist } else { dist };
+        }
         let tri = self.s.triangles[t];
         let zeros = bary.iter().filter(|&&b| b <= 1e-12).count();
         let n = match zeros {
