@@ -66,6 +66,16 @@ impl OrganArgs {
         for w in &report.warnings {
             eprintln!("palpa: warning: {w}");
         }
+        if let Some(w) = &report.winding {
+            eprintln!(
+                "palpa: the surface is not a closed 2-manifold; its inside is read by its \
+                 winding number ({:.1} ml; --strict refuses it instead):",
+                w.inside.volume_mm3 / 1000.0
+            );
+            for line in winding_lines(w) {
+                eprintln!("palpa:   {line}");
+            }
+        }
         let (fixed, palpable, _) = self.regions.selectors()?;
         user::mesh(&solid, self.level.into(), &fixed, &palpable)
             .with_context(|| format!("meshing {}", path.display()))
@@ -384,4 +394,28 @@ impl NonlinearModel {
             NonlinearModel::Svk => palpa_core::fe::law::Law::Svk,
         }
     }
+}
+
+/// What a surface read by its winding number had and what was done about it, one
+/// line each.
+pub fn winding_lines(w: &palpa_core::organ::user::WindingReport) -> Vec<String> {
+    let mut lines = w.defects.clone();
+    if w.degenerate_dropped > 0 {
+        lines.push(format!(
+            "dropped {} degenerate triangles",
+            w.degenerate_dropped
+        ));
+    }
+    for t in &w.stray_dropped {
+        lines.push(format!(
+            "dropped a stray piece of {t} triangles apart from the organ"
+        ));
+    }
+    if w.inside.multiple_mm3 >= 10.0 {
+        lines.push(format!(
+            "{:.2} ml is wrapped twice or more (a fold or a duplicate sheet), counted once",
+            w.inside.multiple_mm3 / 1000.0
+        ));
+    }
+    lines
 }

@@ -250,7 +250,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
              number ({:.1} ml; --strict refuses it instead):",
             w.inside.volume_mm3 / 1000.0
         );
-        for line in winding_lines(w) {
+        for line in super::args::winding_lines(w) {
             eprintln!("palpa:   {line}");
         }
     }
@@ -412,7 +412,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
             "bbox_mm": {"min": lo, "max": hi},
             "enclosed_volume_ml": sr.enclosed_volume_mm3 / 1000.0,
             "inside_by": if sr.winding.is_some() { "winding number" } else { "closed manifold" },
-            "repairs": sr.winding.as_ref().map(winding_lines),
+            "repairs": sr.winding.as_ref().map(super::args::winding_lines),
             "warnings": sr.warnings,
         },
         "mesh": {
@@ -438,30 +438,6 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         "total_s": pr.t0.elapsed().as_secs_f64(),
     });
     super::args::print_report(&summary, args.json)
-}
-
-/// What a surface read by its winding number had and what was done about it, one
-/// line each.
-fn winding_lines(w: &user::WindingReport) -> Vec<String> {
-    let mut lines = w.defects.clone();
-    if w.degenerate_dropped > 0 {
-        lines.push(format!(
-            "dropped {} degenerate triangles",
-            w.degenerate_dropped
-        ));
-    }
-    for t in &w.stray_dropped {
-        lines.push(format!(
-            "dropped a stray piece of {t} triangles apart from the organ"
-        ));
-    }
-    if w.inside.multiple_mm3 > 0.0 {
-        lines.push(format!(
-            "{:.2} ml is wrapped twice or more (a fold or a duplicate sheet), counted once",
-            w.inside.multiple_mm3 / 1000.0
-        ));
-    }
-    lines
 }
 
 /// The `palpa tissue build` that presses this scene's organ (what `--model` runs): the
