@@ -21,6 +21,7 @@ const FLOORS: &[(&str, u32)] = &[
     ("farfield", 1),
     ("kernels", 2),
     ("nearfield", 2),
+    ("visual", 2),
     ("organ", 2),
     ("separated", 3),
     ("fe", 3),

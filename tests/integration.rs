@@ -23,3 +23,4 @@ mod scene;
 mod surface_import;
 mod tissue;
 mod user_organ;
+mod visual;

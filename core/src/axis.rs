@@ -591,7 +591,7 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 /// Barycentric coordinates of the point of triangle abc closest to p
 /// (Ericson, Real-Time Collision Detection, §5.1.5).
-fn closest_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+pub fn closest_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
     let ab = sub(b, a);
     let ac = sub(c, a);
     let ap = sub(p, a);

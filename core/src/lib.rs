@@ -62,6 +62,7 @@ pub mod synthetic;
 pub mod tensor;
 pub mod timing;
 pub mod tissue;
+pub mod visual;
 
 pub use axis::{AxisError, Discretization, ParamValue, Stencil};
 pub use file::{AnyModel, FileError};
