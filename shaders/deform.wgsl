@@ -4,8 +4,8 @@
 //           invocation per vertex; writes the deformed position and |u| (for the
 //           colormap). near_v is the exact near field under the tool, computed on the
 //           CPU each frame (zero for a model without one).
-// normals:  n_v = normalize(Σ_{t ∋ v} (b − a) × (c − a)) over the deformed triangles
-//           incident to v (area-weighted), read from a CSR adjacency list.
+// The drawn surface is carried on these positions by embed.wgsl, which also computes
+// its normals.
 // The CPU path (palpa-core's SeparatedModel::reconstruct) is the reference; the tests
 // compare both.
 
@@ -23,11 +23,7 @@ struct Params {
 @group(0) @binding(2) var<storage, read> modes: array<f32>;
 @group(0) @binding(3) var<storage, read> rest: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> deformed: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read> adjacency_offsets: array<u32>;
-@group(0) @binding(6) var<storage, read> adjacency: array<u32>;
-@group(0) @binding(7) var<storage, read> triangles: array<u32>;
-@group(0) @binding(8) var<storage, read_write> normals: array<vec4<f32>>;
-@group(0) @binding(9) var<storage, read> near: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> near: array<vec4<f32>>;
 
 fn coeff(k: u32) -> f32 {
     return coeffs[k / 4u][k % 4u];
@@ -50,26 +46,4 @@ fn displace(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     u += near[v].xyz;
     deformed[v] = vec4<f32>(rest[v].xyz + u, length(u));
-}
-
-@compute @workgroup_size(64)
-fn normals_pass(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let v = gid.x;
-    if (v >= params.vertex_count) {
-        return;
-    }
-    var n = vec3<f32>(0.0);
-    for (var i = adjacency_offsets[v]; i < adjacency_offsets[v + 1u]; i++) {
-        let t = adjacency[i];
-        let a = deformed[triangles[3u * t]].xyz;
-        let b = deformed[triangles[3u * t + 1u]].xyz;
-        let c = deformed[triangles[3u * t + 2u]].xyz;
-        n += cross(b - a, c - a);
-    }
-    let len = length(n);
-    var out = vec3<f32>(0.0, 0.0, 1.0);
-    if (len > 0.0) {
-        out = n / len;
-    }
-    normals[v] = vec4<f32>(out, 0.0);
 }

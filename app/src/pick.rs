@@ -1,5 +1,6 @@
-//! Picking: the ray from a pointer hits the (deformed) surface; the hit becomes the probe
-//! position `s` when it lies in the palpable region.
+//! Picking: the ray from a pointer hits the drawn (deformed) surface; the point of the
+//! mechanical surface under the hit becomes the probe position `s` when it lies in the
+//! palpable region.
 //!
 //! Ray–triangle tests are Möller–Trumbore over every triangle (a few thousand on the
 //! shipped scenes: tens of microseconds, once per pointer event, never in the force loop).
@@ -72,19 +73,23 @@ pub struct ScenePicker<'a> {
     pub scene: &'a PalpationScene,
     pub camera: &'a OrbitCamera,
     pub viewport_px: Vec2,
-    /// Current vertex positions (rest + displacement), mm.
-    pub deformed_mm: &'a [[f32; 3]],
+    /// The drawn surface's current vertex positions (rest + displacement), mm.
+    pub drawn_mm: &'a [[f32; 3]],
 }
 
 impl Picker for ScenePicker<'_> {
     fn pick(&self, pos_px: Vec2) -> Pick {
         let ray = self.camera.ray(pos_px, self.viewport_px);
-        match intersect(&ray, self.deformed_mm, self.scene.triangles()) {
+        let visual = self.scene.visual();
+        match intersect(&ray, self.drawn_mm, &visual.triangles) {
             None => Pick::Miss,
-            Some((t, bary, _)) => match self.scene.palpable_point(t, bary) {
-                Some(p) => Pick::Palpable(p),
-                None => Pick::Outside,
-            },
+            Some((vt, vbary, _)) => {
+                let (t, bary) = visual.mechanical_point(self.scene.vertices_mm(), vt, vbary);
+                match self.scene.palpable_point(t, bary) {
+                    Some(p) => Pick::Palpable(p),
+                    None => Pick::Outside,
+                }
+            }
         }
     }
 

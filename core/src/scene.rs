@@ -30,6 +30,7 @@ use crate::file::AnyModel;
 pub use crate::mesh::vertex_normals;
 use crate::nearfield::NearField;
 use crate::separated::{EvalError, SeparatedModel, TradeoffRow};
+use crate::visual::VisualSurface;
 
 /// Why a model cannot be shown as a palpation scene.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -117,6 +118,21 @@ pub struct PalpationScene {
     /// For a nodal-load axis: the load face of each palpable triangle (the axis's
     /// own triangle numbering otherwise, i.e. the identity).
     axis_face: Option<Vec<u32>>,
+    /// The drawn surface, carried by the render surface ([`crate::visual`]).
+    visual: VisualSurface,
+}
+
+/// Most drawn vertices a scene subdivides its render surface towards: two levels of
+/// Loop subdivision on the shipped coarse scenes (about 14 000), fewer on finer ones.
+pub const VISUAL_VERTICES: usize = 32_000;
+
+/// Levels of subdivision for a render surface of `vertices` vertices (each level about
+/// quadruples them), at most two.
+pub fn visual_levels(vertices: usize) -> u32 {
+    (0..=2u32)
+        .rev()
+        .find(|&l| vertices.saturating_mul(4usize.pow(l)) <= VISUAL_VERTICES)
+        .unwrap_or(0)
 }
 
 impl PalpationScene {
@@ -235,7 +251,10 @@ impl PalpationScene {
                 Some((a, corner))
             })
             .collect();
+        let visual =
+            VisualSurface::subdivided(&vertices_mm, &triangles, visual_levels(vertices_mm.len()));
         Ok(PalpationScene {
+            visual,
             model,
             vertices_mm,
             triangles,
@@ -264,6 +283,10 @@ impl PalpationScene {
     }
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.triangles
+    }
+    /// The drawn surface.
+    pub fn visual(&self) -> &VisualSurface {
+        &self.visual
     }
     pub fn normals(&self) -> &[[f32; 3]] {
         &self.normals

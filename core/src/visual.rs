@@ -37,7 +37,9 @@ use crate::mesh::{cross, dot, norm, sub};
 /// A visual vertex's place on the mechanical surface.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Embed {
-    /// The mechanical render triangle's vertices.
+    /// The mechanical render triangle.
+    pub triangle: u32,
+    /// Its vertices.
     pub corners: [u32; 3],
     /// Barycentric coordinates of the projection on its plane (may step a little
     /// outside `[0, 1]` where the vertex is closest to an edge).
@@ -200,6 +202,42 @@ impl VisualSurface {
         }
     }
 
+    /// The rest point under barycentric coordinates `bary` of drawn triangle
+    /// `triangle`.
+    pub fn rest_point(&self, triangle: u32, bary: [f64; 3]) -> [f64; 3] {
+        let t = self.triangles[triangle as usize];
+        [0, 1, 2].map(|d| {
+            (0..3)
+                .map(|k| bary[k] * f64::from(self.rest_mm[t[k] as usize][d]))
+                .sum()
+        })
+    }
+
+    /// The point of the mechanical surface (`mech`: its rest vertices) under a point of
+    /// the drawn surface: the closest point of the mechanical triangles its drawn
+    /// triangle's corners are embedded in, as (mechanical triangle, barycentric
+    /// coordinates).
+    pub fn mechanical_point(
+        &self,
+        mech: &[[f32; 3]],
+        triangle: u32,
+        bary: [f64; 3],
+    ) -> (u32, [f64; 3]) {
+        let p = self.rest_point(triangle, bary);
+        let mut best = (u32::MAX, [1.0, 0.0, 0.0], f64::INFINITY);
+        for &v in &self.triangles[triangle as usize] {
+            let e = &self.embed[v as usize];
+            let [a, b, c] = e.corners.map(|i| mech[i as usize].map(f64::from));
+            let l = closest_on_triangle(p, a, b, c);
+            let q = [0, 1, 2].map(|d| l[0] * a[d] + l[1] * b[d] + l[2] * c[d]);
+            let dist = norm(sub(p, q));
+            if dist < best.2 {
+                best = (e.triangle, l, dist);
+            }
+        }
+        (best.0, best.1)
+    }
+
     /// A value per mechanical vertex interpolated at the visual vertices.
     pub fn interpolate(&self, mech: &[f32], out: &mut [f32]) {
         for (o, e) in out.iter_mut().zip(&self.embed) {
@@ -283,6 +321,7 @@ fn embed(mech: &[[f64; 3]], triangles: &[[u32; 3]], points: &[[f64; 3]]) -> Vec<
             let height = dot(sub(p, a), n);
             let q = [0, 1, 2].map(|d| p[d] - height * n[d]);
             Embed {
+                triangle: best.0,
                 corners,
                 bary: plane_bary(q, a, b, c).map(|x| x as f32),
                 height_mm: height as f32,

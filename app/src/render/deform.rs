@@ -1,10 +1,12 @@
 //! GPU deformation of the scene surface (`shaders/deform.wgsl`): the surface rows of `X`
 //! in a storage buffer, the `n` coefficients in a uniform, one compute pass for the
-//! displacement and one for the normals of the deformed surface. The outputs are the
-//! vertex buffers the surface is drawn from.
+//! displacement of the mechanical render surface; then (`shaders/embed.wgsl`) one pass
+//! carries the drawn surface on it ([`palpa_core::visual`]) and one computes the drawn
+//! surface's normals. The outputs are the vertex buffers the surface is drawn from.
 //!
 //! The same buffers can instead be filled by the CPU ([`DeformOn::Cpu`]: the session
-//! evaluates every row and the normals itself and uploads 32 bytes a vertex). Which is
+//! evaluates every row, carries the drawn surface and computes its normals itself and
+//! uploads 32 bytes a drawn vertex). Which is
 //! faster depends on the device: `palpa lab bench deform` measures both on the adapter at
 //! hand, with how far apart their surfaces are.
 
@@ -56,8 +58,8 @@ impl DeformOn {
     }
 }
 
-/// A surface deformed on the CPU, per render vertex: positions (xyz, |u|) and unit
-/// normals (xyz, 0).
+/// The drawn surface deformed on the CPU, per drawn vertex: positions (xyz, |u|) and
+/// unit normals (xyz, 0).
 #[derive(Debug, Clone, Copy)]
 pub struct CpuSurface<'a> {
     pub positions: &'a [Vec4Data],
@@ -73,6 +75,23 @@ struct Params {
     triangle_count: u32,
 }
 
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+#[repr(C)]
+struct EmbedParams {
+    vertex_count: u32,
+    triangle_count: u32,
+    pad: [u32; 2],
+}
+
+/// The drawn surface's stage: carried on the mechanical positions, then its normals.
+#[derive(Debug)]
+struct Embed {
+    bind_group: wgpu::BindGroup,
+    embed: wgpu::ComputePipeline,
+    normals: wgpu::ComputePipeline,
+    vertex_count: u32,
+}
+
 /// GPU buffers and pipelines of the deformation.
 #[derive(Debug)]
 pub struct Deform {
@@ -80,13 +99,17 @@ pub struct Deform {
     coeffs: wgpu::Buffer,
     /// The near-field displacement per vertex (xyz), written each frame.
     near: wgpu::Buffer,
-    /// Deformed positions (xyz, |u|), one vec4 per vertex: compute output, vertex input.
+    /// Deformed positions of the mechanical render surface (xyz, |u|), one vec4 per
+    /// render vertex.
+    mechanical: wgpu::Buffer,
+    /// The drawn surface's deformed positions (xyz, |u|), one vec4 per drawn vertex:
+    /// compute output, vertex input.
     pub positions: wgpu::Buffer,
-    /// Unit normals of the deformed surface, one vec4 per vertex.
+    /// Unit normals of the drawn surface, one vec4 per drawn vertex.
     pub normals: wgpu::Buffer,
+    embed: Embed,
     bind_group: wgpu::BindGroup,
     displace: wgpu::ComputePipeline,
-    normals_pass: wgpu::ComputePipeline,
     vertex_count: u32,
     modes_stride: u32,
     triangle_count: u32,
@@ -111,11 +134,6 @@ impl Deform {
             .map(|p| [p[0], p[1], p[2], 0.0])
             .collect();
         let rest = storage("rest positions", bytemuck::cast_slice(&rest));
-        let (offsets, adjacency) = vertex_triangles(vertex_count as usize, scene.triangles());
-        let offsets = storage("adjacency offsets", bytemuck::cast_slice(&offsets));
-        // An empty storage buffer is not allowed; a mesh always has triangles here.
-        let adjacency = storage("adjacency", bytemuck::cast_slice(&adjacency));
-        let triangles = storage("triangles", bytemuck::cast_slice(scene.triangles()));
         let out_size = u64::from(vertex_count) * 16;
         let output = |label: &str| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -128,14 +146,13 @@ impl Deform {
                 mapped_at_creation: false,
             })
         };
-        let positions = output("deformed positions");
+        let mechanical = output("deformed mechanical positions");
         let near = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("near-field displacement"),
             size: out_size,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let normals = output("deformed normals");
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("deform params"),
             size: size_of::<Params>() as u64,
@@ -171,16 +188,9 @@ impl Deform {
                 entry(3, ro),
                 entry(4, rw),
                 entry(5, ro),
-                entry(6, ro),
-                entry(7, ro),
-                entry(8, rw),
-                entry(9, ro),
             ],
         });
-        let buffers = [
-            &params, &coeffs, &modes, &rest, &positions, &offsets, &adjacency, &triangles,
-            &normals, &near,
-        ];
+        let buffers = [&params, &coeffs, &modes, &rest, &mechanical, &near];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -210,9 +220,26 @@ impl Deform {
                 cache: None,
             })
         };
+        let visual = scene.visual();
+        let drawn = visual.rest_mm.len() as u64;
+        let drawn_output = |label: &str| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: drawn * 16,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::VERTEX
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let positions = drawn_output("drawn positions");
+        let normals = drawn_output("drawn normals");
+        let embed = Embed::new(device, visual, &mechanical, &positions, &normals);
         Deform {
             displace: pipeline("displace"),
-            normals_pass: pipeline("normals_pass"),
+            mechanical,
+            embed,
             params,
             coeffs,
             near,
@@ -273,17 +300,17 @@ impl Deform {
         }
     }
 
-    /// Writes a CPU-deformed surface into the vertex buffers (entries past the
-    /// vertex count are ignored).
+    /// Writes a CPU-deformed drawn surface into the vertex buffers (entries past the
+    /// drawn vertex count are ignored).
     pub fn upload(&self, queue: &wgpu::Queue, surface: CpuSurface<'_>) {
-        let n = self.vertex_count as usize;
+        let n = self.embed.vertex_count as usize;
         let p = &surface.positions[..surface.positions.len().min(n)];
         let q = &surface.normals[..surface.normals.len().min(n)];
         queue.write_buffer(&self.positions, 0, bytemuck::cast_slice(p));
         queue.write_buffer(&self.normals, 0, bytemuck::cast_slice(q));
     }
 
-    /// Records the two compute passes.
+    /// Records the compute passes: the mechanical surface, then the drawn one.
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("deform"),
@@ -293,18 +320,43 @@ impl Deform {
         let groups = self.vertex_count.div_ceil(WORKGROUP);
         pass.set_pipeline(&self.displace);
         pass.dispatch_workgroups(groups, 1, 1);
-        pass.set_pipeline(&self.normals_pass);
-        pass.dispatch_workgroups(groups, 1, 1);
+        pass.set_bind_group(0, &self.embed.bind_group, &[]);
+        let drawn = self.embed.vertex_count.div_ceil(WORKGROUP);
+        pass.set_pipeline(&self.embed.embed);
+        pass.dispatch_workgroups(drawn, 1, 1);
+        pass.set_pipeline(&self.embed.normals);
+        pass.dispatch_workgroups(drawn, 1, 1);
     }
 
-    /// Reads back the deformed positions and normals (tests, and checking a new GPU):
-    /// `(positions, normals)`, xyz + w each.
+    /// Reads back the mechanical render surface's deformed positions (xyz, |u|), as
+    /// the compute pass left them (tests).
+    pub fn read_back_mechanical(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> anyhow::Result<Vec<Vec4Data>> {
+        let size = u64::from(self.vertex_count) * 16;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("mechanical read-back"),
+            size,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&self.mechanical, 0, &staging, 0, size);
+        queue.submit([encoder.finish()]);
+        let bytes = super::offscreen::read_buffer(device, &staging)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+
+    /// Reads back the drawn surface's positions and normals (tests, and checking a
+    /// new GPU): `(positions, normals)`, xyz + w each.
     pub fn read_back(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
     ) -> anyhow::Result<(Vec<Vec4Data>, Vec<Vec4Data>)> {
-        let size = u64::from(self.vertex_count) * 16;
+        let size = u64::from(self.embed.vertex_count) * 16;
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("deform read-back"),
             size: 2 * size,
@@ -317,12 +369,127 @@ impl Deform {
         queue.submit([encoder.finish()]);
         let bytes = super::offscreen::read_buffer(device, &staging)?;
         let all: &[Vec4Data] = bytemuck::cast_slice(&bytes);
-        let (p, n) = all.split_at(self.vertex_count as usize);
+        let (p, n) = all.split_at(self.embed.vertex_count as usize);
         Ok((p.to_vec(), n.to_vec()))
     }
 
+    /// Vertices of the mechanical render surface.
     pub fn vertex_count(&self) -> u32 {
         self.vertex_count
+    }
+
+    /// Vertices of the drawn surface.
+    pub fn drawn_vertex_count(&self) -> u32 {
+        self.embed.vertex_count
+    }
+}
+
+impl Embed {
+    fn new(
+        device: &wgpu::Device,
+        visual: &palpa_core::visual::VisualSurface,
+        mechanical: &wgpu::Buffer,
+        positions: &wgpu::Buffer,
+        normals: &wgpu::Buffer,
+    ) -> Embed {
+        let vertex_count = visual.rest_mm.len() as u32;
+        let storage = |label: &str, contents: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("embed params"),
+            contents: bytemuck::bytes_of(&EmbedParams {
+                vertex_count,
+                triangle_count: visual.triangles.len() as u32,
+                pad: [0; 2],
+            }),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let corners: Vec<[u32; 4]> = visual
+            .embed
+            .iter()
+            .map(|e| [e.corners[0], e.corners[1], e.corners[2], 0])
+            .collect();
+        let weights: Vec<[f32; 4]> = visual
+            .embed
+            .iter()
+            .map(|e| [e.bary[0], e.bary[1], e.bary[2], e.height_mm])
+            .collect();
+        let corners = storage("drawn corners", bytemuck::cast_slice(&corners));
+        let weights = storage("drawn weights", bytemuck::cast_slice(&weights));
+        let (offsets, adjacency) = vertex_triangles(vertex_count as usize, &visual.triangles);
+        let offsets = storage("drawn adjacency offsets", bytemuck::cast_slice(&offsets));
+        let adjacency = storage("drawn adjacency", bytemuck::cast_slice(&adjacency));
+        let triangles = storage("drawn triangles", bytemuck::cast_slice(&visual.triangles));
+        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("embed"),
+            entries: &[
+                entry(0, wgpu::BufferBindingType::Uniform),
+                entry(1, ro),
+                entry(2, ro),
+                entry(3, ro),
+                entry(4, rw),
+                entry(5, ro),
+                entry(6, ro),
+                entry(7, ro),
+                entry(8, rw),
+            ],
+        });
+        let buffers = [
+            &params, mechanical, &corners, &weights, positions, &offsets, &adjacency, &triangles,
+            normals,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("embed"),
+            layout: &layout,
+            entries: &entries,
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("embed"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = Shader::Embed.module(device);
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Embed {
+            embed: pipeline("embed"),
+            normals: pipeline("embed_normals"),
+            bind_group,
+            vertex_count,
+        }
     }
 }
 

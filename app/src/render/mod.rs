@@ -94,9 +94,12 @@ pub struct FrameInput<'a> {
 pub struct Renderer {
     pub deform: Deform,
     palpable: wgpu::Buffer,
-    /// The scene's own palpable flags, and the region generation the buffer holds
-    /// (0: those flags).
+    /// The scene's own palpable flags per drawn vertex, and the region generation the
+    /// buffer holds (0: those flags).
     palpable_rest: Vec<f32>,
+    /// The drawn surface (to carry painted regions onto it) and scratch for them.
+    visual: palpa_core::visual::VisualSurface,
+    palpable_drawn: Vec<f32>,
     regions_generation: u64,
     indices: wgpu::Buffer,
     index_count: u32,
@@ -118,11 +121,14 @@ pub struct Renderer {
 impl Renderer {
     pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, scene: &PalpationScene) -> Self {
         let deform = Deform::new(device, scene);
-        let palpable: Vec<f32> = scene
+        let flags: Vec<f32> = scene
             .palpable_vertices()
             .iter()
             .map(|&p| f32::from(u8::from(p)))
             .collect();
+        let visual = scene.visual().clone();
+        let mut palpable = vec![0.0; visual.rest_mm.len()];
+        visual.interpolate(&flags, &mut palpable);
         let palpable_rest = palpable.clone();
         let palpable = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("palpable flags"),
@@ -130,8 +136,8 @@ impl Renderer {
             usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
         });
         let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("surface triangles"),
-            contents: bytemuck::cast_slice(scene.triangles()),
+            label: Some("drawn triangles"),
+            contents: bytemuck::cast_slice(&visual.triangles),
             usage: wgpu::BufferUsages::INDEX,
         });
         let frame = device.create_buffer(&wgpu::BufferDescriptor {
@@ -185,9 +191,11 @@ impl Renderer {
             deform,
             palpable,
             palpable_rest,
+            palpable_drawn: vec![0.0; visual.rest_mm.len()],
+            index_count: 3 * visual.triangles.len() as u32,
+            visual,
             regions_generation: 0,
             indices,
-            index_count: 3 * scene.triangles().len() as u32,
             frame,
             frame_group,
             objects,
@@ -248,7 +256,12 @@ impl Renderer {
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
         match input.regions {
             Some((values, generation)) if generation != self.regions_generation => {
-                queue.write_buffer(&self.palpable, 0, bytemuck::cast_slice(values));
+                self.visual.interpolate(values, &mut self.palpable_drawn);
+                queue.write_buffer(
+                    &self.palpable,
+                    0,
+                    bytemuck::cast_slice(&self.palpable_drawn),
+                );
                 self.regions_generation = generation;
             }
             None if self.regions_generation != 0 => {

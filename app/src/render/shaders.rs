@@ -8,6 +8,7 @@ const RAMP: &str = include_str!("../../../shaders/ramp.wgsl");
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Shader {
     Deform,
+    Embed,
     Surface,
     Ground,
     Solid,
@@ -15,8 +16,9 @@ pub enum Shader {
 }
 
 impl Shader {
-    pub const ALL: [Shader; 5] = [
+    pub const ALL: [Shader; 6] = [
         Shader::Deform,
+        Shader::Embed,
         Shader::Surface,
         Shader::Ground,
         Shader::Solid,
@@ -26,6 +28,7 @@ impl Shader {
     pub fn name(self) -> &'static str {
         match self {
             Shader::Deform => "deform.wgsl",
+            Shader::Embed => "embed.wgsl",
             Shader::Surface => "surface.wgsl",
             Shader::Ground => "ground.wgsl",
             Shader::Solid => "solid.wgsl",
@@ -37,6 +40,7 @@ impl Shader {
     pub fn source(self) -> String {
         match self {
             Shader::Deform => include_str!("../../../shaders/deform.wgsl").to_string(),
+            Shader::Embed => include_str!("../../../shaders/embed.wgsl").to_string(),
             Shader::Surface => format!(
                 "{FRAME}\n{RAMP}\n{}",
                 include_str!("../../../shaders/surface.wgsl")

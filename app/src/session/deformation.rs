@@ -28,11 +28,14 @@ pub struct Deformation {
     near_rows: Vec<f64>,
     near_gpu: Vec<[f32; 4]>,
     deformed_valid: bool,
-    /// The CPU-deformed surface as the GPU's vertex buffers hold it, and the normals'
-    /// sums in double precision.
+    /// The CPU-deformed render surface (xyz, |u|), and the drawn surface carried on
+    /// it as the GPU's vertex buffers hold it, with its normals' sums.
+    cpu_mechanical: Vec<Vec4Data>,
+    /// The drawn surface's positions for picking.
+    drawn_mm: Vec<[f32; 3]>,
     cpu_positions: Vec<Vec4Data>,
     cpu_normals: Vec<Vec4Data>,
-    normal_sums: Vec<[f64; 3]>,
+    normal_sums: Vec<[f32; 3]>,
     /// The hyperelastic vademecum's residual surface, if the scene has one.
     tissue: Option<(Arc<Tissue>, TissueScratch)>,
 }
@@ -56,9 +59,11 @@ impl Deformation {
             near_rows: vec![0.0; rows],
             near_gpu: vec![[0.0; 4]; rows / 3],
             deformed_valid: true,
-            cpu_positions: vec![[0.0; 4]; rows / 3],
-            cpu_normals: vec![[0.0; 4]; rows / 3],
-            normal_sums: vec![[0.0; 3]; rows / 3],
+            cpu_mechanical: vec![[0.0; 4]; rows / 3],
+            drawn_mm: scene.visual().rest_mm.clone(),
+            cpu_positions: vec![[0.0; 4]; scene.visual().rest_mm.len()],
+            cpu_normals: vec![[0.0; 4]; scene.visual().rest_mm.len()],
+            normal_sums: vec![[0.0; 3]; scene.visual().rest_mm.len()],
         }
     }
 
@@ -129,9 +134,27 @@ impl Deformation {
         }
     }
 
-    /// The CPU-deformed surface as last computed (may lag the last evaluation).
-    pub fn last_deformed_mm(&self) -> &[[f32; 3]] {
-        &self.deformed_mm
+    /// The drawn surface carried on the CPU-deformed render surface as last computed
+    /// (what picking hits: the surface as drawn).
+    pub fn drawn_mm(&mut self, scene: &PalpationScene) -> &[[f32; 3]] {
+        for (m, d) in self.cpu_mechanical.iter_mut().zip(&self.deformed_mm) {
+            *m = [d[0], d[1], d[2], 0.0];
+        }
+        scene.visual().deform(
+            &self.cpu_mechanical,
+            &mut self.cpu_positions,
+            &mut self.cpu_normals,
+            &mut self.normal_sums,
+        );
+        for (o, p) in self.drawn_mm.iter_mut().zip(&self.cpu_positions) {
+            *o = [p[0], p[1], p[2]];
+        }
+        &self.drawn_mm
+    }
+
+    /// The drawn surface [`Self::drawn_mm`] last computed.
+    pub fn last_drawn_mm(&self) -> &[[f32; 3]] {
+        &self.drawn_mm
     }
 
     /// The CPU-deformed surface for the last evaluation (the GPU path's reference, and
@@ -157,14 +180,15 @@ impl Deformation {
         &self.deformed_mm
     }
 
-    /// The surface of the last evaluation deformed on the CPU, as the compute passes
-    /// would leave it: positions with `|u|` (in double precision, then rounded) and
-    /// area-weighted unit normals (`+z` where the triangles' areas cancel, as on the
-    /// GPU).
+    /// The drawn surface of the last evaluation deformed on the CPU, as the compute
+    /// passes would leave it: the render surface's positions with `|u|` (in double
+    /// precision, then rounded), the drawn surface carried on them
+    /// ([`palpa_core::visual::VisualSurface::deform`]) with area-weighted unit normals
+    /// (`+z` where the triangles' areas cancel, as on the GPU).
     pub fn cpu_surface(&mut self, scene: &PalpationScene) -> CpuSurface<'_> {
         self.deformed_mm(scene);
         for (i, (p, d)) in self
-            .cpu_positions
+            .cpu_mechanical
             .iter_mut()
             .zip(&self.deformed_mm)
             .enumerate()
@@ -175,18 +199,12 @@ impl Deformation {
                 .sqrt();
             *p = [d[0], d[1], d[2], u as f32];
         }
-        palpa_core::mesh::vertex_normals_into(
-            &self.deformed_mm,
-            scene.triangles(),
+        scene.visual().deform(
+            &self.cpu_mechanical,
+            &mut self.cpu_positions,
+            &mut self.cpu_normals,
             &mut self.normal_sums,
         );
-        for (n, s) in self.cpu_normals.iter_mut().zip(&self.normal_sums) {
-            *n = if *s == [0.0; 3] {
-                [0.0, 0.0, 1.0, 0.0]
-            } else {
-                [s[0] as f32, s[1] as f32, s[2] as f32, 0.0]
-            };
-        }
         self.last_cpu_surface()
     }
 

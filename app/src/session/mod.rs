@@ -277,8 +277,9 @@ impl Session {
             _ => return false,
         };
         let ray = self.controls.camera.ray(pos, viewport_px);
-        let shown = self.deformation.last_deformed_mm();
-        let hit = crate::pick::intersect(&ray, shown, self.scene.triangles());
+        let visual = self.scene.visual();
+        let shown = self.deformation.last_drawn_mm();
+        let hit = crate::pick::intersect(&ray, shown, &visual.triangles);
         if starts {
             // A press off the organ orbits, as it does outside the region mode.
             if hit.is_none() {
@@ -289,13 +290,7 @@ impl Session {
         if let Some((t, bary, _)) = hit {
             // Paint at the rest position of the point hit (the brush works on rest
             // centroids, which is what a region file stores).
-            let rest = self.scene.vertices_mm();
-            let tri = self.scene.triangles()[t as usize];
-            let at = [0, 1, 2].map(|d| {
-                (0..3)
-                    .map(|k| bary[k] as f32 * rest[tri[k] as usize][d])
-                    .sum::<f32>()
-            });
+            let at = visual.rest_point(t, bary).map(|c| c as f32);
             painter.paint(at);
         }
         true
@@ -320,17 +315,18 @@ impl Session {
         );
         // Only a new press picks against the current shape; other events read the
         // last surface computed (no reconstruction per pointer move).
-        let deformed_mm = if needs_pick {
-            self.deformation.deformed_mm(&self.scene)
+        let drawn_mm = if needs_pick {
+            self.deformation.deformed_mm(&self.scene);
+            self.deformation.drawn_mm(&self.scene)
         } else {
-            self.deformation.last_deformed_mm()
+            self.deformation.last_drawn_mm()
         };
         let camera = self.controls.camera;
         let picker = ScenePicker {
             scene: &self.scene,
             camera: &camera,
             viewport_px,
-            deformed_mm,
+            drawn_mm,
         };
         self.controls.handle(ev, &picker, viewport_px);
     }

@@ -59,6 +59,7 @@ struct Row {
     /// Largest angle between their normals, degrees.
     gpu_vs_cpu_normal_deg: f64,
     vertices: u32,
+    drawn_vertices: u32,
     adapter: String,
     device_type: String,
 }
@@ -96,10 +97,12 @@ pub fn run(args: &DeformBenchArgs) -> anyhow::Result<()> {
     settle(&session, Duration::from_secs(2));
     let adapter = gpu.report();
     let vertices = deform.vertex_count();
+    let drawn = deform.drawn_vertex_count();
     if !args.json {
         println!(
-            "{} vertices pressed {} mm on {} ({}, {}); {} frames each, medians",
+            "{} vertices ({} drawn) pressed {} mm on {} ({}, {}); {} frames each, medians",
             vertices,
+            drawn,
             args.depth_mm,
             adapter.name,
             adapter.backend,
@@ -121,7 +124,7 @@ pub fn run(args: &DeformBenchArgs) -> anyhow::Result<()> {
                 time_frames(&gpu, &deform, &mut session, args.frames)?;
             let upload_bytes = match path {
                 DeformOn::Gpu => MAX_GPU_MODES * 4 + 16 + vertices as usize * 16,
-                DeformOn::Cpu => vertices as usize * 32,
+                DeformOn::Cpu => drawn as usize * 32,
             };
             rows.push(Row {
                 modes: n,
@@ -133,6 +136,7 @@ pub fn run(args: &DeformBenchArgs) -> anyhow::Result<()> {
                 gpu_vs_cpu_mm,
                 gpu_vs_cpu_normal_deg: normal_deg,
                 vertices,
+                drawn_vertices: drawn,
                 adapter: adapter.name.clone(),
                 device_type: adapter.device_type.clone(),
             });
