@@ -12,6 +12,8 @@ struct Frame {
     colormap: vec4<f32>,
     // xyz: ground centre (mm).
     center: vec4<f32>,
+    // xyz: where the tool touches (mm), w: its radius (mm; 0 without a tool).
+    tool: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;

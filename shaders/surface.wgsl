@@ -1,6 +1,11 @@
 // The organ surface: lit with normals recomputed from the deformed positions every
-// frame (deform.wgsl), optionally coloured by displacement magnitude; and its planar
+// frame (embed.wgsl), optionally coloured by displacement magnitude; and its planar
 // shadow on the ground (drawn once per pixel through the stencil).
+//
+// Wet soft tissue: a soft diffuse that wraps past the terminator with a red tint (light
+// scattered under the surface), a sharp specular highlight weighted by Fresnel (the
+// wet film) over a broad faint sheen, and a darkening about the tool where it presses
+// (the contact's occlusion).
 
 struct VertexIn {
     // xyz: deformed position (mm), w: |u| (mm).
@@ -50,12 +55,26 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
             base = vec3<f32>(0.04, 0.10, 0.38);
         }
     }
-    // Sky/ground hemisphere ambient, Lambert diffuse, Blinn-Phong wet-tissue highlight.
+    // Sky/ground hemisphere ambient; wrapped diffuse with a red scattering tint.
     let ambient = mix(vec3<f32>(0.12, 0.11, 0.10), vec3<f32>(0.30, 0.32, 0.36), 0.5 + 0.5 * n.z);
-    let diffuse = max(dot(n, l), 0.0);
-    let specular = pow(max(dot(n, h), 0.0), 48.0) * 0.25;
-    let rim = pow(1.0 - max(dot(n, v), 0.0), 3.0) * 0.06;
-    let color = base * (ambient + 0.85 * diffuse) + vec3<f32>(specular + rim);
+    let nl = dot(n, l);
+    let wrap = 0.35;
+    let diffuse = max((nl + wrap) / (1.0 + wrap), 0.0);
+    let scatter = vec3<f32>(0.55, 0.12, 0.08) * (diffuse - max(nl, 0.0));
+    // Contact occlusion: up to 45 % darker within about two tool radii of the contact.
+    var occlusion = 1.0;
+    if (frame.tool.w > 0.0) {
+        let d = length(in.world - frame.tool.xyz) / (2.0 * frame.tool.w);
+        occlusion = 1.0 - 0.45 * exp(-d * d);
+    }
+    // Schlick's Fresnel for a water film (F0 = 0.02), a sharp highlight and a sheen.
+    let nv = max(dot(n, v), 0.0);
+    let fresnel = 0.02 + 0.98 * pow(1.0 - nv, 5.0);
+    let nh = max(dot(n, h), 0.0);
+    let specular = (pow(nh, 220.0) * 0.9 + pow(nh, 24.0) * 0.05) * (0.35 + fresnel) * step(0.0, nl);
+    let rim = fresnel * 0.08;
+    let color = occlusion * (base * (ambient + 0.85 * diffuse) + base * scatter)
+        + vec3<f32>(occlusion * specular + rim);
     return vec4<f32>(color, 1.0);
 }
 

@@ -64,6 +64,8 @@ impl DeformOn {
 pub struct CpuSurface<'a> {
     pub positions: &'a [Vec4Data],
     pub normals: &'a [Vec4Data],
+    /// The render surface it is carried on (xyz, |u|), for the shadow.
+    pub mechanical: &'a [Vec4Data],
 }
 
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
@@ -101,7 +103,7 @@ pub struct Deform {
     near: wgpu::Buffer,
     /// Deformed positions of the mechanical render surface (xyz, |u|), one vec4 per
     /// render vertex.
-    mechanical: wgpu::Buffer,
+    pub mechanical: wgpu::Buffer,
     /// The drawn surface's deformed positions (xyz, |u|), one vec4 per drawn vertex:
     /// compute output, vertex input.
     pub positions: wgpu::Buffer,
@@ -308,6 +310,9 @@ impl Deform {
         let q = &surface.normals[..surface.normals.len().min(n)];
         queue.write_buffer(&self.positions, 0, bytemuck::cast_slice(p));
         queue.write_buffer(&self.normals, 0, bytemuck::cast_slice(q));
+        let m = self.vertex_count as usize;
+        let r = &surface.mechanical[..surface.mechanical.len().min(m)];
+        queue.write_buffer(&self.mechanical, 0, bytemuck::cast_slice(r));
     }
 
     /// Records the compute passes: the mechanical surface, then the drawn one.

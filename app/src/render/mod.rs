@@ -43,6 +43,7 @@ struct FrameUniform {
     ground: [f32; 4],
     colormap: [f32; 4],
     center: [f32; 4],
+    tool: [f32; 4],
 }
 
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
@@ -103,6 +104,10 @@ pub struct Renderer {
     regions_generation: u64,
     indices: wgpu::Buffer,
     index_count: u32,
+    /// The render surface's triangles: its shadow (the drawn surface's would cost as
+    /// much as drawing it, for a shadow no one tells apart).
+    shadow_indices: wgpu::Buffer,
+    shadow_index_count: u32,
     frame: wgpu::Buffer,
     frame_group: wgpu::BindGroup,
     objects: wgpu::Buffer,
@@ -138,6 +143,11 @@ impl Renderer {
         let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("drawn triangles"),
             contents: bytemuck::cast_slice(&visual.triangles),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        let shadow_indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("render surface triangles"),
+            contents: bytemuck::cast_slice(scene.triangles()),
             usage: wgpu::BufferUsages::INDEX,
         });
         let frame = device.create_buffer(&wgpu::BufferDescriptor {
@@ -196,6 +206,8 @@ impl Renderer {
             visual,
             regions_generation: 0,
             indices,
+            shadow_index_count: 3 * scene.triangles().len() as u32,
+            shadow_indices,
             frame,
             frame_group,
             objects,
@@ -252,6 +264,10 @@ impl Renderer {
                 0.0,
             ],
             center: center.extend(0.0).to_array(),
+            tool: input
+                .probe
+                .as_ref()
+                .map_or([0.0; 4], |p| p.tip_mm.extend(p.radius_mm).to_array()),
         };
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
         match input.regions {
@@ -310,12 +326,14 @@ impl Renderer {
         pass.draw(0..6, 0..1);
 
         pass.set_pipeline(&self.shadow);
-        pass.set_vertex_buffer(0, self.deform.positions.slice(..));
-        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.set_vertex_buffer(0, self.deform.mechanical.slice(..));
+        pass.set_index_buffer(self.shadow_indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.set_stencil_reference(0);
-        pass.draw_indexed(0..self.index_count, 0, 0..1);
+        pass.draw_indexed(0..self.shadow_index_count, 0, 0..1);
 
         pass.set_pipeline(&self.surface);
+        pass.set_vertex_buffer(0, self.deform.positions.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.set_vertex_buffer(1, self.deform.normals.slice(..));
         pass.set_vertex_buffer(2, self.palpable.slice(..));
         pass.draw_indexed(0..self.index_count, 0, 0..1);

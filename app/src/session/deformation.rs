@@ -213,6 +213,7 @@ impl Deformation {
         CpuSurface {
             positions: &self.cpu_positions,
             normals: &self.cpu_normals,
+            mechanical: &self.cpu_mechanical,
         }
     }
 }
