@@ -53,7 +53,7 @@ fn the_drawn_surface_rests_exactly_and_follows_the_fe_when_pressed() {
         .iter()
         .map(|p| [p[0], p[1], p[2], 0.0])
         .collect();
-    let at_rest = deform(&vis, &rest);
+    let at_rest = deform(vis, &rest);
     let rest_err = at_rest
         .iter()
         .zip(&vis.rest_mm)
@@ -102,7 +102,7 @@ fn the_drawn_surface_rests_exactly_and_follows_the_fe_when_pressed() {
             ]
         })
         .collect();
-    let drawn = deform(&vis, &pressed);
+    let drawn = deform(vis, &pressed);
 
     // The FE's P2 field at each visual vertex: the tetrahedron holding it (or, for a
     // vertex just outside the mesh, the one it is least outside of), by buckets.
@@ -178,7 +178,7 @@ fn the_drawn_surface_rests_exactly_and_follows_the_fe_when_pressed() {
         .fold(0.0f32, f32::max);
     let t0 = std::time::Instant::now();
     for _ in 0..20 {
-        std::hint::black_box(deform(&vis, std::hint::black_box(&pressed)));
+        std::hint::black_box(deform(vis, std::hint::black_box(&pressed)));
     }
     let frame_ms = t0.elapsed().as_secs_f64() * 1e3 / 20.0;
     eprintln!(
