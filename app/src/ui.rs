@@ -217,56 +217,14 @@ fn depth_curve(
 }
 
 fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
-    let n_all = session.scene.modes() as u32;
-    ui.heading("Accuracy");
-    ui.add(egui::Slider::new(&mut session.controls.modes, 1..=n_all).text("modes kept"));
-    match tradeoff_for(session.scene.tradeoff(), session.controls.modes) {
-        Some(r) => {
-            match (r.compliance_rel_error, r.surface_max_nodal_error_mm) {
-                (Some(c), Some(mm)) => ui.label(format!(
-                    "expected error (held-out, {} modes): surface {:.1}% (max {:.2} mm/N), \
-                     force {:.1}%",
-                    r.modes,
-                    100.0 * r.surface_rel_error,
-                    mm,
-                    100.0 * c
-                )),
-                _ => ui.label(format!(
-                    "expected error (measured at {} modes): surface {:.1}%, probe {:.1}%",
-                    r.modes,
-                    100.0 * r.surface_rel_error,
-                    100.0 * r.probe_rel_error
-                )),
-            };
-            ui.label(format!(
-                "expected time: surface {:.0} µs, contact {:.0} ns",
-                r.surface_eval_us, r.contact_eval_ns
-            ));
-        }
-        None => {
-            ui.label("this file has no tradeoff table (run palpa tradeoff FILE)");
-        }
-    }
-    if session.law.is_some() {
-        ui.label(crate::session::tissue_accuracy_text(session.goals_to_mm));
-    }
-    ui.separator();
-
-    ui.heading("Probe");
-    match &session.law {
-        Some(law) => ui.label(format!(
-            "tissue: {} (E {:.0} kPa, ν {}), force and surface to {:.0} mm from {} presses",
-            law.law().name(),
-            law.material().young_kpa,
-            law.material().poisson,
-            law.depth_max_mm(),
-            law.samples()
-        )),
-        None => ui.label("tissue: linear elastic (force proportional to depth)"),
-    };
+    ui.heading("Press");
     ui.horizontal(|ui| {
-        ui.radio_value(&mut session.controls.mode, PressMode::Depth, "depth (drag)");
-        ui.radio_value(&mut session.controls.mode, PressMode::Force, "force");
+        ui.radio_value(
+            &mut session.controls.mode,
+            PressMode::Depth,
+            "to a depth (drag)",
+        );
+        ui.radio_value(&mut session.controls.mode, PressMode::Force, "with a force");
     });
     if session.controls.mode == PressMode::Force {
         let max = session.controls.mapping.max_force_n;
@@ -276,8 +234,8 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     let s = session.sample;
     if s.status() == crate::force::SampleStatus::Ok {
         ui.label(format!(
-            "force {:.2} N · depth {:.2} mm · compliance {:.3} mm/N",
-            s.magnitude_n, s.depth_mm, s.compliance_mm_per_n
+            "{:.2} N at {:.1} mm deep",
+            s.magnitude_n, s.depth_mm
         ));
         if s.beyond_law != 0 {
             let text = match session.law.as_ref().map(|l| l.limit_mm(&s.command.point())) {
@@ -302,23 +260,22 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
             );
         }
         if let Some(law) = &session.law {
-            blend_surplus(ui, session);
             depth_curve(ui, law, &s);
         }
     } else if s.status() == crate::force::SampleStatus::Failed {
         ui.colored_label(
             Color32::from_rgb(255, 120, 90),
-            "no force: too few modes for a positive compliance here",
+            "no force here: keep more modes (details)",
         );
     } else {
-        ui.label("probe lifted");
+        ui.label("not pressing: touch or click the organ");
     }
     force_plot(ui, session);
     ui.separator();
 
     ui.heading("View");
     let mut on = session.colormap_mm.is_some();
-    ui.checkbox(&mut on, "colour by displacement");
+    ui.checkbox(&mut on, "colour by how far the tissue moved");
     if on {
         let mut top = session.colormap_mm.unwrap_or(10.0);
         ui.add(
@@ -333,32 +290,9 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     }
     ui.separator();
 
-    ui.heading("Live");
-    let st = session.force.stats();
-    ui.label(format!(
-        "frame {:.1} ms (p95 {:.1}) · render eval {:.1} µs{}",
-        hud.frame_ms.quantile(0.5),
-        hud.frame_ms.quantile(0.95),
-        session.render_eval_us.quantile(0.5),
-        match session.deform_on {
-            DeformOn::Gpu => "",
-            DeformOn::Cpu => " (surface on the CPU)",
-        }
-    ));
-    ui.label(format!(
-        "force loop {:.1} Hz · p99 period {:.0} µs · missed {} · contact {:.2} µs ({})",
-        st.rate_hz,
-        st.period_us_p99,
-        st.missed_deadlines,
-        st.eval_us_p50,
-        st.priority().name()
-    ));
-    ui.label(match &hud.gamepad {
-        Some(name) => format!("gamepad: {name}"),
-        None => "gamepad: none found".into(),
-    });
-    ui.separator();
-
+    egui::CollapsingHeader::new("Details")
+        .id_salt("details")
+        .show(ui, |ui| details(ui, session, hud));
     ui.collapsing("Scene", |ui| {
         scene_switcher(ui, hud);
         let m = session.scene.model();
@@ -392,6 +326,91 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     if let Some(p) = &hud.last_screenshot {
         ui.label(format!("saved {p}"));
     }
+}
+
+/// What the panel folds away: the model's knobs, its measured accuracy, where each
+/// figure was measured, the tissue's make-up and this device's loops.
+fn details(ui: &mut egui::Ui, session: &mut Session, hud: &Hud) {
+    let n_all = session.scene.modes() as u32;
+    ui.add(
+        egui::Slider::new(&mut session.controls.modes, 1..=n_all)
+            .text("modes kept (fewer: faster, coarser)"),
+    );
+    ui.label("Measured when the scene was built, at points it never saw:");
+    match tradeoff_for(session.scene.tradeoff(), session.controls.modes) {
+        Some(r) => {
+            match (r.compliance_rel_error, r.surface_max_nodal_error_mm) {
+                (Some(c), Some(mm)) => ui.label(format!(
+                    "linear model, {} modes: surface within {:.1} % (at most {:.2} mm per N), \
+                     force within {:.1} %",
+                    r.modes,
+                    100.0 * r.surface_rel_error,
+                    mm,
+                    100.0 * c
+                )),
+                _ => ui.label(format!(
+                    "linear model, {} modes: surface within {:.1} %, probe within {:.1} %",
+                    r.modes,
+                    100.0 * r.surface_rel_error,
+                    100.0 * r.probe_rel_error
+                )),
+            };
+            ui.label(format!(
+                "on the machine that built it: surface {:.0} µs, force {:.0} ns a step",
+                r.surface_eval_us, r.contact_eval_ns
+            ));
+        }
+        None => {
+            ui.label("this file has no accuracy table (palpa tradeoff FILE measures it)");
+        }
+    }
+    if let Some(law) = &session.law {
+        ui.label(crate::session::tissue_accuracy_text(session.goals_to_mm));
+        ui.label(format!(
+            "tissue: {} (E {:.0} kPa, ν {}), pressed to {:.0} mm at {} points",
+            law.law().name(),
+            law.material().young_kpa,
+            law.material().poisson,
+            law.depth_max_mm(),
+            law.samples()
+        ));
+    } else {
+        ui.label("tissue: linear elastic (force proportional to depth)");
+    }
+    let s = session.sample;
+    if s.status() == crate::force::SampleStatus::Ok {
+        ui.label(format!(
+            "compliance here {:.3} mm per N",
+            s.compliance_mm_per_n
+        ));
+        if session.law.is_some() {
+            blend_surplus(ui, session);
+        }
+    }
+    ui.label("Measured on this device:");
+    let st = session.force.stats();
+    ui.label(format!(
+        "frame {:.1} ms (p95 {:.1}) · surface {:.1} µs{}",
+        hud.frame_ms.quantile(0.5),
+        hud.frame_ms.quantile(0.95),
+        session.render_eval_us.quantile(0.5),
+        match session.deform_on {
+            DeformOn::Gpu => "",
+            DeformOn::Cpu => " (on the CPU)",
+        }
+    ));
+    ui.label(format!(
+        "force loop {:.1} Hz · p99 period {:.0} µs · missed {} · force {:.2} µs a step ({})",
+        st.rate_hz,
+        st.period_us_p99,
+        st.missed_deadlines,
+        st.eval_us_p50,
+        st.priority().name()
+    ));
+    ui.label(match &hud.gamepad {
+        Some(name) => format!("gamepad: {name}"),
+        None => "gamepad: none found".into(),
+    });
 }
 
 /// Where a scene's painted regions are saved: `X.regions.toml` beside a scene file

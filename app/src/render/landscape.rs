@@ -28,43 +28,86 @@ struct ViewUniform {
     light_dir: [f32; 4],
 }
 
-/// The mesh of one window: vertices at the cells, two triangles per quad.
+/// Vertices a side of the landscape's mesh aims at, at most: each cell is cut into an
+/// even number of samples (at least two, at most eight) so that a peak one cell wide
+/// reads as a bump rather than a spike.
+const SAMPLES_PER_SIDE: usize = 96;
+
+/// Catmull–Rom weights of the four neighbours for a fraction `t` past the second.
+fn catmull_rom(t: f32) -> [f32; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        0.5 * (-t3 + 2.0 * t2 - t),
+        0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+        0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+        0.5 * (t3 - t2),
+    ]
+}
+
+/// The mesh of one window. Each cell (one copy number of each species) is a square
+/// bin of the base; the height field passes through the cells' values at their centres
+/// and is interpolated between them by Catmull–Rom splines (clamped to the window's
+/// range), held flat from the outermost centres to the base's edges: so a ridge along
+/// the base's edge (one species at zero copies) is drawn as a ridge, not as a row of
+/// spikes, and the mesh is fine enough to show it.
 fn mesh(w: &JointWindow) -> (Vec<Vertex>, Vec<u32>) {
-    let (nx, ny) = (w.nx.max(2), w.ny.max(2));
-    let value = |x: usize, y: usize| -> f32 {
-        let (x, y) = (x.min(w.nx - 1), y.min(w.ny - 1));
+    let (nx, ny) = (w.nx.max(1), w.ny.max(1));
+    let k = ((SAMPLES_PER_SIDE / nx.max(ny)) & !1).clamp(2, 8);
+    let (mx, my) = (nx * k + 1, ny * k + 1);
+    let cell = |x: i64, y: i64| -> f32 {
+        let (x, y) = (x.clamp(0, w.nx as i64 - 1), y.clamp(0, w.ny as i64 - 1));
         if w.peak > 0.0 {
-            (w.cells[y * w.nx + x] / w.peak) as f32
+            (w.cells[y as usize * w.nx + x as usize] / w.peak) as f32
         } else {
             0.0
         }
     };
+    // The value at base coordinates (u, v) in cells, centres at i + ½.
+    let value = |u: f32, v: f32| -> f32 {
+        let (cu, cv) = (
+            (u - 0.5).clamp(0.0, (nx - 1) as f32),
+            (v - 0.5).clamp(0.0, (ny - 1) as f32),
+        );
+        let (iu, iv) = (cu.floor(), cv.floor());
+        let (wu, wv) = (catmull_rom(cu - iu), catmull_rom(cv - iv));
+        let mut s = 0.0;
+        for (b, wb) in wv.iter().enumerate() {
+            for (a, wa) in wu.iter().enumerate() {
+                s += wa * wb * cell(iu as i64 + a as i64 - 1, iv as i64 + b as i64 - 1);
+            }
+        }
+        s.clamp(0.0, 1.0)
+    };
     let (dx, dy) = (
-        LANDSCAPE_SIDE / (nx - 1) as f32,
-        LANDSCAPE_SIDE / (ny - 1) as f32,
+        LANDSCAPE_SIDE / (mx - 1) as f32,
+        LANDSCAPE_SIDE / (my - 1) as f32,
     );
-    let mut vertices = Vec::with_capacity(nx * ny);
-    for y in 0..ny {
-        for x in 0..nx {
-            let h = |x: usize, y: usize| LANDSCAPE_HEIGHT * value(x, y);
+    let heights: Vec<f32> = (0..my)
+        .flat_map(|y| (0..mx).map(move |x| (x, y)))
+        .map(|(x, y)| value(x as f32 / k as f32, y as f32 / k as f32))
+        .collect();
+    let h = |x: usize, y: usize| LANDSCAPE_HEIGHT * heights[y * mx + x];
+    let mut vertices = Vec::with_capacity(mx * my);
+    for y in 0..my {
+        for x in 0..mx {
             // Central differences of the height (one-sided at the edges).
-            let (xl, xr) = (x.saturating_sub(1), (x + 1).min(nx - 1));
-            let (yl, yr) = (y.saturating_sub(1), (y + 1).min(ny - 1));
+            let (xl, xr) = (x.saturating_sub(1), (x + 1).min(mx - 1));
+            let (yl, yr) = (y.saturating_sub(1), (y + 1).min(my - 1));
             let gx = (h(xr, y) - h(xl, y)) / (dx * (xr - xl).max(1) as f32);
             let gy = (h(x, yr) - h(x, yl)) / (dy * (yr - yl).max(1) as f32);
             let n = Vec3::new(-gx, -gy, 1.0).normalize();
             vertices.push(Vertex {
                 position: [x as f32 * dx, y as f32 * dy, h(x, y)],
                 normal: n.to_array(),
-                value: value(x, y),
+                value: heights[y * mx + x],
             });
         }
     }
-    let mut indices = Vec::with_capacity(6 * (nx - 1) * (ny - 1));
-    for y in 0..ny - 1 {
-        for x in 0..nx - 1 {
-            let i = (y * nx + x) as u32;
-            let j = i + nx as u32;
+    let mut indices = Vec::with_capacity(6 * (mx - 1) * (my - 1));
+    for y in 0..my - 1 {
+        for x in 0..mx - 1 {
+            let i = (y * mx + x) as u32;
+            let j = i + mx as u32;
             indices.extend_from_slice(&[i, i + 1, j + 1, i, j + 1, j]);
         }
     }
@@ -250,14 +293,9 @@ impl Landscape {
 mod tests {
     use super::*;
 
-    /// A single peak: the mesh covers the base, its top is the peak's cell at full
-    /// height, normals point up on a flat rim, and every triangle indexes the grid.
-    #[test]
-    fn the_mesh_puts_the_peak_on_top() {
-        let (nx, ny) = (5, 4);
-        let mut cells = vec![0.0; nx * ny];
-        cells[2 * nx + 3] = 0.2;
-        let w = JointWindow {
+    fn window(nx: usize, ny: usize, cells: Vec<f64>) -> JointWindow {
+        let peak = cells.iter().copied().fold(0.0, f64::max);
+        JointWindow {
             a0: 0,
             b0: 0,
             wa: nx,
@@ -265,11 +303,20 @@ mod tests {
             nx,
             ny,
             cells,
-            peak: 0.2,
-        };
-        let (v, i) = mesh(&w);
-        assert_eq!(v.len(), nx * ny);
-        assert_eq!(i.len(), 6 * (nx - 1) * (ny - 1));
+            peak,
+        }
+    }
+
+    /// A single peak: the mesh covers the base, its top is the peak's cell centre at
+    /// full height, normals point up on a flat rim, and every triangle indexes the grid.
+    #[test]
+    fn the_mesh_puts_the_peak_on_top() {
+        let (nx, ny) = (5, 4);
+        let mut cells = vec![0.0; nx * ny];
+        cells[2 * nx + 3] = 0.2;
+        let (v, i) = mesh(&window(nx, ny, cells));
+        let k = 8;
+        assert_eq!(v.len(), (nx * k + 1) * (ny * k + 1));
         assert!(i.iter().all(|&k| (k as usize) < v.len()));
         let top = v
             .iter()
@@ -277,11 +324,45 @@ mod tests {
             .expect("vertices");
         assert_eq!(top.position[2], LANDSCAPE_HEIGHT);
         assert_eq!(top.value, 1.0);
-        assert!((top.position[0] - 3.0 * LANDSCAPE_SIDE / 4.0).abs() < 1e-4);
+        assert!((top.position[0] - 3.5 * LANDSCAPE_SIDE / nx as f32).abs() < 1e-3);
+        assert!((top.position[1] - 2.5 * LANDSCAPE_SIDE / ny as f32).abs() < 1e-3);
         assert_eq!(v[0].normal, [0.0, 0.0, 1.0]);
         assert!(
             v.iter()
                 .all(|p| (0.0..=LANDSCAPE_SIDE).contains(&p.position[1]))
         );
+        // A bump, not a spike: the height falls off over about a cell, and half a cell
+        // from the top it is still more than half the peak.
+        let half = v
+            .iter()
+            .filter(|p| {
+                (p.position[1] - top.position[1]).abs() < 1e-3
+                    && (p.position[0] - (top.position[0] + 0.5 * LANDSCAPE_SIDE / nx as f32)).abs()
+                        < 1e-3
+            })
+            .map(|p| p.value)
+            .next()
+            .expect("a vertex half a cell off");
+        assert!(half > 0.5, "{half}");
+    }
+
+    /// A ridge along an edge of the base (the first species at zero copies, as the
+    /// toggle switch has): drawn at full height all along, flat to the edge, never a
+    /// row of spikes.
+    #[test]
+    fn a_ridge_along_an_axis_is_drawn_as_a_ridge() {
+        let (nx, ny) = (12, 30);
+        let mut cells = vec![0.0; nx * ny];
+        for y in 0..ny {
+            cells[y * nx] = 0.05;
+        }
+        let (v, _) = mesh(&window(nx, ny, cells));
+        let edge: Vec<f32> = v
+            .iter()
+            .filter(|p| p.position[0] < 0.5 * LANDSCAPE_SIDE / nx as f32 - 1e-3)
+            .map(|p| p.value)
+            .collect();
+        assert!(!edge.is_empty());
+        assert!(edge.iter().all(|&h| h == 1.0), "{edge:?}");
     }
 }

@@ -91,14 +91,13 @@ pub fn blend_surplus_text(eta_mm: f64) -> String {
 /// the scene's linear vademecum against the linear FE, which a tissue answer builds on
 /// but which does not measure it; this line says what does.
 pub fn tissue_accuracy_text(goals: Option<GoalDepths>) -> String {
-    let knob = "the line above is its linear part";
     match goals {
         Some(g) => format!(
-            "tissue: within 0.5 mm and 5 % of the nonlinear FE to {:.1} mm deep (force to \
-             {:.1} mm); {knob}",
+            "nonlinear tissue: surface within 0.5 mm and force within 5 % of the full \
+             simulation to {:.1} mm deep (force to {:.1} mm)",
             g.both_mm, g.force_mm
         ),
-        None => format!("tissue: not measured against the nonlinear FE here; {knob}"),
+        None => "nonlinear tissue: not measured against the full simulation".to_string(),
     }
 }
 
