@@ -15,7 +15,7 @@ struct Params {
     modes_stride: u32,
     // Modes used, n ≤ N and n ≤ 4 · 128.
     modes_used: u32,
-    triangle_count: u32,
+    pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -8,9 +8,9 @@
 
 struct Params {
     vertex_count: u32,
-    triangle_count: u32,
     pad0: u32,
     pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;

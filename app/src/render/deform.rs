@@ -74,15 +74,14 @@ struct Params {
     vertex_count: u32,
     modes_stride: u32,
     modes_used: u32,
-    triangle_count: u32,
+    pad: u32,
 }
 
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 #[repr(C)]
 struct EmbedParams {
     vertex_count: u32,
-    triangle_count: u32,
-    pad: [u32; 2],
+    pad: [u32; 3],
 }
 
 /// The drawn surface's stage: carried on the mechanical positions, then its normals.
@@ -114,14 +113,12 @@ pub struct Deform {
     displace: wgpu::ComputePipeline,
     vertex_count: u32,
     modes_stride: u32,
-    triangle_count: u32,
 }
 
 impl Deform {
     pub fn new(device: &wgpu::Device, scene: &PalpationScene) -> Self {
         let m = scene.model();
         let vertex_count = scene.vertices_mm().len() as u32;
-        let triangle_count = scene.triangles().len() as u32;
         let storage = |label: &str, contents: &[u8]| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -250,7 +247,6 @@ impl Deform {
             bind_group,
             vertex_count,
             modes_stride: m.modes() as u32,
-            triangle_count,
         }
     }
 
@@ -270,7 +266,7 @@ impl Deform {
             vertex_count: self.vertex_count,
             modes_stride: self.modes_stride,
             modes_used: n as u32,
-            triangle_count: self.triangle_count,
+            pad: 0,
         };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -409,8 +405,7 @@ impl Embed {
             label: Some("embed params"),
             contents: bytemuck::bytes_of(&EmbedParams {
                 vertex_count,
-                triangle_count: visual.triangles.len() as u32,
-                pad: [0; 2],
+                pad: [0; 3],
             }),
             usage: wgpu::BufferUsages::UNIFORM,
         });
