@@ -519,8 +519,8 @@ fn two_crossing_closed_surfaces_mesh_as_their_union() {
     assert!(rel.abs() < 0.02, "meshed {:+.2} %", 100.0 * rel);
 }
 
-/// A stray island apart from the organ is dropped and said; a small hole is read
-/// through without `--close-holes`.
+/// A stray island apart from the organ is dropped and said (a second body is refused);
+/// a small hole is read through without `--close-holes`.
 #[test]
 fn a_stray_piece_is_dropped_and_a_small_hole_read_through() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -532,6 +532,23 @@ fn a_stray_piece_is_dropped_and_a_small_hole_read_through() {
     let (_, rep) = user::prepare(&p, &default_options()).expect("read");
     let w = rep.winding.as_ref().expect("a winding report");
     assert_eq!(w.stray_dropped, vec![80]);
+    // Two bodies apart (the pieces test's spheres) are not an island: refused by
+    // default too, naming the pieces.
+    let two = dir.path().join("two-bodies.obj");
+    union(
+        &scaled(icosphere(2), 40.0, [0.0; 3]),
+        &scaled(icosphere(2), 30.0, [100.0, 0.0, 0.0]),
+    )
+    .write_by_extension(&two)
+    .expect("write");
+    let e = user::prepare(&two, &default_options()).expect_err("two bodies");
+    assert!(
+        matches!(
+            e,
+            UserOrganError::Surface(SurfaceError::Components { count: 2, .. })
+        ),
+        "{e}"
+    );
     assert!(
         w.defects.iter().any(|l| l.contains("has holes")),
         "{:?}",

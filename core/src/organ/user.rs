@@ -5,7 +5,8 @@
 //! A surface that is not a closed 2-manifold (it crosses itself, has holes,
 //! non-manifold edges, bow-tie vertices or stray pieces, as segmentation leaves them)
 //! is read by its generalized winding number ([`crate::surface_import::winding`]):
-//! stray pieces apart from the largest are dropped, every defect is reported, and the
+//! small stray pieces apart from the largest are dropped (a large one is a second
+//! body, refused as validation refuses it), every defect is reported, and the
 //! volume inside (`w > ½`) is what the mesh is checked against. A surface with no clear
 //! inside (an open sheet, a soup: the winding number far from an integer over more
 //! than [`MAX_AMBIGUOUS_SHARE`] of it) is refused by name. `strict` refuses any defect,
@@ -209,7 +210,17 @@ fn by_winding_reads(e: &SurfaceError) -> bool {
 /// volume, its inside measured; refused if it has none that is clear.
 fn read_by_winding(s: &mut TriSurface) -> Result<(bool, WindingReport, Winding), UserOrganError> {
     let degenerate_dropped = s.drop_degenerate();
-    let stray_dropped = drop_stray(s);
+    let apart = drop_stray(s);
+    if !apart.large.is_empty() {
+        // A second body, not an island: as validation would say it.
+        let pieces = crate::surface_import::repair::components(s);
+        return Err(SurfaceError::Components {
+            count: pieces.len(),
+            sizes: pieces.iter().map(Vec::len).collect(),
+        }
+        .into());
+    }
+    let stray_dropped = apart.dropped;
     let defects = s.defects().lines();
     let flipped = s.volume() < 0.0;
     if flipped {

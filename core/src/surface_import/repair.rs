@@ -142,14 +142,28 @@ pub fn keep_largest(s: &mut TriSurface) -> Vec<usize> {
     dropped
 }
 
-/// Drops the pieces that lie wholly apart from the largest (their bounding boxes do
-/// not meet): stray islands a segmentation leaves. Pieces that meet the largest (a
-/// duplicate sheet, a fold, a vessel through it) stay, for the winding number to
-/// read. Returns the triangle counts of the pieces dropped.
-pub fn drop_stray(s: &mut TriSurface) -> Vec<usize> {
+/// A piece apart from the largest is stray (dropped) below this share of the
+/// largest's triangles; a larger one is a second body, which is refused.
+pub const STRAY_SHARE: f64 = 0.1;
+
+/// What [`drop_stray`] found apart from the largest piece: the triangle counts of the
+/// stray pieces it dropped and of the large ones it left.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Apart {
+    pub dropped: Vec<usize>,
+    pub large: Vec<usize>,
+}
+
+/// Drops the small pieces that lie wholly apart from the largest (their bounding boxes
+/// do not meet, and they hold under [`STRAY_SHARE`] of its triangles): stray islands a
+/// segmentation leaves. Pieces that meet the largest (a duplicate sheet, a fold, a
+/// vessel through it) stay, for the winding number to read; large pieces apart are
+/// left and reported.
+pub fn drop_stray(s: &mut TriSurface) -> Apart {
     let comps = components(s);
+    let mut apart = Apart::default();
     if comps.len() <= 1 {
-        return Vec::new();
+        return apart;
     }
     let bounds = |c: &[usize]| {
         let pts: Vec<[f64; 3]> = c
@@ -160,20 +174,22 @@ pub fn drop_stray(s: &mut TriSurface) -> Vec<usize> {
         crate::mesh::bounds_of(&pts)
     };
     let (lo, hi) = bounds(&comps[0]);
-    let mut dropped = Vec::new();
     let mut kept: Vec<[u32; 3]> = Vec::new();
     for (k, c) in comps.iter().enumerate() {
         let (a, b) = bounds(c);
-        let apart = (0..3).any(|d| a[d] > hi[d] || b[d] < lo[d]);
-        if k > 0 && apart {
-            dropped.push(c.len());
-        } else {
-            kept.extend(c.iter().map(|&t| s.triangles[t]));
+        let away = k > 0 && (0..3).any(|d| a[d] > hi[d] || b[d] < lo[d]);
+        if away && (c.len() as f64) < STRAY_SHARE * comps[0].len() as f64 {
+            apart.dropped.push(c.len());
+            continue;
         }
+        if away {
+            apart.large.push(c.len());
+        }
+        kept.extend(c.iter().map(|&t| s.triangles[t]));
     }
-    if !dropped.is_empty() {
+    if !apart.dropped.is_empty() {
         let (welded, _) = super::read::weld(&s.vertices, &kept);
         *s = welded;
     }
-    dropped
+    apart
 }
