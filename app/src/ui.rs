@@ -1,6 +1,7 @@
-//! The egui panels: the accuracy knob with the expected error and time from the file's
-//! tradeoff table, press mode and force, colormap and legend, live loop statistics, the
-//! force-over-time plot, scene and material info, a screenshot button, and help.
+//! The egui panels: press mode, force and depth, the force–depth and force-over-time
+//! plots, the colormap and legend; folded under "Details", the modes kept with the
+//! accuracy the file records (measured when it was built) and this device's loop
+//! statistics; scene and material info, a screenshot button, and help.
 //!
 //! Everything here draws into a given `egui::Ui` and reads or changes the [`Session`];
 //! the window and headless mode own the egui context and its painting ([`overlay`]).
