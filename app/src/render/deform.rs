@@ -165,60 +165,21 @@ impl Deform {
             mapped_at_creation: false,
         });
 
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let uniform = wgpu::BufferBindingType::Uniform;
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("deform"),
-            entries: &[
-                entry(0, uniform),
-                entry(1, uniform),
-                entry(2, ro),
-                entry(3, ro),
-                entry(4, rw),
-                entry(5, ro),
+        let (ro, rw, uniform) = binding_types();
+        let (bind_group, mut pipelines) = compute_stage(
+            device,
+            "deform",
+            Shader::Deform,
+            &[
+                (uniform, &params),
+                (uniform, &coeffs),
+                (ro, &modes),
+                (ro, &rest),
+                (rw, &mechanical),
+                (ro, &near),
             ],
-        });
-        let buffers = [&params, &coeffs, &modes, &rest, &mechanical, &near];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("deform"),
-            layout: &layout,
-            entries: &entries,
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("deform"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = Shader::Deform.module(device);
-        let pipeline = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+            &["displace"],
+        );
         let visual = scene.visual();
         let drawn = visual.rest_mm.len() as u64;
         let drawn_output = |label: &str| {
@@ -236,7 +197,7 @@ impl Deform {
         let normals = drawn_output("drawn normals");
         let embed = Embed::new(device, visual, &mechanical, &positions, &normals);
         Deform {
-            displace: pipeline("displace"),
+            displace: pipelines.remove(0),
             mechanical,
             embed,
             params,
@@ -425,56 +386,96 @@ impl Embed {
         let offsets = storage("drawn adjacency offsets", bytemuck::cast_slice(&offsets));
         let adjacency = storage("drawn adjacency", bytemuck::cast_slice(&adjacency));
         let triangles = storage("drawn triangles", bytemuck::cast_slice(&visual.triangles));
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
+        let (ro, rw, uniform) = binding_types();
+        let (bind_group, mut pipelines) = compute_stage(
+            device,
+            "embed",
+            Shader::Embed,
+            &[
+                (uniform, &params),
+                (ro, mechanical),
+                (ro, &corners),
+                (ro, &weights),
+                (rw, positions),
+                (ro, &offsets),
+                (ro, &adjacency),
+                (ro, &triangles),
+                (rw, normals),
+            ],
+            &["embed", "embed_normals"],
+        );
+        let normals = pipelines.remove(1);
+        Embed {
+            embed: pipelines.remove(0),
+            normals,
+            bind_group,
+            vertex_count,
+        }
+    }
+}
+
+/// Read-only storage, read-write storage and uniform buffer bindings.
+fn binding_types() -> (
+    wgpu::BufferBindingType,
+    wgpu::BufferBindingType,
+    wgpu::BufferBindingType,
+) {
+    (
+        wgpu::BufferBindingType::Storage { read_only: true },
+        wgpu::BufferBindingType::Storage { read_only: false },
+        wgpu::BufferBindingType::Uniform,
+    )
+}
+
+/// A compute stage: one bind group of `buffers` at bindings 0, 1, … (each with its
+/// binding type) and a pipeline for each of `entries` of `shader`.
+fn compute_stage(
+    device: &wgpu::Device,
+    label: &str,
+    shader: Shader,
+    buffers: &[(wgpu::BufferBindingType, &wgpu::Buffer)],
+    entries: &[&str],
+) -> (wgpu::BindGroup, Vec<wgpu::ComputePipeline>) {
+    let layout_entries: Vec<wgpu::BindGroupLayoutEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, (ty, _))| wgpu::BindGroupLayoutEntry {
+            binding: i as u32,
             visibility: wgpu::ShaderStages::COMPUTE,
             ty: wgpu::BindingType::Buffer {
-                ty,
+                ty: *ty,
                 has_dynamic_offset: false,
                 min_binding_size: None,
             },
             count: None,
-        };
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("embed"),
-            entries: &[
-                entry(0, wgpu::BufferBindingType::Uniform),
-                entry(1, ro),
-                entry(2, ro),
-                entry(3, ro),
-                entry(4, rw),
-                entry(5, ro),
-                entry(6, ro),
-                entry(7, ro),
-                entry(8, rw),
-            ],
-        });
-        let buffers = [
-            &params, mechanical, &corners, &weights, positions, &offsets, &adjacency, &triangles,
-            normals,
-        ];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("embed"),
-            layout: &layout,
-            entries: &entries,
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("embed"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = Shader::Embed.module(device);
-        let pipeline = |entry: &str| {
+        })
+        .collect();
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &layout_entries,
+    });
+    let group_entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, (_, b))| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout: &layout,
+        entries: &group_entries,
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let module = shader.module(device);
+    let pipelines = entries
+        .iter()
+        .map(|entry| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
                 layout: Some(&pipeline_layout),
@@ -483,14 +484,9 @@ impl Embed {
                 compilation_options: Default::default(),
                 cache: None,
             })
-        };
-        Embed {
-            embed: pipeline("embed"),
-            normals: pipeline("embed_normals"),
-            bind_group,
-            vertex_count,
-        }
-    }
+        })
+        .collect();
+    (bind_group, pipelines)
 }
 
 /// For each vertex, the triangles that contain it (CSR: offsets, then triangle ids).
