@@ -196,6 +196,55 @@ pub struct HeadlessReport {
     pub out: Option<String>,
     /// The interface's layout in the last frame (with the interface on).
     pub layout: Option<crate::layout::LayoutReport>,
+    /// Where the last frame showed the probe and the palpable surface, against the
+    /// part of the screen the panels leave free (with the interface on).
+    pub view: Option<ViewReport>,
+}
+
+/// What the last frame showed of the probe and the palpable surface (pixels).
+#[derive(Debug, Clone, Serialize)]
+pub struct ViewReport {
+    /// The part of the screen no panel covers: `[left, top, right, bottom]`.
+    pub free_px: [f32; 4],
+    /// The probe's ball (its centre), where it was drawn.
+    pub probe_px: Option<[f32; 2]>,
+    pub probe_in_free_view: Option<bool>,
+    /// The share of the palpable surface's vertices (at rest) inside the free part.
+    pub palpable_in_free_view: f32,
+}
+
+fn view_report(
+    session: &Session,
+    free_pt: egui::Rect,
+    ppp: f32,
+    size: (u32, u32),
+    probe: Option<crate::render::ProbeVisual>,
+) -> ViewReport {
+    let free = free_pt * ppp;
+    let size_px = glam::Vec2::new(size.0 as f32, size.1 as f32);
+    let cam = session.controls.camera;
+    let inside = |p: Vec3| {
+        cam.project(p, size_px)
+            .is_some_and(|q| free.contains(egui::pos2(q.x, q.y)))
+    };
+    let ball = probe.map(|p| p.tip_mm + p.outward.normalize_or(Vec3::Z) * p.radius_mm);
+    let palpable = session.scene.palpable_vertices();
+    let rest = session.scene.vertices_mm();
+    let (seen, all) = rest
+        .iter()
+        .zip(&palpable)
+        .filter(|(_, p)| **p)
+        .fold((0usize, 0usize), |(s, a), (v, _)| {
+            (s + usize::from(inside(Vec3::from(*v))), a + 1)
+        });
+    ViewReport {
+        free_px: [free.left(), free.top(), free.right(), free.bottom()],
+        probe_px: ball
+            .and_then(|b| cam.project(b, size_px))
+            .map(|q| [q.x, q.y]),
+        probe_in_free_view: ball.map(inside),
+        palpable_in_free_view: seen as f32 / all.max(1) as f32,
+    }
 }
 
 /// One tenth of a headless run.
@@ -264,6 +313,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
     let mut rss_after_warmup = None;
     let pace = (opts.fps > 0.0).then(|| Duration::from_secs_f64(1.0 / opts.fps));
     let start = Instant::now();
+    let mut last_probe = None;
     for i in 0..opts.frames {
         if let Some(p) = pace {
             let due = start + p * i;
@@ -291,6 +341,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         }
         let t0 = Instant::now();
         let input = session.frame();
+        last_probe = input.probe;
         let mut encoder = renderer.encode_frame(&gpu, &target.view, opts.size, &input);
         if let Some(o) = overlay.as_mut() {
             let raw = headless_input(
@@ -375,6 +426,15 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         out: opts.out.as_ref().map(|p| p.display().to_string()),
         layout: overlay.as_ref().map(|o| {
             crate::layout::report(&o.ctx, hud.touch_seen, hud.panel_open.unwrap_or(false))
+        }),
+        view: hud.free_view.map(|free| {
+            view_report(
+                &session,
+                free,
+                opts.display.pixels_per_point,
+                opts.size,
+                last_probe,
+            )
         }),
     };
     Ok((report, image))

@@ -42,6 +42,9 @@ pub struct Hud {
     /// Where the user chose to deform the surface (the D key); `None`: where it is
     /// faster for the adapter ([`DeformOn::preferred`]).
     pub deform_on: Option<DeformOn>,
+    /// The part of the screen the panels left free on the last pass (points), where
+    /// the view is centred.
+    pub free_view: Option<egui::Rect>,
 }
 
 impl Hud {
@@ -59,6 +62,7 @@ impl Hud {
             scene_field: String::new(),
             panel_open: None,
             touch_seen: false,
+            free_view: None,
         }
     }
 }
@@ -94,7 +98,12 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
         panel(ui, session, hud);
     });
     hud.panel_open = Some(open);
-    center_view(ctx, hud, &[covered], &mut session.controls.camera);
+    hud.free_view = Some(center_view(
+        ctx,
+        hud,
+        &[covered],
+        &mut session.controls.camera,
+    ));
     let top = ctx.content_rect().top() + 12.0;
     if let Some(msg) = hud.message.clone() {
         egui::Window::new("Notice")
@@ -131,13 +140,14 @@ pub fn show(ctx: &egui::Context, session: &mut Session, hud: &mut Hud) {
 
 /// Centres the view (the organ, a network's landscape) in the part of the safe area
 /// the panels leave free, from the next frame on: a phone's open sheet covers the
-/// lower half of the screen, where the organ would otherwise sit half hidden.
+/// lower half of the screen, where the organ would otherwise sit half hidden. Returns
+/// that part (points).
 pub fn center_view(
     ctx: &egui::Context,
     hud: &Hud,
     covered: &[egui::Rect],
     camera: &mut crate::camera::OrbitCamera,
-) {
+) -> egui::Rect {
     let screen = ctx.content_rect();
     let safe = Screen::from_ctx(ctx, hud.touch_seen).safe_rect();
     let free = covered
@@ -145,6 +155,7 @@ pub fn center_view(
         .fold(safe, |free, &c| crate::layout::free_rect(free, c));
     let v = |p: egui::Pos2| glam::Vec2::new(p.x, p.y);
     camera.center_view_in((v(free.min), v(free.max)), (v(screen.min), v(screen.max)));
+    free
 }
 
 /// The vademecum's finest surplus under the probe at the sample's depth: where it is

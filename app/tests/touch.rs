@@ -226,3 +226,53 @@ fn phone_and_tablet_views_match_their_snapshots() {
         &crop(&image, (720, 0), TABLET, 4),
     );
 }
+
+/// A phone held upright with the sheet unfolded: the view sits above the sheet, and
+/// the whole palpable surface and the probe pressed 6 mm at points across it (the
+/// left lobe, the middle, the sharp border) are drawn there, not under the sheet.
+#[test]
+fn an_open_sheet_leaves_the_probe_and_the_palpable_surface_in_view() {
+    for (i, at) in [
+        [-40.0, 60.0, 30.0],
+        [20.0, 55.0, 35.0],
+        [-7.0, 69.34, 7.0],
+        [80.0, 40.0, 0.0],
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("sheet-press-{i}.json"));
+        let keys = |t: f64, d: f64| format!(r#"{{"t_s": {t}, "at_mm": {at:?}, "depth_mm": {d}}}"#);
+        std::fs::write(
+            &path,
+            format!(
+                r#"{{"keyframes": [{}, {}]}}"#,
+                keys(0.0, 0.0),
+                keys(0.1, 6.0)
+            ),
+        )
+        .expect("write the probe path");
+        let (report, _) = palpa_app::offscreen::run(&palpa_app::offscreen::HeadlessOptions {
+            scene: "liver".into(),
+            frames: 4,
+            size: PHONE,
+            probe_path: Some(path),
+            out: None,
+            modes: None,
+            colormap_mm: None,
+            deform_on: None,
+            fps: 0.0,
+            ui: true,
+            display: display(3.0, NOTCH, Some(true)),
+        })
+        .expect("renders");
+        let view = report.view.expect("a view report with the interface on");
+        let sheet_top_px = view.free_px[3];
+        assert!(
+            sheet_top_px < 0.6 * PHONE.1 as f32,
+            "the sheet is open: {view:?}"
+        );
+        assert_eq!(view.probe_in_free_view, Some(true), "{at:?}: {view:?}");
+        assert_eq!(view.palpable_in_free_view, 1.0, "{view:?}");
+    }
+}

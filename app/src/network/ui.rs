@@ -30,7 +30,7 @@ pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
                     ui.separator();
                     views(ui, room);
                 });
-            crate::ui::center_view(ctx, hud, &[sheet], &mut room.camera);
+            hud.free_view = Some(crate::ui::center_view(ctx, hud, &[sheet], &mut room.camera));
         }
         Form::Drawer => {
             let drawer =
@@ -54,7 +54,7 @@ pub fn show(ctx: &egui::Context, room: &mut NetworkRoom, hud: &mut Hud) {
                     });
                 });
             let covered = [drawer, distribution.response.rect];
-            crate::ui::center_view(ctx, hud, &covered, &mut room.camera);
+            hud.free_view = Some(crate::ui::center_view(ctx, hud, &covered, &mut room.camera));
         }
     }
     hud.panel_open = Some(open);

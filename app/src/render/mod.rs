@@ -55,7 +55,10 @@ struct ObjectUniform {
     _pad: [f32; 28],
 }
 const OBJECT_STRIDE: u64 = 256;
-const OBJECTS: usize = 4;
+/// The instrument's shaft: its radius as a share of the tool's, and its length.
+const SHAFT_SHARE: f32 = 0.3;
+const SHAFT_MM: f32 = 70.0;
+const OBJECTS: usize = 5;
 
 /// The probe as drawn.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -343,6 +346,7 @@ impl Renderer {
             pass.set_vertex_buffer(0, self.solids.slice(..));
             let draws = [
                 self.unit.cylinder.clone(),
+                self.unit.cone.clone(),
                 self.unit.sphere.clone(),
                 self.unit.cylinder.clone(),
                 self.unit.cone.clone(),
@@ -389,7 +393,12 @@ impl Renderer {
         &self.depth.as_ref().expect("created above").0
     }
 
-    /// Rod, tip, arrow shaft, arrow head (alpha 0: not drawn).
+    /// The instrument (shaft, neck, ball tip) and the force arrow (shaft, head); alpha
+    /// 0: not drawn.
+    ///
+    /// A ball-ended palpation probe: the ball is the tool (its radius), carried by a
+    /// shaft a third as thick through a tapered neck, so the dimple around the ball
+    /// stays in view instead of under a rod as wide as the tool.
     fn object_uniforms(&self, probe: Option<&ProbeVisual>) -> [ObjectUniform; OBJECTS] {
         let hidden = ObjectUniform::zeroed();
         let Some(p) = probe else {
@@ -403,11 +412,27 @@ impl Renderer {
         let out = p.outward.normalize_or(Vec3::Z);
         let to_out = Quat::from_rotation_arc(Vec3::Z, out);
         let r = p.radius_mm;
-        // The rod rises from the tip's centre (a hemisphere of the tool's radius).
-        let tip_center = p.tip_mm + out * r;
-        let rod = Mat4::from_scale_rotation_translation(Vec3::new(r, r, 70.0), to_out, tip_center);
-        let tip = Mat4::from_scale_rotation_translation(Vec3::splat(r), Quat::IDENTITY, tip_center);
-        let mut objects = [object(rod, steel), object(tip, steel), hidden, hidden];
+        let ball = p.tip_mm + out * r;
+        let shaft_r = SHAFT_SHARE * r;
+        let shaft = Mat4::from_scale_rotation_translation(
+            Vec3::new(shaft_r, shaft_r, SHAFT_MM),
+            to_out,
+            ball,
+        );
+        // The neck: a cone from 0.8 r at the ball's centre, narrowing into the shaft.
+        let neck = Mat4::from_scale_rotation_translation(
+            Vec3::new(0.8 * r, 0.8 * r, 4.0 * r),
+            to_out,
+            ball,
+        );
+        let tip = Mat4::from_scale_rotation_translation(Vec3::splat(r), Quat::IDENTITY, ball);
+        let mut objects = [
+            object(shaft, steel),
+            object(neck, steel),
+            object(tip, steel),
+            hidden,
+            hidden,
+        ];
         let f = p.force_n.length();
         if f > 1e-4 {
             // The arrow points along the force and ends at the contact point, offset to
@@ -420,7 +445,7 @@ impl Renderer {
             let start = end - dir * length;
             let rot = Quat::from_rotation_arc(Vec3::Z, dir);
             let yellow = [0.98, 0.82, 0.2, 1.0];
-            objects[2] = object(
+            objects[3] = object(
                 Mat4::from_scale_rotation_translation(
                     Vec3::new(1.2, 1.2, length - head),
                     rot,
@@ -428,7 +453,7 @@ impl Renderer {
                 ),
                 yellow,
             );
-            objects[3] = object(
+            objects[4] = object(
                 Mat4::from_scale_rotation_translation(
                     Vec3::new(3.5, 3.5, head),
                     rot,

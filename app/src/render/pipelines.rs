@@ -190,7 +190,6 @@ impl Pipelines {
                     targets: &blended,
                 },
             ),
-            // Both faces: a press can make the surface fold towards the camera at the rim.
             surface: build(
                 device,
                 Spec {
@@ -199,7 +198,7 @@ impl Pipelines {
                     module: &surface_module,
                     entry: ("vs_main", "fs_main"),
                     buffers: &surface_buffers,
-                    cull: None,
+                    cull: Some(wgpu::Face::Back),
                     depth_stencil: plain(),
                     targets: &opaque,
                 },
