@@ -187,3 +187,50 @@ fn what_cannot_be_a_nodule_here_is_refused_by_name() {
         Err(FeError::NoduleTooShallow { .. })
     ));
 }
+
+/// A nodule a millimetre under the surface, at every 5th boundary triangle of the
+/// organ (the fixed region, the palpable one, the rest): refused as too shallow,
+/// naming the region of the triangle closest to its centre; never a panic (the
+/// region was once looked up by a vertex's index in the per-triangle flags).
+#[test]
+fn a_shallow_nodule_anywhere_names_the_surface_it_comes_near() {
+    let organ = coarse_liver();
+    let v = &organ.mesh.vertices;
+    let mut named = [0usize; 3];
+    for (t, tri) in organ.boundary.iter().enumerate().step_by(5) {
+        let [a, b, c] = tri.map(|i| v[i as usize]);
+        let centroid = [0, 1, 2].map(|k| (a[k] + b[k] + c[k]) / 3.0);
+        let e1 = [0, 1, 2].map(|k| b[k] - a[k]);
+        let e2 = [0, 1, 2].map(|k| c[k] - a[k]);
+        let n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
+        let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let radius_mm = min_radius_mm(organ.h_mm);
+        // Outward normals: the centre lies inward, one millimetre short of the limit.
+        let d = radius_mm + MIN_DEPTH_MM - 1.0;
+        let nodule = Nodule {
+            center_mm: [0, 1, 2].map(|k| centroid[k] - d * n[k] / l),
+            radius_mm,
+            ratio: 4.4,
+        };
+        match nodule.check(&organ) {
+            Err(FeError::NoduleTooShallow { region, .. }) => {
+                let fixed = tri.iter().any(|&i| organ.fixed[i as usize]);
+                if organ.palpable[t] && !fixed {
+                    named[0] += usize::from(region == "the palpable surface");
+                } else if fixed {
+                    named[1] += usize::from(region == "the fixed region");
+                }
+                named[2] += 1;
+            }
+            // A thin part: the centre fell outside, or a closer face is another's.
+            Err(FeError::NoduleOutside { .. }) => {}
+            other => panic!("triangle {t}: {other:?}"),
+        }
+    }
+    assert!(named[2] > organ.boundary.len() / 10, "{named:?}");
+    assert!(named[0] > 0 && named[1] > 0, "{named:?}");
+}

@@ -145,7 +145,7 @@ impl Nodule {
             let tri = organ.boundary[hit.triangle as usize];
             let region = if tri.iter().any(|&i| organ.fixed[i as usize]) {
                 "the fixed region"
-            } else if tri.iter().any(|&i| organ.palpable[i as usize]) {
+            } else if organ.palpable.get(hit.triangle as usize) == Some(&true) {
                 "the palpable surface"
             } else {
                 "the organ's surface"
