@@ -106,6 +106,16 @@ fn in_tet(p: [f64; 3], t: [[f64; 3]; 4]) -> bool {
     l1 >= tol && l2 >= tol && l3 >= tol && 1.0 - l1 - l2 - l3 >= tol
 }
 
+/// Whether `p` lies in one of the organ's tetrahedra.
+pub fn inside(organ: &OrganMesh, p: [f64; 3]) -> bool {
+    let v = &organ.mesh.vertices;
+    organ
+        .mesh
+        .tets
+        .iter()
+        .any(|t| in_tet(p, t.map(|i| v[i as usize])))
+}
+
 impl Nodule {
     /// Checks the nodule against the organ: a positive ratio, a radius the mesh
     /// resolves, the centre inside, the sphere at least [`MIN_DEPTH_MM`] below the
@@ -129,16 +139,10 @@ impl Nodule {
                 h_mm: organ.h_mm,
             });
         }
-        let v = &organ.mesh.vertices;
-        let inside = organ
-            .mesh
-            .tets
-            .iter()
-            .any(|t| in_tet(c, t.map(|i| v[i as usize])));
-        if !inside {
+        if !inside(organ, c) {
             return Err(FeError::NoduleOutside { center_mm: c });
         }
-        let hit = crate::axis::closest_point(v, &organ.boundary, c)
+        let hit = crate::axis::closest_point(&organ.mesh.vertices, &organ.boundary, c)
             .ok_or(FeError::NoduleOutside { center_mm: c })?;
         let depth_mm = hit.distance - self.radius_mm;
         if depth_mm < MIN_DEPTH_MM {

@@ -29,6 +29,8 @@
 //! `I + C G_pp`) and [`PlacedNodule::correction`]. Nothing is approximated but the
 //! storage of `G` in single precision.
 
+pub mod table;
+
 use std::time::Instant;
 
 use faer::Mat;
