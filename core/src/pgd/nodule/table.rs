@@ -70,6 +70,14 @@ pub enum TableError {
     Ratio { ratio: f64, lo: f64, hi: f64 },
     #[error("the table's settings: {0}")]
     Settings(String),
+    #[error("{path}: not a nodule table (expected a file `EffectTable::save` wrote)")]
+    Foreign { path: String },
+    #[error("{path}: nodule table format version {found}, this palpa reads version {VERSION}")]
+    Version { path: String, found: u32 },
+    #[error("{path}: {why}")]
+    Corrupt { path: String, why: String },
+    #[error("{path}: {why}")]
+    Io { path: String, why: String },
     #[error("probe node {node} at {at_mm:?} mm: {why}")]
     ProbeNode {
         node: u32,
@@ -97,9 +105,15 @@ pub struct TableSettings {
     pub block: usize,
 }
 
+/// The file's magic bytes and its one format version.
+const MAGIC: &[u8; 8] = b"PALPANOD";
+pub const VERSION: u32 = 1;
+
 /// The tabulated effect.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EffectTable {
+    /// The mesh it was built on ([`OrganMesh::fingerprint`]).
+    pub mesh_xxh3: u64,
     pub origin_mm: [f64; 3],
     pub spacing_mm: f64,
     /// Lattice nodes along each axis.
@@ -260,6 +274,7 @@ impl EffectTable {
             .map(|&v| space.nodes[v as usize].map(|x| x as f32))
             .collect();
         let mut table = EffectTable {
+            mesh_xxh3: organ.fingerprint(),
             origin_mm,
             spacing_mm: s.spacing_mm,
             dims,
@@ -387,6 +402,117 @@ impl EffectTable {
             near.iter().zip(fits).map(|(&p, f)| (p as u32, f)).collect(),
             count,
         ))
+    }
+
+    /// Writes the table (atomically; deflated, checksummed).
+    pub fn save(&self, path: &std::path::Path) -> Result<(), TableError> {
+        crate::framed::write(path, MAGIC, (VERSION, crate::framed::Body::Deflated), self).map_err(
+            |e| TableError::Io {
+                path: path.display().to_string(),
+                why: e.to_string(),
+            },
+        )
+    }
+
+    /// Reads a table [`Self::save`] wrote, every way it can be wrong named.
+    pub fn load(path: &std::path::Path) -> Result<EffectTable, TableError> {
+        use crate::framed::{Body, FramedError};
+        let name = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|e| TableError::Io {
+            path: name.clone(),
+            why: e.to_string(),
+        })?;
+        let table: EffectTable = crate::framed::read(&bytes, MAGIC, &[(VERSION, Body::Deflated)])
+            .map_err(|e| match e {
+            FramedError::Foreign => TableError::Foreign { path: name.clone() },
+            FramedError::Version(found) => TableError::Version {
+                path: name.clone(),
+                found,
+            },
+            FramedError::Corrupt(why) => TableError::Corrupt {
+                path: name.clone(),
+                why,
+            },
+        })?;
+        table
+            .check()
+            .map_err(|why| TableError::Corrupt { path: name, why })?;
+        Ok(table)
+    }
+
+    /// The table's arrays agree with each other (what a file must hold before it is
+    /// read from): the reason where they do not.
+    fn check(&self) -> Result<(), String> {
+        let lattice: usize = self.dims.iter().product();
+        let entries = self.entry_node.len();
+        let probes = self.probe_nodes.len();
+        let radii = self.radii_mm.len();
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        if !(self.spacing_mm.is_finite() && self.spacing_mm > 0.0 && finite(&self.origin_mm)) {
+            return Err(format!(
+                "lattice spacing {} mm from {:?}: expected a positive spacing and a finite origin",
+                self.spacing_mm, self.origin_mm
+            ));
+        }
+        if self.dims.iter().any(|&d| d < 2) || lattice > 1 << 24 {
+            return Err(format!(
+                "lattice of {:?} nodes: expected 2 to 2²⁴ a side",
+                self.dims
+            ));
+        }
+        if radii < 2 || !self.radii_mm.windows(2).all(|w| w[0] < w[1]) || self.radii_mm[0] <= 0.0 {
+            return Err(format!(
+                "radii {:?}: expected two or more, ascending, positive",
+                self.radii_mm
+            ));
+        }
+        if self.valid.len() != lattice || self.starts.len() != lattice + 1 {
+            return Err(format!(
+                "{} validity flags and {} entry starts for {lattice} lattice nodes",
+                self.valid.len(),
+                self.starts.len()
+            ));
+        }
+        if self.starts.windows(2).any(|w| w[0] > w[1]) || self.starts[lattice] as usize != entries {
+            return Err(format!(
+                "entry starts not ascending to the {entries} entries"
+            ));
+        }
+        if self.fit.len() != entries * radii
+            || self.entry_node.iter().any(|&p| p as usize >= probes)
+        {
+            return Err(format!(
+                "{} fits for {entries} entries of {radii} radii, or an entry's probe node past the {probes}",
+                self.fit.len()
+            ));
+        }
+        if self.probe_mm.len() != probes || self.compliance_mm_per_n.len() != probes {
+            return Err(format!(
+                "{probes} probe nodes but {} positions and {} compliances",
+                self.probe_mm.len(),
+                self.compliance_mm_per_n.len()
+            ));
+        }
+        if !self
+            .compliance_mm_per_n
+            .iter()
+            .all(|c| c.is_finite() && *c > 0.0)
+        {
+            return Err("a probe node's compliance is not a positive number".into());
+        }
+        if self.fit.iter().flatten().any(|v| !v.is_finite()) {
+            return Err("a fit is not finite".into());
+        }
+        if self
+            .face_nodes
+            .iter()
+            .flatten()
+            .flatten()
+            .any(|&p| p as usize >= probes)
+        {
+            return Err(format!("a face's node past the {probes} probe nodes"));
+        }
+        Ok(())
     }
 
     /// Bytes the table's entries take at single precision (node ids and `(A, λ)`).
