@@ -49,13 +49,13 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
     assert!(table.valid.iter().all(|&v| v), "every lattice node inside");
     // Saved and read back whole; a damaged, cut, foreign or other-version file is
     // refused by name.
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
-    let path = dir.join("anterior.nodules");
+    let tmp = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let path = tmp.join("anterior.nodules");
     table.save(&path).expect("saves");
     let back = EffectTable::load(&path).expect("reads back");
     assert!(back == table);
     let bytes = std::fs::read(&path).expect("read");
-    let bad = dir.join("damaged.nodules");
+    let bad = tmp.join("damaged.nodules");
     let mut damaged = bytes.clone();
     let mid = damaged.len() / 2;
     damaged[mid] ^= 0x55;
@@ -117,7 +117,9 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
         .expect("solves");
         let fe = free.probe_displacement_mm / with.probe_displacement_mm - 1.0;
         let effect = table.place(&nodule).expect("in the table");
-        let tab = effect.at(&table, &point).expect("a palpable face");
+        let tab = effect
+            .at(&table, point.face, point.bary)
+            .expect("a palpable face");
         eprintln!(
             "nodule r {:.1} β {:.2}, placed in {:.2} ms: effect FE {:+.2} %, table {:+.2} %",
             nodule.radius_mm,
@@ -152,6 +154,16 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
     };
     let e = table.place(&big).expect_err("radius outside");
     assert!(e.to_string().contains("radius 12.5 mm"), "{e}");
+    let shallow = Nodule {
+        center_mm: [0, 1, 2].map(|d| centre[d] - 3.0 * dir[d]),
+        radius_mm: 12.0,
+        ..centred
+    };
+    let e = table
+        .place(&shallow)
+        .expect_err("within 2 mm of the surface");
+    assert!(matches!(e, TableError::TooShallow { .. }), "{e}");
+    assert!(shallow.check(&organ).is_err(), "the FE refuses it too");
     let hard = Nodule {
         ratio: 10.5,
         ..centred

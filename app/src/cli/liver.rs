@@ -20,8 +20,9 @@ use palpa_core::pgd::palpation::{compute, describe, journal_key, restore, setup,
 use palpa_core::{ParamValue, Precision, Scalar, SeparatedModel};
 use serde_json::json;
 
-use super::args::ProbeArgs;
+use super::args::{NoduleArgs, ProbeArgs};
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
+use palpa_core::pgd::nodule::table::{EffectTable, NoduleEffect};
 
 /// How the vademecum is computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -458,8 +459,54 @@ pub struct EvalArgs {
     /// in) or a `.palpa` file of the same mesh [default: liver].
     #[arg(long)]
     scene: Option<String>,
+    #[command(flatten)]
+    nodule: NoduleArgs,
+    /// With `--nodule-at`: the nodule table of the scene (`palpa nodule build`)
+    /// [default: the scene's path with the extension `.nodules`].
+    #[arg(long)]
+    nodules: Option<PathBuf>,
     #[arg(long)]
     json: bool,
+}
+
+/// The nodule asked for and the table that answers it, checked against the scene.
+fn nodule_of(
+    args: &EvalArgs,
+    mesh_line: &str,
+) -> anyhow::Result<Option<(EffectTable, NoduleEffect)>> {
+    let Some(nodule) = args.nodule.nodule()? else {
+        if let Some(t) = &args.nodules {
+            bail!(
+                "--nodules {}: a table answers a nodule; give it with --nodule-at X,Y,Z",
+                t.display()
+            );
+        }
+        return Ok(None);
+    };
+    let path = args
+        .nodules
+        .clone()
+        .unwrap_or_else(|| args.file.with_extension("nodules"));
+    let table = EffectTable::load(&path).with_context(|| {
+        format!(
+            "reading the nodule table {} (`palpa nodule build` writes one for a scene)",
+            path.display()
+        )
+    })?;
+    let scene = palpa_core::pgd::palpation::describe_get(mesh_line, "mesh_xxh3");
+    if scene != Some(format!("{:016x}", table.mesh_xxh3).as_str()) {
+        bail!(
+            "{}: built on mesh {:016x}, {} is of mesh {}: expected the table of this scene's mesh",
+            path.display(),
+            table.mesh_xxh3,
+            args.file.display(),
+            scene.unwrap_or("(not recorded)")
+        );
+    }
+    let effect = table
+        .place(&nodule)
+        .with_context(|| format!("the nodule in {}", path.display()))?;
+    Ok(Some((table, effect)))
 }
 
 pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
@@ -468,6 +515,13 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
             bail!(
                 "--modes {k}: a tissue vademecum answers with the modes each press kept; \
                  `palpa lab tissue cut --modes` cuts them (and `palpa tradeoff` measures the cut)"
+            );
+        }
+        if args.nodule.nodule_at.is_some() {
+            bail!(
+                "--nodule-at: the nonlinear tissue with a nodule is not answered yet; evaluate \
+                 the linear scene with it (docs/lab/nodule-measurements.md §3 says how the \
+                 tissue's effect grows with the press)"
             );
         }
         return super::tissue::eval(
@@ -529,6 +583,13 @@ fn eval_model<T: Scalar>(
         m.axes().first().map(|a| &a.info.discretization)
     {
         return eval_nodal(m, args, at, push);
+    }
+    if args.nodule.nodule_at.is_some() {
+        bail!(
+            "--nodule-at: {} is a surface-vector vademecum; nodules are tabulated for nodal-load \
+             scenes (`palpa scene build`, the built-in liver)",
+            args.file.display()
+        );
     }
     let Some(Discretization::SurfaceVector {
         vertices,
@@ -681,11 +742,37 @@ fn eval_nodal<T: Scalar>(
             }
         }
     };
-    let compliance = probe_unit.map(|w| w[0] * dir[0] + w[1] * dir[1] + w[2] * dir[2]);
+    let free = probe_unit.map(|w| w[0] * dir[0] + w[1] * dir[1] + w[2] * dir[2]);
+    // A nodule scales the probe's compliance by `1/(1 + effect)` (the effect on the force
+    // of a depth-controlled press); the surface field is the nodule-free one.
+    let nodule = nodule_of(args, &m.provenance().mesh)?;
+    let effect = match &nodule {
+        Some((table, placed)) => {
+            let corners = tris[hit.triangle as usize].map(|i| positions[i as usize]);
+            let found = table
+                .face_at(corners)
+                .and_then(|f| placed.at(table, f, hit.bary));
+            Some(found.with_context(|| {
+                format!(
+                    "the probe point's face {face} lies beyond the nodule table's probe nodes \
+                 (it covers the palpable surface within reach of its lattice)"
+                )
+            })?)
+        }
+        None => None,
+    };
+    let compliance = free.map(|c| c / (1.0 + effect.unwrap_or(0.0)));
     let f = press_force(&args.probe, compliance)?;
     let times_us = [particularize_us, full_us];
     let facts = Evaluated::new(&hit, dir, compliance.map(|c| f * c), f, used, times_us);
-    let extra = json!({"probe_displacement_source": source, "near_field": m.near().is_some()});
+    let mut extra = json!({"probe_displacement_source": source, "near_field": m.near().is_some()});
+    if let (Some((_, placed)), Some(e)) = (&nodule, effect) {
+        let n = placed.nodule;
+        extra["nodule"] = json!({"center_mm": n.center_mm, "radius_mm": n.radius_mm,
+            "ratio": n.ratio, "effect": e, "place_ms": placed.place_s * 1e3,
+            "force_without_nodule_n": press_force(&args.probe, free)?,
+            "surface": "without the nodule (the table holds the force)"});
+    }
     report_eval(m, args, &full, &facts, extra)
 }
 

@@ -12,6 +12,7 @@ mod liver;
 mod memory;
 mod mesh;
 mod networks;
+mod nodule;
 mod organ;
 mod plot;
 mod scene;
@@ -57,6 +58,10 @@ enum Command {
     /// palpable vertex): build it, check it against the full nonlinear FE.
     #[command(subcommand)]
     Tissue(tissue::TissueCommand),
+    /// The nodule table of a scene: a stiff nodule's effect on the probe's force,
+    /// answered without a solve by `palpa eval --nodule-at …`.
+    #[command(subcommand)]
+    Nodule(nodule::NoduleCommand),
     /// A user's organ surface to a palpation scene: `palpa scene build`.
     #[command(subcommand)]
     Scene(scene::SceneCommand),
@@ -190,6 +195,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Cme(cmd)) => cme::run(&cmd),
         Some(Command::Lab(cmd)) => lab::run(&cmd),
         Some(Command::Tissue(cmd)) => tissue::run(&cmd),
+        Some(Command::Nodule(cmd)) => nodule::run(&cmd),
         Some(Command::Open(args)) => palpa_app::window::run(&args.scene),
         None => default_job(),
     }

@@ -35,9 +35,10 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use super::{InteriorResponses, NoduleRanges};
+use crate::axis::closest_point;
 use crate::disk::TRI_EDGES;
-use crate::fe::load::{SurfacePoint, probe_functional, probe_load};
-use crate::fe::nodule::{Nodule, inside};
+use crate::fe::load::{probe_functional, probe_load};
+use crate::fe::nodule::{MIN_DEPTH_MM, Nodule, inside};
 use crate::fe::probe::smooth_inward_dir;
 use crate::mesh::{norm, sub};
 use crate::organ::OrganMesh;
@@ -64,6 +65,10 @@ pub enum TableError {
         lo_mm: [f64; 3],
         hi_mm: [f64; 3],
     },
+    #[error(
+        "the nodule reaches {depth_mm:.1} mm from the organ's surface; expected at least {MIN_DEPTH_MM} mm (its centre deeper, or its radius smaller)"
+    )]
+    TooShallow { depth_mm: f64 },
     #[error("nodule radius {radius_mm} mm is outside the table's range {lo} to {hi} mm")]
     Radius { radius_mm: f64, lo: f64, hi: f64 },
     #[error("nodule ratio {ratio} is outside the table's range {lo} to {hi}")]
@@ -121,6 +126,9 @@ pub struct EffectTable {
     pub radii_mm: Vec<f64>,
     /// Per lattice node (x fastest): inside the organ, with entries.
     pub valid: Vec<bool>,
+    /// Per lattice node: its distance to the organ's surface (mm), interpolated to a
+    /// nodule's centre to refuse one within [`MIN_DEPTH_MM`] of the surface.
+    pub surface_mm: Vec<f32>,
     /// Entries of lattice node `k`: `starts[k]..starts[k + 1]`.
     pub starts: Vec<u32>,
     /// Each entry's probe node (index into `probe_nodes`).
@@ -280,6 +288,7 @@ impl EffectTable {
             dims,
             radii_mm: s.radii_mm.clone(),
             valid: vec![false; n * n * n],
+            surface_mm: vec![0.0; n * n * n],
             starts: vec![0; n * n * n + 1],
             entry_node: Vec::new(),
             fit: Vec::new(),
@@ -349,6 +358,16 @@ impl EffectTable {
                         entries[k] = e;
                         table.placements += count;
                     }
+                }
+            }
+        }
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let c = table.node_mm([i, j, k]);
+                    let hit = closest_point(&organ.mesh.vertices, &organ.boundary, c);
+                    let at = table.index([i, j, k]);
+                    table.surface_mm[at] = hit.map_or(0.0, |h| h.distance as f32);
                 }
             }
         }
@@ -466,7 +485,10 @@ impl EffectTable {
                 self.radii_mm
             ));
         }
-        if self.valid.len() != lattice || self.starts.len() != lattice + 1 {
+        if self.valid.len() != lattice
+            || self.surface_mm.len() != lattice
+            || self.starts.len() != lattice + 1
+        {
             return Err(format!(
                 "{} validity flags and {} entry starts for {lattice} lattice nodes",
                 self.valid.len(),
@@ -567,6 +589,7 @@ impl EffectTable {
         let rf = (r - self.radii_mm[ri]) / (self.radii_mm[ri + 1] - self.radii_mm[ri]);
         let radii = self.radii_mm.len();
         let mut minus_dc = vec![0.0; self.probe_nodes.len()];
+        let mut surface_mm = 0.0;
         for corner in 0..8 {
             let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
             let w: f64 = (0..3)
@@ -580,6 +603,7 @@ impl EffectTable {
             if !self.valid[k] {
                 return Err(outside());
             }
+            surface_mm += w * f64::from(self.surface_mm[k]);
             let (s, e) = (self.starts[k] as usize, self.starts[k + 1] as usize);
             for entry in s..e {
                 let fit = &self.fit[entry * radii..(entry + 1) * radii];
@@ -587,6 +611,10 @@ impl EffectTable {
                     (1.0 - rf) * pole(fit[ri], nodule.ratio) + rf * pole(fit[ri + 1], nodule.ratio);
                 minus_dc[self.entry_node[entry] as usize] += w * v;
             }
+        }
+        let depth_mm = surface_mm - nodule.radius_mm;
+        if depth_mm < MIN_DEPTH_MM {
+            return Err(TableError::TooShallow { depth_mm });
         }
         let at_node = minus_dc
             .iter()
@@ -601,12 +629,27 @@ impl EffectTable {
     }
 }
 
+impl EffectTable {
+    /// The boundary face whose corners lie at `corners_mm` (within a micrometre, in
+    /// the same order): how a scene that numbers its faces otherwise finds the table's.
+    pub fn face_at(&self, corners_mm: [[f64; 3]; 3]) -> Option<usize> {
+        let close = |p: u32, q: [f64; 3]| {
+            let a = self.probe_mm[p as usize];
+            (0..3).all(|d| (f64::from(a[d]) - q[d]).abs() < 1e-3)
+        };
+        self.face_nodes
+            .iter()
+            .position(|six| six.is_some_and(|six| (0..3).all(|k| close(six[k], corners_mm[k]))))
+    }
+}
+
 impl NoduleEffect {
-    /// `F_with/F_without − 1` at the probe point `p` (a point of a palpable face), by
-    /// the quadratic interpolation of its face's six nodes; `None` off the table's faces.
-    pub fn at(&self, table: &EffectTable, p: &SurfacePoint) -> Option<f64> {
-        let six = table.face_nodes.get(p.face).copied().flatten()?;
-        let l = p.bary;
+    /// `F_with/F_without − 1` at the point `bary` of boundary face `face` (a palpable
+    /// one), by the quadratic interpolation of its six nodes; `None` off the table's
+    /// faces.
+    pub fn at(&self, table: &EffectTable, face: usize, bary: [f64; 3]) -> Option<f64> {
+        let six = table.face_nodes.get(face).copied().flatten()?;
+        let l = bary;
         let corner = |k: usize| l[k] * (2.0 * l[k] - 1.0);
         let mut w = [corner(0), corner(1), corner(2), 0.0, 0.0, 0.0];
         for (e, (i, j)) in TRI_EDGES.iter().enumerate() {
