@@ -31,12 +31,22 @@ fn display(ppp: f32, insets: Insets, open: Option<bool>) -> Display {
 }
 
 fn liver(size: (u32, u32), d: Display) -> (LayoutReport, Image) {
-    let (report, image) = palpa_app::offscreen::run(&palpa_app::offscreen::HeadlessOptions {
+    let (report, image) = liver_pressed(size, d, None);
+    (report.layout.expect("a layout report"), image)
+}
+
+/// The liver's frames along a probe path (`None`: the default one).
+fn liver_pressed(
+    size: (u32, u32),
+    d: Display,
+    probe_path: Option<PathBuf>,
+) -> (palpa_app::offscreen::HeadlessReport, Image) {
+    palpa_app::offscreen::run(&palpa_app::offscreen::HeadlessOptions {
         scene: "liver".into(),
         // egui measures a new area unseen on its first pass.
-        frames: 3,
+        frames: 4,
         size,
-        probe_path: None,
+        probe_path,
         out: None,
         modes: None,
         colormap_mm: None,
@@ -45,8 +55,7 @@ fn liver(size: (u32, u32), d: Display) -> (LayoutReport, Image) {
         ui: true,
         display: d,
     })
-    .expect("renders");
-    (report.layout.expect("a layout report"), image)
+    .expect("renders")
 }
 
 /// The toggle switch, built once here on [0, 2] (a small file, quick to build).
@@ -252,20 +261,7 @@ fn an_open_sheet_leaves_the_probe_and_the_palpable_surface_in_view() {
             ),
         )
         .expect("write the probe path");
-        let (report, _) = palpa_app::offscreen::run(&palpa_app::offscreen::HeadlessOptions {
-            scene: "liver".into(),
-            frames: 4,
-            size: PHONE,
-            probe_path: Some(path),
-            out: None,
-            modes: None,
-            colormap_mm: None,
-            deform_on: None,
-            fps: 0.0,
-            ui: true,
-            display: display(3.0, NOTCH, Some(true)),
-        })
-        .expect("renders");
+        let (report, _) = liver_pressed(PHONE, display(3.0, NOTCH, Some(true)), Some(path));
         let view = report.view.expect("a view report with the interface on");
         let sheet_top_px = view.free_px[3];
         assert!(
