@@ -1,7 +1,7 @@
 //! Measured (seed 21, 8 pairs whose effect exceeds 5 %, effects to +17 %): the effect
 //! within 1.7–9.4 % of the FE's, median 3.6 %; the table (27 lattice nodes 3 mm apart,
-//! radii 8–12 mm, 429 probe nodes) 154 kB (131 kB as a file), built in 20–28 s on two
-//! cores.
+//! radii 8–12 mm, 429 probe nodes) 88 kB (74 kB as a file, `(A, λ)` in half
+//! precision), built in 19–28 s on two cores.
 //!
 //! The nodule's effect tabulated over its centre, radius and ratio and over the probe
 //! point (`pgd::nodule::table`), saved and read back, against the full FE with that nodule at held-out

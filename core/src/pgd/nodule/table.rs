@@ -133,7 +133,10 @@ pub struct EffectTable {
     pub starts: Vec<u32>,
     /// Each entry's probe node (index into `probe_nodes`).
     pub entry_node: Vec<u32>,
-    /// Each entry's `(A, λ)` per radius: `entry * radii + r`.
+    /// Each entry's `(A, λ)` per radius: `entry * radii + r`, at half precision (kept
+    /// as `f32` here, stored as `f16`: relative 5e-4, far below the interpolation's
+    /// percent).
+    #[serde(with = "half_pairs")]
     pub fit: Vec<[f32; 2]>,
     /// The probe nodes: space nodes of the palpable surface's P2 faces, their rest
     /// positions and nodule-free compliance (mm/N).
@@ -159,6 +162,36 @@ pub struct NoduleEffect {
     pub place_s: f64,
 }
 
+/// `(A, λ)` pairs stored as half-precision bits.
+mod half_pairs {
+    use half::f16;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &[[f32; 2]], s: S) -> Result<S::Ok, S::Error> {
+        let bits: Vec<[u16; 2]> = v
+            .iter()
+            .map(|p| p.map(|x| f16::from_f32(x).to_bits()))
+            .collect();
+        bits.serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<[f32; 2]>, D::Error> {
+        let bits = Vec::<[u16; 2]>::deserialize(d)?;
+        Ok(bits
+            .into_iter()
+            .map(|p| p.map(|b| f16::from_bits(b).to_f32()))
+            .collect())
+    }
+}
+
+/// A value as half precision keeps it.
+fn to_half(x: f32) -> f32 {
+    half::f16::from_f32(x).to_f32()
+}
+
+/// The largest `|λ|` kept: `A` and `λ` stay within half precision's range.
+const LAMBDA_MAX: f64 = 1e3;
+
 /// `(A, λ)` through `y₁ = −δc(β = 2)` and `y₂ = −δc(β = 10)`: `1/y` is linear in
 /// `1/(β−1)` with slope `1/A` and intercept `λ/A`. Negligible changes (below 1e-12 mm/N)
 /// give `(0, 0)`.
@@ -170,11 +203,17 @@ fn one_pole(y1: f64, y2: f64) -> [f32; 2] {
     let slope = (1.0 / y1 - 1.0 / y2) / (x1 - x2);
     let a = 1.0 / slope;
     let lambda = (1.0 / y1 - slope * x1) * a;
-    if a.is_finite() && lambda.is_finite() {
-        [a as f32, lambda as f32]
-    } else {
-        [0.0, 0.0]
+    if !(a.is_finite() && lambda.is_finite()) {
+        return [0.0, 0.0];
     }
+    // Saturated (the change hardly grows between the ratios): λ held at LAMBDA_MAX and
+    // A matched at β = 10, within half precision's range.
+    if lambda.abs() > LAMBDA_MAX {
+        let l = LAMBDA_MAX.copysign(lambda);
+        let b = FIT_RATIOS[1] - 1.0;
+        return [(y2 * (1.0 + b * l) / b) as f32, l as f32];
+    }
+    [a as f32, lambda as f32]
 }
 
 /// `−δc` of the one-pole form at ratio `beta`.
@@ -414,7 +453,7 @@ impl EffectTable {
                 }
             }
             for (k, fit) in fits.iter_mut().enumerate() {
-                fit.push(one_pole(y[0][k], y[1][k]));
+                fit.push(one_pole(y[0][k], y[1][k]).map(to_half));
             }
         }
         Some((
@@ -537,9 +576,10 @@ impl EffectTable {
         Ok(())
     }
 
-    /// Bytes the table's entries take at single precision (node ids and `(A, λ)`).
+    /// Bytes the table's entries take as stored (node ids, `(A, λ)` at half
+    /// precision).
     pub fn bytes(&self) -> usize {
-        self.entry_node.len() * 4 + self.fit.len() * 8
+        self.entry_node.len() * 4 + self.fit.len() * 4
     }
 
     /// The effect of `nodule` at every probe node: checked against the table's ranges,
