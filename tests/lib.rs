@@ -112,6 +112,27 @@ pub fn coarse_liver() -> palpa_core::organ::OrganMesh {
     )
 }
 
+/// The coarse liver's nodal setup (P2, the default material, a 5 mm tool) and the
+/// point `depth_mm` under the surface point `at` along its smoothed inward normal,
+/// with that normal: where the nodule tests put their nodules.
+pub fn coarse_nodal_under(
+    at: [f64; 3],
+    depth_mm: f64,
+) -> (
+    palpa_core::organ::OrganMesh,
+    palpa_core::pgd::nodal::NodalSetup,
+    [f64; 3],
+    [f64; 3],
+) {
+    use palpa_core::fe::{Element, Material};
+    let organ = coarse_liver();
+    let s = palpa_core::pgd::nodal::setup(&organ, Element::P2, Material::default(), 5.0)
+        .expect("setup");
+    let dir = palpa_core::fe::probe::smooth_inward_dir(&organ, at).expect("on the surface");
+    let centre = [0, 1, 2].map(|d| at[d] + depth_mm * dir[d]);
+    (organ, s, dir, centre)
+}
+
 /// The Poisson law with `mean` on `0..n` (the CME tests' closed form for
 /// immigration–death from 0 copies).
 pub fn poisson(mean: f64, n: usize) -> Vec<f64> {

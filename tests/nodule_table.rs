@@ -12,21 +12,17 @@ use palpa_core::fe::load::project;
 use palpa_core::fe::nodule::Nodule;
 use palpa_core::fe::probe::{ProbeRequest, smooth_inward_dir, solve_linear};
 use palpa_core::fe::{Element, Material};
-use palpa_core::pgd::nodal::setup;
 use palpa_core::pgd::nodule::table::{EffectTable, TableError, TableSettings};
 use palpa_core::rng::Rng;
 
-use palpa_tests::coarse_liver;
+use palpa_tests::coarse_nodal_under;
 
 #[test]
 fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
-    let organ = coarse_liver();
     let material = Material::default();
-    let s = setup(&organ, Element::P2, material, 5.0).expect("setup");
     // The anterior face the default view looks at; the lattice 16 mm under it.
     let site = [-40.0, 60.0, 30.0];
-    let dir = smooth_inward_dir(&organ, site).expect("on the surface");
-    let centre = [0, 1, 2].map(|d| site[d] + 16.0 * dir[d]);
+    let (organ, s, dir, centre) = coarse_nodal_under(site, 16.0);
     let settings = TableSettings {
         centre_mm: centre,
         half_width_mm: 3.0,

@@ -12,19 +12,16 @@ use palpa_core::pgd::nodal::setup;
 use palpa_core::pgd::nodule::{InteriorResponses, NoduleRanges, NoduleStoreError};
 use palpa_core::rng::Rng;
 
-use palpa_tests::coarse_liver;
+use palpa_tests::{coarse_liver, coarse_nodal_under};
 
 /// Measured (seed 3, 8 pairs, nodules 8–10 mm across 24 mm deep, ratios to 10): the
 /// compliance within 1.4e-9 of the FE's (relative) and the surface within 6e-9 mm at
 /// 1 N (single-precision storage), where the nodules changed the force by 0.14–6 %.
 #[test]
 fn stored_responses_answer_held_out_nodules_as_the_fe_does() {
-    let organ = coarse_liver();
     let material = Material::default();
-    let s = setup(&organ, Element::P2, material, 5.0).expect("setup");
     let at = [-7.0, 69.34, 7.0];
-    let dir = smooth_inward_dir(&organ, at).expect("on the surface");
-    let centre = [0, 1, 2].map(|d| at[d] + 24.0 * dir[d]);
+    let (organ, s, _, centre) = coarse_nodal_under(at, 24.0);
     let ranges = NoduleRanges {
         center_mm: centre,
         reach_mm: 4.0,
