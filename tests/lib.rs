@@ -133,6 +133,28 @@ pub fn coarse_nodal_under(
     (organ, s, dir, centre)
 }
 
+/// The full linear FE (coarse P2 of `organ`, the default material) for `req` without a
+/// nodule and with `nodule`.
+pub fn fe_without_and_with(
+    organ: &palpa_core::organ::OrganMesh,
+    req: &palpa_core::fe::probe::ProbeRequest,
+    nodule: palpa_core::fe::nodule::Nodule,
+) -> (
+    palpa_core::fe::probe::ProbeSolution,
+    palpa_core::fe::probe::ProbeSolution,
+) {
+    use palpa_core::fe::probe::{ProbeRequest, solve_linear};
+    use palpa_core::fe::{Element, Material};
+    let solve = |r: &ProbeRequest| {
+        solve_linear(organ, Element::P2, Material::default(), r).expect("solves")
+    };
+    let with = ProbeRequest {
+        nodule: Some(nodule),
+        ..*req
+    };
+    (solve(req), solve(&with))
+}
+
 /// The Poisson law with `mean` on `0..n` (the CME tests' closed form for
 /// immigration–death from 0 copies).
 pub fn poisson(mean: f64, n: usize) -> Vec<f64> {

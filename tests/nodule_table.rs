@@ -10,16 +10,14 @@
 
 use palpa_core::fe::load::project;
 use palpa_core::fe::nodule::Nodule;
-use palpa_core::fe::probe::{ProbeRequest, smooth_inward_dir, solve_linear};
-use palpa_core::fe::{Element, Material};
+use palpa_core::fe::probe::{ProbeRequest, smooth_inward_dir};
 use palpa_core::pgd::nodule::table::{EffectTable, TableError, TableSettings};
 use palpa_core::rng::Rng;
 
-use palpa_tests::coarse_nodal_under;
+use palpa_tests::{coarse_nodal_under, fe_without_and_with};
 
 #[test]
 fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
-    let material = Material::default();
     // The anterior face the default view looks at; the lattice 16 mm under it.
     let site = [-40.0, 60.0, 30.0];
     let (organ, s, dir, centre) = coarse_nodal_under(site, 16.0);
@@ -100,17 +98,7 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
             radius_mm: 5.0,
             nodule: None,
         };
-        let free = solve_linear(&organ, Element::P2, material, &req).expect("solves");
-        let with = solve_linear(
-            &organ,
-            Element::P2,
-            material,
-            &ProbeRequest {
-                nodule: Some(nodule),
-                ..req
-            },
-        )
-        .expect("solves");
+        let (free, with) = fe_without_and_with(&organ, &req, nodule);
         let fe = free.probe_displacement_mm / with.probe_displacement_mm - 1.0;
         let effect = table.place(&nodule).expect("in the table");
         let tab = effect

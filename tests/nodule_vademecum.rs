@@ -6,20 +6,19 @@
 
 use palpa_core::fe::load::{probe_functional, probe_load};
 use palpa_core::fe::nodule::Nodule;
-use palpa_core::fe::probe::{ProbeRequest, locate, organ_space, smooth_inward_dir, solve_linear};
+use palpa_core::fe::probe::{ProbeRequest, locate, organ_space, smooth_inward_dir};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::nodal::setup;
 use palpa_core::pgd::nodule::{InteriorResponses, NoduleRanges, NoduleStoreError};
 use palpa_core::rng::Rng;
 
-use palpa_tests::{coarse_liver, coarse_nodal_under};
+use palpa_tests::{coarse_liver, coarse_nodal_under, fe_without_and_with};
 
 /// Measured (seed 3, 8 pairs, nodules 8–10 mm across 24 mm deep, ratios to 10): the
 /// compliance within 1.4e-9 of the FE's (relative) and the surface within 6e-9 mm at
 /// 1 N (single-precision storage), where the nodules changed the force by 0.14–6 %.
 #[test]
 fn stored_responses_answer_held_out_nodules_as_the_fe_does() {
-    let material = Material::default();
     let at = [-7.0, 69.34, 7.0];
     let (organ, s, _, centre) = coarse_nodal_under(at, 24.0);
     let ranges = NoduleRanges {
@@ -84,17 +83,7 @@ fn stored_responses_answer_held_out_nodules_as_the_fe_does() {
         let phi = probe_functional(&space, &probe, pdir);
         let (f, phi) = (space.free_entries(&f), space.free_entries(&phi));
         assert!(store.holds_rows(&f) && store.holds_rows(&phi));
-        let free = solve_linear(&organ, Element::P2, material, &req).expect("solves");
-        let with = solve_linear(
-            &organ,
-            Element::P2,
-            material,
-            &ProbeRequest {
-                nodule: Some(nodule),
-                ..req
-            },
-        )
-        .expect("solves");
+        let (free, with) = fe_without_and_with(&organ, &req, nodule);
         let placed = store.place(&nodule).expect("in the ranges");
         let dc = placed.correction(&store, &f, &phi);
         let c = free.probe_displacement_mm + dc;
