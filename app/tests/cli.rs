@@ -1975,6 +1975,21 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
     let force = e["force_n"].as_f64().expect("a force");
     assert!((force - with).abs() < 0.03 * with, "{force} against {with}");
 
+    // A table without a nodule is refused, for a tissue file too.
+    let tissue = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
+    let out = palpa(&[
+        "eval",
+        tissue,
+        "--at=-40,60,30",
+        "--depth-mm",
+        "2",
+        "--nodules",
+        &table_s,
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--nodule-at"), "{err}");
+
     // A nodule off the table's lattice is refused, naming the lattice.
     let mut off = eval.clone();
     let far = "--nodule-at=-30,49,19.5";

@@ -475,12 +475,6 @@ fn nodule_of(
     mesh_line: &str,
 ) -> anyhow::Result<Option<(EffectTable, NoduleEffect)>> {
     let Some(nodule) = args.nodule.nodule()? else {
-        if let Some(t) = &args.nodules {
-            bail!(
-                "--nodules {}: a table answers a nodule; give it with --nodule-at X,Y,Z",
-                t.display()
-            );
-        }
         return Ok(None);
     };
     let path = args
@@ -510,6 +504,12 @@ fn nodule_of(
 }
 
 pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
+    if let (Some(t), None) = (&args.nodules, &args.nodule.nodule_at) {
+        bail!(
+            "--nodules {}: a table answers a nodule; give it with --nodule-at X,Y,Z",
+            t.display()
+        );
+    }
     if palpa_core::tissue::law::is_tissue_file(&args.file) {
         if let Some(k) = args.modes {
             bail!(
