@@ -8,7 +8,9 @@ struct Frame {
     light_dir: vec4<f32>,
     // x: ground height (mm), y: grid spacing (mm), z: ground half-extent (mm).
     ground: vec4<f32>,
-    // x: colormap on (1) or off (0), y: displacement at the top of the scale (mm).
+    // x: colormap on (1) or off (0), y: displacement at the top of the scale (mm);
+    // z: per-vertex values colour the surface: 0 off, 1 painted regions, 2 the
+    // stiffness map with w at the top of the scale.
     colormap: vec4<f32>,
     // xyz: ground centre (mm).
     center: vec4<f32>,

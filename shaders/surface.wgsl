@@ -47,9 +47,14 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     if (frame.colormap.x > 0.5) {
         base = ramp(in.magnitude / max(frame.colormap.y, 1e-6));
     }
+    // The stiffness map: the force with a nodule over the force without, from 1 to
+    // frame.colormap.w on the ramp.
+    if (frame.colormap.z > 1.5) {
+        base = ramp((in.palpable - 1.0) / max(frame.colormap.w - 1.0, 1e-6));
+    }
     // Region painting: neither grey, palpable green, fixed blue (the value is 0, 1, 2
     // per vertex).
-    if (frame.colormap.z > 0.5) {
+    if (frame.colormap.z > 0.5 && frame.colormap.z < 1.5) {
         base = mix(vec3<f32>(0.10, 0.09, 0.085), vec3<f32>(0.07, 0.28, 0.06), clamp(in.palpable, 0.0, 1.0));
         if (in.palpable > 1.5) {
             base = vec3<f32>(0.04, 0.10, 0.38);

@@ -181,7 +181,10 @@ fn the_default_tissue_comes_from_the_current_code() {
     law.check_linear_model(&scene.model().provenance().mesh)
         .expect("the default scene's element and material");
     let bytes = |f: &str| std::fs::metadata(root.join(f)).expect("size").len();
-    assert!(bytes("liver-coarse.palpa") + bytes("liver-coarse.tissue") < 20_000_000);
+    assert!(
+        bytes("liver-coarse.palpa") + bytes("liver-coarse.tissue") + bytes("liver-coarse.nodules")
+            < 20_000_000
+    );
 
     // Its split triangles are a refinement stage of its own vertices and edges: the
     // worst of its unsplit form by largest edge surplus, as `lab tissue refine --triangles`
@@ -307,4 +310,25 @@ fn the_default_tissue_comes_from_the_current_code() {
     // corrector's tolerance (0.05 mm, 5e-3 of the force).
     assert!(force <= 5e-3, "{force}");
     assert!(surface <= law.truncation_bound_mm + 0.05, "{surface}");
+}
+
+/// The default scene's nodule table (`assets/liver-coarse.nodules`) is of the default
+/// organ's mesh and carries its measured accuracy: held-out checks against the full FE
+/// (`palpa nodule check --record`), where most felt effects are within 10 %.
+#[test]
+fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
+    use palpa_core::pgd::nodule::heldout::CheckSummary;
+    use palpa_core::pgd::nodule::table::EffectTable;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets");
+    let table = EffectTable::load(&root.join("liver-coarse.nodules")).expect("loads");
+    assert_eq!(table.mesh_xxh3, palpa_tests::coarse_liver().fingerprint());
+    let scene = file::load_any(&root.join("liver-coarse.palpa")).expect("the default scene");
+    let scene = palpa_core::scene::PalpationScene::new(scene).expect("scene");
+    table
+        .check_mesh(&scene.model().provenance().mesh)
+        .expect("the default scene's mesh");
+    let s = CheckSummary::of(table.checks.iter().flat_map(|c| &c.pairs))
+        .expect("checks recorded: scripts/make-assets.sh with NODULES=1");
+    assert!(s.felt >= 20, "{s:?}");
+    assert!(s.within_10_percent >= 0.8 && s.error_median < 0.05, "{s:?}");
 }

@@ -11,6 +11,7 @@
 use palpa_core::fe::load::project;
 use palpa_core::fe::nodule::Nodule;
 use palpa_core::fe::probe::{ProbeRequest, smooth_inward_dir};
+use palpa_core::pgd::nodule::heldout::{self, CheckSummary};
 use palpa_core::pgd::nodule::table::{EffectTable, TableError, TableSettings};
 use palpa_core::rng::Rng;
 
@@ -165,4 +166,41 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
     assert!(effects.iter().cloned().fold(0.0, f64::max) > 0.15);
     assert!(errors[errors.len() / 2] < 0.1, "median {:.3}", errors[4]);
     assert!(errors[errors.len() - 1] < 0.2, "largest {:.3}", errors[7]);
+
+    // `palpa nodule check`'s measurement: pairs drawn off the grids, the FE solved
+    // without and with each nodule; recorded in the table, read back with it.
+    let measured = heldout::check(&table, &organ, 2, 5).expect("checks");
+    let again = heldout::check(&table, &organ, 2, 5).expect("checks");
+    assert_eq!(
+        measured.pairs, again.pairs,
+        "a seed draws and measures the same pairs"
+    );
+    let summary = CheckSummary::of(&measured.pairs).expect("felt pairs");
+    eprintln!("check, seed 5: {summary:?}");
+    assert_eq!(summary.felt, 2);
+    assert!(summary.error_max < 0.2, "{summary:?}");
+    for p in &measured.pairs {
+        assert!(p.nodule().check(&organ).is_ok());
+        let e = table
+            .place(&p.nodule())
+            .expect("in the table")
+            .at_node
+            .iter()
+            .copied()
+            .fold(0.0, f64::max);
+        assert!(p.effect_table <= e + 1e-9, "{p:?}");
+    }
+    let mut recorded = table.clone();
+    recorded.checks.push(measured);
+    recorded.save(&path).expect("saves");
+    let back = EffectTable::load(&path).expect("reads back");
+    assert_eq!(back.checks, recorded.checks);
+    assert_eq!(back.payload_xxh3(), recorded.payload_xxh3());
+    // The check refuses a table of another mesh.
+    let mut foreign = table.clone();
+    foreign.mesh_xxh3 ^= 1;
+    assert!(matches!(
+        heldout::check(&foreign, &organ, 1, 5),
+        Err(TableError::Mesh { .. })
+    ));
 }

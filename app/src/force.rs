@@ -71,6 +71,10 @@ pub struct ProbeCommand {
     pub modes: u32,
     pub bary: [f32; 3],
     pub target: f32,
+    /// A hidden nodule's effect at this point, `F_with/F_without − 1` at equal depth
+    /// (0: none): the input side reads it from the case's table where it places the
+    /// probe, so the loop multiplies, it does not look anything up.
+    pub nodule_effect: f32,
 }
 
 impl ProbeCommand {
@@ -92,6 +96,7 @@ impl ProbeCommand {
             modes,
             bary: point.bary.map(|b| b as f32),
             target,
+            nodule_effect: 0.0,
         }
     }
 
@@ -151,8 +156,9 @@ pub struct ForceSample {
     pub eval_ns: f32,
     /// [`SampleStatus`] on the wire: see [`ForceSample::status`].
     status: u32,
-    /// The linear tissue's force at the same depth, N (equal to `magnitude_n` without
-    /// a depth law): the surface drawn is the one at the sample's depth.
+    /// The nodule-free linear tissue's force at the same depth, N (equal to
+    /// `magnitude_n` without a depth law or a nodule): what the drawn surface's field is
+    /// scaled by, so it shows the sample's depth.
     pub linear_n: f32,
     /// 1 if the depth asked, or the depth the force asked needs, lay beyond the law's
     /// range: depth and force are both held at its end (the asked value stays in
@@ -160,7 +166,6 @@ pub struct ForceSample {
     pub beyond_law: u32,
     /// The contact point at rest, mm.
     pub point_mm: [f32; 3],
-    _pad: u32,
     /// The command this sample answers.
     pub command: ProbeCommand,
 }
@@ -481,24 +486,32 @@ impl Worker {
             Ok(c) => {
                 let target = f64::from(cmd.target);
                 let comp = c.compliance_mm_per_n;
+                // A nodule multiplies the force at a given depth by `gain` (the effect
+                // is that of the linear tissue; the nonlinear one takes the same
+                // factor: docs/methods.md §2h).
+                let gain = 1.0 + f64::from(cmd.nodule_effect);
+                if !(gain.is_finite() && gain > 0.0) {
+                    s.set_status(SampleStatus::Failed);
+                    return s;
+                }
                 let (force, depth, beyond) = match (&self.law, cmd.mode()) {
-                    (None, PressMode::Force) => (target, target * comp, false),
-                    (None, PressMode::Depth) => (target / comp, target, false),
+                    (None, PressMode::Force) => (target, target * comp / gain, false),
+                    (None, PressMode::Depth) => (gain * target / comp, target, false),
                     // Impedance rendering: depth in, the nonlinear force out.
                     // Past the law's limit there both are held at it (the surface is
                     // drawn at the same depth).
                     (Some(law), PressMode::Depth) => {
                         let (f, beyond) = law.force_n(&cmd.point(), target, comp);
-                        (f, target.min(law.limit_mm(&cmd.point()).0), beyond)
+                        (gain * f, target.min(law.limit_mm(&cmd.point()).0), beyond)
                     }
                     // The trigger's force in, the depth that needs it out. Past the
                     // law's limit the depth is held there, and so is the force: the
                     // tissue's at the held depth, not the trigger's (the asked force
                     // stays in the sample's command), so the sample lies on the curve.
                     (Some(law), PressMode::Force) => {
-                        let (d, beyond) = law.depth_mm(&cmd.point(), target, comp);
+                        let (d, beyond) = law.depth_mm(&cmd.point(), target / gain, comp);
                         let force = if beyond {
-                            law.force_n(&cmd.point(), d, comp).0
+                            gain * law.force_n(&cmd.point(), d, comp).0
                         } else {
                             target
                         };

@@ -21,6 +21,8 @@ pub struct Gamepads {
     last_poll: Instant,
     /// Rumble level last sent (0..1), to avoid resending the same level every frame.
     sent: f32,
+    /// The south button was down at the last poll (a mark is its going down).
+    south: bool,
 }
 
 impl std::fmt::Debug for Gamepads {
@@ -48,6 +50,7 @@ impl Gamepads {
             rumble: None,
             last_poll: Instant::now(),
             sent: 0.0,
+            south: false,
         }
     }
 
@@ -69,11 +72,15 @@ impl Gamepads {
         let trigger = pad
             .button_data(Button::RightTrigger2)
             .map_or(0.0, |d| d.value());
+        let south = pad.is_pressed(Button::South);
+        let mark = south && !self.south;
+        self.south = south;
         Some(InputEvent::Gamepad {
             left: Vec2::new(axis(Axis::LeftStickX), axis(Axis::LeftStickY)),
             right: Vec2::new(axis(Axis::RightStickX), axis(Axis::RightStickY)),
             trigger,
             dt_s,
+            mark,
         })
     }
 

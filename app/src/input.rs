@@ -61,6 +61,8 @@ pub enum InputEvent {
         /// Right trigger, 0..1.
         trigger: f32,
         dt_s: f32,
+        /// The south button (A, cross) went down this frame: mark the nodule here.
+        mark: bool,
     },
 }
 
@@ -218,6 +220,7 @@ impl Controls {
                 right,
                 trigger,
                 dt_s,
+                ..
             } => self.gamepad(left, right, trigger, dt_s, picker),
         }
     }

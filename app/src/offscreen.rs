@@ -148,6 +148,51 @@ pub struct HeadlessOptions {
     pub ui: bool,
     /// Density, safe area and panel state of the interface.
     pub display: crate::layout::Display,
+    /// Find the nodule: a nodule hidden before the first frame (the scene needs a
+    /// nodule table).
+    pub nodule: Option<HiddenNodule>,
+    /// Mark the nodule where the probe is at the last frame (it is then drawn, and the
+    /// report scores the mark).
+    pub mark: bool,
+    /// The trainer's stiffness map on the surface.
+    pub stiffness_map: bool,
+}
+
+/// The nodule a headless run hides.
+#[derive(Debug, Clone, Copy)]
+pub enum HiddenNodule {
+    /// A trainer's own.
+    At(palpa_core::fe::nodule::Nodule),
+    /// Drawn from the table's ranges with this seed.
+    Seed(u64),
+}
+
+/// The hidden nodule, the force with and without it along the probe path, and the
+/// score of a mark.
+#[derive(Debug, Clone, Serialize)]
+pub struct NoduleReport {
+    pub center_mm: [f64; 3],
+    pub radius_mm: f64,
+    pub ratio: f64,
+    /// The seed it was drawn with (`None`: given).
+    pub seed: Option<u64>,
+    /// From the surface's closest palpable point to the centre (mm).
+    pub depth_mm: f64,
+    /// The largest `F_with/F_without − 1` on the palpable surface.
+    pub peak_effect: f64,
+    /// Every pressed frame.
+    pub path: Vec<PathForce>,
+    pub score: Option<palpa_core::pgd::nodule::training::Score>,
+}
+
+/// One pressed frame of the probe path.
+#[derive(Debug, Clone, Serialize)]
+pub struct PathForce {
+    pub t_s: f64,
+    pub point_mm: [f32; 3],
+    pub depth_mm: f32,
+    pub force_n: f32,
+    pub force_without_nodule_n: f32,
 }
 
 /// The JSON report.
@@ -199,6 +244,8 @@ pub struct HeadlessReport {
     /// Where the last frame showed the probe and the palpable surface, against the
     /// part of the screen the panels leave free (with the interface on).
     pub view: Option<ViewReport>,
+    /// With a hidden nodule.
+    pub nodule: Option<NoduleReport>,
 }
 
 /// What the last frame showed of the probe and the palpable surface (pixels).
@@ -277,9 +324,25 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
     let loaded_source = loaded.source.clone();
     let gpu = Gpu::headless()?;
     let mut renderer = Renderer::new(&gpu.device, FORMAT, &loaded.scene);
-    let mut session = Session::with_law(loaded.scene, loaded.law, Box::new(NoHaptics))
-        .context("starting the force thread")?;
-    session.goals_to_mm = loaded.goals_to_mm;
+    let mut session = loaded.session(Box::new(NoHaptics))?;
+    if let Some(hidden) = opts.nodule {
+        let Some(t) = session.training.as_mut() else {
+            bail!(
+                "{}: no nodule table beside the scene to hide a nodule in (`palpa nodule build … --out X.nodules` beside X.palpa)",
+                opts.scene
+            );
+        };
+        match hidden {
+            HiddenNodule::At(n) => t.set(&n, 0.0)?,
+            HiddenNodule::Seed(s) => t.hide(Some(s), 0.0)?,
+        }
+        t.map = opts.stiffness_map;
+    } else if opts.mark || opts.stiffness_map {
+        bail!(
+            "--mark and --stiffness-map need a hidden nodule: give --nodule-at X,Y,Z or --nodule-seed N"
+        );
+    }
+    let mut path_forces = Vec::new();
     if let Some(n) = opts.modes {
         session.controls.modes = n.clamp(1, session.scene.modes() as u32);
     }
@@ -330,8 +393,11 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         session.controls.depth_mm = depth as f32;
         let last = i + 1 == opts.frames;
         if last {
-            session.force.command(session.controls.command());
+            session.force.command(session.command());
             settle(&session, Duration::from_millis(500));
+        }
+        if last && opts.mark {
+            session.mark()?;
         }
         if i == warmup {
             session.force.reset_stats();
@@ -342,6 +408,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         let t0 = Instant::now();
         let input = session.frame();
         last_probe = input.probe;
+
         let mut encoder = renderer.encode_frame(&gpu, &target.view, opts.size, &input);
         if let Some(o) = overlay.as_mut() {
             let raw = headless_input(
@@ -366,6 +433,16 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
         }
         gpu.submit_and_wait(encoder)?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
+        let s = session.sample;
+        if session.training.is_some() && s.status() == crate::force::SampleStatus::Ok {
+            path_forces.push(PathForce {
+                t_s: f64::from(i) / 25.0,
+                point_mm: s.point_mm,
+                depth_mm: s.depth_mm,
+                force_n: s.magnitude_n,
+                force_without_nodule_n: s.magnitude_n / (1.0 + s.command.nodule_effect),
+            });
+        }
         hud.frame_ms.push(ms);
         if i >= warmup || opts.frames <= warmup {
             frame_ms.push(ms);
@@ -436,13 +513,27 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
                 last_probe,
             )
         }),
+        nodule: session
+            .training
+            .as_ref()
+            .and_then(|t| t.trial.as_ref())
+            .map(|t| NoduleReport {
+                center_mm: t.case.nodule().center_mm,
+                radius_mm: t.case.nodule().radius_mm,
+                ratio: t.case.nodule().ratio,
+                seed: t.case.seed,
+                depth_mm: t.case.depth_mm,
+                peak_effect: t.case.peak_effect,
+                path: path_forces,
+                score: t.score(),
+            }),
     };
     Ok((report, image))
 }
 
 /// Waits (up to `timeout`) until the force loop has answered the latest command.
 pub fn settle(session: &Session, timeout: Duration) {
-    let want = session.controls.command();
+    let want = session.command();
     let t0 = Instant::now();
     while session.force.latest().command != want && t0.elapsed() < timeout {
         std::thread::sleep(Duration::from_micros(200));

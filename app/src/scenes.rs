@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use anyhow::Context;
+use palpa_core::pgd::nodule::table::EffectTable;
 use palpa_core::scene::PalpationScene;
 use palpa_core::tissue::bound::BoundTissue;
 use palpa_core::tissue::law::TissueLaw;
@@ -21,6 +22,11 @@ pub const BUILT_IN_LIVER: &[u8] = include_bytes!("../../assets/liver-coarse.palp
 /// in six stages and pressed more densely, and the 190 worst of their quarters split
 /// again: docs/methods.md §2e).
 pub const BUILT_IN_TISSUE: &[u8] = include_bytes!("../../assets/liver-coarse.tissue");
+
+/// The built-in liver's nodule table (`palpa nodule build`, recorded in
+/// assets/manifest.json).
+pub const BUILT_IN_NODULES: &[u8] = include_bytes!("../../assets/liver-coarse.nodules");
+const NODULES_NAME: &str = "assets/liver-coarse.nodules";
 
 /// Where the built-in scene comes from (what its tissue is measured to be worth is
 /// recorded in the tissue file and shown from there).
@@ -40,6 +46,38 @@ pub struct LoadedScene {
     /// 0.5 mm, force within 5 % of the full FE at held-out points), where known: the
     /// panel flags deeper presses.
     pub goals_to_mm: Option<GoalDepths>,
+    /// The nodule table `X.nodules` beside the scene (`palpa nodule build`), if there
+    /// is one: the scene then offers "find the nodule".
+    pub nodules: Option<EffectTable>,
+}
+
+/// The nodule table beside a scene file, if any; one that is there but cannot be read
+/// is an error.
+pub fn sidecar_nodules(scene_path: &Path) -> anyhow::Result<Option<EffectTable>> {
+    let path = scene_path.with_extension("nodules");
+    if !path.exists() {
+        return Ok(None);
+    }
+    EffectTable::load(&path)
+        .with_context(|| format!("the nodule table beside {}", scene_path.display()))
+        .map(Some)
+}
+
+impl LoadedScene {
+    /// A session on this scene: its tissue, its goals and its training mode.
+    pub fn session(
+        self,
+        haptic: Box<dyn crate::force::HapticDevice>,
+    ) -> anyhow::Result<crate::session::Session> {
+        let mut session = crate::session::Session::with_law(self.scene, self.law, haptic)
+            .context("starting the force thread")?;
+        session.goals_to_mm = self.goals_to_mm;
+        session.training = self
+            .nodules
+            .map(|t| crate::session::training::Training::new(t, &session.scene))
+            .transpose()?;
+        Ok(session)
+    }
 }
 
 /// The nonlinear tissue beside a scene file, if any; a file that is there but cannot
@@ -97,6 +135,7 @@ pub fn load(spec: &str) -> anyhow::Result<LoadedScene> {
         source: path.display().to_string(),
         law,
         goals_to_mm,
+        nodules: sidecar_nodules(path)?,
     })
 }
 
@@ -201,5 +240,9 @@ pub fn built_in() -> anyhow::Result<LoadedScene> {
         source: BUILT_IN_SOURCE.into(),
         law: Some(law),
         goals_to_mm,
+        nodules: Some(
+            EffectTable::from_bytes(BUILT_IN_NODULES, Path::new(NODULES_NAME))
+                .with_context(|| format!("the built-in nodule table ({NODULES_NAME})"))?,
+        ),
     })
 }

@@ -11,7 +11,6 @@
 //! and the force loop carry on. A finger down when the surface goes is let go (no
 //! event will ever lift it), so the next touch starts clean.
 
-use anyhow::Context;
 use glam::Vec2;
 
 use crate::force::AtomicHaptics;
@@ -307,11 +306,9 @@ impl Shell {
 pub fn room_of(opened: Opened, haptics: &AtomicHaptics) -> anyhow::Result<(Room, String)> {
     Ok(match opened {
         Opened::Palpation(loaded) => {
-            let mut session =
-                Session::with_law(loaded.scene, loaded.law, Box::new(haptics.clone()))
-                    .context("starting the force thread")?;
-            session.goals_to_mm = loaded.goals_to_mm;
-            (Room::Palpation(Box::new(session)), loaded.source)
+            let source = loaded.source.clone();
+            let session = loaded.session(Box::new(haptics.clone()))?;
+            (Room::Palpation(Box::new(session)), source)
         }
         Opened::Network { room, source } => (Room::Network(room), source),
         Opened::NetworkSource {

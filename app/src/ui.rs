@@ -302,6 +302,14 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     }
     ui.separator();
 
+    if session.training.is_some() {
+        egui::CollapsingHeader::new("Find the nodule")
+            .id_salt("training")
+            .default_open(true)
+            .show(ui, |ui| training(ui, session, hud));
+        ui.separator();
+    }
+
     egui::CollapsingHeader::new("Details")
         .id_salt("details")
         .show(ui, |ui| details(ui, session, hud));
@@ -337,6 +345,117 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     });
     if let Some(p) = &hud.last_screenshot {
         ui.label(format!("saved {p}"));
+    }
+}
+
+/// The training mode: hide a nodule, palpate, mark, reveal, score; the trainer's map
+/// and own nodule.
+fn training(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
+    let now = session.now_s();
+    let probe = session.controls.probe;
+    let mut mark = false;
+    let Some(t) = session.training.as_mut() else {
+        return;
+    };
+    let hidden = t.trial.as_ref().is_some_and(|_| !t.revealed);
+    if t.trial.is_none() {
+        let (lo, hi) = t.table().box_mm();
+        ui.label(format!(
+            "a stiff nodule hidden in the region from ({:.0}, {:.0}, {:.0}) to ({:.0}, {:.0}, {:.0}) mm: find it by touch",
+            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+        ));
+    }
+    if session.law.is_some() {
+        ui.small(
+            "felt as the linear tissue feels it: the nonlinear tissue's own stiffening over a nodule is not modelled yet",
+        );
+    }
+    ui.horizontal(|ui| {
+        if ui.button("Hide a nodule").clicked()
+            && let Err(e) = t.hide(None, now)
+        {
+            hud.message = Some(format!("{e:#}"));
+        }
+        ui.label("seed");
+        ui.add(egui::DragValue::new(&mut t.next_seed));
+    });
+    if let Some(trial) = &t.trial {
+        if hidden {
+            ui.label(format!(
+                "hidden: palpate, then Mark where you feel it (gamepad: A). {:.0} s, largest force {:.1} N",
+                now - trial.started_s(),
+                trial.largest_force_n()
+            ));
+            ui.horizontal(|ui| {
+                mark = ui
+                    .add_enabled(probe.is_some(), egui::Button::new("Mark here"))
+                    .clicked();
+                if ui.button("Reveal").clicked() {
+                    t.reveal();
+                }
+            });
+        } else {
+            let n = trial.case.nodule();
+            ui.label(format!(
+                "the nodule: radius {:.1} mm, {:.1} times stiffer, centre {:.1} mm under the surface",
+                n.radius_mm, n.ratio, trial.case.depth_mm
+            ));
+            match trial.score() {
+                Some(s) => ui.label(format!(
+                    "your mark: {:.1} mm from it, after {:.0} s, largest force {:.1} N",
+                    s.distance_mm, s.time_s, s.largest_force_n
+                )),
+                None => ui.label("revealed without a mark"),
+            };
+        }
+    }
+    ui.collapsing("Trainer", |ui| {
+        ui.checkbox(
+            &mut t.map,
+            "stiffness map (force with / without the nodule)",
+        );
+        if t.map && t.trial.is_some() {
+            let top = t.peak_ratio();
+            ui.horizontal(|ui| {
+                ui.label("1.00");
+                for i in 0..8 {
+                    ui.colored_label(ramp(i as f32 / 7.0), "■");
+                }
+                ui.label(format!("{top:.2}"));
+            });
+        }
+        let [rlo, rhi] = t.table().radius_range_mm();
+        // Drawn from: each bound within the table's range and the other bound.
+        let [lo, hi] = t.ranges.ratio;
+        let r = &mut t.ranges;
+        ui.add(egui::Slider::new(&mut r.ratio[0], 1.0..=hi).text("drawn: ratio from"));
+        ui.add(egui::Slider::new(&mut r.ratio[1], lo..=10.0).text("ratio to"));
+        let [lo, hi] = r.radius_mm;
+        ui.add(egui::Slider::new(&mut r.radius_mm[0], rlo..=hi).text("radius from (mm)"));
+        ui.add(egui::Slider::new(&mut r.radius_mm[1], lo..=rhi).text("radius to (mm)"));
+        ui.label("or hide one under the probe:");
+        ui.add(egui::Slider::new(&mut t.own.depth_mm, 2.0..=40.0).text("centre depth (mm)"));
+        ui.add(egui::Slider::new(&mut t.own.radius_mm, rlo..=rhi).text("radius (mm)"));
+        ui.add(egui::Slider::new(&mut t.own.ratio, 1.0..=10.0).text("times stiffer"));
+        if ui
+            .add_enabled(probe.is_some(), egui::Button::new("Hide under the probe"))
+            .clicked()
+            && let Some(p) = probe
+        {
+            let (x, n) = session.scene.frame(&p);
+            let d = t.own.depth_mm;
+            let nodule = palpa_core::fe::nodule::Nodule {
+                center_mm: [0, 1, 2].map(|i| x[i] - d * n[i]),
+                radius_mm: t.own.radius_mm,
+                ratio: t.own.ratio,
+            };
+            if let Err(e) = t.set(&nodule, now) {
+                hud.message = Some(format!("{e:#}"));
+            }
+        }
+    });
+    if mark && let Err(e) = session.mark() {
+        hud.message = Some(format!("{e:#}"));
     }
 }
 

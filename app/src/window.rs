@@ -150,6 +150,7 @@ impl App {
                     right,
                     trigger,
                     dt_s,
+                    ..
                 }),
                 Room::Network(n),
             ) => n.steer(left.into(), right.x, trigger, dt_s),

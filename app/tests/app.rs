@@ -19,3 +19,4 @@ mod scene_build;
 mod shard;
 mod tissue;
 mod touch;
+mod training;

@@ -264,6 +264,7 @@ fn gamepad_slides_presses_with_the_trigger_and_orbits() {
         right,
         trigger,
         dt_s: 0.02,
+        mark: false,
     };
     // No probe yet: the stick and trigger do nothing.
     c.handle(pad(Vec2::X, Vec2::ZERO, 1.0), &on, VIEW);
@@ -498,6 +499,7 @@ fn random_and_non_finite_input_never_leaves_the_controls_out_of_range() {
                 right: Vec2::new(value(1.5), value(1.5)),
                 trigger: value(1.5),
                 dt_s: value(0.1),
+                mark: value(1.0) > 0.5,
             },
         };
         let cam = c.camera;

@@ -118,5 +118,5 @@ fn a_stroke_paints_undo_restores_and_the_regions_save() {
     // Leaving the region mode restores the normal colours and pressing.
     s.set_painting(false);
     assert!(s.painter.is_none());
-    assert!(s.frame().regions.is_none());
+    assert!(s.frame().values.is_none());
 }

@@ -54,6 +54,9 @@ fn liver_pressed(
         fps: 0.0,
         ui: true,
         display: d,
+        nodule: None,
+        mark: false,
+        stiffness_map: false,
     })
     .expect("renders")
 }

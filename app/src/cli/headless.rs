@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use clap::Args;
 
-use palpa_app::offscreen::{HeadlessOptions, run};
+use palpa_app::offscreen::{HeadlessOptions, HiddenNodule, run};
 
 #[derive(Debug, Args)]
 pub struct HeadlessArgs {
@@ -75,6 +75,22 @@ pub struct HeadlessArgs {
     /// phone's bottom sheet).
     #[arg(long)]
     panel: Option<PanelState>,
+    /// Find the nodule: hide a nodule here (the scene needs its nodule table,
+    /// `X.nodules`; the built-in liver has one); the report gives the force with and
+    /// without it along the probe path.
+    #[command(flatten)]
+    nodule: super::args::NoduleArgs,
+    /// Find the nodule: hide one drawn from the table's ranges with this seed.
+    #[arg(long, conflicts_with = "nodule_at")]
+    nodule_seed: Option<u64>,
+    /// Mark the hidden nodule where the probe is at the last frame: it is drawn, and
+    /// the report scores the mark.
+    #[arg(long)]
+    mark: bool,
+    /// Colour the surface by the trainer's stiffness map (the force with the hidden
+    /// nodule over the force without).
+    #[arg(long)]
+    stiffness_map: bool,
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
@@ -139,6 +155,13 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
         fps: args.fps,
         ui: !args.no_ui,
         display: args.display()?,
+        nodule: match (args.nodule.nodule()?, args.nodule_seed) {
+            (Some(n), _) => Some(HiddenNodule::At(n)),
+            (None, Some(s)) => Some(HiddenNodule::Seed(s)),
+            (None, None) => None,
+        },
+        mark: args.mark,
+        stiffness_map: args.stiffness_map,
     };
     if !(args.fps.is_finite() && args.fps >= 0.0) {
         bail!(
@@ -166,6 +189,10 @@ pub fn run_cmd(args: &HeadlessArgs) -> anyhow::Result<()> {
             ("--modes", args.modes.is_some()),
             ("--colormap-mm", args.colormap_mm.is_some()),
             ("--deform", args.deform.is_some()),
+            ("--nodule-at", args.nodule.nodule_at.is_some()),
+            ("--nodule-seed", args.nodule_seed.is_some()),
+            ("--mark", args.mark),
+            ("--stiffness-map", args.stiffness_map),
         ],
     );
     let given = |flags: &[(&str, bool)]| -> Vec<String> {

@@ -9,8 +9,8 @@ use serde_json::json;
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The meta-model file (a `.palpa` scene or network, a `.tissue` vademecum or a
-    /// force law).
+    /// The meta-model file (a `.palpa` scene or network, a `.tissue` vademecum, a
+    /// `.nodules` table).
     file: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -23,6 +23,10 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         let law = palpa_core::tissue::law::TissueLaw::load(&args.file)?;
         let summary = super::tissue::summary(&law, &args.file);
         return super::args::print_report(&summary, args.json);
+    }
+    if palpa_core::pgd::nodule::table::is_table_file(&args.file) {
+        let table = palpa_core::pgd::nodule::table::EffectTable::load(&args.file)?;
+        return super::args::print_report(&super::nodule::summary(&table, &args.file), args.json);
     }
     let h = file::read_header(&args.file)
         .with_context(|| format!("reading the header of {}", args.file.display()))?;

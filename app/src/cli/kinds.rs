@@ -13,7 +13,7 @@ use palpa_core::tissue::law::TissueError;
 /// What a file starting with `head` is, and which commands read it; `None` for bytes
 /// no palpa command writes.
 pub fn describe(head: &[u8]) -> Option<&'static str> {
-    let kinds: [(&[u8], &str); 7] = [
+    let kinds: [(&[u8], &str); 8] = [
         (
             &palpa_core::file::MAGIC,
             "a palpa meta-model (a scene or a gene network): `palpa info` says which; \
@@ -24,6 +24,11 @@ pub fn describe(head: &[u8]) -> Option<&'static str> {
             palpa_core::tissue::law::MAGIC,
             "a tissue vademecum, which travels beside its scene: `palpa eval`, `palpa info` \
              and `palpa tissue check|refine|cut` read it",
+        ),
+        (
+            palpa_core::pgd::nodule::table::MAGIC,
+            "a nodule table, which travels beside its scene: `palpa eval --nodule-at`, \
+             `palpa headless --nodule-*`, `palpa nodule check` and `palpa info` read it",
         ),
         (
             b"PALPALAW",

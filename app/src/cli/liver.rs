@@ -487,16 +487,9 @@ fn nodule_of(
             path.display()
         )
     })?;
-    let scene = palpa_core::pgd::palpation::describe_get(mesh_line, "mesh_xxh3");
-    if scene != Some(format!("{:016x}", table.mesh_xxh3).as_str()) {
-        bail!(
-            "{}: built on mesh {:016x}, {} is of mesh {}: expected the table of this scene's mesh",
-            path.display(),
-            table.mesh_xxh3,
-            args.file.display(),
-            scene.unwrap_or("(not recorded)")
-        );
-    }
+    table
+        .check_mesh(mesh_line)
+        .with_context(|| format!("{} for {}", path.display(), args.file.display()))?;
     let effect = table
         .place(&nodule)
         .with_context(|| format!("the nodule in {}", path.display()))?;

@@ -8,6 +8,7 @@ use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::nodal;
+use palpa_core::pgd::nodule::heldout::{self, CheckSummary};
 use palpa_core::pgd::nodule::table::{EffectTable, TableSettings};
 use serde_json::json;
 
@@ -19,6 +20,29 @@ pub enum NoduleCommand {
     /// lattice), a range of radii and ratios 1–10, at every palpable point within
     /// reach: a scene then answers any nodule in the cube without a solve.
     Build(BuildArgs),
+    /// Measure a table against the full FE at held-out (probe point, nodule) pairs
+    /// drawn off its grids; `--record` writes the measurement into the table, where
+    /// `palpa info` and the app read it.
+    Check(CheckArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct CheckArgs {
+    /// The table (`palpa nodule build`).
+    file: PathBuf,
+    #[command(flatten)]
+    organ: OrganArgs,
+    /// Pairs whose effect exceeds 5 % of the force to draw (others are drawn on the
+    /// way, at most 4 × this + 8 in all); two full FE solves a pair.
+    #[arg(long, default_value_t = 12)]
+    felt: usize,
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Write the check into the table (replacing one of the same seed).
+    #[arg(long)]
+    record: bool,
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, Args)]
@@ -58,7 +82,193 @@ pub struct BuildArgs {
 pub fn run(cmd: &NoduleCommand) -> anyhow::Result<()> {
     match cmd {
         NoduleCommand::Build(args) => build(args),
+        NoduleCommand::Check(args) => check(args),
     }
+}
+
+fn check(args: &CheckArgs) -> anyhow::Result<()> {
+    if args.felt == 0 {
+        bail!("--felt 0: expected at least one pair to measure");
+    }
+    let mut table = EffectTable::load(&args.file)?;
+    let organ = args.organ.mesh()?;
+    let measured = heldout::check(&table, &organ, args.felt, args.seed)
+        .with_context(|| format!("checking {}", args.file.display()))?;
+    let pairs: Vec<_> = measured
+        .pairs
+        .iter()
+        .map(|p| {
+            json!({"nodule_mm_ratio": p.nodule, "at_mm": p.at_mm, "effect_fe": p.effect_fe,
+                   "effect_table": p.effect_table})
+        })
+        .collect();
+    let this = CheckSummary::of(&measured.pairs);
+    let fe_s = measured.fe_s;
+    if args.record {
+        table.checks.retain(|c| c.seed != args.seed);
+        table.checks.push(measured);
+        table.save(&args.file)?;
+    }
+    let summary = json!({
+        "file": args.file, "seed": args.seed, "pairs": pairs, "fe_s": fe_s,
+        "summary": this, "recorded": args.record,
+        "all_recorded": CheckSummary::of(table.checks.iter().flat_map(|c| &c.pairs)),
+    });
+    super::args::print_report(&summary, args.json)
+}
+
+/// `palpa tradeoff S.nodules`: the table's knobs (the lattice's spacing, the radii
+/// tabulated) against its error at the held-out pairs its checks recorded, each knob's
+/// table cut from this one as a build with it would have written it.
+pub fn tradeoff(path: &std::path::Path, organ: &OrganArgs, json_out: bool) -> anyhow::Result<()> {
+    let table = EffectTable::load(path)?;
+    let pairs: Vec<&heldout::CheckedPair> = table.checks.iter().flat_map(|c| &c.pairs).collect();
+    if pairs.is_empty() {
+        bail!(
+            "{}: no held-out check recorded; measure one first with `palpa nodule check {} --record`",
+            path.display(),
+            path.display()
+        );
+    }
+    let organ = organ.mesh()?;
+    if organ.fingerprint() != table.mesh_xxh3 {
+        bail!(
+            "{}: built on mesh {:016x}, the organ given is mesh {:016x}: give the table's organ and level",
+            path.display(),
+            table.mesh_xxh3,
+            organ.fingerprint()
+        );
+    }
+    let space = palpa_core::fe::probe::organ_space(&organ, Element::P2);
+    let points: Vec<_> = pairs
+        .iter()
+        .map(|p| palpa_core::fe::load::project(&space, &organ.palpable, p.at_mm))
+        .collect();
+    let r = table.radii_mm.len();
+    let all: Vec<usize> = (0..r).collect();
+    let ends = vec![0, r - 1];
+    let mut rows = Vec::new();
+    for step in 1..=4 {
+        for radii in [&all, &ends] {
+            if radii.len() == r && radii == &ends && step > 1 {
+                continue;
+            }
+            let Some(t) = table.coarsened(step, radii) else {
+                continue;
+            };
+            let mut measured = Vec::new();
+            let mut place_s = Vec::new();
+            for (p, point) in pairs.iter().zip(&points) {
+                let Some(point) = point else { continue };
+                let Ok(effect) = t.place(&p.nodule()) else {
+                    continue;
+                };
+                place_s.push(effect.place_s);
+                if let Some(e) = effect.at(&t, point.face, point.bary) {
+                    measured.push(heldout::CheckedPair {
+                        effect_table: e,
+                        ..(*p).clone()
+                    });
+                }
+            }
+            place_s.sort_by(f64::total_cmp);
+            rows.push(json!({
+                "spacing_mm": t.spacing_mm, "radii_mm": t.radii_mm,
+                "centres": t.valid.iter().filter(|&&v| v).count(),
+                "table_bytes": t.bytes(),
+                "answered": measured.len(), "pairs": pairs.len(),
+                "place_ms_p50": place_s.get(place_s.len() / 2).map(|s| s * 1e3),
+                "heldout": CheckSummary::of(&measured),
+            }));
+            if radii.len() == r && r == 2 {
+                break;
+            }
+        }
+    }
+    // The baseline a table must beat: the nodule ignored (no effect anywhere).
+    let ignored: Vec<_> = pairs
+        .iter()
+        .map(|p| heldout::CheckedPair {
+            effect_table: 0.0,
+            ..(*p).clone()
+        })
+        .collect();
+    let ignored = CheckSummary::of(&ignored);
+    if json_out {
+        return super::args::print_report(
+            &json!({"file": path, "rows": rows, "nodule_ignored": ignored}),
+            true,
+        );
+    }
+    println!(
+        "{}: the effect at {} held-out pairs (recorded by `palpa nodule check`) against each knob;",
+        path.display(),
+        pairs.len()
+    );
+    println!(
+        "build time and bytes grow with the centres. Errors: where the FE's effect exceeds 5 %."
+    );
+    println!(
+        "{:<9} {:<14} {:>7} {:>7} {:>9} {:>7} {:>7} {:>7} {:>11}",
+        "spacing", "radii (mm)", "centres", "MB", "answered", "median", "p90", "max", "within 10 %"
+    );
+    let pct = |h: &serde_json::Value, k: &str| {
+        h[k].as_f64()
+            .map_or("-".to_string(), |v| format!("{:.1} %", 100.0 * v))
+    };
+    for row in &rows {
+        let h = &row["heldout"];
+        let radii: Vec<String> = row["radii_mm"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|r| format!("{}", r.as_f64().unwrap_or(f64::NAN)))
+            .collect();
+        println!(
+            "{:<9} {:<14} {:>7} {:>7.2} {:>9} {:>7} {:>7} {:>7} {:>11}",
+            format!("{} mm", row["spacing_mm"].as_f64().unwrap_or(f64::NAN)),
+            radii.join(","),
+            row["centres"].as_u64().unwrap_or(0),
+            row["table_bytes"].as_f64().unwrap_or(f64::NAN) / 1e6,
+            format!("{}/{}", row["answered"], row["pairs"]),
+            pct(h, "error_median"),
+            pct(h, "error_p90"),
+            pct(h, "error_max"),
+            pct(h, "within_10_percent")
+        );
+    }
+    let ignored = json!(ignored);
+    println!(
+        "{:<9} {:<14} {:>7} {:>7} {:>9} {:>7} {:>7} {:>7} {:>11}",
+        "ignored",
+        "(no nodule)",
+        "0",
+        "0",
+        "-",
+        pct(&ignored, "error_median"),
+        pct(&ignored, "error_p90"),
+        pct(&ignored, "error_max"),
+        pct(&ignored, "within_10_percent")
+    );
+    Ok(())
+}
+
+/// What `palpa info` says of a nodule table.
+pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value {
+    json!({
+        "file": path, "kind": "nodule-table", "format_version": palpa_core::pgd::nodule::table::VERSION,
+        "lattice": table.dims, "centres": table.valid.iter().filter(|&&v| v).count(),
+        "box_mm": table.box_mm(), "spacing_mm": table.spacing_mm, "radii_mm": table.radii_mm,
+        "ratios": [1.0, palpa_core::pgd::nodule::table::FIT_RATIOS[1]],
+        "probe_nodes": table.probe_nodes.len(),
+        "mesh_xxh3": format!("{:016x}", table.mesh_xxh3),
+        "file_bytes": std::fs::metadata(path).map(|m| m.len()).ok(),
+        "payload_xxh3": format!("{:016x}", table.payload_xxh3()),
+        "build_s": table.build_s,
+        "checks": table.checks.iter().map(|c| json!({"seed": c.seed, "pairs": c.pairs.len(),
+            "summary": CheckSummary::of(&c.pairs)})).collect::<Vec<_>>(),
+        "accuracy": CheckSummary::of(table.checks.iter().flat_map(|c| &c.pairs)),
+    })
 }
 
 fn build(args: &BuildArgs) -> anyhow::Result<()> {

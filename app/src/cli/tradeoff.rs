@@ -10,6 +10,7 @@
 //! computed by default on coarse, `--svd` elsewhere: one FE solve per palpable node
 //! and direction).
 //!
+//! A nodule table (`S.nodules`) gets the table of its knobs (`cli::nodule::tradeoff`).
 //! A tissue file (`X.tissue`) gets its own table, over its modes and depth step with
 //! errors at held-out points and depths against Newton (`tissue::tradeoff`); `--depths`,
 //! `--scene`, `--seed` and the organ options apply to it only, `--svd` and `--plot` to a
@@ -77,6 +78,18 @@ pub fn run(args: &TradeoffArgs) -> anyhow::Result<()> {
         [("--svd", args.svd), ("--plot", args.plot.is_some())],
     );
     let first = |flags: &[(&'static str, bool)]| flags.iter().find(|f| f.1).map(|f| f.0);
+    if palpa_core::pgd::nodule::table::is_table_file(&args.file) {
+        let held_out = [("--held-out", args.held_out.is_some())];
+        if let Some(flag) = first(&tissue_only)
+            .or(first(&scene_only))
+            .or(first(&held_out))
+        {
+            bail!(
+                "{flag} does not apply to a nodule table, whose knobs are measured at the held-out pairs its checks recorded"
+            );
+        }
+        return super::nodule::tradeoff(&args.file, &args.organ, args.json);
+    }
     if palpa_core::tissue::law::is_tissue_file(&args.file) {
         if let Some(flag) = first(&scene_only) {
             bail!(

@@ -58,7 +58,9 @@ const OBJECT_STRIDE: u64 = 256;
 /// The instrument's shaft: its radius as a share of the tool's, and its length.
 const SHAFT_SHARE: f32 = 0.3;
 const SHAFT_MM: f32 = 70.0;
-const OBJECTS: usize = 5;
+const OBJECTS: usize = 6;
+/// The object that is the revealed nodule (drawn seen through the surface).
+const NODULE_OBJECT: usize = 5;
 
 /// The probe as drawn.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -88,9 +90,46 @@ pub struct FrameInput<'a> {
     /// Colour by displacement magnitude, with this value (mm) at the top of the scale.
     pub colormap_mm: Option<f32>,
     pub probe: Option<ProbeVisual>,
-    /// The region mode: per render vertex 0 neither, 1 palpable, 2 fixed, and a
-    /// generation that changes when they do (`None`: the normal colours).
-    pub regions: Option<(&'a [f32], u64)>,
+    /// Values per render vertex that colour the surface instead of its own colours
+    /// (`None`: the normal colours).
+    pub values: Option<VertexValues<'a>>,
+    /// A revealed nodule, drawn seen through the organ.
+    pub nodule: Option<NoduleVisual>,
+}
+
+/// Values per scene vertex and a generation that changes when they do.
+#[derive(Debug, Clone, Copy)]
+pub struct VertexValues<'a> {
+    pub values: &'a [f32],
+    pub generation: u64,
+    pub kind: ValueKind,
+}
+
+/// What [`VertexValues`] hold.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ValueKind {
+    /// The region mode: 0 neither, 1 palpable, 2 fixed.
+    Regions,
+    /// The stiffness map: the force with a nodule over the force without, from 1 to
+    /// `top` on the colour ramp.
+    Stiffness { top: f32 },
+}
+
+impl ValueKind {
+    /// The shader's switch (`frame.colormap.z`) and its scale (`.w`).
+    fn wire(self) -> [f32; 2] {
+        match self {
+            ValueKind::Regions => [1.0, 0.0],
+            ValueKind::Stiffness { top } => [2.0, top],
+        }
+    }
+}
+
+/// A nodule to draw: a sphere, seen through the surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoduleVisual {
+    pub center_mm: Vec3,
+    pub radius_mm: f32,
 }
 
 /// Pipelines and buffers for one scene and one target format.
@@ -104,7 +143,9 @@ pub struct Renderer {
     /// The drawn surface (to carry painted regions onto it) and scratch for them.
     visual: palpa_core::visual::VisualSurface,
     palpable_drawn: Vec<f32>,
-    regions_generation: u64,
+    /// What the value buffer holds: the kind's switch and generation (0: the
+    /// palpable flags).
+    values_key: (u32, u64),
     indices: wgpu::Buffer,
     index_count: u32,
     /// The render surface's triangles: its shadow (the drawn surface's would cost as
@@ -121,6 +162,7 @@ pub struct Renderer {
     shadow: wgpu::RenderPipeline,
     surface: wgpu::RenderPipeline,
     solid: wgpu::RenderPipeline,
+    seen_through: wgpu::RenderPipeline,
     depth: Option<(wgpu::TextureView, (u32, u32))>,
     bounds: (Vec3, Vec3),
     pub format: wgpu::TextureFormat,
@@ -197,6 +239,7 @@ impl Renderer {
             shadow,
             surface,
             solid,
+            seen_through,
         } = Pipelines::new(device, format, &layouts);
 
         let (min, max) = bounds(scene.vertices_mm());
@@ -207,7 +250,7 @@ impl Renderer {
             palpable_drawn: vec![0.0; visual.rest_mm.len()],
             index_count: 3 * visual.triangles.len() as u32,
             visual,
-            regions_generation: 0,
+            values_key: (0, 0),
             indices,
             shadow_index_count: 3 * scene.triangles().len() as u32,
             shadow_indices,
@@ -221,6 +264,7 @@ impl Renderer {
             shadow,
             surface,
             solid,
+            seen_through,
             depth: None,
             bounds: (min, max),
             format,
@@ -263,8 +307,8 @@ impl Renderer {
             colormap: [
                 f32::from(u8::from(input.colormap_mm.is_some())),
                 input.colormap_mm.unwrap_or(1.0),
-                f32::from(u8::from(input.regions.is_some())),
-                0.0,
+                input.values.map_or(0.0, |v| v.kind.wire()[0]),
+                input.values.map_or(0.0, |v| v.kind.wire()[1]),
             ],
             center: center.extend(0.0).to_array(),
             tool: input
@@ -273,23 +317,23 @@ impl Renderer {
                 .map_or([0.0; 4], |p| p.tip_mm.extend(p.radius_mm).to_array()),
         };
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
-        match input.regions {
-            Some((values, generation)) if generation != self.regions_generation => {
-                self.visual.interpolate(values, &mut self.palpable_drawn);
+        match input.values {
+            Some(v) if (v.kind.wire()[0] as u32, v.generation) != self.values_key => {
+                self.visual.interpolate(v.values, &mut self.palpable_drawn);
                 queue.write_buffer(
                     &self.palpable,
                     0,
                     bytemuck::cast_slice(&self.palpable_drawn),
                 );
-                self.regions_generation = generation;
+                self.values_key = (v.kind.wire()[0] as u32, v.generation);
             }
-            None if self.regions_generation != 0 => {
+            None if self.values_key != (0, 0) => {
                 queue.write_buffer(&self.palpable, 0, bytemuck::cast_slice(&self.palpable_rest));
-                self.regions_generation = 0;
+                self.values_key = (0, 0);
             }
             _ => {}
         }
-        let objects = self.object_uniforms(input.probe.as_ref());
+        let objects = self.object_uniforms(input.probe.as_ref(), input.nodule.as_ref());
         for (i, o) in objects.iter().enumerate() {
             queue.write_buffer(
                 &self.objects,
@@ -341,6 +385,16 @@ impl Renderer {
         pass.set_vertex_buffer(2, self.palpable.slice(..));
         pass.draw_indexed(0..self.index_count, 0, 0..1);
 
+        if objects[NODULE_OBJECT].color[3] > 0.0 {
+            pass.set_pipeline(&self.seen_through);
+            pass.set_vertex_buffer(0, self.solids.slice(..));
+            pass.set_bind_group(
+                1,
+                &self.object_group,
+                &[(NODULE_OBJECT as u64 * OBJECT_STRIDE) as u32],
+            );
+            pass.draw(self.unit.sphere.clone(), 0..1);
+        }
         if input.probe.is_some() {
             pass.set_pipeline(&self.solid);
             pass.set_vertex_buffer(0, self.solids.slice(..));
@@ -399,10 +453,26 @@ impl Renderer {
     /// A ball-ended palpation probe: the ball is the tool (its radius), carried by a
     /// shaft a third as thick through a tapered neck, so the dimple around the ball
     /// stays in view instead of under a rod as wide as the tool.
-    fn object_uniforms(&self, probe: Option<&ProbeVisual>) -> [ObjectUniform; OBJECTS] {
+    fn object_uniforms(
+        &self,
+        probe: Option<&ProbeVisual>,
+        nodule: Option<&NoduleVisual>,
+    ) -> [ObjectUniform; OBJECTS] {
         let hidden = ObjectUniform::zeroed();
+        let mut objects = [hidden; OBJECTS];
+        if let Some(n) = nodule {
+            // Ivory, half seen through the tissue over it.
+            objects[NODULE_OBJECT] = object(
+                Mat4::from_scale_rotation_translation(
+                    Vec3::splat(n.radius_mm),
+                    Quat::IDENTITY,
+                    n.center_mm,
+                ),
+                [0.95, 0.88, 0.62, 0.6],
+            );
+        }
         let Some(p) = probe else {
-            return [hidden; OBJECTS];
+            return objects;
         };
         let steel = if p.valid {
             [0.78, 0.80, 0.84, 1.0]
@@ -426,13 +496,9 @@ impl Renderer {
             ball,
         );
         let tip = Mat4::from_scale_rotation_translation(Vec3::splat(r), Quat::IDENTITY, ball);
-        let mut objects = [
-            object(shaft, steel),
-            object(neck, steel),
-            object(tip, steel),
-            hidden,
-            hidden,
-        ];
+        objects[0] = object(shaft, steel);
+        objects[1] = object(neck, steel);
+        objects[2] = object(tip, steel);
         let f = p.force_n.length();
         if f > 1e-4 {
             // The arrow points along the force and ends at the contact point, offset to

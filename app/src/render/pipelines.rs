@@ -1,6 +1,7 @@
 //! The render pipelines and their bind-group layouts, built once per renderer: the
 //! ground, the organ's shadow (stencilled so it darkens each pixel once), the deformed
-//! surface and the solid probe and arrow meshes.
+//! surface, the solid probe and arrow meshes, and a revealed nodule seen through the
+//! surface.
 
 use super::DEPTH_FORMAT;
 use super::meshes::SolidVertex;
@@ -76,10 +77,18 @@ fn build(device: &wgpu::Device, s: Spec<'_>) -> wgpu::RenderPipeline {
 }
 
 fn depth(write: bool, stencil: wgpu::StencilState) -> Option<wgpu::DepthStencilState> {
+    depth_compared(write, wgpu::CompareFunction::LessEqual, stencil)
+}
+
+fn depth_compared(
+    write: bool,
+    compare: wgpu::CompareFunction,
+    stencil: wgpu::StencilState,
+) -> Option<wgpu::DepthStencilState> {
     Some(wgpu::DepthStencilState {
         format: DEPTH_FORMAT,
         depth_write_enabled: Some(write),
-        depth_compare: Some(wgpu::CompareFunction::LessEqual),
+        depth_compare: Some(compare),
         stencil,
         bias: wgpu::DepthBiasState::default(),
     })
@@ -106,6 +115,9 @@ pub struct Pipelines {
     pub shadow: wgpu::RenderPipeline,
     pub surface: wgpu::RenderPipeline,
     pub solid: wgpu::RenderPipeline,
+    /// The solid shader over whatever is in front (no depth test, no depth write),
+    /// blended: what lies inside the organ, seen through it.
+    pub seen_through: wgpu::RenderPipeline,
 }
 
 impl Pipelines {
@@ -213,6 +225,23 @@ impl Pipelines {
                     buffers: &solid_buffers,
                     cull: Some(wgpu::Face::Back),
                     depth_stencil: plain(),
+                    targets: &blended,
+                },
+            ),
+            seen_through: build(
+                device,
+                Spec {
+                    label: "seen through",
+                    layout: &layout_object,
+                    module: &solid_module,
+                    entry: ("vs_main", "fs_main"),
+                    buffers: &solid_buffers,
+                    cull: Some(wgpu::Face::Back),
+                    depth_stencil: depth_compared(
+                        false,
+                        wgpu::CompareFunction::Always,
+                        wgpu::StencilState::default(),
+                    ),
                     targets: &blended,
                 },
             ),

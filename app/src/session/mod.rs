@@ -19,13 +19,15 @@ use crate::force::{ForceLoop, ForceSample, HapticDevice, LoopTiming, SampleStatu
 use crate::input::{Controls, InputEvent};
 use crate::pick::ScenePicker;
 use crate::render::deform::DeformOn;
-use crate::render::{FrameInput, ProbeVisual};
+use crate::render::{FrameInput, NoduleVisual, ProbeVisual, ValueKind, VertexValues};
 use crate::stats::Ring;
 
 mod deformation;
 pub mod paint;
+pub mod training;
 use deformation::Deformation;
 use paint::Painter;
+use training::Training;
 
 /// Radius of the probe tool, mm (the load radius the vademecum was computed with).
 pub const TOOL_RADIUS_MM: f32 = 5.0;
@@ -146,6 +148,8 @@ pub struct Session {
     /// The depths to which the tissue is measured within the goals, where known
     /// (see `scenes::LoadedScene::goals_to_mm`).
     pub goals_to_mm: Option<GoalDepths>,
+    /// Find the nodule (`Some` where the scene has a nodule table).
+    pub training: Option<Training>,
     region_values: (Vec<f32>, u64),
     started: Instant,
     deformation: Deformation,
@@ -206,6 +210,7 @@ impl Session {
             last_pointer_px: Vec2::ZERO,
             painter: None,
             goals_to_mm: None,
+            training: None,
             region_values: (Vec::new(), 0),
             started: Instant::now(),
             deformation,
@@ -300,6 +305,11 @@ impl Session {
         if self.paint_event(&ev, viewport_px) {
             return;
         }
+        if let InputEvent::Gamepad { mark: true, .. } = ev
+            && let Err(e) = self.mark()
+        {
+            tracing::warn!("marking the nodule: {e:#}");
+        }
         if let InputEvent::PointerMove {
             id: crate::input::PointerId::Mouse,
             pos_px,
@@ -330,10 +340,41 @@ impl Session {
         self.controls.handle(ev, &picker, viewport_px);
     }
 
+    /// Seconds since the session started (the training's clock).
+    pub fn now_s(&self) -> f64 {
+        self.started.elapsed().as_secs_f64()
+    }
+
+    /// The command the controls give, with a hidden nodule's effect at its point.
+    pub fn command(&self) -> crate::force::ProbeCommand {
+        let mut c = self.controls.command();
+        if let Some(t) = &self.training
+            && let Some(p) = self.controls.probe
+        {
+            c.nodule_effect = t.effect_at(&p);
+        }
+        c
+    }
+
+    /// Marks the hidden nodule where the probe is (the panel's "Mark", a gamepad's
+    /// south button); the nodule is revealed and the trial scored.
+    pub fn mark(&mut self) -> anyhow::Result<Option<palpa_core::pgd::nodule::training::Score>> {
+        let now = self.now_s();
+        let (Some(t), Some(p)) = (self.training.as_mut(), self.controls.probe) else {
+            return Ok(None);
+        };
+        t.mark(&self.scene, &p, now)
+    }
+
     /// Sends the controls to the force loop and prepares what this frame draws.
     pub fn frame(&mut self) -> FrameInput<'_> {
-        self.force.command(self.controls.command());
+        self.force.command(self.command());
         self.sample = self.force.latest();
+        if let Some(t) = self.training.as_mut()
+            && self.sample.status() == SampleStatus::Ok
+        {
+            t.pressed(self.sample.magnitude_n);
+        }
         let t0 = Instant::now();
         let n = (self.controls.modes as usize).clamp(1, self.scene.modes());
         let s = self.sample;
@@ -386,11 +427,35 @@ impl Session {
         {
             self.region_values = (p.vertex_values(&self.scene), p.generation);
         }
+        let nodule = self
+            .training
+            .as_ref()
+            .filter(|t| t.revealed)
+            .and_then(|t| t.trial.as_ref())
+            .map(|t| t.case.nodule());
+        let values = match (&self.painter, self.training.as_mut()) {
+            (Some(_), _) => Some(VertexValues {
+                values: self.region_values.0.as_slice(),
+                generation: self.region_values.1,
+                kind: ValueKind::Regions,
+            }),
+            (None, Some(t)) if t.map && t.trial.is_some() => {
+                let top = t.peak_ratio();
+                let (values, generation) = t.vertex_ratios(&self.scene);
+                Some(VertexValues {
+                    values,
+                    generation,
+                    kind: ValueKind::Stiffness { top },
+                })
+            }
+            _ => None,
+        };
         FrameInput {
-            regions: self
-                .painter
-                .as_ref()
-                .map(|_| (self.region_values.0.as_slice(), self.region_values.1)),
+            values,
+            nodule: nodule.map(|n| NoduleVisual {
+                center_mm: Vec3::from_array(n.center_mm.map(|c| c as f32)),
+                radius_mm: n.radius_mm as f32,
+            }),
             camera: &self.controls.camera,
             coeffs: self.deformation.coeffs(),
             near_mm: self.deformation.near_gpu(),

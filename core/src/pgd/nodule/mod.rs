@@ -29,7 +29,9 @@
 //! `I + C G_pp`) and [`PlacedNodule::correction`]. Nothing is approximated but the
 //! storage of `G` in single precision.
 
+pub mod heldout;
 pub mod table;
+pub mod training;
 
 use std::time::Instant;
 

@@ -73,11 +73,19 @@ pub enum TableError {
     Radius { radius_mm: f64, lo: f64, hi: f64 },
     #[error("nodule ratio {ratio} is outside the table's range {lo} to {hi}")]
     Ratio { ratio: f64, lo: f64, hi: f64 },
+    #[error(
+        "the table was built on mesh {table}, the scene is of mesh {scene}: expected the table of the scene's mesh (`palpa nodule build` on the scene's organ and level)"
+    )]
+    Mesh { table: String, scene: String },
+    #[error("the full FE solve of a held-out pair: {0}")]
+    Fe(String),
     #[error("the table's settings: {0}")]
     Settings(String),
     #[error("{path}: not a nodule table (expected a file `EffectTable::save` wrote)")]
     Foreign { path: String },
-    #[error("{path}: nodule table format version {found}, this palpa reads version {VERSION}")]
+    #[error(
+        "{path}: nodule table format version {found}, this palpa reads version {VERSION}: build it again with `palpa nodule build` (and `palpa nodule check --record`)"
+    )]
     Version { path: String, found: u32 },
     #[error("{path}: {why}")]
     Corrupt { path: String, why: String },
@@ -111,8 +119,17 @@ pub struct TableSettings {
 }
 
 /// The file's magic bytes and its one format version.
-const MAGIC: &[u8; 8] = b"PALPANOD";
-pub const VERSION: u32 = 1;
+pub const MAGIC: &[u8; 8] = b"PALPANOD";
+pub const VERSION: u32 = 2;
+
+/// Whether `path` starts as a nodule table does (unreadable: no).
+pub fn is_table_file(path: &std::path::Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| &head == MAGIC)
+}
 
 /// The tabulated effect.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -151,6 +168,9 @@ pub struct EffectTable {
     pub placements_s: f64,
     pub build_s: f64,
     pub placements: usize,
+    /// Held-out checks against the full FE, as `palpa nodule check --record` measured
+    /// them.
+    pub checks: Vec<super::heldout::TableCheck>,
 }
 
 /// One nodule's effect at every probe node: what a probe reads.
@@ -230,6 +250,78 @@ impl EffectTable {
 
     fn node_mm(&self, i: [usize; 3]) -> [f64; 3] {
         [0, 1, 2].map(|d| self.origin_mm[d] + self.spacing_mm * i[d] as f64)
+    }
+
+    /// The lattice's box: its first and last nodes (mm).
+    pub fn box_mm(&self) -> ([f64; 3], [f64; 3]) {
+        (self.origin_mm, self.node_mm(self.dims.map(|d| d - 1)))
+    }
+
+    /// The table belongs to the scene whose provenance's mesh line is `mesh_line`
+    /// (it records `mesh_xxh3`).
+    pub fn check_mesh(&self, mesh_line: &str) -> Result<(), TableError> {
+        let table = format!("{:016x}", self.mesh_xxh3);
+        let scene = crate::pgd::palpation::describe_get(mesh_line, "mesh_xxh3");
+        if scene == Some(table.as_str()) {
+            return Ok(());
+        }
+        Err(TableError::Mesh {
+            table,
+            scene: scene.unwrap_or("(not recorded)").to_string(),
+        })
+    }
+
+    /// The table a build with `step` times the spacing (and only the radii `radii`,
+    /// indices into `radii_mm`, the first and last among them) would have written: the
+    /// same lattice nodes' entries, every `step`-th along each axis. `None` where `step`
+    /// does not divide the lattice's cells or the radii are not two or more, ascending.
+    /// What `palpa tradeoff` measures the knobs with, without building again.
+    pub fn coarsened(&self, step: usize, radii: &[usize]) -> Option<EffectTable> {
+        let r = self.radii_mm.len();
+        if step == 0
+            || self.dims.iter().any(|&d| (d - 1) % step != 0)
+            || radii.len() < 2
+            || !radii.windows(2).all(|w| w[0] < w[1])
+            || radii[radii.len() - 1] >= r
+        {
+            return None;
+        }
+        let dims = self.dims.map(|d| (d - 1) / step + 1);
+        let mut out = EffectTable {
+            dims,
+            spacing_mm: self.spacing_mm * step as f64,
+            radii_mm: radii.iter().map(|&i| self.radii_mm[i]).collect(),
+            valid: Vec::new(),
+            surface_mm: Vec::new(),
+            starts: vec![0],
+            entry_node: Vec::new(),
+            fit: Vec::new(),
+            checks: Vec::new(),
+            ..self.clone()
+        };
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let n = self.index([i * step, j * step, k * step]);
+                    out.valid.push(self.valid[n]);
+                    out.surface_mm.push(self.surface_mm[n]);
+                    for e in self.starts[n] as usize..self.starts[n + 1] as usize {
+                        out.entry_node.push(self.entry_node[e]);
+                        out.fit.extend(radii.iter().map(|&q| self.fit[e * r + q]));
+                    }
+                    out.starts.push(out.entry_node.len() as u32);
+                }
+            }
+        }
+        Some(out)
+    }
+
+    /// The radii answered: the first and last tabulated (mm).
+    pub fn radius_range_mm(&self) -> [f64; 2] {
+        [
+            self.radii_mm.first().copied().unwrap_or(0.0),
+            self.radii_mm.last().copied().unwrap_or(0.0),
+        ]
     }
 
     /// Builds the table over `settings`' lattice for the nodal setup `setup` of `organ`.
@@ -339,6 +431,7 @@ impl EffectTable {
             placements_s: 0.0,
             build_s: 0.0,
             placements: 0,
+            checks: Vec::new(),
         };
         // Per lattice node: its entries, gathered block by block.
         let mut entries: Vec<Entries> = vec![Vec::new(); n * n * n];
@@ -462,6 +555,19 @@ impl EffectTable {
         ))
     }
 
+    /// The xxh3 of what two builds of the same table share however they ran: all but
+    /// the build's timings and the recorded checks' FE times.
+    pub fn payload_xxh3(&self) -> u64 {
+        let mut same = self.clone();
+        (same.stores_s, same.placements_s, same.build_s) = (0.0, 0.0, 0.0);
+        for c in &mut same.checks {
+            c.fe_s = 0.0;
+        }
+        let bytes =
+            bincode::serde::encode_to_vec(&same, bincode::config::standard()).unwrap_or_default();
+        xxhash_rust::xxh3::xxh3_64(&bytes)
+    }
+
     /// Writes the table (atomically; deflated, checksummed).
     pub fn save(&self, path: &std::path::Path) -> Result<(), TableError> {
         crate::framed::write(path, MAGIC, (VERSION, crate::framed::Body::Deflated), self).map_err(
@@ -474,24 +580,29 @@ impl EffectTable {
 
     /// Reads a table [`Self::save`] wrote, every way it can be wrong named.
     pub fn load(path: &std::path::Path) -> Result<EffectTable, TableError> {
-        use crate::framed::{Body, FramedError};
-        let name = path.display().to_string();
         let bytes = std::fs::read(path).map_err(|e| TableError::Io {
-            path: name.clone(),
+            path: path.display().to_string(),
             why: e.to_string(),
         })?;
-        let table: EffectTable = crate::framed::read(&bytes, MAGIC, &[(VERSION, Body::Deflated)])
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// As [`Self::load`], from the file's bytes (`path` names it in errors).
+    pub fn from_bytes(bytes: &[u8], path: &std::path::Path) -> Result<EffectTable, TableError> {
+        use crate::framed::{Body, FramedError};
+        let name = path.display().to_string();
+        let table: EffectTable = crate::framed::read(bytes, MAGIC, &[(VERSION, Body::Deflated)])
             .map_err(|e| match e {
-            FramedError::Foreign => TableError::Foreign { path: name.clone() },
-            FramedError::Version(found) => TableError::Version {
-                path: name.clone(),
-                found,
-            },
-            FramedError::Corrupt(why) => TableError::Corrupt {
-                path: name.clone(),
-                why,
-            },
-        })?;
+                FramedError::Foreign => TableError::Foreign { path: name.clone() },
+                FramedError::Version(found) => TableError::Version {
+                    path: name.clone(),
+                    found,
+                },
+                FramedError::Corrupt(why) => TableError::Corrupt {
+                    path: name.clone(),
+                    why,
+                },
+            })?;
         table
             .check()
             .map_err(|why| TableError::Corrupt { path: name, why })?;
@@ -685,8 +796,9 @@ impl EffectTable {
 
 impl NoduleEffect {
     /// `F_with/F_without − 1` at the point `bary` of boundary face `face` (a palpable
-    /// one), by the quadratic interpolation of its six nodes; `None` off the table's
-    /// faces.
+    /// one), by the quadratic interpolation of its six nodes, at least 0 (a stiffer
+    /// inclusion never makes the tissue more compliant; the quadratic weights can
+    /// undershoot between nodes); `None` off the table's faces.
     pub fn at(&self, table: &EffectTable, face: usize, bary: [f64; 3]) -> Option<f64> {
         let six = table.face_nodes.get(face).copied().flatten()?;
         let l = bary;
@@ -699,7 +811,8 @@ impl NoduleEffect {
             six.iter()
                 .zip(w)
                 .map(|(&n, w)| w * self.at_node[n as usize])
-                .sum(),
+                .sum::<f64>()
+                .max(0.0),
         )
     }
 }

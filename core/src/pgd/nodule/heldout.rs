@@ -1,0 +1,215 @@
+//! A nodule table against the full FE at held-out (probe point, nodule) pairs: what a
+//! table is worth where the user is, measured by `palpa nodule check` and recorded in
+//! the table.
+//!
+//! A pair is drawn off every grid: the nodule's centre uniformly in the lattice's box
+//! (redrawn where the table refuses it), its radius uniformly in the table's range, its
+//! ratio log-uniformly in 1.5–10; the probe point is the palpable point closest to a
+//! point drawn uniformly within [`PROBE_SPREAD_MM`] of the centre's projection on the
+//! surface, so that most pairs feel the nodule. Both are solved by the full linear FE
+//! (coarse P2 on the table's organ, 1 N along the smoothed inward normal), without and
+//! with the nodule; the effect is the ratio of the probe's displacements less one, the
+//! change of the force of a press to a given depth. The goal the table is held to:
+//! the effect within 10 % of the FE's wherever that effect exceeds 5 % of the force.
+
+use std::time::Instant;
+
+use super::table::{EffectTable, FIT_RATIOS, TableError};
+use super::training::{CaseRanges, draw};
+use crate::fe::load::project;
+use crate::fe::nodule::Nodule;
+use crate::fe::probe::{ProbeRequest, organ_space, smooth_inward_dir, solve_linear};
+use crate::fe::{Element, Material};
+use crate::organ::OrganMesh;
+use crate::rng::Rng;
+
+/// Probe points are drawn this far (mm, along each axis) about the nodule's projection.
+pub const PROBE_SPREAD_MM: f64 = 20.0;
+
+/// Where an effect counts: above this share of the force.
+pub const FELT: f64 = 0.05;
+
+/// One held-out pair, as measured.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CheckedPair {
+    pub nodule: [f64; 5],
+    /// The probe point (mm, on the palpable surface).
+    pub at_mm: [f64; 3],
+    pub effect_fe: f64,
+    pub effect_table: f64,
+}
+
+impl CheckedPair {
+    /// The nodule: centre, radius, ratio.
+    pub fn nodule(&self) -> Nodule {
+        let n = self.nodule;
+        Nodule {
+            center_mm: [n[0], n[1], n[2]],
+            radius_mm: n[3],
+            ratio: n[4],
+        }
+    }
+
+    /// `|table − FE| / FE`, the effect's relative error.
+    pub fn error(&self) -> f64 {
+        (self.effect_table - self.effect_fe).abs() / self.effect_fe.abs().max(1e-300)
+    }
+}
+
+/// A recorded check: its seed and pairs.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TableCheck {
+    pub seed: u64,
+    pub pairs: Vec<CheckedPair>,
+    /// Seconds of the FE solves (two a pair).
+    pub fe_s: f64,
+}
+
+/// What a set of checks says.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct CheckSummary {
+    pub pairs: usize,
+    /// Pairs whose FE effect exceeds [`FELT`].
+    pub felt: usize,
+    /// Over the felt pairs: the effect's relative error, median, 90th percentile and
+    /// largest, and the share within 10 %.
+    pub error_median: f64,
+    pub error_p90: f64,
+    pub error_max: f64,
+    pub within_10_percent: f64,
+    /// Over the other pairs: the largest `|table − FE|`, a share of the force.
+    pub unfelt_max_abs: f64,
+    /// The FE effects seen, smallest and largest.
+    pub effect_min: f64,
+    pub effect_max: f64,
+}
+
+impl CheckSummary {
+    pub fn of<'a>(pairs: impl IntoIterator<Item = &'a CheckedPair>) -> Option<CheckSummary> {
+        let pairs: Vec<&CheckedPair> = pairs.into_iter().collect();
+        let mut errors: Vec<f64> = pairs
+            .iter()
+            .filter(|p| p.effect_fe > FELT)
+            .map(|p| p.error())
+            .collect();
+        if errors.is_empty() {
+            return None;
+        }
+        errors.sort_by(f64::total_cmp);
+        let q = |f: f64| {
+            errors[((f * (errors.len() - 1) as f64).round() as usize).min(errors.len() - 1)]
+        };
+        let effects = pairs.iter().map(|p| p.effect_fe);
+        Some(CheckSummary {
+            pairs: pairs.len(),
+            felt: errors.len(),
+            error_median: q(0.5),
+            error_p90: q(0.9),
+            error_max: errors[errors.len() - 1],
+            within_10_percent: errors.iter().filter(|&&e| e <= 0.1).count() as f64
+                / errors.len() as f64,
+            unfelt_max_abs: pairs
+                .iter()
+                .filter(|p| p.effect_fe <= FELT)
+                .map(|p| (p.effect_table - p.effect_fe).abs())
+                .fold(0.0, f64::max),
+            effect_min: effects.clone().fold(f64::MAX, f64::min),
+            effect_max: effects.fold(f64::MIN, f64::max),
+        })
+    }
+}
+
+/// Draws pairs with `seed` until `felt` of them have an FE effect above [`FELT`] (at
+/// most `4 × felt + 8` pairs), each solved twice by the full FE on `organ` (the
+/// table's, by its fingerprint).
+pub fn check(
+    table: &EffectTable,
+    organ: &OrganMesh,
+    felt: usize,
+    seed: u64,
+) -> Result<TableCheck, TableError> {
+    if table.mesh_xxh3 != organ.fingerprint() {
+        return Err(TableError::Mesh {
+            table: format!("{:016x}", table.mesh_xxh3),
+            scene: format!("{:016x}", organ.fingerprint()),
+        });
+    }
+    let material = Material::default();
+    let space = organ_space(organ, Element::P2);
+    let ranges = CaseRanges {
+        ratio: [1.0, FIT_RATIOS[1]],
+        ..CaseRanges::of(table)
+    };
+    let mut rng = Rng::seed(seed);
+    let mut pairs = Vec::new();
+    let t0 = Instant::now();
+    let fe_error = |e: crate::fe::FeError| TableError::Fe(e.to_string());
+    while pairs
+        .iter()
+        .filter(|p: &&CheckedPair| p.effect_fe > FELT)
+        .count()
+        < felt
+        && pairs.len() < 4 * felt + 8
+    {
+        let case = draw(table, &ranges, rng.next_u64()).map_err(|e| match e {
+            super::training::TrainingError::Table(t) => t,
+            other => TableError::Settings(other.to_string()),
+        })?;
+        // The ratio log-uniform in 1.5–10 (the draw's own is uniform).
+        let ratio = (1.5f64.ln() + rng.uniform() * (FIT_RATIOS[1].ln() - 1.5f64.ln())).exp();
+        let nodule = Nodule {
+            ratio,
+            ..case.nodule()
+        };
+        if nodule.check(organ).is_err() {
+            continue;
+        }
+        let aim =
+            [0, 1, 2].map(|d| case.surface_mm[d] + rng.range(-PROBE_SPREAD_MM, PROBE_SPREAD_MM));
+        let Some(point) = project(&space, &organ.palpable, aim) else {
+            continue;
+        };
+        let Ok(dir) = smooth_inward_dir(organ, point.point) else {
+            continue;
+        };
+        let Some(effect_table) = table.place(&nodule)?.at(table, point.face, point.bary) else {
+            continue;
+        };
+        let req = ProbeRequest {
+            at: point.point,
+            force_n: 1.0,
+            dir: Some(dir),
+            radius_mm: 5.0,
+            nodule: None,
+        };
+        let free = solve_linear(organ, Element::P2, material, &req).map_err(fe_error)?;
+        let with = solve_linear(
+            organ,
+            Element::P2,
+            material,
+            &ProbeRequest {
+                nodule: Some(nodule),
+                ..req
+            },
+        )
+        .map_err(fe_error)?;
+        let n = nodule;
+        pairs.push(CheckedPair {
+            nodule: [
+                n.center_mm[0],
+                n.center_mm[1],
+                n.center_mm[2],
+                n.radius_mm,
+                n.ratio,
+            ],
+            at_mm: point.point,
+            effect_fe: free.probe_displacement_mm / with.probe_displacement_mm - 1.0,
+            effect_table,
+        });
+    }
+    Ok(TableCheck {
+        seed,
+        pairs,
+        fe_s: t0.elapsed().as_secs_f64(),
+    })
+}
