@@ -49,8 +49,11 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     }
     // The stiffness map: the force with a nodule over the force without, from 1 to
     // frame.colormap.w on the ramp.
+    // The tissue keeps its colour where the ratio is 1 and turns into the ramp within
+    // the scale's first tenth.
     if (frame.colormap.z > 1.5) {
-        base = ramp((in.palpable - 1.0) / max(frame.colormap.w - 1.0, 1e-6));
+        let t = clamp((in.palpable - 1.0) / max(frame.colormap.w - 1.0, 1e-6), 0.0, 1.0);
+        base = mix(base, ramp(t), clamp(10.0 * t, 0.0, 1.0));
     }
     // Region painting: neither grey, palpable green, fixed blue (the value is 0, 1, 2
     // per vertex).

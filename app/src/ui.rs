@@ -713,6 +713,10 @@ fn help(ui: &mut egui::Ui) {
                 "Paint regions",
                 "Regions ▸ paint: left-drag marks fixed / palpable / neither; Save writes X.regions.toml for palpa scene build --regions",
             ),
+            (
+                "Find the nodule",
+                "Hide a nodule, palpate, then Mark here (gamepad: A); Reveal gives up; Trainer ▸ the stiffness map",
+            ),
             ("Help", "H or F1"),
         ] {
             ui.label(what);

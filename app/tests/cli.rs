@@ -1999,3 +1999,34 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("lattice of centres"), "{err}");
 }
+
+/// The default scene's nodule table as the commands show it: `palpa info` gives its
+/// recorded accuracy, `palpa tradeoff` its knobs at the recorded pairs (a coarser
+/// lattice errs more, and ignoring the nodule errs wholly), and flags of other kinds'
+/// tables are refused by name.
+#[test]
+fn info_and_tradeoff_show_the_nodule_tables_recorded_accuracy_and_knobs() {
+    let table = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../assets/liver-coarse.nodules"
+    );
+    let info = common::json_ok(&palpa(&["info", table, "--json"]));
+    assert_eq!(info["kind"], "nodule-table");
+    assert!(info["accuracy"]["felt"].as_u64().expect("felt pairs") >= 20);
+    assert!(info["payload_xxh3"].is_string());
+    let t = common::json_ok(&palpa(&["tradeoff", table, "--json"]));
+    let rows = t["rows"].as_array().expect("rows");
+    let median = |r: &serde_json::Value| r["heldout"]["error_median"].as_f64().expect("median");
+    let (finest, coarsest) = (&rows[0], &rows[rows.len() - 1]);
+    assert_eq!(finest["spacing_mm"], 3.0);
+    assert_eq!(finest["answered"], finest["pairs"]);
+    assert!(median(finest) < median(coarsest), "{rows:?}");
+    assert_eq!(t["nodule_ignored"]["error_median"], 1.0);
+    let out = palpa(&["tradeoff", table, "--svd"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--svd") && err.contains("nodule table"),
+        "{err}"
+    );
+}
