@@ -73,6 +73,10 @@ if [ -n "${NODULES:-}" ]; then
     $palpa ${check#palpa } > /dev/null
     cmds+=(--command "$check")
   done
+  # Past the ratios the one-pole form is fitted at, to 100.
+  check="palpa nodule check assets/liver-coarse.nodules --level coarse --felt 12 --seed 9 --ratios 10,100 --record"
+  $palpa ${check#palpa } > /dev/null
+  cmds+=(--command "$check")
   $palpa lab asset record assets/liver-coarse.nodules "${cmds[@]}"
 fi
 echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"

@@ -149,8 +149,13 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
         .expect_err("within 2 mm of the surface");
     assert!(matches!(e, TableError::TooShallow { .. }), "{e}");
     assert!(shallow.check(&organ).is_err(), "the FE refuses it too");
+    let rigid = Nodule {
+        ratio: 100.0,
+        ..centred
+    };
+    assert!(table.place(&rigid).is_ok(), "ratios to 100 are answered");
     let hard = Nodule {
-        ratio: 10.5,
+        ratio: 100.5,
         ..centred
     };
     assert!(matches!(table.place(&hard), Err(TableError::Ratio { .. })));
@@ -169,8 +174,8 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
 
     // `palpa nodule check`'s measurement: pairs drawn off the grids, the FE solved
     // without and with each nodule; recorded in the table, read back with it.
-    let measured = heldout::check(&table, &organ, 2, 5).expect("checks");
-    let again = heldout::check(&table, &organ, 2, 5).expect("checks");
+    let measured = heldout::check(&table, &organ, 2, 5, [1.5, 10.0]).expect("checks");
+    let again = heldout::check(&table, &organ, 2, 5, [1.5, 10.0]).expect("checks");
     assert_eq!(
         measured.pairs, again.pairs,
         "a seed draws and measures the same pairs"
@@ -200,7 +205,7 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
     let mut foreign = table.clone();
     foreign.mesh_xxh3 ^= 1;
     assert!(matches!(
-        heldout::check(&foreign, &organ, 1, 5),
+        heldout::check(&foreign, &organ, 1, 5, [1.5, 10.0]),
         Err(TableError::Mesh { .. })
     ));
 }

@@ -118,13 +118,13 @@ fn hidden_nodules_are_drawn_in_range_found_where_the_force_rises_and_scored() {
     let e = draw(
         &table,
         &CaseRanges {
-            ratio: [3.0, 20.0],
+            ratio: [3.0, 200.0],
             ..ranges
         },
         1,
     )
-    .expect_err("ratio 20");
-    assert!(e.to_string().contains("ratio range 3 to 20"), "{e}");
+    .expect_err("ratio 200");
+    assert!(e.to_string().contains("ratio range 3 to 200"), "{e}");
     let e = draw(
         &table,
         &CaseRanges {

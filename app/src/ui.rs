@@ -10,6 +10,7 @@
 
 use egui::{Color32, RichText};
 use palpa_core::TradeoffRow;
+use palpa_core::pgd::nodule::table::MAX_RATIO;
 
 use crate::input::PressMode;
 use crate::layout::{Form, Layout, Screen};
@@ -429,14 +430,22 @@ fn training(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
         let [lo, hi] = t.ranges.ratio;
         let r = &mut t.ranges;
         ui.add(egui::Slider::new(&mut r.ratio[0], 1.0..=hi).text("drawn: ratio from"));
-        ui.add(egui::Slider::new(&mut r.ratio[1], lo..=10.0).text("ratio to"));
+        ui.add(
+            egui::Slider::new(&mut r.ratio[1], lo..=MAX_RATIO)
+                .logarithmic(true)
+                .text("ratio to"),
+        );
         let [lo, hi] = r.radius_mm;
         ui.add(egui::Slider::new(&mut r.radius_mm[0], rlo..=hi).text("radius from (mm)"));
         ui.add(egui::Slider::new(&mut r.radius_mm[1], lo..=rhi).text("radius to (mm)"));
         ui.label("or hide one under the probe:");
         ui.add(egui::Slider::new(&mut t.own.depth_mm, 2.0..=40.0).text("centre depth (mm)"));
         ui.add(egui::Slider::new(&mut t.own.radius_mm, rlo..=rhi).text("radius (mm)"));
-        ui.add(egui::Slider::new(&mut t.own.ratio, 1.0..=10.0).text("times stiffer"));
+        ui.add(
+            egui::Slider::new(&mut t.own.ratio, 1.0..=MAX_RATIO)
+                .logarithmic(true)
+                .text("times stiffer"),
+        );
         if ui
             .add_enabled(probe.is_some(), egui::Button::new("Hide under the probe"))
             .clicked()

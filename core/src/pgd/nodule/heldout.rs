@@ -4,7 +4,7 @@
 //!
 //! A pair is drawn off every grid: the nodule's centre uniformly in the lattice's box
 //! (redrawn where the table refuses it), its radius uniformly in the table's range, its
-//! ratio log-uniformly in 1.5–10; the probe point is the palpable point closest to a
+//! ratio log-uniformly in the range asked (1.5–10 by default); the probe point is the palpable point closest to a
 //! point drawn uniformly within [`PROBE_SPREAD_MM`] of the centre's projection on the
 //! surface, so that most pairs feel the nodule. Both are solved by the full linear FE
 //! (coarse P2 on the table's organ, 1 N along the smoothed inward normal), without and
@@ -14,7 +14,7 @@
 
 use std::time::Instant;
 
-use super::table::{EffectTable, FIT_RATIOS, TableError};
+use super::table::{EffectTable, FIT_RATIOS, MAX_RATIO, TableError};
 use super::training::{CaseRanges, draw};
 use crate::fe::load::project;
 use crate::fe::nodule::Nodule;
@@ -119,6 +119,17 @@ impl CheckSummary {
     }
 }
 
+/// What a table's recorded checks say, split where the one-pole form is fitted (ratios
+/// to [`FIT_RATIOS`]`[1]`) and where it is carried beyond (to [`MAX_RATIO`]).
+pub fn recorded(table: &EffectTable) -> [Option<CheckSummary>; 2] {
+    let pairs = || table.checks.iter().flat_map(|c| &c.pairs);
+    let within = |p: &&CheckedPair| p.nodule[4] <= FIT_RATIOS[1];
+    [
+        CheckSummary::of(pairs().filter(within)),
+        CheckSummary::of(pairs().filter(|p| !within(p))),
+    ]
+}
+
 /// Draws pairs with `seed` until `felt` of them have an FE effect above [`FELT`] (at
 /// most `4 × felt + 8` pairs), each solved twice by the full FE on `organ` (the
 /// table's, by its fingerprint).
@@ -127,7 +138,19 @@ pub fn check(
     organ: &OrganMesh,
     felt: usize,
     seed: u64,
+    ratios: [f64; 2],
 ) -> Result<TableCheck, TableError> {
+    if !(ratios[0] > 1.0 && ratios[0] <= ratios[1] && ratios[1] <= MAX_RATIO) {
+        return Err(TableError::Ratio {
+            ratio: if ratios[0] > 1.0 {
+                ratios[1]
+            } else {
+                ratios[0]
+            },
+            lo: 1.0,
+            hi: MAX_RATIO,
+        });
+    }
     if table.mesh_xxh3 != organ.fingerprint() {
         return Err(TableError::Mesh {
             table: format!("{:016x}", table.mesh_xxh3),
@@ -137,7 +160,7 @@ pub fn check(
     let material = Material::default();
     let space = organ_space(organ, Element::P2);
     let ranges = CaseRanges {
-        ratio: [1.0, FIT_RATIOS[1]],
+        ratio: [1.0, MAX_RATIO],
         ..CaseRanges::of(table)
     };
     let mut rng = Rng::seed(seed);
@@ -155,8 +178,8 @@ pub fn check(
             super::training::TrainingError::Table(t) => t,
             other => TableError::Settings(other.to_string()),
         })?;
-        // The ratio log-uniform in 1.5–10 (the draw's own is uniform).
-        let ratio = (1.5f64.ln() + rng.uniform() * (FIT_RATIOS[1].ln() - 1.5f64.ln())).exp();
+        // The ratio log-uniform in `ratios` (the draw's own is uniform).
+        let ratio = (ratios[0].ln() + rng.uniform() * (ratios[1].ln() - ratios[0].ln())).exp();
         let nodule = Nodule {
             ratio,
             ..case.nodule()

@@ -54,6 +54,11 @@ type Entries = Vec<(u32, Vec<[f32; 2]>)>;
 /// form's `A` and `λ`.
 pub const FIT_RATIOS: [f64; 2] = [2.0, 10.0];
 
+/// The largest ratio a table answers: the one-pole form carried past the fit's ratios
+/// towards its limit `−A/λ` (a rigid inclusion), measured against the full FE at ratios
+/// 10–100 (docs/lab/nodule-measurements.md §9).
+pub const MAX_RATIO: f64 = 100.0;
+
 /// Why a table cannot answer a nodule, or could not be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum TableError {
@@ -706,11 +711,11 @@ impl EffectTable {
                 hi,
             });
         }
-        if !(nodule.ratio >= 1.0 && nodule.ratio <= FIT_RATIOS[1]) {
+        if !(nodule.ratio >= 1.0 && nodule.ratio <= MAX_RATIO) {
             return Err(TableError::Ratio {
                 ratio: nodule.ratio,
                 lo: 1.0,
-                hi: FIT_RATIOS[1],
+                hi: MAX_RATIO,
             });
         }
         let outside = || TableError::CentreOutside {

@@ -18,7 +18,7 @@
 
 use thiserror::Error;
 
-use super::table::{EffectTable, FIT_RATIOS, NoduleEffect, TableError};
+use super::table::{EffectTable, FIT_RATIOS, MAX_RATIO, NoduleEffect, TableError};
 use crate::axis::closest_point;
 use crate::fe::nodule::Nodule;
 use crate::rng::Rng;
@@ -71,7 +71,7 @@ impl CaseRanges {
         let [rlo, rhi] = table.radius_range_mm();
         for (what, [lo, hi], [table_lo, table_hi]) in [
             ("radius (mm)", self.radius_mm, [rlo, rhi]),
-            ("ratio", self.ratio, [1.0, FIT_RATIOS[1]]),
+            ("ratio", self.ratio, [1.0, MAX_RATIO]),
         ] {
             if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= table_lo && hi <= table_hi) {
                 return Err(TrainingError::Range {
