@@ -513,8 +513,8 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
         if args.nodule.nodule_at.is_some() {
             bail!(
                 "--nodule-at: the nonlinear tissue with a nodule is not answered yet; evaluate \
-                 the linear scene with it (docs/lab/nodule-measurements.md §3 says how the \
-                 tissue's effect grows with the press)"
+                 the linear scene with it (the app scales the tissue's force by the linear \
+                 effect; docs/lab/nodule-measurements.md §8 measures what that misses)"
             );
         }
         return super::tissue::eval(

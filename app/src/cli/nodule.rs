@@ -110,6 +110,21 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
         .collect();
     let this = CheckSummary::of(&measured.pairs);
     let fe_s = measured.fe_s;
+    // The same nodules chosen from the table, timed in this run against the FE's two
+    // solves a pair: what one solve per configuration costs against the table.
+    let mut place_s: Vec<f64> = measured
+        .pairs
+        .iter()
+        .filter_map(|p| table.place(&p.nodule()).ok().map(|e| e.place_s))
+        .collect();
+    place_s.sort_by(f64::total_cmp);
+    let place_ms = place_s.get(place_s.len() / 2).map(|s| s * 1e3);
+    let solve_s = fe_s / (2 * measured.pairs.len().max(1)) as f64;
+    let cost = json!({
+        "fe_solve_s": solve_s, "table_place_ms_p50": place_ms,
+        "solve_over_place": place_ms.map(|ms| solve_s * 1e3 / ms),
+        "build_s": table.build_s, "build_in_fe_solves": table.build_s / solve_s,
+    });
     if args.record {
         table.checks.retain(|c| c.seed != args.seed);
         table.checks.push(measured);
@@ -117,7 +132,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     }
     let summary = json!({
         "file": args.file, "seed": args.seed, "pairs": pairs, "fe_s": fe_s,
-        "summary": this, "recorded": args.record,
+        "summary": this, "recorded": args.record, "cost": cost,
         "all_recorded": heldout::recorded(&table),
     });
     super::args::print_report(&summary, args.json)

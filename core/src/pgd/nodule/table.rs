@@ -175,7 +175,43 @@ pub struct EffectTable {
     pub placements: usize,
     /// Held-out checks against the full FE, as `palpa nodule check --record` measured
     /// them.
-    pub checks: Vec<super::heldout::TableCheck>,
+    pub checks: Vec<TableCheck>,
+}
+
+/// One held-out pair of a recorded check (`super::heldout`), as measured.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CheckedPair {
+    pub nodule: [f64; 5],
+    /// The probe point (mm, on the palpable surface).
+    pub at_mm: [f64; 3],
+    pub effect_fe: f64,
+    pub effect_table: f64,
+}
+
+impl CheckedPair {
+    /// The nodule: centre, radius, ratio.
+    pub fn nodule(&self) -> Nodule {
+        let n = self.nodule;
+        Nodule {
+            center_mm: [n[0], n[1], n[2]],
+            radius_mm: n[3],
+            ratio: n[4],
+        }
+    }
+
+    /// `|table − FE| / FE`, the effect's relative error.
+    pub fn error(&self) -> f64 {
+        (self.effect_table - self.effect_fe).abs() / self.effect_fe.abs().max(1e-300)
+    }
+}
+
+/// A recorded check: its seed and pairs.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TableCheck {
+    pub seed: u64,
+    pub pairs: Vec<CheckedPair>,
+    /// Seconds of the FE solves (two a pair).
+    pub fe_s: f64,
 }
 
 /// One nodule's effect at every probe node: what a probe reads.
