@@ -408,6 +408,15 @@ fn training(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
                 )),
                 None => ui.label("revealed without a mark"),
             };
+            if t.scores.len() > 1 {
+                let mut d: Vec<f64> = t.scores.iter().map(|s| s.distance_mm).collect();
+                d.sort_by(f64::total_cmp);
+                ui.label(format!(
+                    "this session: {} marks, median {:.1} mm from the nodule",
+                    d.len(),
+                    d[d.len() / 2]
+                ));
+            }
         }
     }
     ui.collapsing("Trainer", |ui| {

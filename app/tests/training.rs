@@ -111,6 +111,9 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     assert!(s.frame().nodule.is_none(), "hidden until marked");
     let score = s.mark().expect("marks").expect("a score");
     assert!(score.distance_mm < 0.5, "marked over it: {score:?}");
+    let again = s.mark().expect("marks").expect("the score");
+    assert_eq!(again, score, "once revealed, the score stands");
+    assert_eq!(s.training.as_ref().expect("training").scores.len(), 1);
     let shown = s.frame().nodule.expect("revealed");
     assert_eq!(shown.radius_mm, case.nodule().radius_mm as f32);
     // The trainer's map: 1 + effect at the scene's vertices, its top the case's peak.

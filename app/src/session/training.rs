@@ -136,7 +136,8 @@ impl Training {
     }
 
     /// Marks the nodule at the rest position of `p`, reveals it and returns the score
-    /// (`None` without a case).
+    /// (`None` without a case). Once revealed, the trial's score stands: a later mark
+    /// changes nothing.
     pub fn mark(
         &mut self,
         scene: &PalpationScene,
@@ -146,6 +147,9 @@ impl Training {
         let Some(trial) = self.trial.as_mut() else {
             return Ok(None);
         };
+        if self.revealed {
+            return Ok(trial.score());
+        }
         let (at, _) = scene.frame(p);
         trial.mark(at, now_s)?;
         self.revealed = true;
