@@ -68,7 +68,7 @@ if [ -n "${NODULES:-}" ]; then
   nodules="palpa nodule build --level coarse --around=-38.66,48.92,18.54 --half-width-mm 18 --out assets/liver-coarse.nodules"
   $palpa ${nodules#palpa }
   cmds=(--command "$nodules")
-  for seed in 7 8; do
+  for seed in 7 8 10 11; do
     check="palpa nodule check assets/liver-coarse.nodules --level coarse --felt 12 --seed $seed --record"
     $palpa ${check#palpa } > /dev/null
     cmds+=(--command "$check")

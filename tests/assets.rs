@@ -314,7 +314,8 @@ fn the_default_tissue_comes_from_the_current_code() {
 
 /// The default scene's nodule table (`assets/liver-coarse.nodules`) is of the default
 /// organ's mesh and carries its measured accuracy: held-out checks against the full FE
-/// (`palpa nodule check --record`), where most felt effects are within 10 %.
+/// (`palpa nodule check --record`), where every felt effect at ratios to 10 is within
+/// 10 % (recorded: 45 felt pairs, worst 8.0 %, median 1.8 %).
 #[test]
 fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     use palpa_core::pgd::nodule::heldout;
@@ -331,6 +332,9 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     let s = within.expect("checks recorded: scripts/make-assets.sh with NODULES=1");
     let b = beyond.expect("a check at ratios 10-100 recorded");
     assert!(b.felt >= 10 && b.error_median < 0.1, "{b:?}");
-    assert!(s.felt >= 20, "{s:?}");
-    assert!(s.within_10_percent >= 0.8 && s.error_median < 0.05, "{s:?}");
+    assert!(s.felt >= 40, "{s:?}");
+    assert!(
+        s.within_10_percent == 1.0 && s.error_max <= 0.1 && s.error_median < 0.05,
+        "{s:?}"
+    );
 }
