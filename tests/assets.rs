@@ -315,7 +315,7 @@ fn the_default_tissue_comes_from_the_current_code() {
 /// The default scene's nodule table (`assets/liver-coarse.nodules`) is of the default
 /// organ's mesh and carries its measured accuracy: held-out checks against the full FE
 /// (`palpa nodule check --record`), where every felt effect at ratios to 10 is within
-/// 10 % (recorded: 45 felt pairs, worst 8.0 %, median 1.8 %).
+/// 10 % (recorded: 45 felt pairs, worst 7.5 %, median 1.9 %).
 #[test]
 fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     use palpa_core::pgd::nodule::heldout;

@@ -24,11 +24,13 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
     let (organ, s, dir, centre) = coarse_nodal_under(site, 16.0);
     let settings = TableSettings {
         centre_mm: centre,
-        half_width_mm: 3.0,
+        half_width_mm: [3.0; 3],
+        max_depth_mm: None,
         spacing_mm: 3.0,
         radii_mm: vec![8.0, 10.0, 12.0],
         probe_reach_mm: 30.0,
         block: 3,
+        shard: None,
     };
     let table = EffectTable::build(&s, &organ, &settings).expect("builds");
     eprintln!(
@@ -70,11 +72,19 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
         EffectTable::load(&bad),
         Err(TableError::Foreign { .. })
     ));
-    let mut other = bytes.clone();
-    other[8] = 7;
-    std::fs::write(&bad, &other).expect("write");
-    let e = EffectTable::load(&bad).expect_err("another version");
-    assert!(e.to_string().contains("version 7"), "{e}");
+    // Every earlier version, and a later one, refused by name with the command that
+    // builds it again.
+    for v in (1..palpa_core::pgd::nodule::table::VERSION).chain([7]) {
+        let mut other = bytes.clone();
+        other[8] = v as u8;
+        std::fs::write(&bad, &other).expect("write");
+        let e = EffectTable::load(&bad).expect_err("another version");
+        let said = e.to_string();
+        assert!(
+            said.contains(&format!("version {v}")) && said.contains("palpa nodule build"),
+            "{e}"
+        );
+    }
     assert_eq!(table.mesh_xxh3, organ.fingerprint());
     let space = &s.space;
     let mut rng = Rng::seed(21);
@@ -208,4 +218,112 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
         heldout::check(&foreign, &organ, 1, 5, [1.5, 10.0]),
         Err(TableError::Mesh { .. })
     ));
+}
+
+/// A build in shards (`palpa nodule build --shard I/N`), merged, is the build
+/// unsharded, for N = 2 and 3; a shard alone is not a table, and a merge refuses a
+/// missing shard, a shard twice and a shard of another build, naming them. A band
+/// (`max_depth_mm`) keeps exactly the centres within its depth of the palpable surface.
+#[test]
+fn shards_merge_to_the_unsharded_build_and_a_band_keeps_what_can_be_felt() {
+    let (organ, s, _dir, centre) = coarse_nodal_under([-40.0, 60.0, 30.0], 16.0);
+    // Five centres along x in three blocks (2, 2, 1).
+    let settings = TableSettings {
+        centre_mm: centre,
+        half_width_mm: [3.0, 0.0, 0.0],
+        max_depth_mm: None,
+        spacing_mm: 1.5,
+        radii_mm: vec![8.0, 9.0],
+        probe_reach_mm: 20.0,
+        block: 2,
+        shard: None,
+    };
+    let build = |settings: TableSettings| EffectTable::build(&s, &organ, &settings);
+    let whole = build(settings.clone()).expect("builds");
+    assert_eq!(whole.dims, [5, 1, 1]);
+    assert!(whole.valid.iter().all(|&v| v), "every centre inside");
+    let shards = |n: usize| -> Vec<EffectTable> {
+        (1..=n)
+            .map(|i| {
+                build(TableSettings {
+                    shard: Some([i, n]),
+                    ..settings.clone()
+                })
+                .expect("builds")
+            })
+            .collect()
+    };
+    assert_eq!(
+        EffectTable::merge(shards(2))
+            .expect("merges")
+            .payload_xxh3(),
+        whole.payload_xxh3(),
+        "N = 2"
+    );
+    let parts = shards(3);
+    assert!(
+        parts.iter().all(|p| p.valid.iter().any(|&v| v)),
+        "a block a shard"
+    );
+    let merged = EffectTable::merge(parts.clone()).expect("merges");
+    assert_eq!(merged.payload_xxh3(), whole.payload_xxh3(), "N = 3");
+    // A shard alone is refused by name where a table is read.
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("x.nodules.shard-2-of-3");
+    parts[1].save(&path).expect("saves");
+    let e = EffectTable::load(&path).expect_err("a shard");
+    assert!(matches!(e, TableError::Shard { i: 2, n: 3, .. }), "{e}");
+    assert!(e.to_string().contains("palpa nodule merge"), "{e}");
+    assert_eq!(EffectTable::load_shard(&path).expect("reads"), parts[1]);
+    let missing =
+        EffectTable::merge(vec![parts[0].clone(), parts[2].clone()]).expect_err("missing");
+    assert!(missing.to_string().contains("missing [2]"), "{missing}");
+    let twice = EffectTable::merge(vec![parts[0].clone(), parts[0].clone(), parts[2].clone()])
+        .expect_err("twice");
+    assert!(twice.to_string().contains("missing [2]"), "{twice}");
+    let mut other = parts[1].clone();
+    other.spacing_mm = 1.6;
+    let e = EffectTable::merge(vec![parts[0].clone(), other, parts[2].clone()]).expect_err("other");
+    assert!(e.to_string().contains("other settings"), "{e}");
+    assert!(
+        EffectTable::merge(vec![whole.clone()]).is_err(),
+        "a whole table is no shard"
+    );
+
+    // A band as deep as the middle of the centres' depths keeps the shallower ones.
+    let palpable = organ.palpable_triangles();
+    let depths: Vec<f64> = (0..5)
+        .map(|i| {
+            let c =
+                [0, 1, 2].map(|d| whole.origin_mm[d] + if d == 0 { 1.5 * i as f64 } else { 0.0 });
+            palpa_core::axis::closest_point(&organ.mesh.vertices, &palpable, c)
+                .expect("a palpable surface")
+                .distance
+        })
+        .collect();
+    let (lo, hi) = depths
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &d| (a.min(d), b.max(d)));
+    assert!(hi - lo > 0.05, "the centres' depths {depths:?}");
+    let cut = 0.5 * (lo + hi);
+    let band = build(TableSettings {
+        max_depth_mm: Some(cut),
+        ..settings.clone()
+    })
+    .expect("builds");
+    for (k, &d) in depths.iter().enumerate() {
+        assert_eq!(
+            band.valid[k],
+            d <= cut,
+            "centre {k}: {d} mm deep, the band {cut} mm"
+        );
+    }
+    let none = build(TableSettings {
+        max_depth_mm: Some(1.0),
+        ..settings
+    });
+    assert!(
+        matches!(&none, Err(TableError::Settings(why)) if why.contains("palpable surface")),
+        "{none:?}"
+    );
 }

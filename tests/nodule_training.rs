@@ -5,8 +5,9 @@
 //! where the force rises most, what a trainee looks for, lies over the nodule.
 //!
 //! Measured (seeds 1–40, the default ranges: radii 8–12 mm, ratios 3–10): the largest
-//! effect on the surface 3.1–47 % (median 22 %), above 5 % in 36 cases; there the place
-//! of the largest effect lies 0.8–8.1 mm from the centre's projection (median 3.4 mm).
+//! effect on the surface 3.0–49 % (median 22 %), above 5 % in 36 cases; there the place
+//! of the largest effect lies 0.9–7.8 mm from the centre's projection (median 3.4 mm) but
+//! in one case, whose effect is as large over the nodule as 31 mm away on the next face.
 
 use palpa_core::pgd::nodule::table::EffectTable;
 use palpa_core::pgd::nodule::training::{CaseRanges, TrainingError, Trial, draw};
@@ -60,6 +61,28 @@ fn hidden_nodules_are_drawn_in_range_found_where_the_force_rises_and_scored() {
                 .sum::<f64>()
                 .sqrt();
             offsets.push(d);
+            // Over the nodule (within 8 mm of its projection) the force rises as much
+            // as anywhere: seed 8's nodule (19 mm deep) changes the force by 9.8 %
+            // over it and as much 31 mm away on the next face (the FE: 9.7 % there).
+            let over = case
+                .effect
+                .at_node
+                .iter()
+                .zip(&table.probe_mm)
+                .filter(|(_, q)| {
+                    (0..3)
+                        .map(|i| (f64::from(q[i]) - case.surface_mm[i]).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                        < 8.0
+                })
+                .map(|(&e, _)| e)
+                .fold(0.0, f64::max);
+            assert!(
+                over >= 0.95 * case.peak_effect,
+                "seed {seed}: {over} over the nodule, {} at its peak {d:.1} mm away",
+                case.peak_effect
+            );
         }
     }
     centres.sort_by(|a, b| a.partial_cmp(b).expect("finite"));
@@ -90,7 +113,7 @@ fn hidden_nodules_are_drawn_in_range_found_where_the_force_rises_and_scored() {
         offsets.len()
     );
     assert!(
-        median(&mut offsets) < 10.0 && offsets.iter().all(|&d| d < 25.0),
+        median(&mut offsets) < 10.0,
         "the force rises most over the nodule: {offsets:.1?}"
     );
 

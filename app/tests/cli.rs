@@ -1938,20 +1938,47 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
 
     let table = dir.path().join("liver.nodules");
     let table_s = table.display().to_string();
-    let built = palpa(&[
-        "nodule",
-        "build",
-        "--level",
-        "coarse",
-        "--around=-38.66,48.92,18.54",
-        "--half-width-mm",
-        "3",
-        "--out",
-        &table_s,
-        "--json",
-    ]);
-    let b = common::json_ok(&built);
+    let build = |shard: &[&str]| {
+        let mut a = vec![
+            "nodule",
+            "build",
+            "--level",
+            "coarse",
+            "--around=-38.66,48.92,18.54",
+            "--half-width-mm",
+            "3",
+            "--out",
+            &table_s,
+            "--json",
+        ];
+        a.extend(shard);
+        common::json_ok(&palpa(&a))
+    };
+    let b = build(&[]);
     assert_eq!(b["centres"], 27);
+    // The same in two shards (the lattice is one block: the second shard builds
+    // nothing), merged: the same payload.
+    for i in ["1/2", "2/2"] {
+        build(&["--shard", i]);
+    }
+    let merged_s = dir.path().join("merged.nodules").display().to_string();
+    let shard = |i: u32| format!("{table_s}.shard-{i}-of-2");
+    let out = palpa(&["nodule", "merge", &shard(1), "--out", &merged_s]);
+    assert!(!out.status.success(), "a shard missing");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("missing [2]"), "{err}");
+    let m = common::json_ok(&palpa(&[
+        "nodule",
+        "merge",
+        &shard(2),
+        &shard(1),
+        "--out",
+        &merged_s,
+        "--json",
+    ]));
+    assert_eq!(m["payload_xxh3"], b["payload_xxh3"], "{m} against {b}");
+    let info = common::json_ok(&palpa(&["info", &shard(1), "--json"]));
+    assert_eq!(info["shard"], serde_json::json!([1, 2]), "{info}");
     let e = common::json_ok(&palpa(&eval));
     let table_effect = e["nodule"]["effect"].as_f64().expect("an effect");
     let fe = |with: bool| {

@@ -419,3 +419,17 @@ pub fn winding_lines(w: &palpa_core::organ::user::WindingReport) -> Vec<String> 
     }
     lines
 }
+
+/// `I/N`, I from 1 to N.
+pub fn parse_shard(s: &str) -> Result<palpa_core::tissue::presser::Shard, String> {
+    let bad = || format!("{s}: expected I/N, a shard I from 1 to N (e.g. 3/8)");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (index, count): (u32, u32) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if count == 0 || index == 0 || index > count {
+        return Err(bad());
+    }
+    Ok(palpa_core::tissue::presser::Shard { index, count })
+}

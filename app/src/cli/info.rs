@@ -25,7 +25,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         return super::args::print_report(&summary, args.json);
     }
     if palpa_core::pgd::nodule::table::is_table_file(&args.file) {
-        let table = palpa_core::pgd::nodule::table::EffectTable::load(&args.file)?;
+        let table = palpa_core::pgd::nodule::table::EffectTable::load_shard(&args.file)?;
         return super::args::print_report(&super::nodule::summary(&table, &args.file), args.json);
     }
     let h = file::read_header(&args.file)

@@ -17,9 +17,14 @@ use super::args::OrganArgs;
 #[derive(Debug, Subcommand)]
 pub enum NoduleCommand {
     /// Tabulate the nodule's effect on the probe's force over a cube of centres (a
-    /// lattice), a range of radii and ratios 1–100, at every palpable point within
-    /// reach: a scene then answers any nodule in the cube without a solve.
+    /// lattice) or the whole band under the palpable surface, a range of radii and
+    /// ratios 1–100, at every palpable point within reach: a scene then answers any
+    /// nodule there without a solve.
     Build(BuildArgs),
+    /// Join the shards of one build (`palpa nodule build --shard I/N`) into the table
+    /// the build unsharded writes (the same payload: `palpa info --json`'s
+    /// `payload_xxh3`).
+    Merge(MergeArgs),
     /// Measure a table against the full FE at held-out (probe point, nodule) pairs
     /// drawn off its grids; `--record` writes the measurement into the table, where
     /// `palpa info` and the app read it.
@@ -57,9 +62,20 @@ pub struct BuildArgs {
         long,
         value_delimiter = ',',
         allow_hyphen_values = true,
-        required = true
+        required_unless_present = "band_depth_mm",
+        conflicts_with = "band_depth_mm"
     )]
     around: Vec<f64>,
+    /// Instead of a cube: every centre in the organ within this depth under the
+    /// palpable surface (mm), on a lattice over the whole palpable surface. Deeper
+    /// nodules (radius to 12 mm, ratio to 10) change the force by less than 5 %
+    /// (docs/lab/nodule-measurements.md §11).
+    #[arg(long)]
+    band_depth_mm: Option<f64>,
+    /// Build only shard I of N (I from 1), the lattice's blocks dealt in turn, into
+    /// `OUT.shard-I-of-N`; `palpa nodule merge` joins the N shards into OUT.
+    #[arg(long, value_parser = super::args::parse_shard)]
+    shard: Option<palpa_core::tissue::presser::Shard>,
     /// Half the cube's width (mm): centres within it along each axis.
     #[arg(long, default_value_t = 6.0)]
     half_width_mm: f64,
@@ -86,6 +102,7 @@ pub fn run(cmd: &NoduleCommand) -> anyhow::Result<()> {
     match cmd {
         NoduleCommand::Build(args) => build(args),
         NoduleCommand::Check(args) => check(args),
+        NoduleCommand::Merge(args) => merge(args),
     }
 }
 
@@ -301,6 +318,7 @@ pub fn tradeoff(path: &std::path::Path, organ: &OrganArgs, json_out: bool) -> an
 pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value {
     json!({
         "file": path, "kind": "nodule-table", "format_version": palpa_core::pgd::nodule::table::VERSION,
+        "shard": table.shard,
         "lattice": table.dims, "centres": table.valid.iter().filter(|&&v| v).count(),
         "box_mm": table.box_mm(), "spacing_mm": table.spacing_mm, "radii_mm": table.radii_mm,
         "ratios": [1.0, palpa_core::pgd::nodule::table::MAX_RATIO],
@@ -317,13 +335,72 @@ pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value
     })
 }
 
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// Every shard of the build (`OUT.shard-I-of-N`), in any order.
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long)]
+    json: bool,
+}
+
+fn merge(args: &MergeArgs) -> anyhow::Result<()> {
+    super::args::check_out(&args.out)?;
+    let parts = args
+        .shards
+        .iter()
+        .map(|p| EffectTable::load_shard(p).with_context(|| format!("reading {}", p.display())))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let table = EffectTable::merge(parts)?;
+    table.save(&args.out)?;
+    super::args::print_report(&build_summary(&table, &args.out), args.json)
+}
+
+/// Where shard `shard` of a build into `out` goes: `OUT.shard-I-of-N`.
+pub fn shard_path(out: &std::path::Path, shard: palpa_core::tissue::presser::Shard) -> PathBuf {
+    let mut p = out.as_os_str().to_owned();
+    p.push(format!(".shard-{}-of-{}", shard.index, shard.count));
+    PathBuf::from(p)
+}
+
 fn build(args: &BuildArgs) -> anyhow::Result<()> {
     super::args::check_out(&args.out)?;
-    let around = super::args::to3(&args.around, "--around")?;
     let organ = args.organ.mesh()?;
-    if !palpa_core::fe::nodule::inside(&organ, around) {
-        bail!("--around {around:?}: expected a point inside the organ (the cube's middle)");
-    }
+    // The lattice's middle and half widths: the cube asked for, or the palpable
+    // surface's box grown by the band's depth.
+    let (around, half_width_mm) = match args.band_depth_mm {
+        Some(d) => {
+            if !(d.is_finite() && d > 0.0) {
+                bail!("--band-depth-mm {d}: expected a positive depth");
+            }
+            let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+            for t in organ.palpable_triangles() {
+                for v in t {
+                    let x = organ.mesh.vertices[v as usize];
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(x[k] - d);
+                        hi[k] = hi[k].max(x[k] + d);
+                    }
+                }
+            }
+            if lo[0] > hi[0] {
+                bail!("--band-depth-mm: the organ has no palpable surface");
+            }
+            (
+                [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k])),
+                [0, 1, 2].map(|k| 0.5 * (hi[k] - lo[k])),
+            )
+        }
+        None => {
+            let around = super::args::to3(&args.around, "--around")?;
+            if !palpa_core::fe::nodule::inside(&organ, around) {
+                bail!("--around {around:?}: expected a point inside the organ (the cube's middle)");
+            }
+            (around, [args.half_width_mm; 3])
+        }
+    };
     for (flag, v) in [
         ("--half-width-mm", args.half_width_mm),
         ("--spacing-mm", args.spacing_mm),
@@ -334,7 +411,7 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
             bail!("{flag} {v}: expected a positive length");
         }
     }
-    if args.half_width_mm < args.spacing_mm {
+    if args.band_depth_mm.is_none() && args.half_width_mm < args.spacing_mm {
         bail!(
             "--half-width-mm {} under --spacing-mm {}: expected a cube of at least three nodes a side",
             args.half_width_mm,
@@ -353,22 +430,32 @@ fn build(args: &BuildArgs) -> anyhow::Result<()> {
         .context("building the FE operators")?;
     let settings = TableSettings {
         centre_mm: around,
-        half_width_mm: args.half_width_mm,
+        half_width_mm,
+        max_depth_mm: args.band_depth_mm,
         spacing_mm: args.spacing_mm,
         radii_mm: args.radii_mm.clone(),
         probe_reach_mm: args.probe_reach_mm,
         block: 4,
+        shard: args.shard.map(|s| [s.index as usize, s.count as usize]),
     };
     let table = EffectTable::build(&setup, &organ, &settings)?;
-    table.save(&args.out)?;
-    let summary = json!({
-        "out": args.out,
+    let out = match args.shard {
+        Some(shard) => shard_path(&args.out, shard),
+        None => args.out.clone(),
+    };
+    table.save(&out)?;
+    super::args::print_report(&build_summary(&table, &out), args.json)
+}
+
+fn build_summary(table: &EffectTable, out: &std::path::Path) -> serde_json::Value {
+    json!({
+        "out": out, "shard": table.shard,
         "lattice": table.dims, "centres": table.valid.iter().filter(|&&v| v).count(),
         "spacing_mm": table.spacing_mm, "radii_mm": table.radii_mm,
         "probe_nodes": table.probe_nodes.len(), "placements": table.placements,
-        "bytes": std::fs::metadata(&args.out).map(|m| m.len()).ok(),
+        "bytes": std::fs::metadata(out).map(|m| m.len()).ok(),
         "stores_s": table.stores_s, "placements_s": table.placements_s, "build_s": table.build_s,
         "mesh_xxh3": format!("{:016x}", table.mesh_xxh3),
-    });
-    super::args::print_report(&summary, args.json)
+        "payload_xxh3": format!("{:016x}", table.payload_xxh3()),
+    })
 }

@@ -99,6 +99,15 @@ impl OrganMesh {
         v
     }
 
+    /// The palpable boundary triangles, in the boundary's order.
+    pub fn palpable_triangles(&self) -> Vec<[u32; 3]> {
+        self.boundary
+            .iter()
+            .zip(&self.palpable)
+            .filter_map(|(t, p)| p.then_some(*t))
+            .collect()
+    }
+
     /// The palpable boundary edges, as sorted vertex pairs, sorted and each once.
     pub fn palpable_edges(&self) -> Vec<[u32; 2]> {
         let mut e: Vec<[u32; 2]> = self

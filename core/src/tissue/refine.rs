@@ -206,12 +206,7 @@ pub fn covering_vertices(
     organ: &OrganMesh,
     points: &[[f64; 3]],
 ) -> Result<Vec<u32>, SurfaceLawBuildError> {
-    let palpable: Vec<[u32; 3]> = organ
-        .boundary
-        .iter()
-        .zip(&organ.palpable)
-        .filter_map(|(t, p)| p.then_some(*t))
-        .collect();
+    let palpable = organ.palpable_triangles();
     let mut cover = Vec::with_capacity(3 * points.len());
     for &p in points {
         cover.extend(palpable[palpable_at(organ, &palpable, p)?]);

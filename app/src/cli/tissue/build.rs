@@ -109,7 +109,7 @@ pub struct BuildArgs {
     /// presses; `palpa tissue merge` then gathers them and either writes OUT (the same
     /// payload as one unsharded build) or says the shards are to run again for the next
     /// step. Run again after a kill, a shard goes on from its log.
-    #[arg(long, value_parser = parse_shard)]
+    #[arg(long, value_parser = crate::cli::args::parse_shard)]
     pub shard: Option<Shard>,
     /// Press nothing: count the recipe's presses, measure a few presses and a shard's
     /// setup here, and print the predicted wall time on each of --plan-cores cores.
@@ -395,20 +395,6 @@ pub(super) fn recipe_of(
         bail!("--recipe {}: {why}", args.recipe);
     }
     Ok(r)
-}
-
-/// `I/N`, I from 1 to N.
-pub fn parse_shard(s: &str) -> Result<Shard, String> {
-    let bad = || format!("{s}: expected I/N, a shard I from 1 to N (e.g. 3/8)");
-    let (i, n) = s.split_once('/').ok_or_else(bad)?;
-    let (index, count): (u32, u32) = (
-        i.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if count == 0 || index == 0 || index > count {
-        return Err(bad());
-    }
-    Ok(Shard { index, count })
 }
 
 /// Shard `shard`'s own log of step `stage` (0: the first pass):

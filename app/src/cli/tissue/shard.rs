@@ -246,7 +246,8 @@ pub fn merge(args: &MergeArgs) -> anyhow::Result<serde_json::Value> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cli::tissue::build::{parse_shard, shard_log};
+    use crate::cli::args::parse_shard;
+    use crate::cli::tissue::build::shard_log;
 
     #[test]
     fn shards_and_their_logs_are_named_both_ways() {

@@ -13,12 +13,17 @@
 //!
 //! with `A` and `λ` fitted through the exact `δc` at two ratios ([`FIT_RATIOS`]; within
 //! 1.5 % of the exact effect at ratios 1.5–10, docs/lab/nodule-measurements.md §6).
-//! `(A, λ)` are kept at the nodes of a lattice of centres (spacing `h`), at a few radii,
-//! and at the P2 nodes of the palpable surface within [`TableSettings::probe_reach_mm`] of
-//! each centre; between lattice nodes the table is trilinear in the centre and quadratic
-//! in the radius (through the three tabulated radii about it), and over a boundary triangle the effect is interpolated quadratically from
-//! its six nodes. The force of a depth-controlled press changes by the factor
-//! `c₀/(c₀+δc)`, `c₀` the nodule-free compliance at the node.
+//! They are kept at the nodes of a lattice of centres (spacing `h`), at a few radii,
+//! and at the P2 nodes of the palpable surface within [`TableSettings::probe_reach_mm`]
+//! of each centre. The probe nodes of one centre and radius share one pole: `λ` is their
+//! `|A|`-weighted mean (the dominant polarization mode's, whichever probe reads it) and
+//! each `A` is matched at ratio 4, then stored in 127ths of the largest: a byte an entry
+//! and radius, where an `(A, λ)` of its own took four (§11 of the lab notes: the error at
+//! held-out pairs unchanged). Between lattice nodes the table is trilinear in the centre
+//! and quadratic in the radius (through the three tabulated radii about it), and over a
+//! boundary triangle the effect is interpolated quadratically from its six nodes. The
+//! force of a depth-controlled press changes by the factor `c₀/(c₀+δc)`, `c₀` the
+//! nodule-free compliance at the node.
 //!
 //! **Off-line** ([`EffectTable::build`]): the lattice is cut into blocks; one store of
 //! interior responses per block ([`super::InteriorResponses`]) places every node's
@@ -47,8 +52,9 @@ use crate::pgd::nodal::NodalSetup;
 /// A probe node's unit load and functional (free unknown, value).
 type Load = (Vec<(u32, f64)>, Vec<(u32, f64)>);
 
-/// A lattice node's entries: each probe node within reach with `(A, λ)` per radius.
-type Entries = Vec<(u32, Vec<[f32; 2]>)>;
+/// A lattice node's entries: the probe nodes within reach, then per radius the shared
+/// `λ`, the scale and each entry's steps (`entry * radii + r`).
+type Entries = (Vec<u32>, Vec<f32>, Vec<f32>, Vec<i8>);
 
 /// The two ratios each lattice node's nodules are placed at, which fix the one-pole
 /// form's `A` and `λ`.
@@ -94,6 +100,12 @@ pub enum TableError {
     Version { path: String, found: u32 },
     #[error("{path}: {why}")]
     Corrupt { path: String, why: String },
+    #[error(
+        "{path}: shard {i} of {n} of a build, not a whole table: join the {n} shards with `palpa nodule merge`"
+    )]
+    Shard { path: String, i: u32, n: u32 },
+    #[error("merging shards: {0}")]
+    Merge(String),
     #[error("{path}: {why}")]
     Io { path: String, why: String },
     #[error("probe node {node} at {at_mm:?} mm: {why}")]
@@ -110,7 +122,10 @@ pub struct TableSettings {
     /// The lattice's middle and half its width along each axis (mm): nodes at
     /// `centre + h·(i, j, k)` within it.
     pub centre_mm: [f64; 3],
-    pub half_width_mm: f64,
+    pub half_width_mm: [f64; 3],
+    /// Only lattice nodes within this distance of the palpable surface (mm), where a
+    /// nodule can be felt; every node inside the organ where `None`.
+    pub max_depth_mm: Option<f64>,
     /// Lattice spacing `h` (mm).
     pub spacing_mm: f64,
     /// The radii tabulated, ascending: the table answers radii between the first and the
@@ -121,11 +136,14 @@ pub struct TableSettings {
     pub probe_reach_mm: f64,
     /// Lattice nodes a side of one store's block.
     pub block: usize,
+    /// `Some([i, n])`: build only shard `i` of `n` (from 1), its blocks dealt in turn;
+    /// [`EffectTable::merge`] joins the `n` shards into the whole build.
+    pub shard: Option<[usize; 2]>,
 }
 
 /// The file's magic bytes and its one format version.
 pub const MAGIC: &[u8; 8] = b"PALPANOD";
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// Whether `path` starts as a nodule table does (unreadable: no).
 pub fn is_table_file(path: &std::path::Path) -> bool {
@@ -155,11 +173,13 @@ pub struct EffectTable {
     pub starts: Vec<u32>,
     /// Each entry's probe node (index into `probe_nodes`).
     pub entry_node: Vec<u32>,
-    /// Each entry's `(A, λ)` per radius: `entry * radii + r`, at half precision (kept
-    /// as `f32` here, stored as `f16`: relative 5e-4, far below the interpolation's
-    /// percent).
-    #[serde(with = "half_pairs")]
-    pub fit: Vec<[f32; 2]>,
+    /// Per lattice node and radius (`node * radii + r`): the pole `λ ≥ 0` its entries
+    /// share, and the scale of their `A` (mm/N).
+    pub lambda: Vec<f32>,
+    pub scale: Vec<f32>,
+    /// Each entry's `A` per radius (`entry * radii + r`), in 127ths of its lattice
+    /// node's scale.
+    pub amp: Vec<i8>,
     /// The probe nodes: space nodes of the palpable surface's P2 faces, their rest
     /// positions and nodule-free compliance (mm/N).
     pub probe_nodes: Vec<u32>,
@@ -176,6 +196,9 @@ pub struct EffectTable {
     /// Held-out checks against the full FE, as `palpa nodule check --record` measured
     /// them.
     pub checks: Vec<TableCheck>,
+    /// `Some([i, n])`: only shard `i` of `n` of a build, not a table to answer from
+    /// until merged.
+    pub shard: Option<[u32; 2]>,
 }
 
 /// One held-out pair of a recorded check (`super::heldout`), as measured.
@@ -223,40 +246,48 @@ pub struct NoduleEffect {
     pub place_s: f64,
 }
 
-/// `(A, λ)` pairs stored as half-precision bits.
-mod half_pairs {
-    use half::f16;
-    use serde::{Deserialize, Deserializer, Serialize, Serializer};
-
-    pub fn serialize<S: Serializer>(v: &[[f32; 2]], s: S) -> Result<S::Ok, S::Error> {
-        let bits: Vec<[u16; 2]> = v
-            .iter()
-            .map(|p| p.map(|x| f16::from_f32(x).to_bits()))
-            .collect();
-        bits.serialize(s)
-    }
-
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<[f32; 2]>, D::Error> {
-        let bits = Vec::<[u16; 2]>::deserialize(d)?;
-        Ok(bits
-            .into_iter()
-            .map(|p| p.map(|b| f16::from_bits(b).to_f32()))
-            .collect())
-    }
-}
-
-/// A value as half precision keeps it.
-fn to_half(x: f32) -> f32 {
-    half::f16::from_f32(x).to_f32()
-}
-
-/// The largest `|λ|` kept: `A` and `λ` stay within half precision's range.
+/// The largest `|λ|` a fit keeps (a change that hardly grows between the fit's ratios).
 const LAMBDA_MAX: f64 = 1e3;
+
+/// The ratio at which an entry's `A` is matched once its lattice node's shared `λ` is
+/// set: the fit's ratios' geometric middle.
+const MATCH_RATIO: f64 = 4.0;
+
+/// One lattice node's entries at one radius, `(A, λ)` each (fitted alone), made to
+/// share one pole: `λ̄ = Σ|A|λ / Σ|A|` (at least 0: every polarization mode's is), each
+/// `A` matched at [`MATCH_RATIO`], then stored in 127ths of the largest. Returns `λ̄`,
+/// the scale, and the steps (docs/lab/nodule-measurements.md §11: the effect within
+/// 7.4 % at held-out pairs where the entries' own poles gave 8.0 %).
+fn share_pole(fits: &[[f64; 2]]) -> (f32, f32, Vec<i8>) {
+    let weight: f64 = fits.iter().map(|f| f[0].abs()).sum();
+    let lambda = if weight > 0.0 {
+        (fits.iter().map(|f| f[0].abs() * f[1]).sum::<f64>() / weight).max(0.0)
+    } else {
+        0.0
+    };
+    let b = MATCH_RATIO - 1.0;
+    let a: Vec<f64> = fits
+        .iter()
+        .map(|&[a, l]| a * b / (1.0 + b * l) * (1.0 + b * lambda) / b)
+        .collect();
+    let scale = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let steps = a
+        .iter()
+        .map(|&x| {
+            if scale > 0.0 {
+                (x / scale * 127.0).round().clamp(-127.0, 127.0) as i8
+            } else {
+                0
+            }
+        })
+        .collect();
+    (lambda as f32, scale as f32, steps)
+}
 
 /// `(A, λ)` through `y₁ = −δc(β = 2)` and `y₂ = −δc(β = 10)`: `1/y` is linear in
 /// `1/(β−1)` with slope `1/A` and intercept `λ/A`. Negligible changes (below 1e-12 mm/N)
 /// give `(0, 0)`.
-fn one_pole(y1: f64, y2: f64) -> [f32; 2] {
+fn one_pole(y1: f64, y2: f64) -> [f64; 2] {
     if y1.abs() < 1e-12 || y2.abs() < 1e-12 {
         return [0.0, 0.0];
     }
@@ -272,16 +303,16 @@ fn one_pole(y1: f64, y2: f64) -> [f32; 2] {
     if lambda.abs() > LAMBDA_MAX {
         let l = LAMBDA_MAX.copysign(lambda);
         let b = FIT_RATIOS[1] - 1.0;
-        return [(y2 * (1.0 + b * l) / b) as f32, l as f32];
+        return [y2 * (1.0 + b * l) / b, l];
     }
-    [a as f32, lambda as f32]
+    [a, lambda]
 }
 
 /// `−δc` of the one-pole form at ratio `beta`.
 #[inline]
-fn pole(fit: [f32; 2], beta: f64) -> f64 {
+fn pole(fit: [f64; 2], beta: f64) -> f64 {
     let b = beta - 1.0;
-    f64::from(fit[0]) * b / (1.0 + b * f64::from(fit[1]))
+    fit[0] * b / (1.0 + b * fit[1])
 }
 
 impl EffectTable {
@@ -336,7 +367,9 @@ impl EffectTable {
             surface_mm: Vec::new(),
             starts: vec![0],
             entry_node: Vec::new(),
-            fit: Vec::new(),
+            lambda: Vec::new(),
+            scale: Vec::new(),
+            amp: Vec::new(),
             checks: Vec::new(),
             ..self.clone()
         };
@@ -346,9 +379,13 @@ impl EffectTable {
                     let n = self.index([i * step, j * step, k * step]);
                     out.valid.push(self.valid[n]);
                     out.surface_mm.push(self.surface_mm[n]);
+                    out.lambda
+                        .extend(radii.iter().map(|&q| self.lambda[n * r + q]));
+                    out.scale
+                        .extend(radii.iter().map(|&q| self.scale[n * r + q]));
                     for e in self.starts[n] as usize..self.starts[n + 1] as usize {
                         out.entry_node.push(self.entry_node[e]);
-                        out.fit.extend(radii.iter().map(|&q| self.fit[e * r + q]));
+                        out.amp.extend(radii.iter().map(|&q| self.amp[e * r + q]));
                     }
                     out.starts.push(out.entry_node.len() as u32);
                 }
@@ -375,8 +412,9 @@ impl EffectTable {
         let s = settings;
         let ok = s.spacing_mm.is_finite()
             && s.spacing_mm > 0.0
-            && s.half_width_mm.is_finite()
-            && s.half_width_mm >= 0.0
+            && s.half_width_mm.iter().all(|w| w.is_finite() && *w >= 0.0)
+            && s.max_depth_mm.is_none_or(|d| d.is_finite() && d > 0.0)
+            && s.shard.is_none_or(|[i, n]| i >= 1 && i <= n)
             && s.radii_mm.len() >= 2
             && s.radii_mm.windows(2).all(|w| w[0] < w[1])
             && s.radii_mm[0] > 0.0
@@ -384,17 +422,18 @@ impl EffectTable {
             && s.block >= 1;
         if !ok {
             return Err(TableError::Settings(format!(
-                "{s:?}: expected a positive spacing, a non-negative half width, two or more \
-                 ascending positive radii, a positive probe reach and blocks of one node or more"
+                "{s:?}: expected a positive spacing, non-negative half widths, a positive depth, \
+                 two or more ascending positive radii, a positive probe reach, blocks of one \
+                 node or more and a shard I/N with I from 1 to N"
             )));
         }
         let space = &setup.space;
-        let half = (s.half_width_mm / s.spacing_mm).floor() as usize;
-        let n = 2 * half + 1;
-        let dims = [n; 3];
-        let origin_mm = [0, 1, 2].map(|d| s.centre_mm[d] - s.spacing_mm * half as f64);
+        let half = s.half_width_mm.map(|w| (w / s.spacing_mm).floor() as usize);
+        let dims = half.map(|h| 2 * h + 1);
+        let lattice: usize = dims.iter().product();
+        let origin_mm = [0, 1, 2].map(|d| s.centre_mm[d] - s.spacing_mm * half[d] as f64);
         // The probe nodes: every node of a palpable face within reach of the lattice.
-        let reach = s.probe_reach_mm + s.half_width_mm * 3f64.sqrt();
+        let reach = s.probe_reach_mm + norm(s.half_width_mm);
         let mut node_of: HashMap<u32, u32> = HashMap::new();
         let mut probe_nodes = Vec::new();
         let mut face_nodes = vec![None; space.face_count()];
@@ -459,11 +498,13 @@ impl EffectTable {
             spacing_mm: s.spacing_mm,
             dims,
             radii_mm: s.radii_mm.clone(),
-            valid: vec![false; n * n * n],
-            surface_mm: vec![0.0; n * n * n],
-            starts: vec![0; n * n * n + 1],
+            valid: vec![false; lattice],
+            surface_mm: vec![0.0; lattice],
+            starts: vec![0; lattice + 1],
             entry_node: Vec::new(),
-            fit: Vec::new(),
+            lambda: vec![0.0; lattice * s.radii_mm.len()],
+            scale: vec![0.0; lattice * s.radii_mm.len()],
+            amp: Vec::new(),
             probe_nodes,
             probe_mm,
             compliance_mm_per_n: compliance,
@@ -473,27 +514,59 @@ impl EffectTable {
             build_s: 0.0,
             placements: 0,
             checks: Vec::new(),
+            shard: s.shard.map(|[i, n]| [i as u32, n as u32]),
         };
-        // Per lattice node: its entries, gathered block by block.
-        let mut entries: Vec<Entries> = vec![Vec::new(); n * n * n];
+        // Each node's distance to the surface (to refuse a shallow nodule), and to the
+        // palpable surface where the lattice keeps only what can be felt.
+        let palpable = organ.palpable_triangles();
+        let depths: Vec<(f32, bool)> = (0..lattice)
+            .into_par_iter()
+            .map(|at| {
+                let i = [
+                    at % dims[0],
+                    (at / dims[0]) % dims[1],
+                    at / (dims[0] * dims[1]),
+                ];
+                let c = table.node_mm(i);
+                let hit = closest_point(&organ.mesh.vertices, &organ.boundary, c);
+                let felt = s.max_depth_mm.is_none_or(|d| {
+                    closest_point(&organ.mesh.vertices, &palpable, c)
+                        .is_some_and(|h| h.distance <= d)
+                });
+                (hit.map_or(0.0, |h| h.distance as f32), felt)
+            })
+            .collect();
+        for (at, &(d, _)) in depths.iter().enumerate() {
+            table.surface_mm[at] = d;
+        }
+        // Per lattice node: its entries, gathered block by block; the blocks with
+        // members dealt to the shards in turn.
+        let mut entries: Vec<Entries> = vec![Default::default(); lattice];
         let r_max = *s.radii_mm.last().unwrap_or(&0.0);
-        let blocks = n.div_ceil(s.block);
-        for bz in 0..blocks {
-            for by in 0..blocks {
-                for bx in 0..blocks {
+        let blocks = dims.map(|n| n.div_ceil(s.block));
+        let mut dealt = 0usize;
+        for bz in 0..blocks[2] {
+            for by in 0..blocks[1] {
+                for bx in 0..blocks[0] {
                     let lo = [bx, by, bz].map(|b| b * s.block);
-                    let hi = lo.map(|l| (l + s.block).min(n));
+                    let hi = [0, 1, 2].map(|d| (lo[d] + s.block).min(dims[d]));
                     let mut members = Vec::new();
                     for k in lo[2]..hi[2] {
                         for j in lo[1]..hi[1] {
                             for i in lo[0]..hi[0] {
-                                if inside(organ, table.node_mm([i, j, k])) {
+                                if depths[table.index([i, j, k])].1
+                                    && inside(organ, table.node_mm([i, j, k]))
+                                {
                                     members.push([i, j, k]);
                                 }
                             }
                         }
                     }
                     if members.is_empty() {
+                        continue;
+                    }
+                    dealt += 1;
+                    if s.shard.is_some_and(|[i, n]| (dealt - 1) % n != i - 1) {
                         continue;
                     }
                     let mid = [0, 1, 2].map(|d| {
@@ -534,22 +607,23 @@ impl EffectTable {
                 }
             }
         }
-        for k in 0..n {
-            for j in 0..n {
-                for i in 0..n {
-                    let c = table.node_mm([i, j, k]);
-                    let hit = closest_point(&organ.mesh.vertices, &organ.boundary, c);
-                    let at = table.index([i, j, k]);
-                    table.surface_mm[at] = hit.map_or(0.0, |h| h.distance as f32);
-                }
-            }
+        if dealt == 0 {
+            return Err(TableError::Settings(format!(
+                "no lattice node lies inside the organ{}: expected a lattice over it",
+                s.max_depth_mm
+                    .map(|d| format!(" within {d} mm of the palpable surface"))
+                    .unwrap_or_default()
+            )));
         }
-        for (k, e) in entries.into_iter().enumerate() {
+        let radii = s.radii_mm.len();
+        for (k, (nodes, lambda, scale, amp)) in entries.into_iter().enumerate() {
             table.starts[k] = table.entry_node.len() as u32;
-            for (p, f) in e {
-                table.entry_node.push(p);
-                table.fit.extend(f);
+            if !nodes.is_empty() {
+                table.lambda[k * radii..(k + 1) * radii].copy_from_slice(&lambda);
+                table.scale[k * radii..(k + 1) * radii].copy_from_slice(&scale);
             }
+            table.entry_node.extend(nodes);
+            table.amp.extend(amp);
         }
         *table.starts.last_mut().expect("n³ + 1 starts") = table.entry_node.len() as u32;
         table.build_s = t0.elapsed().as_secs_f64();
@@ -569,9 +643,11 @@ impl EffectTable {
         let near: Vec<usize> = (0..self.probe_nodes.len())
             .filter(|&p| norm(sub(self.probe_mm[p].map(f64::from), c)) <= s.probe_reach_mm)
             .collect();
-        let mut fits = vec![Vec::with_capacity(s.radii_mm.len()); near.len()];
+        let radii = s.radii_mm.len();
+        let (mut lambda, mut scale) = (vec![0.0; radii], vec![0.0; radii]);
+        let mut amp = vec![0i8; near.len() * radii];
         let mut count = 0;
-        for &r in &s.radii_mm {
+        for (ri, &r) in s.radii_mm.iter().enumerate() {
             let mut y = [vec![0.0; near.len()], vec![0.0; near.len()]];
             for (b, &beta) in FIT_RATIOS.iter().enumerate() {
                 let nodule = Nodule {
@@ -586,12 +662,17 @@ impl EffectTable {
                     y[b][k] = -placed.correction(store, f, phi);
                 }
             }
-            for (k, fit) in fits.iter_mut().enumerate() {
-                fit.push(one_pole(y[0][k], y[1][k]).map(to_half));
+            let fits: Vec<[f64; 2]> = (0..near.len())
+                .map(|k| one_pole(y[0][k], y[1][k]))
+                .collect();
+            let (l, sc, steps) = share_pole(&fits);
+            (lambda[ri], scale[ri]) = (l, sc);
+            for (k, q) in steps.into_iter().enumerate() {
+                amp[k * radii + ri] = q;
             }
         }
         Some((
-            near.iter().zip(fits).map(|(&p, f)| (p as u32, f)).collect(),
+            (near.iter().map(|&p| p as u32).collect(), lambda, scale, amp),
             count,
         ))
     }
@@ -609,6 +690,90 @@ impl EffectTable {
         xxhash_rust::xxh3::xxh3_64(&bytes)
     }
 
+    /// The whole table from the `n` shards of one build ([`TableSettings::shard`]), in
+    /// any order: the same as the build unsharded, but for its timings (the shards'
+    /// summed). Refused, naming what differs, unless every shard from 1 to `n` is here
+    /// once and all were built with the same settings on the same mesh.
+    pub fn merge(mut parts: Vec<EffectTable>) -> Result<EffectTable, TableError> {
+        let bad = |why: String| Err(TableError::Merge(why));
+        let Some(n) = parts.first().and_then(|p| p.shard).map(|[_, n]| n) else {
+            return bad("expected shards of a build (`palpa nodule build --shard I/N`)".into());
+        };
+        parts.sort_by_key(|p| p.shard.map_or(0, |[i, _]| i));
+        let have: Vec<u32> = parts
+            .iter()
+            .filter_map(|p| p.shard.map(|[i, _]| i))
+            .collect();
+        let missing: Vec<u32> = (1..=n).filter(|i| !have.contains(i)).collect();
+        if parts.iter().any(|p| p.shard.is_none_or(|[_, m]| m != n)) {
+            return bad(format!("shards of {n} mixed with other files"));
+        }
+        if !missing.is_empty() || have.len() != n as usize {
+            return bad(format!(
+                "expected each of the {n} shards once; have {have:?}, missing {missing:?}"
+            ));
+        }
+        let first = &parts[0];
+        let same = |p: &EffectTable| {
+            p.mesh_xxh3 == first.mesh_xxh3
+                && p.origin_mm == first.origin_mm
+                && p.spacing_mm == first.spacing_mm
+                && p.dims == first.dims
+                && p.radii_mm == first.radii_mm
+                && p.surface_mm == first.surface_mm
+                && p.probe_nodes == first.probe_nodes
+                && p.compliance_mm_per_n == first.compliance_mm_per_n
+                && p.face_nodes == first.face_nodes
+        };
+        if let Some(p) = parts.iter().find(|p| !same(p)) {
+            return bad(format!(
+                "shard {:?} was built with other settings or on another mesh than shard 1 (expected one build's shards)",
+                p.shard
+            ));
+        }
+        let radii = first.radii_mm.len();
+        let lattice = first.valid.len();
+        let mut out = EffectTable {
+            valid: vec![false; lattice],
+            starts: vec![0; lattice + 1],
+            entry_node: Vec::new(),
+            lambda: vec![0.0; lattice * radii],
+            scale: vec![0.0; lattice * radii],
+            amp: Vec::new(),
+            stores_s: parts.iter().map(|p| p.stores_s).sum(),
+            placements_s: parts.iter().map(|p| p.placements_s).sum(),
+            build_s: parts.iter().map(|p| p.build_s).sum(),
+            placements: parts.iter().map(|p| p.placements).sum(),
+            checks: Vec::new(),
+            shard: None,
+            ..first.clone()
+        };
+        for k in 0..lattice {
+            out.starts[k] = out.entry_node.len() as u32;
+            let owners: Vec<&EffectTable> = parts.iter().filter(|p| p.valid[k]).collect();
+            match owners[..] {
+                [] => {}
+                [p] => {
+                    out.valid[k] = true;
+                    let q = k * radii..(k + 1) * radii;
+                    out.lambda[q.clone()].copy_from_slice(&p.lambda[q.clone()]);
+                    out.scale[q.clone()].copy_from_slice(&p.scale[q]);
+                    let (a, b) = (p.starts[k] as usize, p.starts[k + 1] as usize);
+                    out.entry_node.extend_from_slice(&p.entry_node[a..b]);
+                    out.amp.extend_from_slice(&p.amp[a * radii..b * radii]);
+                }
+                _ => {
+                    return bad(format!(
+                        "lattice node {k} is in {} shards (expected one build's shards, each of its own blocks)",
+                        owners.len()
+                    ));
+                }
+            }
+        }
+        out.starts[lattice] = out.entry_node.len() as u32;
+        Ok(out)
+    }
+
     /// Writes the table (atomically; deflated, checksummed).
     pub fn save(&self, path: &std::path::Path) -> Result<(), TableError> {
         crate::framed::write(path, MAGIC, (VERSION, crate::framed::Body::Deflated), self).map_err(
@@ -619,7 +784,8 @@ impl EffectTable {
         )
     }
 
-    /// Reads a table [`Self::save`] wrote, every way it can be wrong named.
+    /// Reads a table [`Self::save`] wrote, every way it can be wrong named; a shard of
+    /// a build is refused (it answers only its own blocks' nodules).
     pub fn load(path: &std::path::Path) -> Result<EffectTable, TableError> {
         let bytes = std::fs::read(path).map_err(|e| TableError::Io {
             path: path.display().to_string(),
@@ -628,26 +794,43 @@ impl EffectTable {
         Self::from_bytes(&bytes, path)
     }
 
+    /// As [`Self::load`], a shard of a build too: what [`Self::merge`] reads.
+    pub fn load_shard(path: &std::path::Path) -> Result<EffectTable, TableError> {
+        let bytes = std::fs::read(path).map_err(|e| TableError::Io {
+            path: path.display().to_string(),
+            why: e.to_string(),
+        })?;
+        Self::read_any(&bytes, path)
+    }
+
     /// As [`Self::load`], from the file's bytes (`path` names it in errors).
     pub fn from_bytes(bytes: &[u8], path: &std::path::Path) -> Result<EffectTable, TableError> {
+        let table = Self::read_any(bytes, path)?;
+        match table.shard {
+            Some([i, n]) => Err(TableError::Shard {
+                path: path.display().to_string(),
+                i,
+                n,
+            }),
+            None => Ok(table),
+        }
+    }
+
+    fn read_any(bytes: &[u8], path: &std::path::Path) -> Result<EffectTable, TableError> {
         use crate::framed::{Body, FramedError};
         let name = path.display().to_string();
-        let table: EffectTable = crate::framed::read(
-            bytes,
-            MAGIC,
-            &[(VERSION, Body::Deflated), (2, Body::Deflated)],
-        )
-        .map_err(|e| match e {
-            FramedError::Foreign => TableError::Foreign { path: name.clone() },
-            FramedError::Version(found) => TableError::Version {
-                path: name.clone(),
-                found,
-            },
-            FramedError::Corrupt(why) => TableError::Corrupt {
-                path: name.clone(),
-                why,
-            },
-        })?;
+        let table: EffectTable = crate::framed::read(bytes, MAGIC, &[(VERSION, Body::Deflated)])
+            .map_err(|e| match e {
+                FramedError::Foreign => TableError::Foreign { path: name.clone() },
+                FramedError::Version(found) => TableError::Version {
+                    path: name.clone(),
+                    found,
+                },
+                FramedError::Corrupt(why) => TableError::Corrupt {
+                    path: name.clone(),
+                    why,
+                },
+            })?;
         table
             .check()
             .map_err(|why| TableError::Corrupt { path: name, why })?;
@@ -668,9 +851,9 @@ impl EffectTable {
                 self.spacing_mm, self.origin_mm
             ));
         }
-        if self.dims.iter().any(|&d| d < 2) || lattice > 1 << 24 {
+        if self.dims.contains(&0) || lattice > 1 << 24 {
             return Err(format!(
-                "lattice of {:?} nodes: expected 2 to 2²⁴ a side",
+                "lattice of {:?} nodes: expected 1 to 2²⁴ in all",
                 self.dims
             ));
         }
@@ -695,12 +878,16 @@ impl EffectTable {
                 "entry starts not ascending to the {entries} entries"
             ));
         }
-        if self.fit.len() != entries * radii
+        if self.amp.len() != entries * radii
+            || self.lambda.len() != lattice * radii
+            || self.scale.len() != lattice * radii
             || self.entry_node.iter().any(|&p| p as usize >= probes)
         {
             return Err(format!(
-                "{} fits for {entries} entries of {radii} radii, or an entry's probe node past the {probes}",
-                self.fit.len()
+                "{} steps for {entries} entries of {radii} radii, {} poles and {} scales for {lattice} lattice nodes, or an entry's probe node past the {probes}",
+                self.amp.len(),
+                self.lambda.len(),
+                self.scale.len()
             ));
         }
         if self.probe_mm.len() != probes || self.compliance_mm_per_n.len() != probes {
@@ -717,8 +904,13 @@ impl EffectTable {
         {
             return Err("a probe node's compliance is not a positive number".into());
         }
-        if self.fit.iter().flatten().any(|v| !v.is_finite()) {
-            return Err("a fit is not finite".into());
+        if self
+            .lambda
+            .iter()
+            .chain(&self.scale)
+            .any(|v| !(v.is_finite() && *v >= 0.0))
+        {
+            return Err("a pole or a scale is not a non-negative number".into());
         }
         if self
             .face_nodes
@@ -732,10 +924,12 @@ impl EffectTable {
         Ok(())
     }
 
-    /// Bytes the table's entries take as stored (node ids, `(A, λ)` at half
-    /// precision).
+    /// Bytes the table's entries take as stored (node ids, a byte an entry and radius,
+    /// the lattice nodes' poles and scales), before compression.
     pub fn bytes(&self) -> usize {
-        self.entry_node.len() * 4 + self.fit.len() * 4
+        self.entry_node.len() * 4
+            + self.amp.len()
+            + self.valid.iter().filter(|&&v| v).count() * self.radii_mm.len() * 8
     }
 
     /// The effect of `nodule` at every probe node: checked against the table's ranges,
@@ -795,13 +989,22 @@ impl EffectTable {
             }
             surface_mm += w * f64::from(self.surface_mm[k]);
             let (s, e) = (self.starts[k] as usize, self.starts[k + 1] as usize);
+            // Each radius's shared pole at this ratio, times its scale and weight.
+            let per_step: Vec<(usize, f64)> = by_radius
+                .iter()
+                .map(|&(i, wr)| {
+                    let q = k * radii + i;
+                    let unit = pole(
+                        [f64::from(self.scale[q]) / 127.0, f64::from(self.lambda[q])],
+                        nodule.ratio,
+                    );
+                    (i, w * wr * unit)
+                })
+                .collect();
             for entry in s..e {
-                let fit = &self.fit[entry * radii..(entry + 1) * radii];
-                let v: f64 = by_radius
-                    .iter()
-                    .map(|&(i, w)| w * pole(fit[i], nodule.ratio))
-                    .sum();
-                minus_dc[self.entry_node[entry] as usize] += w * v;
+                let steps = &self.amp[entry * radii..(entry + 1) * radii];
+                let v: f64 = per_step.iter().map(|&(i, f)| f * f64::from(steps[i])).sum();
+                minus_dc[self.entry_node[entry] as usize] += v;
             }
         }
         let depth_mm = surface_mm - nodule.radius_mm;
@@ -902,6 +1105,39 @@ mod tests {
             }
         }
         assert_eq!(one_pole(0.0, 1e-3), [0.0, 0.0]);
+    }
+
+    /// Entries that share one pole keep it and their own `A` to the step's precision;
+    /// entries with poles of their own are matched at the middle ratio.
+    #[test]
+    fn a_shared_pole_keeps_one_pole_entries_and_matches_the_middle_ratio() {
+        let mut rng = crate::rng::Rng::seed(11);
+        let fits: Vec<[f64; 2]> = (0..50).map(|_| [rng.range(0.0, 0.4), 0.3]).collect();
+        let (lambda, scale, steps) = share_pole(&fits);
+        assert!((f64::from(lambda) - 0.3).abs() < 1e-6, "{lambda}");
+        for (f, &q) in fits.iter().zip(&steps) {
+            let a = f64::from(scale) * f64::from(q) / 127.0;
+            assert!(
+                (a - f[0]).abs() <= 0.5 / 127.0 * f64::from(scale) + 1e-7,
+                "{f:?} {a}"
+            );
+        }
+        let fits: Vec<[f64; 2]> = (0..50)
+            .map(|_| [rng.range(0.01, 0.4), rng.range(0.1, 0.5)])
+            .collect();
+        let (lambda, scale, steps) = share_pole(&fits);
+        assert!((0.1..=0.5).contains(&lambda), "{lambda}");
+        for (f, &q) in fits.iter().zip(&steps) {
+            let shared = [f64::from(scale) * f64::from(q) / 127.0, f64::from(lambda)];
+            let (own, got) = (pole(*f, MATCH_RATIO), pole(shared, MATCH_RATIO));
+            assert!(
+                (own - got).abs()
+                    <= 0.5 / 127.0 * pole([f64::from(scale), f64::from(lambda)], MATCH_RATIO)
+                        + 1e-7,
+                "{f:?}: {own} against {got}"
+            );
+        }
+        assert_eq!(share_pole(&[[0.0, 0.0]; 3]), (0.0, 0.0, vec![0, 0, 0]));
     }
 
     /// The radius's weights: one at a tabulated radius, a partition of unity between,
