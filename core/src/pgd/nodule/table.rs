@@ -787,11 +787,7 @@ impl EffectTable {
     /// Reads a table [`Self::save`] wrote, every way it can be wrong named; a shard of
     /// a build is refused (it answers only its own blocks' nodules).
     pub fn load(path: &std::path::Path) -> Result<EffectTable, TableError> {
-        let bytes = std::fs::read(path).map_err(|e| TableError::Io {
-            path: path.display().to_string(),
-            why: e.to_string(),
-        })?;
-        Self::from_bytes(&bytes, path)
+        Self::whole(Self::load_shard(path)?, path)
     }
 
     /// As [`Self::load`], a shard of a build too: what [`Self::merge`] reads.
@@ -805,7 +801,11 @@ impl EffectTable {
 
     /// As [`Self::load`], from the file's bytes (`path` names it in errors).
     pub fn from_bytes(bytes: &[u8], path: &std::path::Path) -> Result<EffectTable, TableError> {
-        let table = Self::read_any(bytes, path)?;
+        Self::whole(Self::read_any(bytes, path)?, path)
+    }
+
+    /// `table`, unless it is a shard of a build.
+    fn whole(table: EffectTable, path: &std::path::Path) -> Result<EffectTable, TableError> {
         match table.shard {
             Some([i, n]) => Err(TableError::Shard {
                 path: path.display().to_string(),
