@@ -15,8 +15,11 @@ use palpa_core::rng::Rng;
 use palpa_tests::{coarse_liver, coarse_nodal_under, fe_without_and_with};
 
 /// Measured (seed 3, 8 pairs, nodules 8–10 mm across 24 mm deep, ratios to 10): the
-/// compliance within 1.4e-9 of the FE's (relative) and the surface within 6e-9 mm at
-/// 1 N (single-precision storage), where the nodules changed the force by 0.14–6 %.
+/// compliance within 9.1e-7 of the FE's (relative) and the surface within 1.9e-6 mm at
+/// 1 N, where the nodules changed the force by 0.14–6 % (single precision: the stored
+/// responses and the nodule's small system; with that system in double precision it
+/// was 1.4e-9 and 6e-9 mm). The blocked form a table's build uses, and a store cut
+/// down to one nodule, give the same correction.
 #[test]
 fn stored_responses_answer_held_out_nodules_as_the_fe_does() {
     let at = [-7.0, 69.34, 7.0];
@@ -86,6 +89,34 @@ fn stored_responses_answer_held_out_nodules_as_the_fe_does() {
         let (free, with) = fe_without_and_with(&organ, &req, nodule);
         let placed = store.place(&nodule).expect("in the ranges");
         let dc = placed.correction(&store, &f, &phi);
+        // The blocked form a table's build uses gives the same, from the responses over
+        // the store's columns, and so does a store cut down to this nodule's columns
+        // (rows there only), the responses read at its columns.
+        let (uf, uphi) = (store.response_at_cols(&f), store.response_at_cols(&phi));
+        let blocked = placed.corrections(&[(&uf, &uphi)])[0];
+        assert!(
+            (blocked - dc).abs() <= 1e-6 * dc.abs(),
+            "{blocked} against {dc}"
+        );
+        let cut = store
+            .restrict(NoduleRanges {
+                center_mm: nodule.center_mm,
+                reach_mm: 0.0,
+                radius_mm: (nodule.radius_mm, nodule.radius_mm),
+                ratio: (nodule.ratio, nodule.ratio),
+            })
+            .expect("inside the store");
+        assert!(cut.cols.len() < store.cols.len() && cut.rows == cut.cols);
+        let at = |v: &[f64]| -> Vec<f64> {
+            cut.cols
+                .iter()
+                .map(|&d| v[store.col_of(d).expect("stored")])
+                .collect()
+        };
+        let again = cut.place(&nodule).expect("in the cut store");
+        assert_eq!(again.dofs, placed.dofs);
+        let cut_dc = again.corrections(&[(&at(&uf), &at(&uphi))])[0];
+        assert_eq!(cut_dc, blocked, "the cut store holds the same numbers");
         let c = free.probe_displacement_mm + dc;
         let err = (c - with.probe_displacement_mm).abs() / with.probe_displacement_mm;
         let z = placed.solve(&store, &f);
@@ -113,8 +144,8 @@ fn stored_responses_answer_held_out_nodules_as_the_fe_does() {
         worst = (worst.0.max(err), worst.1.max(surf));
         effects.push(effect);
     }
-    assert!(worst.0 < 5e-9, "compliance off by {:.1e}", worst.0);
-    assert!(worst.1 < 2e-8, "surface off by {:.1e} mm", worst.1);
+    assert!(worst.0 < 3e-6, "compliance off by {:.1e}", worst.0);
+    assert!(worst.1 < 6e-6, "surface off by {:.1e} mm", worst.1);
     // Not a vacuous match: the nodules changed the force by a few per cent.
     assert!(effects.iter().cloned().fold(0.0, f64::max) > 0.04);
 }

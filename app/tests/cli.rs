@@ -1870,7 +1870,8 @@ fn fe_solve_takes_a_nodule_and_writes_its_field() {
 }
 
 /// The nodule store's bench on the smallest store (one centre, one radius): the placed
-/// nodule's compliance equals the FE's with it (measured 8e-10) and the table names the
+/// nodule's compliance equals the FE's with it (measured 1.2e-7: the stored responses
+/// and the nodule's small system in single precision) and the table names the
 /// unknowns it touched.
 #[test]
 fn bench_nodule_store_matches_the_fe() {
@@ -1899,7 +1900,7 @@ fn bench_nodule_store_matches_the_fe() {
     assert_eq!(rows.len(), 2, "{text}");
     assert!(rows[0]["columns"].as_u64().unwrap_or(0) > 0, "{text}");
     let gap = rows[1]["compliance_gap"].as_f64().expect("a gap");
-    assert!(gap < 3e-9, "{text}");
+    assert!(gap < 4e-7, "{text}");
     assert!(rows[1]["unknowns"].as_u64().unwrap_or(0) > 100, "{text}");
     assert!(rows[1]["effect"].as_f64().unwrap_or(0.0) > 0.01, "{text}");
 }

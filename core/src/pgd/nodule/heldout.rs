@@ -171,6 +171,10 @@ pub fn check(
             nodule: None,
         };
         let free = solve_linear(organ, Element::P2, material, &req).map_err(fe_error)?;
+        if free.probe_displacement_mm.is_nan() || free.probe_displacement_mm <= 0.0 {
+            // Held by the fixed region: no press there for a nodule to change.
+            continue;
+        }
         let with = solve_linear(
             organ,
             Element::P2,

@@ -27,7 +27,8 @@
 //! **Off-line**: one solve per stored column, over the nodal build's factor of `K₀`.
 //! **On-line**: [`InteriorResponses::place`] (the cells' factors, `C`, `G_pp`, the LU of
 //! `I + C G_pp`) and [`PlacedNodule::correction`]. Nothing is approximated but the
-//! storage of `G` in single precision.
+//! storage of `G` in single precision, and the `m × m` system formed and factored in it
+//! (its condition is about the ratio's: a few correct digits more than the table needs).
 
 pub mod heldout;
 pub mod table;
@@ -116,75 +117,138 @@ fn cell_size(space: &Space, c: usize) -> f64 {
     (1..4).map(|i| norm(sub(t[i], t[0]))).fold(0.0, f64::max)
 }
 
+/// Marks every free unknown of the cells a nodule in `ranges` can touch (those
+/// [`Nodule::cell_fractions`] can give a share: first corner within the radius plus the
+/// cell's size of a centre).
+fn mark_touched(space: &Space, ranges: &NoduleRanges, mark: &mut [bool]) {
+    let mut dofs = Vec::new();
+    for c in 0..space.cell_count() {
+        let first = space.cell_corners(c)[0];
+        let d = norm(sub(first, ranges.center_mm));
+        if d <= ranges.reach_mm + ranges.radius_mm.1 + cell_size(space, c) {
+            cell_dofs(space, c, &mut dofs);
+            for &d in dofs.iter().filter(|&&d| d != usize::MAX) {
+                mark[d] = true;
+            }
+        }
+    }
+}
+
+/// The free unknowns marked, ascending, and each one's place among them.
+fn indexed(mark: &[bool]) -> (Vec<u32>, Vec<u32>) {
+    let list: Vec<u32> = (0..mark.len() as u32)
+        .filter(|&d| mark[d as usize])
+        .collect();
+    let mut of = vec![u32::MAX; mark.len()];
+    for (k, &d) in list.iter().enumerate() {
+        of[d as usize] = k as u32;
+    }
+    (list, of)
+}
+
+/// Columns solved together: one multi-right-hand-side pass over the factor.
+const BATCH: usize = 96;
+
 impl InteriorResponses {
     /// Solves `K₀ g = e_j` for every free unknown `j` of the cells a nodule in `ranges`
-    /// can touch (those [`Nodule::cell_fractions`] can give a share: first corner within
-    /// the radius plus the cell's size of a centre), keeping the rows of `setup`'s load
-    /// and surface nodes and of those unknowns.
+    /// can touch, keeping the rows of `setup`'s load and surface nodes and of those
+    /// unknowns.
     pub fn build(setup: &NodalSetup, ranges: NoduleRanges) -> InteriorResponses {
+        Self::build_over(setup, &[ranges], true)
+    }
+
+    /// The store of every unknown a nodule in any of `regions` can touch (its `ranges`
+    /// a sphere about them all), at the rows of those unknowns, and of `setup`'s load
+    /// and surface nodes where `surface_rows`. Columns are solved in batches of
+    /// [`BATCH`] consecutive unknowns, a batch whole wherever one of its unknowns is
+    /// needed, so that a column's value does not depend on which others were asked for
+    /// (shards of a build agree bit for bit).
+    pub fn build_over(
+        setup: &NodalSetup,
+        regions: &[NoduleRanges],
+        surface_rows: bool,
+    ) -> InteriorResponses {
         let t0 = Instant::now();
         let space = &setup.space;
         let n = space.free_dofs;
-        let mut col_of = vec![u32::MAX; n];
-        let mut dofs = Vec::new();
-        for c in 0..space.cell_count() {
-            let first = space.cell_corners(c)[0];
-            let d = norm(sub(first, ranges.center_mm));
-            if d <= ranges.reach_mm + ranges.radius_mm.1 + cell_size(space, c) {
-                cell_dofs(space, c, &mut dofs);
-                for &d in dofs.iter().filter(|&&d| d != usize::MAX) {
-                    col_of[d] = 0;
+        let mut mark = vec![false; n];
+        for r in regions {
+            mark_touched(space, r, &mut mark);
+        }
+        let (cols, col_of) = indexed(&mark);
+        if surface_rows {
+            for &node in setup.load_nodes.iter().chain(&setup.surface_nodes) {
+                let d = space.dof[node as usize];
+                if d != u32::MAX {
+                    for k in 0..3 {
+                        mark[d as usize + k] = true;
+                    }
                 }
             }
         }
-        let cols: Vec<u32> = (0..n as u32).filter(|&d| col_of[d as usize] == 0).collect();
-        for (k, &d) in cols.iter().enumerate() {
-            col_of[d as usize] = k as u32;
-        }
-        let mut row_of = vec![u32::MAX; n];
-        for &d in &cols {
-            row_of[d as usize] = 0;
-        }
-        for &node in setup.load_nodes.iter().chain(&setup.surface_nodes) {
-            let d = space.dof[node as usize];
-            if d != u32::MAX {
-                for k in 0..3 {
-                    row_of[d as usize + k] = 0;
-                }
-            }
-        }
-        let rows: Vec<u32> = (0..n as u32).filter(|&d| row_of[d as usize] == 0).collect();
-        for (k, &d) in rows.iter().enumerate() {
-            row_of[d as usize] = k as u32;
-        }
+        let (rows, row_of) = indexed(&mark);
         let nr = rows.len();
         let mut g = vec![0.0f32; nr * cols.len()];
-        // Batches of columns, each one multi-right-hand-side pass over the factor.
-        const BATCH: usize = 96;
+        let batches: Vec<usize> = {
+            let mut b: Vec<usize> = cols.iter().map(|&d| d as usize / BATCH).collect();
+            b.dedup();
+            b
+        };
         let threads = rayon::current_num_threads().max(1);
-        for (group_index, group) in cols.chunks(BATCH * threads).enumerate() {
-            let solved: Vec<Mat<f64>> = group
-                .par_chunks(BATCH)
-                .map(|chunk| {
-                    let mut rhs = Mat::<f64>::zeros(n, chunk.len());
-                    for (b, &d) in chunk.iter().enumerate() {
-                        rhs[(d as usize, b)] = 1.0;
+        for group in batches.chunks(threads) {
+            let solved: Vec<(usize, Mat<f64>)> = group
+                .par_iter()
+                .map(|&b| {
+                    let first = b * BATCH;
+                    let width = BATCH.min(n - first);
+                    let mut rhs = Mat::<f64>::zeros(n, width);
+                    for k in 0..width {
+                        rhs[(first + k, k)] = 1.0;
                     }
                     setup.problem.factor.solve_many(&mut rhs);
-                    rhs
+                    (first, rhs)
                 })
                 .collect();
-            let first = group_index * BATCH * threads;
-            for (k, rhs) in solved.iter().enumerate() {
-                for b in 0..rhs.ncols() {
-                    let col = first + k * BATCH + b;
-                    let out = &mut g[col * nr..(col + 1) * nr];
+            for (first, rhs) in &solved {
+                for k in 0..rhs.ncols() {
+                    let col = col_of[first + k];
+                    if col == u32::MAX {
+                        continue;
+                    }
+                    let out = &mut g[col as usize * nr..(col as usize + 1) * nr];
                     for (r, &d) in rows.iter().enumerate() {
-                        out[r] = rhs[(d as usize, b)] as f32;
+                        out[r] = rhs[(d as usize, k)] as f32;
                     }
                 }
             }
         }
+        let ranges = match regions {
+            [one] => *one,
+            _ => {
+                let count = regions.len().max(1) as f64;
+                let center_mm =
+                    [0, 1, 2].map(|d| regions.iter().map(|r| r.center_mm[d]).sum::<f64>() / count);
+                let fold = |f: fn(f64, f64) -> f64, init: f64, pick: fn(&NoduleRanges) -> f64| {
+                    regions.iter().map(pick).fold(init, f)
+                };
+                NoduleRanges {
+                    center_mm,
+                    reach_mm: fold(f64::max, 0.0, |r| r.reach_mm)
+                        + regions
+                            .iter()
+                            .map(|r| norm(sub(r.center_mm, center_mm)))
+                            .fold(0.0, f64::max),
+                    radius_mm: (
+                        fold(f64::min, f64::INFINITY, |r| r.radius_mm.0),
+                        fold(f64::max, 0.0, |r| r.radius_mm.1),
+                    ),
+                    ratio: (
+                        fold(f64::min, f64::INFINITY, |r| r.ratio.0),
+                        fold(f64::max, 0.0, |r| r.ratio.1),
+                    ),
+                }
+            }
+        };
         let (lambda, mu) = setup.problem.material.lame_n_per_mm2();
         let mut base = setup.space.clone();
         base.stiffness = None;
@@ -201,6 +265,54 @@ impl InteriorResponses {
             poisson: setup.problem.material.poisson,
             build_s: t0.elapsed().as_secs_f64(),
         }
+    }
+
+    /// The store of `ranges` cut from this one: its columns, at their rows only (what
+    /// placing a nodule reads); a load's responses then come from elsewhere
+    /// ([`PlacedNodule::corrections`]). `None` where this store lacks one of them.
+    pub fn restrict(&self, ranges: NoduleRanges) -> Option<InteriorResponses> {
+        let t0 = Instant::now();
+        let mut mark = vec![false; self.col_of.len()];
+        mark_touched(&self.space, &ranges, &mut mark);
+        let (cols, col_of) = indexed(&mark);
+        let from: Vec<usize> = cols
+            .iter()
+            .map(|&d| {
+                let c = self.col_of[d as usize];
+                (c != u32::MAX).then_some(c as usize)
+            })
+            .collect::<Option<_>>()?;
+        let at: Vec<usize> = cols
+            .iter()
+            .map(|&d| self.row_of[d as usize] as usize)
+            .collect();
+        let (nr, m) = (self.rows.len(), cols.len());
+        let mut g = vec![0.0f32; m * m];
+        g.par_chunks_mut(m.max(1)).zip(&from).for_each(|(out, &c)| {
+            let src = &self.g[c * nr..(c + 1) * nr];
+            for (x, &r) in out.iter_mut().zip(&at) {
+                *x = src[r];
+            }
+        });
+        Some(InteriorResponses {
+            ranges,
+            rows: cols.clone(),
+            row_of: col_of.clone(),
+            cols,
+            col_of,
+            g,
+            space: self.space.clone(),
+            lambda: self.lambda,
+            mu: self.mu,
+            poisson: self.poisson,
+            build_s: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The store's column of the free unknown `dof`, if stored.
+    pub fn col_of(&self, dof: u32) -> Option<usize> {
+        let c = self.col_of[dof as usize];
+        (c != u32::MAX).then_some(c as usize)
     }
 
     /// Bytes of the stored responses.
@@ -315,19 +427,21 @@ impl InteriorResponses {
             .iter()
             .map(|&d| self.row_of[d as usize] as usize)
             .collect();
-        // G_pp, one column after another.
-        let mut g_pp = vec![0.0; m * m];
+        // G_pp, one column after another (single precision, as stored: the small dense
+        // system is formed and factored in it too).
+        let mut g_pp = vec![0.0f32; m * m];
         for (j, out) in g_pp.chunks_exact_mut(m).enumerate() {
             let g = &self.g[cols[j] * nr..(cols[j] + 1) * nr];
             for (x, &r) in out.iter_mut().zip(&rows_p) {
-                *x = f64::from(g[r]);
+                *x = g[r];
             }
         }
         // G_pp and C are symmetric, so (C G_pp)ᵀ = G_pp C, whose column j is the sum of
         // G_pp's columns weighted by C's row j: contiguous sums.
-        let mut gc = vec![0.0; m * m];
+        let mut gc = vec![0.0f32; m * m];
         for (j, dst) in gc.chunks_exact_mut(m).enumerate() {
             for &(k, v) in &c_rows[j] {
+                let v = v as f32;
                 let src = &g_pp[k as usize * m..(k as usize + 1) * m];
                 for (d, s) in dst.iter_mut().zip(src) {
                     *d += v * s;
@@ -335,12 +449,12 @@ impl InteriorResponses {
             }
         }
         // I + C G_pp = (I + G_pp C)ᵀ: entry (i, j) is column i's entry j.
-        let system = Mat::<f64>::from_fn(m, m, |i, j| gc[i * m + j] + f64::from(u8::from(i == j)));
+        let system = Mat::<f32>::from_fn(m, m, |i, j| gc[i * m + j] + f32::from(u8::from(i == j)));
         let t_factor = Instant::now();
         let lu = system.partial_piv_lu();
         let factor_s = t_factor.elapsed().as_secs_f64();
         // A singular system shows as a non-finite solve of a probe vector.
-        let mut probe = Mat::<f64>::from_fn(m, 1, |i, _| 1.0 + i as f64 / m as f64);
+        let mut probe = Mat::<f32>::from_fn(m, 1, |i, _| 1.0 + i as f32 / m as f32);
         lu.solve_in_place(probe.as_mut());
         if (0..m).any(|i| !probe[(i, 0)].is_finite()) {
             return Err(NoduleStoreError::Singular {
@@ -357,6 +471,24 @@ impl InteriorResponses {
             factor_s,
             place_s: t0.elapsed().as_secs_f64(),
         })
+    }
+
+    /// `G_{c,:} v` for a sparse vector `v` on stored rows, at every stored column `c`:
+    /// the response (by symmetry) to the load `v` wherever a nodule can lie, what
+    /// [`PlacedNodule::corrections`] reads for many nodules under the same load.
+    pub fn response_at_cols(&self, v: &[(u32, f64)]) -> Vec<f64> {
+        let nr = self.rows.len();
+        let at: Vec<(usize, f64)> = v
+            .iter()
+            .filter_map(|&(d, x)| {
+                let r = self.row_of[d as usize];
+                (r != u32::MAX).then_some((r as usize, x))
+            })
+            .collect();
+        self.g
+            .chunks_exact(nr)
+            .map(|col| at.iter().map(|&(r, x)| x * f64::from(col[r])).sum())
+            .collect()
     }
 
     /// `G_{p,:} v` for a sparse vector `v` on stored rows: the response at the placed
@@ -384,7 +516,7 @@ pub struct PlacedNodule {
     cols: Vec<usize>,
     /// `C` by rows: (column among `dofs`, value).
     c_rows: Vec<Vec<(u32, f64)>>,
-    lu: faer::linalg::solvers::PartialPivLu<f64>,
+    lu: faer::linalg::solvers::PartialPivLu<f32>,
     /// Cells it touches.
     pub cells: usize,
     /// Seconds of placing it, and of those the LU factorization's.
@@ -398,14 +530,14 @@ impl PlacedNodule {
     pub fn solve(&self, store: &InteriorResponses, f: &[(u32, f64)]) -> Vec<f64> {
         let u0 = store.at_nodule(self, f);
         let m = self.dofs.len();
-        let mut z = Mat::<f64>::from_fn(m, 1, |i, _| {
+        let mut z = Mat::<f32>::from_fn(m, 1, |i, _| {
             self.c_rows[i]
                 .iter()
                 .map(|&(k, v)| v * u0[k as usize])
-                .sum()
+                .sum::<f64>() as f32
         });
         self.lu.solve_in_place(z.as_mut());
-        (0..m).map(|i| z[(i, 0)]).collect()
+        (0..m).map(|i| f64::from(z[(i, 0)])).collect()
     }
 
     /// The change the nodule makes to `φᵀ u` under the load `f`: `−φᵀ G_{:,p} z`
@@ -420,6 +552,40 @@ impl PlacedNodule {
         let z = self.solve(store, f);
         let g = store.at_nodule(self, phi);
         -g.iter().zip(&z).map(|(a, b)| a * b).sum::<f64>()
+    }
+
+    /// [`Self::correction`] for many pairs `(f, φ)` at once, each given by its responses
+    /// over the store's columns ([`InteriorResponses::response_at_cols`]): one blocked
+    /// solve `(I + C G_pp) Z = C U` for all of them, `δc_k = −V_kᵀ Z_k`.
+    pub fn corrections(&self, responses: &[(&[f64], &[f64])]) -> Vec<f64> {
+        let m = self.dofs.len();
+        let mut z = Mat::<f32>::zeros(m, responses.len());
+        let mut u = vec![0.0; m];
+        for (k, (f, _)) in responses.iter().enumerate() {
+            for (x, &c) in u.iter_mut().zip(&self.cols) {
+                *x = f[c];
+            }
+            let col = z
+                .col_mut(k)
+                .try_as_col_major_mut()
+                .expect("a column is contiguous");
+            for (out, row) in col.as_slice_mut().iter_mut().zip(&self.c_rows) {
+                *out = row.iter().map(|&(j, v)| v * u[j as usize]).sum::<f64>() as f32;
+            }
+        }
+        self.lu.solve_in_place(z.as_mut());
+        responses
+            .iter()
+            .enumerate()
+            .map(|(k, (_, phi))| {
+                -self
+                    .cols
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &c)| phi[c] * f64::from(z[(i, k)]))
+                    .sum::<f64>()
+            })
+            .collect()
     }
 
     /// The change the nodule makes to the displacement at the free unknowns `at` (every

@@ -25,17 +25,23 @@
 //! force of a depth-controlled press changes by the factor `c₀/(c₀+δc)`, `c₀` the
 //! nodule-free compliance at the node.
 //!
-//! **Off-line** ([`EffectTable::build`]): the lattice is cut into blocks; one store of
-//! interior responses per block ([`super::InteriorResponses`]) places every node's
-//! nodules exactly. A lattice node only has to lie inside the organ: a nodule there may
-//! reach past the surface (its cells are clipped as the FE clips them), which is what
-//! lets a nodule at the 2 mm limit be interpolated from nodes on both sides.
+//! **Off-line** ([`EffectTable::build`]): one store of interior responses
+//! ([`super::InteriorResponses`]) for every unknown the lattice's nodules can touch, each
+//! column solved once; the lattice is cut into blocks, each block's store cut from it,
+//! and every node's nodules placed exactly there, all the probe nodes' responses solved
+//! once beforehand and read by every placement in one blocked solve. A lattice node
+//! only has to lie inside the organ: a nodule there may reach past the surface (its
+//! cells are clipped as the FE clips them), which is what lets a nodule at the 2 mm
+//! limit be interpolated from nodes on both sides; nodes shallower than any answered
+//! nodule's interpolation reads are left out. A probe node held by the fixed region
+//! has no compliance and feels no nodule.
 //! **On-line** ([`EffectTable::place`]): the effect at every probe node for one nodule
 //! (a few thousand products), then [`NoduleEffect::at`] per probe point.
 
 use std::collections::HashMap;
 use std::time::Instant;
 
+use faer::Mat;
 use rayon::prelude::*;
 use thiserror::Error;
 
@@ -181,7 +187,7 @@ pub struct EffectTable {
     /// node's scale.
     pub amp: Vec<i8>,
     /// The probe nodes: space nodes of the palpable surface's P2 faces, their rest
-    /// positions and nodule-free compliance (mm/N).
+    /// positions and nodule-free compliance (mm/N; 0 where the fixed region holds it).
     pub probe_nodes: Vec<u32>,
     pub probe_mm: Vec<[f32; 3]>,
     pub compliance_mm_per_n: Vec<f64>,
@@ -282,6 +288,50 @@ fn share_pole(fits: &[[f64; 2]]) -> (f32, f32, Vec<i8>) {
         })
         .collect();
     (lambda as f32, scale as f32, steps)
+}
+
+/// Each probe node's nodule-free compliance `φᵀ K₀⁻¹ f` (mm/N), and the responses
+/// `K₀⁻¹ f` and `K₀⁻¹ φ` at `store`'s columns, in single precision. Solved in batches of
+/// consecutive probe nodes, so that every shard of a build gets the same values.
+#[allow(clippy::type_complexity)]
+fn probe_responses(
+    setup: &NodalSetup,
+    loads: &[Load],
+    store: &InteriorResponses,
+) -> (Vec<f64>, Vec<(Vec<f32>, Vec<f32>)>) {
+    const BATCH: usize = 48;
+    let n = setup.space.free_dofs;
+    let solved: Vec<Vec<(f64, (Vec<f32>, Vec<f32>))>> = loads
+        .par_chunks(BATCH)
+        .map(|chunk| {
+            let mut rhs = Mat::<f64>::zeros(n, 2 * chunk.len());
+            for (k, (f, phi)) in chunk.iter().enumerate() {
+                for &(d, x) in f {
+                    rhs[(d as usize, 2 * k)] = x;
+                }
+                for &(d, x) in phi {
+                    rhs[(d as usize, 2 * k + 1)] = x;
+                }
+            }
+            setup.problem.factor.solve_many(&mut rhs);
+            chunk
+                .iter()
+                .enumerate()
+                .map(|(k, (_, phi))| {
+                    let c0: f64 = phi.iter().map(|&(d, x)| x * rhs[(d as usize, 2 * k)]).sum();
+                    let at = |j: usize| -> Vec<f32> {
+                        store
+                            .cols
+                            .iter()
+                            .map(|&d| rhs[(d as usize, j)] as f32)
+                            .collect()
+                    };
+                    (c0, (at(2 * k), at(2 * k + 1)))
+                })
+                .collect()
+        })
+        .collect();
+    solved.into_iter().flatten().unzip()
 }
 
 /// `(A, λ)` through `y₁ = −δc(β = 2)` and `y₂ = −δc(β = 10)`: `1/y` is linear in
@@ -463,8 +513,9 @@ impl EffectTable {
             }
             *slot = Some(six);
         }
-        // Each probe node's load, functional and nodule-free compliance.
-        let probed: Vec<(Load, f64)> = probe_nodes
+        // Each probe node's load and functional (their responses are solved below, in
+        // batches).
+        let loads: Vec<Load> = probe_nodes
             .par_iter()
             .map(|&v| {
                 let at = space.nodes[v as usize];
@@ -479,15 +530,9 @@ impl EffectTable {
                 let f = probe_load(space, &point, dir, 1.0, setup.radius_mm)
                     .map_err(|e| fail(e.to_string()))?;
                 let phi = probe_functional(space, &point, dir);
-                let u = setup.problem.solve(space, &f);
-                let c0: f64 = phi.iter().zip(&u).map(|(a, b)| a * b).sum();
-                if !(c0.is_finite() && c0 > 0.0) {
-                    return Err(fail(format!("its compliance is {c0} mm/N")));
-                }
-                Ok(((space.free_entries(&f), space.free_entries(&phi)), c0))
+                Ok((space.free_entries(&f), space.free_entries(&phi)))
             })
             .collect::<Result<_, _>>()?;
-        let (loads, compliance): (Vec<Load>, Vec<f64>) = probed.into_iter().unzip();
         let probe_mm: Vec<[f32; 3]> = probe_nodes
             .iter()
             .map(|&v| space.nodes[v as usize].map(|x| x as f32))
@@ -507,7 +552,7 @@ impl EffectTable {
             amp: Vec::new(),
             probe_nodes,
             probe_mm,
-            compliance_mm_per_n: compliance,
+            compliance_mm_per_n: Vec::new(),
             face_nodes,
             stores_s: 0.0,
             placements_s: 0.0,
@@ -539,12 +584,17 @@ impl EffectTable {
         for (at, &(d, _)) in depths.iter().enumerate() {
             table.surface_mm[at] = d;
         }
-        // Per lattice node: its entries, gathered block by block; the blocks with
-        // members dealt to the shards in turn.
-        let mut entries: Vec<Entries> = vec![Default::default(); lattice];
+        // The blocks with members, dealt to the shards in turn: this shard's, with the
+        // sphere each one's centres fill.
         let r_max = *s.radii_mm.last().unwrap_or(&0.0);
+        // A nodule is answered only at least MIN_DEPTH_MM under the surface, so its
+        // centre the smallest radius deeper still, and its trilinear interpolation reads
+        // nodes within a lattice cell's diagonal of it: shallower nodes are never read
+        // (a millimetre's margin for the interpolated depth).
+        let shallowest = (MIN_DEPTH_MM + s.radii_mm[0] - s.spacing_mm * 3f64.sqrt() - 1.0) as f32;
         let blocks = dims.map(|n| n.div_ceil(s.block));
         let mut dealt = 0usize;
+        let mut mine: Vec<(Vec<[usize; 3]>, NoduleRanges)> = Vec::new();
         for bz in 0..blocks[2] {
             for by in 0..blocks[1] {
                 for bx in 0..blocks[0] {
@@ -554,7 +604,9 @@ impl EffectTable {
                     for k in lo[2]..hi[2] {
                         for j in lo[1]..hi[1] {
                             for i in lo[0]..hi[0] {
-                                if depths[table.index([i, j, k])].1
+                                let (depth, felt) = depths[table.index([i, j, k])];
+                                if felt
+                                    && depth >= shallowest
                                     && inside(organ, table.node_mm([i, j, k]))
                                 {
                                     members.push([i, j, k]);
@@ -579,32 +631,84 @@ impl EffectTable {
                         .map(|&m| norm(sub(table.node_mm(m), mid)))
                         .fold(0.0, f64::max)
                         + 1e-9;
-                    let ts = Instant::now();
-                    let store = InteriorResponses::build(
-                        setup,
-                        NoduleRanges {
-                            center_mm: mid,
-                            reach_mm,
-                            radius_mm: (s.radii_mm[0], r_max),
-                            ratio: (1.0, FIT_RATIOS[1]),
-                        },
-                    );
-                    table.stores_s += ts.elapsed().as_secs_f64();
-                    let tp = Instant::now();
-                    let done: Vec<Option<(usize, Entries, usize)>> = members
-                        .par_iter()
-                        .map(|&m| {
-                            let placed = table.node_fits(&store, &loads, m, s)?;
-                            Some((table.index(m), placed.0, placed.1))
-                        })
-                        .collect();
-                    table.placements_s += tp.elapsed().as_secs_f64();
-                    for (k, e, count) in done.into_iter().flatten() {
-                        table.valid[k] = true;
-                        entries[k] = e;
-                        table.placements += count;
-                    }
+                    let ranges = NoduleRanges {
+                        center_mm: mid,
+                        reach_mm,
+                        radius_mm: (s.radii_mm[0], r_max),
+                        ratio: (1.0, FIT_RATIOS[1]),
+                    };
+                    mine.push((members, ranges));
                 }
+            }
+        }
+        // One store of every unknown this shard's nodules can touch, at those rows: the
+        // blocks' stores are cut from it.
+        let ts = Instant::now();
+        let regions: Vec<NoduleRanges> = mine.iter().map(|m| m.1).collect();
+        let whole = InteriorResponses::build_over(setup, &regions, false);
+        table.stores_s += ts.elapsed().as_secs_f64();
+        // Each probe node's load and functional solved (in batches of consecutive probe
+        // nodes, as the store's columns are): its nodule-free compliance, and both
+        // responses at the store's columns.
+        let tp = Instant::now();
+        let (compliance, responses) = probe_responses(setup, &loads, &whole);
+        // A probe node held by the fixed region (its load or its reading all on fixed
+        // unknowns) has no compliance and feels no nodule; any other needs a positive one.
+        let held = |p: usize| loads[p].0.is_empty() || loads[p].1.is_empty();
+        let bad = |p: usize, c0: f64| !(c0.is_finite() && (c0 > 0.0 || (c0 == 0.0 && held(p))));
+        if let Some(p) = (0..compliance.len()).find(|&p| bad(p, compliance[p])) {
+            return Err(TableError::ProbeNode {
+                node: table.probe_nodes[p],
+                at_mm: table.probe_mm[p].map(f64::from),
+                why: format!("its compliance is {} mm/N", compliance[p]),
+            });
+        }
+        table.compliance_mm_per_n = compliance;
+        table.stores_s += tp.elapsed().as_secs_f64();
+        // Per lattice node: its entries, gathered block by block.
+        let mut entries: Vec<Entries> = vec![Default::default(); lattice];
+        for (members, ranges) in &mine {
+            let ts = Instant::now();
+            let Some(store) = whole.restrict(*ranges) else {
+                return Err(TableError::Settings(
+                    "a block's store is not inside the shard's (a bug)".into(),
+                ));
+            };
+            // Each probe node within reach of a member: its responses at the block's
+            // columns, shared by every member's placements.
+            let reach = ranges.reach_mm + s.probe_reach_mm;
+            let at: Vec<usize> = store
+                .cols
+                .iter()
+                .map(|&d| whole.col_of(d).expect("a block's columns are the shard's"))
+                .collect();
+            let local: Vec<Option<(Vec<f64>, Vec<f64>)>> = responses
+                .par_iter()
+                .enumerate()
+                .map(|(p, (f, phi))| {
+                    let near =
+                        norm(sub(table.probe_mm[p].map(f64::from), ranges.center_mm)) <= reach;
+                    near.then(|| {
+                        let gather =
+                            |v: &[f32]| at.iter().map(|&c| f64::from(v[c])).collect::<Vec<_>>();
+                        (gather(f), gather(phi))
+                    })
+                })
+                .collect();
+            table.stores_s += ts.elapsed().as_secs_f64();
+            let tp = Instant::now();
+            let done: Vec<Option<(usize, Entries, usize)>> = members
+                .par_iter()
+                .map(|&m| {
+                    let placed = table.node_fits(&store, &local, m, s)?;
+                    Some((table.index(m), placed.0, placed.1))
+                })
+                .collect();
+            table.placements_s += tp.elapsed().as_secs_f64();
+            for (k, e, count) in done.into_iter().flatten() {
+                table.valid[k] = true;
+                entries[k] = e;
+                table.placements += count;
             }
         }
         if dealt == 0 {
@@ -635,7 +739,7 @@ impl EffectTable {
     fn node_fits(
         &self,
         store: &InteriorResponses,
-        loads: &[Load],
+        responses: &[Option<(Vec<f64>, Vec<f64>)>],
         m: [usize; 3],
         s: &TableSettings,
     ) -> Option<(Entries, usize)> {
@@ -643,6 +747,13 @@ impl EffectTable {
         let near: Vec<usize> = (0..self.probe_nodes.len())
             .filter(|&p| norm(sub(self.probe_mm[p].map(f64::from), c)) <= s.probe_reach_mm)
             .collect();
+        let pairs: Vec<(&[f64], &[f64])> = near
+            .iter()
+            .map(|&p| {
+                let (f, phi) = responses[p].as_ref()?;
+                Some((f.as_slice(), phi.as_slice()))
+            })
+            .collect::<Option<_>>()?;
         let radii = s.radii_mm.len();
         let (mut lambda, mut scale) = (vec![0.0; radii], vec![0.0; radii]);
         let mut amp = vec![0i8; near.len() * radii];
@@ -657,9 +768,8 @@ impl EffectTable {
                 };
                 let placed = store.place(&nodule).ok()?;
                 count += 1;
-                for (k, &p) in near.iter().enumerate() {
-                    let (f, phi) = &loads[p];
-                    y[b][k] = -placed.correction(store, f, phi);
+                for (y, dc) in y[b].iter_mut().zip(placed.corrections(&pairs)) {
+                    *y = -dc;
                 }
             }
             let fits: Vec<[f64; 2]> = (0..near.len())
@@ -900,9 +1010,12 @@ impl EffectTable {
         if !self
             .compliance_mm_per_n
             .iter()
-            .all(|c| c.is_finite() && *c > 0.0)
+            .all(|c| c.is_finite() && *c >= 0.0)
         {
-            return Err("a probe node's compliance is not a positive number".into());
+            return Err(
+                "a probe node's compliance is not a non-negative number (0: held by the fixed region)"
+                    .into(),
+            );
         }
         if self
             .lambda
@@ -972,22 +1085,31 @@ impl EffectTable {
         }
         let by_radius = radius_weights(&self.radii_mm, nodule.radius_mm);
         let radii = self.radii_mm.len();
+        // The cell's corners with their weights (none of weight 0).
+        let corners: Vec<(usize, f64)> = (0..8)
+            .filter_map(|corner| {
+                let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+                let w: f64 = (0..3)
+                    .map(|d| if o[d] == 1 { frac[d] } else { 1.0 - frac[d] })
+                    .product();
+                let i = [0, 1, 2].map(|d| (base[d] + o[d]).min(self.dims[d] - 1));
+                (w != 0.0).then(|| (self.index(i), w))
+            })
+            .collect();
+        // Too shallow first: a build leaves out the nodes only such nodules would read.
+        let surface_mm: f64 = corners
+            .iter()
+            .map(|&(k, w)| w * f64::from(self.surface_mm[k]))
+            .sum();
+        let depth_mm = surface_mm - nodule.radius_mm;
+        if depth_mm < MIN_DEPTH_MM {
+            return Err(TableError::TooShallow { depth_mm });
+        }
         let mut minus_dc = vec![0.0; self.probe_nodes.len()];
-        let mut surface_mm = 0.0;
-        for corner in 0..8 {
-            let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
-            let w: f64 = (0..3)
-                .map(|d| if o[d] == 1 { frac[d] } else { 1.0 - frac[d] })
-                .product();
-            let i = [0, 1, 2].map(|d| (base[d] + o[d]).min(self.dims[d] - 1));
-            let k = self.index(i);
-            if w == 0.0 {
-                continue;
-            }
+        for &(k, w) in &corners {
             if !self.valid[k] {
                 return Err(outside());
             }
-            surface_mm += w * f64::from(self.surface_mm[k]);
             let (s, e) = (self.starts[k] as usize, self.starts[k + 1] as usize);
             // Each radius's shared pole at this ratio, times its scale and weight.
             let per_step: Vec<(usize, f64)> = by_radius
@@ -1007,14 +1129,10 @@ impl EffectTable {
                 minus_dc[self.entry_node[entry] as usize] += v;
             }
         }
-        let depth_mm = surface_mm - nodule.radius_mm;
-        if depth_mm < MIN_DEPTH_MM {
-            return Err(TableError::TooShallow { depth_mm });
-        }
         let at_node = minus_dc
             .iter()
             .zip(&self.compliance_mm_per_n)
-            .map(|(&y, &c0)| c0 / (c0 - y) - 1.0)
+            .map(|(&y, &c0)| if c0 > 0.0 { c0 / (c0 - y) - 1.0 } else { 0.0 })
             .collect();
         Ok(NoduleEffect {
             nodule: *nodule,
@@ -1051,10 +1169,27 @@ impl NoduleEffect {
         for (e, (i, j)) in TRI_EDGES.iter().enumerate() {
             w[3 + e] = 4.0 * l[*i] * l[*j];
         }
+        // A node the fixed region holds has no effect of its own (no press there to
+        // change): the face's free nodes stand in for it, their mean, as the effect
+        // near it is their limit.
+        let held = |n: u32| table.compliance_mm_per_n[n as usize] <= 0.0;
+        let (sum, count) = six
+            .iter()
+            .filter(|&&n| !held(n))
+            .fold((0.0, 0usize), |(s, c), &n| {
+                (s + self.at_node[n as usize], c + 1)
+            });
+        let stand_in = sum / count.max(1) as f64;
         Some(
             six.iter()
                 .zip(w)
-                .map(|(&n, w)| w * self.at_node[n as usize])
+                .map(|(&n, w)| {
+                    w * if held(n) {
+                        stand_in
+                    } else {
+                        self.at_node[n as usize]
+                    }
+                })
                 .sum::<f64>()
                 .max(0.0),
         )
