@@ -61,11 +61,12 @@ if [ -n "${TISSUE:-}${RECORD:-}" ]; then
   done
   $palpa lab asset record assets/liver-coarse.tissue "${cmds[@]}"
 fi
-# The default scene's nodule table (find the nodule): a 36 mm cube of centres 3 mm
-# apart under the anterior face, about 20 min on 2 cores; with NODULES=1, then its
-# accuracy against the full FE at held-out nodules written into it (about 2 min).
+# The default scene's nodule table (find the nodule): every centre 3 mm apart within
+# 30 mm of the palpable surface (the band where a nodule can be felt), about 25 min on
+# 2 cores; with NODULES=1, then its accuracy against the full FE at held-out nodules
+# written into it (about 10 min).
 if [ -n "${NODULES:-}" ]; then
-  nodules="palpa nodule build --level coarse --around=-38.66,48.92,18.54 --half-width-mm 18 --out assets/liver-coarse.nodules"
+  nodules="palpa nodule build --level coarse --band-depth-mm 30 --out assets/liver-coarse.nodules"
   $palpa ${nodules#palpa }
   cmds=(--command "$nodules")
   for seed in 7 8 10 11; do
