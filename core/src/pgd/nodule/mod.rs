@@ -160,9 +160,9 @@ impl InteriorResponses {
     /// The store of every unknown a nodule in any of `regions` can touch (its `ranges`
     /// a sphere about them all), at the rows of those unknowns, and of `setup`'s load
     /// and surface nodes where `surface_rows`. Columns are solved in batches of
-    /// [`BATCH`] consecutive unknowns, a batch whole wherever one of its unknowns is
-    /// needed, so that a column's value does not depend on which others were asked for
-    /// (shards of a build agree bit for bit).
+    /// [`BATCH`]; the factor's solve treats each right-hand side on its own, so a
+    /// column's value does not depend on which others share its batch (shards of a
+    /// build, whose stores hold other columns, agree bit for bit: `tests/nodule_table.rs`).
     pub fn build_over(
         setup: &NodalSetup,
         regions: &[NoduleRanges],
@@ -189,35 +189,26 @@ impl InteriorResponses {
         let (rows, row_of) = indexed(&mark);
         let nr = rows.len();
         let mut g = vec![0.0f32; nr * cols.len()];
-        let batches: Vec<usize> = {
-            let mut b: Vec<usize> = cols.iter().map(|&d| d as usize / BATCH).collect();
-            b.dedup();
-            b
-        };
         let threads = rayon::current_num_threads().max(1);
-        for group in batches.chunks(threads) {
-            let solved: Vec<(usize, Mat<f64>)> = group
-                .par_iter()
-                .map(|&b| {
-                    let first = b * BATCH;
-                    let width = BATCH.min(n - first);
-                    let mut rhs = Mat::<f64>::zeros(n, width);
-                    for k in 0..width {
-                        rhs[(first + k, k)] = 1.0;
+        for (group_index, group) in cols.chunks(BATCH * threads).enumerate() {
+            let solved: Vec<Mat<f64>> = group
+                .par_chunks(BATCH)
+                .map(|chunk| {
+                    let mut rhs = Mat::<f64>::zeros(n, chunk.len());
+                    for (k, &d) in chunk.iter().enumerate() {
+                        rhs[(d as usize, k)] = 1.0;
                     }
                     setup.problem.factor.solve_many(&mut rhs);
-                    (first, rhs)
+                    rhs
                 })
                 .collect();
-            for (first, rhs) in &solved {
-                for k in 0..rhs.ncols() {
-                    let col = col_of[first + k];
-                    if col == u32::MAX {
-                        continue;
-                    }
-                    let out = &mut g[col as usize * nr..(col as usize + 1) * nr];
+            let first = group_index * BATCH * threads;
+            for (k, rhs) in solved.iter().enumerate() {
+                for b in 0..rhs.ncols() {
+                    let col = first + k * BATCH + b;
+                    let out = &mut g[col * nr..(col + 1) * nr];
                     for (r, &d) in rows.iter().enumerate() {
-                        out[r] = rhs[(d as usize, k)] as f32;
+                        out[r] = rhs[(d as usize, b)] as f32;
                     }
                 }
             }
