@@ -314,8 +314,9 @@ fn the_default_tissue_comes_from_the_current_code() {
 
 /// The default scene's nodule table (`assets/liver-coarse.nodules`) is of the default
 /// organ's mesh and carries its measured accuracy: held-out checks against the full FE
-/// (`palpa nodule check --record`), where every felt effect at ratios to 10 is within
-/// 10 % (recorded: 45 felt pairs, worst 7.5 %, median 1.9 %).
+/// (`palpa nodule check --record`) over the band at ratios to 10 (recorded: 68 felt
+/// pairs, median 2.1 %, 97 % within 10 %; elsewhere within 0.77 % of the force, the far
+/// field beyond the probe reach included).
 #[test]
 fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     use palpa_core::pgd::nodule::heldout;
@@ -383,11 +384,35 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     let s = within.expect("checks recorded: scripts/make-assets.sh with NODULES=1");
     let b = beyond.expect("a check at ratios 10-100 recorded");
     assert!(b.felt >= 10 && b.error_median < 0.1, "{b:?}");
-    assert!(s.felt >= 40, "{s:?}");
-    // Over the whole band (measured: 44 felt pairs, median 2.1 %, 95 % within 10 %, the
+    assert!(s.felt >= 60, "{s:?}");
+    // Over the whole band (measured: 68 felt pairs, median 2.1 %, 97 % within 10 %, the
     // two misses 16 % at a thin edge and beside the fixed region).
     assert!(
         s.within_10_percent >= 0.9 && s.error_max <= 0.2 && s.error_median < 0.05,
         "{s:?}"
     );
+    // Where the effect is under 5 %, the probe up to 37 mm from the nodule: within 2 %
+    // of the force (measured 0.77 % and 0.87 % past ratio 10; with no far field beyond
+    // the 30 mm reach it was 2.5 % and 2.9 %).
+    assert!(
+        s.unfelt_max_abs < 0.02 && b.unfelt_max_abs < 0.02,
+        "{s:?} {b:?}"
+    );
+    // The shipped tissue with the table's effect, checked against Newton with the
+    // nodule (`palpa nodule check --tissue`) on this very tissue file (measured: the
+    // force within 0.50 % at the median, 5.2 % at worst; the effect 24 % short at the
+    // median where it is felt; the surface, drawn without the nodule, 1.55 mm off).
+    let tissue = palpa_core::tissue::law::TissueLaw::load(&root.join("liver-coarse.tissue"))
+        .expect("the default tissue");
+    assert!(
+        !table.tissue_checks.is_empty()
+            && table
+                .tissue_checks
+                .iter()
+                .all(|c| c.tissue_xxh3 == tissue.payload_xxh3()),
+        "a tissue check recorded against the shipped tissue (re-run `palpa nodule check --tissue`)"
+    );
+    let t = heldout::recorded_tissue(&table).expect("tissue presses");
+    assert!(t.presses >= 60 && t.felt >= 6, "{t:?}");
+    assert!(t.force_error_median < 0.015, "{t:?}");
 }

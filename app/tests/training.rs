@@ -90,10 +90,12 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
         firm.depth_mm,
         soft.depth_mm
     );
-    // Far from it (beyond the table's reach) nothing changes.
+    // Far from it (90 mm, three times the table's reach) only the far field's last
+    // trace is left (measured 0.06 % of the force).
     let far_mm = [0, 1, 2].map(|d| case.surface_mm[d] + if d == 0 { 90.0 } else { 0.0 });
     let (far, _) = s.scene.closest_palpable(far_mm).expect("a palpable point");
-    assert_eq!(t.effect_at(&far), 0.0);
+    let e = t.effect_at(&far);
+    assert!((0.0..2e-3).contains(&e), "{e}");
     // The largest force counts; a mark reveals the nodule and scores it.
     s.controls.mode = PressMode::Depth;
     s.force.command(s.command());

@@ -510,17 +510,11 @@ pub fn eval(args: &EvalArgs) -> anyhow::Result<()> {
                  `palpa lab tissue cut --modes` cuts them (and `palpa tradeoff` measures the cut)"
             );
         }
-        if args.nodule.nodule_at.is_some() {
-            bail!(
-                "--nodule-at: the nonlinear tissue with a nodule is not answered yet; evaluate \
-                 the linear scene with it (the app scales the tissue's force by the linear \
-                 effect; docs/lab/nodule-measurements.md §8 measures what that misses)"
-            );
-        }
         return super::tissue::eval(
             &args.file,
             &args.probe,
             args.scene.as_deref().unwrap_or("liver"),
+            args.nodule.nodule()?.map(|n| (n, args.nodules.as_deref())),
             args.out.as_deref(),
             args.json,
         );

@@ -49,6 +49,18 @@ pub struct CheckArgs {
     /// Write the check into the table (replacing one of the same seed).
     #[arg(long)]
     record: bool,
+    /// Measure the scene's nonlinear tissue with the table's effect instead (as the
+    /// app's force loop answers: the tissue's force times `1 + effect`): Newton with
+    /// and without each nodule at `--depths`, along the scene's push; `--felt` counts
+    /// pairs whose effect exceeds 5 % at some depth.
+    #[arg(long)]
+    tissue: Option<PathBuf>,
+    /// With --tissue: the scene it serves, `liver` (built in) or a `.palpa` file.
+    #[arg(long, default_value = "liver", requires = "tissue")]
+    scene: String,
+    /// With --tissue: each pair's press depths (mm), off the tissue's depth grid.
+    #[arg(long, value_delimiter = ',', default_values_t = [2.6, 6.1, 9.7], requires = "tissue")]
+    depths: Vec<f64>,
     #[arg(long)]
     json: bool,
 }
@@ -86,7 +98,8 @@ pub struct BuildArgs {
     /// answered. Coarse resolves radii from 8 mm.
     #[arg(long, value_delimiter = ',', default_values_t = [8.0, 10.0, 12.0])]
     radii_mm: Vec<f64>,
-    /// Probe points farther than this from a centre feel none of its nodule (mm).
+    /// Probe points within this distance of a centre get entries of their own (mm);
+    /// farther ones read the far field fitted to the outermost entries.
     #[arg(long, default_value_t = 30.0)]
     probe_reach_mm: f64,
     /// Probe tool radius (mm), as the scene's.
@@ -109,6 +122,9 @@ pub fn run(cmd: &NoduleCommand) -> anyhow::Result<()> {
 fn check(args: &CheckArgs) -> anyhow::Result<()> {
     if args.felt == 0 {
         bail!("--felt 0: expected at least one pair to measure");
+    }
+    if let Some(tissue) = &args.tissue {
+        return check_tissue(args, tissue);
     }
     let mut table = EffectTable::load(&args.file)?;
     let organ = args.organ.mesh()?;
@@ -332,6 +348,10 @@ pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value
         // Ratios to 10 (where the one-pole form is fitted), then beyond (to 100).
         "accuracy": heldout::recorded(table)[0],
         "accuracy_beyond_ratio_10": heldout::recorded(table)[1],
+        "tissue_checks": table.tissue_checks.iter().map(|c| json!({"seed": c.seed,
+            "tissue": c.tissue, "law": c.law, "tissue_xxh3": format!("{:016x}", c.tissue_xxh3),
+            "presses": c.pairs.len()})).collect::<Vec<_>>(),
+        "accuracy_tissue": heldout::recorded_tissue(table),
     })
 }
 
@@ -458,4 +478,176 @@ fn build_summary(table: &EffectTable, out: &std::path::Path) -> serde_json::Valu
         "mesh_xxh3": format!("{:016x}", table.mesh_xxh3),
         "payload_xxh3": format!("{:016x}", table.payload_xxh3()),
     })
+}
+
+/// `palpa nodule check --tissue X.tissue`: the scene's nonlinear tissue with the table's
+/// effect (the tissue's force at the depth times `1 + e`, the surface the tissue's
+/// without the nodule) against Newton with the nodule, at held-out pairs drawn as the
+/// linear check draws them, each pressed along the scene's push to `--depths`.
+fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()> {
+    use palpa_core::fe::newton::NewtonSettings;
+    use palpa_core::fe::nodule::Nodule;
+    use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic_depths};
+    use palpa_core::pgd::nodule::heldout::{PROBE_SPREAD_MM, TissueSummary};
+    use palpa_core::pgd::nodule::table::{MAX_RATIO, TissueCheck, TissuePair};
+    use palpa_core::pgd::nodule::training::{CaseRanges, draw};
+    use palpa_core::rng::Rng;
+    use palpa_core::tissue::law::PointIndex;
+    use std::time::Instant;
+
+    let [lo, hi] = args.ratios[..] else {
+        bail!("--ratios {:?}: expected LO,HI", args.ratios);
+    };
+    if !(lo > 1.0 && lo <= hi && hi <= MAX_RATIO) {
+        bail!("--ratios {lo},{hi}: expected 1 < LO <= HI <= {MAX_RATIO}");
+    }
+    if let Some(d) = args.depths.iter().find(|d| !(d.is_finite() && **d > 0.0)) {
+        bail!("--depths: {d:?} mm: expected finite depths above 0 mm (presses into the tissue)");
+    }
+    if !args.depths.windows(2).all(|w| w[0] < w[1]) {
+        bail!(
+            "--depths {:?}: expected ascending, distinct depths",
+            args.depths
+        );
+    }
+    let mut table = EffectTable::load(&args.file)?;
+    let (bound, scene, _) = super::tissue::eval::bound_to_scene_with_nodules(tissue, &args.scene)?;
+    table
+        .check_mesh(&scene.model().provenance().mesh)
+        .with_context(|| format!("{} for the scene {}", args.file.display(), args.scene))?;
+    let organ = args.organ.mesh()?;
+    bound.law.check_organ(&organ)?;
+    let o = bound.law.options;
+    if let Some(d) = args.depths.iter().find(|d| **d > o.depth_max_mm) {
+        bail!(
+            "--depths: {d} mm: expected depths within the tissue's deepest, {} mm",
+            o.depth_max_mm
+        );
+    }
+    let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
+    let mut contact_scratch = scene.contact_scratch();
+    let mut scratch = bound.scratch();
+    let mut coeffs = vec![0.0; scene.modes()];
+    let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
+    let ranges = CaseRanges {
+        ratio: [1.0, MAX_RATIO],
+        ..CaseRanges::of(&table)
+    };
+    let mut rng = Rng::seed(args.seed);
+    let (mut pairs, mut felt, mut drawn) = (Vec::new(), 0usize, 0usize);
+    let t0 = Instant::now();
+    while felt < args.felt && drawn < 4 * args.felt + 8 {
+        let case = draw(&table, &ranges, rng.next_u64())?;
+        let ratio = (lo.ln() + rng.uniform() * (hi.ln() - lo.ln())).exp();
+        let nodule = Nodule {
+            ratio,
+            ..case.nodule()
+        };
+        let aim =
+            [0, 1, 2].map(|d| case.surface_mm[d] + rng.range(-PROBE_SPREAD_MM, PROBE_SPREAD_MM));
+        if nodule.check(&organ).is_err() {
+            continue;
+        }
+        let Some((point, _)) = scene.closest_palpable(aim) else {
+            continue;
+        };
+        // A point the fixed region holds has no press to change.
+        let Ok(contact) = scene.contact(&point, scene.modes(), &mut contact_scratch) else {
+            continue;
+        };
+        let placed = table.place(&nodule)?;
+        let Ok(effect) = super::tissue::eval::effect_at_point(&table, &placed, &scene, &point)
+        else {
+            continue;
+        };
+        drawn += 1;
+        let at = scene.frame(&point).0;
+        let c = contact.compliance_mm_per_n;
+        let solve = |n: Option<Nodule>| {
+            let req = ProbeRequest {
+                at,
+                force_n: f64::NAN,
+                dir: Some(contact.push_dir),
+                radius_mm: o.tool_radius_mm,
+                nodule: n,
+            };
+            solve_hyperelastic_depths(
+                &organ,
+                o.element,
+                o.material,
+                o.law,
+                &req,
+                &args.depths,
+                NewtonSettings::default(),
+            )
+        };
+        let (without, with) = (solve(None)?, solve(Some(nodule))?);
+        let mut any_felt = false;
+        for ((&depth, free), with) in args.depths.iter().zip(without).zip(with) {
+            let (Ok((free, _)), Ok((with, _))) = (free, with) else {
+                continue;
+            };
+            if depth > bound.limit_mm(&point).0 {
+                continue;
+            }
+            let push = contact.push_dir.map(|d| d * depth / c);
+            scene.displacement(&point, push, &mut coeffs, &mut rows)?;
+            bound.add_surface(&point, depth, &mut scratch, &mut rows);
+            let ([surface_mm], _) =
+                super::tissue::against::max_node_errors(&organ, &vertex_of, &with.u, [&rows]);
+            let n = nodule;
+            let pair = TissuePair {
+                nodule: [
+                    n.center_mm[0],
+                    n.center_mm[1],
+                    n.center_mm[2],
+                    n.radius_mm,
+                    n.ratio,
+                ],
+                at_mm: at,
+                depth_mm: depth,
+                force_fe_without_n: free.force_n,
+                force_fe_n: with.force_n,
+                force_tissue_without_n: bound.force_n(&point, depth, c).0,
+                effect_table: effect,
+                surface_mm,
+            };
+            any_felt |= pair.effect_fe() > heldout::FELT;
+            if !args.json {
+                println!(
+                    "nodule r {:.1} mm, ratio {:.2}, depth {depth:.1} mm: Newton {:.3} N ({:+.1} %), tissue x (1 + e) {:.3} N ({:+.1} %), surface {:.2} mm",
+                    n.radius_mm,
+                    n.ratio,
+                    pair.force_fe_n,
+                    100.0 * pair.effect_fe(),
+                    pair.force_tissue_without_n * (1.0 + effect),
+                    100.0 * effect,
+                    surface_mm
+                );
+            }
+            pairs.push(pair);
+        }
+        felt += usize::from(any_felt);
+    }
+    let measured = TissueCheck {
+        seed: args.seed,
+        tissue: tissue.display().to_string(),
+        law: bound.law.options.law.name().to_string(),
+        tissue_xxh3: bound.law.payload_xxh3(),
+        pairs,
+        fe_s: t0.elapsed().as_secs_f64(),
+    };
+    let this = TissueSummary::of(&measured.pairs);
+    if args.record {
+        table.tissue_checks.retain(|c| c.seed != args.seed);
+        table.tissue_checks.push(measured.clone());
+        table.save(&args.file)?;
+    }
+    let report = json!({
+        "file": args.file, "tissue": tissue, "seed": args.seed, "depths_mm": args.depths,
+        "pairs": drawn, "presses": measured.pairs, "fe_s": measured.fe_s, "summary": this,
+        "recorded": args.record,
+        "all_recorded": heldout::recorded_tissue(&table),
+    });
+    super::args::print_report(&report, args.json)
 }

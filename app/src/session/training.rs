@@ -38,6 +38,14 @@ pub struct Training {
     map_values: (Vec<f32>, u64),
 }
 
+/// The table's face under the scene's probe triangle `triangle` (one of its axis
+/// triangles), found by its corners; `None` off the table's faces.
+pub fn table_face(table: &EffectTable, scene: &PalpationScene, triangle: u32) -> Option<usize> {
+    let vertices = scene.axis_vertices_mm();
+    let t = scene.axis_triangles().get(triangle as usize)?;
+    table.face_at(t.map(|i| vertices[i as usize]))
+}
+
 /// A nodule a trainer places under the probe.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OwnNodule {
@@ -54,14 +62,8 @@ impl Training {
         table
             .check_mesh(&scene.model().provenance().mesh)
             .context("the nodule table and the scene")?;
-        let (vertices, triangles) = (scene.axis_vertices_mm(), scene.axis_triangles());
-        let faces: Vec<Option<u32>> = triangles
-            .iter()
-            .map(|t| {
-                table
-                    .face_at(t.map(|i| vertices[i as usize]))
-                    .map(|f| f as u32)
-            })
+        let faces: Vec<Option<u32>> = (0..scene.axis_triangles().len())
+            .map(|t| table_face(&table, scene, t as u32).map(|f| f as u32))
             .collect();
         if faces.iter().all(Option::is_none) {
             anyhow::bail!(

@@ -152,7 +152,7 @@ impl Against {
 /// vertex by rest position): each candidate's largest nodal distance from the
 /// reference field `reference` (organ node order; candidates in the scene's row
 /// order), and the reference's largest displacement (mm).
-pub(super) fn max_node_errors<const N: usize>(
+pub(crate) fn max_node_errors<const N: usize>(
     organ: &OrganMesh,
     vertex_of: &PointIndex,
     reference: &[f64],

@@ -4,6 +4,10 @@
 use std::time::Instant;
 
 use anyhow::{Context, bail};
+use palpa_app::session::training::table_face;
+use palpa_core::fe::nodule::Nodule;
+use palpa_core::pgd::nodule::table::{EffectTable, NoduleEffect};
+use palpa_core::scene::{PalpationScene, ProbePoint};
 use palpa_core::tissue::bound::BoundTissue;
 use palpa_core::tissue::law::TissueLaw;
 use palpa_core::tissue::surplus::BLEND_SURPLUS_WARN_MM;
@@ -15,9 +19,20 @@ use super::build::goals_json;
 pub(super) fn bound_to_scene(
     file: &std::path::Path,
     scene: &str,
-) -> anyhow::Result<(BoundTissue, palpa_core::scene::PalpationScene)> {
+) -> anyhow::Result<(BoundTissue, PalpationScene)> {
+    let (bound, scene, _) = bound_to_scene_with_nodules(file, scene)?;
+    Ok((bound, scene))
+}
+
+/// As [`bound_to_scene`], with the scene's nodule table (the built-in liver's, or the
+/// `.nodules` file beside a scene file) where it has one.
+pub(crate) fn bound_to_scene_with_nodules(
+    file: &std::path::Path,
+    scene: &str,
+) -> anyhow::Result<(BoundTissue, PalpationScene, Option<EffectTable>)> {
     let law = TissueLaw::load(file)?;
-    let scene = palpa_app::scenes::load(scene)?.scene;
+    let loaded = palpa_app::scenes::load(scene)?;
+    let scene = loaded.scene;
     law.check_linear_model(&scene.model().provenance().mesh)?;
     let bound = BoundTissue::bind(
         law,
@@ -25,7 +40,64 @@ pub(super) fn bound_to_scene(
         scene.axis_vertices_mm(),
         scene.axis_triangles(),
     )?;
-    Ok((bound, scene))
+    Ok((bound, scene, loaded.nodules))
+}
+
+/// The nodule table that answers for `scene` (`--nodules` where given, else the
+/// scene's own), checked to be of its mesh, and `nodule` placed in it.
+pub(crate) fn placed_nodule(
+    nodule: &Nodule,
+    given: Option<&std::path::Path>,
+    own: Option<EffectTable>,
+    scene: &PalpationScene,
+    scene_name: &str,
+) -> anyhow::Result<(EffectTable, NoduleEffect)> {
+    let (table, name) = match given {
+        Some(path) => (
+            EffectTable::load(path).with_context(|| {
+                format!(
+                    "reading the nodule table {} (`palpa nodule build` writes one for a scene)",
+                    path.display()
+                )
+            })?,
+            path.display().to_string(),
+        ),
+        None => (
+            own.with_context(|| {
+                format!(
+                    "--nodule-at: the scene {scene_name} has no nodule table (expected \
+                     `palpa nodule build` to have written one beside it, or --nodules FILE)"
+                )
+            })?,
+            format!("the nodule table of {scene_name}"),
+        ),
+    };
+    table
+        .check_mesh(&scene.model().provenance().mesh)
+        .with_context(|| format!("{name} for the scene {scene_name}"))?;
+    let effect = table
+        .place(nodule)
+        .with_context(|| format!("the nodule in {name}"))?;
+    Ok((table, effect))
+}
+
+/// `F_with/F_without − 1` of `effect` at the scene's probe point `point`: an error
+/// naming the face where the table has none there.
+pub(crate) fn effect_at_point(
+    table: &EffectTable,
+    effect: &NoduleEffect,
+    scene: &PalpationScene,
+    point: &ProbePoint,
+) -> anyhow::Result<f64> {
+    table_face(table, scene, point.triangle)
+        .and_then(|f| effect.at(table, f, point.bary))
+        .with_context(|| {
+            format!(
+                "the probe point's triangle {} lies beyond the nodule table's probe nodes \
+                 (it covers the palpable surface within reach of its lattice)",
+                point.triangle
+            )
+        })
 }
 
 /// `palpa eval` on a tissue file: the press at the palpable point closest to `--at`,
@@ -35,7 +107,8 @@ pub(super) fn bound_to_scene(
 pub fn eval(
     file: &std::path::Path,
     probe: &crate::cli::args::ProbeArgs,
-    scene: &str,
+    scene_name: &str,
+    nodule: Option<(Nodule, Option<&std::path::Path>)>,
     out: Option<&std::path::Path>,
     json_out: bool,
 ) -> anyhow::Result<()> {
@@ -47,7 +120,7 @@ pub fn eval(
     }
     let at = probe.at()?;
     probe.check_press()?;
-    let (bound, scene) = bound_to_scene(file, scene)?;
+    let (bound, scene, own_table) = bound_to_scene_with_nodules(file, scene_name)?;
     let (point, distance_mm) = scene
         .closest_palpable(at)
         .context("the scene has no palpable surface")?;
@@ -55,19 +128,30 @@ pub fn eval(
     let mut contact_scratch = scene.contact_scratch();
     let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
     let c = contact.compliance_mm_per_n;
+    // A nodule multiplies the force at any depth by `1 + effect`, the linear tissue's
+    // effect from the scene's table, as the app's force loop does (docs/methods.md §2h).
+    let nodule = match nodule {
+        Some((n, given)) => {
+            let (table, placed) = placed_nodule(&n, given, own_table, &scene, scene_name)?;
+            let e = effect_at_point(&table, &placed, &scene, &point)?;
+            Some((placed, e))
+        }
+        None => None,
+    };
+    let gain = 1.0 + nodule.as_ref().map_or(0.0, |n| n.1);
     let t = Instant::now();
     let (depth, force, beyond) = match (probe.depth_mm, probe.force_n) {
         (Some(d), _) => {
             // Past the limit both the force and the surface are held at it.
             let (f, beyond) = bound.force_n(&point, d, c);
-            (d.min(bound.limit_mm(&point).0), f, beyond)
+            (d.min(bound.limit_mm(&point).0), gain * f, beyond)
         }
         (None, Some(f)) => {
-            let (d, beyond) = bound.depth_mm(&point, f, c);
+            let (d, beyond) = bound.depth_mm(&point, f / gain, c);
             // Held at the limit, the press is the one there: its force, not the one
             // asked for (that is `requested_force_n`).
             let f = if beyond {
-                bound.force_n(&point, d, c).0
+                gain * bound.force_n(&point, d, c).0
             } else {
                 f
             };
@@ -147,7 +231,7 @@ pub fn eval(
             palpa_app::session::next_to_fixed_text(unpressed)
         );
     }
-    let report = json!({
+    let mut report = json!({
         "model": "tissue", "law": bound.law.options.law.name(),
         "element": bound.law.options.element.name(),
         "at": scene.frame(&point).0,
@@ -165,6 +249,15 @@ pub fn eval(
         // Measured within the goals to these depths (the built-in tissue), else null.
         "goals_to_mm": goals_json(goals),
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
+        "nodule": null,
     });
+    if let Some((placed, e)) = &nodule {
+        let n = placed.nodule;
+        report["nodule"] = json!({"center_mm": n.center_mm, "radius_mm": n.radius_mm,
+            "ratio": n.ratio, "effect": e, "place_ms": placed.place_s * 1e3,
+            "force_without_nodule_n": force / gain,
+            "effect_source": "the linear tissue's, from the scene's nodule table",
+            "surface": "the tissue's without the nodule, at the press's depth"});
+    }
     crate::cli::args::print_report(&report, json_out)
 }

@@ -7,10 +7,10 @@
 //! held-out points a check presses at; `tradeoff` measures a file's cost against its
 //! accuracy for `palpa tradeoff`. The staging tools (cut, refine, band) are in `lab`.
 
-mod against;
+pub(crate) mod against;
 mod build;
 mod check;
-mod eval;
+pub(crate) mod eval;
 mod plan;
 pub(crate) mod points;
 mod shard;

@@ -14,7 +14,7 @@
 
 use std::time::Instant;
 
-pub use super::table::{CheckedPair, TableCheck};
+pub use super::table::{CheckedPair, TableCheck, TissueCheck, TissuePair};
 use super::table::{EffectTable, FIT_RATIOS, MAX_RATIO, TableError};
 use super::training::{CaseRanges, draw};
 use crate::fe::load::project;
@@ -82,6 +82,79 @@ impl CheckSummary {
             effect_max: effects.fold(f64::MIN, f64::max),
         })
     }
+}
+
+/// What a set of tissue checks says: the answered force with the nodule against
+/// Newton's at every press, the effect where Newton's exceeds [`FELT`], the surface.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct TissueSummary {
+    pub presses: usize,
+    /// Presses whose Newton effect exceeds [`FELT`].
+    pub felt: usize,
+    pub depth_max_mm: f64,
+    /// The force with the nodule, relative to Newton's: median and largest.
+    pub force_error_median: f64,
+    pub force_error_max: f64,
+    /// The effect over the felt presses: median, 90th percentile, largest, within 10 %.
+    pub effect_error_median: f64,
+    pub effect_error_p90: f64,
+    pub effect_error_max: f64,
+    pub effect_within_10_percent: f64,
+    /// Newton's effects seen, smallest and largest.
+    pub effect_min: f64,
+    pub effect_max: f64,
+    /// The surface drawn against Newton's with the nodule, largest distance (mm).
+    pub surface_max_mm: f64,
+}
+
+/// The `q`-quantile of ascending `v` (nearest rank; 0 where empty).
+fn quantile(v: &[f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)]
+}
+
+impl TissueSummary {
+    pub fn of<'a>(pairs: impl IntoIterator<Item = &'a TissuePair>) -> Option<TissueSummary> {
+        let pairs: Vec<&TissuePair> = pairs.into_iter().collect();
+        if pairs.is_empty() {
+            return None;
+        }
+        let sorted = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let force = sorted(pairs.iter().map(|p| p.force_error()).collect());
+        let effect = sorted(
+            pairs
+                .iter()
+                .filter(|p| p.effect_fe() > FELT)
+                .map(|p| p.effect_error())
+                .collect(),
+        );
+        let effects = pairs.iter().map(|p| p.effect_fe());
+        Some(TissueSummary {
+            presses: pairs.len(),
+            felt: effect.len(),
+            depth_max_mm: pairs.iter().map(|p| p.depth_mm).fold(0.0, f64::max),
+            force_error_median: quantile(&force, 0.5),
+            force_error_max: force[force.len() - 1],
+            effect_error_median: quantile(&effect, 0.5),
+            effect_error_p90: quantile(&effect, 0.9),
+            effect_error_max: effect.last().copied().unwrap_or(0.0),
+            effect_within_10_percent: effect.iter().filter(|&&e| e <= 0.1).count() as f64
+                / effect.len().max(1) as f64,
+            effect_min: effects.clone().fold(f64::MAX, f64::min),
+            effect_max: effects.fold(f64::MIN, f64::max),
+            surface_max_mm: pairs.iter().map(|p| p.surface_mm).fold(0.0, f64::max),
+        })
+    }
+}
+
+/// What a table's recorded tissue checks say.
+pub fn recorded_tissue(table: &EffectTable) -> Option<TissueSummary> {
+    TissueSummary::of(table.tissue_checks.iter().flat_map(|c| &c.pairs))
 }
 
 /// What a table's recorded checks say, split where the one-pole form is fitted (ratios

@@ -25,6 +25,16 @@
 //! force of a depth-controlled press changes by the factor `c₀/(c₀+δc)`, `c₀` the
 //! nodule-free compliance at the node.
 //!
+//! **Beyond the reach** a lattice node has no entries, yet a nodule is still felt there
+//! (up to 3 % of the force 30–36 mm from its centre). There the change is a far field,
+//! `−δc ≈ τ ρ^{−p}` with `ρ` the distance from the lattice node: the probe's strain at
+//! the nodule falls as `ρ⁻²` in a half-space and the change goes with its square (`p` =
+//! 4); the organ's finite size and the fixed region make it fall more slowly, and `p` =
+//! 3.5 ([`TAIL_POWER`]) is taken, the middle of 3–4.5 measured at the recorded pairs.
+//! `τ` is read from the node's entries in the outer fifth of its reach, each weighted by
+//! its nearness to the probe node (`(d² + 3²)⁻²`, `d` in mm), so that the tail keeps
+//! the direction's own amplitude (docs/lab/nodule-measurements.md §13).
+//!
 //! **Off-line** ([`EffectTable::build`]): one store of interior responses
 //! ([`super::InteriorResponses`]) for every unknown the lattice's nodules can touch, each
 //! column solved once; the lattice is cut into blocks, each block's store cut from it,
@@ -137,8 +147,8 @@ pub struct TableSettings {
     /// The radii tabulated, ascending: the table answers radii between the first and the
     /// last.
     pub radii_mm: Vec<f64>,
-    /// Probe nodes farther than this from a lattice node get no entry there (the effect
-    /// is taken as none).
+    /// Probe nodes farther than this from a lattice node get no entry there (the far
+    /// field fitted to its outermost entries answers there).
     pub probe_reach_mm: f64,
     /// Lattice nodes a side of one store's block.
     pub block: usize,
@@ -149,7 +159,7 @@ pub struct TableSettings {
 
 /// The file's magic bytes and its one format version.
 pub const MAGIC: &[u8; 8] = b"PALPANOD";
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 
 /// Whether `path` starts as a nodule table does (unreadable: no).
 pub fn is_table_file(path: &std::path::Path) -> bool {
@@ -202,6 +212,9 @@ pub struct EffectTable {
     /// Held-out checks against the full FE, as `palpa nodule check --record` measured
     /// them.
     pub checks: Vec<TableCheck>,
+    /// Held-out presses of the scene's nonlinear tissue with the table's effect against
+    /// Newton with the nodule, as `palpa nodule check --tissue --record` measured them.
+    pub tissue_checks: Vec<TissueCheck>,
     /// `Some([i, n])`: only shard `i` of `n` of a build, not a table to answer from
     /// until merged.
     pub shard: Option<[u32; 2]>,
@@ -243,6 +256,59 @@ pub struct TableCheck {
     pub fe_s: f64,
 }
 
+/// One held-out press of a recorded tissue check: the nonlinear tissue's force times
+/// `1 + e` (the table's effect `e` at the point, as the app's force loop applies it)
+/// against Newton's with the nodule, at one depth.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TissuePair {
+    /// Centre (mm), radius (mm), ratio.
+    pub nodule: [f64; 5],
+    /// The probe point (mm, on the palpable surface) and the press's depth (mm).
+    pub at_mm: [f64; 3],
+    pub depth_mm: f64,
+    /// Newton's force without and with the nodule (N).
+    pub force_fe_without_n: f64,
+    pub force_fe_n: f64,
+    /// The tissue's force without the nodule (N) and the table's effect at the point.
+    pub force_tissue_without_n: f64,
+    pub effect_table: f64,
+    /// The largest distance over the surface's vertices between the surface drawn (the
+    /// tissue's, without the nodule, at the press's depth) and Newton's with it (mm).
+    pub surface_mm: f64,
+}
+
+impl TissuePair {
+    /// Newton's effect, `F_with/F_without − 1`.
+    pub fn effect_fe(&self) -> f64 {
+        self.force_fe_n / self.force_fe_without_n - 1.0
+    }
+
+    /// The answered force with the nodule against Newton's, relative.
+    pub fn force_error(&self) -> f64 {
+        let f = self.force_tissue_without_n * (1.0 + self.effect_table);
+        (f - self.force_fe_n).abs() / self.force_fe_n
+    }
+
+    /// The effect's relative error.
+    pub fn effect_error(&self) -> f64 {
+        let fe = self.effect_fe();
+        (self.effect_table - fe).abs() / fe.abs().max(1e-300)
+    }
+}
+
+/// A recorded tissue check: the tissue file it answered with, its seed and presses.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TissueCheck {
+    pub seed: u64,
+    /// The tissue file's name, law and payload checksum (`palpa info X.tissue`).
+    pub tissue: String,
+    pub law: String,
+    pub tissue_xxh3: u64,
+    pub pairs: Vec<TissuePair>,
+    /// Seconds of Newton's solves (two presses a pair).
+    pub fe_s: f64,
+}
+
 /// One nodule's effect at every probe node: what a probe reads.
 #[derive(Debug, Clone)]
 pub struct NoduleEffect {
@@ -258,6 +324,14 @@ const LAMBDA_MAX: f64 = 1e3;
 /// The ratio at which an entry's `A` is matched once its lattice node's shared `λ` is
 /// set: the fit's ratios' geometric middle.
 const MATCH_RATIO: f64 = 4.0;
+
+/// The tail beyond a lattice node's reach is read from its entries farther than this
+/// share of the reach,
+const TAIL_RING: f64 = 0.8;
+/// each weighted by `(d² + TAIL_NEAR_MM²)⁻²`, `d` its distance to the probe node read,
+const TAIL_NEAR_MM: f64 = 3.0;
+/// and carried out as `ρ^{−TAIL_POWER}`.
+const TAIL_POWER: f64 = 3.5;
 
 /// One lattice node's entries at one radius, `(A, λ)` each (fitted alone), made to
 /// share one pole: `λ̄ = Σ|A|λ / Σ|A|` (at least 0: every polarization mode's is), each
@@ -421,6 +495,7 @@ impl EffectTable {
             scale: Vec::new(),
             amp: Vec::new(),
             checks: Vec::new(),
+            tissue_checks: Vec::new(),
             ..self.clone()
         };
         for k in 0..dims[2] {
@@ -559,6 +634,7 @@ impl EffectTable {
             build_s: 0.0,
             placements: 0,
             checks: Vec::new(),
+            tissue_checks: Vec::new(),
             shard: s.shard.map(|[i, n]| [i as u32, n as u32]),
         };
         // Each node's distance to the surface (to refuse a shallow nodule), and to the
@@ -795,6 +871,9 @@ impl EffectTable {
         for c in &mut same.checks {
             c.fe_s = 0.0;
         }
+        for c in &mut same.tissue_checks {
+            c.fe_s = 0.0;
+        }
         let bytes =
             bincode::serde::encode_to_vec(&same, bincode::config::standard()).unwrap_or_default();
         xxhash_rust::xxh3::xxh3_64(&bytes)
@@ -855,6 +934,7 @@ impl EffectTable {
             build_s: parts.iter().map(|p| p.build_s).sum(),
             placements: parts.iter().map(|p| p.placements).sum(),
             checks: Vec::new(),
+            tissue_checks: Vec::new(),
             shard: None,
             ..first.clone()
         };
@@ -1086,27 +1166,28 @@ impl EffectTable {
         let by_radius = radius_weights(&self.radii_mm, nodule.radius_mm);
         let radii = self.radii_mm.len();
         // The cell's corners with their weights (none of weight 0).
-        let corners: Vec<(usize, f64)> = (0..8)
+        let corners: Vec<(usize, f64, [f64; 3])> = (0..8)
             .filter_map(|corner| {
                 let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
                 let w: f64 = (0..3)
                     .map(|d| if o[d] == 1 { frac[d] } else { 1.0 - frac[d] })
                     .product();
                 let i = [0, 1, 2].map(|d| (base[d] + o[d]).min(self.dims[d] - 1));
-                (w != 0.0).then(|| (self.index(i), w))
+                (w != 0.0).then(|| (self.index(i), w, self.node_mm(i)))
             })
             .collect();
         // Too shallow first: a build leaves out the nodes only such nodules would read.
         let surface_mm: f64 = corners
             .iter()
-            .map(|&(k, w)| w * f64::from(self.surface_mm[k]))
+            .map(|&(k, w, _)| w * f64::from(self.surface_mm[k]))
             .sum();
         let depth_mm = surface_mm - nodule.radius_mm;
         if depth_mm < MIN_DEPTH_MM {
             return Err(TableError::TooShallow { depth_mm });
         }
         let mut minus_dc = vec![0.0; self.probe_nodes.len()];
-        for &(k, w) in &corners {
+        let mut reached = vec![false; self.probe_nodes.len()];
+        for &(k, w, at) in &corners {
             if !self.valid[k] {
                 return Err(outside());
             }
@@ -1123,11 +1204,14 @@ impl EffectTable {
                     (i, w * wr * unit)
                 })
                 .collect();
+            reached.fill(false);
             for entry in s..e {
                 let steps = &self.amp[entry * radii..(entry + 1) * radii];
                 let v: f64 = per_step.iter().map(|&(i, f)| f * f64::from(steps[i])).sum();
                 minus_dc[self.entry_node[entry] as usize] += v;
+                reached[self.entry_node[entry] as usize] = true;
             }
+            self.add_tail(at, s..e, &per_step, &reached, &mut minus_dc);
         }
         let at_node = minus_dc
             .iter()
@@ -1143,6 +1227,63 @@ impl EffectTable {
 }
 
 impl EffectTable {
+    /// Adds to `minus_dc` the change beyond the reach of the lattice node at `at_mm`
+    /// (entries `entries`, read at this nodule through `per_step`), at every probe node
+    /// it does not reach (`reached` false) and the fixed region does not hold: the far
+    /// field `τ ρ^{−p}` of the module's docs.
+    fn add_tail(
+        &self,
+        at_mm: [f64; 3],
+        entries: std::ops::Range<usize>,
+        per_step: &[(usize, f64)],
+        reached: &[bool],
+        minus_dc: &mut [f64],
+    ) {
+        let radii = self.radii_mm.len();
+        let rho = |n: u32| norm(sub(self.probe_mm[n as usize].map(f64::from), at_mm));
+        let reach = entries
+            .clone()
+            .map(|e| rho(self.entry_node[e]))
+            .fold(0.0, f64::max);
+        if reach <= 0.0 {
+            return;
+        }
+        // Each outer entry's `−δc ρ^p` at this nodule, and where it is.
+        let ring: Vec<([f64; 3], f64)> = entries
+            .filter_map(|e| {
+                let n = self.entry_node[e];
+                let r = rho(n);
+                (r >= TAIL_RING * reach).then(|| {
+                    let v: f64 = per_step
+                        .iter()
+                        .map(|&(i, f)| f * f64::from(self.amp[e * radii + i]))
+                        .sum();
+                    (
+                        self.probe_mm[n as usize].map(f64::from),
+                        v * r.powf(TAIL_POWER),
+                    )
+                })
+            })
+            .collect();
+        if ring.is_empty() {
+            return;
+        }
+        for (n, y) in minus_dc.iter_mut().enumerate() {
+            if reached[n] || self.compliance_mm_per_n[n] <= 0.0 {
+                continue;
+            }
+            let p = self.probe_mm[n].map(f64::from);
+            let (mut num, mut den) = (0.0, 0.0);
+            for (q, v) in &ring {
+                let d2 = norm(sub(p, *q)).powi(2) + TAIL_NEAR_MM * TAIL_NEAR_MM;
+                let w = 1.0 / (d2 * d2);
+                num += w * v;
+                den += w;
+            }
+            *y += num / den * rho(n as u32).powf(-TAIL_POWER);
+        }
+    }
+
     /// The boundary face whose corners lie at `corners_mm` (within a micrometre, in
     /// the same order): how a scene that numbers its faces otherwise finds the table's.
     pub fn face_at(&self, corners_mm: [[f64; 3]; 3]) -> Option<usize> {
