@@ -412,7 +412,10 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
                 .all(|c| c.tissue_xxh3 == tissue.payload_xxh3()),
         "a tissue check recorded against the shipped tissue (re-run `palpa nodule check --tissue`)"
     );
-    let t = heldout::recorded_tissue(&table).expect("tissue presses");
-    assert!(t.presses >= 60 && t.felt >= 6, "{t:?}");
-    assert!(t.force_error_median < 0.015, "{t:?}");
+    let checks = heldout::recorded_tissue(&table);
+    assert!(!checks.is_empty());
+    for (_, _, t) in &checks {
+        assert!(t.presses >= 60 && t.felt >= 6, "{t:?}");
+        assert!(t.force_error_median < 0.015, "{t:?}");
+    }
 }

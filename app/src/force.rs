@@ -24,6 +24,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
+use palpa_core::pgd::nodule::table::depth_under_force;
 use palpa_core::scene::{PalpationScene, ProbePoint};
 use palpa_core::tissue::online::Tissue;
 
@@ -75,6 +76,9 @@ pub struct ProbeCommand {
     /// (0: none): the input side reads it from the case's table where it places the
     /// probe, so the loop multiplies, it does not look anything up.
     pub nodule_effect: f32,
+    /// Its growth with depth in the nonlinear tissue, `e κ` per mm (0 for the linear
+    /// model): the force at depth `d` is multiplied by `1 + e + e κ d`.
+    pub nodule_effect_per_mm: f32,
 }
 
 impl ProbeCommand {
@@ -97,6 +101,7 @@ impl ProbeCommand {
             bary: point.bary.map(|b| b as f32),
             target,
             nodule_effect: 0.0,
+            nodule_effect_per_mm: 0.0,
         }
     }
 
@@ -166,6 +171,8 @@ pub struct ForceSample {
     pub beyond_law: u32,
     /// The contact point at rest, mm.
     pub point_mm: [f32; 3],
+    /// The factor a hidden nodule multiplied the force by (1 without one).
+    pub nodule_gain: f32,
     /// The command this sample answers.
     pub command: ProbeCommand,
 }
@@ -471,6 +478,7 @@ impl Worker {
         let mut s = ForceSample {
             tick,
             command: *cmd,
+            nodule_gain: 1.0,
             ..ForceSample::default()
         };
         if cmd.active == 0 || cmd.target.is_nan() || cmd.target <= 0.0 {
@@ -486,38 +494,51 @@ impl Worker {
             Ok(c) => {
                 let target = f64::from(cmd.target);
                 let comp = c.compliance_mm_per_n;
-                // A nodule multiplies the force at a given depth by `gain` (the effect
-                // is that of the linear tissue; the nonlinear one takes the same
-                // factor: docs/methods.md §2h).
-                let gain = 1.0 + f64::from(cmd.nodule_effect);
-                if !(gain.is_finite() && gain > 0.0) {
+                // A nodule multiplies the force at depth `d` by `gain(d)`: the linear
+                // tissue's effect, grown with the depth in the nonlinear tissue as its
+                // recorded checks fit (docs/methods.md §2h).
+                let (e, e_per_mm) = (
+                    f64::from(cmd.nodule_effect),
+                    f64::from(cmd.nodule_effect_per_mm),
+                );
+                let gain = |d: f64| 1.0 + e + e_per_mm * d;
+                if !(gain(0.0).is_finite() && gain(0.0) > 0.0 && e_per_mm.is_finite()) {
                     s.set_status(SampleStatus::Failed);
                     return s;
                 }
+                let kappa = if e != 0.0 { e_per_mm / e } else { 0.0 };
                 let (force, depth, beyond) = match (&self.law, cmd.mode()) {
-                    (None, PressMode::Force) => (target, target * comp / gain, false),
-                    (None, PressMode::Depth) => (gain * target / comp, target, false),
+                    (None, PressMode::Force) => (target, target * comp / gain(0.0), false),
+                    (None, PressMode::Depth) => (gain(0.0) * target / comp, target, false),
                     // Impedance rendering: depth in, the nonlinear force out.
                     // Past the law's limit there both are held at it (the surface is
                     // drawn at the same depth).
                     (Some(law), PressMode::Depth) => {
                         let (f, beyond) = law.force_n(&cmd.point(), target, comp);
-                        (gain * f, target.min(law.limit_mm(&cmd.point()).0), beyond)
+                        let d = target.min(law.limit_mm(&cmd.point()).0);
+                        (gain(d) * f, d, beyond)
                     }
                     // The trigger's force in, the depth that needs it out. Past the
                     // law's limit the depth is held there, and so is the force: the
                     // tissue's at the held depth, not the trigger's (the asked force
                     // stays in the sample's command), so the sample lies on the curve.
                     (Some(law), PressMode::Force) => {
-                        let (d, beyond) = law.depth_mm(&cmd.point(), target / gain, comp);
+                        let (d, beyond) = depth_under_force(target, e, kappa, |f| {
+                            law.depth_mm(&cmd.point(), f, comp)
+                        });
                         let force = if beyond {
-                            gain * law.force_n(&cmd.point(), d, comp).0
+                            gain(d) * law.force_n(&cmd.point(), d, comp).0
                         } else {
                             target
                         };
                         (force, d, beyond)
                     }
                 };
+                s.nodule_gain = if self.law.is_some() {
+                    gain(depth)
+                } else {
+                    gain(0.0)
+                } as f32;
                 s.linear_n = (depth / comp) as f32;
                 s.point_mm = c.point_mm.map(|v| v as f32);
                 s.beyond_law = u32::from(beyond);

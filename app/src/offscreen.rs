@@ -440,7 +440,7 @@ pub fn run(opts: &HeadlessOptions) -> anyhow::Result<(HeadlessReport, Image)> {
                 point_mm: s.point_mm,
                 depth_mm: s.depth_mm,
                 force_n: s.magnitude_n,
-                force_without_nodule_n: s.magnitude_n / (1.0 + s.command.nodule_effect),
+                force_without_nodule_n: s.magnitude_n / s.nodule_gain,
             });
         }
         hud.frame_ms.push(ms);

@@ -2036,6 +2036,23 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
         "{t_force} against {newton}"
     );
 
+    // `palpa nodule check --tissue` refuses presses it cannot compare, by name.
+    for (depths, said) in [
+        ("0,5", "above 0 mm"),
+        ("6,3", "ascending"),
+        ("30", "deepest"),
+    ] {
+        let out = palpa(&[
+            "nodule", "check", &table_s, "--tissue", tissue, "--depths", depths,
+        ]);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--depths") && err.contains(said),
+            "{depths}: {err}"
+        );
+    }
+
     // A table without a nodule is refused, for a tissue file too.
     let out = palpa(&[
         "eval",

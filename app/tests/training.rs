@@ -34,6 +34,7 @@ fn answer(s: &Session, c: ProbeCommand) -> palpa_app::force::ForceSample {
 /// `c` without the nodule.
 fn without_nodule(mut c: ProbeCommand) -> ProbeCommand {
     c.nodule_effect = 0.0;
+    c.nodule_effect_per_mm = 0.0;
     c
 }
 
@@ -57,7 +58,9 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     let seed = seed_above(&mut s, 0.08);
     let t = s.training.as_ref().expect("training");
     let case = t.trial.as_ref().expect("a case").case.clone();
-    // Over the nodule: the force at a depth is the nodule-free one times 1 + effect.
+    // Over the nodule: the force at a depth `d` is the nodule-free one times
+    // `1 + e (1 + κ d)`, the tissue's amplification `κ` fitted to the table's tissue
+    // checks of the built-in tissue.
     let (over, _) = s
         .scene
         .closest_palpable(case.surface_mm)
@@ -70,12 +73,21 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     s.controls.depth_mm = 6.0;
     let with = answer(&s, s.command());
     assert_eq!(with.command.nodule_effect, effect);
+    let kappa = t.amplification_per_mm;
+    assert!(
+        kappa > 0.0,
+        "the built-in tissue's checks fit an amplification"
+    );
+    assert_eq!(
+        with.command.nodule_effect_per_mm,
+        effect * kappa as f32,
+        "the input side puts e κ into the command"
+    );
     let without = answer(&s, without_nodule(s.command()));
     let ratio = f64::from(with.magnitude_n / without.magnitude_n);
-    assert!(
-        (ratio - 1.0 - f64::from(effect)).abs() < 1e-5,
-        "{ratio} against 1 + {effect}"
-    );
+    let gain = 1.0 + f64::from(effect) * (1.0 + kappa * 6.0);
+    assert!((ratio - gain).abs() < 1e-5, "{ratio} against {gain}");
+    assert!((f64::from(with.nodule_gain) - gain).abs() < 1e-5);
     // The surface drawn is the nodule-free one at the same depth.
     assert_eq!(with.depth_mm, without.depth_mm);
     assert_eq!(with.linear_n, without.linear_n);
@@ -90,6 +102,15 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
         firm.depth_mm,
         soft.depth_mm
     );
+    // ... at the depth where the tissue's force there times the gain there is the
+    // force asked.
+    s.controls.mode = PressMode::Depth;
+    s.controls.depth_mm = firm.depth_mm;
+    let there = answer(&s, without_nodule(s.command()));
+    let gain = 1.0 + f64::from(effect) * (1.0 + kappa * f64::from(firm.depth_mm));
+    let f = f64::from(there.magnitude_n) * gain;
+    assert!((f - 2.0).abs() < 2e-3, "{f} N against the 2 N asked");
+    s.controls.depth_mm = 6.0;
     // Far from it (90 mm, three times the table's reach) only the far field's last
     // trace is left (measured 0.06 % of the force).
     let far_mm = [0, 1, 2].map(|d| case.surface_mm[d] + if d == 0 { 90.0 } else { 0.0 });

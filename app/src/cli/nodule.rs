@@ -350,6 +350,7 @@ pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value
         "accuracy_beyond_ratio_10": heldout::recorded(table)[1],
         "tissue_checks": table.tissue_checks.iter().map(|c| json!({"seed": c.seed,
             "tissue": c.tissue, "law": c.law, "tissue_xxh3": format!("{:016x}", c.tissue_xxh3),
+            "amplification_per_mm": c.amplification_per_mm,
             "presses": c.pairs.len()})).collect::<Vec<_>>(),
         "accuracy_tissue": heldout::recorded_tissue(table),
     })
@@ -489,7 +490,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
     use palpa_core::fe::nodule::Nodule;
     use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic_depths};
     use palpa_core::pgd::nodule::heldout::{PROBE_SPREAD_MM, TissueSummary};
-    use palpa_core::pgd::nodule::table::{MAX_RATIO, TissueCheck, TissuePair};
+    use palpa_core::pgd::nodule::table::{MAX_RATIO, TissueCheck, TissuePair, tissue_effect};
     use palpa_core::pgd::nodule::training::{CaseRanges, draw};
     use palpa_core::rng::Rng;
     use palpa_core::tissue::law::PointIndex;
@@ -524,6 +525,9 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             o.depth_max_mm
         );
     }
+    // The amplification the tissue answers with: fitted to the checks recorded before.
+    let kappa =
+        heldout::tissue_amplification_per_mm(&table, bound.law.payload_xxh3()).unwrap_or(0.0);
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let mut contact_scratch = scene.contact_scratch();
     let mut scratch = bound.scratch();
@@ -609,18 +613,20 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
                 force_fe_without_n: free.force_n,
                 force_fe_n: with.force_n,
                 force_tissue_without_n: bound.force_n(&point, depth, c).0,
-                effect_table: effect,
+                effect_linear: effect,
+                effect_answered: tissue_effect(effect, kappa, depth),
                 surface_mm,
             };
             any_felt |= pair.effect_fe() > heldout::FELT;
             if !args.json {
                 println!(
-                    "nodule r {:.1} mm, ratio {:.2}, depth {depth:.1} mm: Newton {:.3} N ({:+.1} %), tissue x (1 + e) {:.3} N ({:+.1} %), surface {:.2} mm",
+                    "nodule r {:.1} mm, ratio {:.2}, depth {depth:.1} mm: Newton {:.3} N ({:+.1} %), tissue x (1 + e) {:.3} N ({:+.1} %; linear {:+.1} %), surface {:.2} mm",
                     n.radius_mm,
                     n.ratio,
                     pair.force_fe_n,
                     100.0 * pair.effect_fe(),
-                    pair.force_tissue_without_n * (1.0 + effect),
+                    pair.force_tissue_without_n * (1.0 + pair.effect_answered),
+                    100.0 * pair.effect_answered,
                     100.0 * effect,
                     surface_mm
                 );
@@ -634,6 +640,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
         tissue: tissue.display().to_string(),
         law: bound.law.options.law.name().to_string(),
         tissue_xxh3: bound.law.payload_xxh3(),
+        amplification_per_mm: kappa,
         pairs,
         fe_s: t0.elapsed().as_secs_f64(),
     };
@@ -646,8 +653,9 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
     let report = json!({
         "file": args.file, "tissue": tissue, "seed": args.seed, "depths_mm": args.depths,
         "pairs": drawn, "presses": measured.pairs, "fe_s": measured.fe_s, "summary": this,
-        "recorded": args.record,
+        "amplification_per_mm": kappa, "recorded": args.record,
         "all_recorded": heldout::recorded_tissue(&table),
+        "amplification_per_mm_now": heldout::tissue_amplification_per_mm(&table, bound.law.payload_xxh3()),
     });
     super::args::print_report(&report, args.json)
 }

@@ -352,6 +352,9 @@ impl Session {
             && let Some(p) = self.controls.probe
         {
             c.nodule_effect = t.effect_at(&p);
+            if self.law.is_some() {
+                c.nodule_effect_per_mm = c.nodule_effect * t.amplification_per_mm as f32;
+            }
         }
         c
     }

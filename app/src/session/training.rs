@@ -36,6 +36,10 @@ pub struct Training {
     pub own: OwnNodule,
     /// `1 + effect` per scene vertex (1 off the table) and its generation.
     map_values: (Vec<f32>, u64),
+    /// The nonlinear tissue's amplification of the effect with depth, `κ` per mm
+    /// (`e (1 + κ d)`), fitted to the table's tissue checks of the scene's tissue; 0
+    /// without them or without a tissue.
+    pub amplification_per_mm: f64,
 }
 
 /// The table's face under the scene's probe triangle `triangle` (one of its axis
@@ -85,6 +89,7 @@ impl Training {
                 ratio: 4.4,
             },
             map_values: (Vec::new(), 0),
+            amplification_per_mm: 0.0,
         })
     }
 

@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use palpa_app::session::training::table_face;
 use palpa_core::fe::nodule::Nodule;
-use palpa_core::pgd::nodule::table::{EffectTable, NoduleEffect};
+use palpa_core::pgd::nodule::heldout::tissue_amplification_per_mm;
+use palpa_core::pgd::nodule::table::{EffectTable, NoduleEffect, depth_under_force, tissue_effect};
 use palpa_core::scene::{PalpationScene, ProbePoint};
 use palpa_core::tissue::bound::BoundTissue;
 use palpa_core::tissue::law::TissueLaw;
@@ -128,30 +129,36 @@ pub fn eval(
     let mut contact_scratch = scene.contact_scratch();
     let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
     let c = contact.compliance_mm_per_n;
-    // A nodule multiplies the force at any depth by `1 + effect`, the linear tissue's
-    // effect from the scene's table, as the app's force loop does (docs/methods.md §2h).
+    // A nodule multiplies the force at depth `d` by `1 + e (1 + κ d)`: `e` the linear
+    // tissue's effect from the scene's table, `κ` the amplification its recorded tissue
+    // checks fit, as the app's force loop does (docs/methods.md §2h).
     let nodule = match nodule {
         Some((n, given)) => {
             let (table, placed) = placed_nodule(&n, given, own_table, &scene, scene_name)?;
             let e = effect_at_point(&table, &placed, &scene, &point)?;
-            Some((placed, e))
+            let kappa = tissue_amplification_per_mm(&table, bound.law.payload_xxh3());
+            Some((placed, e, kappa))
         }
         None => None,
     };
-    let gain = 1.0 + nodule.as_ref().map_or(0.0, |n| n.1);
+    let (e, kappa) = nodule
+        .as_ref()
+        .map_or((0.0, 0.0), |n| (n.1, n.2.unwrap_or(0.0)));
+    let gain = |depth_mm: f64| 1.0 + tissue_effect(e, kappa, depth_mm);
     let t = Instant::now();
     let (depth, force, beyond) = match (probe.depth_mm, probe.force_n) {
         (Some(d), _) => {
             // Past the limit both the force and the surface are held at it.
             let (f, beyond) = bound.force_n(&point, d, c);
-            (d.min(bound.limit_mm(&point).0), gain * f, beyond)
+            let d = d.min(bound.limit_mm(&point).0);
+            (d, gain(d) * f, beyond)
         }
         (None, Some(f)) => {
-            let (d, beyond) = bound.depth_mm(&point, f / gain, c);
+            let (d, beyond) = depth_under_force(f, e, kappa, |f| bound.depth_mm(&point, f, c));
             // Held at the limit, the press is the one there: its force, not the one
             // asked for (that is `requested_force_n`).
             let f = if beyond {
-                gain * bound.force_n(&point, d, c).0
+                gain(d) * bound.force_n(&point, d, c).0
             } else {
                 f
             };
@@ -251,12 +258,13 @@ pub fn eval(
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
         "nodule": null,
     });
-    if let Some((placed, e)) = &nodule {
+    if let Some((placed, e_linear, kappa)) = &nodule {
         let n = placed.nodule;
         report["nodule"] = json!({"center_mm": n.center_mm, "radius_mm": n.radius_mm,
-            "ratio": n.ratio, "effect": e, "place_ms": placed.place_s * 1e3,
-            "force_without_nodule_n": force / gain,
-            "effect_source": "the linear tissue's, from the scene's nodule table",
+            "ratio": n.ratio, "effect": gain(depth) - 1.0, "effect_linear": e_linear,
+            "amplification_per_mm": kappa, "place_ms": placed.place_s * 1e3,
+            "force_without_nodule_n": force / gain(depth),
+            "effect_source": "the linear tissue's from the scene's nodule table, amplified with the depth as its recorded tissue checks fit (none recorded: not amplified)",
             "surface": "the tissue's without the nodule, at the press's depth"});
     }
     crate::cli::args::print_report(&report, json_out)

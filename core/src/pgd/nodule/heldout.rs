@@ -152,9 +152,39 @@ impl TissueSummary {
     }
 }
 
-/// What a table's recorded tissue checks say.
-pub fn recorded_tissue(table: &EffectTable) -> Option<TissueSummary> {
-    TissueSummary::of(table.tissue_checks.iter().flat_map(|c| &c.pairs))
+/// What a table's recorded tissue checks say, each as it was measured (with the
+/// amplification fitted to the checks before it).
+pub fn recorded_tissue(table: &EffectTable) -> Vec<(u64, f64, TissueSummary)> {
+    table
+        .tissue_checks
+        .iter()
+        .filter_map(|c| TissueSummary::of(&c.pairs).map(|s| (c.seed, c.amplification_per_mm, s)))
+        .collect()
+}
+
+/// The presses an amplification is fitted to: Newton's effect above this.
+pub const AMPLIFICATION_FIT_EFFECT: f64 = 0.015;
+
+/// The tissue's amplification of the nodule's effect with depth, `κ` in
+/// `e_tissue = e (1 + κ d)`, fitted by least squares to the presses of the checks
+/// recorded for the tissue whose payload is `tissue_xxh3` where Newton's effect exceeds
+/// [`AMPLIFICATION_FIT_EFFECT`]: `κ = Σ d (r − 1) / Σ d²`, `r` Newton's effect over the
+/// linear one. `None` without such presses. A mean over sites: the nonlinear effect over
+/// the linear one varies from site to site by about a fifth about it
+/// (docs/lab/nodule-measurements.md §13).
+pub fn tissue_amplification_per_mm(table: &EffectTable, tissue_xxh3: u64) -> Option<f64> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for p in table
+        .tissue_checks
+        .iter()
+        .filter(|c| c.tissue_xxh3 == tissue_xxh3)
+        .flat_map(|c| &c.pairs)
+        .filter(|p| p.effect_fe() > AMPLIFICATION_FIT_EFFECT && p.effect_linear > 0.0)
+    {
+        num += p.depth_mm * (p.effect_fe() / p.effect_linear - 1.0);
+        den += p.depth_mm * p.depth_mm;
+    }
+    (den > 0.0 && (num / den).is_finite()).then(|| num / den)
 }
 
 /// What a table's recorded checks say, split where the one-pole form is fitted (ratios
@@ -277,4 +307,112 @@ pub fn check(
         pairs,
         fe_s: t0.elapsed().as_secs_f64(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn press(depth_mm: f64, without: f64, with: f64, tissue: f64, effect: f64) -> TissuePair {
+        TissuePair {
+            nodule: [0.0, 0.0, 0.0, 10.0, 4.0],
+            at_mm: [0.0; 3],
+            depth_mm,
+            force_fe_without_n: without,
+            force_fe_n: with,
+            force_tissue_without_n: tissue,
+            effect_linear: effect,
+            effect_answered: effect,
+            surface_mm: depth_mm / 10.0,
+        }
+    }
+
+    /// A tissue check's figures: the force with the nodule against Newton's at every
+    /// press, the effect only where Newton's exceeds 5 %, the surface's largest.
+    #[test]
+    fn a_tissue_summary_counts_the_effect_only_where_it_is_felt() {
+        let pairs = [
+            // Felt: Newton +20 %, the table +16 % (20 % short); the force 10 × 1.16
+            // against 12: 3.3 % low.
+            press(9.7, 10.0, 12.0, 10.0, 0.16),
+            // Felt: Newton +10 %, the table +10 %, the tissue 1 % high.
+            press(6.1, 5.0, 5.5, 5.05, 0.10),
+            // Not felt (+2 %): its effect's error (50 %) does not count.
+            press(2.6, 2.0, 2.04, 2.0, 0.01),
+        ];
+        let s = TissueSummary::of(&pairs).expect("presses");
+        assert_eq!((s.presses, s.felt), (3, 2));
+        assert!((s.effect_error_max - 0.2).abs() < 1e-12, "{s:?}");
+        assert!((s.effect_within_10_percent - 0.5).abs() < 1e-12, "{s:?}");
+        assert!(
+            (s.force_error_max - (12.0 - 11.6) / 12.0).abs() < 1e-12,
+            "{s:?}"
+        );
+        assert!((s.force_error_median - 0.01).abs() < 1e-12, "{s:?}");
+        assert!((s.effect_max - 0.2).abs() < 1e-12 && (s.effect_min - 0.02).abs() < 1e-12);
+        assert_eq!((s.depth_max_mm, s.surface_max_mm), (9.7, 0.97));
+        assert!(TissueSummary::of(&[]).is_none());
+    }
+
+    /// The amplification fitted to presses that follow `e (1 + κ d)` is `κ`, from the
+    /// checks of the tissue asked only; and a force asked is met at the depth
+    /// `depth_under_force` gives.
+    #[test]
+    fn the_amplification_is_fitted_per_tissue_and_a_force_met_at_its_depth() {
+        use super::super::table::{depth_under_force, tissue_effect};
+        let kappa = 0.03;
+        let pairs = |tissue_e: f64| -> Vec<TissuePair> {
+            [2.6, 6.1, 9.7]
+                .iter()
+                .map(|&d| {
+                    let fe = tissue_effect(tissue_e, kappa, d);
+                    TissuePair {
+                        effect_linear: tissue_e,
+                        ..press(d, 10.0, 10.0 * (1.0 + fe), 10.0, tissue_e)
+                    }
+                })
+                .collect()
+        };
+        let mut table = crate::pgd::nodule::table::tests::tiny();
+        table.tissue_checks = vec![
+            TissueCheck {
+                seed: 7,
+                tissue: "a".into(),
+                law: "neo-hookean".into(),
+                tissue_xxh3: 1,
+                amplification_per_mm: 0.0,
+                pairs: [pairs(0.1), pairs(0.02)].concat(),
+                fe_s: 0.0,
+            },
+            // Another tissue's presses, and ones too weak to fit, do not count.
+            TissueCheck {
+                tissue_xxh3: 2,
+                pairs: vec![press(9.7, 10.0, 20.0, 10.0, 0.1)],
+                ..table_check_stub()
+            },
+        ];
+        table.tissue_checks[0]
+            .pairs
+            .push(press(9.7, 10.0, 10.1, 10.0, 0.001));
+        let got = tissue_amplification_per_mm(&table, 1).expect("fitted");
+        assert!((got - kappa).abs() < 1e-12, "{got}");
+        assert!(tissue_amplification_per_mm(&table, 3).is_none());
+        // A tissue whose force is 2 N/mm × d: the force asked, at the depth returned.
+        let (e, f) = (0.2, 12.0);
+        let (d, held) = depth_under_force(f, e, kappa, |f| (f / 2.0, false));
+        let back = 2.0 * d * (1.0 + tissue_effect(e, kappa, d));
+        assert!(!held && (back - f).abs() < 1e-4 * f, "{d} mm: {back} N");
+    }
+
+    fn table_check_stub() -> TissueCheck {
+        TissueCheck {
+            seed: 8,
+            tissue: "b".into(),
+            law: "neo-hookean".into(),
+            tissue_xxh3: 2,
+            amplification_per_mm: 0.0,
+            pairs: Vec::new(),
+            fe_s: 0.0,
+        }
+    }
 }

@@ -159,7 +159,7 @@ pub struct TableSettings {
 
 /// The file's magic bytes and its one format version.
 pub const MAGIC: &[u8; 8] = b"PALPANOD";
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 
 /// Whether `path` starts as a nodule table does (unreadable: no).
 pub fn is_table_file(path: &std::path::Path) -> bool {
@@ -269,9 +269,12 @@ pub struct TissuePair {
     /// Newton's force without and with the nodule (N).
     pub force_fe_without_n: f64,
     pub force_fe_n: f64,
-    /// The tissue's force without the nodule (N) and the table's effect at the point.
+    /// The tissue's force without the nodule (N), the table's (linear) effect at the
+    /// point, and the effect the tissue answered with at this depth,
+    /// `e (1 + κ d)` ([`tissue_effect`], `κ` the check's `amplification_per_mm`).
     pub force_tissue_without_n: f64,
-    pub effect_table: f64,
+    pub effect_linear: f64,
+    pub effect_answered: f64,
     /// The largest distance over the surface's vertices between the surface drawn (the
     /// tissue's, without the nodule, at the press's depth) and Newton's with it (mm).
     pub surface_mm: f64,
@@ -285,15 +288,43 @@ impl TissuePair {
 
     /// The answered force with the nodule against Newton's, relative.
     pub fn force_error(&self) -> f64 {
-        let f = self.force_tissue_without_n * (1.0 + self.effect_table);
+        let f = self.force_tissue_without_n * (1.0 + self.effect_answered);
         (f - self.force_fe_n).abs() / self.force_fe_n
     }
 
-    /// The effect's relative error.
+    /// The answered effect's relative error.
     pub fn effect_error(&self) -> f64 {
         let fe = self.effect_fe();
-        (self.effect_table - fe).abs() / fe.abs().max(1e-300)
+        (self.effect_answered - fe).abs() / fe.abs().max(1e-300)
     }
+}
+
+/// The nodule's effect on the nonlinear tissue's force at depth `depth_mm`: the linear
+/// effect `e` amplified as `e (1 + κ d)`, `κ` fitted to the recorded tissue checks
+/// ([`super::heldout::tissue_amplification_per_mm`]; 0: the linear effect as it is).
+#[inline]
+pub fn tissue_effect(effect: f64, amplification_per_mm: f64, depth_mm: f64) -> f64 {
+    effect * (1.0 + amplification_per_mm * depth_mm)
+}
+
+/// Under a force `force_n`, the depth at which the tissue's force times
+/// `1 + tissue_effect(depth)` gives it, and whether the tissue's depth is held at its
+/// limit: `depth_of(F)` is the tissue's depth under `F`. A few fixed-point steps (the
+/// gain changes by `e κ` per mm, a few per cent of the force over the whole press).
+pub fn depth_under_force(
+    force_n: f64,
+    effect: f64,
+    amplification_per_mm: f64,
+    depth_of: impl Fn(f64) -> (f64, bool),
+) -> (f64, bool) {
+    let mut out = depth_of(force_n / (1.0 + effect));
+    if amplification_per_mm != 0.0 {
+        for _ in 0..4 {
+            let gain = 1.0 + tissue_effect(effect, amplification_per_mm, out.0);
+            out = depth_of(force_n / gain);
+        }
+    }
+    out
 }
 
 /// A recorded tissue check: the tissue file it answered with, its seed and presses.
@@ -304,6 +335,9 @@ pub struct TissueCheck {
     pub tissue: String,
     pub law: String,
     pub tissue_xxh3: u64,
+    /// The amplification `κ` (per mm) the tissue answered with: fitted to the checks
+    /// recorded before this one (0 for the first).
+    pub amplification_per_mm: f64,
     pub pairs: Vec<TissuePair>,
     /// Seconds of Newton's solves (two presses a pair).
     pub fe_s: f64,
@@ -1365,8 +1399,37 @@ fn radius_weights(radii: &[f64], r: f64) -> Vec<(usize, f64)> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// A table of one lattice node and no entries, for tests of what it records.
+    pub(crate) fn tiny() -> EffectTable {
+        EffectTable {
+            mesh_xxh3: 0,
+            origin_mm: [0.0; 3],
+            spacing_mm: 3.0,
+            dims: [1, 1, 1],
+            radii_mm: vec![8.0, 12.0],
+            valid: vec![true],
+            surface_mm: vec![20.0],
+            starts: vec![0, 0],
+            entry_node: Vec::new(),
+            lambda: vec![0.0; 2],
+            scale: vec![0.0; 2],
+            amp: Vec::new(),
+            probe_nodes: Vec::new(),
+            probe_mm: Vec::new(),
+            compliance_mm_per_n: Vec::new(),
+            face_nodes: Vec::new(),
+            stores_s: 0.0,
+            placements_s: 0.0,
+            build_s: 0.0,
+            placements: 0,
+            checks: Vec::new(),
+            tissue_checks: Vec::new(),
+            shard: None,
+        }
+    }
 
     /// The one-pole fit through two ratios reproduces a one-pole function everywhere
     /// between them, and a negligible change is none.
