@@ -139,13 +139,23 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     assert_eq!(s.training.as_ref().expect("training").scores.len(), 1);
     let shown = s.frame().nodule.expect("revealed");
     assert_eq!(shown.radius_mm, case.nodule().radius_mm as f32);
-    // The trainer's map: 1 + effect at the scene's vertices, its top the case's peak.
+    // The trainer's map: 1 + effect at the scene's vertices, its top the case's peak;
+    // deeper, the tissue's effect is larger (a new generation of values).
     let t = s.training.as_mut().expect("training");
-    let peak = t.peak_ratio();
-    let (ratios, _) = t.vertex_ratios(&s.scene);
+    let peak = t.peak_ratio(0.0);
+    let (ratios, generation) = t.vertex_ratios(&s.scene, 0.0);
     let top = ratios.iter().copied().fold(0.0, f32::max);
     assert!(ratios.iter().all(|&r| r >= 1.0 - 1e-4), "no softening");
     assert!(top > 1.0 && top <= peak + 1e-3, "{top} against {peak}");
+    let deep_peak = t.peak_ratio(8.0);
+    let (deep, deeper) = t.vertex_ratios(&s.scene, 8.0);
+    let deep_top = deep.iter().copied().fold(0.0, f32::max);
+    assert!(deeper != generation && deep_top > top && deep_top <= deep_peak + 1e-3);
+    let growth = 1.0 + 8.0 * t.amplification_per_mm as f32;
+    assert!(
+        ((deep_top - 1.0) / (top - 1.0) - growth).abs() < 1e-3,
+        "{deep_top} {top}"
+    );
 }
 
 #[test]

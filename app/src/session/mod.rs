@@ -443,8 +443,14 @@ impl Session {
                 kind: ValueKind::Regions,
             }),
             (None, Some(t)) if t.map && t.trial.is_some() => {
-                let top = t.peak_ratio();
-                let (values, generation) = t.vertex_ratios(&self.scene);
+                // At the depth pressed now (the tissue's effect grows with it).
+                let depth = if self.law.is_some() {
+                    f64::from(self.sample.depth_mm)
+                } else {
+                    0.0
+                };
+                let top = t.peak_ratio(depth);
+                let (values, generation) = t.vertex_ratios(&self.scene, depth);
                 Some(VertexValues {
                     values,
                     generation,

@@ -40,6 +40,8 @@ pub struct Training {
     /// (`e (1 + κ d)`), fitted to the table's tissue checks of the scene's tissue; 0
     /// without them or without a tissue.
     pub amplification_per_mm: f64,
+    /// The depth the map's values are for (mm, to half a millimetre).
+    map_depth_mm: f64,
 }
 
 /// The table's face under the scene's probe triangle `triangle` (one of its axis
@@ -90,6 +92,7 @@ impl Training {
             },
             map_values: (Vec::new(), 0),
             amplification_per_mm: 0.0,
+            map_depth_mm: 0.0,
         })
     }
 
@@ -172,10 +175,18 @@ impl Training {
         self.revealed = self.trial.is_some();
     }
 
-    /// `1 + effect` at every scene vertex (1 where the table does not reach) and a
-    /// generation that changes with the case: the stiffness map.
-    pub fn vertex_ratios(&mut self, scene: &PalpationScene) -> (&[f32], u64) {
-        if self.map_values.0.is_empty() {
+    /// The effect's growth at depth `depth_mm`, `1 + κ d` (1 for the linear model).
+    fn growth(&self, depth_mm: f64) -> f64 {
+        1.0 + self.amplification_per_mm * depth_mm
+    }
+
+    /// The force with the nodule over the force without at depth `depth_mm`, at every
+    /// scene vertex (1 where the table does not reach), and a generation that changes
+    /// with the case and with the depth (by half a millimetre): the stiffness map.
+    pub fn vertex_ratios(&mut self, scene: &PalpationScene, depth_mm: f64) -> (&[f32], u64) {
+        let depth = (2.0 * depth_mm).round() / 2.0;
+        if self.map_values.0.is_empty() || depth != self.map_depth_mm {
+            let growth = self.growth(depth) as f32;
             let mut v = vec![1.0f32; scene.vertices_mm().len()];
             for triangle in 0..scene.axis_triangles().len() as u32 {
                 for k in 0..3 {
@@ -183,18 +194,21 @@ impl Training {
                     bary[k] = 1.0;
                     let p = ProbePoint { triangle, bary };
                     let vertex = scene.probe_vertices(&p)[k] as usize;
-                    v[vertex] = 1.0 + self.effect_at(&p);
+                    v[vertex] = 1.0 + growth * self.effect_at(&p);
                 }
             }
             self.map_values.0 = v;
+            self.map_values.1 += 1;
+            self.map_depth_mm = depth;
         }
         (&self.map_values.0, self.map_values.1)
     }
 
-    /// The largest `1 + effect` on the surface for the current case (the map's top).
-    pub fn peak_ratio(&self) -> f32 {
-        self.trial
-            .as_ref()
-            .map_or(1.0, |t| 1.0 + t.case.peak_effect as f32)
+    /// The largest force with the nodule over the force without on the surface for the
+    /// current case at depth `depth_mm` (the map's top).
+    pub fn peak_ratio(&self, depth_mm: f64) -> f32 {
+        self.trial.as_ref().map_or(1.0, |t| {
+            (1.0 + t.case.peak_effect * self.growth((2.0 * depth_mm).round() / 2.0)) as f32
+        })
     }
 }
