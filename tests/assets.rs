@@ -399,9 +399,12 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
         "{s:?} {b:?}"
     );
     // The shipped tissue with the table's effect, checked against Newton with the
-    // nodule (`palpa nodule check --tissue`) on this very tissue file (measured: the
-    // force within 0.50 % at the median, 5.2 % at worst; the effect 24 % short at the
-    // median where it is felt; the surface, drawn without the nodule, 1.55 mm off).
+    // nodule (`palpa nodule check --tissue`) on this very tissue file. Measured: seed 7
+    // with the linear effect as it is, the force within 0.50 % at the median and 5.2 %
+    // at worst, the felt effect 24 % short at the median; seed 8 with the
+    // amplification fitted to seed 7's presses (out of sample), the force within 0.25 %
+    // and 6.5 %, the effect's median error 6.0 % (the linear 8.4 %); the surface, drawn
+    // without the nodule, up to 2.0 mm off.
     let tissue = palpa_core::tissue::law::TissueLaw::load(&root.join("liver-coarse.tissue"))
         .expect("the default tissue");
     assert!(
@@ -413,9 +416,17 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
         "a tissue check recorded against the shipped tissue (re-run `palpa nodule check --tissue`)"
     );
     let checks = heldout::recorded_tissue(&table);
-    assert!(!checks.is_empty());
+    assert!(checks.len() >= 2);
     for (_, _, t) in &checks {
-        assert!(t.presses >= 60 && t.felt >= 6, "{t:?}");
+        assert!(t.presses >= 40 && t.felt >= 6, "{t:?}");
         assert!(t.force_error_median < 0.015, "{t:?}");
     }
+    let kappa = heldout::tissue_amplification_per_mm(&table, tissue.payload_xxh3())
+        .expect("an amplification fitted");
+    assert!((0.0..0.1).contains(&kappa), "{kappa}");
+    let (_, _, amplified) = checks
+        .iter()
+        .find(|c| c.1 > 0.0)
+        .expect("a check answered with an amplification");
+    assert!(amplified.effect_error_median < 0.18, "{amplified:?}");
 }
