@@ -78,10 +78,13 @@ if [ -n "${NODULES:-}" ]; then
   check="palpa nodule check assets/liver-coarse.nodules --level coarse --felt 12 --seed 9 --ratios 10,100 --record"
   $palpa ${check#palpa } > /dev/null
   cmds+=(--command "$check")
-  # The neo-Hookean tissue with a nodule (its force times 1 + the table's effect).
-  check="palpa nodule check assets/liver-coarse.nodules --level coarse --tissue assets/liver-coarse.tissue --felt 5 --seed 7 --record"
-  $palpa ${check#palpa } > /dev/null
-  cmds+=(--command "$check")
+  # The neo-Hookean tissue with a nodule (its force times 1 + e (1 + kappa d)): each
+  # check answers with the amplification the checks before it fit.
+  for seed in 7 8; do
+    check="palpa nodule check assets/liver-coarse.nodules --level coarse --tissue assets/liver-coarse.tissue --felt 5 --seed $seed --record"
+    $palpa ${check#palpa } > /dev/null
+    cmds+=(--command "$check")
+  done
   $palpa lab asset record assets/liver-coarse.nodules "${cmds[@]}"
 fi
 echo "assets/liver-coarse.palpa written; tradeoff: $tmp/tradeoff.json"

@@ -19,13 +19,7 @@ fn setup() -> (palpa_core::organ::OrganMesh, ProbeRequest, [f64; 3]) {
     let at = [-7.0, 69.34, 7.0];
     let dir = smooth_inward_dir(&organ, at).expect("on the surface");
     let centre = [0, 1, 2].map(|d| at[d] + 22.0 * dir[d]);
-    let req = ProbeRequest {
-        at,
-        force_n: 1.0,
-        dir: Some(dir),
-        radius_mm: 5.0,
-        nodule: None,
-    };
+    let req = ProbeRequest::unit(at, dir);
     (organ, req, centre)
 }
 

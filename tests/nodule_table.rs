@@ -17,6 +17,15 @@ use palpa_core::rng::Rng;
 
 use palpa_tests::{coarse_nodal_under, fe_without_and_with};
 
+/// The full FE's effect of `nodule` at the palpable point `at` (1 N along the smoothed
+/// inward normal): the force of a press to a depth with it over without, less one.
+fn fe_effect(organ: &palpa_core::organ::OrganMesh, at: [f64; 3], nodule: Nodule) -> f64 {
+    let dir = smooth_inward_dir(organ, at).expect("on the surface");
+    let req = ProbeRequest::unit(at, dir);
+    let (free, with) = fe_without_and_with(organ, &req, nodule);
+    free.probe_displacement_mm / with.probe_displacement_mm - 1.0
+}
+
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
@@ -117,16 +126,7 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
         }
         let at = [0, 1, 2].map(|d| site[d] + rng.range(-12.0, 12.0));
         let point = project(space, &organ.palpable, at).expect("projects");
-        let pdir = smooth_inward_dir(&organ, point.point).expect("on the surface");
-        let req = ProbeRequest {
-            at: point.point,
-            force_n: 1.0,
-            dir: Some(pdir),
-            radius_mm: 5.0,
-            nodule: None,
-        };
-        let (free, with) = fe_without_and_with(&organ, &req, nodule);
-        let fe = free.probe_displacement_mm / with.probe_displacement_mm - 1.0;
+        let fe = fe_effect(&organ, point.point, nodule);
         let effect = table.place(&nodule).expect("in the table");
         let tab = effect
             .at(&table, point.face, point.bary)
@@ -171,20 +171,11 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
         if !(33.0..50.0).contains(&rho) {
             continue;
         }
-        let pdir = smooth_inward_dir(&organ, point.point).expect("on the surface");
-        let req = ProbeRequest {
-            at: point.point,
-            force_n: 1.0,
-            dir: Some(pdir),
-            radius_mm: 5.0,
-            nodule: None,
-        };
         // Only the faces of the probe nodes some lattice node reaches are the table's.
         let Some(tab) = effect.at(&table, point.face, point.bary) else {
             continue;
         };
-        let (free, with) = fe_without_and_with(&organ, &req, stiff);
-        let fe = free.probe_displacement_mm / with.probe_displacement_mm - 1.0;
+        let fe = fe_effect(&organ, point.point, stiff);
         eprintln!(
             "beyond the reach, {rho:.1} mm from the centre: effect FE {:+.2} %, table {:+.2} %",
             100.0 * fe,

@@ -490,7 +490,9 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
     use palpa_core::fe::nodule::Nodule;
     use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic_depths};
     use palpa_core::pgd::nodule::heldout::{PROBE_SPREAD_MM, TissueSummary};
-    use palpa_core::pgd::nodule::table::{MAX_RATIO, TissueCheck, TissuePair, tissue_effect};
+    use palpa_core::pgd::nodule::table::{
+        MAX_RATIO, TissueCheck, TissuePair, nodule_row, tissue_effect,
+    };
     use palpa_core::pgd::nodule::training::{CaseRanges, draw};
     use palpa_core::rng::Rng;
     use palpa_core::tissue::law::PointIndex;
@@ -601,13 +603,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
                 super::tissue::against::max_node_errors(&organ, &vertex_of, &with.u, [&rows]);
             let n = nodule;
             let pair = TissuePair {
-                nodule: [
-                    n.center_mm[0],
-                    n.center_mm[1],
-                    n.center_mm[2],
-                    n.radius_mm,
-                    n.ratio,
-                ],
+                nodule: nodule_row(&n),
                 at_mm: at,
                 depth_mm: depth,
                 force_fe_without_n: free.force_n,

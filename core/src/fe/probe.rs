@@ -27,6 +27,20 @@ pub struct ProbeRequest {
     pub nodule: Option<super::nodule::Nodule>,
 }
 
+impl ProbeRequest {
+    /// 1 N along `dir` at `at` with the default tool (5 mm), no nodule: the press every
+    /// accuracy check compares at.
+    pub fn unit(at: [f64; 3], dir: [f64; 3]) -> ProbeRequest {
+        ProbeRequest {
+            at,
+            force_n: 1.0,
+            dir: Some(dir),
+            radius_mm: 5.0,
+            nodule: None,
+        }
+    }
+}
+
 /// A solved probe problem.
 #[derive(Debug, Clone)]
 pub struct ProbeSolution {

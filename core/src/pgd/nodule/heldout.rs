@@ -15,7 +15,7 @@
 use std::time::Instant;
 
 pub use super::table::{CheckedPair, TableCheck, TissueCheck, TissuePair};
-use super::table::{EffectTable, FIT_RATIOS, MAX_RATIO, TableError};
+use super::table::{EffectTable, FIT_RATIOS, MAX_RATIO, TableError, nodule_row};
 use super::training::{CaseRanges, draw};
 use crate::fe::load::project;
 use crate::fe::nodule::Nodule;
@@ -266,13 +266,7 @@ pub fn check(
         let Some(effect_table) = table.place(&nodule)?.at(table, point.face, point.bary) else {
             continue;
         };
-        let req = ProbeRequest {
-            at: point.point,
-            force_n: 1.0,
-            dir: Some(dir),
-            radius_mm: 5.0,
-            nodule: None,
-        };
+        let req = ProbeRequest::unit(point.point, dir);
         let free = solve_linear(organ, Element::P2, material, &req).map_err(fe_error)?;
         if free.probe_displacement_mm.is_nan() || free.probe_displacement_mm <= 0.0 {
             // Held by the fixed region: no press there for a nodule to change.
@@ -288,15 +282,8 @@ pub fn check(
             },
         )
         .map_err(fe_error)?;
-        let n = nodule;
         pairs.push(CheckedPair {
-            nodule: [
-                n.center_mm[0],
-                n.center_mm[1],
-                n.center_mm[2],
-                n.radius_mm,
-                n.ratio,
-            ],
+            nodule: nodule_row(&nodule),
             at_mm: point.point,
             effect_fe: free.probe_displacement_mm / with.probe_displacement_mm - 1.0,
             effect_table,

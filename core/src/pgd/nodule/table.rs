@@ -230,6 +230,17 @@ pub struct CheckedPair {
     pub effect_table: f64,
 }
 
+/// A nodule as a recorded check keeps it: centre (mm), radius (mm), ratio.
+pub fn nodule_row(n: &Nodule) -> [f64; 5] {
+    [
+        n.center_mm[0],
+        n.center_mm[1],
+        n.center_mm[2],
+        n.radius_mm,
+        n.ratio,
+    ]
+}
+
 impl CheckedPair {
     /// The nodule: centre, radius, ratio.
     pub fn nodule(&self) -> Nodule {

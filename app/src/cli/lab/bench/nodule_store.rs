@@ -78,13 +78,7 @@ pub fn run(args: &NoduleStoreBenchArgs) -> anyhow::Result<()> {
         ratio: (1.0, args.ratio.max(1.0)),
     };
     let store = InteriorResponses::build(&s, ranges);
-    let req = ProbeRequest {
-        at,
-        force_n: 1.0,
-        dir: Some(dir),
-        radius_mm: 5.0,
-        nodule: None,
-    };
+    let req = ProbeRequest::unit(at, dir);
     let (probe, pdir) = locate(&s.space, &organ, &req)?;
     let f = s
         .space
