@@ -69,7 +69,7 @@ if [ -n "${NODULES:-}" ]; then
   nodules="palpa nodule build --level coarse --band-depth-mm 30 --out assets/liver-coarse.nodules"
   $palpa ${nodules#palpa }
   cmds=(--command "$nodules")
-  for seed in 12 13 7 8 10 11; do
+  for seed in 12 13 7 8 10 11 18 19; do
     check="palpa nodule check assets/liver-coarse.nodules --level coarse --felt 12 --seed $seed --record"
     $palpa ${check#palpa } > /dev/null
     cmds+=(--command "$check")
@@ -78,8 +78,16 @@ if [ -n "${NODULES:-}" ]; then
   check="palpa nodule check assets/liver-coarse.nodules --level coarse --felt 12 --seed 9 --ratios 10,100 --record"
   $palpa ${check#palpa } > /dev/null
   cmds+=(--command "$check")
+  # Radii past the largest tabulated (12 to 15 mm), and nodules past the band (deeper,
+  # or beside a surface no probe presses), answered by the far field.
+  for check in "--seed 14 --radii-mm 12,15" "--seed 16 --radii-mm 12,15" \
+    "--seed 15 --past-band" "--seed 17 --past-band --radii-mm 8,15"; do
+    check="palpa nodule check assets/liver-coarse.nodules --level coarse --felt 12 $check --record"
+    $palpa ${check#palpa } > /dev/null
+    cmds+=(--command "$check")
+  done
   # The neo-Hookean tissue with a nodule (its force times 1 + e (1 + kappa d)): each
-  # check answers with the amplification the checks before it fit.
+  # check answers with the amplification the other seeds' recorded checks fit.
   for seed in 7 8; do
     check="palpa nodule check assets/liver-coarse.nodules --level coarse --tissue assets/liver-coarse.tissue --felt 5 --seed $seed --record"
     $palpa ${check#palpa } > /dev/null

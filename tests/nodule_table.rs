@@ -99,7 +99,9 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
     ));
     // Every earlier version, and a later one, refused by name with the command that
     // builds it again.
-    for v in (1..palpa_core::pgd::nodule::table::VERSION).chain([7]) {
+    for v in (1..palpa_core::pgd::nodule::table::VERSION)
+        .chain([palpa_core::pgd::nodule::table::VERSION + 1])
+    {
         let mut other = bytes.clone();
         other[8] = v as u8;
         std::fs::write(&bad, &other).expect("write");
@@ -210,12 +212,19 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
     let e = table.place(&far).expect_err("outside the lattice");
     assert!(matches!(e, TableError::CentreOutside { .. }), "{e}");
     assert!(e.to_string().contains("lattice of centres"), "{e}");
+    // Radii to 1.25 times the largest tabulated (12 mm, so 15 mm) are answered where
+    // deep enough (this centre lies 16 mm under the surface), larger refused.
     let big = Nodule {
-        radius_mm: 12.5,
+        radius_mm: 13.5,
+        ..centred
+    };
+    assert!(table.place(&big).is_ok(), "radius 13.5 mm");
+    let big = Nodule {
+        radius_mm: 15.5,
         ..centred
     };
     let e = table.place(&big).expect_err("radius outside");
-    assert!(e.to_string().contains("radius 12.5 mm"), "{e}");
+    assert!(e.to_string().contains("radius 15.5 mm"), "{e}");
     let shallow = Nodule {
         center_mm: [0, 1, 2].map(|d| centre[d] - 3.0 * dir[d]),
         radius_mm: 12.0,
@@ -251,8 +260,10 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
 
     // `palpa nodule check`'s measurement: pairs drawn off the grids, the FE solved
     // without and with each nodule; recorded in the table, read back with it.
-    let measured = heldout::check(&table, &organ, 2, 5, [1.5, 10.0]).expect("checks");
-    let again = heldout::check(&table, &organ, 2, 5, [1.5, 10.0]).expect("checks");
+    let measured =
+        heldout::check(&table, &organ, 2, 5, [8.0, 12.0], [1.5, 10.0], false).expect("checks");
+    let again =
+        heldout::check(&table, &organ, 2, 5, [8.0, 12.0], [1.5, 10.0], false).expect("checks");
     assert_eq!(
         measured.pairs, again.pairs,
         "a seed draws and measures the same pairs"
@@ -282,7 +293,7 @@ fn the_tabulated_effect_matches_the_fe_at_held_out_nodules() {
     let mut foreign = table.clone();
     foreign.mesh_xxh3 ^= 1;
     assert!(matches!(
-        heldout::check(&foreign, &organ, 1, 5, [1.5, 10.0]),
+        heldout::check(&foreign, &organ, 1, 5, [8.0, 12.0], [1.5, 10.0], false),
         Err(TableError::Mesh { .. })
     ));
 }

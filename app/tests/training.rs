@@ -111,12 +111,12 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     let f = f64::from(there.magnitude_n) * gain;
     assert!((f - 2.0).abs() < 2e-3, "{f} N against the 2 N asked");
     s.controls.depth_mm = 6.0;
-    // Far from it (90 mm, three times the table's reach) only the far field's last
-    // trace is left (measured 0.06 % of the force).
+    // Far from it (90 mm along x, three times the table's reach) only the far field's
+    // trace is left (measured: the table 0.40 % of the force, the full FE 0.20 %).
     let far_mm = [0, 1, 2].map(|d| case.surface_mm[d] + if d == 0 { 90.0 } else { 0.0 });
     let (far, _) = s.scene.closest_palpable(far_mm).expect("a palpable point");
     let e = t.effect_at(&far);
-    assert!((0.0..2e-3).contains(&e), "{e}");
+    assert!((0.0..1e-2).contains(&e), "{e}");
     // The largest force counts; a mark reveals the nodule and scores it.
     s.controls.mode = PressMode::Depth;
     s.force.command(s.command());

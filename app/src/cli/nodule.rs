@@ -46,6 +46,14 @@ pub struct CheckArgs {
     /// The nodules' ratios, LO,HI (drawn log-uniformly; above 1, at most 100).
     #[arg(long, value_delimiter = ',', default_values_t = [1.5, 10.0])]
     ratios: Vec<f64>,
+    /// The nodules' radii (mm), LO,HI, drawn uniformly [default: the radii tabulated;
+    /// the table answers to 1.25 times the largest].
+    #[arg(long, value_delimiter = ',')]
+    radii_mm: Option<Vec<f64>>,
+    /// Draw only nodules past the table's band (deeper, or beside a surface no probe
+    /// presses), which the table answers by its far field.
+    #[arg(long)]
+    past_band: bool,
     /// Write the check into the table (replacing one of the same seed).
     #[arg(long)]
     record: bool,
@@ -81,7 +89,8 @@ pub struct BuildArgs {
     /// Instead of a cube: every centre in the organ within this depth under the
     /// palpable surface (mm), on a lattice over the whole palpable surface. Deeper
     /// nodules (radius to 12 mm, ratio to 10) change the force by less than 5 %
-    /// (docs/lab/nodule-measurements.md §11).
+    /// (docs/lab/nodule-measurements.md §11); the table answers them by its far field
+    /// from the band's deepest centres (§14).
     #[arg(long)]
     band_depth_mm: Option<f64>,
     /// Build only shard I of N (I from 1), the lattice's blocks dealt in turn, into
@@ -131,8 +140,21 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     let [lo, hi] = args.ratios[..] else {
         bail!("--ratios {:?}: expected LO,HI", args.ratios);
     };
-    let measured = heldout::check(&table, &organ, args.felt, args.seed, [lo, hi])
-        .with_context(|| format!("checking {}", args.file.display()))?;
+    let radii = match args.radii_mm.as_deref() {
+        None => [table.radii_mm[0], table.radii_mm[table.radii_mm.len() - 1]],
+        Some(&[a, b]) => [a, b],
+        Some(other) => bail!("--radii-mm {other:?}: expected LO,HI"),
+    };
+    let measured = heldout::check(
+        &table,
+        &organ,
+        args.felt,
+        args.seed,
+        radii,
+        [lo, hi],
+        args.past_band,
+    )
+    .with_context(|| format!("checking {}", args.file.display()))?;
     let pairs: Vec<_> = measured
         .pairs
         .iter()
@@ -176,7 +198,16 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
 /// table cut from this one as a build with it would have written it.
 pub fn tradeoff(path: &std::path::Path, organ: &OrganArgs, json_out: bool) -> anyhow::Result<()> {
     let table = EffectTable::load(path)?;
-    let pairs: Vec<&heldout::CheckedPair> = table.checks.iter().flat_map(|c| &c.pairs).collect();
+    // The knobs are the band's lattice and its tabulated radii: measured at the pairs
+    // there (not those answered past the largest radius or by the far field past the
+    // band).
+    let largest = table.radii_mm[table.radii_mm.len() - 1];
+    let pairs: Vec<&heldout::CheckedPair> = table
+        .checks
+        .iter()
+        .flat_map(|c| &c.pairs)
+        .filter(|p| p.nodule[3] <= largest && table.place_in_band(&p.nodule()).is_ok())
+        .collect();
     if pairs.is_empty() {
         bail!(
             "{}: no held-out check recorded; measure one first with `palpa nodule check {} --record`",
@@ -332,11 +363,13 @@ pub fn tradeoff(path: &std::path::Path, organ: &OrganArgs, json_out: bool) -> an
 
 /// What `palpa info` says of a nodule table.
 pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value {
+    let recorded = heldout::recorded(table);
     json!({
         "file": path, "kind": "nodule-table", "format_version": palpa_core::pgd::nodule::table::VERSION,
         "shard": table.shard,
         "lattice": table.dims, "centres": table.valid.iter().filter(|&&v| v).count(),
         "box_mm": table.box_mm(), "spacing_mm": table.spacing_mm, "radii_mm": table.radii_mm,
+        "radii_answered_mm": table.radius_range_mm(),
         "ratios": [1.0, palpa_core::pgd::nodule::table::MAX_RATIO],
         "probe_nodes": table.probe_nodes.len(),
         "mesh_xxh3": format!("{:016x}", table.mesh_xxh3),
@@ -345,9 +378,12 @@ pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value
         "build_s": table.build_s,
         "checks": table.checks.iter().map(|c| json!({"seed": c.seed, "pairs": c.pairs.len(),
             "summary": CheckSummary::of(&c.pairs)})).collect::<Vec<_>>(),
-        // Ratios to 10 (where the one-pole form is fitted), then beyond (to 100).
-        "accuracy": heldout::recorded(table)[0],
-        "accuracy_beyond_ratio_10": heldout::recorded(table)[1],
+        // In the band at tabulated radii: ratios to 10 (where the one-pole form is
+        // fitted), then beyond (to 100); radii past the tabulated; past the band.
+        "accuracy": recorded[0],
+        "accuracy_beyond_ratio_10": recorded[1],
+        "accuracy_past_largest_radius": recorded[2],
+        "accuracy_past_band": recorded[3],
         "tissue_checks": table.tissue_checks.iter().map(|c| json!({"seed": c.seed,
             "tissue": c.tissue, "law": c.law, "tissue_xxh3": format!("{:016x}", c.tissue_xxh3),
             "amplification_per_mm": c.amplification_per_mm,
@@ -527,17 +563,20 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             o.depth_max_mm
         );
     }
-    // The amplification the tissue answers with: fitted to the checks recorded before.
+    // The amplification the tissue answers with: fitted to the other seeds' recorded
+    // checks (never this seed's own presses, when it is measured again).
     let kappa =
-        heldout::tissue_amplification_per_mm(&table, bound.law.payload_xxh3()).unwrap_or(0.0);
+        heldout::amplification_leaving_out(&table, bound.law.payload_xxh3(), Some(args.seed))
+            .unwrap_or(0.0);
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let mut contact_scratch = scene.contact_scratch();
     let mut scratch = bound.scratch();
     let mut coeffs = vec![0.0; scene.modes()];
     let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
     let ranges = CaseRanges {
+        radius_mm: [table.radii_mm[0], table.radii_mm[table.radii_mm.len() - 1]],
         ratio: [1.0, MAX_RATIO],
-        ..CaseRanges::of(&table)
+        past_band: false,
     };
     let mut rng = Rng::seed(args.seed);
     let (mut pairs, mut felt, mut drawn) = (Vec::new(), 0usize, 0usize);

@@ -37,7 +37,7 @@ pub struct CheckSummary {
     /// Pairs whose FE effect exceeds [`FELT`].
     pub felt: usize,
     /// Over the felt pairs: the effect's relative error, median, 90th percentile and
-    /// largest, and the share within 10 %.
+    /// largest, and the share within 10 % (NaN without a felt pair).
     pub error_median: f64,
     pub error_p90: f64,
     pub error_max: f64,
@@ -57,11 +57,15 @@ impl CheckSummary {
             .filter(|p| p.effect_fe > FELT)
             .map(|p| p.error())
             .collect();
-        if errors.is_empty() {
+        if pairs.is_empty() {
             return None;
         }
         errors.sort_by(f64::total_cmp);
+        // Without a felt pair the effect's errors are NaN (no claim either way).
         let q = |f: f64| {
+            if errors.is_empty() {
+                return f64::NAN;
+            }
             errors[((f * (errors.len() - 1) as f64).round() as usize).min(errors.len() - 1)]
         };
         let effects = pairs.iter().map(|p| p.effect_fe);
@@ -70,7 +74,7 @@ impl CheckSummary {
             felt: errors.len(),
             error_median: q(0.5),
             error_p90: q(0.9),
-            error_max: errors[errors.len() - 1],
+            error_max: q(1.0),
             within_10_percent: errors.iter().filter(|&&e| e <= 0.1).count() as f64
                 / errors.len() as f64,
             unfelt_max_abs: pairs
@@ -153,7 +157,7 @@ impl TissueSummary {
 }
 
 /// What a table's recorded tissue checks say, each as it was measured (with the
-/// amplification fitted to the checks before it).
+/// amplification fitted to the other seeds' checks recorded then).
 pub fn recorded_tissue(table: &EffectTable) -> Vec<(u64, f64, TissueSummary)> {
     table
         .tissue_checks
@@ -173,11 +177,21 @@ pub const AMPLIFICATION_FIT_EFFECT: f64 = 0.015;
 /// the linear one varies from site to site by about a fifth about it
 /// (docs/lab/nodule-measurements.md §13).
 pub fn tissue_amplification_per_mm(table: &EffectTable, tissue_xxh3: u64) -> Option<f64> {
+    amplification_leaving_out(table, tissue_xxh3, None)
+}
+
+/// [`tissue_amplification_per_mm`] without the checks of seed `leave_out`: what a check
+/// of that seed, measured again, answers with (never with its own presses).
+pub fn amplification_leaving_out(
+    table: &EffectTable,
+    tissue_xxh3: u64,
+    leave_out: Option<u64>,
+) -> Option<f64> {
     let (mut num, mut den) = (0.0, 0.0);
     for p in table
         .tissue_checks
         .iter()
-        .filter(|c| c.tissue_xxh3 == tissue_xxh3)
+        .filter(|c| c.tissue_xxh3 == tissue_xxh3 && Some(c.seed) != leave_out)
         .flat_map(|c| &c.pairs)
         .filter(|p| p.effect_fe() > AMPLIFICATION_FIT_EFFECT && p.effect_linear > 0.0)
     {
@@ -187,26 +201,48 @@ pub fn tissue_amplification_per_mm(table: &EffectTable, tissue_xxh3: u64) -> Opt
     (den > 0.0 && (num / den).is_finite()).then(|| num / den)
 }
 
-/// What a table's recorded checks say, split where the one-pole form is fitted (ratios
-/// to [`FIT_RATIOS`]`[1]`) and where it is carried beyond (to [`MAX_RATIO`]).
-pub fn recorded(table: &EffectTable) -> [Option<CheckSummary>; 2] {
-    let pairs = || table.checks.iter().flat_map(|c| &c.pairs);
-    let within = |p: &&CheckedPair| p.nodule[4] <= FIT_RATIOS[1];
+/// What a table's recorded checks say, split four ways: in the band at tabulated
+/// radii, where the one-pole form is fitted (ratios to [`FIT_RATIOS`]`[1]`) and where it
+/// is carried beyond (to [`MAX_RATIO`]); in the band at radii past the largest
+/// tabulated, any ratio; past the band (answered by the far field), any radius and ratio.
+pub fn recorded(table: &EffectTable) -> [Option<CheckSummary>; 4] {
+    let largest = table.radii_mm.last().copied().unwrap_or(0.0);
+    let pairs: Vec<(&CheckedPair, bool)> = table
+        .checks
+        .iter()
+        .flat_map(|c| &c.pairs)
+        .map(|p| (p, table.place_in_band(&p.nodule()).is_ok()))
+        .collect();
+    let of = |keep: &dyn Fn(&CheckedPair) -> bool, band: bool| {
+        CheckSummary::of(
+            pairs
+                .iter()
+                .filter(|&&(p, in_band)| in_band == band && keep(p))
+                .map(|&(p, _)| p),
+        )
+    };
+    let tabulated = |p: &CheckedPair| p.nodule[3] <= largest;
     [
-        CheckSummary::of(pairs().filter(within)),
-        CheckSummary::of(pairs().filter(|p| !within(p))),
+        of(&|p| tabulated(p) && p.nodule[4] <= FIT_RATIOS[1], true),
+        of(&|p| tabulated(p) && p.nodule[4] > FIT_RATIOS[1], true),
+        of(&|p| !tabulated(p), true),
+        of(&|_| true, false),
     ]
 }
 
 /// Draws pairs with `seed` until `felt` of them have an FE effect above [`FELT`] (at
 /// most `4 × felt + 8` pairs), each solved twice by the full FE on `organ` (the
-/// table's, by its fingerprint).
+/// table's, by its fingerprint); radii uniform in `radii_mm` (within the table's
+/// answered range), ratios log-uniform in `ratios`; `past_band`: only nodules the table
+/// answers by its far field past the band.
 pub fn check(
     table: &EffectTable,
     organ: &OrganMesh,
     felt: usize,
     seed: u64,
+    radii_mm: [f64; 2],
     ratios: [f64; 2],
+    past_band: bool,
 ) -> Result<TableCheck, TableError> {
     if !(ratios[0] > 1.0 && ratios[0] <= ratios[1] && ratios[1] <= MAX_RATIO) {
         return Err(TableError::Ratio {
@@ -228,8 +264,9 @@ pub fn check(
     let material = Material::default();
     let space = organ_space(organ, Element::P2);
     let ranges = CaseRanges {
+        radius_mm: radii_mm,
         ratio: [1.0, MAX_RATIO],
-        ..CaseRanges::of(table)
+        past_band,
     };
     let mut rng = Rng::seed(seed);
     let mut pairs = Vec::new();
@@ -384,6 +421,8 @@ mod tests {
         let got = tissue_amplification_per_mm(&table, 1).expect("fitted");
         assert!((got - kappa).abs() < 1e-12, "{got}");
         assert!(tissue_amplification_per_mm(&table, 3).is_none());
+        let seed = table.tissue_checks[0].seed;
+        assert!(amplification_leaving_out(&table, 1, Some(seed)).is_none());
         // A tissue whose force is 2 N/mm × d: the force asked, at the depth returned.
         let (e, f) = (0.2, 12.0);
         let (d, held) = depth_under_force(f, e, kappa, |f| (f / 2.0, false));

@@ -26,14 +26,23 @@
 //! nodule-free compliance at the node.
 //!
 //! **Beyond the reach** a lattice node has no entries, yet a nodule is still felt there
-//! (up to 3 % of the force 30–36 mm from its centre). There the change is a far field,
-//! `−δc ≈ τ ρ^{−p}` with `ρ` the distance from the lattice node: the probe's strain at
+//! (up to 4 % of the force 30–45 mm from its centre). There the change is a far field,
+//! `−δc ∝ ρ^{−p}` with `ρ` the distance from the lattice node: the probe's strain at
 //! the nodule falls as `ρ⁻²` in a half-space and the change goes with its square (`p` =
-//! 4); the organ's finite size and the fixed region make it fall more slowly, and `p` =
-//! 3.5 ([`TAIL_POWER`]) is taken, the middle of 3–4.5 measured at the recorded pairs.
-//! `τ` is read from the node's entries in the outer fifth of its reach, each weighted by
-//! its nearness to the probe node (`(d² + 3²)⁻²`, `d` in mm), so that the tail keeps
-//! the direction's own amplitude (docs/lab/nodule-measurements.md §13).
+//! 4); the organ's finite size and the fixed region make it fall more slowly. The far
+//! field is read along the line from the probe node to the lattice node: the entry for
+//! that probe of the lattice node nearest the point 0.9 of the reach from the probe
+//! ([`TOWARD_REACH`]), carried out as `ρ^{−3}` ([`TOWARD_POWER`]). Where that node has no
+//! entry (outside the band), a ring's: `τ ρ^{−3.5}` ([`TAIL_POWER`]), `τ` from the node's
+//! own entries in the outer fifth of its reach weighted by their nearness to the probe
+//! node (`(d² + 3²)⁻²`, `d` in mm) (docs/lab/nodule-measurements.md §13–14).
+//!
+//! **Past the band** (a centre deeper, or a lattice cell reaching beside a surface no
+//! probe presses) the nodule is answered from the deepest centre on the way to its
+//! nearest probe node that the band answers, carried back the same way
+//! ([`EffectTable::place`]); [`EffectTable::place_in_band`] refuses it instead.
+//! **Radii** past the largest tabulated, to [`RADIUS_REACH`] times it, are the quadratic
+//! through the three largest carried on.
 //!
 //! **Off-line** ([`EffectTable::build`]): one store of interior responses
 //! ([`super::InteriorResponses`]) for every unknown the lattice's nodules can touch, each
@@ -81,6 +90,11 @@ pub const FIT_RATIOS: [f64; 2] = [2.0, 10.0];
 /// 10–100 (docs/lab/nodule-measurements.md §9).
 pub const MAX_RATIO: f64 = 100.0;
 
+/// How far past its largest tabulated radius a table answers, as a factor of it: the
+/// quadratic over the radius extrapolated (12 mm tabulated, 15 mm answered), measured
+/// against the full FE at radii past the largest (docs/lab/nodule-measurements.md §14).
+pub const RADIUS_REACH: f64 = 1.25;
+
 /// Why a table cannot answer a nodule, or could not be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum TableError {
@@ -92,6 +106,10 @@ pub enum TableError {
         lo_mm: [f64; 3],
         hi_mm: [f64; 3],
     },
+    #[error(
+        "the nodule's centre {center_mm:?} mm lies outside the organ (expected a centre inside it, at least {MIN_DEPTH_MM} mm plus its radius under the surface)"
+    )]
+    OutsideOrgan { center_mm: [f64; 3] },
     #[error(
         "the nodule reaches {depth_mm:.1} mm from the organ's surface; expected at least {MIN_DEPTH_MM} mm (its centre deeper, or its radius smaller)"
     )]
@@ -159,7 +177,7 @@ pub struct TableSettings {
 
 /// The file's magic bytes and its one format version.
 pub const MAGIC: &[u8; 8] = b"PALPANOD";
-pub const VERSION: u32 = 6;
+pub const VERSION: u32 = 7;
 
 /// Whether `path` starts as a nodule table does (unreadable: no).
 pub fn is_table_file(path: &std::path::Path) -> bool {
@@ -182,8 +200,9 @@ pub struct EffectTable {
     pub radii_mm: Vec<f64>,
     /// Per lattice node (x fastest): inside the organ, with entries.
     pub valid: Vec<bool>,
-    /// Per lattice node: its distance to the organ's surface (mm), interpolated to a
-    /// nodule's centre to refuse one within [`MIN_DEPTH_MM`] of the surface.
+    /// Per lattice node: its distance to the organ's surface (mm; negative outside the
+    /// organ), interpolated to a nodule's centre to refuse one within [`MIN_DEPTH_MM`]
+    /// of the surface or outside the organ.
     pub surface_mm: Vec<f32>,
     /// Entries of lattice node `k`: `starts[k]..starts[k + 1]`.
     pub starts: Vec<u32>,
@@ -346,8 +365,8 @@ pub struct TissueCheck {
     pub tissue: String,
     pub law: String,
     pub tissue_xxh3: u64,
-    /// The amplification `κ` (per mm) the tissue answered with: fitted to the checks
-    /// recorded before this one (0 for the first).
+    /// The amplification `κ` (per mm) the tissue answered with: fitted to the other
+    /// seeds' checks recorded when this one was measured (0 without any).
     pub amplification_per_mm: f64,
     pub pairs: Vec<TissuePair>,
     /// Seconds of Newton's solves (two presses a pair).
@@ -377,6 +396,13 @@ const TAIL_RING: f64 = 0.8;
 const TAIL_NEAR_MM: f64 = 3.0;
 /// and carried out as `ρ^{−TAIL_POWER}`.
 const TAIL_POWER: f64 = 3.5;
+
+/// Beyond the reach, a probe node is read first from the lattice node on the way from it
+/// to the centre at this share of the reach (within reach there), its entry carried to
+/// the centre as `ρ^{−TOWARD_POWER}`: the change along one line, where the ring's holds
+/// the change in other directions (docs/lab/nodule-measurements.md §14).
+const TOWARD_REACH: f64 = 0.9;
+const TOWARD_POWER: f64 = 3.0;
 
 /// One lattice node's entries at one radius, `(A, λ)` each (fitted alone), made to
 /// share one pole: `λ̄ = Σ|A|λ / Σ|A|` (at least 0: every polarization mode's is), each
@@ -565,10 +591,13 @@ impl EffectTable {
     }
 
     /// The radii answered: the first and last tabulated (mm).
+    /// The radii the table answers: from its smallest tabulated radius to
+    /// [`RADIUS_REACH`] times its largest (past it, the quadratic through the three
+    /// largest radii carries the effect on).
     pub fn radius_range_mm(&self) -> [f64; 2] {
         [
             self.radii_mm.first().copied().unwrap_or(0.0),
-            self.radii_mm.last().copied().unwrap_or(0.0),
+            self.radii_mm.last().copied().unwrap_or(0.0) * RADIUS_REACH,
         ]
     }
 
@@ -699,7 +728,15 @@ impl EffectTable {
                     closest_point(&organ.mesh.vertices, &palpable, c)
                         .is_some_and(|h| h.distance <= d)
                 });
-                (hit.map_or(0.0, |h| h.distance as f32), felt)
+                // Signed: negative outside the organ, so that a nodule's depth
+                // interpolated over a cell says whether its centre lies inside.
+                let distance = hit.map_or(0.0, |h| h.distance as f32);
+                let signed = if inside(organ, c) {
+                    distance
+                } else {
+                    -distance
+                };
+                (signed, felt)
             })
             .collect();
         for (at, &(d, _)) in depths.iter().enumerate() {
@@ -1108,6 +1145,13 @@ impl EffectTable {
                 self.starts.len()
             ));
         }
+        let ascending = (0..lattice).all(|k| {
+            let (s, e) = (self.starts[k] as usize, self.starts[k + 1] as usize);
+            s > e || e > entries || self.entry_node[s..e].windows(2).all(|w| w[0] < w[1])
+        });
+        if !ascending {
+            return Err("a lattice node's entries not in ascending probe-node order".into());
+        }
         if self.starts.windows(2).any(|w| w[0] > w[1]) || self.starts[lattice] as usize != entries {
             return Err(format!(
                 "entry starts not ascending to the {entries} entries"
@@ -1175,7 +1219,31 @@ impl EffectTable {
     /// about its own.
     pub fn place(&self, nodule: &Nodule) -> Result<NoduleEffect, TableError> {
         let t0 = Instant::now();
-        let (lo, hi) = (self.radii_mm[0], *self.radii_mm.last().unwrap_or(&0.0));
+        let at_node = self.answer(nodule, true)?;
+        Ok(NoduleEffect {
+            nodule: *nodule,
+            at_node,
+            place_s: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// As [`Self::place`], but only nodules whose lattice cell lies in the band (refused
+    /// as [`TableError::CentreOutside`] otherwise).
+    pub fn place_in_band(&self, nodule: &Nodule) -> Result<NoduleEffect, TableError> {
+        let t0 = Instant::now();
+        let at_node = self.answer(nodule, false)?;
+        Ok(NoduleEffect {
+            nodule: *nodule,
+            at_node,
+            place_s: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The effect at every probe node; `deep`: a cell with corners outside the band
+    /// answered from the band's deepest point towards the palpable surface
+    /// ([`Self::answer_deep`]), refused otherwise.
+    fn answer(&self, nodule: &Nodule, deep: bool) -> Result<Vec<f64>, TableError> {
+        let [lo, hi] = self.radius_range_mm();
         if !(nodule.radius_mm >= lo && nodule.radius_mm <= hi) {
             return Err(TableError::Radius {
                 radius_mm: nodule.radius_mm,
@@ -1226,16 +1294,25 @@ impl EffectTable {
             .iter()
             .map(|&(k, w, _)| w * f64::from(self.surface_mm[k]))
             .sum();
+        if surface_mm <= 0.0 {
+            return Err(TableError::OutsideOrgan {
+                center_mm: nodule.center_mm,
+            });
+        }
         let depth_mm = surface_mm - nodule.radius_mm;
         if depth_mm < MIN_DEPTH_MM {
             return Err(TableError::TooShallow { depth_mm });
         }
+        if corners.iter().any(|&(k, _, _)| !self.valid[k]) {
+            return if deep {
+                self.answer_deep(nodule).ok_or_else(outside)
+            } else {
+                Err(outside())
+            };
+        }
         let mut minus_dc = vec![0.0; self.probe_nodes.len()];
         let mut reached = vec![false; self.probe_nodes.len()];
         for &(k, w, at) in &corners {
-            if !self.valid[k] {
-                return Err(outside());
-            }
             let (s, e) = (self.starts[k] as usize, self.starts[k + 1] as usize);
             // Each radius's shared pole at this ratio, times its scale and weight.
             let per_step: Vec<(usize, f64)> = by_radius
@@ -1256,18 +1333,69 @@ impl EffectTable {
                 minus_dc[self.entry_node[entry] as usize] += v;
                 reached[self.entry_node[entry] as usize] = true;
             }
-            self.add_tail(at, s..e, &per_step, &reached, &mut minus_dc);
+            let read = Reading {
+                by_radius: &by_radius,
+                weight: w,
+                ratio: nodule.ratio,
+            };
+            self.add_tail(at, s..e, &per_step, &read, &reached, &mut minus_dc);
         }
-        let at_node = minus_dc
+        Ok(minus_dc
             .iter()
             .zip(&self.compliance_mm_per_n)
             .map(|(&y, &c0)| if c0 > 0.0 { c0 / (c0 - y) - 1.0 } else { 0.0 })
-            .collect();
-        Ok(NoduleEffect {
-            nodule: *nodule,
-            at_node,
-            place_s: t0.elapsed().as_secs_f64(),
-        })
+            .collect())
+    }
+
+    /// A nodule inside the organ whose lattice cell reaches past the band (deeper than
+    /// the band, or beside a surface no probe presses): the same nodule moved towards
+    /// its nearest probe node, half a cell at a time, to the first centre the band
+    /// answers, its change of the compliance carried back to the true centre as the far
+    /// field's `ρ^{−p}` ([`TOWARD_POWER`]), `ρ` from the centre to each probe node
+    /// (docs/lab/nodule-measurements.md §14). `None` where no such centre is found.
+    fn answer_deep(&self, nodule: &Nodule) -> Option<Vec<f64>> {
+        let c = nodule.center_mm;
+        let distance = |p: &[f32; 3]| norm(sub(p.map(f64::from), c));
+        let nearest = self
+            .probe_mm
+            .iter()
+            .zip(&self.compliance_mm_per_n)
+            .filter(|&(_, &c0)| c0 > 0.0)
+            .map(|(p, _)| p)
+            .min_by(|a, b| distance(a).total_cmp(&distance(b)))?
+            .map(f64::from);
+        let gap = norm(sub(c, nearest));
+        let step = 0.5 * self.spacing_mm;
+        let mut t = gap - step;
+        while t > 0.0 {
+            let moved = Nodule {
+                center_mm: [0, 1, 2].map(|d| nearest[d] + (c[d] - nearest[d]) * t / gap),
+                ..*nodule
+            };
+            match self.answer(&moved, false) {
+                Ok(up) => {
+                    let at = moved.center_mm;
+                    return Some(
+                        up.iter()
+                            .zip(&self.compliance_mm_per_n)
+                            .zip(&self.probe_mm)
+                            .map(|((&e, &c0), p)| {
+                                if c0 <= 0.0 {
+                                    return 0.0;
+                                }
+                                let p = p.map(f64::from);
+                                let fall = (norm(sub(p, at)) / norm(sub(p, c))).powf(TOWARD_POWER);
+                                let y = c0 * e / (1.0 + e) * fall;
+                                c0 / (c0 - y) - 1.0
+                            })
+                            .collect(),
+                    );
+                }
+                Err(TableError::CentreOutside { .. }) => t -= step,
+                Err(_) => return None,
+            }
+        }
+        None
     }
 }
 
@@ -1281,6 +1409,7 @@ impl EffectTable {
         at_mm: [f64; 3],
         entries: std::ops::Range<usize>,
         per_step: &[(usize, f64)],
+        read: &Reading,
         reached: &[bool],
         minus_dc: &mut [f64],
     ) {
@@ -1310,11 +1439,15 @@ impl EffectTable {
                 })
             })
             .collect();
-        if ring.is_empty() {
-            return;
-        }
         for (n, y) in minus_dc.iter_mut().enumerate() {
             if reached[n] || self.compliance_mm_per_n[n] <= 0.0 {
+                continue;
+            }
+            if let Some(v) = self.toward(at_mm, n, TOWARD_REACH * reach, read) {
+                *y += v;
+                continue;
+            }
+            if ring.is_empty() {
                 continue;
             }
             let p = self.probe_mm[n].map(f64::from);
@@ -1327,6 +1460,44 @@ impl EffectTable {
             }
             *y += num / den * rho(n as u32).powf(-TAIL_POWER);
         }
+    }
+
+    /// The change at probe node `n` beyond the reach of the lattice node at `at_mm`,
+    /// read where the probe is within reach: at the valid lattice node nearest the point
+    /// `near_mm` from the probe on the way to `at_mm`, from its own entry for `n`, carried
+    /// back to `at_mm` as `ρ^{−p}`. `None` where that node is not valid or has no entry
+    /// for `n`.
+    fn toward(&self, at_mm: [f64; 3], n: usize, near_mm: f64, read: &Reading) -> Option<f64> {
+        let p = self.probe_mm[n].map(f64::from);
+        let rho = norm(sub(p, at_mm));
+        if rho <= near_mm {
+            return None;
+        }
+        let i = [0, 1, 2].map(|d| {
+            let q = p[d] + (at_mm[d] - p[d]) * near_mm / rho;
+            let g = ((q - self.origin_mm[d]) / self.spacing_mm).round();
+            g.clamp(0.0, (self.dims[d] - 1) as f64) as usize
+        });
+        let k = self.index(i);
+        if !self.valid[k] {
+            return None;
+        }
+        let (s, e) = (self.starts[k] as usize, self.starts[k + 1] as usize);
+        let entry = s + self.entry_node[s..e].binary_search(&(n as u32)).ok()?;
+        let radii = self.radii_mm.len();
+        let v: f64 = read
+            .by_radius
+            .iter()
+            .map(|&(r, wr)| {
+                let q = k * radii + r;
+                let unit = pole(
+                    [f64::from(self.scale[q]) / 127.0, f64::from(self.lambda[q])],
+                    read.ratio,
+                );
+                read.weight * wr * unit * f64::from(self.amp[entry * radii + r])
+            })
+            .sum();
+        Some(v * (norm(sub(p, self.node_mm(i))) / rho).powf(TOWARD_POWER))
     }
 
     /// The boundary face whose corners lie at `corners_mm` (within a micrometre, in
@@ -1380,6 +1551,14 @@ impl NoduleEffect {
                 .max(0.0),
         )
     }
+}
+
+/// How a lattice node's entries are read for one nodule: the radii's weights, the
+/// corner's trilinear weight, the ratio.
+struct Reading<'a> {
+    by_radius: &'a [(usize, f64)],
+    weight: f64,
+    ratio: f64,
 }
 
 /// The weights of the tabulated radii at radius `r` (within their range): Lagrange's

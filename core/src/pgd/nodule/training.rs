@@ -10,8 +10,9 @@
 //! largest force.
 //!
 //! Drawing: the centre uniformly in the lattice's box, the radius and the ratio
-//! uniformly in the ranges asked; a draw the table refuses (a centre outside the organ
-//! or off the valid lattice, a nodule within 2 mm of the surface) is drawn again. The
+//! uniformly in the ranges asked; a draw the table refuses (a centre outside the organ,
+//! a nodule within 2 mm of the surface) or answers only by its far field (past the
+//! band, where little is felt) is drawn again. The
 //! ratio's default range, 3 to 10, is that of malignant tumours against the tissue
 //! around them (3–6 in the breast, to 13 for high-grade ones; about 4.4 in the liver):
 //! a ratio near 1 hides nothing to find.
@@ -56,6 +57,10 @@ pub enum TrainingError {
 pub struct CaseRanges {
     pub radius_mm: [f64; 2],
     pub ratio: [f64; 2],
+    /// Draw only nodules whose lattice cell reaches past the band (deeper, or beside a
+    /// surface no probe presses), which the table answers by its far field; `false`:
+    /// only nodules within the band, where a case is felt.
+    pub past_band: bool,
 }
 
 impl CaseRanges {
@@ -64,6 +69,7 @@ impl CaseRanges {
         CaseRanges {
             radius_mm: table.radius_range_mm(),
             ratio: [3.0, FIT_RATIOS[1]],
+            past_band: false,
         }
     }
 
@@ -150,9 +156,20 @@ pub fn draw(table: &EffectTable, ranges: &CaseRanges, seed: u64) -> Result<Case,
             radius_mm: rng.range(ranges.radius_mm[0], ranges.radius_mm[1]),
             ratio: rng.range(ranges.ratio[0], ranges.ratio[1]),
         };
-        match table.place(&nodule) {
+        let in_band = table.place_in_band(&nodule);
+        let placed = match (ranges.past_band, in_band) {
+            (false, in_band) => in_band,
+            (true, Ok(_)) => continue,
+            (true, Err(TableError::CentreOutside { .. })) => table.place(&nodule),
+            (true, Err(e)) => Err(e),
+        };
+        match placed {
             Ok(effect) => return Case::with(table, effect, Some(seed)),
-            Err(TableError::CentreOutside { .. } | TableError::TooShallow { .. }) => continue,
+            Err(
+                TableError::CentreOutside { .. }
+                | TableError::OutsideOrgan { .. }
+                | TableError::TooShallow { .. },
+            ) => continue,
             Err(e) => return Err(e.into()),
         }
     }
