@@ -1216,22 +1216,21 @@ impl EffectTable {
 
     /// The effect of `nodule` at every probe node: checked against the table's ranges,
     /// then trilinear over its centre's lattice cell and quadratic over the three radii
-    /// about its own.
+    /// about its own; past the band, carried from the band's deepest centre on the way
+    /// to the palpable surface.
     pub fn place(&self, nodule: &Nodule) -> Result<NoduleEffect, TableError> {
-        let t0 = Instant::now();
-        let at_node = self.answer(nodule, true)?;
-        Ok(NoduleEffect {
-            nodule: *nodule,
-            at_node,
-            place_s: t0.elapsed().as_secs_f64(),
-        })
+        self.timed(nodule, true)
     }
 
     /// As [`Self::place`], but only nodules whose lattice cell lies in the band (refused
     /// as [`TableError::CentreOutside`] otherwise).
     pub fn place_in_band(&self, nodule: &Nodule) -> Result<NoduleEffect, TableError> {
+        self.timed(nodule, false)
+    }
+
+    fn timed(&self, nodule: &Nodule, deep: bool) -> Result<NoduleEffect, TableError> {
         let t0 = Instant::now();
-        let at_node = self.answer(nodule, false)?;
+        let at_node = self.answer(nodule, deep)?;
         Ok(NoduleEffect {
             nodule: *nodule,
             at_node,
@@ -1317,14 +1316,7 @@ impl EffectTable {
             // Each radius's shared pole at this ratio, times its scale and weight.
             let per_step: Vec<(usize, f64)> = by_radius
                 .iter()
-                .map(|&(i, wr)| {
-                    let q = k * radii + i;
-                    let unit = pole(
-                        [f64::from(self.scale[q]) / 127.0, f64::from(self.lambda[q])],
-                        nodule.ratio,
-                    );
-                    (i, w * wr * unit)
-                })
+                .map(|&(i, wr)| (i, w * wr * self.unit(k, i, nodule.ratio)))
                 .collect();
             reached.fill(false);
             for entry in s..e {
@@ -1462,6 +1454,16 @@ impl EffectTable {
         }
     }
 
+    /// Lattice node `k`'s shared pole for radius `r` at `ratio`, times its scale: what
+    /// one step of an entry is worth.
+    fn unit(&self, k: usize, r: usize, ratio: f64) -> f64 {
+        let q = k * self.radii_mm.len() + r;
+        pole(
+            [f64::from(self.scale[q]) / 127.0, f64::from(self.lambda[q])],
+            ratio,
+        )
+    }
+
     /// The change at probe node `n` beyond the reach of the lattice node at `at_mm`,
     /// read where the probe is within reach: at the valid lattice node nearest the point
     /// `near_mm` from the probe on the way to `at_mm`, from its own entry for `n`, carried
@@ -1489,12 +1491,10 @@ impl EffectTable {
             .by_radius
             .iter()
             .map(|&(r, wr)| {
-                let q = k * radii + r;
-                let unit = pole(
-                    [f64::from(self.scale[q]) / 127.0, f64::from(self.lambda[q])],
-                    read.ratio,
-                );
-                read.weight * wr * unit * f64::from(self.amp[entry * radii + r])
+                read.weight
+                    * wr
+                    * self.unit(k, r, read.ratio)
+                    * f64::from(self.amp[entry * radii + r])
             })
             .sum();
         Some(v * (norm(sub(p, self.node_mm(i))) / rho).powf(TOWARD_POWER))
