@@ -3,7 +3,10 @@
 // displace: u_v = Σ_{k<n} X[3v + c, k] · coeffs[k] + near_v  (c = x, y, z), one
 //           invocation per vertex; writes the deformed position and |u| (for the
 //           colormap). near_v is the exact near field under the tool, computed on the
-//           CPU each frame (zero for a model without one).
+//           CPU each frame (zero for a model without one); then, with a hidden
+//           nodule changing the force by e, u_v times 1 + e (1 − exp(−r²/ℓ²)), r the
+//           vertex's rest distance from the probe (palpa-core's surface_gain: the
+//           depth holds the surface under the tool, the total force sways it away).
 // The drawn surface is carried on these positions by embed.wgsl, which also computes
 // its normals.
 // The CPU path (palpa-core's SeparatedModel::reconstruct) is the reference; the tests
@@ -15,7 +18,10 @@ struct Params {
     modes_stride: u32,
     // Modes used, n ≤ N and n ≤ 4 · 128.
     modes_used: u32,
-    pad: u32,
+    // ℓ (mm) of the nodule's gain; positive.
+    near_mm: f32,
+    // The probe's rest position (mm) and the nodule's effect e (0: none).
+    gain: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -45,5 +51,7 @@ fn displace(@builtin(global_invocation_id) gid: vec3<u32>) {
         u[c] = s;
     }
     u += near[v].xyz;
+    let r = rest[v].xyz - params.gain.xyz;
+    u *= 1.0 + params.gain.w * (1.0 - exp(-dot(r, r) / (params.near_mm * params.near_mm)));
     deformed[v] = vec4<f32>(rest[v].xyz + u, length(u));
 }

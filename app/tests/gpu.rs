@@ -48,70 +48,107 @@ fn gpu_and_cpu_deformation_agree() {
     for modes in [1, 3, session.scene.modes() as u32] {
         session.controls.modes = modes;
         settle(&session, std::time::Duration::from_secs(2));
-        let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
-        let target = Offscreen::new(&gpu.device, (64, 64), gpu.can_reinterpret());
-        let input = session.frame();
-        assert_eq!(input.coeffs.len(), modes as usize);
-        let encoder = renderer.encode_frame(&gpu, &target.view, (64, 64), &input);
-        gpu.queue.submit([encoder.finish()]);
-        let mechanical = renderer
-            .deform
-            .read_back_mechanical(&gpu.device, &gpu.queue)
-            .expect("read back");
-        let (positions, normals) = renderer
-            .deform
-            .read_back(&gpu.device, &gpu.queue)
-            .expect("read back");
-        let cpu = session.deformed_mm().to_vec();
-        let rest = session.scene.vertices_mm();
-        let mut max_u: f32 = 0.0;
-        let mut max_err: f32 = 0.0;
-        for ((g, c), r) in mechanical.iter().zip(&cpu).zip(rest) {
-            let u: f32 = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f32>().sqrt();
-            max_u = max_u.max(u);
-            for k in 0..3 {
-                max_err = max_err.max((g[k] - c[k]).abs());
-            }
-            // w holds |u|.
-            assert!((g[3] - u).abs() <= 1e-4 * u.max(1.0), "|u| {} vs {u}", g[3]);
-        }
-        assert!(
-            max_u > 1.0,
-            "an 8 mm press moves the surface by more than 1 mm ({max_u})"
-        );
-        // f32 sums of n terms on the GPU against f64 sums of the same f32 data: a few
-        // ulps of the position (~200 mm) plus n·eps·|u|.
-        let tol = 1e-4 * 200.0 + modes as f32 * f32::EPSILON * 4.0 * max_u;
-        assert!(
-            max_err < tol,
-            "n = {modes}: GPU and CPU differ by {max_err} mm (tolerance {tol})"
-        );
-        // The drawn surface carried on the CPU's render surface: the same within the
-        // render surface's own difference (the embedding's weights are at most about
-        // 1.5 in size) and its normals unit vectors that agree.
-        let visual = session.scene.visual();
-        let n = visual.rest_mm.len();
-        let (mut drawn, mut drawn_normals, mut sums) =
-            (vec![[0.0; 4]; n], vec![[0.0; 4]; n], vec![[0.0; 3]; n]);
-        let carried: Vec<[f32; 4]> = cpu.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
-        visual.deform(&carried, &mut drawn, &mut drawn_normals, &mut sums);
-        let drawn_err = positions
-            .iter()
-            .zip(&drawn)
-            .map(|(g, c)| (0..3).map(|k| (g[k] - c[k]).abs()).fold(0.0f32, f32::max))
-            .fold(0.0f32, f32::max);
-        assert!(
-            drawn_err < 3.0 * tol,
-            "n = {modes}: the drawn surfaces differ by {drawn_err} mm (tolerance {})",
-            3.0 * tol
-        );
-        for (g, c) in normals.iter().zip(&drawn_normals) {
-            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-            assert!((len - 1.0).abs() < 1e-4);
-            let dot = g[0] * c[0] + g[1] * c[1] + g[2] * c[2];
-            assert!(dot > 0.999, "normal {g:?} vs {c:?}");
-        }
+        agree(&gpu, &mut session, modes);
     }
+    // A hidden nodule under the probe: the surface away from it sways with the larger
+    // force, on the GPU as on the CPU.
+    let mut session = scenes::built_in()
+        .expect("built-in scene")
+        .session(Box::new(NoHaptics))
+        .expect("session");
+    session.controls.pressing = true;
+    session.controls.depth_mm = 8.0;
+    let t = session
+        .training
+        .as_mut()
+        .expect("the built-in liver offers the training");
+    let seed = (1..100)
+        .find(|&seed| {
+            t.hide(Some(seed), 0.0).expect("hides");
+            t.trial.as_ref().expect("a case").case.peak_effect > 0.15
+        })
+        .expect("a nodule to feel");
+    let case = t.trial.as_ref().expect("a case").case.clone();
+    let (over, _) = session
+        .scene
+        .closest_palpable(case.surface_mm)
+        .expect("a palpable point");
+    session.controls.probe = Some(over);
+    session.force.command(session.command());
+    settle(&session, std::time::Duration::from_secs(2));
+    let modes = session.scene.modes() as u32;
+    let gain = agree(&gpu, &mut session, modes);
+    assert!(gain > 0.05, "seed {seed}: the nodule's gain {gain}");
+}
+
+/// Draws a frame of `session` with `modes` modes on the GPU and checks its deformed
+/// surfaces against the CPU's; returns the nodule's gain the frame drew with.
+fn agree(gpu: &Gpu, session: &mut Session, modes: u32) -> f32 {
+    let mut renderer = Renderer::new(&gpu.device, FORMAT, &session.scene);
+    let target = Offscreen::new(&gpu.device, (64, 64), gpu.can_reinterpret());
+    let input = session.frame();
+    let gain = input.surface_gain.0[3];
+    assert_eq!(input.coeffs.len(), modes as usize);
+    let encoder = renderer.encode_frame(gpu, &target.view, (64, 64), &input);
+    gpu.queue.submit([encoder.finish()]);
+    let mechanical = renderer
+        .deform
+        .read_back_mechanical(&gpu.device, &gpu.queue)
+        .expect("read back");
+    let (positions, normals) = renderer
+        .deform
+        .read_back(&gpu.device, &gpu.queue)
+        .expect("read back");
+    let cpu = session.deformed_mm().to_vec();
+    let rest = session.scene.vertices_mm();
+    let mut max_u: f32 = 0.0;
+    let mut max_err: f32 = 0.0;
+    for ((g, c), r) in mechanical.iter().zip(&cpu).zip(rest) {
+        let u: f32 = (0..3).map(|k| (c[k] - r[k]).powi(2)).sum::<f32>().sqrt();
+        max_u = max_u.max(u);
+        for k in 0..3 {
+            max_err = max_err.max((g[k] - c[k]).abs());
+        }
+        // w holds |u|.
+        assert!((g[3] - u).abs() <= 1e-4 * u.max(1.0), "|u| {} vs {u}", g[3]);
+    }
+    assert!(
+        max_u > 1.0,
+        "an 8 mm press moves the surface by more than 1 mm ({max_u})"
+    );
+    // f32 sums of n terms on the GPU against f64 sums of the same f32 data: a few
+    // ulps of the position (~200 mm) plus n·eps·|u|.
+    let tol = 1e-4 * 200.0 + modes as f32 * f32::EPSILON * 4.0 * max_u;
+    assert!(
+        max_err < tol,
+        "n = {modes}: GPU and CPU differ by {max_err} mm (tolerance {tol})"
+    );
+    // The drawn surface carried on the CPU's render surface: the same within the
+    // render surface's own difference (the embedding's weights are at most about
+    // 1.5 in size) and its normals unit vectors that agree.
+    let visual = session.scene.visual();
+    let n = visual.rest_mm.len();
+    let (mut drawn, mut drawn_normals, mut sums) =
+        (vec![[0.0; 4]; n], vec![[0.0; 4]; n], vec![[0.0; 3]; n]);
+    let carried: Vec<[f32; 4]> = cpu.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect();
+    visual.deform(&carried, &mut drawn, &mut drawn_normals, &mut sums);
+    let drawn_err = positions
+        .iter()
+        .zip(&drawn)
+        .map(|(g, c)| (0..3).map(|k| (g[k] - c[k]).abs()).fold(0.0f32, f32::max))
+        .fold(0.0f32, f32::max);
+    assert!(
+        drawn_err < 3.0 * tol,
+        "n = {modes}: the drawn surfaces differ by {drawn_err} mm (tolerance {})",
+        3.0 * tol
+    );
+    for (g, c) in normals.iter().zip(&drawn_normals) {
+        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        assert!((len - 1.0).abs() < 1e-4);
+        let dot = g[0] * c[0] + g[1] * c[1] + g[2] * c[2];
+        assert!(dot > 0.999, "normal {g:?} vs {c:?}");
+    }
+    gain
 }
 
 #[test]

@@ -88,7 +88,7 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     let gain = 1.0 + f64::from(effect) * (1.0 + kappa * 6.0);
     assert!((ratio - gain).abs() < 1e-5, "{ratio} against {gain}");
     assert!((f64::from(with.nodule_gain) - gain).abs() < 1e-5);
-    // The surface drawn is the nodule-free one at the same depth.
+    // The surface drawn is the nodule-free one at the same depth under the tool.
     assert_eq!(with.depth_mm, without.depth_mm);
     assert_eq!(with.linear_n, without.linear_n);
     // Under a force the nodule holds the probe shallower.
@@ -196,4 +196,58 @@ fn headless_hides_marks_and_reports_the_force_with_and_without_the_nodule() {
     })
     .expect_err("nothing hidden");
     assert!(e.to_string().contains("--mark"), "{e}");
+}
+
+/// The surface drawn with a hidden nodule: the nodule-free one at the same depth under
+/// the tool, and away from it swayed with the larger force, `1 + e_t (1 − exp(−r²/ℓ²))`
+/// times it (`e_t` the effect at the press).
+#[test]
+fn the_surface_sways_with_a_hidden_nodules_force() {
+    let mut s = session();
+    seed_above(&mut s, 0.08);
+    let t = s.training.as_ref().expect("training");
+    let (over, _) = s
+        .scene
+        .closest_palpable(t.trial.as_ref().expect("a case").case.surface_mm)
+        .expect("a palpable point");
+    let (effect, kappa) = (t.effect_at(&over), t.amplification_per_mm);
+    s.controls.probe = Some(over);
+    s.controls.pressing = true;
+    s.controls.mode = PressMode::Depth;
+    s.controls.depth_mm = 6.0;
+    let drawn = |s: &mut Session, c| {
+        answer(s, c);
+        s.force.command(c);
+        let _ = s.frame();
+        s.deformed_mm().to_vec()
+    };
+    let training = s.training.take();
+    let c = without_nodule(s.controls.command());
+    let free = drawn(&mut s, c);
+    s.training = training;
+    let c = s.command();
+    let nodular = drawn(&mut s, c);
+    let at = s.scene.frame(&over).0;
+    let e_t = f64::from(effect) * (1.0 + kappa * 6.0);
+    let (mut checked, mut swayed) = (0, 0.0f64);
+    for ((f, n), r) in free.iter().zip(&nodular).zip(s.scene.vertices_mm()) {
+        let r2: f64 = (0..3).map(|k| (f64::from(r[k]) - at[k]).powi(2)).sum();
+        let g = palpa_core::pgd::nodule::table::surface_gain(e_t, r2);
+        for k in 0..3 {
+            let (uf, un) = (f64::from(f[k] - r[k]), f64::from(n[k] - r[k]));
+            // f32 positions about 100 mm: a few ulps.
+            assert!(
+                (un - g * uf).abs() < 2e-5 * 100.0,
+                "{un} against {g} x {uf}"
+            );
+            if uf.abs() > 0.05 {
+                checked += 1;
+                swayed = swayed.max(un / uf);
+            }
+        }
+    }
+    assert!(
+        checked > 100 && swayed > 1.0 + 0.9 * e_t,
+        "{checked} {swayed} {e_t}"
+    );
 }

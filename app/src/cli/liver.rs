@@ -22,7 +22,7 @@ use serde_json::json;
 
 use super::args::{NoduleArgs, ProbeArgs};
 use super::organ::{LevelArg, OrganName, mesh as mesh_organ};
-use palpa_core::pgd::nodule::table::{EffectTable, NoduleEffect};
+use palpa_core::pgd::nodule::table::{EffectTable, NoduleEffect, apply_surface_gain};
 
 /// How the vademecum is computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -749,6 +749,16 @@ fn eval_nodal<T: Scalar>(
         None => None,
     };
     let compliance = free.map(|c| c / (1.0 + effect.unwrap_or(0.0)));
+    // The surface with the nodule as the app draws it: the nodule-free field at the
+    // depth the press reaches (`f / (1 + e)` of its force), swayed away from the tool
+    // with the whole force.
+    if let Some(e) = effect {
+        full.iter_mut().for_each(|v| *v /= 1.0 + e);
+        let nodes = &m.geometry().nodes;
+        if nodes.len() * 3 == full.len() {
+            apply_surface_gain(e, hit.point, nodes.iter().copied(), &mut full);
+        }
+    }
     let f = press_force(&args.probe, compliance)?;
     let times_us = [particularize_us, full_us];
     let facts = Evaluated::new(&hit, dir, compliance.map(|c| f * c), f, used, times_us);
@@ -758,7 +768,7 @@ fn eval_nodal<T: Scalar>(
         extra["nodule"] = json!({"center_mm": n.center_mm, "radius_mm": n.radius_mm,
             "ratio": n.ratio, "effect": e, "place_ms": placed.place_s * 1e3,
             "force_without_nodule_n": press_force(&args.probe, free)?,
-            "surface": "without the nodule (the table holds the force)"});
+            "surface": "the nodule-free field at the depth reached, swayed with the force away from the tool"});
     }
     report_eval(m, args, &full, &facts, extra)
 }

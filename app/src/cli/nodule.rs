@@ -63,9 +63,12 @@ pub struct CheckArgs {
     /// pairs whose effect exceeds 5 % at some depth.
     #[arg(long)]
     tissue: Option<PathBuf>,
-    /// With --tissue: the scene it serves, `liver` (built in) or a `.palpa` file.
-    #[arg(long, default_value = "liver", requires = "tissue")]
-    scene: String,
+    /// The scene whose drawn surface is measured (with --tissue: the scene the tissue
+    /// serves), `liver` (built in) or a `.palpa` file of the table's mesh [default:
+    /// `liver`; without --tissue, where its mesh is not the table's, the surface is not
+    /// measured, and said so].
+    #[arg(long)]
+    scene: Option<String>,
     /// With --tissue: each pair's press depths (mm), off the tissue's depth grid.
     #[arg(long, value_delimiter = ',', default_values_t = [2.6, 6.1, 9.7], requires = "tissue")]
     depths: Vec<f64>,
@@ -136,6 +139,25 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
         return check_tissue(args, tissue);
     }
     let mut table = EffectTable::load(&args.file)?;
+    // The scene that draws the surface: the one given, of the table's mesh; else the
+    // built-in liver where the table is of its mesh.
+    let name = args.scene.as_deref().unwrap_or("liver");
+    let scene = palpa_app::scenes::load(name)?.scene;
+    let of_mesh = table
+        .check_mesh(&scene.model().provenance().mesh)
+        .with_context(|| format!("{} for the scene {name}", args.file.display()));
+    let scene = match (of_mesh, &args.scene) {
+        (Ok(()), _) => Some(scene),
+        (Err(e), Some(_)) => return Err(e),
+        (Err(_), None) => {
+            eprintln!(
+                "note: the built-in scene is not of {}'s mesh: the surface is not measured \
+                 (give --scene S.palpa built on it)",
+                args.file.display()
+            );
+            None
+        }
+    };
     let organ = args.organ.mesh()?;
     let [lo, hi] = args.ratios[..] else {
         bail!("--ratios {:?}: expected LO,HI", args.ratios);
@@ -148,6 +170,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
     let measured = heldout::check(
         &table,
         &organ,
+        scene.as_ref(),
         args.felt,
         args.seed,
         radii,
@@ -160,7 +183,7 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
         .iter()
         .map(|p| {
             json!({"nodule_mm_ratio": p.nodule, "at_mm": p.at_mm, "effect_fe": p.effect_fe,
-                   "effect_table": p.effect_table})
+                   "effect_table": p.effect_table, "surface_mm": p.surface_mm})
         })
         .collect();
     let this = CheckSummary::of(&measured.pairs);
@@ -255,8 +278,10 @@ pub fn tradeoff(path: &std::path::Path, organ: &OrganArgs, json_out: bool) -> an
                 };
                 place_s.push(effect.place_s);
                 if let Some(e) = effect.at(&t, point.face, point.bary) {
+                    // The surface was measured for the whole table, not this one.
                     let pair = heldout::CheckedPair {
                         effect_table: e,
+                        surface_mm: f64::NAN,
                         ..(*p).clone()
                     };
                     if p.nodule[4] <= FIT_RATIOS[1] {
@@ -287,6 +312,7 @@ pub fn tradeoff(path: &std::path::Path, organ: &OrganArgs, json_out: bool) -> an
         .filter(|p| p.nodule[4] <= FIT_RATIOS[1])
         .map(|p| heldout::CheckedPair {
             effect_table: 0.0,
+            surface_mm: f64::NAN,
             ..(*p).clone()
         })
         .collect();
@@ -527,7 +553,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
     use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic_depths};
     use palpa_core::pgd::nodule::heldout::{PROBE_SPREAD_MM, TissueSummary};
     use palpa_core::pgd::nodule::table::{
-        MAX_RATIO, TissueCheck, TissuePair, nodule_row, tissue_effect,
+        MAX_RATIO, TissueCheck, TissuePair, apply_surface_gain, nodule_row, tissue_effect,
     };
     use palpa_core::pgd::nodule::training::{CaseRanges, draw};
     use palpa_core::rng::Rng;
@@ -550,10 +576,11 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
         );
     }
     let mut table = EffectTable::load(&args.file)?;
-    let (bound, scene, _) = super::tissue::eval::bound_to_scene_with_nodules(tissue, &args.scene)?;
+    let name = args.scene.as_deref().unwrap_or("liver");
+    let (bound, scene, _) = super::tissue::eval::bound_to_scene_with_nodules(tissue, name)?;
     table
         .check_mesh(&scene.model().provenance().mesh)
-        .with_context(|| format!("{} for the scene {}", args.file.display(), args.scene))?;
+        .with_context(|| format!("{} for the scene {name}", args.file.display()))?;
     let organ = args.organ.mesh()?;
     bound.law.check_organ(&organ)?;
     let o = bound.law.options;
@@ -638,6 +665,13 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             let push = contact.push_dir.map(|d| d * depth / c);
             scene.displacement(&point, push, &mut coeffs, &mut rows)?;
             bound.add_surface(&point, depth, &mut scratch, &mut rows);
+            let answered = tissue_effect(effect, kappa, depth);
+            apply_surface_gain(
+                answered,
+                at,
+                scene.vertices_mm().iter().map(|p| p.map(f64::from)),
+                &mut rows,
+            );
             let ([surface_mm], _) =
                 super::tissue::against::max_node_errors(&organ, &vertex_of, &with.u, [&rows]);
             let n = nodule;
@@ -649,7 +683,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
                 force_fe_n: with.force_n,
                 force_tissue_without_n: bound.force_n(&point, depth, c).0,
                 effect_linear: effect,
-                effect_answered: tissue_effect(effect, kappa, depth),
+                effect_answered: answered,
                 surface_mm,
             };
             any_felt |= pair.effect_fe() > heldout::FELT;

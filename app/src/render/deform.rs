@@ -11,6 +11,7 @@
 //! hand, with how far apart their surfaces are.
 
 use bytemuck::{Pod, Zeroable};
+use palpa_core::pgd::nodule::table::SURFACE_NEAR_MM;
 use palpa_core::scene::PalpationScene;
 use wgpu::util::DeviceExt;
 
@@ -68,13 +69,19 @@ pub struct CpuSurface<'a> {
     pub mechanical: &'a [Vec4Data],
 }
 
+/// A hidden nodule's gain on the drawn surface: the probe's rest position (mm) and the
+/// effect `e` ([`palpa_core::pgd::nodule::table::surface_gain`]); `e` = 0: none.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SurfaceGain(pub [f32; 4]);
+
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 #[repr(C)]
 struct Params {
     vertex_count: u32,
     modes_stride: u32,
     modes_used: u32,
-    pad: u32,
+    near_mm: f32,
+    gain: [f32; 4],
 }
 
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
@@ -212,8 +219,9 @@ impl Deform {
     }
 
     /// Uploads the coefficients (`coeffs.len()` = modes used, at most the stored count
-    /// and [`MAX_GPU_MODES`]; more are ignored).
-    pub fn set_coefficients(&self, queue: &wgpu::Queue, coeffs: &[f64]) {
+    /// and [`MAX_GPU_MODES`]; more are ignored) and a hidden nodule's surface gain
+    /// ([`SurfaceGain`]).
+    pub fn set_coefficients(&self, queue: &wgpu::Queue, coeffs: &[f64], gain: SurfaceGain) {
         let n = coeffs
             .len()
             .min(MAX_GPU_MODES)
@@ -227,7 +235,8 @@ impl Deform {
             vertex_count: self.vertex_count,
             modes_stride: self.modes_stride,
             modes_used: n as u32,
-            pad: 0,
+            near_mm: SURFACE_NEAR_MM as f32,
+            gain: gain.0,
         };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -247,12 +256,13 @@ impl Deform {
         encoder: &mut wgpu::CommandEncoder,
         coeffs: &[f64],
         near_mm: &[Vec4Data],
+        gain: SurfaceGain,
         cpu: Option<CpuSurface<'_>>,
     ) {
         match cpu {
             Some(surface) => self.upload(queue, surface),
             None => {
-                self.set_coefficients(queue, coeffs);
+                self.set_coefficients(queue, coeffs, gain);
                 self.set_near(queue, near_mm);
                 self.encode(encoder);
             }

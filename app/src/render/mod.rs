@@ -95,6 +95,8 @@ pub struct FrameInput<'a> {
     pub values: Option<VertexValues<'a>>,
     /// A revealed nodule, drawn seen through the organ.
     pub nodule: Option<NoduleVisual>,
+    /// A hidden nodule's gain on the surface the compute passes deform.
+    pub surface_gain: deform::SurfaceGain,
 }
 
 /// Values per scene vertex and a generation that changes when they do.
@@ -346,6 +348,7 @@ impl Renderer {
             encoder,
             input.coeffs,
             input.near_mm,
+            input.surface_gain,
             input.cpu_surface,
         );
 

@@ -14,7 +14,8 @@ use palpa_core::tissue::online::Tissue;
 
 #[cfg(doc)]
 use crate::render::deform::DeformOn;
-use crate::render::deform::{CpuSurface, Vec4Data};
+use crate::render::deform::{CpuSurface, SurfaceGain, Vec4Data};
+use palpa_core::pgd::nodule::table::surface_gain;
 
 #[derive(Debug)]
 pub struct Deformation {
@@ -38,6 +39,9 @@ pub struct Deformation {
     normal_sums: Vec<[f32; 3]>,
     /// The hyperelastic vademecum's residual surface, if the scene has one.
     tissue: Option<(Arc<Tissue>, TissueScratch)>,
+    /// A hidden nodule's gain on the surface: the probe's rest position (mm) and the
+    /// effect at the press (0: none).
+    gain: ([f64; 3], f64),
 }
 
 /// A press to show: where, the linear force that gives its depth, and the depth.
@@ -64,20 +68,28 @@ impl Deformation {
             cpu_positions: vec![[0.0; 4]; scene.visual().rest_mm.len()],
             cpu_normals: vec![[0.0; 4]; scene.visual().rest_mm.len()],
             normal_sums: vec![[0.0; 3]; scene.visual().rest_mm.len()],
+            gain: ([0.0; 3], 0.0),
         }
     }
 
     /// Evaluates the first `n` modes and the near field for a probe at `p` pushing with
     /// the linear `force` (N) of its depth (and the tissue's residual at that depth),
-    /// or the rest shape with no probe; returns the drawn tip (mm).
+    /// or the rest shape with no probe; a hidden nodule changing the force there by
+    /// `nodule_effect` sways the surface away from the tool with it
+    /// ([`palpa_core::pgd::nodule::table::surface_gain`]). Returns the drawn tip (mm).
     pub fn evaluate(
         &mut self,
         scene: &PalpationScene,
         probe: Option<Press<'_>>,
+        nodule_effect: f64,
         n: usize,
     ) -> Option<Vec3> {
         self.deformed_valid = false;
         self.n = n;
+        self.gain = (
+            probe.map_or([0.0; 3], |(p, _, _)| scene.frame(p).0),
+            if probe.is_some() { nodule_effect } else { 0.0 },
+        );
         let Some((p, force, depth_mm)) = probe else {
             self.coeffs[..n].fill(0.0);
             self.update_near(scene, None);
@@ -108,6 +120,27 @@ impl Deformation {
     /// The near field per render vertex, for the GPU.
     pub fn near_gpu(&self) -> &[[f32; 4]] {
         &self.near_gpu
+    }
+
+    /// The nodule's gain on the surface, for the GPU.
+    pub fn surface_gain(&self) -> SurfaceGain {
+        let ([x, y, z], e) = self.gain;
+        SurfaceGain([x as f32, y as f32, z as f32, e as f32])
+    }
+
+    /// The surface's displacement at render vertex `i` (mm): the modes', the near
+    /// field's, times the nodule's gain there.
+    fn vertex_u(&self, i: usize, rest_mm: [f32; 3]) -> [f64; 3] {
+        let (at, e) = self.gain;
+        let g = if e == 0.0 {
+            1.0
+        } else {
+            let r2: f64 = (0..3)
+                .map(|c| (f64::from(rest_mm[c]) - at[c]).powi(2))
+                .sum();
+            surface_gain(e, r2)
+        };
+        [0, 1, 2].map(|c| (self.displacement[3 * i + c] + self.near_rows[3 * i + c]) * g)
     }
 
     /// The exact near field under the tool plus the tissue's residual (zero with no
@@ -164,16 +197,9 @@ impl Deformation {
             scene
                 .model()
                 .reconstruct(&self.coeffs[..self.n], &mut self.displacement);
-            for (i, (d, r)) in self
-                .deformed_mm
-                .iter_mut()
-                .zip(scene.vertices_mm())
-                .enumerate()
-            {
-                for c in 0..3 {
-                    let u = self.displacement[3 * i + c] + self.near_rows[3 * i + c];
-                    d[c] = r[c] + u as f32;
-                }
+            for (i, r) in scene.vertices_mm().iter().enumerate() {
+                let u = self.vertex_u(i, *r);
+                self.deformed_mm[i] = [0, 1, 2].map(|c| r[c] + u[c] as f32);
             }
             self.deformed_valid = true;
         }
@@ -187,17 +213,11 @@ impl Deformation {
     /// (`+z` where the triangles' areas cancel, as on the GPU).
     pub fn cpu_surface(&mut self, scene: &PalpationScene) -> CpuSurface<'_> {
         self.deformed_mm(scene);
-        for (i, (p, d)) in self
-            .cpu_mechanical
-            .iter_mut()
-            .zip(&self.deformed_mm)
-            .enumerate()
-        {
-            let u = (0..3)
-                .map(|c| (self.displacement[3 * i + c] + self.near_rows[3 * i + c]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            *p = [d[0], d[1], d[2], u as f32];
+        for (i, r) in scene.vertices_mm().iter().enumerate() {
+            let u = self.vertex_u(i, *r);
+            let d = self.deformed_mm[i];
+            let u = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+            self.cpu_mechanical[i] = [d[0], d[1], d[2], u as f32];
         }
         scene.visual().deform(
             &self.cpu_mechanical,

@@ -401,9 +401,20 @@ impl Session {
         } else {
             (probe, [0.0; 3], 0.0)
         };
-        let tip =
-            self.deformation
-                .evaluate(&self.scene, point.as_ref().map(|p| (p, force, depth_mm)), n);
+        // A hidden nodule's effect at the press (the tissue's grows with the depth):
+        // the total force, and the organ's sway with it, is that much larger.
+        let nodule_effect = if ok {
+            f64::from(s.command.nodule_effect)
+                + f64::from(s.command.nodule_effect_per_mm) * depth_mm
+        } else {
+            0.0
+        };
+        let tip = self.deformation.evaluate(
+            &self.scene,
+            point.as_ref().map(|p| (p, force, depth_mm)),
+            nodule_effect,
+            n,
+        );
         if let (Some(p), Some(tip)) = (point, tip) {
             let (_, normal) = self.scene.frame(&p);
             visual = Some(ProbeVisual {
@@ -468,6 +479,7 @@ impl Session {
             camera: &self.controls.camera,
             coeffs: self.deformation.coeffs(),
             near_mm: self.deformation.near_gpu(),
+            surface_gain: self.deformation.surface_gain(),
             cpu_surface: cpu_surface.then(|| self.deformation.last_cpu_surface()),
             colormap_mm: self.colormap_mm,
             probe: visual,

@@ -148,35 +148,7 @@ impl Against {
     }
 }
 
-/// Over the organ's surface nodes drawn by the scene (`vertex_of`: a node's render
-/// vertex by rest position): each candidate's largest nodal distance from the
-/// reference field `reference` (organ node order; candidates in the scene's row
-/// order), and the reference's largest displacement (mm).
-pub(crate) fn max_node_errors<const N: usize>(
-    organ: &OrganMesh,
-    vertex_of: &PointIndex,
-    reference: &[f64],
-    candidates: [&[f64]; N],
-) -> ([f64; N], f64) {
-    let (mut worst, mut top) = ([0.0f64; N], 0.0f64);
-    for v in organ.surface_nodes() {
-        let Some(r) = vertex_of.find(organ.mesh.vertices[v as usize]) else {
-            continue;
-        };
-        let (i, r) = (3 * v as usize, 3 * r as usize);
-        let dist = |rows: &[f64]| {
-            (0..3)
-                .map(|k| (rows[r + k] - reference[i + k]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-        };
-        for (w, rows) in worst.iter_mut().zip(candidates) {
-            *w = w.max(dist(rows));
-        }
-        top = top.max((0..3).map(|k| reference[i + k].powi(2)).sum::<f64>().sqrt());
-    }
-    (worst, top)
-}
+pub(crate) use palpa_core::tissue::law::max_node_errors;
 
 /// Where the vademecum's surface errs most at one press, and how the error falls off
 /// away from the tool: the worst node's distance from the probe and the part of its

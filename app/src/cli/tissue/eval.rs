@@ -7,7 +7,9 @@ use anyhow::{Context, bail};
 use palpa_app::session::training::table_face;
 use palpa_core::fe::nodule::Nodule;
 use palpa_core::pgd::nodule::heldout::tissue_amplification_per_mm;
-use palpa_core::pgd::nodule::table::{EffectTable, NoduleEffect, depth_under_force, tissue_effect};
+use palpa_core::pgd::nodule::table::{
+    EffectTable, NoduleEffect, apply_surface_gain, depth_under_force, tissue_effect,
+};
 use palpa_core::scene::{PalpationScene, ProbePoint};
 use palpa_core::tissue::bound::BoundTissue;
 use palpa_core::tissue::law::TissueLaw;
@@ -174,6 +176,13 @@ pub fn eval(
     let push = contact.push_dir.map(|d| d * depth / c);
     scene.displacement(&point, push, &mut coeffs, &mut rows)?;
     bound.add_surface(&point, depth, &mut scratch, &mut rows);
+    // With a nodule, the organ sways away from the tool with the larger force.
+    apply_surface_gain(
+        tissue_effect(e, kappa, depth),
+        scene.frame(&point).0,
+        scene.vertices_mm().iter().map(|p| p.map(f64::from)),
+        &mut rows,
+    );
     let surface_eval_us = t.elapsed().as_secs_f64() * 1e6;
     let max = rows
         .chunks_exact(3)

@@ -11,11 +11,16 @@
 //! with the nodule; the effect is the ratio of the probe's displacements less one, the
 //! change of the force of a press to a given depth. The goal the table is held to:
 //! the effect within 10 % of the FE's wherever that effect exceeds 5 % of the force.
+//! At each pair the surface a scene draws at 1 N with the nodule (the nodule-free one at
+//! the depth reached, times [`super::table::surface_gain`]) is measured against the
+//! FE's with it as well: the goal there is [`SURFACE_GOAL_MM`].
 
 use std::time::Instant;
 
 pub use super::table::{CheckedPair, TableCheck, TissueCheck, TissuePair};
-use super::table::{EffectTable, FIT_RATIOS, MAX_RATIO, TableError, nodule_row};
+use super::table::{
+    EffectTable, FIT_RATIOS, MAX_RATIO, TableError, apply_surface_gain, nodule_row,
+};
 use super::training::{CaseRanges, draw};
 use crate::fe::load::project;
 use crate::fe::nodule::Nodule;
@@ -23,6 +28,8 @@ use crate::fe::probe::{ProbeRequest, organ_space, smooth_inward_dir, solve_linea
 use crate::fe::{Element, Material};
 use crate::organ::OrganMesh;
 use crate::rng::Rng;
+use crate::scene::PalpationScene;
+use crate::tissue::law::{PointIndex, max_node_errors};
 
 /// Probe points are drawn this far (mm, along each axis) about the nodule's projection.
 pub const PROBE_SPREAD_MM: f64 = 20.0;
@@ -47,7 +54,16 @@ pub struct CheckSummary {
     /// The FE effects seen, smallest and largest.
     pub effect_min: f64,
     pub effect_max: f64,
+    /// Over all pairs: the drawn surface's largest distance from the FE's at 1 N (mm),
+    /// median and largest, and the share within [`SURFACE_GOAL_MM`] (NaN where no
+    /// pair was checked with a scene).
+    pub surface_median_mm: f64,
+    pub surface_max_mm: f64,
+    pub surface_within_goal: f64,
 }
+
+/// The linear surface's goal at 1 N (mm).
+pub const SURFACE_GOAL_MM: f64 = 0.1;
 
 impl CheckSummary {
     pub fn of<'a>(pairs: impl IntoIterator<Item = &'a CheckedPair>) -> Option<CheckSummary> {
@@ -69,7 +85,26 @@ impl CheckSummary {
             errors[((f * (errors.len() - 1) as f64).round() as usize).min(errors.len() - 1)]
         };
         let effects = pairs.iter().map(|p| p.effect_fe);
+        // Pairs checked without a scene of the table's mesh have no surface (NaN).
+        let mut surface: Vec<f64> = pairs
+            .iter()
+            .map(|p| p.surface_mm)
+            .filter(|s| !s.is_nan())
+            .collect();
+        surface.sort_by(f64::total_cmp);
+        let (surface_median_mm, surface_max_mm, surface_within_goal) = match surface.last() {
+            Some(&max) => (
+                surface[surface.len() / 2],
+                max,
+                surface.iter().filter(|&&s| s <= SURFACE_GOAL_MM).count() as f64
+                    / surface.len() as f64,
+            ),
+            None => (f64::NAN, f64::NAN, f64::NAN),
+        };
         Some(CheckSummary {
+            surface_median_mm,
+            surface_max_mm,
+            surface_within_goal,
             pairs: pairs.len(),
             felt: errors.len(),
             error_median: q(0.5),
@@ -235,9 +270,11 @@ pub fn recorded(table: &EffectTable) -> [Option<CheckSummary>; 4] {
 /// table's, by its fingerprint); radii uniform in `radii_mm` (within the table's
 /// answered range), ratios log-uniform in `ratios`; `past_band`: only nodules the table
 /// answers by its far field past the band.
+#[allow(clippy::too_many_arguments)]
 pub fn check(
     table: &EffectTable,
     organ: &OrganMesh,
+    scene: Option<&PalpationScene>,
     felt: usize,
     seed: u64,
     radii_mm: [f64; 2],
@@ -270,6 +307,16 @@ pub fn check(
     };
     let mut rng = Rng::seed(seed);
     let mut pairs = Vec::new();
+    // With a scene: its vertices by position, its scratch, coefficients and rows.
+    let mut drawer = scene.map(|s| {
+        (
+            s,
+            PointIndex::new(s.vertices_mm().iter().map(|p| p.map(f64::from))),
+            s.contact_scratch(),
+            vec![0.0; s.modes()],
+            vec![0.0; 3 * s.vertices_mm().len()],
+        )
+    });
     let t0 = Instant::now();
     let fe_error = |e: crate::fe::FeError| TableError::Fe(e.to_string());
     while pairs
@@ -303,6 +350,31 @@ pub fn check(
         let Some(effect_table) = table.place(&nodule)?.at(table, point.face, point.bary) else {
             continue;
         };
+        // The surface the scene draws at 1 N with the nodule: its nodule-free one at
+        // the depth the force reaches, times the gain away from the probe.
+        let drawn = match drawer.as_mut() {
+            Some((scene, _, scratch, coeffs, rows)) => {
+                let Some((scene_point, _)) = scene.closest_palpable(point.point) else {
+                    continue;
+                };
+                let Ok(contact) = scene.contact(&scene_point, scene.modes(), scratch) else {
+                    continue;
+                };
+                let at = scene.frame(&scene_point).0;
+                let force = contact.push_dir.map(|d| d / (1.0 + effect_table));
+                scene
+                    .displacement(&scene_point, force, coeffs, rows)
+                    .map_err(|e| TableError::Settings(e.to_string()))?;
+                apply_surface_gain(
+                    effect_table,
+                    at,
+                    scene.vertices_mm().iter().map(|p| p.map(f64::from)),
+                    rows,
+                );
+                true
+            }
+            None => false,
+        };
         let req = ProbeRequest::unit(point.point, dir);
         let free = solve_linear(organ, Element::P2, material, &req).map_err(fe_error)?;
         if free.probe_displacement_mm.is_nan() || free.probe_displacement_mm <= 0.0 {
@@ -324,6 +396,12 @@ pub fn check(
             at_mm: point.point,
             effect_fe: free.probe_displacement_mm / with.probe_displacement_mm - 1.0,
             effect_table,
+            surface_mm: match (&drawer, drawn) {
+                (Some((_, index, _, _, rows)), true) => {
+                    max_node_errors(organ, index, &with.u, [rows]).0[0]
+                }
+                _ => f64::NAN,
+            },
         });
     }
     Ok(TableCheck {
@@ -336,6 +414,23 @@ pub fn check(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The drawn surface with a nodule: the dent kept under the tool, the whole force's
+    /// sway far from it, nothing without an effect.
+    #[test]
+    fn the_surface_gain_keeps_the_dent_and_sways_the_rest() {
+        use super::super::table::surface_gain;
+        assert_eq!(surface_gain(0.3, 0.0), 1.0);
+        assert!((surface_gain(0.3, 1e6) - 1.3).abs() < 1e-12);
+        assert_eq!(surface_gain(0.0, 400.0), 1.0);
+        let mut rows = vec![1.0, 2.0, 3.0, 1.0, 2.0, 3.0];
+        apply_surface_gain(0.2, [0.0; 3], [[0.0; 3], [10.0, 0.0, 0.0]], &mut rows);
+        assert_eq!(&rows[..3], &[1.0, 2.0, 3.0]);
+        let g = 1.0 + 0.2 * (1.0 - (-1.0f64).exp());
+        for (k, v) in rows[3..].iter().enumerate() {
+            assert!((v - g * (k + 1) as f64).abs() < 1e-12);
+        }
+    }
 
     fn press(depth_mm: f64, without: f64, with: f64, tissue: f64, effect: f64) -> TissuePair {
         TissuePair {

@@ -56,6 +56,10 @@
 //! has no compliance and feels no nodule.
 //! **On-line** ([`EffectTable::place`]): the effect at every probe node for one nodule
 //! (a few thousand products), then [`NoduleEffect::at`] per probe point.
+//!
+//! **The surface** is not tabulated: the one drawn with a nodule is the nodule-free
+//! surface at the depth the press reaches, swayed away from the tool with the force the
+//! nodule adds ([`surface_gain`]).
 
 use std::collections::HashMap;
 use std::time::Instant;
@@ -177,7 +181,7 @@ pub struct TableSettings {
 
 /// The file's magic bytes and its one format version.
 pub const MAGIC: &[u8; 8] = b"PALPANOD";
-pub const VERSION: u32 = 7;
+pub const VERSION: u32 = 8;
 
 /// Whether `path` starts as a nodule table does (unreadable: no).
 pub fn is_table_file(path: &std::path::Path) -> bool {
@@ -247,6 +251,10 @@ pub struct CheckedPair {
     pub at_mm: [f64; 3],
     pub effect_fe: f64,
     pub effect_table: f64,
+    /// The largest distance over the scene's surface vertices between the surface
+    /// drawn at 1 N with the nodule (the nodule-free one at the probe's depth, times
+    /// [`surface_gain`]) and the FE's with it (mm).
+    pub surface_mm: f64,
 }
 
 /// A nodule as a recorded check keeps it: centre (mm), radius (mm), ratio.
@@ -306,7 +314,8 @@ pub struct TissuePair {
     pub effect_linear: f64,
     pub effect_answered: f64,
     /// The largest distance over the surface's vertices between the surface drawn (the
-    /// tissue's, without the nodule, at the press's depth) and Newton's with it (mm).
+    /// tissue's without the nodule at the press's depth, times [`surface_gain`] of the
+    /// effect answered) and Newton's with it (mm).
     pub surface_mm: f64,
 }
 
@@ -335,6 +344,42 @@ impl TissuePair {
 #[inline]
 pub fn tissue_effect(effect: f64, amplification_per_mm: f64, depth_mm: f64) -> f64 {
     effect * (1.0 + amplification_per_mm * depth_mm)
+}
+
+/// How far about the probe (mm) the drawn surface with a nodule keeps the nodule-free
+/// shape at the pressed depth ([`surface_gain`]; chosen at the recorded pairs,
+/// docs/lab/nodule-measurements.md §15).
+pub const SURFACE_NEAR_MM: f64 = 10.0;
+
+/// The drawn surface with a nodule at a vertex `distance2_mm2` (squared, mm²) from the
+/// probe, as a multiple of the nodule-free surface at the same depth, the nodule
+/// changing the force by `effect`: `1 + e (1 − exp(−r²/ℓ²))`, `ℓ` =
+/// [`SURFACE_NEAR_MM`]. Under the tool the depth holds the surface (gain 1); away from
+/// it the organ sways with the total force, `1 + e` times the nodule-free one's at that
+/// depth. A nodule's own correction field is local to it and the probe, and small
+/// next to either part (ratio 1: gain 1 everywhere).
+#[inline]
+pub fn surface_gain(effect: f64, distance2_mm2: f64) -> f64 {
+    1.0 + effect * (1.0 - (-distance2_mm2 / (SURFACE_NEAR_MM * SURFACE_NEAR_MM)).exp())
+}
+
+/// Multiplies the drawn surface `rows` (3 per vertex, mm; the nodule-free surface at
+/// the pressed depth) by [`surface_gain`] at each of `vertices_mm` (rest positions), the
+/// probe at `probe_mm` (rest), the nodule changing the force by `effect`.
+pub fn apply_surface_gain(
+    effect: f64,
+    probe_mm: [f64; 3],
+    vertices_mm: impl IntoIterator<Item = [f64; 3]>,
+    rows: &mut [f64],
+) {
+    if effect == 0.0 {
+        return;
+    }
+    for (x, u) in vertices_mm.into_iter().zip(rows.chunks_exact_mut(3)) {
+        let r2: f64 = (0..3).map(|k| (x[k] - probe_mm[k]).powi(2)).sum();
+        let g = surface_gain(effect, r2);
+        u.iter_mut().for_each(|v| *v *= g);
+    }
 }
 
 /// Under a force `force_n`, the depth at which the tissue's force times

@@ -177,7 +177,14 @@ fn compare(gpu: &Gpu, deform: &Deform, session: &mut Session) -> anyhow::Result<
     let cpu = input.cpu_surface.context("the CPU path gives a surface")?;
     let (cpu_positions, cpu_normals) = (cpu.positions.to_vec(), cpu.normals.to_vec());
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    deform.record(&gpu.queue, &mut encoder, input.coeffs, input.near_mm, None);
+    deform.record(
+        &gpu.queue,
+        &mut encoder,
+        input.coeffs,
+        input.near_mm,
+        input.surface_gain,
+        None,
+    );
     gpu.queue.submit([encoder.finish()]);
     let (positions, normals) = deform.read_back(&gpu.device, &gpu.queue)?;
     let distance = |a: &Vec4Data, b: &Vec4Data| {
@@ -222,6 +229,7 @@ fn time_frames(
             &mut encoder,
             input.coeffs,
             input.near_mm,
+            input.surface_gain,
             input.cpu_surface,
         );
         gpu.queue.submit([encoder.finish()]);
