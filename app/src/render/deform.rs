@@ -248,22 +248,20 @@ impl Deform {
         queue.write_buffer(&self.near, 0, bytemuck::cast_slice(&near_mm[..n]));
     }
 
-    /// Fills the position and normal buffers for a frame: from `cpu` when the CPU
-    /// deformed the surface, else by the compute passes on `coeffs` and `near_mm`.
+    /// Fills the position and normal buffers for a frame: from its CPU-deformed
+    /// surface where it has one, else by the compute passes on its coefficients, near
+    /// field and nodule gain.
     pub fn record(
         &self,
         queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
-        coeffs: &[f64],
-        near_mm: &[Vec4Data],
-        gain: SurfaceGain,
-        cpu: Option<CpuSurface<'_>>,
+        input: &super::FrameInput<'_>,
     ) {
-        match cpu {
+        match input.cpu_surface {
             Some(surface) => self.upload(queue, surface),
             None => {
-                self.set_coefficients(queue, coeffs, gain);
-                self.set_near(queue, near_mm);
+                self.set_coefficients(queue, input.coeffs, input.surface_gain);
+                self.set_near(queue, input.near_mm);
                 self.encode(encoder);
             }
         }

@@ -343,14 +343,7 @@ impl Renderer {
                 bytemuck::bytes_of(o),
             );
         }
-        self.deform.record(
-            queue,
-            encoder,
-            input.coeffs,
-            input.near_mm,
-            input.surface_gain,
-            input.cpu_surface,
-        );
+        self.deform.record(queue, encoder, input);
 
         let depth_view = self.depth_view(device, (w, h)).clone();
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

@@ -22,6 +22,7 @@ use anyhow::{Context, bail};
 use clap::Args;
 use palpa_app::force::NoHaptics;
 use palpa_app::offscreen::settle;
+use palpa_app::render::FrameInput;
 use palpa_app::render::deform::{Deform, DeformOn, MAX_GPU_MODES, Vec4Data};
 use palpa_app::render::gpu::Gpu;
 use palpa_app::session::Session;
@@ -177,14 +178,12 @@ fn compare(gpu: &Gpu, deform: &Deform, session: &mut Session) -> anyhow::Result<
     let cpu = input.cpu_surface.context("the CPU path gives a surface")?;
     let (cpu_positions, cpu_normals) = (cpu.positions.to_vec(), cpu.normals.to_vec());
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    deform.record(
-        &gpu.queue,
-        &mut encoder,
-        input.coeffs,
-        input.near_mm,
-        input.surface_gain,
-        None,
-    );
+    // The same frame by the compute passes.
+    let input = FrameInput {
+        cpu_surface: None,
+        ..input
+    };
+    deform.record(&gpu.queue, &mut encoder, &input);
     gpu.queue.submit([encoder.finish()]);
     let (positions, normals) = deform.read_back(&gpu.device, &gpu.queue)?;
     let distance = |a: &Vec4Data, b: &Vec4Data| {
@@ -224,14 +223,7 @@ fn time_frames(
         let t0 = Instant::now();
         let input = session.frame();
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        deform.record(
-            &gpu.queue,
-            &mut encoder,
-            input.coeffs,
-            input.near_mm,
-            input.surface_gain,
-            input.cpu_surface,
-        );
+        deform.record(&gpu.queue, &mut encoder, &input);
         gpu.queue.submit([encoder.finish()]);
         let t1 = Instant::now();
         gpu.device
