@@ -269,7 +269,9 @@ pub fn recorded(table: &EffectTable) -> [Option<CheckSummary>; 4] {
 /// most `4 × felt + 8` pairs), each solved twice by the full FE on `organ` (the
 /// table's, by its fingerprint); radii uniform in `radii_mm` (within the table's
 /// answered range), ratios log-uniform in `ratios`; `past_band`: only nodules the table
-/// answers by its far field past the band.
+/// answers by its far field past the band. With `scene` (of the table's mesh), each
+/// pair also measures the surface it draws at 1 N with the nodule against the FE's
+/// ([`CheckedPair::surface_mm`]; NaN without one).
 #[allow(clippy::too_many_arguments)]
 pub fn check(
     table: &EffectTable,
