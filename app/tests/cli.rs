@@ -2003,6 +2003,17 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
     let force = e["force_n"].as_f64().expect("a force");
     assert!((force - with).abs() < 0.03 * with, "{force} against {with}");
 
+    // `palpa nodule check` measures the table at held-out pairs against the FE, and
+    // the surface the scene draws at 1 N with each nodule (the built-in liver is of
+    // this table's mesh): measured 0.049 mm at worst.
+    let c = common::json_ok(&palpa(&[
+        "nodule", "check", &table_s, "--level", "coarse", "--felt", "1", "--seed", "5", "--json",
+    ]));
+    let worst = c["summary"]["surface_max_mm"]
+        .as_f64()
+        .expect("a surface measured");
+    assert!(worst > 0.0 && worst < 0.15, "{c}");
+
     // The neo-Hookean tissue with the same nodule: its force times `1 + effect`, the
     // effect the table's at the tissue's probe point; against Newton with the nodule.
     let tissue = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");

@@ -9,7 +9,8 @@ use clap::{Args, Subcommand};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::nodal;
 use palpa_core::pgd::nodule::heldout::{self, CheckSummary};
-use palpa_core::pgd::nodule::table::{EffectTable, FIT_RATIOS, TableSettings};
+use palpa_core::pgd::nodule::table::{EffectTable, FIT_RATIOS, TableSettings, apply_surface_gain};
+use palpa_core::tissue::law::{PointIndex, max_node_errors};
 use serde_json::json;
 
 use super::args::OrganArgs;
@@ -167,10 +168,31 @@ fn check(args: &CheckArgs) -> anyhow::Result<()> {
         Some(&[a, b]) => [a, b],
         Some(other) => bail!("--radii-mm {other:?}: expected LO,HI"),
     };
+    // The surface the scene draws at 1 N with the nodule: its nodule-free one at the
+    // depth the force reaches, times the gain away from the probe; against the FE's.
+    let mut surface = scene.as_ref().map(|scene| {
+        let index = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
+        let (mut scratch, mut coeffs) = (scene.contact_scratch(), vec![0.0; scene.modes()]);
+        let mut rows = vec![0.0; 3 * scene.vertices_mm().len()];
+        let organ = &organ;
+        move |at: [f64; 3], effect: f64, fe_u: &[f64]| {
+            let (point, _) = scene.closest_palpable(at)?;
+            let contact = scene.contact(&point, scene.modes(), &mut scratch).ok()?;
+            let force = contact.push_dir.map(|d| d / (1.0 + effect));
+            scene
+                .displacement(&point, force, &mut coeffs, &mut rows)
+                .ok()?;
+            let vertices = scene.vertices_mm().iter().map(|p| p.map(f64::from));
+            apply_surface_gain(effect, scene.frame(&point).0, vertices, &mut rows);
+            Some(max_node_errors(organ, &index, fe_u, [&rows]).0[0])
+        }
+    });
     let measured = heldout::check(
         &table,
         &organ,
-        scene.as_ref(),
+        surface
+            .as_mut()
+            .map(|f| f as &mut heldout::SurfaceCheck<'_>),
         args.felt,
         args.seed,
         radii,
@@ -672,8 +694,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
                 scene.vertices_mm().iter().map(|p| p.map(f64::from)),
                 &mut rows,
             );
-            let ([surface_mm], _) =
-                super::tissue::against::max_node_errors(&organ, &vertex_of, &with.u, [&rows]);
+            let ([surface_mm], _) = max_node_errors(&organ, &vertex_of, &with.u, [&rows]);
             let n = nodule;
             let pair = TissuePair {
                 nodule: nodule_row(&n),

@@ -18,9 +18,7 @@
 use std::time::Instant;
 
 pub use super::table::{CheckedPair, TableCheck, TissueCheck, TissuePair};
-use super::table::{
-    EffectTable, FIT_RATIOS, MAX_RATIO, TableError, apply_surface_gain, nodule_row,
-};
+use super::table::{EffectTable, FIT_RATIOS, MAX_RATIO, TableError, nodule_row};
 use super::training::{CaseRanges, draw};
 use crate::fe::load::project;
 use crate::fe::nodule::Nodule;
@@ -28,8 +26,6 @@ use crate::fe::probe::{ProbeRequest, organ_space, smooth_inward_dir, solve_linea
 use crate::fe::{Element, Material};
 use crate::organ::OrganMesh;
 use crate::rng::Rng;
-use crate::scene::PalpationScene;
-use crate::tissue::law::{PointIndex, max_node_errors};
 
 /// Probe points are drawn this far (mm, along each axis) about the nodule's projection.
 pub const PROBE_SPREAD_MM: f64 = 20.0;
@@ -64,6 +60,13 @@ pub struct CheckSummary {
 
 /// The linear surface's goal at 1 N (mm).
 pub const SURFACE_GOAL_MM: f64 = 0.1;
+
+/// What measures the drawn surface at a pair: given the probe point (mm, on the
+/// palpable surface), the effect answered there and the FE's displacement with the
+/// nodule at 1 N (every node, mm), the largest distance (mm) between the surface a
+/// scene draws there ([`super::table::apply_surface_gain`]) and the FE's; `None` where
+/// the scene cannot press that point.
+pub type SurfaceCheck<'a> = dyn FnMut([f64; 3], f64, &[f64]) -> Option<f64> + 'a;
 
 impl CheckSummary {
     pub fn of<'a>(pairs: impl IntoIterator<Item = &'a CheckedPair>) -> Option<CheckSummary> {
@@ -269,14 +272,14 @@ pub fn recorded(table: &EffectTable) -> [Option<CheckSummary>; 4] {
 /// most `4 × felt + 8` pairs), each solved twice by the full FE on `organ` (the
 /// table's, by its fingerprint); radii uniform in `radii_mm` (within the table's
 /// answered range), ratios log-uniform in `ratios`; `past_band`: only nodules the table
-/// answers by its far field past the band. With `scene` (of the table's mesh), each
-/// pair also measures the surface it draws at 1 N with the nodule against the FE's
-/// ([`CheckedPair::surface_mm`]; NaN without one).
+/// answers by its far field past the band. With `surface` (a scene's, of the table's
+/// mesh), each pair also measures the surface drawn at 1 N with the nodule against the
+/// FE's ([`CheckedPair::surface_mm`]; NaN without one).
 #[allow(clippy::too_many_arguments)]
 pub fn check(
     table: &EffectTable,
     organ: &OrganMesh,
-    scene: Option<&PalpationScene>,
+    mut surface: Option<&mut SurfaceCheck<'_>>,
     felt: usize,
     seed: u64,
     radii_mm: [f64; 2],
@@ -309,16 +312,6 @@ pub fn check(
     };
     let mut rng = Rng::seed(seed);
     let mut pairs = Vec::new();
-    // With a scene: its vertices by position, its scratch, coefficients and rows.
-    let mut drawer = scene.map(|s| {
-        (
-            s,
-            PointIndex::new(s.vertices_mm().iter().map(|p| p.map(f64::from))),
-            s.contact_scratch(),
-            vec![0.0; s.modes()],
-            vec![0.0; 3 * s.vertices_mm().len()],
-        )
-    });
     let t0 = Instant::now();
     let fe_error = |e: crate::fe::FeError| TableError::Fe(e.to_string());
     while pairs
@@ -352,31 +345,6 @@ pub fn check(
         let Some(effect_table) = table.place(&nodule)?.at(table, point.face, point.bary) else {
             continue;
         };
-        // The surface the scene draws at 1 N with the nodule: its nodule-free one at
-        // the depth the force reaches, times the gain away from the probe.
-        let drawn = match drawer.as_mut() {
-            Some((scene, _, scratch, coeffs, rows)) => {
-                let Some((scene_point, _)) = scene.closest_palpable(point.point) else {
-                    continue;
-                };
-                let Ok(contact) = scene.contact(&scene_point, scene.modes(), scratch) else {
-                    continue;
-                };
-                let at = scene.frame(&scene_point).0;
-                let force = contact.push_dir.map(|d| d / (1.0 + effect_table));
-                scene
-                    .displacement(&scene_point, force, coeffs, rows)
-                    .map_err(|e| TableError::Settings(e.to_string()))?;
-                apply_surface_gain(
-                    effect_table,
-                    at,
-                    scene.vertices_mm().iter().map(|p| p.map(f64::from)),
-                    rows,
-                );
-                true
-            }
-            None => false,
-        };
         let req = ProbeRequest::unit(point.point, dir);
         let free = solve_linear(organ, Element::P2, material, &req).map_err(fe_error)?;
         if free.probe_displacement_mm.is_nan() || free.probe_displacement_mm <= 0.0 {
@@ -398,12 +366,10 @@ pub fn check(
             at_mm: point.point,
             effect_fe: free.probe_displacement_mm / with.probe_displacement_mm - 1.0,
             effect_table,
-            surface_mm: match (&drawer, drawn) {
-                (Some((_, index, _, _, rows)), true) => {
-                    max_node_errors(organ, index, &with.u, [rows]).0[0]
-                }
-                _ => f64::NAN,
-            },
+            surface_mm: surface
+                .as_mut()
+                .and_then(|measure| measure(point.point, effect_table, &with.u))
+                .unwrap_or(f64::NAN),
         });
     }
     Ok(TableCheck {
@@ -421,7 +387,7 @@ mod tests {
     /// sway far from it, nothing without an effect.
     #[test]
     fn the_surface_gain_keeps_the_dent_and_sways_the_rest() {
-        use super::super::table::surface_gain;
+        use super::super::table::{apply_surface_gain, surface_gain};
         assert_eq!(surface_gain(0.3, 0.0), 1.0);
         assert!((surface_gain(0.3, 1e6) - 1.3).abs() < 1e-12);
         assert_eq!(surface_gain(0.0, 400.0), 1.0);
