@@ -475,36 +475,44 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
             .expect("a palpable face");
         assert!((now - p.effect_table).abs() < 1e-6, "{p:?}: now {now}");
     }
-    // The shipped tissue with the table's effect, checked against Newton with the
-    // nodule (`palpa nodule check --tissue`) on this very tissue file, each seed
-    // answered with the amplification fitted to the other's presses (out of sample).
-    // Measured: seed 7, the force within 0.42 % at the median and 2.5 % at worst, the
-    // felt effect 12.4 % off at the median (24 % with the linear effect as it is);
-    // seed 8, the force within 0.25 % and 6.7 %, the effect 6.1 % (the linear 8.4 %);
-    // the surface (the nodule-free one at the depth, swayed with the force) up to
-    // 2.0 mm off.
+    // The shipped tissue with the table's effect amplified by the tissue's own press
+    // (the table's power of this very tissue), checked against Newton with the nodule
+    // (`palpa nodule check --tissue`). Measured: MEASURED.
     let tissue = palpa_core::tissue::law::TissueLaw::load(&root.join("liver-coarse.tissue"))
         .expect("the default tissue");
+    let power = table
+        .tissue_power
+        .as_ref()
+        .expect("the shipped tissue's power");
+    assert_eq!(
+        power.tissue_xxh3,
+        tissue.payload_xxh3(),
+        "pressed with the shipped tissue"
+    );
+    assert!(
+        power.vertices.len() >= 500,
+        "{} vertices",
+        power.vertices.len()
+    );
     assert!(
         !table.tissue_checks.is_empty()
             && table
                 .tissue_checks
                 .iter()
-                .all(|c| c.tissue_xxh3 == tissue.payload_xxh3()),
-        "a tissue check recorded against the shipped tissue (re-run `palpa nodule check --tissue`)"
+                .all(|c| c.tissue_xxh3 == tissue.payload_xxh3() && c.amplified),
+        "a tissue check recorded against the shipped tissue, amplified (re-run `palpa nodule check --tissue`)"
     );
+    const FORCE_MEDIAN: f64 = 0.015;
+    const FORCE_MAX: f64 = 0.1;
+    const EFFECT_MEDIAN: f64 = 0.2;
+    const EFFECT_MAX: f64 = 0.5;
     let checks = heldout::recorded_tissue(&table);
     assert!(checks.len() >= 2);
     for (_, _, t) in &checks {
         assert!(t.presses >= 40 && t.felt >= 6, "{t:?}");
-        assert!(t.force_error_median < 0.015, "{t:?}");
+        assert!(t.force_error_median < FORCE_MEDIAN, "{t:?}");
+        assert!(t.force_error_max < FORCE_MAX, "{t:?}");
+        assert!(t.effect_error_median < EFFECT_MEDIAN, "{t:?}");
+        assert!(t.effect_error_max < EFFECT_MAX, "{t:?}");
     }
-    let kappa = heldout::tissue_amplification_per_mm(&table, tissue.payload_xxh3())
-        .expect("an amplification fitted");
-    assert!((0.0..0.1).contains(&kappa), "{kappa}");
-    let (_, _, amplified) = checks
-        .iter()
-        .find(|c| c.1 > 0.0)
-        .expect("a check answered with an amplification");
-    assert!(amplified.effect_error_median < 0.18, "{amplified:?}");
 }

@@ -24,6 +24,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use bytemuck::{Pod, Zeroable};
+use palpa_core::pgd::nodule::amplification::EffectCurve;
 use palpa_core::pgd::nodule::table::depth_under_force;
 use palpa_core::scene::{PalpationScene, ProbePoint};
 use palpa_core::tissue::online::Tissue;
@@ -72,13 +73,11 @@ pub struct ProbeCommand {
     pub modes: u32,
     pub bary: [f32; 3],
     pub target: f32,
-    /// A hidden nodule's effect at this point, `F_with/F_without − 1` at equal depth
-    /// (0: none): the input side reads it from the case's table where it places the
-    /// probe, so the loop multiplies, it does not look anything up.
-    pub nodule_effect: f32,
-    /// Its growth with depth in the nonlinear tissue, `e κ` per mm (0 for the linear
-    /// model): the force at depth `d` is multiplied by `1 + e + e κ d`.
-    pub nodule_effect_per_mm: f32,
+    /// A hidden nodule's effect at this point, `F_with/F_without − 1` at equal depth,
+    /// as a function of the depth (flat for the linear model; zero: none): the input
+    /// side reads it from the case's table where it places the probe, so the loop
+    /// interpolates and multiplies, it does not look anything up.
+    pub nodule: EffectCurve,
 }
 
 impl ProbeCommand {
@@ -100,8 +99,7 @@ impl ProbeCommand {
             modes,
             bary: point.bary.map(|b| b as f32),
             target,
-            nodule_effect: 0.0,
-            nodule_effect_per_mm: 0.0,
+            nodule: EffectCurve::default(),
         }
     }
 
@@ -495,18 +493,17 @@ impl Worker {
                 let target = f64::from(cmd.target);
                 let comp = c.compliance_mm_per_n;
                 // A nodule multiplies the force at depth `d` by `gain(d)`: the linear
-                // tissue's effect, grown with the depth in the nonlinear tissue as its
-                // recorded checks fit (docs/methods.md §2h).
-                let (e, e_per_mm) = (
-                    f64::from(cmd.nodule_effect),
-                    f64::from(cmd.nodule_effect_per_mm),
-                );
-                let gain = |d: f64| 1.0 + e + e_per_mm * d;
-                if !(gain(0.0).is_finite() && gain(0.0) > 0.0 && e_per_mm.is_finite()) {
+                // tissue's effect, amplified in the nonlinear tissue as its own press
+                // loads the nodule (docs/methods.md §2i).
+                let curve = &cmd.nodule;
+                let gain = |d: f64| 1.0 + curve.at(d);
+                if !(curve.effect.is_finite()
+                    && curve.at_depth.iter().all(|e| e.is_finite() && *e > -1.0)
+                    && gain(0.0) > 0.0)
+                {
                     s.set_status(SampleStatus::Failed);
                     return s;
                 }
-                let kappa = if e != 0.0 { e_per_mm / e } else { 0.0 };
                 let (force, depth, beyond) = match (&self.law, cmd.mode()) {
                     (None, PressMode::Force) => (target, target * comp / gain(0.0), false),
                     (None, PressMode::Depth) => (gain(0.0) * target / comp, target, false),
@@ -523,7 +520,7 @@ impl Worker {
                     // tissue's at the held depth, not the trigger's (the asked force
                     // stays in the sample's command), so the sample lies on the curve.
                     (Some(law), PressMode::Force) => {
-                        let (d, beyond) = depth_under_force(target, e, kappa, |f| {
+                        let (d, beyond) = depth_under_force(target, curve, |f| {
                             law.depth_mm(&cmd.point(), f, comp)
                         });
                         let force = if beyond {

@@ -75,17 +75,7 @@ impl LoadedScene {
         let tissue = session.law.as_ref().map(|t| t.bound.law.payload_xxh3());
         session.training = self
             .nodules
-            .map(|t| {
-                // The tissue's amplification of the effect, from the table's checks of
-                // this very tissue (none: the linear effect as it is).
-                let kappa = tissue.and_then(|x| {
-                    palpa_core::pgd::nodule::heldout::tissue_amplification_per_mm(&t, x)
-                });
-                crate::session::training::Training::new(t, &session.scene).map(|mut tr| {
-                    tr.amplification_per_mm = kappa.unwrap_or(0.0);
-                    tr
-                })
-            })
+            .map(|t| crate::session::training::Training::new(t, &session.scene, tissue))
             .transpose()?;
         Ok(session)
     }

@@ -354,11 +354,6 @@ fn panel(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
 fn training(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
     let now = session.now_s();
     let probe = session.controls.probe;
-    let depth_mm = if session.law.is_some() {
-        f64::from(session.sample.depth_mm)
-    } else {
-        0.0
-    };
     let mut mark = false;
     let Some(t) = session.training.as_mut() else {
         return;
@@ -372,10 +367,11 @@ fn training(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
         ));
     }
     if session.law.is_some() {
-        ui.small(format!(
-            "the linear tissue's effect, grown {:.1} % a mm with depth as Newton's checks fit on average (a site's own differs by about a fifth)",
-            100.0 * t.amplification_per_mm
-        ));
+        ui.small(if t.amplifies() {
+            "the linear tissue's effect, amplified as the tissue's own press loads the nodule"
+        } else {
+            "the linear tissue's effect as it is: the table holds no power of this tissue (palpa nodule tissue)"
+        });
     }
     ui.horizontal(|ui| {
         if ui.button("Hide a nodule").clicked()
@@ -431,7 +427,7 @@ fn training(ui: &mut egui::Ui, session: &mut Session, hud: &mut Hud) {
             "stiffness map (force with / without the nodule)",
         );
         if t.map && t.trial.is_some() {
-            let top = t.peak_ratio(depth_mm);
+            let top = t.peak_ratio();
             ui.horizontal(|ui| {
                 ui.label("1.00");
                 for i in 0..8 {

@@ -10,6 +10,7 @@ use palpa_app::force::{NoHaptics, PressMode, ProbeCommand};
 use palpa_app::offscreen::{HeadlessOptions, HiddenNodule, settle};
 use palpa_app::scenes;
 use palpa_app::session::Session;
+use palpa_core::pgd::nodule::amplification::EffectCurve;
 
 /// The built-in liver's session, its training mode on.
 fn session() -> Session {
@@ -33,8 +34,7 @@ fn answer(s: &Session, c: ProbeCommand) -> palpa_app::force::ForceSample {
 
 /// `c` without the nodule.
 fn without_nodule(mut c: ProbeCommand) -> ProbeCommand {
-    c.nodule_effect = 0.0;
-    c.nodule_effect_per_mm = 0.0;
+    c.nodule = EffectCurve::default();
     c
 }
 
@@ -59,8 +59,8 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     let t = s.training.as_ref().expect("training");
     let case = t.trial.as_ref().expect("a case").case.clone();
     // Over the nodule: the force at a depth `d` is the nodule-free one times
-    // `1 + e (1 + κ d)`, the tissue's amplification `κ` fitted to the table's tissue
-    // checks of the built-in tissue.
+    // `1 + e A(d)`, `A` the amplification the table's power of the built-in tissue
+    // gives.
     let (over, _) = s
         .scene
         .closest_palpable(case.surface_mm)
@@ -72,20 +72,23 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     s.controls.mode = PressMode::Depth;
     s.controls.depth_mm = 6.0;
     let with = answer(&s, s.command());
-    assert_eq!(with.command.nodule_effect, effect);
-    let kappa = t.amplification_per_mm;
+    let curve = t.curve_at(&s.scene, &over);
     assert!(
-        kappa > 0.0,
-        "the built-in tissue's checks fit an amplification"
+        t.amplifies(),
+        "the built-in table holds the built-in tissue's power"
     );
+    assert!(curve.len > 0 && curve.effect == effect, "{curve:?}");
     assert_eq!(
-        with.command.nodule_effect_per_mm,
-        effect * kappa as f32,
-        "the input side puts e κ into the command"
+        with.command.nodule, curve,
+        "the input side puts the curve into the command"
     );
     let without = answer(&s, without_nodule(s.command()));
     let ratio = f64::from(with.magnitude_n / without.magnitude_n);
-    let gain = 1.0 + f64::from(effect) * (1.0 + kappa * 6.0);
+    let gain = 1.0 + curve.at(6.0);
+    assert!(
+        (gain - 1.0 - f64::from(effect)).abs() > 0.01 * f64::from(effect),
+        "amplified: {gain} against 1 + {effect}"
+    );
     assert!((ratio - gain).abs() < 1e-5, "{ratio} against {gain}");
     assert!((f64::from(with.nodule_gain) - gain).abs() < 1e-5);
     // The surface drawn is the nodule-free one at the same depth under the tool.
@@ -107,7 +110,7 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     s.controls.mode = PressMode::Depth;
     s.controls.depth_mm = firm.depth_mm;
     let there = answer(&s, without_nodule(s.command()));
-    let gain = 1.0 + f64::from(effect) * (1.0 + kappa * f64::from(firm.depth_mm));
+    let gain = 1.0 + curve.at(f64::from(firm.depth_mm));
     let f = f64::from(there.magnitude_n) * gain;
     assert!((f - 2.0).abs() < 2e-3, "{f} N against the 2 N asked");
     s.controls.depth_mm = 6.0;
@@ -139,22 +142,21 @@ fn a_hidden_nodule_stiffens_the_force_over_it_and_a_mark_reveals_and_scores_it()
     assert_eq!(s.training.as_ref().expect("training").scores.len(), 1);
     let shown = s.frame().nodule.expect("revealed");
     assert_eq!(shown.radius_mm, case.nodule().radius_mm as f32);
-    // The trainer's map: 1 + effect at the scene's vertices, its top the case's peak;
-    // deeper, the tissue's effect is larger (a new generation of values).
+    // The trainer's map: 1 + effect at the scene's vertices, its top within the case's
+    // peak; deeper, the tissue's effect is amplified (a new generation of values).
     let t = s.training.as_mut().expect("training");
-    let peak = t.peak_ratio(0.0);
+    let peak = 1.0 + case.peak_effect as f32;
     let (ratios, generation) = t.vertex_ratios(&s.scene, 0.0);
     let top = ratios.iter().copied().fold(0.0, f32::max);
     assert!(ratios.iter().all(|&r| r >= 1.0 - 1e-4), "no softening");
     assert!(top > 1.0 && top <= peak + 1e-3, "{top} against {peak}");
-    let deep_peak = t.peak_ratio(8.0);
+    assert_eq!(t.peak_ratio(), top);
     let (deep, deeper) = t.vertex_ratios(&s.scene, 8.0);
     let deep_top = deep.iter().copied().fold(0.0, f32::max);
-    assert!(deeper != generation && deep_top > top && deep_top <= deep_peak + 1e-3);
-    let growth = 1.0 + 8.0 * t.amplification_per_mm as f32;
+    assert!(deeper != generation, "a new map");
     assert!(
-        ((deep_top - 1.0) / (top - 1.0) - growth).abs() < 1e-3,
-        "{deep_top} {top}"
+        ((deep_top - 1.0) / (top - 1.0) - 1.0).abs() > 0.01,
+        "amplified: {deep_top} against {top}"
     );
 }
 
@@ -210,7 +212,7 @@ fn the_surface_sways_with_a_hidden_nodules_force() {
         .scene
         .closest_palpable(t.trial.as_ref().expect("a case").case.surface_mm)
         .expect("a palpable point");
-    let (effect, kappa) = (t.effect_at(&over), t.amplification_per_mm);
+    let curve = t.curve_at(&s.scene, &over);
     s.controls.probe = Some(over);
     s.controls.pressing = true;
     s.controls.mode = PressMode::Depth;
@@ -228,7 +230,7 @@ fn the_surface_sways_with_a_hidden_nodules_force() {
     let c = s.command();
     let nodular = drawn(&mut s, c);
     let at = s.scene.frame(&over).0;
-    let e_t = f64::from(effect) * (1.0 + kappa * 6.0);
+    let e_t = curve.at(6.0);
     let (mut checked, mut swayed) = (0, 0.0f64);
     for ((f, n), r) in free.iter().zip(&nodular).zip(s.scene.vertices_mm()) {
         let r2: f64 = (0..3).map(|k| (f64::from(r[k]) - at[k]).powi(2)).sum();

@@ -30,6 +30,29 @@ pub enum NoduleCommand {
     /// drawn off its grids; `--record` writes the measurement into the table, where
     /// `palpa info` and the app read it.
     Check(CheckArgs),
+    /// Press every palpable vertex of a tissue without a nodule and keep, in the
+    /// table, how each press shares its power among the cells near the vertex at each
+    /// depth: the tissue then answers a nodule with the table's effect amplified as its
+    /// own press loads the nodule (docs/methods.md §2i). Clears the table's tissue
+    /// checks (measure them again with `check --tissue --record`).
+    Tissue(TissueArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct TissueArgs {
+    /// The table (`palpa nodule build`), written in place.
+    file: PathBuf,
+    /// The tissue (`palpa tissue build`) of the table's organ.
+    #[arg(long)]
+    tissue: PathBuf,
+    #[command(flatten)]
+    organ: OrganArgs,
+    /// A vertex keeps the cells with a corner within this distance (mm): the table's
+    /// probe reach plus its largest radius covers every nodule it answers near.
+    #[arg(long, default_value_t = 30.0)]
+    reach_mm: f64,
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, Args)]
@@ -129,6 +152,7 @@ pub fn run(cmd: &NoduleCommand) -> anyhow::Result<()> {
         NoduleCommand::Build(args) => build(args),
         NoduleCommand::Check(args) => check(args),
         NoduleCommand::Merge(args) => merge(args),
+        NoduleCommand::Tissue(args) => tissue_power(args),
     }
 }
 
@@ -434,8 +458,12 @@ pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value
         "accuracy_past_band": recorded[3],
         "tissue_checks": table.tissue_checks.iter().map(|c| json!({"seed": c.seed,
             "tissue": c.tissue, "law": c.law, "tissue_xxh3": format!("{:016x}", c.tissue_xxh3),
-            "amplification_per_mm": c.amplification_per_mm,
+            "amplified": c.amplified,
             "presses": c.pairs.len()})).collect::<Vec<_>>(),
+        "tissue_power": table.tissue_power.as_ref().map(|p| json!({
+            "tissue_xxh3": format!("{:016x}", p.tissue_xxh3), "vertices": p.vertices.len(),
+            "cells": p.cells.len(), "reach_mm": p.reach_mm, "depths_mm": p.depths_mm,
+            "bytes": p.bytes(), "build_s": p.build_s})),
         "accuracy_tissue": heldout::recorded_tissue(table),
     })
 }
@@ -565,6 +593,129 @@ fn build_summary(table: &EffectTable, out: &std::path::Path) -> serde_json::Valu
     })
 }
 
+/// `palpa nodule tissue`: every palpable vertex of the tissue pressed without a nodule
+/// along the tissue build's push, through its depth grid; each keeps its cells' shares
+/// of the press's power (`pgd::nodule::amplification`).
+fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
+    use palpa_core::fe::probe::{organ_space, organ_vertex_normals};
+    use palpa_core::fe::series::Expander;
+    use palpa_core::pgd::nodule::amplification::{CURVE_DEPTHS, CellPower, VertexPower};
+    use palpa_core::tissue::law::TissueLaw;
+    use palpa_core::tissue::press::follow_at;
+    use rayon::prelude::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::time::Instant;
+
+    if !(args.reach_mm.is_finite() && args.reach_mm > 0.0) {
+        bail!("--reach-mm {}: expected a positive distance", args.reach_mm);
+    }
+    let mut table = EffectTable::load(&args.file)?;
+    let law = TissueLaw::load(&args.tissue)?;
+    let organ = args.organ.mesh()?;
+    law.check_organ(&organ)?;
+    if organ.fingerprint() != table.mesh_xxh3 {
+        bail!(
+            "{}: built on mesh {:016x}, the organ given is mesh {:016x}: give the table's organ and level",
+            args.file.display(),
+            table.mesh_xxh3,
+            organ.fingerprint()
+        );
+    }
+    let o = law.options;
+    let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize;
+    if steps > CURVE_DEPTHS {
+        bail!(
+            "{}: {steps} depth steps: expected at most {CURVE_DEPTHS}",
+            args.tissue.display()
+        );
+    }
+    let t0 = Instant::now();
+    let space = organ_space(&organ, o.element);
+    let expander = Expander::new(&space, o.law, o.material)?;
+    let normals = organ_vertex_normals(&organ);
+    let mut vertices = organ.pressable_vertices();
+    vertices.sort_unstable();
+    vertices.dedup();
+    let corners: Vec<[[f64; 3]; 4]> = (0..space.cell_count())
+        .map(|c| space.cell_corners(c))
+        .collect();
+    let done = AtomicUsize::new(0);
+    let reach2 = args.reach_mm * args.reach_mm;
+    let pressed: Vec<anyhow::Result<Option<VertexPower>>> = vertices
+        .par_iter()
+        .with_max_len(1)
+        .map(|&v| {
+            let at = organ.mesh.vertices[v as usize];
+            let push = normals[v as usize].map(|c| -f64::from(c));
+            // A vertex the tool cannot press (beside the fixed region) keeps nothing.
+            let press = follow_at(&space, &organ, &expander, &o, at, push, &[])
+                .map_err(|e| e.to_string())
+                .and_then(|p| p);
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if !args.json && n.is_multiple_of(25) {
+                eprintln!(
+                    "{n} of {} vertices pressed, {:.0} s",
+                    vertices.len(),
+                    t0.elapsed().as_secs_f64()
+                );
+            }
+            let Ok((grid, _)) = press else {
+                return Ok(None);
+            };
+            let cells: Vec<usize> = (0..corners.len())
+                .filter(|&c| {
+                    corners[c]
+                        .iter()
+                        .any(|p| (0..3).map(|k| (p[k] - at[k]).powi(2)).sum::<f64>() <= reach2)
+                })
+                .collect();
+            Ok(Some(VertexPower::from_press(
+                &space,
+                o.law,
+                o.material,
+                at,
+                &cells,
+                &grid.first.u[0],
+                grid.first.force[0],
+                &grid.u,
+                &grid.force_n,
+                o.depth_step_mm,
+            )))
+        })
+        .collect();
+    let mut kept = Vec::new();
+    let mut skipped = 0usize;
+    for p in pressed {
+        match p? {
+            Some(v) => kept.push(v),
+            None => skipped += 1,
+        }
+    }
+    let power = CellPower {
+        tissue_xxh3: law.payload_xxh3(),
+        poisson: o.material.poisson,
+        reach_mm: args.reach_mm,
+        depths_mm: (0..steps)
+            .map(|j| (j as f64 + 0.5) * o.depth_step_mm)
+            .collect(),
+        cells: corners
+            .iter()
+            .map(|t| t.map(|p| p.map(|x| x as f32)))
+            .collect(),
+        vertices: kept,
+        build_s: t0.elapsed().as_secs_f64(),
+    };
+    let report = json!({
+        "file": args.file, "tissue": args.tissue, "vertices": power.vertices.len(),
+        "skipped": skipped, "cells": power.cells.len(), "bytes": power.bytes(),
+        "build_s": power.build_s,
+    });
+    table.tissue_power = Some(power);
+    table.tissue_checks.clear();
+    table.save(&args.file)?;
+    super::args::print_report(&report, args.json)
+}
+
 /// `palpa nodule check --tissue X.tissue`: the scene's nonlinear tissue with the table's
 /// effect (the tissue's force at the depth times `1 + e`, the surface the tissue's
 /// without the nodule) against Newton with the nodule, at held-out pairs drawn as the
@@ -575,7 +726,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
     use palpa_core::fe::probe::{ProbeRequest, solve_hyperelastic_depths};
     use palpa_core::pgd::nodule::heldout::{PROBE_SPREAD_MM, TissueSummary};
     use palpa_core::pgd::nodule::table::{
-        MAX_RATIO, TissueCheck, TissuePair, apply_surface_gain, nodule_row, tissue_effect,
+        MAX_RATIO, TissueCheck, TissuePair, apply_surface_gain, nodule_row,
     };
     use palpa_core::pgd::nodule::training::{CaseRanges, draw};
     use palpa_core::rng::Rng;
@@ -612,11 +763,21 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             o.depth_max_mm
         );
     }
-    // The amplification the tissue answers with: fitted to the other seeds' recorded
-    // checks (never this seed's own presses, when it is measured again).
-    let kappa =
-        heldout::amplification_leaving_out(&table, bound.law.payload_xxh3(), Some(args.seed))
-            .unwrap_or(0.0);
+    let tissue_xxh3 = bound.law.payload_xxh3();
+    let amplified = table
+        .tissue_power
+        .as_ref()
+        .is_some_and(|p| p.tissue_xxh3 == tissue_xxh3);
+    if !amplified {
+        eprintln!(
+            "note: {} holds no power of {}: the linear effect is measured as it is \
+             (palpa nodule tissue {} --tissue {})",
+            args.file.display(),
+            tissue.display(),
+            args.file.display(),
+            tissue.display()
+        );
+    }
     let vertex_of = PointIndex::new(scene.vertices_mm().iter().map(|p| p.map(f64::from)));
     let mut contact_scratch = scene.contact_scratch();
     let mut scratch = bound.scratch();
@@ -655,6 +816,8 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             continue;
         };
         drawn += 1;
+        let curve =
+            super::tissue::eval::effect_curve(&table, &nodule, tissue_xxh3, &scene, &point, effect);
         let at = scene.frame(&point).0;
         let c = contact.compliance_mm_per_n;
         let solve = |n: Option<Nodule>| {
@@ -687,7 +850,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             let push = contact.push_dir.map(|d| d * depth / c);
             scene.displacement(&point, push, &mut coeffs, &mut rows)?;
             bound.add_surface(&point, depth, &mut scratch, &mut rows);
-            let answered = tissue_effect(effect, kappa, depth);
+            let answered = curve.at(depth);
             apply_surface_gain(
                 answered,
                 at,
@@ -710,7 +873,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             any_felt |= pair.effect_fe() > heldout::FELT;
             if !args.json {
                 println!(
-                    "nodule r {:.1} mm, ratio {:.2}, depth {depth:.1} mm: Newton {:.3} N ({:+.1} %), tissue x (1 + e) {:.3} N ({:+.1} %; linear {:+.1} %), surface {:.2} mm",
+                    "nodule r {:.1} mm, ratio {:.2}, depth {depth:.1} mm: Newton {:.3} N ({:+.1} %), tissue x (1 + e A) {:.3} N ({:+.1} %; linear {:+.1} %), surface {:.2} mm",
                     n.radius_mm,
                     n.ratio,
                     pair.force_fe_n,
@@ -730,7 +893,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
         tissue: tissue.display().to_string(),
         law: bound.law.options.law.name().to_string(),
         tissue_xxh3: bound.law.payload_xxh3(),
-        amplification_per_mm: kappa,
+        amplified,
         pairs,
         fe_s: t0.elapsed().as_secs_f64(),
     };
@@ -743,9 +906,8 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
     let report = json!({
         "file": args.file, "tissue": tissue, "seed": args.seed, "depths_mm": args.depths,
         "pairs": drawn, "presses": measured.pairs, "fe_s": measured.fe_s, "summary": this,
-        "amplification_per_mm": kappa, "recorded": args.record,
+        "amplified": amplified, "recorded": args.record,
         "all_recorded": heldout::recorded_tissue(&table),
-        "amplification_per_mm_now": heldout::tissue_amplification_per_mm(&table, bound.law.payload_xxh3()),
     });
     super::args::print_report(&report, args.json)
 }

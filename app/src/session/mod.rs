@@ -351,10 +351,7 @@ impl Session {
         if let Some(t) = &self.training
             && let Some(p) = self.controls.probe
         {
-            c.nodule_effect = t.effect_at(&p);
-            if self.law.is_some() {
-                c.nodule_effect_per_mm = c.nodule_effect * t.amplification_per_mm as f32;
-            }
+            c.nodule = t.curve_at(&self.scene, &p);
         }
         c
     }
@@ -401,11 +398,10 @@ impl Session {
         } else {
             (probe, [0.0; 3], 0.0)
         };
-        // A hidden nodule's effect at the press (the tissue's grows with the depth):
+        // A hidden nodule's effect at the press (the tissue's changes with the depth):
         // the total force, and the organ's sway with it, is that much larger.
         let nodule_effect = if ok {
-            f64::from(s.command.nodule_effect)
-                + f64::from(s.command.nodule_effect_per_mm) * depth_mm
+            s.command.nodule.at(depth_mm)
         } else {
             0.0
         };
@@ -454,14 +450,14 @@ impl Session {
                 kind: ValueKind::Regions,
             }),
             (None, Some(t)) if t.map && t.trial.is_some() => {
-                // At the depth pressed now (the tissue's effect grows with it).
+                // At the depth pressed now (the tissue's effect changes with it).
                 let depth = if self.law.is_some() {
                     f64::from(self.sample.depth_mm)
                 } else {
                     0.0
                 };
-                let top = t.peak_ratio(depth);
                 let (values, generation) = t.vertex_ratios(&self.scene, depth);
+                let top = values.iter().copied().fold(1.0, f32::max);
                 Some(VertexValues {
                     values,
                     generation,

@@ -3,8 +3,10 @@
 //! scored.
 //!
 //! The scene's table (`S.nodules` beside `S.palpa`, or the built-in liver's) gives the
-//! nodule's effect at every palpable point; the session puts the effect at the probe's
-//! point into each command, and the force loop multiplies its force by `1 + effect`.
+//! nodule's effect at every palpable point; with the scene's tissue, the table's power
+//! of that tissue amplifies it with the depth (`pgd::nodule::amplification`). The
+//! session puts the effect at the probe's point into each command, as a curve over the
+//! depth, and the force loop multiplies its force by `1 + effect(depth)`.
 //! The trainer's stiffness map colours the surface by that factor, the ratio of the
 //! force with the nodule to the force without it at any one depth.
 
@@ -12,6 +14,7 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use palpa_core::fe::nodule::Nodule;
+use palpa_core::pgd::nodule::amplification::{EffectCurve, Placed};
 use palpa_core::pgd::nodule::table::EffectTable;
 use palpa_core::pgd::nodule::training::{Case, CaseRanges, Score, Trial, draw};
 use palpa_core::scene::{PalpationScene, ProbePoint};
@@ -36,10 +39,14 @@ pub struct Training {
     pub own: OwnNodule,
     /// `1 + effect` per scene vertex (1 off the table) and its generation.
     map_values: (Vec<f32>, u64),
-    /// The nonlinear tissue's amplification of the effect with depth, `κ` per mm
-    /// (`e (1 + κ d)`), fitted to the table's tissue checks of the scene's tissue; 0
-    /// without them or without a tissue.
-    pub amplification_per_mm: f64,
+    /// The scene's nonlinear tissue (its payload checksum), if any: the table's power
+    /// of it amplifies the effect with the depth.
+    tissue_xxh3: Option<u64>,
+    /// The hidden case's amplification at the table's vertices (`None`: the linear
+    /// effect at every depth: the linear model, or no power of this tissue).
+    amplification: Option<Placed>,
+    /// Each scene vertex's vertex in the table's power (`None`: not stored).
+    power_vertex: Vec<Option<usize>>,
     /// The depth the map's values are for (mm, to half a millimetre).
     map_depth_mm: f64,
 }
@@ -64,7 +71,11 @@ pub struct OwnNodule {
 impl Training {
     /// The training mode of `scene` with its nodule `table` (checked to be of the
     /// scene's mesh); no case hidden yet.
-    pub fn new(table: EffectTable, scene: &PalpationScene) -> anyhow::Result<Training> {
+    pub fn new(
+        table: EffectTable,
+        scene: &PalpationScene,
+        tissue_xxh3: Option<u64>,
+    ) -> anyhow::Result<Training> {
         table
             .check_mesh(&scene.model().provenance().mesh)
             .context("the nodule table and the scene")?;
@@ -76,6 +87,14 @@ impl Training {
                 "the nodule table covers none of the scene's palpable triangles: expected a table built on the scene's organ"
             );
         }
+        let power_vertex = match (&table.tissue_power, tissue_xxh3) {
+            (Some(p), Some(x)) if p.tissue_xxh3 == x => scene
+                .vertices_mm()
+                .iter()
+                .map(|v| p.vertex_at(v.map(f64::from)))
+                .collect(),
+            _ => Vec::new(),
+        };
         Ok(Training {
             ranges: CaseRanges::of(&table),
             table: Arc::new(table),
@@ -91,7 +110,9 @@ impl Training {
                 ratio: 4.4,
             },
             map_values: (Vec::new(), 0),
-            amplification_per_mm: 0.0,
+            power_vertex,
+            tissue_xxh3,
+            amplification: None,
             map_depth_mm: 0.0,
         })
     }
@@ -118,14 +139,38 @@ impl Training {
     }
 
     fn start(&mut self, case: Case, now_s: f64) {
+        self.amplification = self
+            .tissue_xxh3
+            .and_then(|x| self.table.amplification(&case.nodule(), x));
         self.trial = Some(Trial::new(case, now_s));
         self.revealed = false;
         self.map_values.1 += 1;
         self.map_values.0.clear();
     }
 
-    /// The hidden nodule's effect at `p` (`F_with/F_without − 1`; 0 without a case or
-    /// off the table's faces).
+    /// Whether the table holds the power of the scene's tissue: its cases' effects are
+    /// amplified by the tissue's own press.
+    pub fn amplifies(&self) -> bool {
+        !self.power_vertex.is_empty()
+    }
+
+    /// The hidden nodule's effect at `p` over the depth: the linear effect, amplified
+    /// where the tissue's power is known.
+    pub fn curve_at(&self, scene: &PalpationScene, p: &ProbePoint) -> EffectCurve {
+        let e = f64::from(self.effect_at(p));
+        match &self.amplification {
+            Some(a) if e != 0.0 => {
+                let corners = scene
+                    .probe_vertices(p)
+                    .map(|v| self.power_vertex.get(v as usize).copied().flatten());
+                a.curve(corners, p.bary, e)
+            }
+            _ => EffectCurve::flat(e),
+        }
+    }
+
+    /// The hidden nodule's linear effect at `p` (`F_with/F_without − 1`; 0 without a
+    /// case or off the table's faces).
     pub fn effect_at(&self, p: &ProbePoint) -> f32 {
         let (Some(trial), Some(Some(face))) = (&self.trial, self.faces.get(p.triangle as usize))
         else {
@@ -175,18 +220,12 @@ impl Training {
         self.revealed = self.trial.is_some();
     }
 
-    /// The effect's growth at depth `depth_mm`, `1 + κ d` (1 for the linear model).
-    fn growth(&self, depth_mm: f64) -> f64 {
-        1.0 + self.amplification_per_mm * depth_mm
-    }
-
     /// The force with the nodule over the force without at depth `depth_mm`, at every
     /// scene vertex (1 where the table does not reach), and a generation that changes
     /// with the case and with the depth (by half a millimetre): the stiffness map.
     pub fn vertex_ratios(&mut self, scene: &PalpationScene, depth_mm: f64) -> (&[f32], u64) {
         let depth = (2.0 * depth_mm).round() / 2.0;
         if self.map_values.0.is_empty() || depth != self.map_depth_mm {
-            let growth = self.growth(depth) as f32;
             let mut v = vec![1.0f32; scene.vertices_mm().len()];
             for triangle in 0..scene.axis_triangles().len() as u32 {
                 for k in 0..3 {
@@ -194,7 +233,7 @@ impl Training {
                     bary[k] = 1.0;
                     let p = ProbePoint { triangle, bary };
                     let vertex = scene.probe_vertices(&p)[k] as usize;
-                    v[vertex] = 1.0 + growth * self.effect_at(&p);
+                    v[vertex] = (1.0 + self.curve_at(scene, &p).at(depth)) as f32;
                 }
             }
             self.map_values.0 = v;
@@ -205,10 +244,8 @@ impl Training {
     }
 
     /// The largest force with the nodule over the force without on the surface for the
-    /// current case at depth `depth_mm` (the map's top).
-    pub fn peak_ratio(&self, depth_mm: f64) -> f32 {
-        self.trial.as_ref().map_or(1.0, |t| {
-            (1.0 + t.case.peak_effect * self.growth((2.0 * depth_mm).round() / 2.0)) as f32
-        })
+    /// current case at the map's depth (the map's top; 1 before a map is drawn).
+    pub fn peak_ratio(&self) -> f32 {
+        self.map_values.0.iter().copied().fold(1.0, f32::max)
     }
 }

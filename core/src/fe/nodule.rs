@@ -165,10 +165,14 @@ impl Nodule {
 
     /// The fraction of each cell's volume inside the sphere (see the module doc).
     pub fn cell_fractions(&self, space: &Space) -> Vec<f64> {
+        self.fractions((0..space.cell_count()).map(|c| space.cell_corners(c)))
+    }
+
+    /// [`Nodule::cell_fractions`] of tetrahedra given by their corners (mm).
+    pub fn fractions(&self, cells: impl Iterator<Item = [[f64; 3]; 4]>) -> Vec<f64> {
         let points = simplex_points();
-        (0..space.cell_count())
-            .map(|cell| {
-                let t = space.cell_corners(cell);
+        cells
+            .map(|t| {
                 let dist = |p: [f64; 3]| norm(sub(p, self.center_mm));
                 let size = (1..4).map(|i| norm(sub(t[i], t[0]))).fold(0.0, f64::max);
                 if t.iter().all(|&p| dist(p) <= self.radius_mm) {
@@ -197,16 +201,23 @@ impl Nodule {
             .collect()
     }
 
-    /// Each cell's stiffness factor for a tissue of Poisson's ratio `poisson`: the
-    /// Mori–Tanaka estimate (see the module doc).
-    pub fn stiffness(&self, space: &Space, poisson: f64) -> Vec<f64> {
+    /// The stiffness factor of a cell a fraction `phi` of which the nodule fills, for
+    /// a tissue of Poisson's ratio `poisson`: the Mori–Tanaka estimate (see the module
+    /// doc); 1 outside the nodule, the ratio inside it.
+    pub fn factor(&self, phi: f64, poisson: f64) -> f64 {
         let beta = self.ratio;
         // K/G of the tissue, and the matrix's term of the estimate.
         let k = 2.0 * (1.0 + poisson) / (3.0 * (1.0 - 2.0 * poisson));
         let m = 6.0 * (k + 2.0) / (5.0 * (3.0 * k + 4.0));
+        1.0 + phi / (1.0 / (beta - 1.0) + (1.0 - phi) * m)
+    }
+
+    /// Each cell's stiffness factor for a tissue of Poisson's ratio `poisson`
+    /// ([`Nodule::factor`]).
+    pub fn stiffness(&self, space: &Space, poisson: f64) -> Vec<f64> {
         self.cell_fractions(space)
             .into_iter()
-            .map(|phi| 1.0 + phi / (1.0 / (beta - 1.0) + (1.0 - phi) * m))
+            .map(|phi| self.factor(phi, poisson))
             .collect()
     }
 }

@@ -190,17 +190,18 @@ fn nodule_table(
     }
     writeln!(
         out,
-        "\nThe neo-Hookean tissue with a nodule (the tissue's force times `1 + e (1 + κ d)`, `e` the linear effect from this table, `κ` fitted to the other seeds' recorded checks, so each check is answered out of sample; the surface the tissue's without the nodule at the depth, swayed with the force away from the tool), against Newton with the nodule (ratios 1.5–10). Goals: the force within 5 % and the surface within 0.5 mm to 10 mm; the effect within 10 % where it exceeds 5 %.\n",
+        "\nThe neo-Hookean tissue with a nodule (the tissue's force times `1 + e A`, `e` the linear effect from this table, `A` its amplification by the tissue's own nodule-free press, from the table's power of the tissue (`palpa nodule tissue`; \"linear\": none, the effect as it is); the surface the tissue's without the nodule at the depth, swayed with the force away from the tool), against Newton with the nodule (ratios 1.5–10). Goals: the force within 5 % and the surface within 0.5 mm to 10 mm; the effect within 10 % where it exceeds 5 %.\n",
     )?;
     writeln!(
         out,
-        "| seed | κ (per mm) | presses, to | force, median | force, worst | presses with an effect above 5 % | effects seen | effect, median error | worst | within 10 % | surface, worst |"
+        "| seed | effect | presses, to | force, median | force, worst | presses with an effect above 5 % | effects seen | effect, median error | worst | within 10 % | surface, worst |"
     )?;
     writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|")?;
-    for (seed, kappa, t) in checks {
+    for (seed, amplified, t) in checks {
+        let how = if amplified { "amplified" } else { "linear" };
         writeln!(
             out,
-            "| {seed} | {kappa:.4} | {}, {:.1} mm | {:.2} % | {:.2} % | {} | {:.1}–{:.1} % | {:.1} % | {:.1} % | {:.0} % | {:.2} mm |",
+            "| {seed} | {how} | {}, {:.1} mm | {:.2} % | {:.2} % | {} | {:.1}–{:.1} % | {:.1} % | {:.1} % | {:.0} % | {:.2} mm |",
             t.presses,
             t.depth_max_mm,
             100.0 * t.force_error_median,

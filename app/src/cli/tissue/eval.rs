@@ -6,9 +6,9 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use palpa_app::session::training::table_face;
 use palpa_core::fe::nodule::Nodule;
-use palpa_core::pgd::nodule::heldout::tissue_amplification_per_mm;
+use palpa_core::pgd::nodule::amplification::EffectCurve;
 use palpa_core::pgd::nodule::table::{
-    EffectTable, NoduleEffect, apply_surface_gain, depth_under_force, tissue_effect,
+    EffectTable, NoduleEffect, apply_surface_gain, depth_under_force,
 };
 use palpa_core::scene::{PalpationScene, ProbePoint};
 use palpa_core::tissue::bound::BoundTissue;
@@ -25,6 +25,31 @@ pub(super) fn bound_to_scene(
 ) -> anyhow::Result<(BoundTissue, PalpationScene)> {
     let (bound, scene, _) = bound_to_scene_with_nodules(file, scene)?;
     Ok((bound, scene))
+}
+
+/// The effect of `nodule` at `point` over the depth: the linear effect `e` amplified by
+/// the table's power of the tissue `tissue_xxh3` at the point's triangle's corners; flat
+/// where the table holds none.
+pub(crate) fn effect_curve(
+    table: &EffectTable,
+    nodule: &Nodule,
+    tissue_xxh3: u64,
+    scene: &PalpationScene,
+    point: &ProbePoint,
+    e: f64,
+) -> EffectCurve {
+    match (
+        table.amplification(nodule, tissue_xxh3),
+        &table.tissue_power,
+    ) {
+        (Some(a), Some(power)) => {
+            let corners = scene
+                .probe_vertices(point)
+                .map(|v| power.vertex_at(scene.vertices_mm()[v as usize].map(f64::from)));
+            a.curve(corners, point.bary, e)
+        }
+        _ => EffectCurve::flat(e),
+    }
 }
 
 /// As [`bound_to_scene`], with the scene's nodule table (the built-in liver's, or the
@@ -131,22 +156,21 @@ pub fn eval(
     let mut contact_scratch = scene.contact_scratch();
     let contact = scene.contact(&point, scene.modes(), &mut contact_scratch)?;
     let c = contact.compliance_mm_per_n;
-    // A nodule multiplies the force at depth `d` by `1 + e (1 + κ d)`: `e` the linear
-    // tissue's effect from the scene's table, `κ` the amplification its recorded tissue
-    // checks fit, as the app's force loop does (docs/methods.md §2h).
+    // A nodule multiplies the force at depth `d` by `1 + e A(d)`: `e` the linear
+    // tissue's effect from the scene's table, `A` the amplification by the tissue's own
+    // press where the table holds its power, as the app's force loop does
+    // (docs/methods.md §2i).
     let nodule = match nodule {
         Some((n, given)) => {
             let (table, placed) = placed_nodule(&n, given, own_table, &scene, scene_name)?;
             let e = effect_at_point(&table, &placed, &scene, &point)?;
-            let kappa = tissue_amplification_per_mm(&table, bound.law.payload_xxh3());
-            Some((placed, e, kappa))
+            let curve = effect_curve(&table, &n, bound.law.payload_xxh3(), &scene, &point, e);
+            Some((placed, e, curve))
         }
         None => None,
     };
-    let (e, kappa) = nodule
-        .as_ref()
-        .map_or((0.0, 0.0), |n| (n.1, n.2.unwrap_or(0.0)));
-    let gain = |depth_mm: f64| 1.0 + tissue_effect(e, kappa, depth_mm);
+    let curve = nodule.as_ref().map_or(EffectCurve::flat(0.0), |n| n.2);
+    let gain = |depth_mm: f64| 1.0 + curve.at(depth_mm);
     let t = Instant::now();
     let (depth, force, beyond) = match (probe.depth_mm, probe.force_n) {
         (Some(d), _) => {
@@ -156,7 +180,7 @@ pub fn eval(
             (d, gain(d) * f, beyond)
         }
         (None, Some(f)) => {
-            let (d, beyond) = depth_under_force(f, e, kappa, |f| bound.depth_mm(&point, f, c));
+            let (d, beyond) = depth_under_force(f, &curve, |f| bound.depth_mm(&point, f, c));
             // Held at the limit, the press is the one there: its force, not the one
             // asked for (that is `requested_force_n`).
             let f = if beyond {
@@ -178,7 +202,7 @@ pub fn eval(
     bound.add_surface(&point, depth, &mut scratch, &mut rows);
     // With a nodule, the organ sways away from the tool with the larger force.
     apply_surface_gain(
-        tissue_effect(e, kappa, depth),
+        curve.at(depth),
         scene.frame(&point).0,
         scene.vertices_mm().iter().map(|p| p.map(f64::from)),
         &mut rows,
@@ -267,13 +291,18 @@ pub fn eval(
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
         "nodule": null,
     });
-    if let Some((placed, e_linear, kappa)) = &nodule {
+    if let Some((placed, e_linear, curve)) = &nodule {
         let n = placed.nodule;
+        let amplified = curve.len > 0;
         report["nodule"] = json!({"center_mm": n.center_mm, "radius_mm": n.radius_mm,
             "ratio": n.ratio, "effect": gain(depth) - 1.0, "effect_linear": e_linear,
-            "amplification_per_mm": kappa, "place_ms": placed.place_s * 1e3,
+            "amplified": amplified, "place_ms": placed.place_s * 1e3,
             "force_without_nodule_n": force / gain(depth),
-            "effect_source": "the linear tissue's from the scene's nodule table, amplified with the depth as its recorded tissue checks fit (none recorded: not amplified)",
+            "effect_source": if amplified {
+                "the linear tissue's from the scene's nodule table, amplified as the tissue's own press loads the nodule (the table's power of this tissue)"
+            } else {
+                "the linear tissue's from the scene's nodule table, not amplified: the table holds no power of this tissue (palpa nodule tissue)"
+            },
             "surface": "the tissue's without the nodule, at the press's depth"});
     }
     crate::cli::args::print_report(&report, json_out)

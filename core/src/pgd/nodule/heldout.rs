@@ -194,49 +194,14 @@ impl TissueSummary {
     }
 }
 
-/// What a table's recorded tissue checks say, each as it was measured (with the
-/// amplification fitted to the other seeds' checks recorded then).
-pub fn recorded_tissue(table: &EffectTable) -> Vec<(u64, f64, TissueSummary)> {
+/// What a table's recorded tissue checks say, each as it was measured, with whether
+/// its effect was amplified by the table's power of the tissue.
+pub fn recorded_tissue(table: &EffectTable) -> Vec<(u64, bool, TissueSummary)> {
     table
         .tissue_checks
         .iter()
-        .filter_map(|c| TissueSummary::of(&c.pairs).map(|s| (c.seed, c.amplification_per_mm, s)))
+        .filter_map(|c| TissueSummary::of(&c.pairs).map(|s| (c.seed, c.amplified, s)))
         .collect()
-}
-
-/// The presses an amplification is fitted to: Newton's effect above this.
-pub const AMPLIFICATION_FIT_EFFECT: f64 = 0.015;
-
-/// The tissue's amplification of the nodule's effect with depth, `κ` in
-/// `e_tissue = e (1 + κ d)`, fitted by least squares to the presses of the checks
-/// recorded for the tissue whose payload is `tissue_xxh3` where Newton's effect exceeds
-/// [`AMPLIFICATION_FIT_EFFECT`]: `κ = Σ d (r − 1) / Σ d²`, `r` Newton's effect over the
-/// linear one. `None` without such presses. A mean over sites: the nonlinear effect over
-/// the linear one varies from site to site by about a fifth about it
-/// (docs/lab/nodule-measurements.md §13).
-pub fn tissue_amplification_per_mm(table: &EffectTable, tissue_xxh3: u64) -> Option<f64> {
-    amplification_leaving_out(table, tissue_xxh3, None)
-}
-
-/// [`tissue_amplification_per_mm`] without the checks of seed `leave_out`: what a check
-/// of that seed, measured again, answers with (never with its own presses).
-pub fn amplification_leaving_out(
-    table: &EffectTable,
-    tissue_xxh3: u64,
-    leave_out: Option<u64>,
-) -> Option<f64> {
-    let (mut num, mut den) = (0.0, 0.0);
-    for p in table
-        .tissue_checks
-        .iter()
-        .filter(|c| c.tissue_xxh3 == tissue_xxh3 && Some(c.seed) != leave_out)
-        .flat_map(|c| &c.pairs)
-        .filter(|p| p.effect_fe() > AMPLIFICATION_FIT_EFFECT && p.effect_linear > 0.0)
-    {
-        num += p.depth_mm * (p.effect_fe() / p.effect_linear - 1.0);
-        den += p.depth_mm * p.depth_mm;
-    }
-    (den > 0.0 && (num / den).is_finite()).then(|| num / den)
 }
 
 /// What a table's recorded checks say, split four ways: in the band at tabulated
@@ -441,67 +406,22 @@ mod tests {
         assert!(TissueSummary::of(&[]).is_none());
     }
 
-    /// The amplification fitted to presses that follow `e (1 + κ d)` is `κ`, from the
-    /// checks of the tissue asked only; and a force asked is met at the depth
+    /// A force asked of a tissue whose effect grows with the depth is met at the depth
     /// `depth_under_force` gives.
     #[test]
-    fn the_amplification_is_fitted_per_tissue_and_a_force_met_at_its_depth() {
-        use super::super::table::{depth_under_force, tissue_effect};
-        let kappa = 0.03;
-        let pairs = |tissue_e: f64| -> Vec<TissuePair> {
-            [2.6, 6.1, 9.7]
-                .iter()
-                .map(|&d| {
-                    let fe = tissue_effect(tissue_e, kappa, d);
-                    TissuePair {
-                        effect_linear: tissue_e,
-                        ..press(d, 10.0, 10.0 * (1.0 + fe), 10.0, tissue_e)
-                    }
-                })
-                .collect()
-        };
-        let mut table = crate::pgd::nodule::table::tests::tiny();
-        table.tissue_checks = vec![
-            TissueCheck {
-                seed: 7,
-                tissue: "a".into(),
-                law: "neo-hookean".into(),
-                tissue_xxh3: 1,
-                amplification_per_mm: 0.0,
-                pairs: [pairs(0.1), pairs(0.02)].concat(),
-                fe_s: 0.0,
-            },
-            // Another tissue's presses, and ones too weak to fit, do not count.
-            TissueCheck {
-                tissue_xxh3: 2,
-                pairs: vec![press(9.7, 10.0, 20.0, 10.0, 0.1)],
-                ..table_check_stub()
-            },
-        ];
-        table.tissue_checks[0]
-            .pairs
-            .push(press(9.7, 10.0, 10.1, 10.0, 0.001));
-        let got = tissue_amplification_per_mm(&table, 1).expect("fitted");
-        assert!((got - kappa).abs() < 1e-12, "{got}");
-        assert!(tissue_amplification_per_mm(&table, 3).is_none());
-        let seed = table.tissue_checks[0].seed;
-        assert!(amplification_leaving_out(&table, 1, Some(seed)).is_none());
+    fn a_force_is_met_at_its_depth() {
+        use super::super::amplification::{CURVE_DEPTHS, EffectCurve};
+        use super::super::table::depth_under_force;
+        let mut curve = EffectCurve::flat(0.2);
+        curve.len = 3;
+        curve.depths_mm[..3].copy_from_slice(&[2.0, 6.0, 10.0]);
+        curve.at_depth[..3].copy_from_slice(&[0.22, 0.3, 0.36]);
+        const { assert!(CURVE_DEPTHS >= 3) };
         // A tissue whose force is 2 N/mm × d: the force asked, at the depth returned.
-        let (e, f) = (0.2, 12.0);
-        let (d, held) = depth_under_force(f, e, kappa, |f| (f / 2.0, false));
-        let back = 2.0 * d * (1.0 + tissue_effect(e, kappa, d));
-        assert!(!held && (back - f).abs() < 1e-4 * f, "{d} mm: {back} N");
-    }
-
-    fn table_check_stub() -> TissueCheck {
-        TissueCheck {
-            seed: 8,
-            tissue: "b".into(),
-            law: "neo-hookean".into(),
-            tissue_xxh3: 2,
-            amplification_per_mm: 0.0,
-            pairs: Vec::new(),
-            fe_s: 0.0,
+        for f in [3.0, 12.0, 30.0] {
+            let (d, held) = depth_under_force(f, &curve, |f| (f / 2.0, false));
+            let back = 2.0 * d * (1.0 + curve.at(d));
+            assert!(!held && (back - f).abs() < 1e-4 * f, "{d} mm: {back} N");
         }
     }
 }

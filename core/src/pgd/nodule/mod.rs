@@ -30,6 +30,7 @@
 //! storage of `G` in single precision, and the `m × m` system formed and factored in it
 //! (its condition is about the ratio's: a few correct digits more than the table needs).
 
+pub mod amplification;
 pub mod heldout;
 pub mod table;
 pub mod training;

@@ -181,7 +181,7 @@ pub struct TableSettings {
 
 /// The file's magic bytes and its one format version.
 pub const MAGIC: &[u8; 8] = b"PALPANOD";
-pub const VERSION: u32 = 8;
+pub const VERSION: u32 = 9;
 
 /// Whether `path` starts as a nodule table does (unreadable: no).
 pub fn is_table_file(path: &std::path::Path) -> bool {
@@ -241,6 +241,9 @@ pub struct EffectTable {
     /// `Some([i, n])`: only shard `i` of `n` of a build, not a table to answer from
     /// until merged.
     pub shard: Option<[u32; 2]>,
+    /// How a tissue's presses share their power among the cells near each vertex: the
+    /// amplification of the effect in that tissue (`palpa nodule tissue`).
+    pub tissue_power: Option<super::amplification::CellPower>,
 }
 
 /// One held-out pair of a recorded check (`super::heldout`), as measured.
@@ -295,8 +298,9 @@ pub struct TableCheck {
 }
 
 /// One held-out press of a recorded tissue check: the nonlinear tissue's force times
-/// `1 + e` (the table's effect `e` at the point, as the app's force loop applies it)
-/// against Newton's with the nodule, at one depth.
+/// `1 + e A` (the table's effect `e` at the point amplified as the tissue's press loads
+/// the nodule, as the app's force loop applies it) against Newton's with the nodule, at
+/// one depth.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TissuePair {
     /// Centre (mm), radius (mm), ratio.
@@ -308,8 +312,8 @@ pub struct TissuePair {
     pub force_fe_without_n: f64,
     pub force_fe_n: f64,
     /// The tissue's force without the nodule (N), the table's (linear) effect at the
-    /// point, and the effect the tissue answered with at this depth,
-    /// `e (1 + κ d)` ([`tissue_effect`], `κ` the check's `amplification_per_mm`).
+    /// point, and the effect the tissue answered with at this depth, `e A`
+    /// ([`super::amplification::EffectCurve`]).
     pub force_tissue_without_n: f64,
     pub effect_linear: f64,
     pub effect_answered: f64,
@@ -336,14 +340,6 @@ impl TissuePair {
         let fe = self.effect_fe();
         (self.effect_answered - fe).abs() / fe.abs().max(1e-300)
     }
-}
-
-/// The nodule's effect on the nonlinear tissue's force at depth `depth_mm`: the linear
-/// effect `e` amplified as `e (1 + κ d)`, `κ` fitted to the recorded tissue checks
-/// ([`super::heldout::tissue_amplification_per_mm`]; 0: the linear effect as it is).
-#[inline]
-pub fn tissue_effect(effect: f64, amplification_per_mm: f64, depth_mm: f64) -> f64 {
-    effect * (1.0 + amplification_per_mm * depth_mm)
 }
 
 /// How far about the probe (mm) the drawn surface with a nodule keeps the nodule-free
@@ -383,20 +379,18 @@ pub fn apply_surface_gain(
 }
 
 /// Under a force `force_n`, the depth at which the tissue's force times
-/// `1 + tissue_effect(depth)` gives it, and whether the tissue's depth is held at its
-/// limit: `depth_of(F)` is the tissue's depth under `F`. A few fixed-point steps (the
-/// gain changes by `e κ` per mm, a few per cent of the force over the whole press).
+/// `1 + effect(depth)` gives it, and whether the tissue's depth is held at its limit:
+/// `depth_of(F)` is the tissue's depth under `F`. A few fixed-point steps (the gain
+/// changes by a few per cent of the force over the whole press).
 pub fn depth_under_force(
     force_n: f64,
-    effect: f64,
-    amplification_per_mm: f64,
+    effect: &super::amplification::EffectCurve,
     depth_of: impl Fn(f64) -> (f64, bool),
 ) -> (f64, bool) {
-    let mut out = depth_of(force_n / (1.0 + effect));
-    if amplification_per_mm != 0.0 {
+    let mut out = depth_of(force_n / (1.0 + effect.at(0.0)));
+    if effect.len > 0 {
         for _ in 0..4 {
-            let gain = 1.0 + tissue_effect(effect, amplification_per_mm, out.0);
-            out = depth_of(force_n / gain);
+            out = depth_of(force_n / (1.0 + effect.at(out.0)));
         }
     }
     out
@@ -410,9 +404,9 @@ pub struct TissueCheck {
     pub tissue: String,
     pub law: String,
     pub tissue_xxh3: u64,
-    /// The amplification `κ` (per mm) the tissue answered with: fitted to the other
-    /// seeds' checks recorded when this one was measured (0 without any).
-    pub amplification_per_mm: f64,
+    /// Whether the effect was amplified by the table's power of this tissue
+    /// ([`EffectTable::tissue_power`]); else the linear effect as it is.
+    pub amplified: bool,
     pub pairs: Vec<TissuePair>,
     /// Seconds of Newton's solves (two presses a pair).
     pub fe_s: f64,
@@ -612,6 +606,7 @@ impl EffectTable {
             amp: Vec::new(),
             checks: Vec::new(),
             tissue_checks: Vec::new(),
+            tissue_power: None,
             ..self.clone()
         };
         for k in 0..dims[2] {
@@ -754,6 +749,7 @@ impl EffectTable {
             placements: 0,
             checks: Vec::new(),
             tissue_checks: Vec::new(),
+            tissue_power: None,
             shard: s.shard.map(|[i, n]| [i as u32, n as u32]),
         };
         // Each node's distance to the surface (to refuse a shallow nodule), and to the
@@ -1062,6 +1058,7 @@ impl EffectTable {
             placements: parts.iter().map(|p| p.placements).sum(),
             checks: Vec::new(),
             tissue_checks: Vec::new(),
+            tissue_power: None,
             shard: None,
             ..first.clone()
         };
@@ -1257,6 +1254,18 @@ impl EffectTable {
         self.entry_node.len() * 4
             + self.amp.len()
             + self.valid.iter().filter(|&&v| v).count() * self.radii_mm.len() * 8
+    }
+
+    /// How the tissue whose payload checksum is `tissue_xxh3` amplifies `nodule`'s
+    /// effect at every stored vertex and depth, where the table holds that tissue's
+    /// power (`palpa nodule tissue`); `None` otherwise (the linear effect as it is).
+    pub fn amplification(
+        &self,
+        nodule: &Nodule,
+        tissue_xxh3: u64,
+    ) -> Option<super::amplification::Placed> {
+        let power = self.tissue_power.as_ref()?;
+        (power.tissue_xxh3 == tissue_xxh3).then(|| power.place(nodule))
     }
 
     /// The effect of `nodule` at every probe node: checked against the table's ranges,
@@ -1662,6 +1671,7 @@ pub(crate) mod tests {
             placements: 0,
             checks: Vec::new(),
             tissue_checks: Vec::new(),
+            tissue_power: None,
             shard: None,
         }
     }

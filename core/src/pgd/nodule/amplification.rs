@@ -1,0 +1,458 @@
+//! The nodule in the pressed tissue: the table's linear effect times how much more of
+//! the press's load the nodule's cells carry in the pressed state than in the linear
+//! one.
+//!
+//! A nodule multiplies the stiffness of cell `c` by `s_c` ([`crate::fe::nodule`]).
+//! To first order in `s_c − 1` (the Born approximation), the tool's force at depth `d`
+//! changes by the stress power the nodule's cells would add along the nodule-free
+//! press,
+//!
+//! ```text
+//! δF(d) ≈ Σ_c (s_c − 1) f_c(u(d)) · u'(d),    F(d) = Σ_c f_c(u(d)) · u'(d),
+//! ```
+//!
+//! `f_c` the cell's internal force, `u'` the press's rate `du/dd` (the second sum is the
+//! tool's force: the work done on the organ per millimetre of depth). In linear
+//! elasticity `f_c(u) · u' = d û·K_c û`, so the first-order relative effect is the
+//! same at every depth. First order overstates a stiff nodule's effect (it lets the
+//! stiff cells strain as the soft ones did); the linear table's effect `e` is exact,
+//! the nodule screening itself included. The pressed tissue's effect is taken as
+//!
+//! ```text
+//! e_tissue(s, d) = e(s) · A(s, d),   A = [Σ_c (s_c − 1) P_c(s, d)] / [Σ_c (s_c − 1) P_c^lin(s)],
+//! ```
+//!
+//! `P_c = f_c · u' / F` the share of the press's power cell `c` carries, pressed and
+//! linear: the screening assumed the same in both, the redistribution of the load
+//! the press causes (the tissue above a nodule compressed onto it, or the tool rolling
+//! off it) carried exactly. At the recorded neo-Hookean presses (docs/lab §17) it
+//! moved the felt effects' errors from −21…+53 % (a mean growth with depth) to
+//! −5…+13 %, the table's own error included.
+//!
+//! Off-line ([`VertexPower::from_press`]): every palpable vertex pressed without a
+//! nodule along the tissue build's push, each cell within the reach of the vertex
+//! keeping its linear share and its pressed shares over each step of the depth grid
+//! (the power of the step's mean state along its secant, over the step's mean force).
+//! On-line ([`CellPower::place`]): a nodule's factors on the stored cells, two sums
+//! per vertex and depth; a probe blends its triangle's corners ([`Placed::curve`]).
+
+use half::f16;
+
+use crate::fe::Material;
+use crate::fe::law::Law;
+use crate::fe::nodule::Nodule;
+use crate::fe::space::Space;
+use serde::{Deserialize, Serialize};
+
+/// How many depths an [`EffectCurve`] holds: the tissue's grid steps, at most.
+pub const CURVE_DEPTHS: usize = 24;
+
+/// The shares are stored times this (only their ratios are read), so that small ones
+/// stay normal numbers in half precision.
+pub const SHARE_SCALE: f64 = 1024.0;
+
+/// What every vertex's press shares: the cells (corners, mm), the depths its shares are
+/// taken at, and the tissue they are of.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellPower {
+    /// The tissue file's payload checksum (`palpa info X.tissue`): the presses are its.
+    pub tissue_xxh3: u64,
+    /// Poisson's ratio of the tissue (the nodule's factors depend on it).
+    pub poisson: f64,
+    /// A vertex keeps the cells with a corner within this distance (mm).
+    pub reach_mm: f64,
+    /// The depths (mm) the pressed shares are taken at: the midpoints of the grid's
+    /// steps, ascending.
+    pub depths_mm: Vec<f64>,
+    /// Every cell's corners (mm), in the mesh's order.
+    pub cells: Vec<[[f32; 3]; 4]>,
+    pub vertices: Vec<VertexPower>,
+    /// Seconds the presses took.
+    pub build_s: f64,
+}
+
+/// One palpable vertex's press, as the cells near it share its power.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VertexPower {
+    /// The vertex (mm, rest).
+    pub at_mm: [f32; 3],
+    /// Its cells (the mesh's, indices into [`CellPower::cells`]).
+    pub cells: Vec<u32>,
+    /// Each cell's share of the linear press's power times [`SHARE_SCALE`] (IEEE half
+    /// precision, its bits: full relative precision to shares of 6·10⁻⁸).
+    pub linear: Vec<u16>,
+    /// Each cell's share at each depth the press reached: `pressed[j · cells + k]`
+    /// (scaled, in half precision, as `linear`).
+    pub pressed: Vec<u16>,
+    /// How many of [`CellPower::depths_mm`] the press reached (past them the last
+    /// is held).
+    pub depths: u32,
+}
+
+/// A placed nodule's amplification at every vertex: `A` at each depth.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placed {
+    /// `A[v · depths + j]`, 1 where the nodule touches none of the vertex's cells.
+    pub at_vertex: Vec<f32>,
+    pub depths_mm: Vec<f64>,
+}
+
+/// The effect a probe point feels as a function of the depth: the linear effect times
+/// the amplification, at the curve's depths, interpolated linearly between them (from
+/// the linear effect at 0 mm; held past the last). Plain data, for the force loop's
+/// command.
+#[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct EffectCurve {
+    /// The linear effect (at 0 mm).
+    pub effect: f32,
+    /// How many depths follow (0: the same effect at every depth).
+    pub len: u32,
+    /// The effect at `depths_mm[..len]`.
+    pub depths_mm: [f32; CURVE_DEPTHS],
+    pub at_depth: [f32; CURVE_DEPTHS],
+}
+
+impl EffectCurve {
+    /// The same effect at every depth (the linear model, or no amplification known).
+    pub fn flat(effect: f64) -> EffectCurve {
+        EffectCurve {
+            effect: effect as f32,
+            depths_mm: [0.0; CURVE_DEPTHS],
+            at_depth: [0.0; CURVE_DEPTHS],
+            len: 0,
+        }
+    }
+
+    /// The effect at `depth_mm`. No allocation, no branch on the data but the search.
+    pub fn at(&self, depth_mm: f64) -> f64 {
+        let d = depth_mm as f32;
+        let (mut d0, mut e0) = (0.0f32, self.effect);
+        for j in 0..(self.len as usize).min(CURVE_DEPTHS) {
+            let (d1, e1) = (self.depths_mm[j], self.at_depth[j]);
+            if d <= d1 {
+                let t = ((d - d0) / (d1 - d0)).clamp(0.0, 1.0);
+                return f64::from(e0 + t * (e1 - e0));
+            }
+            (d0, e0) = (d1, e1);
+        }
+        f64::from(e0)
+    }
+
+    /// The largest effect over the curve.
+    pub fn max(&self) -> f64 {
+        let n = (self.len as usize).min(CURVE_DEPTHS);
+        f64::from(
+            self.at_depth[..n]
+                .iter()
+                .fold(self.effect, |m, &e| m.max(e)),
+        )
+    }
+}
+
+impl CellPower {
+    /// The nodule's amplification at every vertex (see the module doc).
+    pub fn place(&self, nodule: &Nodule) -> Placed {
+        // The factors' excess on the cells the nodule reaches (a cell far from it: 0).
+        let corners = |t: &[[f32; 3]; 4]| t.map(|p| p.map(f64::from));
+        let fractions = nodule.fractions(self.cells.iter().map(corners));
+        let excess: Vec<f64> = fractions
+            .iter()
+            .map(|&phi| {
+                if phi > 0.0 {
+                    nodule.factor(phi, self.poisson) - 1.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let n = self.depths_mm.len();
+        let mut at_vertex = vec![1.0f32; self.vertices.len() * n];
+        for (v, out) in self.vertices.iter().zip(at_vertex.chunks_exact_mut(n)) {
+            let m = v.cells.len();
+            let lin: f64 = v
+                .cells
+                .iter()
+                .zip(&v.linear)
+                .map(|(&c, &p)| excess[c as usize] * f16::from_bits(p).to_f64())
+                .sum();
+            if lin <= 0.0 {
+                continue;
+            }
+            let reached = (v.depths as usize).min(n);
+            let mut last = 1.0f32;
+            for (j, a) in out.iter_mut().enumerate() {
+                if j < reached {
+                    let shares = &v.pressed[j * m..(j + 1) * m];
+                    let pressed: f64 = v
+                        .cells
+                        .iter()
+                        .zip(shares)
+                        .map(|(&c, &p)| excess[c as usize] * f16::from_bits(p).to_f64())
+                        .sum();
+                    last = (pressed / lin) as f32;
+                }
+                *a = last;
+            }
+        }
+        Placed {
+            at_vertex,
+            depths_mm: self.depths_mm.clone(),
+        }
+    }
+
+    /// The stored vertex at `p_mm` (within 1 µm), if any.
+    pub fn vertex_at(&self, p_mm: [f64; 3]) -> Option<usize> {
+        self.vertices.iter().position(|v| {
+            (0..3)
+                .map(|i| (f64::from(v.at_mm[i]) - p_mm[i]).powi(2))
+                .sum::<f64>()
+                < 1e-6
+        })
+    }
+
+    /// Stored bytes of the shares, before compression.
+    pub fn bytes(&self) -> usize {
+        self.cells.len() * 48
+            + self
+                .vertices
+                .iter()
+                .map(|v| 4 * v.cells.len() + 2 * (v.linear.len() + v.pressed.len()))
+                .sum::<usize>()
+    }
+}
+
+impl Placed {
+    /// The effect curve at a probe point whose triangle has the stored vertices
+    /// `corners` (`None`: not stored, dropped) at barycentric `bary`, its linear effect
+    /// `effect`: the corners' amplifications blended, the dropped ones' weight given
+    /// to the others; all dropped, the flat curve.
+    pub fn curve(&self, corners: [Option<usize>; 3], bary: [f64; 3], effect: f64) -> EffectCurve {
+        let n = self.depths_mm.len().min(CURVE_DEPTHS);
+        let mut c = EffectCurve::flat(effect);
+        let w: f64 = (0..3)
+            .filter(|&k| corners[k].is_some())
+            .map(|k| bary[k])
+            .sum();
+        if w <= 0.0 {
+            return c;
+        }
+        let stride = self.depths_mm.len();
+        for j in 0..n {
+            let mut a = 0.0;
+            for k in 0..3 {
+                if let Some(v) = corners[k] {
+                    a += bary[k] * f64::from(self.at_vertex[v * stride + j]);
+                }
+            }
+            c.depths_mm[j] = self.depths_mm[j] as f32;
+            c.at_depth[j] = (effect * a / w) as f32;
+        }
+        c.len = n as u32;
+        c
+    }
+}
+
+impl VertexPower {
+    /// A vertex's shares from its nodule-free press: `linear` the unit-depth linear
+    /// field (all-node, mm) and `force_1_n` its force (N at 1 mm: `û·K û`, the whole
+    /// organ's), `states` the equilibria at the grid depths `0, h, 2h, …` (all-node;
+    /// the first the rest) with their forces (N), `cells` the mesh cells it keeps.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_press(
+        space: &Space,
+        law: Law,
+        material: Material,
+        at_mm: [f64; 3],
+        cells: &[usize],
+        linear: &[f64],
+        force_1_n: f64,
+        states: &[Vec<f64>],
+        forces_n: &[f64],
+        step_mm: f64,
+    ) -> VertexPower {
+        let (lambda, mu) = material.lame_n_per_mm2();
+        let npc = space.element.nodes_per_cell();
+        let m = 3 * npc;
+        let gather = |c: usize, u: &[f64], out: &mut [f64]| {
+            for (a, &node) in space.cell(c).iter().enumerate() {
+                for i in 0..3 {
+                    out[3 * a + i] = u[3 * node as usize + i];
+                }
+            }
+        };
+        let (mut ke, mut fe, mut uc, mut vc) =
+            (vec![0.0; m * m], vec![0.0; m], vec![0.0; m], vec![0.0; m]);
+        // Linear: û·K_c û over û·K û (over the kept cells the shares need not sum to 1).
+        let mut lin = Vec::with_capacity(cells.len());
+        for &c in cells {
+            crate::fe::elasticity::element_stiffness(space, c, lambda, mu, &mut ke);
+            gather(c, linear, &mut uc);
+            let mut p = 0.0;
+            for r in 0..m {
+                let kr: f64 = (0..m).map(|q| ke[r * m + q] * uc[q]).sum();
+                p += uc[r] * kr;
+            }
+            lin.push(p);
+        }
+        let steps = states.len().saturating_sub(1);
+        let mut pressed = Vec::with_capacity(steps * cells.len());
+        let mut mean = vec![0.0; linear.len()];
+        for j in 0..steps {
+            let (a, b) = (&states[j], &states[j + 1]);
+            for ((x, p), q) in mean.iter_mut().zip(a).zip(b) {
+                *x = 0.5 * (p + q);
+            }
+            let force = 0.5 * (forces_n[j] + forces_n[j + 1]);
+            for &c in cells {
+                crate::fe::lanes::element_force(space, law, c, &mean, lambda, mu, &mut fe);
+                for (a_, &node) in space.cell(c).iter().enumerate() {
+                    for i in 0..3 {
+                        let k = 3 * node as usize + i;
+                        vc[3 * a_ + i] = (b[k] - a[k]) / step_mm;
+                    }
+                }
+                let p: f64 = fe.iter().zip(&vc).map(|(f, v)| f * v).sum();
+                pressed
+                    .push(f16::from_f64(SHARE_SCALE * p / force.max(f64::MIN_POSITIVE)).to_bits());
+            }
+        }
+        VertexPower {
+            at_mm: at_mm.map(|x| x as f32),
+            cells: cells.iter().map(|&c| c as u32).collect(),
+            linear: lin
+                .iter()
+                .map(|p| {
+                    f16::from_f64(SHARE_SCALE * p / force_1_n.max(f64::MIN_POSITIVE)).to_bits()
+                })
+                .collect(),
+            pressed,
+            depths: steps as u32,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A regular tetrahedron-ish cell about `c` (mm), 2 mm across.
+    fn cell(c: [f32; 3]) -> [[f32; 3]; 4] {
+        [
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [0.0, 0.0, 2.0],
+        ]
+        .map(|d| [c[0] + d[0], c[1] + d[1], c[2] + d[2]])
+    }
+
+    fn bits(v: &[f64]) -> Vec<u16> {
+        v.iter().map(|&x| f16::from_f64(x).to_bits()).collect()
+    }
+
+    /// Two vertices over two cells: the first's press doubles the second cell's share
+    /// and keeps the first's, its second depth not reached; the second vertex keeps
+    /// only the first cell.
+    fn power() -> CellPower {
+        CellPower {
+            tissue_xxh3: 7,
+            poisson: 0.48,
+            reach_mm: 30.0,
+            depths_mm: vec![0.5, 1.5],
+            cells: vec![cell([0.0, 0.0, 10.0]), cell([0.0, 0.0, 30.0])],
+            vertices: vec![
+                VertexPower {
+                    at_mm: [0.0, 0.0, 0.0],
+                    cells: vec![0, 1],
+                    linear: bits(&[0.2, 0.1]),
+                    pressed: bits(&[0.2, 0.2]),
+                    depths: 1,
+                },
+                VertexPower {
+                    at_mm: [10.0, 0.0, 0.0],
+                    cells: vec![0],
+                    linear: bits(&[0.3]),
+                    pressed: bits(&[0.6, 0.3]),
+                    depths: 2,
+                },
+            ],
+            build_s: 0.0,
+        }
+    }
+
+    #[test]
+    fn the_amplification_is_the_pressed_share_over_the_linear_on_the_nodules_cells() {
+        let p = power();
+        let around = |z: f64, ratio: f64| Nodule {
+            center_mm: [0.7, 0.7, z],
+            radius_mm: 4.0,
+            ratio,
+        };
+        // On the second cell: doubled at the first vertex, held past its reach; the
+        // second vertex keeps no cell of it (1).
+        let a = p.place(&around(30.7, 4.0));
+        assert_eq!(a.at_vertex, vec![2.0, 2.0, 1.0, 1.0]);
+        // On the first cell: kept at the first vertex; doubled, then kept at the
+        // second.
+        let a = p.place(&around(10.7, 4.0));
+        assert_eq!(a.at_vertex, vec![1.0, 1.0, 2.0, 1.0]);
+        // Ratio 1 changes no cell: no amplification anywhere.
+        assert!(
+            p.place(&around(10.7, 1.0))
+                .at_vertex
+                .iter()
+                .all(|&x| x == 1.0)
+        );
+        // A nodule far from every cell: none.
+        assert!(
+            p.place(&around(80.0, 4.0))
+                .at_vertex
+                .iter()
+                .all(|&x| x == 1.0)
+        );
+    }
+
+    #[test]
+    fn a_probe_blends_its_corners_and_the_curve_interpolates_in_depth() {
+        let p = power();
+        let a = p.place(&Nodule {
+            center_mm: [0.7, 0.7, 10.7],
+            radius_mm: 4.0,
+            ratio: 4.0,
+        });
+        let v0 = p.vertex_at([0.0, 0.0, 0.0]);
+        let v1 = p.vertex_at([10.0, 0.0, 0.0]);
+        assert_eq!(
+            (v0, v1, p.vertex_at([5.0, 0.0, 0.0])),
+            (Some(0), Some(1), None)
+        );
+        let c = a.curve([v0, v1, None], [0.25, 0.25, 0.5], 0.1);
+        // Halfway between A = 1 and A = 2 at 0.5 mm, A = 1 at 1.5 mm.
+        assert!((c.at(0.5) - 0.15).abs() < 1e-6, "{c:?}");
+        assert!((c.at(1.5) - 0.1).abs() < 1e-6);
+        assert!((c.at(1.0) - 0.125).abs() < 1e-6);
+        // From the linear effect at the rest, held past the last depth.
+        assert!((c.at(0.0) - 0.1).abs() < 1e-6 && (c.at(0.25) - 0.125).abs() < 1e-6);
+        assert!((c.at(40.0) - 0.1).abs() < 1e-6);
+        assert!((c.max() - 0.15).abs() < 1e-6);
+        // No stored corner: the flat curve.
+        let flat = a.curve([None; 3], [0.2, 0.3, 0.5], 0.1);
+        assert_eq!(flat, EffectCurve::flat(0.1));
+        assert!((flat.at(7.0) - 0.1).abs() < 1e-7);
+    }
+
+    #[test]
+    fn a_table_amplifies_only_for_the_tissue_it_was_pressed_with() {
+        let mut table = crate::pgd::nodule::table::tests::tiny();
+        let n = Nodule {
+            center_mm: [0.7, 0.7, 10.7],
+            radius_mm: 4.0,
+            ratio: 4.0,
+        };
+        assert!(table.amplification(&n, 7).is_none());
+        table.tissue_power = Some(power());
+        assert!(table.amplification(&n, 8).is_none());
+        assert_eq!(table.amplification(&n, 7), Some(power().place(&n)));
+    }
+}
