@@ -477,7 +477,9 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     }
     // The shipped tissue with the table's effect amplified by the tissue's own press
     // (the table's power of this very tissue), checked against Newton with the nodule
-    // (`palpa nodule check --tissue`). Measured: MEASURED.
+    // (`palpa nodule check --tissue`). Measured (129 presses to 9.7 mm, seeds 7 and 8):
+    // the force within 0.36 / 0.19 % at the median and 2.5 % at worst; the felt effect
+    // 2.0 / 3.3 % off at the median, 7.1 / 15.0 % at worst, 100 / 87 % within 10 %.
     let tissue = palpa_core::tissue::law::TissueLaw::load(&root.join("liver-coarse.tissue"))
         .expect("the default tissue");
     let power = table
@@ -502,10 +504,12 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
                 .all(|c| c.tissue_xxh3 == tissue.payload_xxh3() && c.amplified),
         "a tissue check recorded against the shipped tissue, amplified (re-run `palpa nodule check --tissue`)"
     );
-    const FORCE_MEDIAN: f64 = 0.015;
-    const FORCE_MAX: f64 = 0.1;
-    const EFFECT_MEDIAN: f64 = 0.2;
-    const EFFECT_MAX: f64 = 0.5;
+    // The goals' 5 % on the force; the effect's figures about three times, and its
+    // worst past the 10 % goal by half, as measured.
+    const FORCE_MEDIAN: f64 = 0.011;
+    const FORCE_MAX: f64 = 0.05;
+    const EFFECT_MEDIAN: f64 = 0.1;
+    const EFFECT_MAX: f64 = 0.2;
     let checks = heldout::recorded_tissue(&table);
     assert!(checks.len() >= 2);
     for (_, _, t) in &checks {
@@ -514,5 +518,6 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
         assert!(t.force_error_max < FORCE_MAX, "{t:?}");
         assert!(t.effect_error_median < EFFECT_MEDIAN, "{t:?}");
         assert!(t.effect_error_max < EFFECT_MAX, "{t:?}");
+        assert!(t.effect_within_10_percent >= 0.8, "{t:?}");
     }
 }

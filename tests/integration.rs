@@ -18,6 +18,7 @@ mod fe_nodule;
 mod meta_model_file;
 mod nodal_liver;
 mod nodule_table;
+mod nodule_tissue;
 mod nodule_training;
 mod nodule_vademecum;
 mod pgd_liver;
