@@ -173,7 +173,10 @@ fn the_default_tissue_comes_from_the_current_code() {
     );
     assert!(law.skipped_mm.len() * 50 < palpable.len());
 
-    // It binds to the default scene, and the two fit the 20 MB phone budget.
+    // It binds to the default scene; with the nodule table the three fit the 30 MB the
+    // nodule's issue allows the coarse scene files (29.5 MB: past the 20 MB they kept
+    // for phones before the table held the tissue's power, docs/lab/nodule-measurements.md
+    // §17).
     let scene = PalpationScene::new(
         file::load_any(&root.join("liver-coarse.palpa")).expect("the default scene loads"),
     )
@@ -183,7 +186,7 @@ fn the_default_tissue_comes_from_the_current_code() {
     let bytes = |f: &str| std::fs::metadata(root.join(f)).expect("size").len();
     assert!(
         bytes("liver-coarse.palpa") + bytes("liver-coarse.tissue") + bytes("liver-coarse.nodules")
-            < 20_000_000
+            < 30_000_000
     );
 
     // Its split triangles are a refinement stage of its own vertices and edges: the

@@ -48,9 +48,10 @@ fn the_amplified_effect_follows_newton_where_the_linear_one_falls_short() {
         .expect("the whole grid");
     let cells: Vec<usize> = (0..space.cell_count())
         .filter(|&c| {
-            space.cell_corners(c).iter().any(|p| {
-                (0..3).map(|k| (p[k] - at[k]).powi(2)).sum::<f64>() <= 30.0 * 30.0
-            })
+            space
+                .cell_corners(c)
+                .iter()
+                .any(|p| (0..3).map(|k| (p[k] - at[k]).powi(2)).sum::<f64>() <= 30.0 * 30.0)
         })
         .collect();
     let steps = grid.u.len() - 1;
@@ -58,7 +59,9 @@ fn the_amplified_effect_follows_newton_where_the_linear_one_falls_short() {
         tissue_xxh3: law.payload_xxh3(),
         poisson: o.material.poisson,
         reach_mm: 30.0,
-        depths_mm: (0..steps).map(|j| (j as f64 + 0.5) * o.depth_step_mm).collect(),
+        depths_mm: (0..steps)
+            .map(|j| (j as f64 + 0.5) * o.depth_step_mm)
+            .collect(),
         cells: (0..space.cell_count())
             .map(|c| space.cell_corners(c).map(|p| p.map(|x| x as f32)))
             .collect(),

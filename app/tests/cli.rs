@@ -2015,7 +2015,8 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
     assert!(worst > 0.0 && worst < 0.15, "{c}");
 
     // The neo-Hookean tissue with the same nodule: its force times `1 + effect`, the
-    // effect the table's at the tissue's probe point; against Newton with the nodule.
+    // effect the table's at the tissue's probe point (not amplified: this table holds
+    // no power of the tissue); against Newton with the nodule.
     let tissue = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/liver-coarse.tissue");
     let mut t_eval = vec!["eval", tissue];
     t_eval.extend(press);
@@ -2032,6 +2033,9 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
         "{t}"
     );
     assert!((t_effect - table_effect).abs() < 0.02 * table_effect, "{t}");
+    // A table that holds no power of this tissue answers the linear effect as it is,
+    // and says so.
+    assert_eq!(t["nodule"]["amplified"], false, "{t}");
     let newton = {
         let mut a = vec!["fe", "solve", "--level", "coarse", "--model", "neo-hookean"];
         a.extend(press);

@@ -98,9 +98,9 @@ pub struct Placed {
 }
 
 /// The effect a probe point feels as a function of the depth: the linear effect times
-/// the amplification, at the curve's depths, interpolated linearly between them (from
-/// the linear effect at 0 mm; held past the last). Plain data, for the force loop's
-/// command.
+/// the amplification at depths `first_mm + j · step_mm`, interpolated linearly between
+/// them (from the linear effect at 0 mm; held past the last). Plain data, small enough
+/// for the force loop's command.
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct EffectCurve {
@@ -108,8 +108,9 @@ pub struct EffectCurve {
     pub effect: f32,
     /// How many depths follow (0: the same effect at every depth).
     pub len: u32,
-    /// The effect at `depths_mm[..len]`.
-    pub depths_mm: [f32; CURVE_DEPTHS],
+    pub first_mm: f32,
+    pub step_mm: f32,
+    /// The effect at the depths.
     pub at_depth: [f32; CURVE_DEPTHS],
 }
 
@@ -118,25 +119,28 @@ impl EffectCurve {
     pub fn flat(effect: f64) -> EffectCurve {
         EffectCurve {
             effect: effect as f32,
-            depths_mm: [0.0; CURVE_DEPTHS],
-            at_depth: [0.0; CURVE_DEPTHS],
-            len: 0,
+            ..EffectCurve::default()
         }
     }
 
-    /// The effect at `depth_mm`. No allocation, no branch on the data but the search.
+    /// The effect at `depth_mm`: no allocation, no search.
     pub fn at(&self, depth_mm: f64) -> f64 {
+        let n = (self.len as usize).min(CURVE_DEPTHS);
         let d = depth_mm as f32;
-        let (mut d0, mut e0) = (0.0f32, self.effect);
-        for j in 0..(self.len as usize).min(CURVE_DEPTHS) {
-            let (d1, e1) = (self.depths_mm[j], self.at_depth[j]);
-            if d <= d1 {
-                let t = ((d - d0) / (d1 - d0)).clamp(0.0, 1.0);
-                return f64::from(e0 + t * (e1 - e0));
-            }
-            (d0, e0) = (d1, e1);
+        if n == 0 || d.is_nan() || d <= 0.0 {
+            return f64::from(self.effect);
         }
-        f64::from(e0)
+        if d <= self.first_mm {
+            let t = d / self.first_mm;
+            return f64::from(self.effect + t * (self.at_depth[0] - self.effect));
+        }
+        let x = (d - self.first_mm) / self.step_mm;
+        let j = x as usize;
+        if !x.is_finite() || j + 1 >= n {
+            return f64::from(self.at_depth[n - 1]);
+        }
+        let t = x - j as f32;
+        f64::from(self.at_depth[j] + t * (self.at_depth[j + 1] - self.at_depth[j]))
     }
 
     /// The largest effect over the curve.
@@ -201,6 +205,46 @@ impl CellPower {
         }
     }
 
+    /// The arrays agree with each other (what a file must hold before it is read from):
+    /// the reason where they do not.
+    pub fn check(&self) -> Result<(), String> {
+        let d = &self.depths_mm;
+        let step = if d.len() > 1 { d[1] - d[0] } else { 1.0 };
+        let uniform = d.iter().enumerate().all(|(j, x)| {
+            x.is_finite() && (x - d[0] - j as f64 * step).abs() <= 1e-9 * (1.0 + x.abs())
+        });
+        if d.is_empty() || d.len() > CURVE_DEPTHS || !(d[0] > 0.0 && step > 0.0) || !uniform {
+            return Err(format!(
+                "tissue power at depths {d:?} mm: expected 1 to {CURVE_DEPTHS} equally spaced depths above 0 mm"
+            ));
+        }
+        if !(self.poisson > -1.0 && self.poisson < 0.5) {
+            return Err(format!(
+                "tissue power of Poisson's ratio {}: expected between −1 and 0.5",
+                self.poisson
+            ));
+        }
+        for (i, v) in self.vertices.iter().enumerate() {
+            let m = v.cells.len();
+            let reached = v.depths as usize;
+            if v.cells.iter().any(|&c| c as usize >= self.cells.len())
+                || v.linear.len() != m
+                || reached > d.len()
+                || v.pressed.len() != reached * m
+            {
+                return Err(format!(
+                    "tissue power's vertex {i}: {m} cells (of {}), {} linear and {} pressed shares over {reached} depths: expected a share a cell, a cell of the {} stored, at most {} depths",
+                    self.cells.len(),
+                    v.linear.len(),
+                    v.pressed.len(),
+                    self.cells.len(),
+                    d.len()
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The stored vertex at `p_mm` (within 1 µm), if any.
     pub fn vertex_at(&self, p_mm: [f64; 3]) -> Option<usize> {
         self.vertices.iter().position(|v| {
@@ -238,6 +282,12 @@ impl Placed {
             return c;
         }
         let stride = self.depths_mm.len();
+        c.first_mm = self.depths_mm[0] as f32;
+        c.step_mm = if n > 1 {
+            (self.depths_mm[1] - self.depths_mm[0]) as f32
+        } else {
+            1.0
+        };
         for j in 0..n {
             let mut a = 0.0;
             for k in 0..3 {
@@ -245,7 +295,6 @@ impl Placed {
                     a += bary[k] * f64::from(self.at_vertex[v * stride + j]);
                 }
             }
-            c.depths_mm[j] = self.depths_mm[j] as f32;
             c.at_depth[j] = (effect * a / w) as f32;
         }
         c.len = n as u32;
@@ -435,11 +484,29 @@ mod tests {
         // From the linear effect at the rest, held past the last depth.
         assert!((c.at(0.0) - 0.1).abs() < 1e-6 && (c.at(0.25) - 0.125).abs() < 1e-6);
         assert!((c.at(40.0) - 0.1).abs() < 1e-6);
+        assert!((c.at(f64::NAN) - 0.1).abs() < 1e-6 && (c.at(-3.0) - 0.1).abs() < 1e-6);
         assert!((c.max() - 0.15).abs() < 1e-6);
         // No stored corner: the flat curve.
         let flat = a.curve([None; 3], [0.2, 0.3, 0.5], 0.1);
         assert_eq!(flat, EffectCurve::flat(0.1));
         assert!((flat.at(7.0) - 0.1).abs() < 1e-7);
+    }
+
+    #[test]
+    fn arrays_that_disagree_are_refused_by_name() {
+        assert_eq!(power().check(), Ok(()));
+        let mut p = power();
+        p.vertices[1].cells[0] = 2;
+        assert!(p.check().unwrap_err().contains("vertex 1"));
+        let mut p = power();
+        p.vertices[0].pressed.pop();
+        assert!(p.check().unwrap_err().contains("pressed"));
+        let mut p = power();
+        p.depths_mm = vec![0.5, 2.0, 2.5];
+        assert!(p.check().unwrap_err().contains("equally spaced"));
+        let mut p = power();
+        p.poisson = 0.5;
+        assert!(p.check().unwrap_err().contains("Poisson"));
     }
 
     #[test]

@@ -414,7 +414,7 @@ mod tests {
         use super::super::table::depth_under_force;
         let mut curve = EffectCurve::flat(0.2);
         curve.len = 3;
-        curve.depths_mm[..3].copy_from_slice(&[2.0, 6.0, 10.0]);
+        (curve.first_mm, curve.step_mm) = (2.0, 4.0);
         curve.at_depth[..3].copy_from_slice(&[0.22, 0.3, 0.36]);
         const { assert!(CURVE_DEPTHS >= 3) };
         // A tissue whose force is 2 N/mm × d: the force asked, at the depth returned.

@@ -1154,6 +1154,9 @@ impl EffectTable {
     /// The table's arrays agree with each other (what a file must hold before it is
     /// read from): the reason where they do not.
     fn check(&self) -> Result<(), String> {
+        if let Some(p) = &self.tissue_power {
+            p.check()?;
+        }
         let lattice: usize = self.dims.iter().product();
         let entries = self.entry_node.len();
         let probes = self.probe_nodes.len();
