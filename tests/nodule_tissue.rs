@@ -17,9 +17,9 @@ use palpa_core::fe::probe::{
 use palpa_core::fe::series::Expander;
 use palpa_core::organ::Level;
 use palpa_core::organ::catalogue::{OrganName, mesh};
-use palpa_core::pgd::nodule::amplification::{CellPower, VertexPower};
+use palpa_core::pgd::nodule::amplification::CellPower;
 use palpa_core::tissue::law::TissueLaw;
-use palpa_core::tissue::press::follow_at;
+use palpa_core::tissue::press::vertex_power;
 
 use palpa_tests::fe_without_and_with;
 
@@ -43,18 +43,8 @@ fn the_amplified_effect_follows_newton_where_the_linear_one_falls_short() {
         .expect("a palpable vertex") as usize;
     let at = organ.mesh.vertices[v];
     let push = organ_vertex_normals(&organ)[v].map(|c| -f64::from(c));
-    let (grid, _) = follow_at(&space, &organ, &expander, &o, at, push, &[])
-        .expect("pressed")
-        .expect("the whole grid");
-    let cells: Vec<usize> = (0..space.cell_count())
-        .filter(|&c| {
-            space
-                .cell_corners(c)
-                .iter()
-                .any(|p| (0..3).map(|k| (p[k] - at[k]).powi(2)).sum::<f64>() <= 30.0 * 30.0)
-        })
-        .collect();
-    let steps = grid.u.len() - 1;
+    let vertex = vertex_power(&space, &organ, &expander, &o, at, push, 30.0).expect("pressed");
+    let steps = vertex.depths as usize;
     let power = CellPower {
         tissue_xxh3: law.payload_xxh3(),
         poisson: o.material.poisson,
@@ -65,18 +55,7 @@ fn the_amplified_effect_follows_newton_where_the_linear_one_falls_short() {
         cells: (0..space.cell_count())
             .map(|c| space.cell_corners(c).map(|p| p.map(|x| x as f32)))
             .collect(),
-        vertices: vec![VertexPower::from_press(
-            &space,
-            o.law,
-            o.material,
-            at,
-            &cells,
-            &grid.first.u[0],
-            grid.first.force[0],
-            &grid.u,
-            &grid.force_n,
-            o.depth_step_mm,
-        )],
+        vertices: vec![vertex],
         build_s: 0.0,
     };
     // Two nodules under the vertex, felt (Newton's effect 5–9 %) where the linear

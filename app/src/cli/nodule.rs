@@ -601,7 +601,7 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
     use palpa_core::fe::series::Expander;
     use palpa_core::pgd::nodule::amplification::{CURVE_DEPTHS, CellPower, VertexPower};
     use palpa_core::tissue::law::TissueLaw;
-    use palpa_core::tissue::press::follow_at;
+    use palpa_core::tissue::press::vertex_power;
     use rayon::prelude::*;
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::time::Instant;
@@ -640,7 +640,6 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
         .map(|c| space.cell_corners(c))
         .collect();
     let done = AtomicUsize::new(0);
-    let reach2 = args.reach_mm * args.reach_mm;
     let pressed: Vec<anyhow::Result<Option<VertexPower>>> = vertices
         .par_iter()
         .with_max_len(1)
@@ -648,9 +647,7 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
             let at = organ.mesh.vertices[v as usize];
             let push = normals[v as usize].map(|c| -f64::from(c));
             // A vertex the tool cannot press (beside the fixed region) keeps nothing.
-            let press = follow_at(&space, &organ, &expander, &o, at, push, &[])
-                .map_err(|e| e.to_string())
-                .and_then(|p| p);
+            let press = vertex_power(&space, &organ, &expander, &o, at, push, args.reach_mm);
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
             if !args.json && n.is_multiple_of(25) {
                 eprintln!(
@@ -659,28 +656,7 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
                     t0.elapsed().as_secs_f64()
                 );
             }
-            let Ok((grid, _)) = press else {
-                return Ok(None);
-            };
-            let cells: Vec<usize> = (0..corners.len())
-                .filter(|&c| {
-                    corners[c]
-                        .iter()
-                        .any(|p| (0..3).map(|k| (p[k] - at[k]).powi(2)).sum::<f64>() <= reach2)
-                })
-                .collect();
-            Ok(Some(VertexPower::from_press(
-                &space,
-                o.law,
-                o.material,
-                at,
-                &cells,
-                &grid.first.u[0],
-                grid.first.force[0],
-                &grid.u,
-                &grid.force_n,
-                o.depth_step_mm,
-            )))
+            Ok(press.ok())
         })
         .collect();
     let mut kept = Vec::new();

@@ -161,6 +161,45 @@ pub fn follow_at(
     .map(|p| (p, depths)))
 }
 
+/// The press at vertex `at` along `push` as [`follow_at`] follows it, kept as the
+/// shares of its power among the cells with a corner within `reach_mm` of it
+/// ([`crate::pgd::nodule::amplification`]), or why it was given up.
+#[allow(clippy::too_many_arguments)]
+pub fn vertex_power(
+    space: &crate::fe::space::Space,
+    organ: &OrganMesh,
+    expander: &Expander,
+    o: &SurfaceLawOptions,
+    at: [f64; 3],
+    push: [f64; 3],
+    reach_mm: f64,
+) -> Result<crate::pgd::nodule::amplification::VertexPower, String> {
+    let (grid, _) = follow_at(space, organ, expander, o, at, push, &[])
+        .map_err(|e| e.to_string())
+        .and_then(|p| p)?;
+    let reach2 = reach_mm * reach_mm;
+    let cells: Vec<usize> = (0..space.cell_count())
+        .filter(|&c| {
+            space
+                .cell_corners(c)
+                .iter()
+                .any(|p| (0..3).map(|k| (p[k] - at[k]).powi(2)).sum::<f64>() <= reach2)
+        })
+        .collect();
+    Ok(crate::pgd::nodule::amplification::VertexPower::from_press(
+        space,
+        o.law,
+        o.material,
+        at,
+        &cells,
+        &grid.first.u[0],
+        grid.first.force[0],
+        &grid.u,
+        &grid.force_n,
+        o.depth_step_mm,
+    ))
+}
+
 /// The build's depth grid, with the extra depths `extra_mm` within its range.
 fn grid_depths(o: &SurfaceLawOptions, extra_mm: &[f64]) -> Vec<f64> {
     let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize + 1;

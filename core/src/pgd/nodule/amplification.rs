@@ -497,16 +497,24 @@ mod tests {
         assert_eq!(power().check(), Ok(()));
         let mut p = power();
         p.vertices[1].cells[0] = 2;
-        assert!(p.check().unwrap_err().contains("vertex 1"));
+        assert!(
+            p.check()
+                .expect_err("a cell past the stored")
+                .contains("vertex 1")
+        );
         let mut p = power();
         p.vertices[0].pressed.pop();
-        assert!(p.check().unwrap_err().contains("pressed"));
+        assert!(p.check().expect_err("a share short").contains("pressed"));
         let mut p = power();
         p.depths_mm = vec![0.5, 2.0, 2.5];
-        assert!(p.check().unwrap_err().contains("equally spaced"));
+        assert!(
+            p.check()
+                .expect_err("uneven depths")
+                .contains("equally spaced")
+        );
         let mut p = power();
         p.poisson = 0.5;
-        assert!(p.check().unwrap_err().contains("Poisson"));
+        assert!(p.check().expect_err("ν = 0.5").contains("Poisson"));
     }
 
     #[test]
