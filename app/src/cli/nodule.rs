@@ -792,7 +792,7 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             continue;
         };
         drawn += 1;
-        let curve =
+        let (curve, _) =
             super::tissue::eval::effect_curve(&table, &nodule, tissue_xxh3, &scene, &point, effect);
         let at = scene.frame(&point).0;
         let c = contact.compliance_mm_per_n;

@@ -29,7 +29,8 @@ pub(super) fn bound_to_scene(
 
 /// The effect of `nodule` at `point` over the depth: the linear effect `e` amplified by
 /// the table's power of the tissue `tissue_xxh3` at the point's triangle's corners; flat
-/// where the table holds none.
+/// where the table holds none. With it, the seconds the amplification took to place
+/// (`None`: not amplified).
 pub(crate) fn effect_curve(
     table: &EffectTable,
     nodule: &Nodule,
@@ -37,7 +38,7 @@ pub(crate) fn effect_curve(
     scene: &PalpationScene,
     point: &ProbePoint,
     e: f64,
-) -> EffectCurve {
+) -> (EffectCurve, Option<f64>) {
     match (
         table.amplification(nodule, tissue_xxh3),
         &table.tissue_power,
@@ -46,9 +47,9 @@ pub(crate) fn effect_curve(
             let corners = scene
                 .probe_vertices(point)
                 .map(|v| power.vertex_at(scene.vertices_mm()[v as usize].map(f64::from)));
-            a.curve(corners, point.bary, e)
+            (a.curve(corners, point.bary, e), Some(a.place_s))
         }
-        _ => EffectCurve::flat(e),
+        _ => (EffectCurve::flat(e), None),
     }
 }
 
@@ -164,8 +165,9 @@ pub fn eval(
         Some((n, given)) => {
             let (table, placed) = placed_nodule(&n, given, own_table, &scene, scene_name)?;
             let e = effect_at_point(&table, &placed, &scene, &point)?;
-            let curve = effect_curve(&table, &n, bound.law.payload_xxh3(), &scene, &point, e);
-            Some((placed, e, curve))
+            let (curve, amplify_s) =
+                effect_curve(&table, &n, bound.law.payload_xxh3(), &scene, &point, e);
+            Some((placed, e, curve, amplify_s))
         }
         None => None,
     };
@@ -291,12 +293,13 @@ pub fn eval(
         "force_eval_us": force_eval_us, "surface_eval_us": surface_eval_us,
         "nodule": null,
     });
-    if let Some((placed, e_linear, curve)) = &nodule {
+    if let Some((placed, e_linear, curve, amplify_s)) = &nodule {
         let n = placed.nodule;
         let amplified = curve.len > 0;
         report["nodule"] = json!({"center_mm": n.center_mm, "radius_mm": n.radius_mm,
             "ratio": n.ratio, "effect": gain(depth) - 1.0, "effect_linear": e_linear,
             "amplified": amplified, "place_ms": placed.place_s * 1e3,
+            "amplify_ms": amplify_s.map(|s| s * 1e3),
             "force_without_nodule_n": force / gain(depth),
             "effect_source": if amplified {
                 "the linear tissue's from the scene's nodule table, amplified as the tissue's own press loads the nodule (the table's power of this tissue)"
