@@ -1,6 +1,7 @@
 //! `palpa nodule build`: the nodule table of a scene's organ (`pgd::nodule::table`),
 //! written beside the scene as `S.nodules`, which `palpa eval S.palpa --nodule-at …`
-//! reads.
+//! reads; `nodule tissue` adds a tissue's power (`pgd::nodule::amplification`), `check`
+//! measures it all.
 
 use std::path::PathBuf;
 
