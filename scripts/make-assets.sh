@@ -87,8 +87,8 @@ if [ -n "${NODULES:-}" ]; then
     cmds+=(--command "$check")
   done
   # The neo-Hookean tissue with a nodule (its force times 1 + e A, A the amplification
-  # by the tissue's own press): every palpable vertex pressed without a nodule (about
-  # 25 min on 2 cores), then checked against Newton with the nodule.
+  # by the tissue's own press): every palpable vertex pressed to 10 mm without a nodule
+  # (about 10 min on 2 cores), then checked against Newton with the nodule.
   power="palpa nodule tissue assets/liver-coarse.nodules --tissue assets/liver-coarse.tissue"
   $palpa ${power#palpa } > /dev/null
   cmds+=(--command "$power")

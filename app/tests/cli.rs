@@ -2068,6 +2068,21 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
         );
     }
 
+    // `palpa nodule tissue` refuses knobs it cannot press with, by name, before it
+    // presses anything.
+    for (knob, value, said) in [
+        ("--reach-mm", "-1", "positive distance"),
+        ("--share-floor", "1.5", "share from 0"),
+        ("--depth-max-mm", "40", "at most the tissue's"),
+    ] {
+        let out = palpa(&[
+            "nodule", "tissue", &table_s, "--tissue", tissue, knob, value,
+        ]);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(knob) && err.contains(said), "{knob}: {err}");
+    }
+
     // A table without a nodule is refused, for a tissue file too.
     let out = palpa(&[
         "eval",

@@ -9,6 +9,7 @@ use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
 use palpa_core::fe::{Element, Material};
 use palpa_core::pgd::nodal;
+use palpa_core::pgd::nodule::amplification::{Keep, PRESS_DEPTH_MM};
 use palpa_core::pgd::nodule::heldout::{self, CheckSummary};
 use palpa_core::pgd::nodule::table::{EffectTable, FIT_RATIOS, TableSettings, apply_surface_gain};
 use palpa_core::tissue::law::{PointIndex, max_node_errors};
@@ -49,9 +50,17 @@ pub struct TissueArgs {
     #[command(flatten)]
     organ: OrganArgs,
     /// A vertex keeps the cells with a corner within this distance (mm): the table's
-    /// probe reach plus its largest radius covers every nodule it answers near.
-    #[arg(long, default_value_t = 30.0)]
+    /// probe reach plus its largest radius covers every nodule it answers near;
+    #[arg(long, default_value_t = Keep::default().reach_mm)]
     reach_mm: f64,
+    /// and at least this share of its linear press's power.
+    #[arg(long, default_value_t = Keep::default().share_floor)]
+    share_floor: f64,
+    /// How deep each vertex is pressed (mm; at most the tissue's grid): past it the
+    /// deepest amplification is held. The build's time grows with it (15 mm took 1.7
+    /// times 10 mm's).
+    #[arg(long, default_value_t = PRESS_DEPTH_MM)]
+    depth_max_mm: f64,
     #[arg(long)]
     json: bool,
 }
@@ -463,7 +472,8 @@ pub fn summary(table: &EffectTable, path: &std::path::Path) -> serde_json::Value
             "presses": c.pairs.len()})).collect::<Vec<_>>(),
         "tissue_power": table.tissue_power.as_ref().map(|p| json!({
             "tissue_xxh3": format!("{:016x}", p.tissue_xxh3), "vertices": p.vertices.len(),
-            "cells": p.cells.len(), "reach_mm": p.reach_mm, "depths_mm": p.depths_mm,
+            "cells": p.cells.len(), "reach_mm": p.reach_mm, "share_floor": p.share_floor,
+            "depths_mm": p.depths_mm,
             "bytes": p.bytes(), "build_s": p.build_s})),
         "accuracy_tissue": heldout::recorded_tissue(table),
     })
@@ -600,7 +610,9 @@ fn build_summary(table: &EffectTable, out: &std::path::Path) -> serde_json::Valu
 fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
     use palpa_core::fe::probe::{organ_space, organ_vertex_normals};
     use palpa_core::fe::series::Expander;
-    use palpa_core::pgd::nodule::amplification::{CURVE_DEPTHS, CellPower, VertexPower};
+    use palpa_core::pgd::nodule::amplification::{
+        CURVE_DEPTHS, CellPower, STEPS_PER_DEPTH, VertexPower,
+    };
     use palpa_core::tissue::law::TissueLaw;
     use palpa_core::tissue::press::vertex_power;
     use rayon::prelude::*;
@@ -610,6 +622,16 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
     if !(args.reach_mm.is_finite() && args.reach_mm > 0.0) {
         bail!("--reach-mm {}: expected a positive distance", args.reach_mm);
     }
+    if !(args.share_floor >= 0.0 && args.share_floor < 1.0) {
+        bail!(
+            "--share-floor {}: expected a share from 0 to below 1",
+            args.share_floor
+        );
+    }
+    let keep = Keep {
+        reach_mm: args.reach_mm,
+        share_floor: args.share_floor,
+    };
     let mut table = EffectTable::load(&args.file)?;
     let law = TissueLaw::load(&args.tissue)?;
     let organ = args.organ.mesh()?;
@@ -622,12 +644,21 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
             organ.fingerprint()
         );
     }
-    let o = law.options;
-    let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize;
-    if steps > CURVE_DEPTHS {
+    let mut o = law.options;
+    if !(args.depth_max_mm > 0.0 && args.depth_max_mm <= o.depth_max_mm) {
         bail!(
-            "{}: {steps} depth steps: expected at most {CURVE_DEPTHS}",
-            args.tissue.display()
+            "--depth-max-mm {}: expected a depth above 0 and at most the tissue's {} mm",
+            args.depth_max_mm,
+            o.depth_max_mm
+        );
+    }
+    o.depth_max_mm = args.depth_max_mm;
+    let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize;
+    if !(1..=CURVE_DEPTHS).contains(&(steps / STEPS_PER_DEPTH)) {
+        bail!(
+            "{}: {steps} depth steps: expected {STEPS_PER_DEPTH} to {}",
+            args.tissue.display(),
+            STEPS_PER_DEPTH * (CURVE_DEPTHS + 1) - 1
         );
     }
     let t0 = Instant::now();
@@ -637,9 +668,6 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
     let mut vertices = organ.pressable_vertices();
     vertices.sort_unstable();
     vertices.dedup();
-    let corners: Vec<[[f64; 3]; 4]> = (0..space.cell_count())
-        .map(|c| space.cell_corners(c))
-        .collect();
     let done = AtomicUsize::new(0);
     let pressed: Vec<anyhow::Result<Option<VertexPower>>> = vertices
         .par_iter()
@@ -648,7 +676,7 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
             let at = organ.mesh.vertices[v as usize];
             let push = normals[v as usize].map(|c| -f64::from(c));
             // A vertex the tool cannot press (beside the fixed region) keeps nothing.
-            let press = vertex_power(&space, &organ, &expander, &o, at, push, args.reach_mm);
+            let press = vertex_power(&space, &organ, &expander, &o, at, push, keep);
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
             if !args.json && n.is_multiple_of(25) {
                 eprintln!(
@@ -668,20 +696,16 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
             None => skipped += 1,
         }
     }
-    let power = CellPower {
-        tissue_xxh3: law.payload_xxh3(),
-        poisson: o.material.poisson,
-        reach_mm: args.reach_mm,
-        depths_mm: (0..steps)
-            .map(|j| (j as f64 + 0.5) * o.depth_step_mm)
-            .collect(),
-        cells: corners
-            .iter()
-            .map(|t| t.map(|p| p.map(|x| x as f32)))
-            .collect(),
-        vertices: kept,
-        build_s: t0.elapsed().as_secs_f64(),
-    };
+    let power = CellPower::new(
+        &space,
+        law.payload_xxh3(),
+        o.material.poisson,
+        keep,
+        o.depth_step_mm,
+        steps,
+        kept,
+        t0.elapsed().as_secs_f64(),
+    );
     let report = json!({
         "file": args.file, "tissue": args.tissue, "vertices": power.vertices.len(),
         "skipped": skipped, "cells": power.cells.len(), "bytes": power.bytes(),

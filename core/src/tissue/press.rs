@@ -162,9 +162,8 @@ pub fn follow_at(
 }
 
 /// The press at vertex `at` along `push` as [`follow_at`] follows it, kept as the
-/// shares of its power among the cells with a corner within `reach_mm` of it
+/// shares of its power among the cells `keep` names
 /// ([`crate::pgd::nodule::amplification`]), or why it was given up.
-#[allow(clippy::too_many_arguments)]
 pub fn vertex_power(
     space: &crate::fe::space::Space,
     organ: &OrganMesh,
@@ -172,12 +171,12 @@ pub fn vertex_power(
     o: &SurfaceLawOptions,
     at: [f64; 3],
     push: [f64; 3],
-    reach_mm: f64,
+    keep: crate::pgd::nodule::amplification::Keep,
 ) -> Result<crate::pgd::nodule::amplification::VertexPower, String> {
     let (grid, _) = follow_at(space, organ, expander, o, at, push, &[])
         .map_err(|e| e.to_string())
         .and_then(|p| p)?;
-    let reach2 = reach_mm * reach_mm;
+    let reach2 = keep.reach_mm * keep.reach_mm;
     let cells: Vec<usize> = (0..space.cell_count())
         .filter(|&c| {
             space
@@ -192,6 +191,7 @@ pub fn vertex_power(
         o.material,
         at,
         &cells,
+        keep.share_floor,
         &grid.first.u[0],
         grid.first.force[0],
         &grid.u,

@@ -30,9 +30,16 @@
 //! −5…+13 %, the table's own error included.
 //!
 //! Off-line ([`VertexPower::from_press`]): every palpable vertex pressed without a
-//! nodule along the tissue build's push, each cell within the reach of the vertex
-//! keeping its linear share and its pressed shares over each step of the depth grid
-//! (the power of the step's mean state along its secant, over the step's mean force).
+//! nodule along the tissue build's push. Over each step of the depth grid a cell's
+//! share is the power of the step's mean state along its secant over the step's mean
+//! force; two steps' shares are averaged into one stored depth ([`STEPS_PER_DEPTH`]).
+//! A vertex keeps the cells within its reach that carry at least
+//! [`CellPower::share_floor`] of its linear press's power, each with its linear share
+//! (half precision) and, at each stored depth, the logarithm of its pressed share over
+//! the linear one in one byte ([`RATIO_LOG2_MIN`], [`RATIO_STEPS_PER_OCTAVE`]).
+//! Against the full store (every cell with a corner within 30 mm, every 1 mm step, half
+//! precision) this is a seventh of the bytes and answers the recorded presses as well
+//! (docs/lab §18).
 //! On-line ([`CellPower::place`]): a nodule's factors on the stored cells, two sums
 //! per vertex and depth; a probe blends its triangle's corners ([`Placed::curve`]).
 
@@ -47,9 +54,68 @@ use serde::{Deserialize, Serialize};
 /// How many depths an [`EffectCurve`] holds: the tissue's grid steps, at most.
 pub const CURVE_DEPTHS: usize = 24;
 
-/// The shares are stored times this (only their ratios are read), so that small ones
-/// stay normal numbers in half precision.
+/// The linear shares are stored times this (only their ratios are read), so that small
+/// ones stay normal numbers in half precision.
 pub const SHARE_SCALE: f64 = 1024.0;
+
+/// How deep a vertex is pressed by default (mm): the goals' range; past it the deepest
+/// amplification is held.
+pub const PRESS_DEPTH_MM: f64 = 10.0;
+
+/// Grid steps averaged into one stored depth.
+pub const STEPS_PER_DEPTH: usize = 2;
+
+/// A pressed share over the linear one is stored as the byte
+/// `q = round((log₂ R − RATIO_LOG2_MIN) · RATIO_STEPS_PER_OCTAVE)`, clamped to 0–255:
+/// ratios from 1/64 to 2^6.75 within 1.7 % (a cell that gives power back, a negative
+/// share, is read as 1/64 of its linear share).
+pub const RATIO_LOG2_MIN: f64 = -6.0;
+pub const RATIO_STEPS_PER_OCTAVE: f64 = 20.0;
+
+/// The stored ratio `R` for each byte.
+fn ratio_of_byte() -> [f64; 256] {
+    std::array::from_fn(|q| (q as f64 / RATIO_STEPS_PER_OCTAVE + RATIO_LOG2_MIN).exp2())
+}
+
+/// The byte that stores the ratio `r` (see [`RATIO_LOG2_MIN`]).
+fn byte_of_ratio(r: f64) -> u8 {
+    if r.is_nan() || r <= 0.0 {
+        return 0;
+    }
+    ((r.log2() - RATIO_LOG2_MIN) * RATIO_STEPS_PER_OCTAVE)
+        .round()
+        .clamp(0.0, 255.0) as u8
+}
+
+/// The depths (mm) the shares are stored at, from a grid of `steps` steps of `step_mm`:
+/// the midpoints of each [`STEPS_PER_DEPTH`] steps (a last partial one dropped).
+pub fn stored_depths_mm(step_mm: f64, steps: usize) -> Vec<f64> {
+    let k = STEPS_PER_DEPTH as f64;
+    (0..steps / STEPS_PER_DEPTH)
+        .map(|j| (j as f64 + 0.5) * k * step_mm)
+        .collect()
+}
+
+/// Which cells a vertex keeps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Keep {
+    /// Those with a corner within this distance of the vertex (mm),
+    pub reach_mm: f64,
+    /// and at least this share of its linear press's power.
+    pub share_floor: f64,
+}
+
+impl Default for Keep {
+    /// 30 mm (the table's probe reach and its largest radius); a floor of 3·10⁻⁴,
+    /// which keeps about 200 cells a vertex on coarse P2 and answers the recorded
+    /// presses as all the cells within the reach do (docs/lab §18).
+    fn default() -> Keep {
+        Keep {
+            reach_mm: 30.0,
+            share_floor: 3e-4,
+        }
+    }
+}
 
 /// What every vertex's press shares: the cells (corners, mm), the depths its shares are
 /// taken at, and the tissue they are of.
@@ -59,10 +125,12 @@ pub struct CellPower {
     pub tissue_xxh3: u64,
     /// Poisson's ratio of the tissue (the nodule's factors depend on it).
     pub poisson: f64,
-    /// A vertex keeps the cells with a corner within this distance (mm).
+    /// A vertex keeps the cells with a corner within this distance (mm)
     pub reach_mm: f64,
-    /// The depths (mm) the pressed shares are taken at: the midpoints of the grid's
-    /// steps, ascending.
+    /// and at least this share of its linear press's power.
+    pub share_floor: f64,
+    /// The depths (mm) the pressed shares are taken at ([`stored_depths_mm`]),
+    /// ascending.
     pub depths_mm: Vec<f64>,
     /// Every cell's corners (mm), in the mesh's order.
     pub cells: Vec<[[f32; 3]; 4]>,
@@ -81,9 +149,9 @@ pub struct VertexPower {
     /// Each cell's share of the linear press's power times [`SHARE_SCALE`] (IEEE half
     /// precision, its bits: full relative precision to shares of 6·10⁻⁸).
     pub linear: Vec<u16>,
-    /// Each cell's share at each depth the press reached: `pressed[j · cells + k]`
-    /// (scaled, in half precision, as `linear`).
-    pub pressed: Vec<u16>,
+    /// Each cell's share at each depth the press reached over its linear share, a byte
+    /// ([`RATIO_LOG2_MIN`]): `pressed[j · cells + k]`.
+    pub pressed: Vec<u8>,
     /// How many of [`CellPower::depths_mm`] the press reached (past them the last
     /// is held).
     pub depths: u32,
@@ -101,8 +169,8 @@ pub struct Placed {
 
 /// The effect a probe point feels as a function of the depth: the linear effect times
 /// the amplification at depths `first_mm + j · step_mm`, interpolated linearly between
-/// them (from the linear effect at 0 mm; held past the last). Plain data, small enough
-/// for the force loop's command.
+/// them (from the linear effect at 0 mm; past the last, see [`Self::at`]). Plain data,
+/// small enough for the force loop's command.
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct EffectCurve {
@@ -125,7 +193,9 @@ impl EffectCurve {
         }
     }
 
-    /// The effect at `depth_mm`: no allocation, no search.
+    /// The effect at `depth_mm`: no allocation, no search. The depths are the midpoints
+    /// of the pressed steps, so the press reached half a step past the last: the last
+    /// two are carried on over that half step, and the end held past it.
     pub fn at(&self, depth_mm: f64) -> f64 {
         let n = (self.len as usize).min(CURVE_DEPTHS);
         let d = depth_mm as f32;
@@ -136,11 +206,11 @@ impl EffectCurve {
             let t = d / self.first_mm;
             return f64::from(self.effect + t * (self.at_depth[0] - self.effect));
         }
-        let x = (d - self.first_mm) / self.step_mm;
-        let j = x as usize;
-        if !x.is_finite() || j + 1 >= n {
-            return f64::from(self.at_depth[n - 1]);
+        if n == 1 {
+            return f64::from(self.at_depth[0]);
         }
+        let x = ((d - self.first_mm) / self.step_mm).min((n - 1) as f32 + 0.5);
+        let j = (x as usize).min(n - 2);
         let t = x - j as f32;
         f64::from(self.at_depth[j] + t * (self.at_depth[j + 1] - self.at_depth[j]))
     }
@@ -148,15 +218,44 @@ impl EffectCurve {
     /// The largest effect over the curve.
     pub fn max(&self) -> f64 {
         let n = (self.len as usize).min(CURVE_DEPTHS);
+        let end = self.at(f64::MAX);
         f64::from(
             self.at_depth[..n]
                 .iter()
                 .fold(self.effect, |m, &e| m.max(e)),
         )
+        .max(end)
     }
 }
 
 impl CellPower {
+    /// The presses `vertices` of the tissue `tissue_xxh3` (Poisson's ratio `poisson`)
+    /// on `space`, taken with `keep` through a grid of `steps` steps of `step_mm`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        space: &Space,
+        tissue_xxh3: u64,
+        poisson: f64,
+        keep: Keep,
+        step_mm: f64,
+        steps: usize,
+        vertices: Vec<VertexPower>,
+        build_s: f64,
+    ) -> CellPower {
+        CellPower {
+            tissue_xxh3,
+            poisson,
+            reach_mm: keep.reach_mm,
+            share_floor: keep.share_floor,
+            depths_mm: stored_depths_mm(step_mm, steps),
+            cells: (0..space.cell_count())
+                .map(|c| space.cell_corners(c).map(|p| p.map(|x| x as f32)))
+                .collect(),
+            vertices,
+            build_s,
+        }
+    }
+
     /// The nodule's amplification at every vertex (see the module doc).
     pub fn place(&self, nodule: &Nodule) -> Placed {
         let t0 = std::time::Instant::now();
@@ -173,16 +272,21 @@ impl CellPower {
                 }
             })
             .collect();
+        let ratio = ratio_of_byte();
         let n = self.depths_mm.len();
         let mut at_vertex = vec![1.0f32; self.vertices.len() * n];
+        let mut weight = Vec::new();
         for (v, out) in self.vertices.iter().zip(at_vertex.chunks_exact_mut(n)) {
             let m = v.cells.len();
-            let lin: f64 = v
-                .cells
-                .iter()
-                .zip(&v.linear)
-                .map(|(&c, &p)| excess[c as usize] * f16::from_bits(p).to_f64())
-                .sum();
+            // Each cell's first-order change, linear: `(s_c − 1) P_c^lin`.
+            weight.clear();
+            weight.extend(
+                v.cells
+                    .iter()
+                    .zip(&v.linear)
+                    .map(|(&c, &p)| excess[c as usize] * f16::from_bits(p).to_f64()),
+            );
+            let lin: f64 = weight.iter().sum();
             if lin <= 0.0 {
                 continue;
             }
@@ -190,12 +294,10 @@ impl CellPower {
             let mut last = 1.0f32;
             for (j, a) in out.iter_mut().enumerate() {
                 if j < reached {
-                    let shares = &v.pressed[j * m..(j + 1) * m];
-                    let pressed: f64 = v
-                        .cells
+                    let pressed: f64 = weight
                         .iter()
-                        .zip(shares)
-                        .map(|(&c, &p)| excess[c as usize] * f16::from_bits(p).to_f64())
+                        .zip(&v.pressed[j * m..(j + 1) * m])
+                        .map(|(w, &q)| w * ratio[q as usize])
                         .sum();
                     last = (pressed / lin) as f32;
                 }
@@ -220,6 +322,12 @@ impl CellPower {
         if d.is_empty() || d.len() > CURVE_DEPTHS || !(d[0] > 0.0 && step > 0.0) || !uniform {
             return Err(format!(
                 "tissue power at depths {d:?} mm: expected 1 to {CURVE_DEPTHS} equally spaced depths above 0 mm"
+            ));
+        }
+        if !(self.share_floor >= 0.0 && self.share_floor < 1.0) {
+            return Err(format!(
+                "tissue power's share floor {}: expected from 0 to below 1",
+                self.share_floor
             ));
         }
         if !(self.poisson > -1.0 && self.poisson < 0.5) {
@@ -265,7 +373,7 @@ impl CellPower {
             + self
                 .vertices
                 .iter()
-                .map(|v| 4 * v.cells.len() + 2 * (v.linear.len() + v.pressed.len()))
+                .map(|v| 6 * v.cells.len() + v.pressed.len())
                 .sum::<usize>()
     }
 }
@@ -310,7 +418,8 @@ impl VertexPower {
     /// A vertex's shares from its nodule-free press: `linear` the unit-depth linear
     /// field (all-node, mm) and `force_1_n` its force (N at 1 mm: `û·K û`, the whole
     /// organ's), `states` the equilibria at the grid depths `0, h, 2h, …` (all-node;
-    /// the first the rest) with their forces (N), `cells` the mesh cells it keeps.
+    /// the first the rest) with their forces (N), `cells` the mesh cells within its
+    /// reach, of which it keeps those with at least `share_floor` of the linear power.
     #[allow(clippy::too_many_arguments)]
     pub fn from_press(
         space: &Space,
@@ -318,6 +427,7 @@ impl VertexPower {
         material: Material,
         at_mm: [f64; 3],
         cells: &[usize],
+        share_floor: f64,
         linear: &[f64],
         force_1_n: f64,
         states: &[Vec<f64>],
@@ -346,18 +456,20 @@ impl VertexPower {
                 let kr: f64 = (0..m).map(|q| ke[r * m + q] * uc[q]).sum();
                 p += uc[r] * kr;
             }
-            lin.push(p);
+            lin.push(p / force_1_n.max(f64::MIN_POSITIVE));
         }
-        let steps = states.len().saturating_sub(1);
-        let mut pressed = Vec::with_capacity(steps * cells.len());
+        // Each grid step's shares, summed over the steps of a stored depth.
+        let depths = states.len().saturating_sub(1) / STEPS_PER_DEPTH;
+        let mut pressed = vec![0.0; depths * cells.len()];
         let mut mean = vec![0.0; linear.len()];
-        for j in 0..steps {
+        for j in 0..depths * STEPS_PER_DEPTH {
             let (a, b) = (&states[j], &states[j + 1]);
             for ((x, p), q) in mean.iter_mut().zip(a).zip(b) {
                 *x = 0.5 * (p + q);
             }
             let force = 0.5 * (forces_n[j] + forces_n[j + 1]);
-            for &c in cells {
+            let row = &mut pressed[(j / STEPS_PER_DEPTH) * cells.len()..][..cells.len()];
+            for (&c, share) in cells.iter().zip(row) {
                 crate::fe::lanes::element_force(space, law, c, &mean, lambda, mu, &mut fe);
                 for (a_, &node) in space.cell(c).iter().enumerate() {
                     for i in 0..3 {
@@ -366,21 +478,28 @@ impl VertexPower {
                     }
                 }
                 let p: f64 = fe.iter().zip(&vc).map(|(f, v)| f * v).sum();
-                pressed
-                    .push(f16::from_f64(SHARE_SCALE * p / force.max(f64::MIN_POSITIVE)).to_bits());
+                *share += p / force.max(f64::MIN_POSITIVE);
             }
         }
+        let kept: Vec<usize> = (0..cells.len())
+            .filter(|&k| lin[k] >= share_floor)
+            .collect();
         VertexPower {
             at_mm: at_mm.map(|x| x as f32),
-            cells: cells.iter().map(|&c| c as u32).collect(),
-            linear: lin
+            cells: kept.iter().map(|&k| cells[k] as u32).collect(),
+            linear: kept
                 .iter()
-                .map(|p| {
-                    f16::from_f64(SHARE_SCALE * p / force_1_n.max(f64::MIN_POSITIVE)).to_bits()
+                .map(|&k| f16::from_f64(SHARE_SCALE * lin[k]).to_bits())
+                .collect(),
+            pressed: (0..depths)
+                .flat_map(|j| {
+                    let row = &pressed[j * cells.len()..][..cells.len()];
+                    let lin = &lin;
+                    kept.iter()
+                        .map(move |&k| byte_of_ratio(row[k] / (STEPS_PER_DEPTH as f64 * lin[k])))
                 })
                 .collect(),
-            pressed,
-            depths: steps as u32,
+            depths: depths as u32,
         }
     }
 }
@@ -404,6 +523,10 @@ mod tests {
         v.iter().map(|&x| f16::from_f64(x).to_bits()).collect()
     }
 
+    fn ratios(v: &[f64]) -> Vec<u8> {
+        v.iter().map(|&r| byte_of_ratio(r)).collect()
+    }
+
     /// Two vertices over two cells: the first's press doubles the second cell's share
     /// and keeps the first's, its second depth not reached; the second vertex keeps
     /// only the first cell.
@@ -412,21 +535,22 @@ mod tests {
             tissue_xxh3: 7,
             poisson: 0.48,
             reach_mm: 30.0,
-            depths_mm: vec![0.5, 1.5],
+            share_floor: 0.0,
+            depths_mm: vec![1.0, 3.0],
             cells: vec![cell([0.0, 0.0, 10.0]), cell([0.0, 0.0, 30.0])],
             vertices: vec![
                 VertexPower {
                     at_mm: [0.0, 0.0, 0.0],
                     cells: vec![0, 1],
                     linear: bits(&[0.2, 0.1]),
-                    pressed: bits(&[0.2, 0.2]),
+                    pressed: ratios(&[1.0, 2.0]),
                     depths: 1,
                 },
                 VertexPower {
                     at_mm: [10.0, 0.0, 0.0],
                     cells: vec![0],
                     linear: bits(&[0.3]),
-                    pressed: bits(&[0.6, 0.3]),
+                    pressed: ratios(&[2.0, 1.0]),
                     depths: 2,
                 },
             ],
@@ -481,19 +605,44 @@ mod tests {
             (Some(0), Some(1), None)
         );
         let c = a.curve([v0, v1, None], [0.25, 0.25, 0.5], 0.1);
-        // Halfway between A = 1 and A = 2 at 0.5 mm, A = 1 at 1.5 mm.
-        assert!((c.at(0.5) - 0.15).abs() < 1e-6, "{c:?}");
-        assert!((c.at(1.5) - 0.1).abs() < 1e-6);
-        assert!((c.at(1.0) - 0.125).abs() < 1e-6);
-        // From the linear effect at the rest, held past the last depth.
-        assert!((c.at(0.0) - 0.1).abs() < 1e-6 && (c.at(0.25) - 0.125).abs() < 1e-6);
-        assert!((c.at(40.0) - 0.1).abs() < 1e-6);
+        // Halfway between A = 1 and A = 2 at 1 mm, A = 1 at 3 mm.
+        assert!((c.at(1.0) - 0.15).abs() < 1e-6, "{c:?}");
+        assert!((c.at(3.0) - 0.1).abs() < 1e-6);
+        assert!((c.at(2.0) - 0.125).abs() < 1e-6);
+        // From the linear effect at the rest; carried on over the half step the press
+        // reached past the last depth (to 4 mm), held past it.
+        assert!((c.at(0.0) - 0.1).abs() < 1e-6 && (c.at(0.5) - 0.125).abs() < 1e-6);
+        assert!((c.at(3.5) - 0.0875).abs() < 1e-6 && (c.at(4.0) - 0.075).abs() < 1e-6);
+        assert!((c.at(40.0) - 0.075).abs() < 1e-6 && (c.at(f64::INFINITY) - 0.075).abs() < 1e-6);
         assert!((c.at(f64::NAN) - 0.1).abs() < 1e-6 && (c.at(-3.0) - 0.1).abs() < 1e-6);
         assert!((c.max() - 0.15).abs() < 1e-6);
         // No stored corner: the flat curve.
         let flat = a.curve([None; 3], [0.2, 0.3, 0.5], 0.1);
         assert_eq!(flat, EffectCurve::flat(0.1));
         assert!((flat.at(7.0) - 0.1).abs() < 1e-7);
+    }
+
+    #[test]
+    fn a_ratio_is_kept_in_a_byte_within_its_step() {
+        let ratio = ratio_of_byte();
+        let half_step = (0.5 / RATIO_STEPS_PER_OCTAVE).exp2();
+        for r in [0.02, 0.3, 0.97, 1.0, 1.3, 7.0, 100.0] {
+            let back = ratio[byte_of_ratio(r) as usize];
+            assert!(
+                back / r <= half_step * (1.0 + 1e-12) && r / back <= half_step * (1.0 + 1e-12),
+                "{r} → {back}"
+            );
+        }
+        // Past the range, clamped; power given back (or none, or NaN) read as the least.
+        assert_eq!(ratio[byte_of_ratio(1e3) as usize], (6.75f64).exp2());
+        for r in [0.0, -0.4, f64::NAN, 1e-9] {
+            assert_eq!(byte_of_ratio(r), 0, "{r}");
+        }
+        assert_eq!(ratio[0], 1.0 / 64.0);
+        assert_eq!(
+            stored_depths_mm(1.0, 15),
+            vec![1.0, 3.0, 5.0, 7.0, 9.0, 11.0, 13.0]
+        );
     }
 
     #[test]
@@ -516,6 +665,9 @@ mod tests {
                 .expect_err("uneven depths")
                 .contains("equally spaced")
         );
+        let mut p = power();
+        p.share_floor = f64::NAN;
+        assert!(p.check().expect_err("no floor").contains("share floor"));
         let mut p = power();
         p.poisson = 0.5;
         assert!(p.check().expect_err("ν = 0.5").contains("Poisson"));

@@ -133,7 +133,7 @@ pub enum TableError {
     #[error("{path}: not a nodule table (expected a file `EffectTable::save` wrote)")]
     Foreign { path: String },
     #[error(
-        "{path}: nodule table format version {found}, this palpa reads version {VERSION}: build it again with `palpa nodule build` (and `palpa nodule check --record`)"
+        "{path}: nodule table format version {found}, this palpa reads version {VERSION}: build it again with `palpa nodule build` (then `palpa nodule tissue` for a tissue's power and `palpa nodule check --record`)"
     )]
     Version { path: String, found: u32 },
     #[error("{path}: {why}")]
@@ -181,7 +181,7 @@ pub struct TableSettings {
 
 /// The file's magic bytes and its one format version.
 pub const MAGIC: &[u8; 8] = b"PALPANOD";
-pub const VERSION: u32 = 9;
+pub const VERSION: u32 = 10;
 
 /// Whether `path` starts as a nodule table does (unreadable: no).
 pub fn is_table_file(path: &std::path::Path) -> bool {
@@ -1088,14 +1088,14 @@ impl EffectTable {
         Ok(out)
     }
 
-    /// Writes the table (atomically; deflated, checksummed).
+    /// Writes the table (atomically; LZMA-compressed, checksummed).
     pub fn save(&self, path: &std::path::Path) -> Result<(), TableError> {
-        crate::framed::write(path, MAGIC, (VERSION, crate::framed::Body::Deflated), self).map_err(
-            |e| TableError::Io {
+        crate::framed::write(path, MAGIC, (VERSION, crate::framed::Body::Lzma), self).map_err(|e| {
+            TableError::Io {
                 path: path.display().to_string(),
                 why: e.to_string(),
-            },
-        )
+            }
+        })
     }
 
     /// Reads a table [`Self::save`] wrote, every way it can be wrong named; a shard of
@@ -1133,7 +1133,7 @@ impl EffectTable {
     fn read_any(bytes: &[u8], path: &std::path::Path) -> Result<EffectTable, TableError> {
         use crate::framed::{Body, FramedError};
         let name = path.display().to_string();
-        let table: EffectTable = crate::framed::read(bytes, MAGIC, &[(VERSION, Body::Deflated)])
+        let table: EffectTable = crate::framed::read(bytes, MAGIC, &[(VERSION, Body::Lzma)])
             .map_err(|e| match e {
                 FramedError::Foreign => TableError::Foreign { path: name.clone() },
                 FramedError::Version(found) => TableError::Version {
