@@ -57,8 +57,8 @@ pub struct TissueArgs {
     #[arg(long, default_value_t = Keep::default().share_floor)]
     share_floor: f64,
     /// How deep each vertex is pressed (mm; at most the tissue's grid): past it the
-    /// deepest amplification is held. The build's time grows with it (15 mm took 1.7
-    /// times 10 mm's).
+    /// amplification reached there is held. The build's time grows with it (15 mm took
+    /// 1.5 times 10 mm's).
     #[arg(long, default_value_t = PRESS_DEPTH_MM)]
     depth_max_mm: f64,
     #[arg(long)]

@@ -58,8 +58,8 @@ pub const CURVE_DEPTHS: usize = 24;
 /// ones stay normal numbers in half precision.
 pub const SHARE_SCALE: f64 = 1024.0;
 
-/// How deep a vertex is pressed by default (mm): the goals' range; past it the deepest
-/// amplification is held.
+/// How deep a vertex is pressed by default (mm): the goals' range; past it a curve
+/// holds its end ([`EffectCurve::at`]).
 pub const PRESS_DEPTH_MM: f64 = 10.0;
 
 /// Grid steps averaged into one stored depth.
