@@ -523,7 +523,7 @@ mod hyperelastic {
     #[test]
     fn the_shared_tangent_continuation_is_as_good_as_the_exact_one() {
         use palpa_core::fe::series::{Expander, SplitTangent};
-        use palpa_core::tissue::surface::{SurfaceLawOptions, press_at};
+        use palpa_core::tissue::surface::{Pressing, SurfaceLawOptions};
         let organ = coarse_liver();
         let options = SurfaceLawOptions {
             element: Element::P1,
@@ -550,7 +550,14 @@ mod hyperelastic {
         .expect("newton");
         let mut fields = Vec::new();
         for tangent in [SplitTangent::Exact, SplitTangent::Shared] {
-            let p = press_at(&space, &organ, &expander, &options, POINTS[0], dir, tangent)
+            let pressing = Pressing {
+                space: &space,
+                organ: &organ,
+                expander: &expander,
+                o: &options,
+            };
+            let p = pressing
+                .press_at(POINTS[0], dir, tangent)
                 .expect("expands")
                 .unwrap_or_else(|why| panic!("{tangent:?}: {why}"));
             let (c, change) = (&p.press, p.pade_change);

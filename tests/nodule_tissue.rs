@@ -20,7 +20,7 @@ use palpa_core::organ::Level;
 use palpa_core::organ::catalogue::{OrganName, mesh};
 use palpa_core::pgd::nodule::amplification::{CellPower, Keep, PRESS_DEPTH_MM};
 use palpa_core::tissue::law::TissueLaw;
-use palpa_core::tissue::press::vertex_power;
+use palpa_core::tissue::press::Pressing;
 
 use palpa_tests::fe_without_and_with;
 
@@ -47,7 +47,13 @@ fn the_amplified_effect_follows_newton_where_the_linear_one_falls_short() {
     let at = organ.mesh.vertices[v];
     let push = organ_vertex_normals(&organ)[v].map(|c| -f64::from(c));
     let keep = Keep::default();
-    let vertex = vertex_power(&space, &organ, &expander, &o, at, push, keep).expect("pressed");
+    let pressing = Pressing {
+        space: &space,
+        organ: &organ,
+        expander: &expander,
+        o: &o,
+    };
+    let vertex = pressing.vertex_power(at, push, keep).expect("pressed");
     let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize;
     let power = CellPower::new(
         &space,

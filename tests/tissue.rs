@@ -21,8 +21,7 @@ use palpa_core::tissue::law::{
 };
 use palpa_core::tissue::presser::PressLog;
 use palpa_core::tissue::surface::{
-    PressCount, SurfaceLaw, SurfaceLawBuildError, SurfaceLawOptions, follow_at,
-    organ_vertex_normals,
+    PressCount, Pressing, SurfaceLaw, SurfaceLawBuildError, SurfaceLawOptions, organ_vertex_normals,
 };
 use palpa_tests::{coarse_liver, stored_error};
 
@@ -461,7 +460,14 @@ fn a_split_triangle_gives_back_its_inner_and_quarter_presses() {
     // The inner point near corner c[0], and the quarter point of edge c[0]–c[1] near c[0].
     for weights in [[0.5, 0.25, 0.25], [0.75, 0.25, 0.0]] {
         let (at, push) = point(weights);
-        let (press, depths) = follow_at(&space, &organ, &expander, &options, at, push, &[])
+        let pressing = Pressing {
+            space: &space,
+            organ: &organ,
+            expander: &expander,
+            o: &options,
+        };
+        let (press, depths) = pressing
+            .follow_at(at, push, &[])
             .expect("fe")
             .expect("the press reaches the grid's end");
         assert_eq!(press.u.len(), depths.len());

@@ -10,7 +10,7 @@ use palpa_core::tissue::bound::BoundTissue;
 use palpa_core::tissue::law::TissueLaw;
 use palpa_core::tissue::presser::PressLog;
 use palpa_core::tissue::surface::{
-    PressCount, SurfaceLawBuildError, SurfaceLawOptions, follow_at, organ_vertex_normals,
+    PressCount, Pressing, SurfaceLawBuildError, SurfaceLawOptions, organ_vertex_normals,
 };
 
 use super::{blend_error, shipped_scene};
@@ -119,7 +119,14 @@ pub(super) fn sub_split_in_place(
     assert!(w.iter().all(|&x| x > 0.0), "an inner point: {w:?}");
     let space = organ_space(organ, options.element);
     let expander = Expander::new(&space, options.law, options.material).expect("rest factor");
-    let (press, _) = follow_at(&space, organ, &expander, &options, at, push, &[])
+    let pressing = Pressing {
+        space: &space,
+        organ,
+        expander: &expander,
+        o: &options,
+    };
+    let (press, _) = pressing
+        .follow_at(at, push, &[])
         .expect("fe")
         .expect("the press reaches the grid's end");
     let depth = options.depth_max_mm;

@@ -614,7 +614,7 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
         CURVE_DEPTHS, CellPower, STEPS_PER_DEPTH, VertexPower,
     };
     use palpa_core::tissue::law::TissueLaw;
-    use palpa_core::tissue::press::vertex_power;
+    use palpa_core::tissue::press::Pressing;
     use rayon::prelude::*;
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::time::Instant;
@@ -664,6 +664,12 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let space = organ_space(&organ, o.element);
     let expander = Expander::new(&space, o.law, o.material)?;
+    let pressing = Pressing {
+        space: &space,
+        organ: &organ,
+        expander: &expander,
+        o: &o,
+    };
     let normals = organ_vertex_normals(&organ);
     let mut vertices = organ.pressable_vertices();
     vertices.sort_unstable();
@@ -676,7 +682,7 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
             let at = organ.mesh.vertices[v as usize];
             let push = normals[v as usize].map(|c| -f64::from(c));
             // A vertex the tool cannot press (beside the fixed region) keeps nothing.
-            let press = vertex_power(&space, &organ, &expander, &o, at, push, keep);
+            let press = pressing.vertex_power(at, push, keep);
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
             if !args.json && n.is_multiple_of(25) {
                 eprintln!(

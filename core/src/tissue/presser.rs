@@ -4,10 +4,9 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use crate::fe::series::Expander;
 use crate::organ::OrganMesh;
 use crate::tissue::options::{PressCount, SurfaceLawBuildError, SurfaceLawOptions, VertexPress};
-use crate::tissue::press::{path_options, point_press_prepared, prepare};
+use crate::tissue::press::{Pressing, path_options};
 use crate::tissue::presslog::RecordLog;
 
 /// A surface point to press: where, along what, and its id in the press log.
@@ -18,7 +17,7 @@ pub(crate) struct PressPoint {
     pub(crate) id: u32,
 }
 
-/// A logged press: what [`point_press`](super::press::point_press) gave at one log id.
+/// A logged press: what [`Pressing::point_press_prepared`] gave at one log id.
 pub(super) type Logged = Result<VertexPress, String>;
 
 /// One of `count` shards of a build (`index` from 1): each call's presses are dealt to
@@ -182,10 +181,7 @@ const PRESS_BATCH: usize = crate::fe::series::SOLVE_WIDTH;
 /// Presses surface points in parallel, logging each as it finishes and reporting
 /// progress (see [`PressCount`]).
 pub(super) struct Presser<'a> {
-    pub(super) space: &'a crate::fe::space::Space,
-    pub(super) organ: &'a OrganMesh,
-    pub(super) expander: &'a Expander<'a>,
-    pub(super) o: &'a SurfaceLawOptions,
+    pub(super) pressing: Pressing<'a>,
     pub(super) rows: &'a [u32],
     pub(super) steps: usize,
     pub(super) log: Option<(&'a Mutex<RecordLog>, &'a Path)>,
@@ -250,18 +246,13 @@ impl Presser<'_> {
                     .iter()
                     .map(|&k| (points[k].at, points[k].push))
                     .collect();
-                let prepared = prepare(self.space, self.organ, self.expander, self.o, &at)?;
+                let prepared = self.pressing.prepare(&at)?;
                 let mut done = Vec::with_capacity(batch.len());
                 for (&k, prepared) in batch.iter().zip(prepared) {
                     let p = &points[k];
-                    let press = point_press_prepared(
-                        self.space,
-                        self.expander,
-                        self.o,
-                        self.rows,
-                        self.steps,
-                        prepared,
-                    )?;
+                    let press = self
+                        .pressing
+                        .point_press_prepared(self.rows, self.steps, prepared)?;
                     if let Some((l, path)) = self.log {
                         // Off-line and once a press (seconds): a lock is fine here.
                         let mut l = l.lock().unwrap_or_else(|p| p.into_inner());

@@ -39,9 +39,7 @@ use crate::tissue::options::VertexPress;
 pub use crate::tissue::options::{
     COVER_SLACK_MM, MAX_GRID_POINTS, PressCount, SurfaceLawBuildError, SurfaceLawOptions,
 };
-pub use crate::tissue::press::{
-    PointPress, follow_at, organ_vertex_normals, path_options, press_at, tool_load,
-};
+pub use crate::tissue::press::{PointPress, Pressing, organ_vertex_normals, path_options};
 pub(crate) use crate::tissue::presser::{PressPoint, logged_press_ids};
 pub use crate::tissue::refine::{BandEdge, DEFAULT_REFINE_ABOVE_MM, Refinement, covering_vertices};
 
@@ -251,10 +249,12 @@ impl SurfaceLaw {
             }
         }));
         let presser = Presser {
-            space: &space,
-            organ,
-            expander: &expander,
-            o: &o,
+            pressing: Pressing {
+                space: &space,
+                organ,
+                expander: &expander,
+                o: &o,
+            },
             rows: &rows,
             steps,
             log: log.as_ref().map(|(l, p)| (l, p.as_path())),
@@ -506,10 +506,12 @@ impl SurfaceLaw {
         };
         let mut finished: HashMap<u32, Logged> = finished.into_iter().collect();
         let presser = Presser {
-            space: &space,
-            organ,
-            expander: &expander,
-            o: &o,
+            pressing: Pressing {
+                space: &space,
+                organ,
+                expander: &expander,
+                o: &o,
+            },
             rows: &self.rows,
             steps,
             log: log.as_ref().map(|(l, p)| (l, p.as_path())),

@@ -12,7 +12,7 @@ use palpa_core::fe::series::{Expander, SplitTangent};
 use palpa_core::organ::OrganMesh;
 use palpa_core::tissue::accuracy::{CheckRun, DepthFigures};
 use palpa_core::tissue::law::{PointIndex, TissueLaw};
-use palpa_core::tissue::surface::{SurfaceLawOptions, follow_at, press_at};
+use palpa_core::tissue::surface::{Pressing, SurfaceLawOptions};
 use palpa_core::tissue::surplus::BLEND_SURPLUS_WARN_MM;
 use serde_json::json;
 
@@ -207,22 +207,26 @@ pub fn check(args: &CheckArgs) -> anyhow::Result<()> {
                 ("exact", SplitTangent::Exact),
             ] {
                 let t = Instant::now();
-                let press = press_at(&space, &organ, expander, &o, at, contact.push_dir, tangent)?;
+                let pressing = Pressing {
+                    space: &space,
+                    organ: &organ,
+                    expander,
+                    o: &o,
+                };
+                let press = pressing.press_at(at, contact.push_dir, tangent)?;
                 own.push((name, press, t.elapsed().as_secs_f64()));
             }
         }
         let followed = match (&expander, args.own) {
             (Some(expander), true) => {
                 let t = Instant::now();
-                let p = follow_at(
-                    &space,
-                    &organ,
+                let pressing = Pressing {
+                    space: &space,
+                    organ: &organ,
                     expander,
-                    &o,
-                    at,
-                    contact.push_dir,
-                    &args.depths,
-                )?;
+                    o: &o,
+                };
+                let p = pressing.follow_at(at, contact.push_dir, &args.depths)?;
                 Some((p, t.elapsed().as_secs_f64()))
             }
             _ => None,

@@ -21,7 +21,7 @@ use palpa_core::fe::probe::organ_space;
 use palpa_core::fe::series::Expander;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
-use palpa_core::tissue::surface::{SurfaceLawOptions, follow_at, organ_vertex_normals, tool_load};
+use palpa_core::tissue::surface::{Pressing, SurfaceLawOptions, organ_vertex_normals};
 use serde_json::json;
 
 /// Largest nodal distance between two all-node states (mm).
@@ -72,6 +72,12 @@ pub(super) fn build_cost(
     let material = Material::default();
     let (mut build_total, mut brute_total, mut rest_total) = (0.0, 0.0, 0.0);
     let mut rows = 0usize;
+    let pressing = Pressing {
+        space: &space,
+        organ: coarse,
+        expander: &expander,
+        o: &o,
+    };
     for &(name, near) in positions {
         let Some(v) = nearest_vertex(coarse, &pressable, near) else {
             continue;
@@ -79,7 +85,7 @@ pub(super) fn build_cost(
         let at = coarse.mesh.vertices[v as usize];
         let push = normals[v as usize].map(|c| -f64::from(c));
         let t = Instant::now();
-        let (press, depths) = match follow_at(&space, coarse, &expander, &o, at, push, &[])? {
+        let (press, depths) = match pressing.follow_at(at, push, &[])? {
             Ok(p) => p,
             Err(why) => {
                 println!(
@@ -90,7 +96,7 @@ pub(super) fn build_cost(
             }
         };
         let build_s = t.elapsed().as_secs_f64();
-        let (shape, probe) = tool_load(&space, coarse, &o, at, push)?;
+        let (shape, probe) = pressing.tool_load(at, push)?;
         let stiffness = press.first.force[0];
         // Brute force: the reference Newton at each depth the build reached, each
         // from the previous depth's equilibrium.

@@ -22,7 +22,7 @@ use palpa_core::fe::series::{Expander, element_coefficient};
 use palpa_core::fe::sparse::SymCsc;
 use palpa_core::fe::{Element, Material};
 use palpa_core::organ::OrganMesh;
-use palpa_core::tissue::surface::{SurfaceLawOptions, organ_vertex_normals, tool_load};
+use palpa_core::tissue::surface::{Pressing, SurfaceLawOptions, organ_vertex_normals};
 use serde_json::json;
 
 use super::build::nearest_vertex;
@@ -48,8 +48,15 @@ fn run(coarse: &OrganMesh, near: [f64; 3]) -> anyhow::Result<()> {
         .ok_or_else(|| anyhow::anyhow!("the coarse liver has no pressable vertex"))?;
     let at = coarse.mesh.vertices[v as usize];
     let push = organ_vertex_normals(coarse)[v as usize].map(|c| -f64::from(c));
-    let (shape, probe) = tool_load(&space, coarse, &o, at, push)?;
-    let series = Expander::new(&space, law, Material::default())?.expand(&shape, &probe, 12)?;
+    let expander = Expander::new(&space, law, Material::default())?;
+    let pressing = Pressing {
+        space: &space,
+        organ: coarse,
+        expander: &expander,
+        o: &o,
+    };
+    let (shape, probe) = pressing.tool_load(at, push)?;
+    let series = expander.expand(&shape, &probe, 12)?;
     let cells: Vec<usize> = (0..space.cell_count()).collect();
     let state = series.displacement(4.0, 12);
 
