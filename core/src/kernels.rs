@@ -1,4 +1,4 @@
-//! Streaming kernels of on-line evaluation.
+//! Streaming kernels of on-line evaluation, and the row sums a nodule's placement is made of.
 //!
 //! Reconstruction is `u_r = Σ_{k<n} X[r, k] · c_k` over the chosen rows: every stored
 //! entry of X is read once and used once, so its cost is bounded below by the time to
@@ -59,6 +59,32 @@ pub fn stream_sum<T: Scalar>(data: &[T]) -> f64 {
         return x86::stream_sum(data);
     }
     stream_sum_generic(data)
+}
+
+/// `y[i] += a · x[i]` over the shorter of the two: sums of contiguous rows weighted by
+/// a sparse row (the nodule's small system, [`crate::pgd::nodule`]). Each element rounds
+/// as written (a product, then a sum; no fused multiply-add), so every path gives the
+/// same bits; on x86-64 the body is compiled for AVX2 too and chosen at run time.
+#[inline]
+pub fn axpy<T: Axpy>(y: &mut [T], a: T, x: &[T]) {
+    #[cfg(target_arch = "x86_64")]
+    if x86::has_avx2_fma() {
+        x86::axpy(y, a, x);
+        return;
+    }
+    axpy_generic(y, a, x);
+}
+
+/// What [`axpy`] works in: `f32` and `f64`.
+pub trait Axpy: Copy + std::ops::Mul<Output = Self> + std::ops::AddAssign {}
+impl Axpy for f32 {}
+impl Axpy for f64 {}
+
+#[inline(always)]
+fn axpy_generic<T: Axpy>(y: &mut [T], a: T, x: &[T]) {
+    for (d, &s) in y.iter_mut().zip(x) {
+        *d += a * s;
+    }
 }
 
 /// `out[k] *= Σ_{s<len} w_s · values[node_s · modes + k]`: the particularization step
@@ -196,6 +222,17 @@ mod x86 {
         stream_sum_generic(data)
     }
 
+    pub fn axpy<T: super::Axpy>(y: &mut [T], a: T, x: &[T]) {
+        // SAFETY: called only after has_avx2_fma() returned true; the generic body only
+        // touches `y` and `x` inside their bounds.
+        unsafe { axpy_avx2(y, a, x) }
+    }
+
+    #[target_feature(enable = "avx2,fma")]
+    fn axpy_avx2<T: super::Axpy>(y: &mut [T], a: T, x: &[T]) {
+        super::axpy_generic(y, a, x);
+    }
+
     #[inline]
     #[target_feature(enable = "avx2,fma")]
     fn hsum(v: __m256d) -> f64 {
@@ -324,6 +361,22 @@ mod x86 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn axpy_gives_the_portable_bits_for_all_tails() {
+        for n in 0..40 {
+            let x: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).sin()).collect();
+            let y0: Vec<f32> = (0..n).map(|i| (i as f32 * 0.11).cos()).collect();
+            let (mut y, mut want) = (y0.clone(), y0);
+            axpy(&mut y, 0.3, &x);
+            axpy_generic(&mut want, 0.3, &x);
+            assert_eq!(y, want, "n = {n}");
+            assert!(want.iter().zip(&x).all(|(w, _)| w.is_finite()));
+        }
+        let mut y = vec![1.0f64; 5];
+        axpy(&mut y, 2.0, &[1.0, 2.0, 3.0]);
+        assert_eq!(y, [3.0, 5.0, 7.0, 1.0, 1.0]);
+    }
 
     #[test]
     fn dot_matches_naive_for_all_tails() {

@@ -26,9 +26,12 @@
 //!
 //! **Off-line**: one solve per stored column, over the nodal build's factor of `K₀`.
 //! **On-line**: [`InteriorResponses::place`] (the cells' factors, `C`, `G_pp`, the LU of
-//! `I + C G_pp`) and [`PlacedNodule::correction`]. Nothing is approximated but the
-//! storage of `G` in single precision, and the `m × m` system formed and factored in it
-//! (its condition is about the ratio's: a few correct digits more than the table needs).
+//! `I + C G_pp`) and [`PlacedNodule::correction`]. What a nodule's ratios share (its
+//! cells, their stiffness, its unknowns, `G_pp`) is cut once ([`InteriorResponses::cut`])
+//! and each ratio placed from it ([`NoduleCut::place`]): a table's build places every
+//! centre and radius at two ratios. Nothing is approximated but the storage of `G` in
+//! single precision, and the `m × m` system formed and factored in it (its condition is
+//! about the ratio's: a few correct digits more than the table needs).
 
 pub mod amplification;
 pub mod heldout;
@@ -330,22 +333,6 @@ impl InteriorResponses {
     pub fn place(&self, nodule: &Nodule) -> Result<PlacedNodule, NoduleStoreError> {
         let t0 = Instant::now();
         let r = &self.ranges;
-        let distance_mm = norm(sub(nodule.center_mm, r.center_mm));
-        if distance_mm > r.reach_mm {
-            return Err(NoduleStoreError::CentreOutside {
-                center_mm: nodule.center_mm,
-                region_mm: r.center_mm,
-                distance_mm,
-                reach_mm: r.reach_mm,
-            });
-        }
-        if !(r.radius_mm.0..=r.radius_mm.1).contains(&nodule.radius_mm) {
-            return Err(NoduleStoreError::Radius {
-                radius_mm: nodule.radius_mm,
-                lo: r.radius_mm.0,
-                hi: r.radius_mm.1,
-            });
-        }
         if !(r.ratio.0..=r.ratio.1).contains(&nodule.ratio) {
             return Err(NoduleStoreError::Ratio {
                 ratio: nodule.ratio,
@@ -353,8 +340,43 @@ impl InteriorResponses {
                 hi: r.ratio.1,
             });
         }
-        let factors = nodule.stiffness(&self.space, self.poisson);
-        let cells: Vec<usize> = (0..factors.len()).filter(|&c| factors[c] != 1.0).collect();
+        let cut = self.cut(nodule.center_mm, nodule.radius_mm)?;
+        let mut placed = cut.place(nodule.ratio)?;
+        placed.place_s = t0.elapsed().as_secs_f64();
+        Ok(placed)
+    }
+
+    /// What every ratio of a nodule at `center_mm` of radius `radius_mm` shares: the
+    /// cells it touches with their volume fractions and element stiffness, its
+    /// unknowns, the pattern of `C` on them and `G_pp` ([`NoduleCut::place`] then
+    /// places one ratio).
+    pub fn cut(&self, center_mm: [f64; 3], radius_mm: f64) -> Result<NoduleCut, NoduleStoreError> {
+        let r = &self.ranges;
+        let distance_mm = norm(sub(center_mm, r.center_mm));
+        if distance_mm > r.reach_mm {
+            return Err(NoduleStoreError::CentreOutside {
+                center_mm,
+                region_mm: r.center_mm,
+                distance_mm,
+                reach_mm: r.reach_mm,
+            });
+        }
+        if !(r.radius_mm.0..=r.radius_mm.1).contains(&radius_mm) {
+            return Err(NoduleStoreError::Radius {
+                radius_mm,
+                lo: r.radius_mm.0,
+                hi: r.radius_mm.1,
+            });
+        }
+        let shape = Nodule {
+            center_mm,
+            radius_mm,
+            ratio: 2.0,
+        };
+        let fractions = shape.cell_fractions(&self.space);
+        let cells: Vec<usize> = (0..fractions.len())
+            .filter(|&c| fractions[c] > 0.0)
+            .collect();
         // The nodule's unknowns, ascending, and each one's place among them.
         let mut dofs: Vec<u32> = Vec::new();
         let mut local = Vec::new();
@@ -374,38 +396,61 @@ impl InteriorResponses {
         dofs.sort_unstable();
         dofs.dedup();
         let m = dofs.len();
-        let index = |d: usize| dofs.binary_search(&(d as u32)).ok();
-        // C = Σ_e (s_e − 1) K_e on the nodule's unknowns, by rows (sparse: a row
-        // couples an unknown to those of its own cells only).
+        let index = |d: usize| dofs.binary_search(&(d as u32)).ok().map(|i| i as u32);
+        // Each cell's element stiffness and its entries' (row, column) among the
+        // nodule's unknowns; then C's pattern by rows (C is symmetric, a row couples an
+        // unknown to those of its own cells only) and each entry's place in it.
         let npc = self.space.element.nodes_per_cell();
-        let mut ke = vec![0.0; 9 * npc * npc];
-        let mut c_dense = Mat::<f64>::zeros(m, m);
-        for &c in &cells {
-            element_stiffness(&self.space, c, self.lambda, self.mu, &mut ke);
+        let mut ke = vec![0.0; cells.len() * 9 * npc * npc];
+        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(ke.len());
+        for (e, &c) in cells.iter().enumerate() {
+            let k_e = &mut ke[e * 9 * npc * npc..(e + 1) * 9 * npc * npc];
+            element_stiffness(&self.space, c, self.lambda, self.mu, k_e);
             cell_dofs(&self.space, c, &mut local);
-            let w = factors[c] - 1.0;
-            let at: Vec<Option<usize>> = local
+            let at: Vec<u32> = local
                 .iter()
-                .map(|&d| (d != usize::MAX).then(|| index(d)).flatten())
-                .collect();
-            let k = local.len();
-            for (i, ai) in at.iter().enumerate() {
-                let Some(ai) = ai else { continue };
-                for (j, aj) in at.iter().enumerate() {
-                    if let Some(aj) = aj {
-                        c_dense[(*ai, *aj)] += w * ke[i * k + j];
+                .map(|&d| {
+                    if d == usize::MAX {
+                        u32::MAX
+                    } else {
+                        index(d).unwrap_or(u32::MAX)
                     }
+                })
+                .collect();
+            // Entry (i, j) of K_e is stored as C's (j, i): C's rows are its columns.
+            for &ai in &at {
+                for &aj in &at {
+                    pairs.push((aj, ai));
                 }
             }
         }
-        // C is symmetric: its columns are its rows.
-        let c_rows: Vec<Vec<(u32, f64)>> = (0..m)
-            .map(|j| {
-                let col = c_dense.col(j);
-                (0..m)
-                    .filter(|&i| col[i] != 0.0)
-                    .map(|i| (i as u32, col[i]))
-                    .collect()
+        let mut pattern: Vec<(u32, u32)> = pairs
+            .iter()
+            .copied()
+            .filter(|&(i, j)| i != u32::MAX && j != u32::MAX)
+            .collect();
+        pattern.sort_unstable();
+        pattern.dedup();
+        let mut row_starts = vec![0u32; m + 1];
+        for &(i, _) in &pattern {
+            row_starts[i as usize + 1] += 1;
+        }
+        for i in 0..m {
+            row_starts[i + 1] += row_starts[i];
+        }
+        let c_cols: Vec<u32> = pattern.iter().map(|&(_, j)| j).collect();
+        let slot: Vec<u32> = pairs
+            .iter()
+            .map(|&(i, j)| {
+                if i == u32::MAX || j == u32::MAX {
+                    return u32::MAX;
+                }
+                let (lo, hi) = (
+                    row_starts[i as usize] as usize,
+                    row_starts[i as usize + 1] as usize,
+                );
+                let k = c_cols[lo..hi].binary_search(&j).expect("in the pattern");
+                (lo + k) as u32
             })
             .collect();
         let cols: Vec<usize> = dofs
@@ -413,14 +458,13 @@ impl InteriorResponses {
             .map(|&d| self.col_of[d as usize] as usize)
             .collect();
         // G_pp from the stored columns (rows of p are stored: p ⊂ cols ⊂ rows), one
-        // contiguous column at a time.
+        // contiguous column at a time, in single precision as stored: the small dense
+        // system is formed and factored in it too.
         let nr = self.rows.len();
         let rows_p: Vec<usize> = dofs
             .iter()
             .map(|&d| self.row_of[d as usize] as usize)
             .collect();
-        // G_pp, one column after another (single precision, as stored: the small dense
-        // system is formed and factored in it too).
         let mut g_pp = vec![0.0f32; m * m];
         for (j, out) in g_pp.chunks_exact_mut(m).enumerate() {
             let g = &self.g[cols[j] * nr..(cols[j] + 1) * nr];
@@ -428,40 +472,18 @@ impl InteriorResponses {
                 *x = g[r];
             }
         }
-        // G_pp and C are symmetric, so (C G_pp)ᵀ = G_pp C, whose column j is the sum of
-        // G_pp's columns weighted by C's row j: contiguous sums.
-        let mut gc = vec![0.0f32; m * m];
-        for (j, dst) in gc.chunks_exact_mut(m).enumerate() {
-            for &(k, v) in &c_rows[j] {
-                let v = v as f32;
-                let src = &g_pp[k as usize * m..(k as usize + 1) * m];
-                for (d, s) in dst.iter_mut().zip(src) {
-                    *d += v * s;
-                }
-            }
-        }
-        // I + C G_pp = (I + G_pp C)ᵀ: entry (i, j) is column i's entry j.
-        let system = Mat::<f32>::from_fn(m, m, |i, j| gc[i * m + j] + f32::from(u8::from(i == j)));
-        let t_factor = Instant::now();
-        let lu = system.partial_piv_lu();
-        let factor_s = t_factor.elapsed().as_secs_f64();
-        // A singular system shows as a non-finite solve of a probe vector.
-        let mut probe = Mat::<f32>::from_fn(m, 1, |i, _| 1.0 + i as f32 / m as f32);
-        lu.solve_in_place(probe.as_mut());
-        if (0..m).any(|i| !probe[(i, 0)].is_finite()) {
-            return Err(NoduleStoreError::Singular {
-                ratio: nodule.ratio,
-            });
-        }
-        Ok(PlacedNodule {
-            nodule: *nodule,
+        Ok(NoduleCut {
+            center_mm,
+            radius_mm,
+            poisson: self.poisson,
+            fractions: cells.iter().map(|&c| fractions[c]).collect(),
+            ke,
+            slot,
+            row_starts,
+            c_cols,
             dofs,
             cols,
-            c_rows,
-            lu,
-            cells: cells.len(),
-            factor_s,
-            place_s: t0.elapsed().as_secs_f64(),
+            g_pp,
         })
     }
 
@@ -495,6 +517,94 @@ impl InteriorResponses {
                     .sum()
             })
             .collect()
+    }
+}
+
+/// A nodule's centre and radius cut from a store: everything its ratios share
+/// ([`InteriorResponses::cut`]).
+#[derive(Debug)]
+pub struct NoduleCut {
+    center_mm: [f64; 3],
+    radius_mm: f64,
+    poisson: f64,
+    /// The volume fraction inside the sphere of each cell it touches.
+    fractions: Vec<f64>,
+    /// Those cells' element stiffness (tissue), one after another.
+    ke: Vec<f64>,
+    /// Each element entry's place among `C`'s stored entries, or `u32::MAX` (fixed).
+    slot: Vec<u32>,
+    /// `C`'s pattern by rows: row `i`'s columns are `c_cols[row_starts[i]..row_starts[i + 1]]`.
+    row_starts: Vec<u32>,
+    c_cols: Vec<u32>,
+    dofs: Vec<u32>,
+    cols: Vec<usize>,
+    g_pp: Vec<f32>,
+}
+
+impl NoduleCut {
+    /// The nodule of this centre and radius at `ratio`: `C` and the LU of `I + C G_pp`.
+    pub fn place(&self, ratio: f64) -> Result<PlacedNodule, NoduleStoreError> {
+        let t0 = Instant::now();
+        let nodule = Nodule {
+            center_mm: self.center_mm,
+            radius_mm: self.radius_mm,
+            ratio,
+        };
+        let m = self.dofs.len();
+        let per = self.ke.len() / self.fractions.len().max(1);
+        // C = Σ_e (s_e − 1) K_e on the nodule's unknowns, by rows.
+        let mut values = vec![0.0f64; self.c_cols.len()];
+        for (e, &phi) in self.fractions.iter().enumerate() {
+            let w = nodule.factor(phi, self.poisson) - 1.0;
+            let k_e = &self.ke[e * per..(e + 1) * per];
+            for (&at, &k) in self.slot[e * per..(e + 1) * per].iter().zip(k_e) {
+                if at != u32::MAX {
+                    values[at as usize] += w * k;
+                }
+            }
+        }
+        let c_rows: Vec<Vec<(u32, f64)>> = (0..m)
+            .map(|i| {
+                let (lo, hi) = (self.row_starts[i] as usize, self.row_starts[i + 1] as usize);
+                (lo..hi)
+                    .filter(|&k| values[k] != 0.0)
+                    .map(|k| (self.c_cols[k], values[k]))
+                    .collect()
+            })
+            .collect();
+        // G_pp and C are symmetric, so (C G_pp)ᵀ = G_pp C, whose column j is the sum of
+        // G_pp's columns weighted by C's row j: contiguous sums.
+        let g_pp = &self.g_pp;
+        let mut gc = vec![0.0f32; m * m];
+        for (j, dst) in gc.chunks_exact_mut(m).enumerate() {
+            for &(k, v) in &c_rows[j] {
+                crate::kernels::axpy(dst, v as f32, &g_pp[k as usize * m..(k as usize + 1) * m]);
+            }
+        }
+        // I + C G_pp = (I + G_pp C)ᵀ: entry (i, j) is column i's entry j.
+        let system = Mat::<f32>::from_fn(m, m, |i, j| gc[i * m + j] + f32::from(u8::from(i == j)));
+        let t_factor = Instant::now();
+        let lu = system.partial_piv_lu();
+        let factor_s = t_factor.elapsed().as_secs_f64();
+        // A singular system shows as a non-finite solve of a probe vector.
+        let mut probe = Mat::<f32>::from_fn(m, 1, |i, _| 1.0 + i as f32 / m as f32);
+        lu.solve_in_place(probe.as_mut());
+        // faer's kernels leave the vector registers' upper halves set: cleared before
+        // the scalar work that follows on this thread (crate::cpu).
+        crate::cpu::clear_upper_halves();
+        if (0..m).any(|i| !probe[(i, 0)].is_finite()) {
+            return Err(NoduleStoreError::Singular { ratio });
+        }
+        Ok(PlacedNodule {
+            nodule,
+            dofs: self.dofs.clone(),
+            cols: self.cols.clone(),
+            c_rows,
+            lu,
+            cells: self.fractions.len(),
+            factor_s,
+            place_s: t0.elapsed().as_secs_f64(),
+        })
     }
 }
 
@@ -551,21 +661,28 @@ impl PlacedNodule {
     /// solve `(I + C G_pp) Z = C U` for all of them, `δc_k = −V_kᵀ Z_k`.
     pub fn corrections(&self, responses: &[(&[f64], &[f64])]) -> Vec<f64> {
         let m = self.dofs.len();
-        let mut z = Mat::<f32>::zeros(m, responses.len());
-        let mut u = vec![0.0; m];
+        let n = responses.len();
+        // U by rows (the n loads' responses at one unknown contiguous), so that `C U`
+        // is a sum of contiguous rows weighted by C's sparse rows.
+        let mut u = vec![0.0f64; m * n];
         for (k, (f, _)) in responses.iter().enumerate() {
-            for (x, &c) in u.iter_mut().zip(&self.cols) {
-                *x = f[c];
+            for (i, &c) in self.cols.iter().enumerate() {
+                u[i * n + k] = f[c];
             }
-            let col = z
-                .col_mut(k)
-                .try_as_col_major_mut()
-                .expect("a column is contiguous");
-            for (out, row) in col.as_slice_mut().iter_mut().zip(&self.c_rows) {
-                *out = row.iter().map(|&(j, v)| v * u[j as usize]).sum::<f64>() as f32;
+        }
+        let mut z = Mat::<f32>::zeros(m, n);
+        let mut row = vec![0.0f64; n];
+        for (i, c_row) in self.c_rows.iter().enumerate() {
+            row.fill(0.0);
+            for &(j, v) in c_row {
+                crate::kernels::axpy(&mut row, v, &u[j as usize * n..(j as usize + 1) * n]);
+            }
+            for (k, &x) in row.iter().enumerate() {
+                z[(i, k)] = x as f32;
             }
         }
         self.lu.solve_in_place(z.as_mut());
+        crate::cpu::clear_upper_halves();
         responses
             .iter()
             .enumerate()

@@ -959,13 +959,9 @@ impl EffectTable {
         let mut count = 0;
         for (ri, &r) in s.radii_mm.iter().enumerate() {
             let mut y = [vec![0.0; near.len()], vec![0.0; near.len()]];
+            let cut = store.cut(c, r).ok()?;
             for (b, &beta) in FIT_RATIOS.iter().enumerate() {
-                let nodule = Nodule {
-                    center_mm: c,
-                    radius_mm: r,
-                    ratio: beta,
-                };
-                let placed = store.place(&nodule).ok()?;
+                let placed = cut.place(beta).ok()?;
                 count += 1;
                 for (y, dc) in y[b].iter_mut().zip(placed.corrections(&pairs)) {
                     *y = -dc;
