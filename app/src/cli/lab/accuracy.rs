@@ -138,6 +138,20 @@ fn nodule_table(
         table.checks.iter().map(|c| c.pairs.len()).sum::<usize>(),
         seeds.join(", ")
     )?;
+    // The off-line the table took, as its build and `palpa nodule tissue` timed it.
+    let power = table.tissue_power.as_ref().map_or(String::new(), |p| {
+        format!(
+            " and the tissue's power in {:.1} min: {:.1} min off-line in all",
+            p.build_s / 60.0,
+            (table.build_s + p.build_s) / 60.0
+        )
+    });
+    writeln!(
+        out,
+        "The table built in {:.1} min ({} placements of a nodule){power}, on the machine that built them.\n",
+        table.build_s / 60.0,
+        table.placements,
+    )?;
     writeln!(
         out,
         "| ratios | pairs with an effect above 5 % | effects seen | median error | 90th percentile | worst | within 10 % | elsewhere, worst | surface at 1 N, median / worst | within 0.1 mm |"
