@@ -54,17 +54,7 @@ fn the_amplified_effect_follows_newton_where_the_linear_one_falls_short() {
         o: &o,
     };
     let vertex = pressing.vertex_power(at, push, keep).expect("pressed");
-    let steps = (o.depth_max_mm / o.depth_step_mm).round() as usize;
-    let power = CellPower::new(
-        &space,
-        law.payload_xxh3(),
-        o.material.poisson,
-        keep,
-        o.depth_step_mm,
-        steps,
-        vec![vertex],
-        0.0,
-    );
+    let power = pressing.cell_power(law.payload_xxh3(), keep, vec![vertex], 0.0);
     // Two nodules under the vertex, felt (Newton's effect 5–9 %) where the linear
     // effect falls 28–42 % short.
     for (centre_mm, ratio) in [(20.0, 4.0), (24.0, 6.0)] {

@@ -610,9 +610,7 @@ fn build_summary(table: &EffectTable, out: &std::path::Path) -> serde_json::Valu
 fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
     use palpa_core::fe::probe::{organ_space, organ_vertex_normals};
     use palpa_core::fe::series::Expander;
-    use palpa_core::pgd::nodule::amplification::{
-        CURVE_DEPTHS, CellPower, STEPS_PER_DEPTH, VertexPower,
-    };
+    use palpa_core::pgd::nodule::amplification::{CURVE_DEPTHS, STEPS_PER_DEPTH, VertexPower};
     use palpa_core::tissue::law::TissueLaw;
     use palpa_core::tissue::press::Pressing;
     use rayon::prelude::*;
@@ -702,16 +700,7 @@ fn tissue_power(args: &TissueArgs) -> anyhow::Result<()> {
             None => skipped += 1,
         }
     }
-    let power = CellPower::new(
-        &space,
-        law.payload_xxh3(),
-        o.material.poisson,
-        keep,
-        o.depth_step_mm,
-        steps,
-        kept,
-        t0.elapsed().as_secs_f64(),
-    );
+    let power = pressing.cell_power(law.payload_xxh3(), keep, kept, t0.elapsed().as_secs_f64());
     let report = json!({
         "file": args.file, "tissue": args.tissue, "vertices": power.vertices.len(),
         "skipped": skipped, "cells": power.cells.len(), "bytes": power.bytes(),

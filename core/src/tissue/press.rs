@@ -228,6 +228,28 @@ impl Pressing<'_> {
         ))
     }
 
+    /// The presses `vertices` ([`Self::vertex_power`], taken with `keep`) as the power
+    /// of this tissue (its payload checksum `tissue_xxh3`) that a nodule table keeps.
+    pub fn cell_power(
+        &self,
+        tissue_xxh3: u64,
+        keep: crate::pgd::nodule::amplification::Keep,
+        vertices: Vec<crate::pgd::nodule::amplification::VertexPower>,
+        build_s: f64,
+    ) -> crate::pgd::nodule::amplification::CellPower {
+        let o = self.o;
+        crate::pgd::nodule::amplification::CellPower::new(
+            self.space,
+            tissue_xxh3,
+            o.material.poisson,
+            keep,
+            o.depth_step_mm,
+            (o.depth_max_mm / o.depth_step_mm).round() as usize,
+            vertices,
+            build_s,
+        )
+    }
+
     /// The loads and rest series of the presses at `points` (`(at, push)` each), the
     /// series expanded together ([`Expander::expand_active_batch`]: their solves share
     /// the passes over the rest factor). Each is the series its press gives alone.
