@@ -88,11 +88,12 @@ if [ -n "${NODULES:-}" ]; then
   done
   # The neo-Hookean tissue with a nodule (its force times 1 + e A, A the amplification
   # by the tissue's own press): every palpable vertex pressed to 10 mm without a nodule
-  # (about 10 min on 2 cores), then checked against Newton with the nodule.
+  # (about 10 min on 2 cores), then checked against Newton with the nodule: the probe
+  # within 20 mm of it, then right above it (seed 20).
   power="palpa nodule tissue assets/liver-coarse.nodules --tissue assets/liver-coarse.tissue"
   $palpa ${power#palpa } > /dev/null
   cmds+=(--command "$power")
-  for seed in 7 8; do
+  for seed in "7" "8" "20 --above"; do
     check="palpa nodule check assets/liver-coarse.nodules --level coarse --tissue assets/liver-coarse.tissue --felt 5 --seed $seed --record"
     $palpa ${check#palpa } > /dev/null
     cmds+=(--command "$check")

@@ -429,7 +429,7 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     let b = beyond.expect("a check at ratios 10-100 recorded");
     assert!(b.felt >= 10 && b.error_median < 0.1, "{b:?}");
     assert!(s.felt >= 60, "{s:?}");
-    // Over the whole band (measured: 92 felt pairs, median 2.4 %, 97 % within 10 %, the
+    // Over the whole band (measured: 92 felt pairs, median 2.4 %, 98 % within 10 %, the
     // worst 16 % at a thin edge).
     assert!(
         s.within_10_percent >= 0.9 && s.error_max <= 0.2 && s.error_median < 0.05,
@@ -522,9 +522,45 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     const FORCE_MAX: f64 = 0.05;
     const EFFECT_MEDIAN: f64 = 0.1;
     const EFFECT_MAX: f64 = 0.2;
-    let checks = heldout::recorded_tissue(&table);
-    assert!(checks.len() >= 2);
-    for (_, _, t) in &checks {
+    // A check drawn right above each nodule (`--above`) is told apart by its presses.
+    let (over, around): (Vec<_>, Vec<_>) = table
+        .tissue_checks
+        .iter()
+        .partition(|c| heldout::drawn_above(c, &organ));
+    // Right above the nodule the first-order amplification overstates a nodule whose
+    // top lies within about 5 mm of the tool (docs/lab/nodule-measurements.md §22).
+    // Measured (seed 20: 24 presses, the nodule's top 7.2 mm under the tool at the
+    // median): 15 felt, 14 of them answered high; the effect 9.7 % off at the median,
+    // 38.7 % at worst, 60 % within 10 %; the force 0.8 % off at the median, 11.2 % at
+    // worst.
+    assert!(
+        !over.is_empty(),
+        "a check with the probe above each nodule recorded (`--above`)"
+    );
+    for c in &over {
+        let t = heldout::TissueSummary::of(&c.pairs).expect("presses");
+        assert!(t.felt >= 3 && t.gap_median_mm < 15.0, "{t:?}");
+        assert!(
+            t.effect_error_median < 0.3 && t.effect_error_max < 0.6,
+            "{t:?}"
+        );
+        assert!(
+            t.force_error_median < 0.025 && t.force_error_max < 0.17,
+            "{t:?}"
+        );
+        let felt = c.pairs.iter().filter(|p| p.effect_fe() > heldout::FELT);
+        let high = felt
+            .clone()
+            .filter(|p| p.effect_answered > p.effect_fe())
+            .count();
+        assert!(
+            high * 4 >= felt.count() * 3,
+            "overstated where it misses: {t:?}"
+        );
+    }
+    assert!(around.len() >= 2);
+    for c in &around {
+        let t = heldout::TissueSummary::of(&c.pairs).expect("presses");
         assert!(t.presses >= 40 && t.felt >= 6, "{t:?}");
         assert!(t.force_error_median < FORCE_MEDIAN, "{t:?}");
         assert!(t.force_error_max < FORCE_MAX, "{t:?}");

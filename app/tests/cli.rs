@@ -2068,6 +2068,12 @@ fn a_nodule_table_beside_the_scene_answers_eval_as_the_fe_does() {
         );
     }
 
+    // `--above` (the probe right above each nodule) measures a tissue, and says so.
+    let out = palpa(&["nodule", "check", &table_s, "--above"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--above") && err.contains("--tissue"), "{err}");
+
     // `palpa nodule tissue` refuses knobs it cannot press with, by name, before it
     // presses anything.
     for (knob, value, said) in [

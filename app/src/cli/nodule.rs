@@ -106,6 +106,11 @@ pub struct CheckArgs {
     /// With --tissue: each pair's press depths (mm), off the tissue's depth grid.
     #[arg(long, value_delimiter = ',', default_values_t = [2.6, 6.1, 9.7], requires = "tissue")]
     depths: Vec<f64>,
+    /// With --tissue: the probe right above each nodule (at the palpable point nearest
+    /// its centre) instead of within 20 mm of it, where a trainee presses once the
+    /// nodule is found; the same nodules as the seed's without it.
+    #[arg(long, requires = "tissue")]
+    above: bool,
     #[arg(long)]
     json: bool,
 }
@@ -794,8 +799,8 @@ fn check_tissue(args: &CheckArgs, tissue: &std::path::Path) -> anyhow::Result<()
             ratio,
             ..case.nodule()
         };
-        let aim =
-            [0, 1, 2].map(|d| case.surface_mm[d] + rng.range(-PROBE_SPREAD_MM, PROBE_SPREAD_MM));
+        let spread = if args.above { 0.0 } else { PROBE_SPREAD_MM };
+        let aim = [0, 1, 2].map(|d| case.surface_mm[d] + rng.range(-spread, spread));
         if nodule.check(&organ).is_err() {
             continue;
         }

@@ -194,7 +194,20 @@ fn nodule_table(
             100.0 * s.surface_within_goal
         )?;
     }
-    let checks = palpa_core::pgd::nodule::heldout::recorded_tissue(table);
+    use palpa_core::pgd::nodule::heldout::{TissueSummary, drawn_above};
+    // The default table is the built-in liver's: its checks are told apart by where
+    // they drew the probe.
+    let organ = palpa_core::organ::catalogue::mesh(
+        palpa_core::organ::catalogue::OrganName::Liver,
+        palpa_core::organ::Level::Coarse,
+    );
+    let checks: Vec<_> = table
+        .tissue_checks
+        .iter()
+        .filter_map(|c| {
+            TissueSummary::of(&c.pairs).map(|t| (c.seed, c.amplified, drawn_above(c, &organ), t))
+        })
+        .collect();
     if checks.is_empty() {
         writeln!(
             out,
@@ -204,18 +217,24 @@ fn nodule_table(
     }
     writeln!(
         out,
-        "\nThe neo-Hookean tissue with a nodule (the tissue's force times `1 + e A`, `e` the linear effect from this table, `A` its amplification by the tissue's own nodule-free press, from the table's power of the tissue (`palpa nodule tissue`; \"linear\": none, the effect as it is); the surface the tissue's without the nodule at the depth, swayed with the force away from the tool), against Newton with the nodule (ratios 1.5–10). Goals: the force within 5 % and the surface within 0.5 mm to 10 mm; the effect within 10 % where it exceeds 5 %.\n",
+        "\nThe neo-Hookean tissue with a nodule (the tissue's force times `1 + e A`, `e` the linear effect from this table, `A` its amplification by the tissue's own nodule-free press, from the table's power of the tissue (`palpa nodule tissue`; \"linear\": none, the effect as it is); the surface the tissue's without the nodule at the depth, swayed with the force away from the tool), against Newton with the nodule (ratios 1.5–10; the probe within 20 mm of the nodule's projection on the surface, or right above it with `--above`, the nodule's depth under the tool then the probe's distance from it). Goals: the force within 5 % and the surface within 0.5 mm to 10 mm; the effect within 10 % where it exceeds 5 %.\n",
     )?;
     writeln!(
         out,
-        "| seed | effect | presses, to | force, median | force, worst | presses with an effect above 5 % | effects seen | effect, median error | worst | within 10 % | surface, worst |"
+        "| seed | effect | the probe (from the nodule, median) | presses, to | force, median | force, worst | presses with an effect above 5 % | effects seen | effect, median error | worst | within 10 % | surface, worst |"
     )?;
-    writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|")?;
-    for (seed, amplified, t) in checks {
+    writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|")?;
+    for (seed, amplified, above, t) in checks {
         let how = if amplified { "amplified" } else { "linear" };
+        let probe = if above {
+            "right above it"
+        } else {
+            "within 20 mm"
+        };
         writeln!(
             out,
-            "| {seed} | {how} | {}, {:.1} mm | {:.2} % | {:.2} % | {} | {:.1}–{:.1} % | {:.1} % | {:.1} % | {:.0} % | {:.2} mm |",
+            "| {seed} | {how} | {probe} ({:.1} mm) | {}, {:.1} mm | {:.2} % | {:.2} % | {} | {:.1}–{:.1} % | {:.1} % | {:.1} % | {:.0} % | {:.2} mm |",
+            t.gap_median_mm,
             t.presses,
             t.depth_max_mm,
             100.0 * t.force_error_median,

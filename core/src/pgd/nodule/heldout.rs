@@ -159,6 +159,10 @@ pub struct TissueSummary {
     pub effect_max: f64,
     /// The surface drawn against Newton's with the nodule, largest distance (mm).
     pub surface_max_mm: f64,
+    /// How far the probe point lay from the nodule (from its surface), median over the
+    /// presses (mm): the nodule's depth under the tool where each probe was right above
+    /// its nodule (`palpa nodule check --tissue --above`).
+    pub gap_median_mm: f64,
 }
 
 /// The `q`-quantile of ascending `v` (nearest rank; 0 where empty).
@@ -188,6 +192,16 @@ impl TissueSummary {
                 .collect(),
         );
         let effects = pairs.iter().map(|p| p.effect_fe());
+        let gap = sorted(
+            pairs
+                .iter()
+                .map(|p| {
+                    let n = p.nodule;
+                    let d2: f64 = (0..3).map(|k| (p.at_mm[k] - n[k]).powi(2)).sum();
+                    d2.sqrt() - n[3]
+                })
+                .collect(),
+        );
         Some(TissueSummary {
             presses: pairs.len(),
             felt: effect.len(),
@@ -202,9 +216,32 @@ impl TissueSummary {
             effect_min: effects.clone().fold(f64::MAX, f64::min),
             effect_max: effects.fold(f64::MIN, f64::max),
             surface_max_mm: pairs.iter().map(|p| p.surface_mm).fold(0.0, f64::max),
+            gap_median_mm: quantile(&gap, 0.5),
         })
     }
 }
+
+/// Whether a tissue check drew its probe right above each nodule (`palpa nodule check
+/// --tissue --above`): every probe point within [`ABOVE_MM`] of the palpable point
+/// nearest its nodule's centre.
+pub fn drawn_above(check: &TissueCheck, organ: &OrganMesh) -> bool {
+    let space = organ_space(organ, Element::P2);
+    !check.pairs.is_empty()
+        && check.pairs.iter().all(|p| {
+            let n = p.nodule;
+            project(&space, &organ.palpable, [n[0], n[1], n[2]]).is_some_and(|nearest| {
+                let d2: f64 = (0..3)
+                    .map(|k| (nearest.point[k] - p.at_mm[k]).powi(2))
+                    .sum();
+                d2 <= ABOVE_MM * ABOVE_MM
+            })
+        })
+}
+
+/// How near the palpable point nearest a nodule's centre a probe point lies when it is
+/// drawn right above the nodule (mm): the scene's palpable surface and the FE's differ
+/// by less.
+pub const ABOVE_MM: f64 = 2.0;
 
 /// What a table's recorded tissue checks say, each as it was measured, with whether
 /// its effect was amplified by the table's power of the tissue.
@@ -416,7 +453,7 @@ mod tests {
     fn press(depth_mm: f64, without: f64, with: f64, tissue: f64, effect: f64) -> TissuePair {
         TissuePair {
             nodule: [0.0, 0.0, 0.0, 10.0, 4.0],
-            at_mm: [0.0; 3],
+            at_mm: [0.0, 0.0, 13.0],
             depth_mm,
             force_fe_without_n: without,
             force_fe_n: with,
@@ -451,6 +488,8 @@ mod tests {
         assert!((s.force_error_median - 0.01).abs() < 1e-12, "{s:?}");
         assert!((s.effect_max - 0.2).abs() < 1e-12 && (s.effect_min - 0.02).abs() < 1e-12);
         assert_eq!((s.depth_max_mm, s.surface_max_mm), (9.7, 0.97));
+        // The probe 13 mm from the centre of a 10 mm nodule: 3 mm above it.
+        assert!((s.gap_median_mm - 3.0).abs() < 1e-12, "{s:?}");
         assert!(TissueSummary::of(&[]).is_none());
     }
 
