@@ -89,11 +89,11 @@ if [ -n "${NODULES:-}" ]; then
   # The neo-Hookean tissue with a nodule (its force times 1 + e A, A the amplification
   # by the tissue's own press): every palpable vertex pressed to 10 mm without a nodule
   # (about 10 min on 2 cores), then checked against Newton with the nodule: the probe
-  # within 20 mm of it, then right above it (seed 20).
+  # within 20 mm of it (seeds 7, 8, 21), then right above it (20, 22).
   power="palpa nodule tissue assets/liver-coarse.nodules --tissue assets/liver-coarse.tissue"
   $palpa ${power#palpa } > /dev/null
   cmds+=(--command "$power")
-  for seed in "7" "8" "20 --above"; do
+  for seed in "7" "8" "20 --above" "21" "22 --above"; do
     check="palpa nodule check assets/liver-coarse.nodules --level coarse --tissue assets/liver-coarse.tissue --felt 5 --seed $seed --record"
     $palpa ${check#palpa } > /dev/null
     cmds+=(--command "$check")

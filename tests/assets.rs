@@ -516,56 +516,46 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
                 .all(|c| c.tissue_xxh3 == tissue.payload_xxh3() && c.amplified),
         "a tissue check recorded against the shipped tissue, amplified (re-run `palpa nodule check --tissue`)"
     );
-    // The goals' 5 % on the force; the effect's figures about three times, and its
-    // worst past the 10 % goal by half, as measured.
-    const FORCE_MEDIAN: f64 = 0.011;
-    const FORCE_MAX: f64 = 0.05;
-    const EFFECT_MEDIAN: f64 = 0.1;
-    const EFFECT_MAX: f64 = 0.2;
-    // A check drawn right above each nodule (`--above`) is told apart by its presses.
+    // Checks drawn around the nodule (the probe within 20 mm of its projection) and
+    // right above it (`--above`, told apart by their presses), each kind's presses
+    // together. Measured with the pressed tissue's own screening (docs/lab §23):
+    // around (seeds 7, 8, 21: 183 presses, 36 felt), the effect 3.2 % off at the
+    // median, 24.8 % at worst, 86 % within 10 %, the force 0.29 % / 3.3 %; above
+    // (seeds 20, 22: 39 presses, the nodule's top about 7 mm under the tool, 29
+    // felt), 5.2 % / 18.6 %, 83 %, the force 0.69 % / 6.2 %. Bounds: the goals' 5 % on
+    // the force around the nodule, the rest about three times the medians and half as
+    // much again as the worst.
     let (over, around): (Vec<_>, Vec<_>) = table
         .tissue_checks
         .iter()
         .partition(|c| heldout::drawn_above(c, &organ));
-    // Right above the nodule the first-order amplification overstates a nodule whose
-    // top lies within about 5 mm of the tool (docs/lab/nodule-measurements.md §22).
-    // Measured (seed 20: 24 presses, the nodule's top 7.2 mm under the tool at the
-    // median): 15 felt, 14 of them answered high; the effect 9.7 % off at the median,
-    // 38.7 % at worst, 60 % within 10 %; the force 0.8 % off at the median, 11.2 % at
-    // worst.
+    let together = |checks: &[&heldout::TissueCheck]| {
+        heldout::TissueSummary::of(checks.iter().flat_map(|c| &c.pairs)).expect("presses")
+    };
     assert!(
-        !over.is_empty(),
-        "a check with the probe above each nodule recorded (`--above`)"
+        around.len() >= 3 && over.len() >= 2,
+        "around and above recorded"
     );
-    for c in &over {
-        let t = heldout::TissueSummary::of(&c.pairs).expect("presses");
-        assert!(t.felt >= 3 && t.gap_median_mm < 15.0, "{t:?}");
-        assert!(
-            t.effect_error_median < 0.3 && t.effect_error_max < 0.6,
-            "{t:?}"
-        );
-        assert!(
-            t.force_error_median < 0.025 && t.force_error_max < 0.17,
-            "{t:?}"
-        );
-        let felt = c.pairs.iter().filter(|p| p.effect_fe() > heldout::FELT);
-        let high = felt
-            .clone()
-            .filter(|p| p.effect_answered > p.effect_fe())
-            .count();
-        assert!(
-            high * 4 >= felt.count() * 3,
-            "overstated where it misses: {t:?}"
-        );
-    }
-    assert!(around.len() >= 2);
-    for c in &around {
-        let t = heldout::TissueSummary::of(&c.pairs).expect("presses");
-        assert!(t.presses >= 40 && t.felt >= 6, "{t:?}");
-        assert!(t.force_error_median < FORCE_MEDIAN, "{t:?}");
-        assert!(t.force_error_max < FORCE_MAX, "{t:?}");
-        assert!(t.effect_error_median < EFFECT_MEDIAN, "{t:?}");
-        assert!(t.effect_error_max < EFFECT_MAX, "{t:?}");
-        assert!(t.effect_within_10_percent >= 0.8, "{t:?}");
-    }
+    let t = together(&around);
+    assert!(t.presses >= 150 && t.felt >= 30, "{t:?}");
+    assert!(
+        t.force_error_median < 0.01 && t.force_error_max < 0.05,
+        "{t:?}"
+    );
+    assert!(
+        t.effect_error_median < 0.1 && t.effect_error_max < 0.37,
+        "{t:?}"
+    );
+    assert!(t.effect_within_10_percent >= 0.75, "{t:?}");
+    let t = together(&over);
+    assert!(t.felt >= 20 && t.gap_median_mm < 12.0, "{t:?}");
+    assert!(
+        t.force_error_median < 0.02 && t.force_error_max < 0.1,
+        "{t:?}"
+    );
+    assert!(
+        t.effect_error_median < 0.16 && t.effect_error_max < 0.28,
+        "{t:?}"
+    );
+    assert!(t.effect_within_10_percent >= 0.7, "{t:?}");
 }

@@ -4,11 +4,11 @@
 //! the amplification against Newton's effect with the nodule, pressed along the same
 //! push. Measured at the vertex nearest (−40, 60, 30) mm, nodules of 9 mm under it:
 //! centre 20 mm deep, 4 times stiffer, Newton +7.8 / +9.3 % at 6.1 / 9.7 mm, amplified
-//! 10 / 12 % off, linear 29 / 42 %; centre 24 mm, 6 times, Newton +5.0 / +5.9 %,
-//! amplified 10 / 12.5 % off, linear 28 / 39 % (pressed to 15 mm, 10 / 6 and 10 /
-//! 9.5 %: docs/lab/nodule-measurements.md §18). Not asserted, a limit said in
-//! docs/lab/nodule-measurements.md §17: a strong nodule right under the tool (centre
-//! 13 mm, 5 times: +39 / +37 %) is answered 18 / 39 % high, the linear effect 5 / 11 %.
+//! (screened as the press deepens) 12 / 15 % low, linear 29 / 42 %; centre 24 mm, 6
+//! times, Newton +5.0 / +5.9 %, amplified 11 / 15 % low, linear 28 / 39 % (without the
+//! screening 10 / 12 % off: docs/lab/nodule-measurements.md §18, §23). Right above a
+//! nodule whose top lies within 5 mm of the tool the screening is what holds the
+//! answer (§22–23: recorded by `palpa nodule check --tissue --above`).
 
 use palpa_core::fe::newton::NewtonSettings;
 use palpa_core::fe::nodule::Nodule;

@@ -29,6 +29,20 @@
 //! moved the felt effects' errors from −21…+53 % (a mean growth with depth) to
 //! −5…+13 %, the table's own error included.
 //!
+//! The screening is not the same in both where the nodule carries much of the press:
+//! a stiff nodule whose top lies a few millimetres under the tool is screened more by
+//! the compressed layer above it than by the linear tissue (Newton's effect 0.83–1.15
+//! times the linear one where `A` says 1.06–1.34; docs/lab §22). To second order in
+//! the contrast, that extra screening grows with the nodule's first-order share of the
+//! press, `f = Σ_c (s_c − 1) P_c^lin`, and with the depth, so `A` is taken as
+//!
+//! ```text
+//! A(s, d) = [Σ_c (s_c − 1) P_c(s, d)] / f · exp(−κ f d),   κ = PRESSED_SCREENING_PER_MM,
+//! ```
+//!
+//! which keeps first order exact (`A` → its first-order value as `s_c → 1`), and was
+//! measured against Newton right above the nodule and at the recorded presses.
+//!
 //! Off-line ([`VertexPower::from_press`]): every palpable vertex pressed without a
 //! nodule along the tissue build's push. Over each step of the depth grid a cell's
 //! share is the power of the step's mean state along its secant over the step's mean
@@ -50,6 +64,12 @@ use crate::fe::law::Law;
 use crate::fe::nodule::Nodule;
 use crate::fe::space::Space;
 use serde::{Deserialize, Serialize};
+
+/// The pressed tissue's extra screening of a nodule, per millimetre of depth and per
+/// unit of the nodule's first-order share of the press (`exp(−κ f d)`, see the module
+/// doc): chosen over 0.02–0.06 at 70 presses right above nodules, then measured at the
+/// recorded checks and at fresh seeds (docs/lab/nodule-measurements.md §23).
+pub const PRESSED_SCREENING_PER_MM: f64 = 0.04;
 
 /// How many depths an [`EffectCurve`] holds: the tissue's grid steps, at most.
 pub const CURVE_DEPTHS: usize = 24;
@@ -157,7 +177,8 @@ pub struct VertexPower {
     pub depths: u32,
 }
 
-/// A placed nodule's amplification at every vertex: `A` at each depth.
+/// A placed nodule's amplification at every vertex: `A` at each depth, the pressed
+/// tissue's extra screening included.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Placed {
     /// `A[v · depths + j]`, 1 where the nodule touches none of the vertex's cells.
@@ -291,7 +312,7 @@ impl CellPower {
                 continue;
             }
             let reached = (v.depths as usize).min(n);
-            let mut last = 1.0f32;
+            let mut last = 1.0;
             for (j, a) in out.iter_mut().enumerate() {
                 if j < reached {
                     let pressed: f64 = weight
@@ -299,9 +320,11 @@ impl CellPower {
                         .zip(&v.pressed[j * m..(j + 1) * m])
                         .map(|(w, &q)| w * ratio[q as usize])
                         .sum();
-                    last = (pressed / lin) as f32;
+                    last = pressed / lin;
                 }
-                *a = last;
+                let first = lin / SHARE_SCALE;
+                let screened = (-PRESSED_SCREENING_PER_MM * first * self.depths_mm[j]).exp();
+                *a = (last * screened) as f32;
             }
         }
         Placed {
@@ -519,8 +542,21 @@ mod tests {
         .map(|d| [c[0] + d[0], c[1] + d[1], c[2] + d[2]])
     }
 
+    /// Shares of the linear press's power, stored as a build stores them.
     fn bits(v: &[f64]) -> Vec<u16> {
-        v.iter().map(|&x| f16::from_f64(x).to_bits()).collect()
+        v.iter()
+            .map(|&x| f16::from_f64(SHARE_SCALE * x).to_bits())
+            .collect()
+    }
+
+    /// The pressed tissue's extra screening at depth `d_mm` of a nodule whose
+    /// first-order share of the press is `first`.
+    fn screened(first: f64, d_mm: f64) -> f32 {
+        (-PRESSED_SCREENING_PER_MM * first * d_mm).exp() as f32
+    }
+
+    fn close(a: &[f32], b: &[f32]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-3 * y.abs())
     }
 
     fn ratios(v: &[f64]) -> Vec<u8> {
@@ -566,14 +602,22 @@ mod tests {
             radius_mm: 4.0,
             ratio,
         };
-        // On the second cell: doubled at the first vertex, held past its reach; the
-        // second vertex keeps no cell of it (1).
+        // On the second cell (a share 0.1, three times stiffer: first order 0.3):
+        // doubled at the first vertex, held past its reach, screened with the depth;
+        // the second vertex keeps no cell of it (1).
         let a = p.place(&around(30.7, 4.0));
-        assert_eq!(a.at_vertex, vec![2.0, 2.0, 1.0, 1.0]);
-        // On the first cell: kept at the first vertex; doubled, then kept at the
-        // second.
+        let s = |first: f64| [screened(first, 1.0), screened(first, 3.0)];
+        let [s1, s3] = s(0.3);
+        assert!(
+            close(&a.at_vertex, &[2.0 * s1, 2.0 * s3, 1.0, 1.0]),
+            "{a:?}"
+        );
+        assert!(s1 < 1.0 && s3 < s1);
+        // On the first cell (shares 0.2 and 0.3: first order 0.6 and 0.9): kept at the
+        // first vertex; doubled, then kept at the second.
         let a = p.place(&around(10.7, 4.0));
-        assert_eq!(a.at_vertex, vec![1.0, 1.0, 2.0, 1.0]);
+        let ([a1, a3], [b1, b3]) = (s(0.6), s(0.9));
+        assert!(close(&a.at_vertex, &[a1, a3, 2.0 * b1, b3]), "{a:?}");
         // Ratio 1 changes no cell: no amplification anywhere.
         assert!(
             p.place(&around(10.7, 1.0))
@@ -605,17 +649,21 @@ mod tests {
             (Some(0), Some(1), None)
         );
         let c = a.curve([v0, v1, None], [0.25, 0.25, 0.5], 0.1);
-        // Halfway between A = 1 and A = 2 at 1 mm, A = 1 at 3 mm.
-        assert!((c.at(1.0) - 0.15).abs() < 1e-6, "{c:?}");
-        assert!((c.at(3.0) - 0.1).abs() < 1e-6);
-        assert!((c.at(2.0) - 0.125).abs() < 1e-6);
+        // Halfway between the corners' A (1 and 2 at 1 mm, 1 and 1 at 3 mm, each
+        // screened: first order 0.6 and 0.9).
+        let at1 = 0.1 * f64::from(screened(0.6, 1.0) + 2.0 * screened(0.9, 1.0)) / 2.0;
+        let at3 = 0.1 * f64::from(screened(0.6, 3.0) + screened(0.9, 3.0)) / 2.0;
+        let near = |x: f64, y: f64| (x - y).abs() < 1e-6;
+        assert!(near(c.at(1.0), at1), "{c:?}");
+        assert!(near(c.at(3.0), at3) && near(c.at(2.0), 0.5 * (at1 + at3)));
         // From the linear effect at the rest; carried on over the half step the press
         // reached past the last depth (to 4 mm), held past it.
-        assert!((c.at(0.0) - 0.1).abs() < 1e-6 && (c.at(0.5) - 0.125).abs() < 1e-6);
-        assert!((c.at(3.5) - 0.0875).abs() < 1e-6 && (c.at(4.0) - 0.075).abs() < 1e-6);
-        assert!((c.at(40.0) - 0.075).abs() < 1e-6 && (c.at(f64::INFINITY) - 0.075).abs() < 1e-6);
-        assert!((c.at(f64::NAN) - 0.1).abs() < 1e-6 && (c.at(-3.0) - 0.1).abs() < 1e-6);
-        assert!((c.max() - 0.15).abs() < 1e-6);
+        let end = at3 + 0.5 * (at3 - at1);
+        assert!(near(c.at(0.0), 0.1) && near(c.at(0.5), 0.5 * (0.1 + at1)));
+        assert!(near(c.at(3.5), at3 + 0.25 * (at3 - at1)) && near(c.at(4.0), end));
+        assert!(near(c.at(40.0), end) && near(c.at(f64::INFINITY), end));
+        assert!(near(c.at(f64::NAN), 0.1) && near(c.at(-3.0), 0.1));
+        assert!(near(c.max(), at1));
         // No stored corner: the flat curve.
         let flat = a.curve([None; 3], [0.2, 0.3, 0.5], 0.1);
         assert_eq!(flat, EffectCurve::flat(0.1));
