@@ -39,7 +39,7 @@ pub const HELD_SHARE: f64 = 1e-9;
 /// Whether a press whose probe point moves `probe_mm` while the organ moves at most
 /// `max_mm` is held by the fixed region (see [`HELD_SHARE`]).
 fn held(probe_mm: f64, max_mm: f64) -> bool {
-    !(probe_mm > HELD_SHARE * max_mm)
+    probe_mm.is_nan() || probe_mm <= HELD_SHARE * max_mm
 }
 
 /// Where an effect counts: above this share of the force.
