@@ -525,10 +525,15 @@ fn the_default_nodule_table_is_the_default_organs_and_records_its_accuracy() {
     // felt), 5.2 % / 18.6 %, 83 %, the force 0.69 % / 6.2 %. Bounds: the goals' 5 % on
     // the force around the nodule, the rest about three times the medians and half as
     // much again as the worst.
-    let (over, around): (Vec<_>, Vec<_>) = table
-        .tissue_checks
-        .iter()
-        .partition(|c| heldout::drawn_above(c, &organ));
+    let above = heldout::drawn_above(&table.tissue_checks, &organ);
+    let kind = |want: bool| -> Vec<&heldout::TissueCheck> {
+        let checks = table.tissue_checks.iter().zip(&above);
+        checks
+            .filter(|(_, a)| **a == want)
+            .map(|(c, _)| c)
+            .collect()
+    };
+    let (over, around) = (kind(true), kind(false));
     let together = |checks: &[&heldout::TissueCheck]| {
         heldout::TissueSummary::of(checks.iter().flat_map(|c| &c.pairs)).expect("presses")
     };

@@ -201,12 +201,12 @@ fn nodule_table(
         palpa_core::organ::catalogue::OrganName::Liver,
         palpa_core::organ::Level::Coarse,
     );
+    let above = drawn_above(&table.tissue_checks, &organ);
     let checks: Vec<_> = table
         .tissue_checks
         .iter()
-        .filter_map(|c| {
-            TissueSummary::of(&c.pairs).map(|t| (c.seed, c.amplified, drawn_above(c, &organ), t))
-        })
+        .zip(above)
+        .filter_map(|(c, a)| TissueSummary::of(&c.pairs).map(|t| (c.seed, c.amplified, a, t)))
         .collect();
     if checks.is_empty() {
         writeln!(

@@ -312,6 +312,7 @@ impl CellPower {
                 continue;
             }
             let reached = (v.depths as usize).min(n);
+            let first = lin / SHARE_SCALE;
             let mut last = 1.0;
             for (j, a) in out.iter_mut().enumerate() {
                 if j < reached {
@@ -322,7 +323,6 @@ impl CellPower {
                         .sum();
                     last = pressed / lin;
                 }
-                let first = lin / SHARE_SCALE;
                 let screened = (-PRESSED_SCREENING_PER_MM * first * self.depths_mm[j]).exp();
                 *a = (last * screened) as f32;
             }

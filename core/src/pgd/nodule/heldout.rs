@@ -221,21 +221,24 @@ impl TissueSummary {
     }
 }
 
-/// Whether a tissue check drew its probe right above each nodule (`palpa nodule check
-/// --tissue --above`): every probe point within [`ABOVE_MM`] of the palpable point
-/// nearest its nodule's centre.
-pub fn drawn_above(check: &TissueCheck, organ: &OrganMesh) -> bool {
+/// For each tissue check, whether it drew its probe right above each nodule (`palpa
+/// nodule check --tissue --above`): every probe point within [`ABOVE_MM`] of the
+/// palpable point nearest its nodule's centre.
+pub fn drawn_above(checks: &[TissueCheck], organ: &OrganMesh) -> Vec<bool> {
     let space = organ_space(organ, Element::P2);
-    !check.pairs.is_empty()
-        && check.pairs.iter().all(|p| {
-            let n = p.nodule;
-            project(&space, &organ.palpable, [n[0], n[1], n[2]]).is_some_and(|nearest| {
-                let d2: f64 = (0..3)
-                    .map(|k| (nearest.point[k] - p.at_mm[k]).powi(2))
-                    .sum();
-                d2 <= ABOVE_MM * ABOVE_MM
-            })
+    let above = |p: &TissuePair| {
+        let n = p.nodule;
+        project(&space, &organ.palpable, [n[0], n[1], n[2]]).is_some_and(|nearest| {
+            let d2: f64 = (0..3)
+                .map(|k| (nearest.point[k] - p.at_mm[k]).powi(2))
+                .sum();
+            d2 <= ABOVE_MM * ABOVE_MM
         })
+    };
+    checks
+        .iter()
+        .map(|c| !c.pairs.is_empty() && c.pairs.iter().all(above))
+        .collect()
 }
 
 /// How near the palpable point nearest a nodule's centre a probe point lies when it is
